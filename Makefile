@@ -1,0 +1,30 @@
+# Two entry points for a fresh machine with only Python 3.11 and pip:
+#   make run   -> set up .venv, fly the demo mission and write a report
+#   make test  -> set up .venv (with test extras) and run the test suite
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+OUT    ?= runs/demo
+
+.PHONY: run test bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $@
+
+run: $(VENV)/.installed
+	$(BIN)/aerorelay validate scenarios/nominal_tilted.toml
+	$(BIN)/aerorelay info scenarios/nominal_tilted.toml
+
+test: $(VENV)/.installed
+	$(BIN)/python -m pytest -q
+
+bench: $(VENV)/.installed
+	$(BIN)/aerorelay bench scenarios/nominal_tilted.toml
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis

@@ -1,0 +1,366 @@
+"""Typed scenario configuration (pydantic) loaded from TOML presets in ``scenarios/``.
+
+Every field carries its unit in its name or docstring. Unknown fields are rejected. Defaults are
+the paper's Table I values and SPEC.md's resolved choices, so an empty ``[section]`` is valid.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+import tomli_w
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .models.antenna import DipolePattern, SinPowerPattern
+from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
+from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, hexarotor, hexarotor_layout
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+MIN_NODE_SEPARATION_M = 0.1
+
+
+class ScenarioError(ValueError):
+    """A scenario failed validation; ``str()`` lists one line per bad field."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+class Rotor(_Strict):
+    """One rotor of a custom GTMR layout (body frame)."""
+
+    position: Vec3
+    axis: Vec3
+    spin: Literal[-1, 1]
+
+
+class PlatformConfig(_Strict):
+    """Relay vehicle (MRAV-1). Hexarotor by default; ``rotors`` overrides the layout."""
+
+    tilt_deg: float = Field(20.0, ge=0.0, le=60.0, description="hexarotor alternating tilt about each arm, deg")
+    arm_length_m: float = Field(HEXAROTOR_ARM_LENGTH_M, gt=0.0, le=5.0)
+    rotors: list[Rotor] | None = Field(None, min_length=4, description="custom layout; overrides tilt/arm")
+    mass_kg: float = Field(2.57, gt=0.0)
+    inertia_kgm2: Vec3 = Field(default_factory=lambda: [0.11, 0.11, 0.19], description="diagonal of J, kg m^2")
+    gravity_m_s2: float = Field(9.81, gt=0.0)
+    c_xi: float = Field(1.18e-3, gt=0.0, description="thrust coefficient, N/Hz^2")
+    c_tau: float = Field(2.5e-5, ge=0.0, description="drag-moment coefficient, N m/Hz^2")
+    omega_min_hz: float = Field(16.0, ge=0.0)
+    omega_max_hz: float = Field(100.0, gt=0.0)
+    omega_dot_min_hz_s: float = Field(-300.0, lt=0.0)
+    omega_dot_max_hz_s: float = Field(400.0, gt=0.0)
+
+    @field_validator("inertia_kgm2")
+    @classmethod
+    def _positive_inertia(cls, v):
+        if min(v) <= 0:
+            raise ValueError(f"every principal inertia must be > 0 kg m^2, got {v}")
+        return v
+
+    @model_validator(mode="after")
+    def _bounds_and_hover(self):
+        if self.omega_min_hz >= self.omega_max_hz:
+            raise ValueError(
+                f"omega_min_hz ({self.omega_min_hz}) must be < omega_max_hz ({self.omega_max_hz})"
+            )
+        try:
+            self.vehicle().hover_speeds()
+        except HoverInfeasibleError as exc:
+            raise ValueError(str(exc)) from None
+        return self
+
+    def vehicle(self) -> Multirotor:
+        """Build the vehicle model described by this configuration."""
+        params = dict(
+            mass=self.mass_kg,
+            inertia=np.diag(self.inertia_kgm2),
+            gravity=self.gravity_m_s2,
+            c_xi=self.c_xi,
+            c_tau=self.c_tau,
+            omega_min=self.omega_min_hz,
+            omega_max=self.omega_max_hz,
+            omega_dot_min=self.omega_dot_min_hz_s,
+            omega_dot_max=self.omega_dot_max_hz_s,
+        )
+        if self.rotors is None:
+            return hexarotor(self.tilt_deg, self.arm_length_m, **params)
+        axes = np.array([r.axis for r in self.rotors], float)
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        return Multirotor(
+            positions=np.array([r.position for r in self.rotors], float),
+            axes=axes,
+            spins=np.array([r.spin for r in self.rotors], float),
+            **params,
+        )
+
+
+class AntennaConfig(_Strict):
+    """Antenna pattern shared by every node (dipole along body z by default)."""
+
+    pattern: Literal["dipole", "sin_power"] = "dipole"
+    exponent: float = Field(2.0, gt=0.0, description="n of the sin^n pattern")
+    g_bar: float = Field(1.0, gt=0.0, description="peak (broadside) gain")
+
+    def build(self):
+        if self.pattern == "dipole":
+            return DipolePattern(self.g_bar)
+        return SinPowerPattern(self.exponent, self.g_bar)
+
+
+class ChannelConfig(_Strict):
+    """Link budget (normalized units, paper Table I)."""
+
+    bandwidth: float = Field(1.0, gt=0.0, description="B, normalized")
+    tx_power_w: float = Field(1.0, gt=0.0, description="P_U")
+    noise_power_w: float = Field(1.0, gt=0.0, description="sigma^2")
+    outage_threshold: float = Field(1e-3, gt=0.0, description="outage when C is below this")
+
+
+class NodesConfig(_Strict):
+    """Fixed and initial node positions (m, world). MRAV-2 starts at the mission's first point."""
+
+    bs: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    relay: Vec3 = Field(default_factory=lambda: [-6.95, 5.79, 1.72])
+
+
+class JammerConfig(_Strict):
+    """Isotropic ground jammer."""
+
+    position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72])
+    power_w: float = Field(1.0, ge=0.0)
+    schedule: Literal["always_on", "on_off"] = "always_on"
+    on_s: float = Field(5.0, gt=0.0)
+    off_s: float = Field(5.0, gt=0.0)
+    localization_delay_s: float = Field(2.0, ge=0.0, description="tau_E")
+
+    def build(self) -> Jammer:
+        sched = AlwaysOn() if self.schedule == "always_on" else PeriodicOnOff(self.on_s, self.off_s)
+        return Jammer(np.array(self.position, float), self.power_w, sched, self.localization_delay_s)
+
+
+class Weights(_Strict):
+    """NMPC cost weights: each is the diagonal entry ``q`` of a term ``q * r^2`` (see README)."""
+
+    position: float = Field(1.0, ge=0.0)
+    position_terminal: float = Field(10.0, ge=0.0)
+    velocity: float = Field(2.0, ge=0.0)
+    thrust_direction: float = Field(300.0, ge=0.0)
+    misalignment: float = Field(10.0, ge=0.0)
+    misalignment_terminal: float = Field(10.0, ge=0.0)
+    input_rate: float = Field(1e-5, gt=0.0, description="on u_k - u_(k-1), (Hz/s)^-2")
+    body_rate: float = Field(1.0, ge=0.0, description="regularizer on omega")
+
+
+class Workspace(_Strict):
+    """Axis-aligned box (m, world) the relay must stay in (NMPC position bounds)."""
+
+    min: Vec3 = Field(default_factory=lambda: [-7.0, -6.0, 0.5])
+    max: Vec3 = Field(default_factory=lambda: [7.0, 6.0, 19.0])
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        for i, ax in enumerate("xyz"):
+            if self.min[i] >= self.max[i]:
+                raise ValueError(f"workspace {ax}: min ({self.min[i]}) must be < max ({self.max[i]})")
+        return self
+
+    def contains(self, p) -> bool:
+        return all(self.min[i] <= p[i] <= self.max[i] for i in range(3))
+
+
+class ControllerConfig(_Strict):
+    """Trajectory generator + communications-aware NMPC."""
+
+    variant: Literal["constrained", "unconstrained"] = "constrained"
+    ts_s: float = Field(0.015, gt=0.0, le=1.0, description="NMPC sampling period Ts")
+    horizon: int = Field(30, ge=1, le=200, description="N shooting intervals")
+    mu: float = Field(0.2, ge=0.0, le=1.0, description="minimum mutual alignment")
+    q_slack: float = Field(1e4, gt=0.0, description="q_pi")
+    governor_speed_m_s: float = Field(0.5, gt=0.0, description="max speed of the reference governor")
+    hessian_eig_floor: float = Field(1e-3, gt=0.0, description="min eigenvalue of H11 after regularization")
+    weights: Weights = Field(default_factory=Weights)
+    workspace: Workspace = Field(default_factory=Workspace)
+
+
+class MissionConfig(_Strict):
+    """MRAV-2 path: minimum-jerk segments through timed waypoints ``[t_s, x, y, z]`` or a CSV."""
+
+    waypoints: list[Annotated[list[float], Field(min_length=4, max_length=4)]] = Field(
+        default_factory=lambda: [
+            [0.0, -3.04, 5.79, 1.72],
+            [12.0, -1.5, 4.29, 9.0],
+            [17.0, -1.5, 4.29, 9.0],
+            [28.0, -3.0, 4.29, 16.5],
+            [38.0, 0.0, 4.29, 16.5],
+            [47.0, -1.5, 4.29, 17.5],
+        ],
+        min_length=2,
+    )
+    trajectory_csv: str | None = Field(None, description="CSV with columns t,px,py,pz,vx,vy,vz,ax,ay,az")
+
+    @field_validator("waypoints")
+    @classmethod
+    def _increasing_times(cls, wps):
+        t = [w[0] for w in wps]
+        if t[0] != 0.0:
+            raise ValueError(f"the first waypoint time must be 0 s, got {t[0]}")
+        if any(b <= a for a, b in zip(t, t[1:])):
+            raise ValueError(f"waypoint times must be strictly increasing, got {t}")
+        return wps
+
+    @property
+    def duration_s(self) -> float:
+        return self.waypoints[-1][0]
+
+    @property
+    def start(self) -> list[float]:
+        return list(self.waypoints[0][1:])
+
+
+class SimConfig(_Strict):
+    """Closed-loop simulation rates and length."""
+
+    plant_rate_hz: float = Field(1000.0, gt=0.0, le=20000.0)
+    control_rate_hz: float | None = Field(None, gt=0.0, le=500.0, description="default 1/Ts")
+    duration_s: float | None = Field(None, gt=0.0, description="default: the mission's length")
+
+
+class PerturbationConfig(_Strict):
+    """Disturbances unknown to the controller (robustness studies)."""
+
+    fading_k_db: float | None = Field(None, ge=0.0, description="Rician K in dB; omit or inf for none")
+    csi_noise_m: float = Field(0.0, ge=0.0, description="std of position noise on MRAV-2 and jammer")
+    process_noise_v: float = Field(0.0, ge=0.0, description="translational acceleration noise std, m/s^2")
+    process_noise_w: float = Field(0.0, ge=0.0, description="rotational acceleration noise std, rad/s^2")
+
+
+class Scenario(_Strict):
+    """A complete, validated relay scenario."""
+
+    name: str = "scenario"
+    description: str = ""
+    seed: int = Field(0, ge=0)
+    platform: PlatformConfig = Field(default_factory=PlatformConfig)
+    antenna: AntennaConfig = Field(default_factory=AntennaConfig)
+    channel: ChannelConfig = Field(default_factory=ChannelConfig)
+    nodes: NodesConfig = Field(default_factory=NodesConfig)
+    jammer: JammerConfig = Field(default_factory=JammerConfig)
+    controller: ControllerConfig = Field(default_factory=ControllerConfig)
+    mission: MissionConfig = Field(default_factory=MissionConfig)
+    sim: SimConfig = Field(default_factory=SimConfig)
+    perturbations: PerturbationConfig = Field(default_factory=PerturbationConfig)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        pts = {
+            "nodes.bs": self.nodes.bs,
+            "nodes.relay": self.nodes.relay,
+            "jammer.position": self.jammer.position,
+            "mission.waypoints[0]": self.mission.start,
+        }
+        names = list(pts)
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                d = math.dist(pts[a], pts[b])
+                if d < MIN_NODE_SEPARATION_M:
+                    raise ValueError(
+                        f"{a} and {b} coincide ({d:.3g} m apart); nodes must be >= {MIN_NODE_SEPARATION_M} m apart"
+                    )
+        ws = self.controller.workspace
+        if not ws.contains(self.nodes.relay):
+            raise ValueError(f"nodes.relay {self.nodes.relay} must lie inside controller.workspace [{ws.min}, {ws.max}]")
+        steps = self.sim.plant_rate_hz * self.control_period_s
+        if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+            raise ValueError(
+                f"the control period ({self.control_period_s} s) must be a whole number of plant steps "
+                f"(sim.plant_rate_hz = {self.sim.plant_rate_hz})"
+            )
+        return self
+
+    @property
+    def control_period_s(self) -> float:
+        rate = self.sim.control_rate_hz
+        return self.controller.ts_s if rate is None else 1.0 / rate
+
+    @property
+    def duration_s(self) -> float:
+        return self.sim.duration_s if self.sim.duration_s is not None else self.mission.duration_s
+
+    def to_toml(self) -> str:
+        """The resolved scenario as TOML text (every default spelled out)."""
+        return tomli_w.dumps(self.model_dump(exclude_none=True))
+
+    def with_updates(self, updates: dict) -> "Scenario":
+        """A new validated scenario with dotted-key updates, e.g. ``{"controller.variant": "unconstrained"}``."""
+        data = self.model_dump(exclude_none=True)
+        for key, value in updates.items():
+            node = data
+            *parents, leaf = key.split(".")
+            for p in parents:
+                node = node.setdefault(p, {})
+            node[leaf] = value
+        return parse_scenario(data)
+
+
+_BOUND_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal"}
+
+
+def _allowed_range(loc: tuple) -> str:
+    """Human-readable allowed range of the numeric field at ``loc`` (e.g. ``[0, 1]``, ``(0, inf)``)."""
+    model, info = Scenario, None
+    for part in loc:
+        if not isinstance(part, str) or model is None or part not in model.model_fields:
+            return ""
+        info = model.model_fields[part]
+        ann = info.annotation
+        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    lo, hi, lo_open, hi_open = "-inf", "inf", True, True
+    for m in info.metadata if info else []:
+        for attr, is_lo, is_open in (("gt", 1, 1), ("ge", 1, 0), ("lt", 0, 1), ("le", 0, 0)):
+            v = getattr(m, attr, None)
+            if v is not None:
+                if is_lo:
+                    lo, lo_open = f"{v:g}", bool(is_open)
+                else:
+                    hi, hi_open = f"{v:g}", bool(is_open)
+    return f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
+
+
+def _format_errors(err: ValidationError) -> str:
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "scenario"
+        msg = e["msg"].removeprefix("Value error, ")
+        got = e.get("input")
+        shown = "" if isinstance(got, dict) or e["type"] == "missing" else f" (got {got!r})"
+        if e["type"] == "extra_forbidden":
+            msg, shown = "unknown field", ""
+        elif e["type"] in _BOUND_ERRORS:
+            msg = f"must be in {_allowed_range(tuple(e['loc']))}"
+        lines.append(f"{loc}: {msg}{shown}")
+    return "\n".join(lines)
+
+
+def parse_scenario(data: dict) -> Scenario:
+    """Validate a scenario from a plain dict; raises ScenarioError with one line per problem."""
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(_format_errors(exc)) from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Load and validate a TOML scenario file; raises ScenarioError naming each bad field."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: no such scenario file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    return parse_scenario(data)

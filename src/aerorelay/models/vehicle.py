@@ -1,0 +1,147 @@
+"""Generically-tilted multirotor (GTMR) dynamics (paper Sec. V-A, eq. 1-2).
+
+State ``x = (p, eta, v, omega, Omega)`` with ``12 + N_p`` entries: position p (m, world),
+ZYX Euler angles eta (rad), velocity v (m/s, world), body rate omega (rad/s, body), motor
+speeds Omega (Hz = rev/s). Input ``u = Omega_dot`` (Hz/s). Rotor i at body position ``p_m_i``
+with unit axis ``z_P_i`` and spin ``s_i = +-1`` produces thrust ``c_xi Omega_i^2 z_P_i`` and
+moment ``(c_xi p_m_i x z_P_i + s_i c_tau z_P_i) Omega_i^2``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from .backend import is_symbolic, ops
+from .geometry import E3, euler_rate_matrix, rotation_zyx
+
+# Representative arm length of a medium-scale research hexarotor (the paper does not give one).
+HEXAROTOR_ARM_LENGTH_M = 0.35
+
+
+class HoverInfeasibleError(ValueError):
+    """The layout cannot balance gravity with zero moment inside the motor-speed bounds."""
+
+
+@dataclass(frozen=True)
+class Multirotor:
+    """A GTMR: rotor layout plus rigid-body and actuator parameters (SI units, speeds in Hz)."""
+
+    positions: np.ndarray  # (N_p, 3) rotor centres in the body frame, m
+    axes: np.ndarray  # (N_p, 3) unit thrust axes in the body frame
+    spins: np.ndarray  # (N_p,) +1 / -1: sign of the drag moment along the axis
+    mass: float = 2.57
+    inertia: np.ndarray = field(default_factory=lambda: np.diag([0.11, 0.11, 0.19]))
+    gravity: float = 9.81
+    c_xi: float = 1.18e-3  # thrust coefficient, N/Hz^2
+    c_tau: float = 2.5e-5  # drag-moment coefficient, N m/Hz^2
+    omega_min: float = 16.0  # Hz
+    omega_max: float = 100.0  # Hz
+    omega_dot_min: float = -300.0  # Hz/s
+    omega_dot_max: float = 400.0  # Hz/s
+
+    @property
+    def n_rotors(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def nx(self) -> int:
+        return 12 + self.n_rotors
+
+    def allocation(self) -> tuple[np.ndarray, np.ndarray]:
+        """Allocation matrices ``F, M`` (3 x N_p): body force and moment per unit ``Omega_i^2``."""
+        return self._allocation
+
+    @cached_property
+    def _allocation(self) -> tuple[np.ndarray, np.ndarray]:
+        F = self.c_xi * self.axes.T
+        M = (self.c_xi * np.cross(self.positions, self.axes) + self.c_tau * self.spins[:, None] * self.axes).T
+        return F, M
+
+    def hover_speeds(self) -> np.ndarray:
+        """Motor speeds (Hz) holding a level hover: ``F w = m g e3``, ``M w = 0``, ``w = Omega^2``.
+
+        Minimum-norm least squares when the layout is redundant. Raises HoverInfeasibleError
+        when no such ``w`` exists or a speed falls outside ``[omega_min, omega_max]``.
+        """
+        F, M = self.allocation()
+        A = np.vstack([F, M])
+        b = np.concatenate([self.mass * self.gravity * E3, np.zeros(3)])
+        w, *_ = np.linalg.lstsq(A, b, rcond=None)
+        if np.linalg.norm(A @ w - b) > 1e-6 * np.linalg.norm(b) or np.any(w <= 0):
+            raise HoverInfeasibleError("hover infeasible: the rotor layout cannot balance gravity with zero moment")
+        speeds = np.sqrt(w)
+        if speeds.min() < self.omega_min or speeds.max() > self.omega_max:
+            raise HoverInfeasibleError(
+                f"hover infeasible: hover needs motor speeds in [{speeds.min():.1f}, {speeds.max():.1f}] Hz, "
+                f"outside the allowed range [{self.omega_min}, {self.omega_max}] Hz"
+            )
+        return speeds
+
+    def hover_state(self, position=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """Equilibrium state at ``position`` with zero attitude, velocity and body rate."""
+        x = np.zeros(self.nx)
+        x[0:3] = position
+        x[12:] = self.hover_speeds()
+        return x
+
+    def dynamics(self, x, u):
+        """``x_dot = f(x, u)`` (eq. 1 with ``Omega_dot = u``). *Dual*: numpy arrays or CasADi."""
+        o = ops(x, u)
+        sym = is_symbolic(x, u)
+        F, M = self.allocation()
+        eta, v, w, Om = x[3:6], x[6:9], x[9:12], x[12:]
+        Om2 = Om * Om
+        R = rotation_zyx(eta)
+        J = self.inertia
+        if sym:
+            force_body = ca.mtimes(ca.DM(F), Om2)
+            moment_body = ca.mtimes(ca.DM(M), Om2)
+            Jw = ca.mtimes(ca.DM(J), w)
+            wdot = ca.solve(ca.DM(J), moment_body - o.cross(w, Jw))
+            acc = ca.mtimes(R, force_body) / self.mass - self.gravity * ca.DM(E3)
+            return ca.vertcat(v, ca.mtimes(euler_rate_matrix(eta), w), acc, wdot, u)
+        x = np.asarray(x, float)
+        force_body, moment_body = F @ Om2, M @ Om2
+        wdot = np.linalg.solve(J, moment_body - np.cross(w, J @ w))
+        acc = R @ force_body / self.mass - self.gravity * E3
+        return np.concatenate([v, euler_rate_matrix(eta) @ w, acc, wdot, np.asarray(u, float)])
+
+    def rk4_step(self, x, u, dt: float):
+        """One classical Runge-Kutta-4 step of length ``dt`` s with ``u`` held. *Dual*."""
+        k1 = self.dynamics(x, u)
+        k2 = self.dynamics(x + 0.5 * dt * k1, u)
+        k3 = self.dynamics(x + 0.5 * dt * k2, u)
+        k4 = self.dynamics(x + dt * k3, u)
+        return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    def shaft_power(self, speeds) -> np.ndarray:
+        """Aerodynamic shaft power ``sum_i c_tau Omega_i^2 * 2 pi Omega_i`` in W (speeds in Hz)."""
+        s = np.asarray(speeds, float)
+        return np.sum(self.c_tau * s**3 * 2.0 * np.pi, axis=-1)
+
+
+def hexarotor_layout(tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M):
+    """Hexarotor rotor layout: arms every 60 deg starting on body +x.
+
+    Rotor i (0-based) sits at ``L (cos b_i, sin b_i, 0)`` with ``b_i = i * 60 deg``; its axis is
+    body z rotated about the arm by ``(-1)^i * tilt`` (alternating, as in Ryll et al.); its spin
+    is ``s_i = (-1)^i`` so the drag moments cancel in hover.
+    """
+    i = np.arange(6)
+    beta = np.radians(60.0 * i)
+    arm = np.stack([np.cos(beta), np.sin(beta), np.zeros(6)], axis=-1)
+    alpha = np.radians(tilt_deg) * (-1.0) ** i
+    # Rodrigues about the (horizontal) arm axis a: z_P = cos(alpha) e3 + sin(alpha) (a x e3).
+    axes = np.cos(alpha)[:, None] * E3 + np.sin(alpha)[:, None] * np.cross(arm, E3)
+    spins = (-1.0) ** i
+    return arm_length * arm, axes, spins
+
+
+def hexarotor(tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M, **params) -> Multirotor:
+    """The paper's hexarotor: ``tilt_deg=0`` coplanar, ``tilt_deg=20`` tilted (fully actuated)."""
+    positions, axes, spins = hexarotor_layout(tilt_deg, arm_length)
+    return Multirotor(positions=positions, axes=axes, spins=spins, **params)

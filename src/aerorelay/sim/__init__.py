@@ -1,0 +1,1 @@
+"""Missions, closed-loop simulation and disturbances."""

@@ -1,0 +1,65 @@
+from pathlib import Path
+
+import pytest
+
+from aerorelay.config import ScenarioError, load_scenario, parse_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PRESETS = sorted((ROOT / "scenarios").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", PRESETS, ids=lambda p: p.stem)
+def test_presets_load_and_round_trip(path):
+    sc = load_scenario(path)
+    import tomllib
+
+    again = parse_scenario(tomllib.loads(sc.to_toml()))
+    assert again == sc
+
+
+def test_nominal_values_are_the_papers():
+    sc = load_scenario(ROOT / "scenarios" / "nominal_tilted.toml")
+    assert sc.platform.tilt_deg == 20.0 and sc.platform.mass_kg == 2.57
+    assert sc.controller.ts_s == 0.015 and sc.controller.horizon == 30 and sc.controller.mu == 0.2
+    assert sc.jammer.localization_delay_s == 2.0 and sc.duration_s == 47.0
+    assert load_scenario(ROOT / "scenarios" / "nominal_coplanar.toml").platform.tilt_deg == 0.0
+
+
+@pytest.mark.parametrize(
+    "data,field,fragment",
+    [
+        ({"platform": {"mass_kg": -1.0}}, "platform.mass_kg", "(0, inf)"),
+        ({"platform": {"omega_min_hz": 60.0, "omega_max_hz": 50.0}}, "platform", "must be <"),
+        ({"controller": {"ts_s": 0.0}}, "controller.ts_s", "(0, 1]"),
+        ({"controller": {"horizon": 0}}, "controller.horizon", "[1, 200]"),
+        ({"controller": {"mu": 1.5}}, "controller.mu", "[0, 1]"),
+        ({"perturbations": {"fading_k_db": -3.0}}, "perturbations.fading_k_db", "[0, inf)"),
+        ({"nodes": {"relay": [0.0, 0.0, 0.05]}}, "scenario", "coincide"),
+        ({"platform": {"omega_max_hz": 55.0}}, "platform", "hover infeasible"),
+        ({"platform": {"wings": 2}}, "platform.wings", "unknown field"),
+        ({"mission": {"waypoints": [[0, 0, 1, 1], [0, 1, 1, 1]]}}, "mission.waypoints", "increasing"),
+        ({"sim": {"control_rate_hz": 300.0}}, "scenario", "whole number of plant steps"),
+    ],
+)
+def test_bad_input_names_field_and_range(data, field, fragment):
+    with pytest.raises(ScenarioError) as exc:
+        parse_scenario(data)
+    msg = str(exc.value)
+    assert msg.startswith(field + ":") or f"\n{field}:" in msg
+    assert fragment in msg
+
+
+def test_with_updates_validates():
+    sc = parse_scenario({})
+    assert sc.with_updates({"controller.variant": "unconstrained"}).controller.variant == "unconstrained"
+    with pytest.raises(ScenarioError, match="controller.mu"):
+        sc.with_updates({"controller.mu": -0.1})
+
+
+def test_missing_and_malformed_files(tmp_path):
+    with pytest.raises(ScenarioError, match="no such scenario file"):
+        load_scenario(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("this is = = not toml")
+    with pytest.raises(ScenarioError, match="not valid TOML"):
+        load_scenario(bad)
