@@ -34,8 +34,9 @@ def test_dipole_symmetric_and_bounded(th):
 
 @given(angles, st.floats(0.5, 6.0))
 def test_sin_power_pattern(th, n):
+    # evaluated from cos(theta): near the axis 1 - c^2 loses digits, so compare to 1e-9 absolute
     g = SinPowerPattern(n).gain_from_cos(np.cos(th))
-    assert g == pytest.approx(np.sin(th) ** n, abs=1e-12)
+    assert g == pytest.approx(np.sin(th) ** n, abs=1e-9)
 
 
 def test_tabulated_pattern_interpolates():
