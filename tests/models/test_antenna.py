@@ -32,9 +32,10 @@ def test_dipole_symmetric_and_bounded(th):
     assert g == pytest.approx(dipole_gain(np.pi - th), abs=1e-12)
 
 
-@given(angles, st.floats(0.5, 6.0))
+@given(st.floats(1e-4, np.pi - 1e-4), st.floats(0.5, 6.0))
 def test_sin_power_pattern(th, n):
-    # evaluated from cos(theta): near the axis 1 - c^2 loses digits, so compare to 1e-9 absolute
+    # evaluated from cos(theta): within ~1e-6 rad of the axis cos() rounds to 1 and the gain to 0,
+    # so the comparison keeps 1e-4 rad away from the axis
     g = SinPowerPattern(n).gain_from_cos(np.cos(th))
     assert g == pytest.approx(np.sin(th) ** n, abs=1e-9)
 
