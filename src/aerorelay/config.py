@@ -154,6 +154,7 @@ class Weights(_Strict):
     misalignment_terminal: float = Field(10.0, ge=0.0)
     input_rate: float = Field(1e-5, gt=0.0, description="on u_k - u_(k-1), (Hz/s)^-2")
     body_rate: float = Field(1.0, ge=0.0, description="regularizer on omega")
+    yaw: float = Field(1.0, ge=0.0, description="regularizer on psi (nothing else fixes the yaw)")
 
 
 class Workspace(_Strict):

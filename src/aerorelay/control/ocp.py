@@ -1,0 +1,129 @@
+"""The communications-aware NMPC's optimal control problem, described as data (paper eq. 20-27).
+
+Multiple shooting with one RK4 step per interval ``Ts``. The state is augmented with the last
+applied input so that the input-rate term ``u_k - u_(k-1)`` (eq. 22) stays stage-wise:
+``xa = (p, eta, v, omega, Omega, u_prev)``; the stage control is ``w = (u, pi)`` with ``u = Omega_dot``
+(Hz/s) and the alignment slack ``pi`` >= 0. All costs are Gauss-Newton least squares ``|r|^2``.
+
+Per-stage parameters (``NP`` entries, see ``ParamIndex``): the reference ``p_ref, v_ref,
+rho_d``, MRAV-2's predicted position ``p2``, the square roots of the weights and ``mu``. The
+terminal stage reuses the layout with the terminal weights.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..models.channel import misalignment, mutual_alignment
+from ..models.geometry import rotation_zyx
+from ..models.vehicle import Multirotor
+
+
+class ParamIndex:
+    """Slices of the per-stage parameter vector."""
+
+    p_ref = slice(0, 3)
+    v_ref = slice(3, 6)
+    rho_d = slice(6, 9)
+    p2 = slice(9, 12)
+    sw_pos, sw_vel, sw_rho, sw_mis, sw_omega, sw_yaw, sw_urate, sw_slack = range(12, 20)
+    mu = 20
+    size = 21
+
+
+NP = ParamIndex.size
+
+
+@dataclass(frozen=True)
+class OcpSpec:
+    """Structure of the OCP: vehicle, horizon, sampling, constraint set and bounds."""
+
+    vehicle: Multirotor
+    horizon: int
+    ts: float
+    constrained: bool
+    bs_position: tuple[float, float, float]
+    workspace_min: tuple[float, float, float]
+    workspace_max: tuple[float, float, float]
+
+    @property
+    def nx(self) -> int:  # augmented state
+        return self.vehicle.nx + self.vehicle.n_rotors
+
+    @property
+    def nw(self) -> int:  # inputs + slack
+        return self.vehicle.n_rotors + 1
+
+    def key(self) -> str:
+        """Stable text identifying the generated code (for the on-disk cache)."""
+        v = self.vehicle
+        parts = [
+            v.positions.round(12).tolist(), v.axes.round(12).tolist(), v.spins.tolist(), v.mass,
+            np.asarray(v.inertia).round(12).tolist(), v.gravity, v.c_xi, v.c_tau, v.omega_min, v.omega_max,
+            v.omega_dot_min, v.omega_dot_max, self.horizon, self.ts, self.constrained, self.bs_position,
+            self.workspace_min, self.workspace_max,
+        ]
+        return repr(parts)
+
+
+def _split(spec: OcpSpec, xa):
+    nr = spec.vehicle.n_rotors
+    return xa[0:3], xa[3:6], xa[6:9], xa[9:12], xa[12 : 12 + nr], xa[12 + nr :]
+
+
+def discrete_dynamics(spec: OcpSpec, xa, w):
+    """``xa_next = (RK4(x, u, Ts), u)`` (eq. 24)."""
+    nr = spec.vehicle.n_rotors
+    x = xa[: spec.vehicle.nx]
+    u = w[:nr]
+    return ca.vertcat(spec.vehicle.rk4_step(x, u, spec.ts), u)
+
+
+def _tracking_residual(spec: OcpSpec, xa, p):
+    """Tracking (eq. 20), misalignment (eq. 23) and regularizers, weighted by the sqrt-weights."""
+    I = ParamIndex
+    pos, eta, vel, om, _, _ = _split(spec, xa)
+    R = rotation_zyx(eta)
+    rho = R[:, 2]
+    p0 = ca.DM(spec.bs_position)
+    v12 = misalignment(pos, R, p[I.p2])
+    v10 = misalignment(pos, R, p0)
+    return ca.vertcat(
+        p[I.sw_pos] * (pos - p[I.p_ref]),
+        p[I.sw_vel] * (vel - p[I.v_ref]),
+        p[I.sw_rho] * (rho - p[I.rho_d]),
+        p[I.sw_mis] * ca.vertcat(v12, v10),
+        p[I.sw_omega] * om,
+        p[I.sw_yaw] * eta[2],
+    ), v12, v10
+
+
+def stage_residual(spec: OcpSpec, xa, w, p):
+    """Stage residual ``r_k`` with ``l_k = |r_k|^2`` (eq. 25 plus the slack penalty q_pi pi^2)."""
+    I = ParamIndex
+    nr = spec.vehicle.n_rotors
+    r_track, _, _ = _tracking_residual(spec, xa, p)
+    u_prev = xa[12 + nr :]
+    return ca.vertcat(r_track, p[I.sw_urate] * (w[:nr] - u_prev), p[I.sw_slack] * w[nr])
+
+
+def terminal_residual(spec: OcpSpec, xa, p):
+    """Terminal residual ``r_N`` with ``l_N = |r_N|^2`` (eq. 26)."""
+    return _tracking_residual(spec, xa, p)[0]
+
+
+def alignment_constraint(spec: OcpSpec, xa, w, p):
+    """``(1 - v_12)(1 - v_10) + pi`` which must be ``>= mu`` (eq. 27e)."""
+    _, v12, v10 = _tracking_residual(spec, xa, p)
+    return mutual_alignment(v12, v10) + w[spec.vehicle.n_rotors]
+
+
+def misalignment_function(spec: OcpSpec) -> ca.Function:
+    """Numeric helper: (xa or x, p2) -> (v_12, v_10) for logging."""
+    x = ca.SX.sym("x", spec.vehicle.nx)
+    p2 = ca.SX.sym("p2", 3)
+    R = rotation_zyx(x[3:6])
+    return ca.Function("mis", [x, p2], [misalignment(x[0:3], R, p2), misalignment(x[0:3], R, ca.DM(spec.bs_position))])

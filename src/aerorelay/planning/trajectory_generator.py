@@ -1,0 +1,138 @@
+"""Max-min trajectory generator via the inverse-capacity surrogate (paper Sec. VI-A, eq. 14-19).
+
+At every control step the conservative inverse capacity ``f(kappa)``, ``kappa = (p1, p2)``, is
+expanded to second order around the latest positions; its minimizer in ``p1`` gives the relay
+references ``p_d, v_d, a_d`` (eq. 17-19). The raw Newton step can be metres long, so the NMPC
+is fed through a reference governor that moves toward ``p_d`` at a bounded speed. Positions in
+m (world), velocities m/s, accelerations m/s^2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..models.channel import inverse_capacity
+
+
+@dataclass(frozen=True)
+class SurrogateParams:
+    """Link budget of the surrogate (eq. 12-13): ``mu``, ``g_bar``, powers in W, bandwidth."""
+
+    mu: float
+    g_bar: float
+    tx_power: float
+    noise_power: float
+    bandwidth: float = 1.0
+
+
+@dataclass
+class Reference:
+    """Output of one generator step (world frame)."""
+
+    p_opt: np.ndarray  # minimizer of the local quadratic model, eq. 17 (clipped to the workspace)
+    p_ref: np.ndarray  # governed position reference fed to the NMPC
+    v_ref: np.ndarray
+    a_ref: np.ndarray
+    taylor_rel_err: float  # |f - f2| / |f| of the previous step's expansion, at the current kappa
+    regularized: bool  # H11 needed an eigenvalue floor
+
+
+def _build_expansion(sp: SurrogateParams) -> ca.Function:
+    """CasADi function (p1, p2, p0, pJ, P_J) -> (f, g1, g2, H11, H12, H22) by automatic differentiation."""
+    p1, p2, p0, pj = (ca.SX.sym(n, 3) for n in ("p1", "p2", "p0", "pj"))
+    PJ = ca.SX.sym("PJ")
+    f = inverse_capacity(
+        p1, p2, p0, pj, mu=sp.mu, g_bar=sp.g_bar, tx_power=sp.tx_power, jam_power=PJ,
+        noise_power=sp.noise_power, bandwidth=sp.bandwidth,
+    )
+    kappa = ca.vertcat(p1, p2)
+    H, g = ca.hessian(f, kappa)
+    return ca.Function(
+        "surrogate_expansion",
+        [p1, p2, p0, pj, PJ],
+        [f, g[:3], g[3:], H[:3, :3], H[:3, 3:], H[3:, 3:]],
+        ["p1", "p2", "p0", "pj", "PJ"],
+        ["f", "g1", "g2", "H11", "H12", "H22"],
+    )
+
+
+class TrajectoryGenerator:
+    """Relay reference generator with a reference governor (stateful; one instance per mission)."""
+
+    def __init__(
+        self,
+        surrogate: SurrogateParams,
+        bs_position,
+        *,
+        governor_speed: float,
+        eig_floor: float,
+        workspace_min,
+        workspace_max,
+        max_ref_accel: float = 2.0,
+    ):
+        self.sp = surrogate
+        self.p0 = np.asarray(bs_position, float)
+        self.governor_speed = governor_speed
+        self.eig_floor = eig_floor
+        self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
+        self.max_ref_accel = max_ref_accel
+        self._expand = _build_expansion(surrogate)
+        self._prev: tuple | None = None  # (kappa_e, f, g, H) of the last expansion
+        self.p_ref: np.ndarray | None = None
+
+    def expansion(self, p1, p2, p_jam, jam_power: float):
+        """Value, gradient blocks and Hessian blocks of ``f`` at ``kappa = (p1, p2)``."""
+        out = self._expand(p1, p2, self.p0, p_jam, jam_power)
+        f, g1, g2, H11, H12, H22 = (np.array(o) for o in out)
+        return float(f.item()), g1.ravel(), g2.ravel(), H11, H12, H22
+
+    def _regularize(self, H11: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Eigenvalue floor: H11 made safely positive definite (the paper perturbs kappa_e instead)."""
+        lam, V = np.linalg.eigh(0.5 * (H11 + H11.T))
+        floor = self.eig_floor * max(1.0, float(np.max(np.abs(lam))))
+        if lam.min() >= floor:
+            return H11, False
+        return (V * np.maximum(lam, floor)) @ V.T, True
+
+    def _taylor_error(self, p1, p2, f_now: float) -> float:
+        if self._prev is None:
+            return 0.0
+        kappa_e, f_e, g_e, H_e = self._prev
+        d = np.concatenate([p1, p2]) - kappa_e
+        f2 = f_e + g_e @ d + 0.5 * d @ H_e @ d
+        return abs(f_now - f2) / abs(f_now)
+
+    def optimum(self, p1, p2, v2, a2, p_jam, jam_power: float):
+        """Eq. 17-19 at the expansion point ``kappa_e = (p1, p2)`` (so ``delta_2 = 0``)."""
+        f, g1, g2, H11, H12, H22 = self.expansion(p1, p2, p_jam, jam_power)
+        err = self._taylor_error(p1, p2, f)
+        H = np.block([[H11, H12], [H12.T, H22]])
+        self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H)
+        H11r, reg = self._regularize(H11)
+        K = np.linalg.solve(H11r, H12)
+        p_opt = np.clip(p1 - np.linalg.solve(H11r, g1), self.lo, self.hi)
+        return p_opt, -K @ v2, -K @ a2, err, reg
+
+    def update(self, dt: float, p1, p2, v2, a2, p_jam, jam_power: float) -> Reference:
+        """One generator step of length ``dt`` s from the relay position ``p1`` and MRAV-2's state."""
+        p1, p2, v2, a2 = (np.asarray(a, float) for a in (p1, p2, v2, a2))
+        p_opt, v_d, a_d, err, reg = self.optimum(p1, p2, v2, a2, np.asarray(p_jam, float), jam_power)
+        if self.p_ref is None:
+            self.p_ref = p1.copy()
+        step = p_opt - self.p_ref
+        max_step = self.governor_speed * dt
+        n = np.linalg.norm(step)
+        if n > max_step:
+            step *= max_step / n
+        self.p_ref = self.p_ref + step
+        v_ref = step / dt if n > max_step else _clip_norm(v_d, self.governor_speed)
+        a_ref = _clip_norm(a_d, self.max_ref_accel)
+        return Reference(p_opt, self.p_ref.copy(), v_ref, a_ref, err, reg)
+
+
+def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v if n <= limit else v * (limit / n)
