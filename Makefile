@@ -17,8 +17,10 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	touch $@
 
 run: $(VENV)/.installed
-	$(BIN)/aerorelay validate scenarios/nominal_tilted.toml
 	$(BIN)/aerorelay info scenarios/nominal_tilted.toml
+	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --variant constrained --out $(OUT)/constrained
+	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --variant unconstrained --out $(OUT)/unconstrained
+	$(BIN)/aerorelay compare $(OUT)/unconstrained $(OUT)/constrained
 
 test: $(VENV)/.installed
 	$(BIN)/python -m pytest -q

@@ -66,5 +66,95 @@ def info(scenario: Path = typer.Argument(..., help="scenario TOML file")):
     console.print(model_summary(sc))
 
 
+@app.command()
+def run(
+    scenario: Path = typer.Argument(..., help="scenario TOML file"),
+    out: Path = typer.Option(..., "--out", help="output folder (replaced if it exists)"),
+    variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
+    duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
+    no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
+):
+    """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json and figures."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from .sim.closed_loop import ClosedLoop
+    from .sim.outputs import write_run
+
+    sc = _load_or_exit(scenario)
+    updates = {}
+    if variant is not None:
+        if variant not in ("constrained", "unconstrained"):
+            err_console.print(f"--variant: must be constrained or unconstrained (got {variant!r})")
+            raise typer.Exit(EXIT_BAD_INPUT)
+        updates["controller.variant"] = variant
+    if duration is not None:
+        updates["sim.duration_s"] = duration
+    if updates:
+        try:
+            sc = sc.with_updates(updates)
+        except ScenarioError as exc:
+            err_console.print(str(exc), markup=False)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+    loop = ClosedLoop(sc)
+    cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+            TimeElapsedColumn(), TimeRemainingColumn())
+    with Progress(*cols, console=err_console, transient=False) as prog:
+        task = prog.add_task("mission", total=1)
+        result = loop.run(progress=lambda k, n: prog.update(task, completed=k, total=n) if k % 50 == 0 or k == n else None)
+    metrics = write_run(result, out, figures=not no_figures)
+    console.print(f"wrote {out}", markup=False, highlight=False)
+    console.print(_metrics_table({"value": metrics}))
+
+
+KEY_METRICS = (
+    "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
+    "slack_active_fraction", "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m",
+    "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "wall_s", "sim_s",
+)
+
+
+def _get(metrics: dict, dotted: str):
+    v = metrics
+    for part in dotted.split("."):
+        v = v[part]
+    return v
+
+
+def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
+    t = Table(show_header=True)
+    t.add_column("metric")
+    for name in runs:
+        t.add_column(name, justify="right")
+    if ratio:
+        t.add_column("ratio B/A", justify="right")
+    for key in KEY_METRICS:
+        vals = [_get(m, key) for m in runs.values()]
+        row = [key, *[f"{v:.4g}" for v in vals]]
+        if ratio:
+            a, b = vals
+            row.append(f"{b / a:.3g}" if a not in (0, 0.0) else ("inf" if b else "-"))
+        t.add_row(*row)
+    return t
+
+
+@app.command()
+def compare(
+    run_a: Path = typer.Argument(..., help="first run folder (A)"),
+    run_b: Path = typer.Argument(..., help="second run folder (B)"),
+):
+    """Print the key metrics of two runs side by side, with the ratio B/A."""
+    import json
+
+    runs = {}
+    for d in (run_a, run_b):
+        f = d / "metrics.json"
+        if not f.exists():
+            err_console.print(f"{d}: no metrics.json (is it an `aerorelay run` output folder?)", markup=False)
+            raise typer.Exit(EXIT_BAD_INPUT)
+        runs[str(d)] = json.loads(f.read_text())
+    console.print(f"A = {run_a}\nB = {run_b}", markup=False, highlight=False)
+    console.print(_metrics_table(dict(zip(("A", "B"), runs.values())), ratio=True))
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

@@ -1,0 +1,141 @@
+"""Paper-style figures of one mission (matplotlib PNG) and an interactive 3D view (plotly HTML)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from ..config import Scenario  # noqa: E402
+
+RELAY, SOURCE = "#d4a017", "#7b3fa0"
+
+
+def _shade_jammer_off(ax, df):
+    off = ~df["jammer_on"].to_numpy(bool)
+    if off.any():
+        ax.fill_between(df["t"], 0, 1, where=off, color="0.85", alpha=0.6, transform=ax.get_xaxis_transform(),
+                        label="jammer OFF", step="mid")
+
+
+def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
+    fig = plt.figure(figsize=(6, 5))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot(df["p1_x"], df["p1_y"], df["p1_z"], color=RELAY, label="MRAV-1 (relay)")
+    ax.plot(df["p2_x"], df["p2_y"], df["p2_z"], color=SOURCE, label="MRAV-2 (source)")
+    ax.plot(df["pd_x"], df["pd_y"], df["pd_z"], color=RELAY, ls=":", lw=1, label="relay reference")
+    ax.scatter(*sc.nodes.bs, color="k", s=30, label="BS")
+    ax.scatter(*sc.jammer.position, color="r", s=30, label="jammer")
+    for c, col in ((("p1_x", "p1_y", "p1_z"), RELAY), (("p2_x", "p2_y", "p2_z"), SOURCE)):
+        ax.scatter(*[df[k].iloc[0] for k in c], color=col, marker="o", s=15)
+        ax.scatter(*[df[k].iloc[-1] for k in c], color=col, marker="^", s=25)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    ax.legend(loc="upper left", fontsize=7)
+    ax.set_title(f"{sc.name} ({sc.controller.variant})", fontsize=9)
+    return fig
+
+
+def fig_capacity(df: pd.DataFrame, sc: Scenario):
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    ax = axes[0]
+    ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
+    ax.axhline(sc.channel.outage_threshold, color="r", ls="--", lw=1, label="outage threshold")
+    _shade_jammer_off(ax, df)
+    ax.set_ylabel("C (bit/s/Hz)")
+    ax.legend(fontsize=7)
+    ax = axes[1]
+    ax.semilogy(df["t"], np.maximum(df["se_21"], 1e-12), label=r"$\log_2(1+\Gamma_{21})$")
+    ax.semilogy(df["t"], np.maximum(df["se_10"], 1e-12), label=r"$\log_2(1+\Gamma_{10})$")
+    _shade_jammer_off(ax, df)
+    ax.set_ylabel("spectral efficiency")
+    ax.set_xlabel("t (s)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def fig_constraints(df: pd.DataFrame, sc: Scenario):
+    p = sc.platform
+    fig, axes = plt.subplots(4, 1, figsize=(7, 8), sharex=True)
+    for i in range(1, 7):
+        axes[0].plot(df["t"], df[f"Omega_{i}"], lw=0.8)
+        axes[1].plot(df["t"], df[f"u_{i}"], lw=0.6)
+    for ax, lo, hi, lab in ((axes[0], p.omega_min_hz, p.omega_max_hz, r"$\Omega$ (Hz)"),
+                            (axes[1], p.omega_dot_min_hz_s, p.omega_dot_max_hz_s, r"$\dot\Omega$ (Hz/s)")):
+        ax.axhline(lo, color="r", ls="--", lw=1)
+        ax.axhline(hi, color="r", ls="--", lw=1)
+        ax.set_ylabel(lab)
+    axes[2].plot(df["t"], df["slack_max"], color="C3")
+    axes[2].set_ylabel(r"slack $\pi$")
+    axes[3].plot(df["t"], df["mutual_alignment"], color="C2", label=r"$(1-v_{12})(1-v_{10})$")
+    axes[3].axhline(sc.controller.mu, color="r", ls="--", lw=1, label=r"$\mu$")
+    axes[3].set_ylabel("mutual alignment")
+    axes[3].set_xlabel("t (s)")
+    axes[3].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def fig_tracking(df: pd.DataFrame, sc: Scenario):
+    fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
+    for i, ax_name in enumerate("xyz"):
+        axes[0].plot(df["t"], df[f"p1_{ax_name}"] - df[f"pd_{ax_name}"], label=f"e_p{ax_name}")
+    axes[0].set_ylabel("position error (m)")
+    axes[0].legend(fontsize=7)
+    for name in ("phi1", "theta1", "psi1"):
+        axes[1].plot(df["t"], np.degrees(df[name]), label=name)
+    axes[1].set_ylabel("relay attitude (deg)")
+    axes[1].legend(fontsize=7)
+    axes[2].plot(df["t"], df["v_12"], label=r"$v_{12}$")
+    axes[2].plot(df["t"], df["v_10"], label=r"$v_{10}$")
+    axes[2].set_ylabel("misalignment")
+    axes[2].set_xlabel("t (s)")
+    axes[2].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) -> str:
+    """A self-contained interactive 3D view of both vehicles, the BS and the jammer."""
+    import plotly.graph_objects as go
+
+    hover = [f"t={t:.2f}s C={c:.2e}" for t, c in zip(df["t"], df["capacity"])]
+    fig = go.Figure([
+        go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name="MRAV-1 (relay)",
+                     line=dict(color=df["capacity"], colorscale="Viridis", width=6, colorbar=dict(title="C")), text=hover),
+        go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2 (source)",
+                     line=dict(color=SOURCE, width=4)),
+        go.Scatter3d(x=df["pd_x"], y=df["pd_y"], z=df["pd_z"], mode="lines", name="relay reference",
+                     line=dict(color=RELAY, width=2, dash="dot")),
+        go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",
+                     marker=dict(color="black", size=5)),
+        go.Scatter3d(x=[sc.jammer.position[0]], y=[sc.jammer.position[1]], z=[sc.jammer.position[2]], mode="markers",
+                     name="jammer", marker=dict(color="red", size=5)),
+    ])
+    fig.update_layout(title=f"{sc.name} ({sc.controller.variant})", scene=dict(aspectmode="data"),
+                      margin=dict(l=0, r=0, t=40, b=0))
+    return fig.to_html(include_plotlyjs=include_plotlyjs, full_html=True)
+
+
+FIGURES = {
+    "trajectory_3d.png": fig_trajectory_3d,
+    "capacity.png": fig_capacity,
+    "constraints.png": fig_constraints,
+    "tracking.png": fig_tracking,
+}
+
+
+def write_run_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
+    """Write every PNG figure and ``trajectory.html`` into ``out``."""
+    for name, make in FIGURES.items():
+        fig = make(df, sc)
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+    (out / "trajectory.html").write_text(trajectory_html(df, sc))

@@ -1,0 +1,62 @@
+"""Mission metrics from a per-step log (SPEC.md 'Metrics')."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..config import Scenario
+from ..models.vehicle import Multirotor
+
+# A slack below this is interior-point round-off, not an active relaxation of the alignment constraint.
+SLACK_ACTIVE_THRESHOLD = 1e-4
+
+
+def _speeds(log) -> np.ndarray:
+    return np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
+
+
+def _inputs(log) -> np.ndarray:
+    return np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
+
+
+def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: Multirotor | None = None) -> dict:
+    """Metrics of one mission. Capacities normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
+    veh = vehicle or sc.platform.vehicle()
+    cap = np.asarray(log["capacity"], float)
+    period = sc.control_period_s
+    status = np.asarray(log["qp_status"], dtype=object)
+    failed = np.array([str(s).startswith("failed") for s in status])
+    solve = np.asarray(log["solve_ms"], float)
+    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    pd = np.column_stack([log["pd_x"], log["pd_y"], log["pd_z"]])
+    speeds, inputs = _speeds(log), _inputs(log)
+    slack = np.nan_to_num(np.asarray(log["slack_max"], float), nan=np.inf)
+    return {
+        "c_min": float(cap.min()),
+        "c_mean": float(cap.mean()),
+        "se_21_mean": float(np.mean(log["se_21"])),
+        "se_10_mean": float(np.mean(log["se_10"])),
+        "outage_fraction": float(np.mean(cap < sc.channel.outage_threshold)),
+        "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= sc.controller.mu)),
+        "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_THRESHOLD)),
+        "infeasible_fraction": float(np.mean(failed)),
+        "solve_ms": {
+            "mean": float(solve.mean()),
+            "p50": float(np.percentile(solve, 50)),
+            "p95": float(np.percentile(solve, 95)),
+            "p99": float(np.percentile(solve, 99)),
+            "max": float(solve.max()),
+            "std": float(solve.std()),
+        },
+        "position_error_mean_m": float(np.mean(np.linalg.norm(p1 - pd, axis=1))),
+        "distance_m": float(np.sum(np.linalg.norm(np.diff(p1, axis=0), axis=1))),
+        "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
+        "taylor_rel_err_max": float(np.max(log["taylor_rel_err"])),
+        "final_z_m": float(p1[-1, 2]),
+        "max_tilt_deg": float(np.degrees(np.max(np.arccos(np.clip(np.cos(log["phi1"]) * np.cos(log["theta1"]), -1, 1))))),
+        "omega_range_hz": [float(speeds.min()), float(speeds.max())],
+        "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
+        "steps": int(cap.size),
+        "wall_s": float(wall_s),
+        "sim_s": float(sim_s),
+    }

@@ -1,0 +1,50 @@
+"""Write a mission's outputs into a run folder, atomically (a finished folder is complete)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+from .closed_loop import LOG_COLUMNS, MissionResult
+from .metrics import compute_metrics
+
+
+def log_frame(result: MissionResult) -> pd.DataFrame:
+    """The per-step log as a DataFrame with the documented column order."""
+    df = pd.DataFrame({c: result.log[c] for c in LOG_COLUMNS})
+    df["jammer_on"] = df["jammer_on"].astype(bool)
+    df["qp_status"] = df["qp_status"].astype(str)
+    return df
+
+
+def write_run(result: MissionResult, out: Path, *, figures: bool = True) -> dict:
+    """Write scenario.toml, timeseries.parquet, metrics.json (+ figures) to ``out``; return the metrics.
+
+    Everything is first written to a temporary sibling folder which then replaces ``out``, so an
+    interrupted write never leaves a half-finished run folder behind.
+    """
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sc = result.scenario
+    metrics = compute_metrics(result.log, sc, wall_s=result.wall_s, sim_s=result.sim_s)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        (tmp / "scenario.toml").write_text(sc.to_toml())
+        df = log_frame(result)
+        df.to_parquet(tmp / "timeseries.parquet", index=False)
+        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=2))
+        if figures:
+            from ..report.figures import write_run_figures
+
+            write_run_figures(df, sc, tmp)
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return metrics
