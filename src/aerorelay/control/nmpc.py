@@ -146,6 +146,14 @@ class NMPC:
             ubw[nr, 1:] = INF  # slack pi_k >= 0, unused at k = 0
         self._lbx, self._ubx, self._lbw, self._ubw = lbx, ubx, lbw, ubw
 
+    def absolute_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds on ``z = [xa_0, w_0, ..., xa_N]`` in absolute coordinates (motor speeds, rates, workspace, slack)."""
+        return self._pack(self._lbx, self._lbw), self._pack(self._ubx, self._ubw)
+
+    def guess(self) -> np.ndarray:
+        """The current linearization point ``z`` (after the last step's shift, if any)."""
+        return self._pack(self.Xb, self.Wb)
+
     def _pack(self, X: np.ndarray, W: np.ndarray) -> np.ndarray:
         N, nx, nw = self.spec.horizon, self.spec.nx, self.spec.nw
         z = np.empty(self.nz)
@@ -182,8 +190,8 @@ class NMPC:
         H, g, A, lba, uba = self.prep(self.Xb, self.Wb, P)
         t1 = time.perf_counter()
         zb = self._pack(self.Xb, self.Wb)
-        lbx = self._pack(self._lbx, self._lbw) - zb
-        ubx = self._pack(self._ubx, self._ubw) - zb
+        lbz, ubz = self.absolute_bounds()
+        lbx, ubx = lbz - zb, ubz - zb
         lbx[: self.spec.nx] = ubx[: self.spec.nx] = xa0 - self.Xb[:, 0]
         sol = self.qp(h=H, g=g, a=A, lba=lba, uba=uba, lbx=lbx, ubx=ubx,
                       x0=np.zeros(self.nz), lam_x0=self.lam_x, lam_a0=self.lam_a)

@@ -1,0 +1,148 @@
+import numpy as np
+import pytest
+
+from aerorelay.config import parse_scenario
+from aerorelay.control.full_nlp import FullNlp
+from aerorelay.control.nmpc import NMPC
+from aerorelay.control.ocp import NP, ParamIndex as I
+from aerorelay.sim.closed_loop import ocp_spec, plant_step_function, stage_weights
+
+SC = parse_scenario({})
+SPEC = ocp_spec(SC)
+VEH = SPEC.vehicle
+HOME = np.array([-5.0, 4.0, 2.0])  # a geometry where the alignment constraint is inactive
+P2 = np.array([-2.0, 4.0, 2.5])
+
+
+@pytest.fixture(scope="module")
+def nmpc():
+    return NMPC(SPEC)
+
+
+@pytest.fixture(scope="module")
+def plant():
+    return plant_step_function(SC)
+
+
+def params(p_ref, v_ref=np.zeros(3), p2=P2):
+    sw, swN = stage_weights(SC)
+    tk = SPEC.ts * np.arange(SPEC.horizon + 1)
+    P = np.zeros((NP, SPEC.horizon + 1))
+    P[I.p_ref] = p_ref[:, None] + v_ref[:, None] * tk
+    P[I.v_ref] = v_ref[:, None]
+    P[I.rho_d] = np.array([0, 0, 1.0])[:, None]
+    P[I.p2] = p2[:, None]
+    P[I.sw_pos : I.sw_slack + 1, :-1] = sw[:, None]
+    P[I.sw_pos : I.sw_slack + 1, -1] = swN
+    P[I.mu] = SC.controller.mu
+    return P
+
+
+def fly(nmpc, plant, x, steps, ref_fn):
+    nmpc.reset(np.concatenate([x, np.zeros(6)]))
+    u = np.zeros(6)
+    hist = []
+    for k in range(steps):
+        info = nmpc.step(x, u, ref_fn(k))
+        assert info.ok, info.status
+        u = info.u
+        x = np.asarray(plant(x, u, np.zeros(6))).ravel()
+        hist.append((x.copy(), u.copy()))
+    return x, hist
+
+
+def test_hover_recovered_from_perturbed_state(nmpc, plant):
+    x = VEH.hover_state(HOME)
+    x[0:3] += [0.1, -0.1, 0.05]
+    x[3:6] = np.radians([5.0, -5.0, 3.0])
+    x[9:12] = [0.2, -0.2, 0.1]
+    x, hist = fly(nmpc, plant, x, 400, lambda k: params(HOME))
+    assert np.linalg.norm(x[0:3] - HOME) < 0.05
+    assert np.abs(np.degrees(x[3:5])).max() < 1.0
+    assert np.abs(x[6:12]).max() < 0.05
+
+
+def test_ramp_reference_tracked(nmpc, plant):
+    # a 1 m step fed at 0.5 m/s, as the reference governor does, then held
+    goal = HOME + np.array([1.0, 0.0, 0.0])
+    v = 0.5 * (goal - HOME) / np.linalg.norm(goal - HOME)
+    n_ramp = int(2.0 / SPEC.ts)
+
+    def ref(k):
+        if k < n_ramp:
+            return params(HOME + v * k * SPEC.ts, v)
+        return params(goal)
+
+    x, hist = fly(nmpc, plant, VEH.hover_state(HOME), n_ramp + 300, ref)
+    assert np.linalg.norm(x[0:3] - goal) < 0.05
+
+
+def test_bounds_respected_during_aggressive_manoeuvre(nmpc, plant):
+    x, hist = fly(nmpc, plant, VEH.hover_state(HOME), 200, lambda k: params(HOME + np.array([3.0, -3.0, 2.0])))
+    speeds = np.array([h[0][12:] for h in hist])
+    inputs = np.array([h[1] for h in hist])
+    assert speeds.min() >= VEH.omega_min - 1e-6 and speeds.max() <= VEH.omega_max + 1e-6
+    assert inputs.min() >= VEH.omega_dot_min - 1e-9 and inputs.max() <= VEH.omega_dot_max + 1e-9
+
+
+def test_rti_converges_to_ipopt_solution(nmpc):
+    x = VEH.hover_state(HOME)
+    u = np.zeros(6)
+    P = params(HOME + np.array([0.3, -0.2, 0.1]), p2=np.array([-2.0, 1.0, 12.0]))
+    nmpc.reset(np.concatenate([x, u]))
+    for _ in range(40):
+        nmpc.step(x, u, P, shift=False)
+    z_rti = nmpc.guess()
+    lbz, ubz = nmpc.absolute_bounds()
+    z_ip, ok = FullNlp(SPEC).solve(np.concatenate([x, u]), P, z_rti, lbz, ubz)
+    assert ok
+    nx = SPEC.nx
+    np.testing.assert_allclose(z_rti[nx : nx + 6], z_ip[nx : nx + 6], rtol=0.01, atol=0.05)  # first input
+    pos = lambda z: np.array([z[k * (nx + 7) : k * (nx + 7) + 3] for k in range(SPEC.horizon)])
+    np.testing.assert_allclose(pos(z_rti), pos(z_ip), atol=1e-3)
+
+
+def test_qp_failure_is_counted_and_answered_with_fallback(nmpc, monkeypatch):
+    x = VEH.hover_state(HOME)
+    nmpc.reset(np.concatenate([x, np.zeros(6)]))
+    nmpc.step(x, np.zeros(6), params(HOME))
+    before = nmpc.failures
+    real_qp = nmpc.qp
+
+    class NanQp:
+        """The real QP whose solution comes back as NaN (as a silently failing solver would)."""
+
+        def __call__(self, **kw):
+            out = real_qp(**kw)
+            out["x"] = out["x"] * np.nan
+            return out
+
+        def stats(self):
+            return real_qp.stats()
+
+    monkeypatch.setattr(nmpc, "qp", NanQp())
+    info = nmpc.step(x, np.zeros(6), params(HOME))
+    assert not info.ok and nmpc.failures == before + 1
+    assert np.all(np.isfinite(info.u))
+    assert np.all(info.u >= VEH.omega_dot_min) and np.all(info.u <= VEH.omega_dot_max)
+
+
+def test_alignment_constraint_acts_only_in_constrained_variant(plant):
+    from aerorelay.models.channel import misalignment, mutual_alignment
+    from aerorelay.models.geometry import rotation_zyx
+
+    steep = np.array([-2.0, 1.0, 5.0])  # BS link 66 deg below the horizon: level mutual alignment 0.16 < mu
+    p2 = np.array([1.0, 3.0, 6.0])
+    result = {}
+    for variant in ("constrained", "unconstrained"):
+        sc = SC.with_updates({"controller.variant": variant})
+        ctrl = NMPC(ocp_spec(sc))
+        sw, swN = stage_weights(sc)
+        P = params(steep, p2=p2)
+        P[I.sw_pos : I.sw_slack + 1, :-1] = sw[:, None]
+        P[I.sw_pos : I.sw_slack + 1, -1] = swN
+        x, _ = fly(ctrl, plant, VEH.hover_state(steep), 200, lambda k: P)
+        R = rotation_zyx(x[3:6])
+        result[variant] = mutual_alignment(misalignment(x[:3], R, p2), misalignment(x[:3], R, np.zeros(3)))
+    assert result["unconstrained"] < 0.17
+    assert result["constrained"] >= SC.controller.mu - 0.02

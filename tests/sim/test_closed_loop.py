@@ -1,0 +1,93 @@
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from aerorelay.cli import app
+from aerorelay.config import parse_scenario
+from aerorelay.models.channel import end_to_end_capacity, link_sinr
+from aerorelay.models.geometry import rotation_batch
+from aerorelay.sim.closed_loop import LOG_COLUMNS, ClosedLoop
+from aerorelay.sim.metrics import compute_metrics
+
+SHORT = parse_scenario({}).with_updates({"sim.duration_s": 3.0})
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    return ClosedLoop(SHORT).run()
+
+
+def test_short_mission_runs_without_failures(short_run):
+    log = short_run.log
+    assert len(log["t"]) == int(3.0 / 0.015) + 1
+    assert short_run.qp_failures == 0
+    for c in LOG_COLUMNS:
+        if c != "qp_status":
+            assert np.all(np.isfinite(log[c])), c
+
+
+def test_bounds_never_violated(short_run):
+    log, veh = short_run.log, SHORT.platform.vehicle()
+    speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
+    rates = np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
+    assert speeds.min() >= veh.omega_min - 1e-6 and speeds.max() <= veh.omega_max + 1e-6
+    assert rates.min() >= veh.omega_dot_min - 1e-9 and rates.max() <= veh.omega_dot_max + 1e-9
+    ws = SHORT.controller.workspace
+    for i, a in enumerate("xyz"):
+        assert ws.min[i] - 1e-3 <= log[f"p1_{a}"].min() and log[f"p1_{a}"].max() <= ws.max[i] + 1e-3
+
+
+def test_logged_capacity_equals_recomputation_from_logged_states(short_run):
+    log = short_run.log
+    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
+    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
+    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    pj = np.array(SHORT.jammer.position)
+    kw = dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)  # always-on jammer, P_J = 1 W
+    g21 = link_sinr(p2, R2, p1, R1, pj, **kw)
+    g10 = link_sinr(p1, R1, np.zeros(3), np.eye(3), pj, **kw)
+    np.testing.assert_allclose(log["gamma_21"], g21, rtol=1e-9)
+    np.testing.assert_allclose(log["gamma_10"], g10, rtol=1e-9)
+    np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
+
+
+def test_metrics_from_log(short_run):
+    m = compute_metrics(short_run.log, SHORT, wall_s=1.0, sim_s=3.0)
+    assert m["c_min"] == pytest.approx(np.min(short_run.log["capacity"]))
+    assert 0 <= m["outage_fraction"] <= 1 and m["infeasible_fraction"] == 0
+    # hover-dominated 3 s: energy close to hover shaft power x time
+    veh = SHORT.platform.vehicle()
+    assert m["energy_kJ"] == pytest.approx(veh.shaft_power(veh.hover_speeds()) * 3.0 / 1e3, rel=0.1)
+
+
+def test_fading_changes_channel_not_controller():
+    sc = SHORT.with_updates({"perturbations.fading_k_db": 6.0, "sim.duration_s": 0.3})
+    a, b = ClosedLoop(sc).run().log, ClosedLoop(SHORT.with_updates({"sim.duration_s": 0.3})).run().log
+    np.testing.assert_allclose(a["p1_x"], b["p1_x"])  # the controller never sees the fading
+    assert not np.allclose(a["gamma_21"], b["gamma_21"])
+
+
+def test_cli_run_writes_outputs_and_compare(tmp_path):
+    scen = tmp_path / "s.toml"
+    scen.write_text(SHORT.with_updates({"sim.duration_s": 0.6}).to_toml())
+    runner = CliRunner()
+    for v in ("constrained", "unconstrained"):
+        res = runner.invoke(app, ["run", str(scen), "--out", str(tmp_path / v), "--variant", v])
+        assert res.exit_code == 0, res.output
+    out = tmp_path / "constrained"
+    for f in ("scenario.toml", "timeseries.parquet", "metrics.json", "trajectory_3d.png", "capacity.png",
+              "constraints.png", "tracking.png", "trajectory.html"):
+        assert (out / f).stat().st_size > 0, f
+    df = pd.read_parquet(out / "timeseries.parquet")
+    assert list(df.columns) == LOG_COLUMNS
+    m = json.loads((out / "metrics.json").read_text())
+    assert set(m["solve_ms"]) == {"mean", "p50", "p95", "p99", "max", "std"}
+    res = runner.invoke(app, ["compare", str(tmp_path / "unconstrained"), str(out)])
+    assert res.exit_code == 0 and "ratio B/A" in res.output and "c_min" in res.output
+    res = runner.invoke(app, ["run", str(scen), "--out", str(tmp_path / "x"), "--variant", "bogus"])
+    assert res.exit_code == 2
