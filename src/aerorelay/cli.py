@@ -156,5 +156,47 @@ def compare(
     console.print(_metrics_table(dict(zip(("A", "B"), runs.values())), ratio=True))
 
 
+@app.command()
+def bench(
+    scenario: Path = typer.Argument(..., help="scenario TOML file (default mission: the constrained tilted nominal)"),
+    duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
+    ipopt_points: int = typer.Option(3, "--ipopt-points", help="states at which a full IPOPT solve is timed"),
+    json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file"),
+):
+    """Time the controller on a mission: preparation vs QP, percentiles, deadline misses, IPOPT ratio."""
+    import json
+    import platform
+
+    from .control.bench import benchmark_closed_loop
+    from .sim.closed_loop import ClosedLoop
+
+    sc = _load_or_exit(scenario)
+    if duration is not None:
+        sc = sc.with_updates({"sim.duration_s": duration})
+    ClosedLoop(sc.with_updates({"sim.duration_s": 0.1})).run()  # compile / load generated code first
+    res = benchmark_closed_loop(ClosedLoop(sc), ipopt_points=ipopt_points)
+    res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
+    res["scenario"] = f"{sc.name} ({sc.controller.variant})"
+    t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
+    t.add_column("timing (ms)")
+    for c in ("mean", "p50", "p95", "p99", "max"):
+        t.add_column(c, justify="right")
+    for key in ("preparation_ms", "qp_ms", "step_ms", "ipopt_ms"):
+        if key in res:
+            t.add_row(key.removesuffix("_ms"), *[f"{res[key][c]:.3f}" for c in ("mean", "p50", "p95", "p99", "max")])
+    console.print(t)
+    console.print(
+        f"wall {res['wall_s']:.1f} s for {res['sim_s']:.1f} s simulated (x{res['real_time_factor']:.2f} real time); "
+        f"deadline misses vs {res['control_period_ms']:g} ms period: {res['deadline_misses']}; "
+        f"steps over 2 ms (500 Hz): {res['misses_at_500Hz']}; QP failures: {res['qp_failures']}",
+        markup=False, highlight=False,
+    )
+    if "ipopt_over_rti_mean" in res:
+        console.print(f"full IPOPT solve / RTI step (means): x{res['ipopt_over_rti_mean']:.0f} "
+                      f"(IPOPT converged {res['ipopt_converged']})", markup=False, highlight=False)
+    if json_out is not None:
+        json_out.write_text(json.dumps(res, indent=2))
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

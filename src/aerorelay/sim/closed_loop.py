@@ -118,6 +118,8 @@ class ClosedLoop:
         k_db = sc.perturbations.fading_k_db
         self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=sc.seed + 1)
         self.sw_stage, self.sw_term = stage_weights(sc)
+        self.timings: list[tuple[float, float]] = []  # (preparation ms, QP ms) per control step
+        self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 
     def _parameters(self, ref, p2, v2, a2) -> np.ndarray:
         """Per-stage parameters: governed reference extrapolated at v_ref, MRAV-2 at constant acceleration."""
@@ -173,7 +175,10 @@ class ClosedLoop:
             pj_plan = sc.jammer.power_w if self.jammer.is_localized(t) else 0.0
             ref = self.tg.update(period, x[0:3], p2_meas, src.v, src.a, pj_meas, pj_plan)
             P = self._parameters(ref, p2_meas, src.v, src.a)
+            if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
+                self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.Xb is not None else None))
             info = self.nmpc.step(x, u, P, shift=shift)
+            self.timings.append((info.prep_ms, info.qp_ms))
             u = info.u
             jam_on, g21, g10, v12, v10 = self._channel(t, x, src.p, eta2)
             self._record(log, k, t, x, u, src.p, eta2, ref, jam_on, g21, g10, v12, v10, info)

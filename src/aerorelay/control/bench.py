@@ -1,0 +1,52 @@
+"""Controller timing: per-step preparation/QP statistics, deadline misses, full-IPOPT comparison."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .full_nlp import FullNlp
+
+
+def stats_ms(values) -> dict:
+    v = np.asarray(values, float)
+    return {"mean": float(v.mean()), "p50": float(np.percentile(v, 50)), "p95": float(np.percentile(v, 95)),
+            "p99": float(np.percentile(v, 99)), "max": float(v.max())}
+
+
+def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
+    """Fly ``loop`` (a ClosedLoop) and time its controller; time IPOPT at a few visited states."""
+    wall0 = time.perf_counter()
+    result = loop.run()
+    wall = time.perf_counter() - wall0
+    t = np.array(loop.timings)
+    prep, qp, whole = t[:, 0], t[:, 1], t.sum(axis=1)
+    period_ms = loop.sc.control_period_s * 1e3
+    out = {
+        "steps": int(len(t)),
+        "sim_s": result.sim_s,
+        "wall_s": wall,
+        "real_time_factor": result.sim_s / wall,
+        "preparation_ms": stats_ms(prep),
+        "qp_ms": stats_ms(qp),
+        "step_ms": stats_ms(whole),
+        "control_period_ms": period_ms,
+        "deadline_misses": int(np.sum(whole > period_ms)),
+        "misses_at_500Hz": int(np.sum(whole > 2.0)),
+        "qp_failures": result.qp_failures,
+    }
+    points = [p for p in loop.bench_points if p[3] is not None][:ipopt_points]
+    if points:
+        nlp = FullNlp(loop.nmpc.spec)
+        lbz, ubz = loop.nmpc.absolute_bounds()
+        times, ok = [], 0
+        for x, u, P, guess in points:
+            t0 = time.perf_counter()
+            _, success = nlp.solve(np.concatenate([x, u]), P, guess, lbz, ubz)
+            times.append((time.perf_counter() - t0) * 1e3)
+            ok += success
+        out["ipopt_ms"] = stats_ms(times)
+        out["ipopt_converged"] = f"{ok}/{len(points)}"
+        out["ipopt_over_rti_mean"] = float(np.mean(times) / whole.mean())
+    return out
