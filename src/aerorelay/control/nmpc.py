@@ -96,7 +96,11 @@ def build_preparation(spec: OcpSpec) -> ca.Function:
 @dataclass
 class NmpcSettings:
     qp_solver: str = "hpipm"
-    qp_options: dict = field(default_factory=lambda: {"hpipm": {"mode": "speed_abs", "iter_max": 50}})
+    # res_m_max 1e-4 (complementarity) + warm start: 4.6 instead of 8.9 IPM iterations per step on
+    # the nominal mission, same capacities to 3 digits (measured, see the issue note / README)
+    qp_options: dict = field(
+        default_factory=lambda: {"hpipm": {"mode": "speed_abs", "iter_max": 50, "res_m_max": 1e-4, "warm_start": 1}}
+    )
     compile: bool = True
 
 
@@ -145,10 +149,11 @@ class NMPC:
         if s.constrained:
             ubw[nr, 1:] = INF  # slack pi_k >= 0, unused at k = 0
         self._lbx, self._ubx, self._lbw, self._ubw = lbx, ubx, lbw, ubw
+        self._lbz, self._ubz = self._pack(lbx, lbw), self._pack(ubx, ubw)
 
     def absolute_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds on ``z = [xa_0, w_0, ..., xa_N]`` in absolute coordinates (motor speeds, rates, workspace, slack)."""
-        return self._pack(self._lbx, self._lbw), self._pack(self._ubx, self._ubw)
+        return self._lbz, self._ubz
 
     def guess(self) -> np.ndarray:
         """The current linearization point ``z`` (after the last step's shift, if any)."""
