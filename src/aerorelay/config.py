@@ -184,6 +184,9 @@ class ControllerConfig(_Strict):
     q_slack: float = Field(1e4, gt=0.0, description="q_pi")
     governor_speed_m_s: float = Field(0.5, gt=0.0, description="max speed of the reference governor")
     hessian_eig_floor: float = Field(1e-3, gt=0.0, description="min eigenvalue of H11 after regularization")
+    exact_input_rate: bool = Field(
+        True, description="input-rate cost through an augmented state (exact) or the previous plan (faster)"
+    )
     weights: Weights = Field(default_factory=Weights)
     workspace: Workspace = Field(default_factory=Workspace)
 

@@ -1,7 +1,8 @@
 """Compile CasADi functions to C once and cache the shared library on disk.
 
 The cache folder is ``$AERORELAY_CACHE`` or ``~/.cache/aerorelay``; a library is keyed by a hash
-of the function's structural key and the CasADi version. When no C compiler is available the
+of the function's serialized expression graph, the caller's key, the CasADi version and the
+compiler flags, so any change to the model or the code generating it builds a new library. When no C compiler is available the
 in-memory (virtual machine) function is returned and a warning is logged.
 """
 
@@ -26,7 +27,8 @@ def cache_dir() -> Path:
 
 def compiled(fun: ca.Function, key: str, *, flags: tuple[str, ...] = ("-O2",)) -> ca.Function:
     """Return ``fun`` compiled to a shared library (cached by ``key``), or ``fun`` itself on failure."""
-    digest = hashlib.sha256(f"{key}|{ca.__version__}|{flags}|{fun.name()}".encode()).hexdigest()[:16]
+    graph = hashlib.sha256(fun.serialize().encode()).hexdigest()
+    digest = hashlib.sha256(f"{graph}|{key}|{ca.__version__}|{flags}|{fun.name()}".encode()).hexdigest()[:16]
     name = f"{fun.name()}_{digest}"
     lib = cache_dir() / f"{name}.so"
     if not lib.exists():

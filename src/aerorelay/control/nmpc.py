@@ -62,10 +62,35 @@ def _terminal_linearization(spec: OcpSpec) -> ca.Function:
     return ca.Function("term_lin", [xa, p], [ca.mtimes(J.T, J), ca.mtimes(J.T, r)])
 
 
+def _pack_mx(X, W):
+    """``z = [xa_0; w_0; ...; xa_(N-1); w_(N-1); xa_N]`` from state and control matrices."""
+    N = W.shape[1]
+    return ca.vertcat(ca.vec(ca.vertcat(X[:, :N], W)), X[:, N])
+
+
+def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on ``z`` in absolute coordinates: motor speeds and workspace on states k >= 1,
+    motor accelerations on inputs, slack ``pi_k >= 0`` for k >= 1 (fixed to 0 at k = 0 and in the
+    unconstrained variant). Unbounded entries are +-INF."""
+    v, N, nx, nw, nr = spec.vehicle, spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
+    lbx, ubx = -INF * np.ones((nx, N + 1)), INF * np.ones((nx, N + 1))
+    lbx[0:3, 1:] = np.array(spec.workspace_min)[:, None]
+    ubx[0:3, 1:] = np.array(spec.workspace_max)[:, None]
+    lbx[12 : 12 + nr, 1:], ubx[12 : 12 + nr, 1:] = v.omega_min, v.omega_max
+    lbw, ubw = np.zeros((nw, N)), np.zeros((nw, N))
+    lbw[:nr], ubw[:nr] = v.omega_dot_min, v.omega_dot_max
+    if spec.constrained:
+        ubw[nr, 1:] = INF
+    pack = lambda X, W: np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
+    return pack(lbx, lbw), pack(ubx, ubw)
+
+
 def build_preparation(spec: OcpSpec) -> ca.Function:
-    """MX function ``(Xb, Wb, P) -> (H, g, A, lba, uba)`` of the QP in the step ``dz`` (structure for HPIPM)."""
+    """MX function ``(Xb, Wb, P, xa0) -> (H, g, A, lba, uba, lbx, ubx)``: the QP in the step ``dz``
+    around the guess ``(Xb, Wb)``, in HPIPM's stage structure, with the initial state fixed to ``xa0``."""
     N, nx, nw = spec.horizon, spec.nx, spec.nw
     Xb, Wb, P = ca.MX.sym("Xb", nx, N + 1), ca.MX.sym("Wb", nw, N), ca.MX.sym("P", NP, N + 1)
+    xa0 = ca.MX.sym("xa0", nx)
     outs = _stage_linearization(spec).map(N, "serial")(Xb[:, :N], Wb, P[:, :N])
     xn, Ak, Bk, Hk, gk = outs[:5]
     HN, gN = _terminal_linearization(spec)(Xb[:, N], P[:, N])
@@ -89,8 +114,28 @@ def build_preparation(spec: OcpSpec) -> ca.Function:
     H = ca.diagcat(*blocks_H, HN) + HESSIAN_REG * ca.DM.eye(nz)
     g = ca.vertcat(*blocks_g, gN)
     A = ca.vertcat(*rows)
-    return ca.Function("nmpc_prep", [Xb, Wb, P], [H, g, A, ca.vertcat(*lb), ca.vertcat(*ub)],
-                       ["Xb", "Wb", "P"], ["H", "g", "A", "lba", "uba"])
+    lbz, ubz = absolute_bounds(spec)
+    zb = _pack_mx(Xb, Wb)
+    x0_step = xa0 - Xb[:, 0]
+    lbx = ca.vertcat(x0_step, ca.DM(lbz[nx:]) - zb[nx:])
+    ubx = ca.vertcat(x0_step, ca.DM(ubz[nx:]) - zb[nx:])
+    return ca.Function("nmpc_prep", [Xb, Wb, P, xa0], [H, g, A, ca.vertcat(*lb), ca.vertcat(*ub), lbx, ubx],
+                       ["Xb", "Wb", "P", "xa0"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
+
+
+def build_update(spec: OcpSpec) -> ca.Function:
+    """MX function ``(Xb, Wb, dz) -> (X_shift, W_shift, u0, slack_max, check)``: apply the QP step,
+    shift the plan one stage for the next guess, read the first input; ``check`` is NaN when ``dz`` is."""
+    N, nx, nw, nr = spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
+    Xb, Wb, dz = ca.MX.sym("Xb", nx, N + 1), ca.MX.sym("Wb", nw, N), ca.MX.sym("dz", N * (nx + nw) + nx)
+    body = ca.reshape(dz[: N * (nx + nw)], nx + nw, N)
+    X = Xb + ca.horzcat(body[:nx, :], dz[N * (nx + nw) :])
+    W = Wb + body[nx:, :]
+    Xs = ca.horzcat(X[:, 1:], X[:, N])
+    Ws = ca.horzcat(W[:, 1:], W[:, N - 1])
+    slack = ca.mmax(W[nr, 1:]) if N > 1 else ca.MX(0)
+    return ca.Function("nmpc_update", [Xb, Wb, dz], [X, W, Xs, Ws, W[:nr, 0], slack, ca.sum1(dz)],
+                       ["Xb", "Wb", "dz"], ["X", "W", "Xs", "Ws", "u0", "slack", "check"])
 
 
 @dataclass
@@ -108,7 +153,9 @@ class NMPC:
     """Real-time-iteration NMPC. Call ``step(x, u_prev, P)`` once per control period.
 
     ``x`` is the plant state ``(p, eta, v, omega, Omega)``, ``u_prev`` the last applied input
-    (Hz/s), ``P`` the ``(NP, N+1)`` parameter matrix (see ``ocp.ParamIndex``).
+    (Hz/s), ``P`` the ``(NP, N+1)`` parameter matrix (see ``ocp.ParamIndex``; the ``u_prev``
+    rows are filled here). The plan is kept as CasADi matrices between steps so that each step
+    is three compiled calls (prepare, QP, update) with little Python in between.
     """
 
     def __init__(self, spec: OcpSpec, settings: NmpcSettings | None = None):
@@ -117,6 +164,7 @@ class NMPC:
         N, nx, nw = spec.horizon, spec.nx, spec.nw
         prep = build_preparation(spec)
         self.prep = compiled(prep, spec.key()) if self.settings.compile else prep
+        self.update = build_update(spec)
         sp = {"h": prep.sparsity_out("H"), "a": prep.sparsity_out("A")}
         ng = [0] + [1 if spec.constrained else 0] * (N - 1) + [0]
         opts = dict(self.settings.qp_options)
@@ -126,105 +174,65 @@ class NMPC:
         self.qp = ca.conic("nmpc_qp", self.settings.qp_solver, sp, opts)
         self.nz = N * (nx + nw) + nx
         self.na = prep.sparsity_out("A").size1()
-        self._bounds_template()
-        self.Xb: np.ndarray | None = None
-        self.Wb = np.zeros((nw, N))
-        self.lam_x = np.zeros(self.nz)
-        self.lam_a = np.zeros(self.na)
+        self._lbz, self._ubz = absolute_bounds(spec)
+        self._dz0 = ca.DM.zeros(self.nz)
+        self.Xb: ca.DM | None = None
+        self.Wb = ca.DM.zeros(nw, N)
+        self.lam_x = ca.DM.zeros(self.nz)
+        self.lam_a = ca.DM.zeros(self.na)
         self.failures = 0
 
-    # ----- bounds in absolute coordinates; the QP sees them minus the linearization point
-    def _bounds_template(self):
-        s, v = self.spec, self.spec.vehicle
-        N, nx, nw, nr = s.horizon, s.nx, s.nw, v.n_rotors
-        lbx = -INF * np.ones((nx, N + 1))
-        ubx = INF * np.ones((nx, N + 1))
-        lbx[0:3, 1:] = np.array(s.workspace_min)[:, None]
-        ubx[0:3, 1:] = np.array(s.workspace_max)[:, None]
-        lbx[12 : 12 + nr, 1:] = v.omega_min
-        ubx[12 : 12 + nr, 1:] = v.omega_max
-        lbw = np.zeros((nw, N))
-        ubw = np.zeros((nw, N))
-        lbw[:nr], ubw[:nr] = v.omega_dot_min, v.omega_dot_max
-        if s.constrained:
-            ubw[nr, 1:] = INF  # slack pi_k >= 0, unused at k = 0
-        self._lbx, self._ubx, self._lbw, self._ubw = lbx, ubx, lbw, ubw
-        self._lbz, self._ubz = self._pack(lbx, lbw), self._pack(ubx, ubw)
-
     def absolute_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds on ``z = [xa_0, w_0, ..., xa_N]`` in absolute coordinates (motor speeds, rates, workspace, slack)."""
+        """Bounds on ``z = [xa_0, w_0, ..., xa_N]`` in absolute coordinates (see ``absolute_bounds``)."""
         return self._lbz, self._ubz
 
     def guess(self) -> np.ndarray:
         """The current linearization point ``z`` (after the last step's shift, if any)."""
-        return self._pack(self.Xb, self.Wb)
-
-    def _pack(self, X: np.ndarray, W: np.ndarray) -> np.ndarray:
-        N, nx, nw = self.spec.horizon, self.spec.nx, self.spec.nw
-        z = np.empty(self.nz)
-        body = np.vstack([X[:, :N], W]).T.reshape(-1)
-        z[: N * (nx + nw)] = body
-        z[N * (nx + nw) :] = X[:, N]
-        return z
-
-    def _unpack(self, z: np.ndarray):
-        N, nx, nw = self.spec.horizon, self.spec.nx, self.spec.nw
-        body = z[: N * (nx + nw)].reshape(N, nx + nw).T
-        X = np.hstack([body[:nx], z[N * (nx + nw) :, None]])
-        return X, body[nx:]
+        N = self.spec.horizon
+        X, W = np.array(self.Xb), np.array(self.Wb)
+        return np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
 
     def reset(self, xa0: np.ndarray):
         """Initialize the guess with ``xa0`` held over the horizon and zero inputs."""
-        self.Xb = np.tile(xa0[:, None], (1, self.spec.horizon + 1))
-        self.Wb[:] = 0.0
-        self.lam_x[:] = 0.0
-        self.lam_a[:] = 0.0
-
-    def _fallback_input(self) -> np.ndarray:
-        nr = self.spec.vehicle.n_rotors
-        u = self.Wb[:nr, 0]
-        return np.clip(np.nan_to_num(u), self.spec.vehicle.omega_dot_min, self.spec.vehicle.omega_dot_max)
+        self.Xb = ca.DM(np.tile(np.asarray(xa0, float)[:, None], (1, self.spec.horizon + 1)))
+        self.Wb = ca.DM.zeros(self.spec.nw, self.spec.horizon)
+        self.lam_x = ca.DM.zeros(self.nz)
+        self.lam_a = ca.DM.zeros(self.na)
 
     def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:
-        """One RTI: linearize at the shifted guess, solve the QP, apply its first input."""
-        nr = self.spec.vehicle.n_rotors
-        xa0 = np.concatenate([x, u_prev])
+        """One RTI: linearize at the (shifted) guess, solve the QP, return its first input."""
+        v, nr = self.spec.vehicle, self.spec.vehicle.n_rotors
+        if self.spec.exact_input_rate:
+            xa0 = np.concatenate([x, u_prev])
+        else:
+            xa0 = np.asarray(x, float)
+            P = P.copy()
+            P[ParamIndex.u_prev, 0] = u_prev
         if self.Xb is None:
             self.reset(xa0)
+        if not self.spec.exact_input_rate:
+            P[ParamIndex.u_prev, 1:] = np.array(self.Wb[:nr, :])
         t0 = time.perf_counter()
-        H, g, A, lba, uba = self.prep(self.Xb, self.Wb, P)
+        H, g, A, lba, uba, lbx, ubx = self.prep(self.Xb, self.Wb, P, xa0)
         t1 = time.perf_counter()
-        zb = self._pack(self.Xb, self.Wb)
-        lbz, ubz = self.absolute_bounds()
-        lbx, ubx = lbz - zb, ubz - zb
-        lbx[: self.spec.nx] = ubx[: self.spec.nx] = xa0 - self.Xb[:, 0]
-        sol = self.qp(h=H, g=g, a=A, lba=lba, uba=uba, lbx=lbx, ubx=ubx,
-                      x0=np.zeros(self.nz), lam_x0=self.lam_x, lam_a0=self.lam_a)
-        t2 = time.perf_counter()
+        sol = self.qp(h=H, g=g, a=A, lba=lba, uba=uba, lbx=lbx, ubx=ubx, x0=self._dz0, lam_x0=self.lam_x, lam_a0=self.lam_a)
         stats = self.qp.stats()
-        dz = np.asarray(sol["x"]).ravel()
-        ok = bool(stats.get("success", False)) and np.all(np.isfinite(dz))
+        X, W, Xs, Ws, u0, slack, check = self.update(self.Xb, self.Wb, sol["x"])
+        t2 = time.perf_counter()
         status = str(stats.get("return_status", "unknown"))
-        iters = int(stats.get("iter_count", 0) or 0)
+        ok = bool(stats.get("success", False)) and np.isfinite(float(check))
         if ok:
-            X, W = self._unpack(zb + dz)
-            self.lam_x = np.asarray(sol["lam_x"]).ravel()
-            self.lam_a = np.asarray(sol["lam_a"]).ravel()
-            u = np.clip(W[:nr, 0], self.spec.vehicle.omega_dot_min, self.spec.vehicle.omega_dot_max)
-            slack = float(W[nr, 1:].max()) if self.spec.constrained else 0.0
-            self.Xb, self.Wb = (self._shift(X, W) if shift else (X, W))
+            self.Xb, self.Wb = (Xs, Ws) if shift else (X, W)
+            self.lam_x, self.lam_a = sol["lam_x"], sol["lam_a"]
+            u = np.clip(np.array(u0).ravel(), v.omega_dot_min, v.omega_dot_max)
+            slack_max = max(float(slack), 0.0) if self.spec.constrained else 0.0
         else:
             self.failures += 1
             log.warning("NMPC QP failed (%s); applying the shifted previous input", status)
-            u = self._fallback_input()
-            slack = float("nan")
-            self.Xb, self.Wb = self._shift(self.Xb, self.Wb)
-            self.lam_x[:] = 0.0
-            self.lam_a[:] = 0.0
-        return StepInfo(u, ok, status, (t1 - t0) * 1e3, (t2 - t1) * 1e3, max(slack, 0.0) if ok else slack, iters)
-
-    @staticmethod
-    def _shift(X: np.ndarray, W: np.ndarray):
-        Xs = np.hstack([X[:, 1:], X[:, -1:]])
-        Ws = np.hstack([W[:, 1:], W[:, -1:]])
-        return Xs, Ws
+            # the guess is the previous plan shifted to now: apply its first input, shift once more
+            u = np.clip(np.nan_to_num(np.array(self.Wb[:nr, 0]).ravel()), v.omega_dot_min, v.omega_dot_max)
+            _, _, self.Xb, self.Wb, _, _, _ = self.update(self.Xb, self.Wb, self._dz0)
+            slack_max = float("nan")
+            self.lam_x = ca.DM.zeros(self.nz)
+            self.lam_a = ca.DM.zeros(self.na)
+        return StepInfo(u, ok, status, (t1 - t0) * 1e3, (t2 - t1) * 1e3, slack_max, int(stats.get("iter_count", 0) or 0))

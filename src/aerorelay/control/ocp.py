@@ -1,9 +1,16 @@
 """The communications-aware NMPC's optimal control problem, described as data (paper eq. 20-27).
 
-Multiple shooting with one RK4 step per interval ``Ts``. The state is augmented with the last
-applied input so that the input-rate term ``u_k - u_(k-1)`` (eq. 22) stays stage-wise:
-``xa = (p, eta, v, omega, Omega, u_prev)``; the stage control is ``w = (u, pi)`` with ``u = Omega_dot``
-(Hz/s) and the alignment slack ``pi`` >= 0. All costs are Gauss-Newton least squares ``|r|^2``.
+Multiple shooting with one RK4 step per interval ``Ts``. The input-rate term ``u_k - u_(k-1)``
+(eq. 22) couples neighbouring stages; two formulations keep the QP stage-wise for HPIPM:
+
+- ``exact_input_rate=True`` (default): the state is augmented with the previous input,
+  ``xa = (p, eta, v, omega, Omega, u_prev)`` (12 + 2 N_p states): the paper's cost, exactly.
+- ``exact_input_rate=False``: ``xa = x`` and ``u_(k-1)`` is a parameter, taken from the previous
+  plan (the last applied input at k = 0). Same value at the RTI fixed point but without the
+  gradient through ``u_(k-1)``; 6 fewer states, so a cheaper QP (compared by ``aerorelay bench``).
+
+The stage control is ``w = (u, pi)`` with ``u = Omega_dot`` (Hz/s) and the alignment slack
+``pi`` >= 0. All costs are Gauss-Newton least squares ``|r|^2``.
 
 Per-stage parameters (``NP`` entries, see ``ParamIndex``): the reference ``p_ref, v_ref,
 rho_d``, MRAV-2's predicted position ``p2``, the square roots of the weights and ``mu``. The
@@ -31,7 +38,8 @@ class ParamIndex:
     p2 = slice(9, 12)
     sw_pos, sw_vel, sw_rho, sw_mis, sw_omega, sw_yaw, sw_urate, sw_slack = range(12, 20)
     mu = 20
-    size = 21
+    u_prev = slice(21, 27)  # used only when exact_input_rate is False
+    size = 27
 
 
 NP = ParamIndex.size
@@ -48,10 +56,11 @@ class OcpSpec:
     bs_position: tuple[float, float, float]
     workspace_min: tuple[float, float, float]
     workspace_max: tuple[float, float, float]
+    exact_input_rate: bool = True
 
     @property
-    def nx(self) -> int:  # augmented state
-        return self.vehicle.nx + self.vehicle.n_rotors
+    def nx(self) -> int:  # OCP state (augmented with u_prev when exact_input_rate)
+        return self.vehicle.nx + (self.vehicle.n_rotors if self.exact_input_rate else 0)
 
     @property
     def nw(self) -> int:  # inputs + slack
@@ -64,7 +73,7 @@ class OcpSpec:
             v.positions.round(12).tolist(), v.axes.round(12).tolist(), v.spins.tolist(), v.mass,
             np.asarray(v.inertia).round(12).tolist(), v.gravity, v.c_xi, v.c_tau, v.omega_min, v.omega_max,
             v.omega_dot_min, v.omega_dot_max, self.horizon, self.ts, self.constrained, self.bs_position,
-            self.workspace_min, self.workspace_max,
+            self.workspace_min, self.workspace_max, self.exact_input_rate,
         ]
         return repr(parts)
 
@@ -79,7 +88,8 @@ def discrete_dynamics(spec: OcpSpec, xa, w):
     nr = spec.vehicle.n_rotors
     x = xa[: spec.vehicle.nx]
     u = w[:nr]
-    return ca.vertcat(spec.vehicle.rk4_step(x, u, spec.ts), u)
+    x_next = spec.vehicle.rk4_step(x, u, spec.ts)
+    return ca.vertcat(x_next, u) if spec.exact_input_rate else x_next
 
 
 def _tracking_residual(spec: OcpSpec, xa, p):
@@ -106,7 +116,7 @@ def stage_residual(spec: OcpSpec, xa, w, p):
     I = ParamIndex
     nr = spec.vehicle.n_rotors
     r_track, _, _ = _tracking_residual(spec, xa, p)
-    u_prev = xa[12 + nr :]
+    u_prev = xa[12 + nr :] if spec.exact_input_rate else p[I.u_prev]
     return ca.vertcat(r_track, p[I.sw_urate] * (w[:nr] - u_prev), p[I.sw_slack] * w[nr])
 
 

@@ -44,6 +44,7 @@ def ocp_spec(sc: Scenario) -> OcpSpec:
         bs_position=tuple(sc.nodes.bs),
         workspace_min=tuple(c.workspace.min),
         workspace_max=tuple(c.workspace.max),
+        exact_input_rate=c.exact_input_rate,
     )
 
 
