@@ -7,8 +7,10 @@ import numpy as np
 from ..config import Scenario
 from ..models.vehicle import Multirotor
 
-# A slack below this is interior-point round-off, not an active relaxation of the alignment constraint.
-SLACK_ACTIVE_THRESHOLD = 1e-4
+# A slack below this fraction of mu is the interior-point solver's tolerance (complementarity
+# 1e-4), not a relaxation of the alignment constraint: on the nominal tilted mission the slack
+# stays <= 1.5e-3 while the constraint is inactive (t < 6 s) and is 5e-3..2e-2 once it binds.
+SLACK_ACTIVE_FRACTION_OF_MU = 0.0125
 
 
 def _speeds(log) -> np.ndarray:
@@ -38,7 +40,7 @@ def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: 
         "se_10_mean": float(np.mean(log["se_10"])),
         "outage_fraction": float(np.mean(cap < sc.channel.outage_threshold)),
         "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= sc.controller.mu)),
-        "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_THRESHOLD)),
+        "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(sc.controller.mu, 1e-9))),
         "infeasible_fraction": float(np.mean(failed)),
         "solve_ms": {
             "mean": float(solve.mean()),

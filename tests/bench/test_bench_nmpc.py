@@ -1,0 +1,33 @@
+"""pytest-benchmark timings of the controller (run with ``pytest tests/bench --benchmark-enable``).
+
+In the normal suite ``--benchmark-disable`` runs each body once as a smoke test; speed targets are
+read from these benchmarks and from ``aerorelay bench``, never asserted in unit tests.
+"""
+
+import numpy as np
+import pytest
+
+from aerorelay.config import parse_scenario
+from aerorelay.sim.closed_loop import ClosedLoop
+
+
+@pytest.fixture(scope="module", params=["constrained", "unconstrained"])
+def loop_mid_mission(request):
+    sc = parse_scenario({}).with_updates({"controller.variant": request.param, "sim.duration_s": 9.0})
+    loop = ClosedLoop(sc)
+    loop.run()
+    return loop
+
+
+def test_bench_rti_step(benchmark, loop_mid_mission):
+    x, u, P, _ = loop_mid_mission.bench_points[0]
+    nmpc = loop_mid_mission.nmpc
+    info = benchmark(nmpc.step, x, u, P, False)
+    assert info.ok and np.all(np.isfinite(info.u))
+
+
+def test_bench_trajectory_generator(benchmark, loop_mid_mission):
+    loop = loop_mid_mission
+    src = loop.source.state(9.0)
+    ref = benchmark(loop.tg.update, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.jammer.position, 1.0)
+    assert np.all(np.isfinite(ref.p_ref))
