@@ -198,5 +198,75 @@ def bench(
         json_out.write_text(json.dumps(res, indent=2))
 
 
+def _default_studies_dir() -> Path:
+    here = Path("experiments")
+    if here.is_dir():
+        return here
+    return Path(__file__).resolve().parents[2] / "experiments"
+
+
+@app.command()
+def reproduce(
+    studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)"),
+    out: Path = typer.Option(..., "--out", help="campaign folder (re-running the same command resumes it)"),
+    quick: bool = typer.Option(False, "--quick", help="fewer Monte Carlo seeds, shorter missions where the study allows"),
+    scheduler: str = typer.Option(None, "--scheduler", help="address of an existing dask scheduler (default: local cluster)"),
+    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)"),
+    workers: int = typer.Option(None, "--workers", help="local cluster size (default: one per core)"),
+):
+    """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
+    import datetime
+    import json
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from . import __version__
+    from .experiments.campaign import load_manifest, run_campaign
+    from .experiments.study import StudyError, expand, find_studies
+    from .report.html import render_report
+    from .report.summary import summarize
+
+    folder = studies_dir or _default_studies_dir()
+    try:
+        chosen = find_studies(folder, studies or None)
+        specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick)]
+    except StudyError as exc:
+        err_console.print(str(exc), markup=False)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    console.print(f"{len(specs)} runs in {len(chosen)} studies -> {out}", markup=False, highlight=False)
+    cols = (TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
+    try:
+        with Progress(*cols, console=err_console) as prog:
+            task = prog.add_task("", total=len(specs))
+
+            def progress(done, total, rec):
+                desc = "" if rec is None else f"{rec['key']}: {rec['status']}"
+                prog.update(task, completed=done, description=desc)
+
+            res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress)
+    except KeyboardInterrupt:
+        n = sum(r.get("status") == "done" for r in load_manifest(out).values())
+        err_console.print(f"interrupted: {n} finished runs are kept in {out}; run the same command to resume", markup=False)
+        raise typer.Exit(130) from None
+    manifest = load_manifest(out)
+    meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
+            "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
+            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s}
+    summary = summarize(chosen, specs, out, {"campaign": meta})
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    (out / "report.html").write_text(render_report(summary, chosen, specs, out, manifest))
+    t = Table(title="the paper's claims on our numbers")
+    t.add_column("claim")
+    t.add_column("verdict")
+    t.add_column("evidence")
+    for c in summary["claims"]:
+        t.add_row(c["claim"], {True: "holds", False: "does not hold", None: "not evaluated"}[c["holds"]], c["evidence"])
+    console.print(t)
+    console.print(f"ran {res.ran} runs ({meta['runs_failed']} failed), skipped {res.skipped} finished ones, "
+                  f"wall {res.wall_s:.0f} s; report: {out / 'report.html'}", markup=False, highlight=False)
+    if meta["runs_failed"]:
+        raise typer.Exit(1)
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

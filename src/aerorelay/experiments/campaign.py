@@ -1,0 +1,130 @@
+"""Campaign runner: expands studies into runs and flies them on dask.distributed.
+
+Each run writes its own folder ``OUT/runs/<study>/<group>/seed<k>`` atomically (see
+``sim.outputs.write_run``); ``OUT/manifest.json`` records every run's scenario hash, seed,
+status, wall time, package version and error. A run whose folder holds ``metrics.json`` for the
+same scenario hash is finished and never recomputed, so re-running a command resumes it: an
+interrupted campaign loses no finished run. A run that raises is recorded as failed and the
+campaign goes on.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import __version__
+from .study import RunSpec, scenario_of
+
+log = logging.getLogger(__name__)
+
+
+def run_dir(out: Path, spec: RunSpec) -> Path:
+    safe = spec.group.replace("/", "_")
+    return Path(out) / "runs" / spec.study / safe / f"seed{spec.seed}"
+
+
+def is_finished(out: Path, spec: RunSpec) -> bool:
+    """A finished run has metrics.json and the same resolved scenario (hash of its TOML)."""
+    d = run_dir(out, spec)
+    if not (d / "metrics.json").exists() or not (d / "scenario.toml").exists():
+        return False
+    return (d / "scenario.toml").read_text() == spec.scenario_toml
+
+
+def execute_run(spec: RunSpec, out: str, figures: bool = False) -> dict:
+    """Fly one run and write its folder; never raises (errors are returned). Runs on a worker."""
+    from ..sim.closed_loop import ClosedLoop
+    from ..sim.outputs import write_run
+
+    t0 = time.perf_counter()
+    record = {"key": spec.key, "study": spec.study, "group": spec.group, "seed": spec.seed,
+              "scenario_hash": spec.scenario_hash, "version": __version__, "pid": os.getpid()}
+    try:
+        if os.environ.get("AERORELAY_FAIL_RUN") and os.environ["AERORELAY_FAIL_RUN"] in spec.key:
+            raise RuntimeError(f"failure injected by AERORELAY_FAIL_RUN for {spec.key}")
+        result = ClosedLoop(scenario_of(spec)).run()
+        metrics = write_run(result, run_dir(Path(out), spec), figures=figures)
+        record.update(status="done", wall_s=time.perf_counter() - t0, c_min=metrics["c_min"])
+    except Exception as exc:  # recorded, the campaign goes on
+        record.update(status="failed", wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",
+                      traceback=traceback.format_exc(limit=8))
+    return record
+
+
+@dataclass
+class CampaignResult:
+    records: dict[str, dict]
+    skipped: int
+    ran: int
+    failed: int
+    wall_s: float
+
+
+def _write_manifest(out: Path, records: dict[str, dict]) -> None:
+    tmp = out / "manifest.json.tmp"
+    tmp.write_text(json.dumps(records, indent=1, sort_keys=True))
+    tmp.replace(out / "manifest.json")
+
+
+def load_manifest(out: Path) -> dict[str, dict]:
+    f = Path(out) / "manifest.json"
+    return json.loads(f.read_text()) if f.exists() else {}
+
+
+def make_client(scheduler: str | None, n_workers: int | None = None):
+    """A dask client: to ``scheduler`` if given, else a local cluster of single-threaded processes."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler)
+    n = n_workers or max(1, os.cpu_count() or 1)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+    return Client(cluster)
+
+
+def run_campaign(specs: list[RunSpec], out: Path, *, client=None, scheduler: str | None = None,
+                 n_workers: int | None = None, progress=None, figures: bool = False) -> CampaignResult:
+    """Run every unfinished spec on dask; ``progress(done, total, record)`` after each run."""
+    from dask.distributed import as_completed
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    records = load_manifest(out)
+    todo = [s for s in specs if not is_finished(out, s)]
+    for s in specs:
+        if s not in todo:
+            rec = records.get(s.key, {})
+            if rec.get("status") != "done" or rec.get("scenario_hash") != s.scenario_hash:
+                records[s.key] = {"key": s.key, "study": s.study, "group": s.group, "seed": s.seed,
+                                  "scenario_hash": s.scenario_hash, "status": "done", "version": __version__,
+                                  "wall_s": rec.get("wall_s")}
+    _write_manifest(out, records)
+    t0 = time.perf_counter()
+    done = len(specs) - len(todo)
+    if progress:
+        progress(done, len(specs), None)
+    failed = 0
+    if todo:
+        own = client is None
+        client = client or make_client(scheduler, n_workers)
+        try:
+            futures = [client.submit(execute_run, s, str(out), figures, pure=False, key=f"run-{s.study}-{s.scenario_hash}-{s.seed}")
+                       for s in todo]
+            for fut in as_completed(futures):
+                rec = fut.result()
+                records[rec["key"]] = rec
+                failed += rec["status"] != "done"
+                done += 1
+                _write_manifest(out, records)
+                if progress:
+                    progress(done, len(specs), rec)
+        finally:
+            if own:
+                client.close()
+    return CampaignResult(records, len(specs) - len(todo), len(todo), failed, time.perf_counter() - t0)

@@ -1,0 +1,134 @@
+"""A study: a base scenario plus a declarative set of variations, expanded into runs.
+
+A study TOML names a ``base`` scenario (path relative to the repository root), a list of
+``[[runs]]`` (an id and dotted-key ``set`` updates), an optional ``[grid]`` whose cartesian
+product multiplies the runs, ``seeds`` Monte Carlo repetitions, and ``[[paper]]`` reference
+numbers. ``--quick`` shortens missions to ``quick_duration_s`` and uses ``quick_seeds`` seeds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from ..config import Scenario, ScenarioError, load_scenario
+
+
+class StudyError(ValueError):
+    """A study file is invalid or names something that does not exist."""
+
+
+class RunVariation(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    id: str = Field(min_length=1)
+    set: dict[str, Any] = Field(default_factory=dict)
+
+
+class PaperValue(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    run: str
+    metric: str
+    value: float
+    note: str = ""
+
+
+class Study(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(pattern=r"^[a-z0-9_]+$")
+    title: str
+    description: str = ""
+    base: str
+    quick_duration_s: float | None = Field(None, gt=0)
+    runs: list[RunVariation] = Field(default_factory=lambda: [RunVariation(id="base")])
+    grid: dict[str, list[Any]] = Field(default_factory=dict)
+    seeds: int = Field(1, ge=1)
+    quick_seeds: int = Field(1, ge=1)
+    paper: list[PaperValue] = Field(default_factory=list)
+    compare_trajectories: list[tuple[str, str]] = Field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a campaign: where it goes and the fully resolved scenario it flies."""
+
+    study: str
+    group: str  # the run id without the seed: runs of one group are Monte Carlo repetitions
+    seed: int
+    scenario_toml: str
+
+    @property
+    def key(self) -> str:
+        return f"{self.study}/{self.group}/seed{self.seed}"
+
+    @property
+    def scenario_hash(self) -> str:
+        return hashlib.sha256(self.scenario_toml.encode()).hexdigest()[:16]
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    return str(v)
+
+
+def load_study(path: Path) -> Study:
+    try:
+        return Study.model_validate(tomllib.loads(Path(path).read_text()))
+    except (ValidationError, tomllib.TOMLDecodeError) as exc:
+        raise StudyError(f"{path}: {exc}") from None
+
+
+def find_studies(folder: Path, names: list[str] | None = None) -> list[Study]:
+    """Studies in ``folder`` (all, or those named), in file-name order."""
+    files = sorted(Path(folder).glob("*.toml"))
+    studies = [load_study(f) for f in files]
+    if names:
+        known = {s.name: s for s in studies}
+        missing = [n for n in names if n not in known]
+        if missing:
+            raise StudyError(f"unknown study {missing}; available: {sorted(known)}")
+        studies = [known[n] for n in names]
+    return studies
+
+
+def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
+    """All runs of a study, each with its validated, fully resolved scenario."""
+    try:
+        base = load_scenario(root / study.base)
+    except ScenarioError as exc:
+        raise StudyError(f"study {study.name}: base scenario: {exc}") from None
+    grid_keys = list(study.grid)
+    combos = list(itertools.product(*study.grid.values())) if grid_keys else [()]
+    seeds = study.quick_seeds if quick else study.seeds
+    specs = []
+    for run in study.runs:
+        for combo in combos:
+            updates = dict(run.set)
+            updates.update(zip(grid_keys, combo))
+            label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(grid_keys, combo))
+            group = label if run.id == "base" and label else (f"{run.id}[{label}]" if label else run.id)
+            for s in range(seeds):
+                u = dict(updates)
+                u["seed"] = base.seed + s
+                if quick and study.quick_duration_s is not None:
+                    u["sim.duration_s"] = min(study.quick_duration_s, base.duration_s)
+                u["name"] = f"{study.name}/{group}"
+                try:
+                    sc = base.with_updates(u)
+                except ScenarioError as exc:
+                    raise StudyError(f"study {study.name}, run {group}: {exc}") from None
+                specs.append(RunSpec(study.name, group, s, sc.to_toml()))
+    return specs
+
+
+def scenario_of(spec: RunSpec) -> Scenario:
+    from ..config import parse_scenario
+
+    return parse_scenario(tomllib.loads(spec.scenario_toml))

@@ -1,0 +1,139 @@
+"""The campaign report: one self-contained HTML file (figures embedded as base64 PNG)."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from ..experiments.campaign import run_dir  # noqa: E402
+from ..experiments.study import RunSpec, Study  # noqa: E402
+
+TABLE_METRICS = ("c_min", "c_mean", "outage_fraction", "alignment_ok_fraction", "slack_active_fraction",
+                 "infeasible_fraction", "energy_kJ", "distance_m", "final_z_m", "solve_ms.mean", "solve_ms.p99")
+MAX_CURVES = 8
+
+CSS = """
+body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+table{border-collapse:collapse;margin:1em 0;font-size:13px}td,th{border:1px solid #ccc;padding:3px 7px;text-align:right}
+th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.yes{color:#176a1f;font-weight:600}
+.no{color:#b00020;font-weight:600}.na{color:#777}img{max-width:100%;border:1px solid #eee;margin:4px 0}
+.warn{background:#fff4e0;border-left:4px solid #f0a000;padding:6px 10px}code{background:#f5f5f5;padding:0 3px}
+"""
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return f'<img alt="figure" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, float):
+        if math.isinf(v) or math.isnan(v):
+            return str(v)
+        return f"{v:.3g}"
+    return html.escape(str(v))
+
+
+def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | None:
+    firsts = {}
+    for s in specs:
+        if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
+            firsts[s.group] = s
+    if not firsts:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    for g, s in list(firsts.items())[:MAX_CURVES]:
+        df = pd.read_parquet(run_dir(out, s) / "timeseries.parquet", columns=["t", "capacity"])
+        ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1, label=g)
+    ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("end-to-end C (bit/s/Hz)")
+    ax.set_title(f"{study.title} (seed 0 of each run)", fontsize=9)
+    ax.legend(fontsize=6, ncol=2)
+    return _png(fig)
+
+
+def _bars_figure(study_sum: dict) -> str | None:
+    groups = study_sum["groups"]
+    if not groups:
+        return None
+    names = list(groups)
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    for ax, key in zip(axes, ("c_min", "c_mean")):
+        vals = [groups[g][key] for g in names]
+        errs = [groups[g].get(key + ".std", 0.0) for g in names]
+        ax.bar(range(len(names)), np.maximum(vals, 1e-9), yerr=errs, color="#4a78b0")
+        for p in study_sum["paper"]:
+            if p["metric"] == key and p["run"] in names:
+                ax.plot(names.index(p["run"]), p["paper"], "r*", ms=10, label="paper")
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(names)))
+        ax.set_xticklabels(names, rotation=60, ha="right", fontsize=6)
+        ax.set_title(key + " (ours: bars, paper: red stars)", fontsize=9)
+    fig.tight_layout()
+    return _png(fig)
+
+
+def _table(headers, rows) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Path, manifest: dict) -> str:
+    parts = [f'<h2 id="{study.name}">{html.escape(study.title)}</h2>', f"<p>{html.escape(study.description)}</p>"]
+    if study_sum["paper"]:
+        rows = [[html.escape(p["metric"]), html.escape(p["run"]), _fmt(p["ours"]), _fmt(p["paper"]),
+                 _fmt(p["ratio"]), html.escape(p["note"])] for p in study_sum["paper"]]
+        parts.append("<h3>Ours beside the paper</h3>" + _table(["metric", "run", "ours", "paper", "ours / paper", "note"], rows))
+    groups = study_sum["groups"]
+    if groups:
+        extra = [k for k in ("max_deviation_m",) if any(k in g for g in groups.values())]
+        cols = list(TABLE_METRICS) + extra
+        rows = [[html.escape(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
+        parts.append("<h3>Runs (means over seeds)</h3>" + _table(["run", "n"] + cols, rows))
+    for fig in (_capacity_figure(study, specs, out), _bars_figure(study_sum)):
+        if fig:
+            parts.append(fig)
+    failed = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == "failed"]
+    if failed or study_sum["missing_runs"]:
+        items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in failed)
+        parts.append(f'<div class="warn">{len(study_sum["missing_runs"])} run(s) without results.<ul>{items}</ul></div>')
+    return "\n".join(parts)
+
+
+def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out: Path, manifest: dict) -> str:
+    """The whole report as an HTML string."""
+    claims_rows = []
+    for c in summary["claims"]:
+        verdict = {True: '<span class="yes">holds</span>', False: '<span class="no">does not hold</span>',
+                   None: '<span class="na">not evaluated</span>'}[c["holds"]]
+        claims_rows.append([html.escape(c["claim"]), verdict, html.escape(c["evidence"])])
+    meta = summary.get("campaign", {})
+    head = (f"<h1>aerorelay: reproduction of the paper's experiments</h1>"
+            f"<p>aerorelay {html.escape(str(meta.get('version', '')))}, {html.escape(str(meta.get('date', '')))}; "
+            f"{meta.get('runs_total', 0)} runs ({meta.get('runs_failed', 0)} failed), "
+            f"{'quick mode (fewer seeds, shorter missions where the study allows)' if meta.get('quick') else 'full campaign'}; "
+            f"campaign wall time {_fmt(meta.get('wall_s'))} s. Normalized capacities (B = 1). Solve times measured "
+            f"with runs in parallel on the same cores: use <code>aerorelay bench</code> for isolated timing.</p>")
+    toc = "<p>" + " · ".join(f'<a href="#{s.name}">{html.escape(s.name)}</a>' for s in studies) + "</p>"
+    body = [head, toc, "<h2>The paper's claims on our numbers</h2>",
+            _table(["claim", "verdict", "evidence"], claims_rows)]
+    for s in studies:
+        body.append(_study_section(s, summary["studies"][s.name], [r for r in specs if r.study == s.name], out, manifest))
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>aerorelay report</title>"
+            f"<style>{CSS}</style></head><body>{''.join(body)}</body></html>")
