@@ -1,0 +1,59 @@
+"""The campaign report opened in a real headless Chromium: it loads, logs no console error, and
+every figure decodes. Needs Debian's chromium (``.ci/run`` installs it); skipped elsewhere unless
+``AERORELAY_REQUIRE_BROWSER=1`` (set by CI), which turns a missing browser into a failure."""
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from aerorelay.experiments.campaign import load_manifest, run_campaign
+from aerorelay.experiments.study import expand, find_studies
+from aerorelay.report.html import render_report
+from aerorelay.report.summary import summarize
+
+from ..experiments.test_campaign import ROOT, TINY
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.fixture()
+def browser():
+    if CHROMIUM is None:
+        if os.environ.get("AERORELAY_REQUIRE_BROWSER") == "1":
+            pytest.fail("chromium is required (AERORELAY_REQUIRE_BROWSER=1) but not installed")
+        pytest.skip("no chromium on this machine (apt-get install chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu",
+                              "--disable-background-networking", "--disable-component-update", "--no-first-run"])
+        yield b
+        b.close()
+
+
+def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
+    from dask.distributed import Client, LocalCluster
+
+    studies_dir = tmp_path / "studies"
+    studies_dir.mkdir()
+    (studies_dir / "tiny.toml").write_text(TINY)
+    study = find_studies(studies_dir)[0]
+    specs = expand(study, ROOT)
+    out = tmp_path / "campaign"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cl, Client(cl) as c:
+        run_campaign(specs, out, client=c)
+    report = out / "report.html"
+    report.write_text(render_report(summarize([study], specs, out), [study], specs, out, load_manifest(out)))
+
+    page = browser.new_page()
+    errors = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(Path(report).resolve().as_uri())
+    page.wait_for_load_state("load")
+    images = page.eval_on_selector_all("img", "els => els.map(e => [e.complete, e.naturalWidth])")
+    assert len(images) >= 2
+    assert all(done and width > 0 for done, width in images), images
+    assert "two short runs" in page.inner_text("body")
+    assert errors == []
