@@ -21,6 +21,7 @@ from ..control.ocp import NP, OcpSpec, ParamIndex
 from ..models.channel import end_to_end_capacity, jammer_gain_sq, legitimate_gain_sq, misalignment, mutual_alignment, sinr
 from ..models.fading import RicianFading
 from ..models.geometry import E3, rotation_zyx
+from ..planning.baselines import PlannedReference, SingleShotPlanner
 from ..planning.trajectory_generator import SurrogateParams, TrajectoryGenerator
 from .mission import source_trajectory
 
@@ -107,8 +108,18 @@ class ClosedLoop:
         self.jammer = sc.jammer.build()
         self.pattern = sc.antenna.build()
         ch = sc.channel
+        planner = sc.controller.planner
+        # baseline A plans with isotropic antennas: H_bar = G_bar / d, i.e. the surrogate with mu = 1
+        mu_plan = 1.0 if planner == "isotropic" else sc.controller.mu
+        self.planned = None
+        if planner == "single_shot":
+            plan = SingleShotPlanner(max_speed=sc.controller.governor_speed_m_s, gravity=self.veh.gravity,
+                                     tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, g_bar=sc.antenna.g_bar).plan(
+                self.source, np.array(sc.nodes.relay, float), sc.nodes.bs, sc.duration_s,
+                sc.controller.workspace.min, sc.controller.workspace.max)
+            self.planned = PlannedReference(plan)
         self.tg = TrajectoryGenerator(
-            SurrogateParams(sc.controller.mu, sc.antenna.g_bar, ch.tx_power_w, ch.noise_power_w, ch.bandwidth),
+            SurrogateParams(mu_plan, sc.antenna.g_bar, ch.tx_power_w, ch.noise_power_w, ch.bandwidth),
             sc.nodes.bs,
             governor_speed=sc.controller.governor_speed_m_s,
             eig_floor=sc.controller.hessian_eig_floor,
@@ -174,7 +185,10 @@ class ClosedLoop:
             p2_meas = src.p + self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else src.p
             pj_meas = self.jammer.position + (self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else 0.0)
             pj_plan = sc.jammer.power_w if self.jammer.is_localized(t) else 0.0
-            ref = self.tg.update(period, x[0:3], p2_meas, src.v, src.a, pj_meas, pj_plan)
+            if self.planned is not None:
+                ref = self.planned.update(t)
+            else:
+                ref = self.tg.update(period, x[0:3], p2_meas, src.v, src.a, pj_meas, pj_plan)
             P = self._parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
                 self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.Xb is not None else None))

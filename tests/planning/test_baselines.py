@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+
+from aerorelay.config import parse_scenario
+from aerorelay.models.channel import end_to_end_capacity, link_sinr
+from aerorelay.models.geometry import E3, attitude_from_thrust, rotation_zyx
+from aerorelay.planning.baselines import PlannedReference, SingleShotPlanner
+from aerorelay.sim.closed_loop import ClosedLoop
+from aerorelay.sim.mission import source_trajectory
+
+SC = parse_scenario({})
+
+
+@pytest.fixture(scope="module")
+def plan():
+    return SingleShotPlanner(dt=1.0).plan(source_trajectory(SC.mission), np.array(SC.nodes.relay), SC.nodes.bs, 20.0,
+                                          SC.controller.workspace.min, SC.controller.workspace.max)
+
+
+def real_mean_capacity(plan, dt):
+    """Independent recomputation of the planner's objective with the numpy channel model (no jammer)."""
+    src = source_trajectory(SC.mission)
+    caps = []
+    for k, t in enumerate(plan.t):
+        s = src.state(t)
+        R2 = rotation_zyx(attitude_from_thrust(s.a + 9.81 * E3))
+        a1 = (plan.p[k - 1] - 2 * plan.p[k] + plan.p[k + 1]) / dt**2 if 0 < k < len(plan.t) - 1 else np.zeros(3)
+        R1 = rotation_zyx(attitude_from_thrust(a1 + 9.81 * E3))
+        kw = dict(tx_power=1.0, jam_power=0.0, noise_power=1.0)
+        g21 = link_sinr(s.p, R2, plan.p[k], R1, np.zeros(3), **kw)
+        g10 = link_sinr(plan.p[k], R1, np.zeros(3), np.eye(3), np.zeros(3), **kw)
+        caps.append(end_to_end_capacity(g21, g10))
+    return float(np.mean(caps))
+
+
+def test_single_shot_plan_is_feasible_and_beats_hovering(plan):
+    assert plan.success
+    steps = np.linalg.norm(np.diff(plan.p, axis=0), axis=1)
+    assert steps.max() <= 0.5 * 1.0 + 1e-6
+    np.testing.assert_allclose(plan.p[0], SC.nodes.relay)
+    ws = SC.controller.workspace
+    assert np.all(plan.p >= np.array(ws.min) - 1e-6) and np.all(plan.p <= np.array(ws.max) + 1e-6)
+    ours = real_mean_capacity(plan, 1.0)
+    assert ours == pytest.approx(plan.mean_capacity, rel=1e-3)
+    hover = type(plan)(plan.t, np.tile(plan.p[0], (len(plan.t), 1)), 0.0, True)
+    assert ours > real_mean_capacity(hover, 1.0)
+
+
+def test_planned_reference_interpolates(plan):
+    ref = PlannedReference(plan)
+    r = ref.update(plan.t[3])
+    np.testing.assert_allclose(r.p_ref, plan.p[3], atol=1e-9)
+    assert np.linalg.norm(r.a_ref) <= 2.0 + 1e-9
+    np.testing.assert_allclose(ref.update(1e6).p_ref, plan.p[-1], atol=1e-9)
+
+
+def test_baseline_a_plans_with_isotropic_surrogate():
+    loop = ClosedLoop(SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"}))
+    assert loop.tg.sp.mu == 1.0 and loop.planned is None
+    assert ClosedLoop(SC).tg.sp.mu == SC.controller.mu
