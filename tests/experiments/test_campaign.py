@@ -150,3 +150,36 @@ def test_killed_campaign_resumes_without_recomputing(tiny, tmp_path):
     assert "ran 1 runs" in res.stdout and "skipped 1" in res.stdout
     assert done_file.stat().st_mtime_ns == stamp
     assert (out / "report.html").exists() and (out / "summary.json").exists()
+
+
+def test_worker_killed_mid_run_is_redone_and_finished_run_kept(tiny, tmp_path):
+    import threading
+
+    from dask.distributed import Client, LocalCluster
+
+    (tiny / "tiny.toml").write_text(TINY.replace('"controller.variant" = "unconstrained", "sim.duration_s" = 0.3',
+                                                 '"controller.variant" = "unconstrained", "sim.duration_s" = 8.0'))
+    specs = expand(find_studies(tiny)[0], ROOT)
+    out = tmp_path / "campaign"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, Client(cl) as c:
+        box = {}
+        th = threading.Thread(target=lambda: box.setdefault("res", run_campaign(specs, out, client=c)))
+        th.start()
+        deadline, killed = time.time() + 180, None
+        while time.time() < deadline and killed is None:
+            man = load_manifest(out) if (out / "manifest.json").exists() else {}
+            busy = {w: ts for w, ts in c.processing().items() if ts}
+            if man.get("tiny/constrained/seed0", {}).get("status") == "done" and busy:
+                worker = next(iter(busy))
+                pid = c.run(os.getpid, workers=[worker])[worker]
+                stamp = (run_dir(out, specs[0]) / "metrics.json").stat().st_mtime_ns
+                os.kill(pid, signal.SIGKILL)
+                killed = pid
+            time.sleep(0.2)
+        th.join(timeout=240)
+    assert killed is not None, "never saw the slow run in flight"
+    res = box["res"]
+    man = load_manifest(out)
+    assert man["tiny/unconstrained/seed0"]["status"] == "done" and man["tiny/unconstrained/seed0"]["pid"] != killed
+    assert (run_dir(out, specs[0]) / "metrics.json").stat().st_mtime_ns == stamp
+    assert res.failed == 0
