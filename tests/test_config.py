@@ -63,3 +63,22 @@ def test_missing_and_malformed_files(tmp_path):
     bad.write_text("this is = = not toml")
     with pytest.raises(ScenarioError, match="not valid TOML"):
         load_scenario(bad)
+
+
+def test_trajectory_csv_resolved_next_to_the_scenario_and_checked(tmp_path):
+    (tmp_path / "path.csv").write_text("t,px,py,pz,vx,vy,vz,ax,ay,az\n0,-3,5,2,0,0,0,0,0,0\n10,-3,5,4,0,0,0.2,0,0,0\n")
+    f = tmp_path / "s.toml"
+    f.write_text('[mission]\ntrajectory_csv = "path.csv"\n')
+    sc = load_scenario(f)
+    assert sc.mission.trajectory_csv == str((tmp_path / "path.csv").resolve())
+    from aerorelay.sim.mission import source_trajectory
+
+    assert source_trajectory(sc.mission).state(5.0).p[2] == pytest.approx(3.0)
+    assert sc.duration_s == 10.0 and sc.mission.start == [-3.0, 5.0, 2.0]
+    f.write_text('[mission]\ntrajectory_csv = "missing.csv"\n')
+    with pytest.raises(ScenarioError, match="mission.trajectory_csv: no such file"):
+        load_scenario(f)
+    (tmp_path / "bad.csv").write_text("t,x\n0,1\n")
+    f.write_text('[mission]\ntrajectory_csv = "bad.csv"\n')
+    with pytest.raises(ScenarioError, match="missing CSV columns"):
+        load_scenario(f)

@@ -223,10 +223,20 @@ class MissionConfig(_Strict):
 
     @property
     def duration_s(self) -> float:
+        """Mission length (s): the last waypoint's time, or the CSV's last time."""
+        if self.trajectory_csv and Path(self.trajectory_csv).is_file():
+            from .sim.mission import CsvPath
+
+            return CsvPath(self.trajectory_csv).duration
         return self.waypoints[-1][0]
 
     @property
     def start(self) -> list[float]:
+        """MRAV-2's initial position (m)."""
+        if self.trajectory_csv and Path(self.trajectory_csv).is_file():
+            from .sim.mission import CsvPath
+
+            return [float(v) for v in CsvPath(self.trajectory_csv).state(0.0).p]
         return list(self.waypoints[0][1:])
 
 
@@ -371,4 +381,22 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: no such scenario file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return parse_scenario(data)
+    csv = data.get("mission", {}).get("trajectory_csv") if isinstance(data.get("mission"), dict) else None
+    if isinstance(csv, str) and csv and not Path(csv).is_absolute():
+        data["mission"]["trajectory_csv"] = str((path.parent / csv).resolve())  # relative to the scenario file
+    sc = parse_scenario(data)
+    if sc.mission.trajectory_csv:
+        _check_trajectory_csv(Path(sc.mission.trajectory_csv))
+    return sc
+
+
+def _check_trajectory_csv(csv: Path) -> None:
+    """Validate a user MRAV-2 trajectory before any work starts (header and time column)."""
+    from .sim.mission import CsvPath
+
+    if not csv.is_file():
+        raise ScenarioError(f"mission.trajectory_csv: no such file {csv}")
+    try:
+        CsvPath(csv)
+    except ValueError as exc:
+        raise ScenarioError(f"mission.trajectory_csv: {exc}") from None
