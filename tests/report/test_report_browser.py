@@ -56,4 +56,5 @@ def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
     assert len(images) >= 2
     assert all(done and width > 0 for done, width in images), images
     assert "two short runs" in page.inner_text("body")
+    assert page.eval_on_selector_all(".js-plotly-plot", "els => els.length") == 1  # the 3D view rendered
     assert errors == []

@@ -88,6 +88,36 @@ def _bars_figure(study_sum: dict) -> str | None:
     return _png(fig)
 
 
+def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
+    """Interactive 3D view (plotly) of the relay paths of a small study, with MRAV-2, BS and jammer."""
+    import plotly.graph_objects as go
+
+    from ..experiments.study import scenario_of
+
+    firsts = {}
+    for s in specs:
+        if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
+            firsts[s.group] = s
+    if not firsts or len(firsts) > 6 or study.seeds > 1:
+        return None
+    traces = []
+    for i, (g, s) in enumerate(firsts.items()):
+        df = pd.read_parquet(run_dir(out, s) / "timeseries.parquet", columns=["p1_x", "p1_y", "p1_z", "p2_x", "p2_y", "p2_z"])
+        traces.append(go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name=f"relay: {g}", line=dict(width=5)))
+        if i == 0:
+            traces.append(go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2",
+                                       line=dict(color="#7b3fa0", width=4, dash="dash")))
+    sc = scenario_of(next(iter(firsts.values())))
+    traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",
+                               marker=dict(color="black", size=5)))
+    traces.append(go.Scatter3d(x=[sc.jammer.position[0]], y=[sc.jammer.position[1]], z=[sc.jammer.position[2]],
+                               mode="markers", name="jammer", marker=dict(color="red", size=5)))
+    fig = go.Figure(traces)
+    fig.update_layout(height=520, scene=dict(aspectmode="data"), margin=dict(l=0, r=0, t=30, b=0),
+                      title=dict(text="trajectories (drag to rotate)", font=dict(size=12)))
+    return fig.to_html(full_html=False, include_plotlyjs=False)
+
+
 def _table(headers, rows) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
@@ -106,7 +136,7 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
         cols = list(TABLE_METRICS) + extra
         rows = [[html.escape(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
         parts.append("<h3>Runs (means over seeds)</h3>" + _table(["run", "n"] + cols, rows))
-    for fig in (_capacity_figure(study, specs, out), _bars_figure(study_sum)):
+    for fig in (_capacity_figure(study, specs, out), _bars_figure(study_sum), _trajectory_3d(study, specs, out)):
         if fig:
             parts.append(fig)
     failed = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == "failed"]
@@ -135,5 +165,7 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
             _table(["claim", "verdict", "evidence"], claims_rows)]
     for s in studies:
         body.append(_study_section(s, summary["studies"][s.name], [r for r in specs if r.study == s.name], out, manifest))
+    from plotly.offline import get_plotlyjs
+
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>aerorelay report</title>"
-            f"<style>{CSS}</style></head><body>{''.join(body)}</body></html>")
+            f"<style>{CSS}</style><script>{get_plotlyjs()}</script></head><body>{''.join(body)}</body></html>")
