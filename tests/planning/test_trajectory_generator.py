@@ -86,3 +86,18 @@ def test_indefinite_hessian_is_regularized():
     assert reg and np.linalg.eigvalsh(Hr).min() > 0
     Hs, reg2 = tg._regularize(np.eye(3))
     assert not reg2 and np.array_equal(Hs, np.eye(3))
+
+
+def test_taylor_error_ignores_a_change_of_jammer_knowledge():
+    tg = make()
+    dt = 0.015
+    tg.update(dt, P1, P2, np.zeros(3), np.zeros(3), PJ, 0.0)  # before localization
+    r = tg.update(dt, P1 + 0.005, P2 + 0.005, np.zeros(3), np.zeros(3), PJ, 1.0)  # localized now
+    assert r.taylor_rel_err < 1e-6
+    # independent check: the second-order model of the previous step at the new point, same jammer (P_J = 0)
+    f0, g1, g2, H11, H12, H22 = tg.expansion(P1, P2, PJ, 0.0)
+    d = np.full(6, 0.005)
+    H = np.block([[H11, H12], [H12.T, H22]])
+    f_new = f_surrogate(P1 + 0.005, P2 + 0.005, 0.0)
+    expected = abs(f_new - (f0 + np.concatenate([g1, g2]) @ d + 0.5 * d @ H @ d)) / f_new
+    assert r.taylor_rel_err == pytest.approx(expected, rel=1e-6, abs=1e-15)

@@ -97,10 +97,18 @@ class TrajectoryGenerator:
             return H11, False
         return (V * np.maximum(lam, floor)) @ V.T, True
 
-    def _taylor_error(self, p1, p2, f_now: float) -> float:
+    def _taylor_error(self, p1, p2, f_now: float, p_jam, jam_power: float) -> float:
+        """``|f - f2| / |f|`` at the new ``kappa`` for the previous step's expansion (eq. 20).
+
+        Both sides use the previous step's jammer knowledge, so a change of the cost function
+        itself (localization at tau_E, CSI noise on the jammer position) is not counted as
+        approximation error.
+        """
         if self._prev is None:
             return 0.0
-        kappa_e, f_e, g_e, H_e = self._prev
+        kappa_e, f_e, g_e, H_e, pj_e, PJ_e = self._prev
+        if PJ_e != jam_power or not np.array_equal(pj_e, p_jam):
+            f_now = self.expansion(p1, p2, pj_e, PJ_e)[0]
         d = np.concatenate([p1, p2]) - kappa_e
         f2 = f_e + g_e @ d + 0.5 * d @ H_e @ d
         return abs(f_now - f2) / abs(f_now)
@@ -108,9 +116,9 @@ class TrajectoryGenerator:
     def optimum(self, p1, p2, v2, a2, p_jam, jam_power: float):
         """Eq. 17-19 at the expansion point ``kappa_e = (p1, p2)`` (so ``delta_2 = 0``)."""
         f, g1, g2, H11, H12, H22 = self.expansion(p1, p2, p_jam, jam_power)
-        err = self._taylor_error(p1, p2, f)
+        err = self._taylor_error(p1, p2, f, p_jam, jam_power)
         H = np.block([[H11, H12], [H12.T, H22]])
-        self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H)
+        self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H, np.array(p_jam, float), jam_power)
         H11r, reg = self._regularize(H11)
         K = np.linalg.solve(H11r, H12)
         p_opt = np.clip(p1 - np.linalg.solve(H11r, g1), self.lo, self.hi)
