@@ -251,7 +251,8 @@ def reproduce(
     manifest = load_manifest(out)
     meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
             "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
-            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s}
+            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s,
+            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs)}
     summary = summarize(chosen, specs, out, {"campaign": meta})
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     (out / "report.html").write_text(render_report(summary, chosen, specs, out, manifest))
