@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from .models.antenna import DipolePattern, SinPowerPattern
 from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
-from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, hexarotor, hexarotor_layout
+from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, hexarotor
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 MIN_NODE_SEPARATION_M = 0.1
