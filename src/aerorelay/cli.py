@@ -113,14 +113,9 @@ KEY_METRICS = (
 )
 
 
-def _get(metrics: dict, dotted: str):
-    v = metrics
-    for part in dotted.split("."):
-        v = v[part]
-    return v
-
-
 def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
+    from .report.summary import metric
+
     t = Table(show_header=True)
     t.add_column("metric")
     for name in runs:
@@ -128,7 +123,7 @@ def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
     if ratio:
         t.add_column("ratio B/A", justify="right")
     for key in KEY_METRICS:
-        vals = [_get(m, key) for m in runs.values()]
+        vals = [metric(m, key) for m in runs.values()]
         row = [key, *[f"{v:.4g}" for v in vals]]
         if ratio:
             a, b = vals

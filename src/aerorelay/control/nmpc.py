@@ -68,6 +68,12 @@ def _pack_mx(X, W):
     return ca.vertcat(ca.vec(ca.vertcat(X[:, :N], W)), X[:, N])
 
 
+def pack_plan(X: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """numpy twin of ``_pack_mx``: ``z = [xa_0; w_0; ...; xa_N]`` from ``(nx, N+1)`` and ``(nw, N)``."""
+    N = W.shape[1]
+    return np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
+
+
 def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on ``z`` in absolute coordinates: motor speeds and workspace on states k >= 1,
     motor accelerations on inputs, slack ``pi_k >= 0`` for k >= 1 (fixed to 0 at k = 0 and in the
@@ -81,8 +87,7 @@ def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
     lbw[:nr], ubw[:nr] = v.omega_dot_min, v.omega_dot_max
     if spec.constrained:
         ubw[nr, 1:] = INF
-    pack = lambda X, W: np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
-    return pack(lbx, lbw), pack(ubx, ubw)
+    return pack_plan(lbx, lbw), pack_plan(ubx, ubw)
 
 
 def build_preparation(spec: OcpSpec) -> ca.Function:
@@ -188,9 +193,7 @@ class NMPC:
 
     def guess(self) -> np.ndarray:
         """The current linearization point ``z`` (after the last step's shift, if any)."""
-        N = self.spec.horizon
-        X, W = np.array(self.Xb), np.array(self.Wb)
-        return np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
+        return pack_plan(np.array(self.Xb), np.array(self.Wb))
 
     def reset(self, xa0: np.ndarray):
         """Initialize the guess with ``xa0`` held over the horizon and zero inputs."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import Scenario
+from ..control.bench import stats_ms
 from ..models.vehicle import Multirotor
 
 # A slack below this fraction of mu is the interior-point solver's tolerance (complementarity
@@ -42,14 +43,7 @@ def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: 
         "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= sc.controller.mu)),
         "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(sc.controller.mu, 1e-9))),
         "infeasible_fraction": float(np.mean(failed)),
-        "solve_ms": {
-            "mean": float(solve.mean()),
-            "p50": float(np.percentile(solve, 50)),
-            "p95": float(np.percentile(solve, 95)),
-            "p99": float(np.percentile(solve, 99)),
-            "max": float(solve.max()),
-            "std": float(solve.std()),
-        },
+        "solve_ms": {**stats_ms(solve), "std": float(solve.std())},
         "position_error_mean_m": float(np.mean(np.linalg.norm(p1 - pd, axis=1))),
         "distance_m": float(np.sum(np.linalg.norm(np.diff(p1, axis=0), axis=1))),
         "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
