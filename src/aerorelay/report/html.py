@@ -48,11 +48,17 @@ def _fmt(v) -> str:
     return html.escape(str(v))
 
 
-def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | None:
+def _first_run_per_group(specs: list[RunSpec], out: Path) -> dict[str, RunSpec]:
+    """The first finished run (lowest seed) of every group, in study order."""
     firsts = {}
     for s in specs:
         if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
             firsts[s.group] = s
+    return firsts
+
+
+def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | None:
+    firsts = _first_run_per_group(specs, out)
     if not firsts:
         return None
     fig, ax = plt.subplots(figsize=(8, 3.6))
@@ -94,10 +100,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
 
     from ..experiments.study import scenario_of
 
-    firsts = {}
-    for s in specs:
-        if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
-            firsts[s.group] = s
+    firsts = _first_run_per_group(specs, out)
     if not firsts or len(firsts) > 6 or study.seeds > 1:
         return None
     traces = []

@@ -180,7 +180,7 @@ class ClosedLoop:
         for k in range(n_steps):
             t = k * period
             src = self.source.state(t)
-            eta2 = self.source.attitude(t, veh.gravity)
+            eta2 = src.attitude(veh.gravity)
             # what the controller knows: MRAV-2 over the optical link, the jammer after tau_E (with CSI noise)
             p2_meas = src.p + self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else src.p
             pj_meas = self.jammer.position + (self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else 0.0)

@@ -24,6 +24,10 @@ class SourceState:
     v: np.ndarray
     a: np.ndarray
 
+    def attitude(self, gravity: float = 9.81) -> np.ndarray:
+        """ZYX Euler angles (rad) of MRAV-2: body z along ``(a + g e3)``, zero yaw."""
+        return attitude_from_thrust(self.a + gravity * E3, 0.0)
+
 
 class SourceTrajectory:
     """Piecewise path queried by time; holds the last point after the end."""
@@ -37,7 +41,7 @@ class SourceTrajectory:
 
     def attitude(self, t: float, gravity: float = 9.81) -> np.ndarray:
         """ZYX Euler angles (rad) of MRAV-2: body z along ``(a + g e3)``, zero yaw."""
-        return attitude_from_thrust(self.state(t).a + gravity * E3, 0.0)
+        return self.state(t).attitude(gravity)
 
 
 class MinimumJerkPath(SourceTrajectory):
