@@ -99,7 +99,7 @@ def build_preparation(spec: OcpSpec) -> ca.Function:
     outs = _stage_linearization(spec).map(N, "serial")(Xb[:, :N], Wb, P[:, :N])
     xn, Ak, Bk, Hk, gk = outs[:5]
     HN, gN = _terminal_linearization(spec)(Xb[:, N], P[:, N])
-    nz = N * (nx + nw) + nx
+    nz = spec.nz
     blocks_H, blocks_g, rows, lb, ub = [], [], [], [], []
     negI = -ca.DM.eye(nx)
     for k in range(N):
@@ -132,7 +132,7 @@ def build_update(spec: OcpSpec) -> ca.Function:
     """MX function ``(Xb, Wb, dz) -> (X_shift, W_shift, u0, slack_max, check)``: apply the QP step,
     shift the plan one stage for the next guess, read the first input; ``check`` is NaN when ``dz`` is."""
     N, nx, nw, nr = spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
-    Xb, Wb, dz = ca.MX.sym("Xb", nx, N + 1), ca.MX.sym("Wb", nw, N), ca.MX.sym("dz", N * (nx + nw) + nx)
+    Xb, Wb, dz = ca.MX.sym("Xb", nx, N + 1), ca.MX.sym("Wb", nw, N), ca.MX.sym("dz", spec.nz)
     body = ca.reshape(dz[: N * (nx + nw)], nx + nw, N)
     X = Xb + ca.horzcat(body[:nx, :], dz[N * (nx + nw) :])
     W = Wb + body[nx:, :]
@@ -177,7 +177,7 @@ class NMPC:
             opts.update({"N": N, "nx": [nx] * (N + 1), "nu": [nw] * N + [0], "ng": ng})
         opts.setdefault("error_on_fail", False)
         self.qp = ca.conic("nmpc_qp", self.settings.qp_solver, sp, opts)
-        self.nz = N * (nx + nw) + nx
+        self.nz = spec.nz
         self.na = prep.sparsity_out("A").size1()
         self._lbz, self._ubz = absolute_bounds(spec)
         self._dz0 = ca.DM.zeros(self.nz)

@@ -66,6 +66,10 @@ class OcpSpec:
     def nw(self) -> int:  # inputs + slack
         return self.vehicle.n_rotors + 1
 
+    @property
+    def nz(self) -> int:  # QP variables z = [xa_0, w_0, ..., xa_(N-1), w_(N-1), xa_N]
+        return self.horizon * (self.nx + self.nw) + self.nx
+
     def key(self) -> str:
         """Stable text identifying the generated code (for the on-disk cache)."""
         v = self.vehicle
