@@ -28,6 +28,11 @@ def _load_or_exit(path: Path) -> Scenario:
         raise typer.Exit(EXIT_BAD_INPUT) from None
 
 
+def _fail(message: str):
+    err_console.print(f"[bold red]error[/] {message}", highlight=False)
+    raise typer.Exit(EXIT_BAD_INPUT)
+
+
 @app.command()
 def validate(scenario: Path = typer.Argument(..., help="scenario TOML file")):
     """Validate a scenario and print it fully resolved (every default spelled out)."""
@@ -157,22 +162,32 @@ def bench(
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
     ipopt_points: int = typer.Option(3, "--ipopt-points", help="states at which a full IPOPT solve is timed"),
     json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file"),
+    backend: str = typer.Option("hpipm", "--backend", help="QP route: hpipm (compiled engine) or casadi (casadi.conic)"),
+    condense: int = typer.Option(0, "--condense", min=0, help="hpipm backend: partial condensing to this many stages (0: none)"),
+    qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
 ):
     """Time the controller on a mission: preparation vs QP, percentiles, deadline misses, IPOPT ratio."""
     import json
     import platform
 
     from .control.bench import benchmark_closed_loop
+    from .control.nmpc import NmpcSettings
     from .sim.closed_loop import ClosedLoop
 
+    if backend not in ("hpipm", "casadi"):
+        _fail(f"--backend must be 'hpipm' or 'casadi', got {backend!r}")
     sc = _load_or_exit(scenario)
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
-    ClosedLoop(sc.with_updates({"sim.duration_s": 0.1})).run()  # compile / load generated code first
-    res = benchmark_closed_loop(ClosedLoop(sc), ipopt_points=ipopt_points)
+    settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver)
+    ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
+    res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
+    route = f"hpipm engine, condensed to {condense} stages" if backend == "hpipm" and condense else (
+        "hpipm engine" if backend == "hpipm" else f"casadi.conic {qp_solver}")
     res["scenario"] = f"{sc.name} ({sc.controller.variant})"
-    t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
+    res["route"] = route
+    t = Table(title=f"bench: {res['scenario']}, {route}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
         t.add_column(c, justify="right")

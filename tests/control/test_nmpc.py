@@ -3,7 +3,7 @@ import pytest
 
 from aerorelay.config import parse_scenario
 from aerorelay.control.full_nlp import FullNlp
-from aerorelay.control.nmpc import NMPC
+from aerorelay.control.nmpc import NMPC, NmpcSettings
 from aerorelay.control.ocp import NP, ParamIndex as I
 from aerorelay.sim.closed_loop import ocp_spec, plant_step_function, stage_weights
 
@@ -14,9 +14,9 @@ HOME = np.array([-5.0, 4.0, 2.0])  # a geometry where the alignment constraint i
 P2 = np.array([-2.0, 4.0, 2.5])
 
 
-@pytest.fixture(scope="module")
-def nmpc():
-    return NMPC(SPEC)
+@pytest.fixture(scope="module", params=["hpipm", "casadi"])
+def nmpc(request):
+    return NMPC(SPEC, NmpcSettings(backend=request.param))
 
 
 @pytest.fixture(scope="module")
@@ -102,29 +102,73 @@ def test_rti_converges_to_ipopt_solution(nmpc):
     np.testing.assert_allclose(pos(z_rti), pos(z_ip), atol=1e-3)
 
 
+def _assert_fallback(nmpc, info, before):
+    assert not info.ok and nmpc.failures == before + 1
+    assert np.all(np.isfinite(info.u))
+    assert np.all(info.u >= VEH.omega_dot_min) and np.all(info.u <= VEH.omega_dot_max)
+
+
 def test_qp_failure_is_counted_and_answered_with_fallback(nmpc, monkeypatch):
     x = VEH.hover_state(HOME)
     nmpc.reset(np.concatenate([x, np.zeros(6)]))
     nmpc.step(x, np.zeros(6), params(HOME))
     before = nmpc.failures
-    real_qp = nmpc.qp
+    if nmpc.settings.backend == "casadi":
+        real_qp = nmpc.engine.qp
 
-    class NanQp:
-        """The real QP whose solution comes back as NaN (as a silently failing solver would)."""
+        class NanQp:
+            """The real QP whose solution comes back as NaN (as a silently failing solver would)."""
 
-        def __call__(self, **kw):
-            out = real_qp(**kw)
-            out["x"] = out["x"] * np.nan
-            return out
+            def __call__(self, **kw):
+                out = real_qp(**kw)
+                out["x"] = out["x"] * np.nan
+                return out
 
-        def stats(self):
-            return real_qp.stats()
+            def stats(self):
+                return real_qp.stats()
 
-    monkeypatch.setattr(nmpc, "qp", NanQp())
+        monkeypatch.setattr(nmpc.engine, "qp", NanQp())
+        info = nmpc.step(x, np.zeros(6), params(HOME))
+    else:  # the compiled engine: a NaN parameter poisons the QP data
+        P = params(HOME)
+        P[I.p_ref, 5] = np.nan
+        info = nmpc.step(x, np.zeros(6), P)
+    _assert_fallback(nmpc, info, before)
+    monkeypatch.undo()
+    # the controller recovers on the next well-posed problem
+    assert nmpc.step(x, info.u, params(HOME)).ok
+
+
+def test_iteration_limit_is_a_failure_with_fallback():
+    nmpc = NMPC(SPEC, NmpcSettings(iter_max=1))
+    x = VEH.hover_state(HOME)
+    x[0:3] += 0.5
     info = nmpc.step(x, np.zeros(6), params(HOME))
-    assert not info.ok and nmpc.failures == before + 1
-    assert np.all(np.isfinite(info.u))
-    assert np.all(info.u >= VEH.omega_dot_min) and np.all(info.u <= VEH.omega_dot_max)
+    assert info.status == "MAX_ITER"
+    _assert_fallback(nmpc, info, 0)
+
+
+def test_compiled_engine_solves_the_same_qp_as_casadi_conic():
+    """Same guess, same parameters, tight tolerances: the two QP routes take the same step
+    (the engine removes the fixed initial-state and stage-0 slack variables; the solution must not change)."""
+    tight = dict(tol_comp=1e-7, iter_max=200)
+    a, b = NMPC(SPEC, NmpcSettings(backend="casadi", **tight)), NMPC(SPEC, NmpcSettings(backend="hpipm", **tight))
+    home = np.array([0.0, 0.0, 5.0])
+    x = VEH.hover_state(home)
+    x[3:6] = np.radians([4.0, -3.0, 10.0])
+    P = params(home + np.array([0.5, 0.3, -0.2]), p2=np.array([3.0, 1.0, 8.0]))
+    P[I.mu] = 0.5  # the alignment constraint is active along the horizon
+    infos = []
+    for ctrl in (a, b):
+        ctrl.reset(np.concatenate([x, np.zeros(6)]))
+        infos.append(ctrl.step(x, np.zeros(6), P, shift=False))
+    assert all(i.ok for i in infos)
+    np.testing.assert_allclose(infos[0].u, infos[1].u, rtol=1e-5, atol=1e-4)
+    assert infos[0].slack_max == pytest.approx(infos[1].slack_max, rel=1e-5)
+    za, zb = a.guess(), b.guess()
+    nx = SPEC.nx
+    pos = lambda z: np.array([z[k * (nx + 7) : k * (nx + 7) + 12] for k in range(SPEC.horizon)])
+    np.testing.assert_allclose(pos(za), pos(zb), atol=5e-4)  # positions, attitudes, velocities, rates
 
 
 def test_alignment_constraint_acts_only_in_constrained_variant(plant):
@@ -146,3 +190,16 @@ def test_alignment_constraint_acts_only_in_constrained_variant(plant):
         result[variant] = mutual_alignment(misalignment(x[:3], R, p2), misalignment(x[:3], R, np.zeros(3)))
     assert result["unconstrained"] < 0.17
     assert result["constrained"] >= SC.controller.mu - 0.02
+
+
+def test_without_a_c_compiler_the_controller_falls_back_to_casadi(monkeypatch, caplog):
+    import aerorelay.control.codegen as codegen
+    import aerorelay.control.nmpc as nmpc_module
+
+    monkeypatch.setattr(codegen, "cache_dir", lambda: __import__("pathlib").Path("/nonexistent-cache"))
+    monkeypatch.setattr(codegen.shutil, "which", lambda name: None)
+    ctrl = nmpc_module.NMPC(SPEC, NmpcSettings(backend="hpipm"))
+    assert isinstance(ctrl.engine, nmpc_module._ConicEngine)
+    assert "casadi.conic route" in caplog.text
+    x = VEH.hover_state(HOME)
+    assert ctrl.step(x, np.zeros(6), params(HOME)).ok

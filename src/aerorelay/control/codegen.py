@@ -1,9 +1,9 @@
-"""Compile CasADi functions to C once and cache the shared library on disk.
+"""Compile C code (CasADi-generated or ours) to shared libraries, cached on disk.
 
 The cache folder is ``$AERORELAY_CACHE`` or ``~/.cache/aerorelay``; a library is keyed by a hash
-of the function's serialized expression graph, the caller's key, the CasADi version and the
-compiler flags, so any change to the model or the code generating it builds a new library. When no C compiler is available the
-in-memory (virtual machine) function is returned and a warning is logged.
+of its complete C source (which embeds the expression graph), the caller's key, the CasADi
+version and the compiler flags, so any change to the model or the code generating it builds a
+new library. When no C compiler is available the caller falls back (a warning is logged).
 """
 
 from __future__ import annotations
@@ -21,31 +21,51 @@ import casadi as ca
 log = logging.getLogger(__name__)
 
 
+class CompileError(RuntimeError):
+    """No C compiler, or the compiler rejected the source."""
+
+
 def cache_dir() -> Path:
     return Path(os.environ.get("AERORELAY_CACHE", Path.home() / ".cache" / "aerorelay"))
 
 
+def generated_c(*funs: ca.Function) -> str:
+    """C source of ``funs`` from CasADi's code generator (no header, no main)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cg = ca.CodeGenerator("gen.c", {"with_header": False})
+        for f in funs:
+            cg.add(f)
+        cg.generate(tmp + os.sep)
+        return (Path(tmp) / "gen.c").read_text()
+
+
+def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] = ("-O2",),
+                   link: tuple[str, ...] = ()) -> Path:
+    """Path of ``source`` compiled to a shared library, built once and cached; raises CompileError."""
+    digest = hashlib.sha256(f"{source}|{key}|{ca.__version__}|{flags}|{link}".encode()).hexdigest()[:16]
+    lib = cache_dir() / f"{name}_{digest}.so"
+    if lib.exists():
+        return lib
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        raise CompileError("no C compiler (gcc or cc) on PATH")
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        src, out = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
+        src.write_text(source)
+        res = subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out), str(src), *link],
+                             capture_output=True, text=True)
+        if res.returncode != 0:
+            raise CompileError(f"compiling {name} failed: {res.stderr[-2000:]}")
+        shutil.move(str(out), lib)  # atomic within one filesystem; concurrent builders are harmless
+    return lib
+
+
 def compiled(fun: ca.Function, key: str, *, flags: tuple[str, ...] = ("-O2",)) -> ca.Function:
     """Return ``fun`` compiled to a shared library (cached by ``key``), or ``fun`` itself on failure."""
-    graph = hashlib.sha256(fun.serialize().encode()).hexdigest()
-    digest = hashlib.sha256(f"{graph}|{key}|{ca.__version__}|{flags}|{fun.name()}".encode()).hexdigest()[:16]
-    name = f"{fun.name()}_{digest}"
-    lib = cache_dir() / f"{name}.so"
-    if not lib.exists():
-        cc = shutil.which("gcc") or shutil.which("cc")
-        if cc is None:
-            log.warning("no C compiler found: %s runs in CasADi's virtual machine (slower)", fun.name())
-            return fun
-        lib.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            src = Path(tmp) / f"{name}.c"
-            cg = ca.CodeGenerator(src.name, {"with_header": False})
-            cg.add(fun)
-            cg.generate(tmp + os.sep)
-            out = Path(tmp) / f"{name}.so"
-            res = subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out), str(src)], capture_output=True, text=True)
-            if res.returncode != 0:
-                log.warning("compiling %s failed, using the virtual machine: %s", name, res.stderr[-2000:])
-                return fun
-            shutil.move(str(out), lib)  # atomic within one filesystem; concurrent builders are harmless
+    try:
+        lib = shared_library(fun.name(), generated_c(fun), key, flags=flags)
+    except CompileError as err:
+        log.warning("%s runs in CasADi's virtual machine (slower): %s", fun.name(), err)
+        return fun
     return ca.external(fun.name(), str(lib))

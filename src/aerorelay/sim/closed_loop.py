@@ -191,7 +191,7 @@ class ClosedLoop:
                 ref = self.tg.update(period, x[0:3], p2_meas, src.v, src.a, pj_meas, pj_plan)
             P = self._parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
-                self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.Xb is not None else None))
+                self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
             info = self.nmpc.step(x, u, P, shift=shift)
             self.timings.append((info.prep_ms, info.qp_ms))
             u = info.u

@@ -1,0 +1,143 @@
+"""The RTI step as one compiled C call: CasADi-generated stage linearization + HPIPM.
+
+``rti_hpipm.c`` is appended to the C code CasADi generates for the per-stage linearization of
+``ocp.py`` and linked against the HPIPM and BLASFEO libraries that ship in CasADi's wheel (no
+extra dependency). Compared with ``casadi.conic('hpipm')`` this keeps HPIPM's structures alive
+between steps instead of rebuilding them on every call, drops the two variable blocks the
+conic route fixes by equal bounds (initial state, stage-0 slack), can partially condense the
+horizon, and leaves one Python -> C call per control step.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from importlib import resources
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from .codegen import generated_c, shared_library
+from .ocp import NP, OcpSpec, ParamIndex, alignment_constraint, discrete_dynamics, stage_residual, terminal_residual
+
+_dp = ctypes.POINTER(ctypes.c_double)
+
+
+def stage_functions(spec: OcpSpec) -> tuple[ca.Function, ca.Function]:
+    """Dense-output SX functions ``stage_lin(xa, w, p) -> (xn, A, B, H, g[, h, Jh])`` and
+    ``term_lin(xa, p) -> (H, g)``: Gauss-Newton Hessian ``H = J'J`` and gradient ``g = J'r`` of
+    the least-squares cost over ``z = (xa, w)``, dynamics and alignment-constraint Jacobians."""
+    xa, w, p = ca.SX.sym("xa", spec.nx), ca.SX.sym("w", spec.nw), ca.SX.sym("p", NP)
+    z = ca.vertcat(xa, w)
+    xn = discrete_dynamics(spec, xa, w)
+    r = stage_residual(spec, xa, w, p)
+    J = ca.jacobian(r, z)
+    outs = [xn, ca.jacobian(xn, xa), ca.jacobian(xn, w), ca.mtimes(J.T, J), ca.mtimes(J.T, r)]
+    if spec.constrained:
+        h = alignment_constraint(spec, xa, w, p)
+        outs += [h, ca.jacobian(h, z)]
+    stage = ca.Function("stage_lin", [xa, w, p], [ca.densify(o) for o in outs])
+    xt = ca.SX.sym("xt", spec.nx)
+    rt = terminal_residual(spec, xt, p)
+    Jt = ca.jacobian(rt, xt)
+    term = ca.Function("term_lin", [xt, p], [ca.densify(ca.mtimes(Jt.T, Jt)), ca.densify(ca.mtimes(Jt.T, rt))])
+    return stage, term
+
+
+def _casadi_dir() -> Path:
+    return Path(ca.__file__).parent
+
+
+def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",)) -> Path:
+    """Generate, compile (once, cached) and return the engine's shared library."""
+    nr = spec.vehicle.n_rotors
+    idxbx = _state_bound_indices(spec)
+    macros = {
+        "RTI_N": spec.horizon, "RTI_NX": spec.nx, "RTI_NW": spec.nw, "RTI_NR": nr, "RTI_NP": NP,
+        "RTI_NBX": len(idxbx), "RTI_CONSTRAINED": int(spec.constrained), "RTI_MU_INDEX": ParamIndex.mu,
+    }
+    head = "".join(f"#define {k} {v}\n" for k, v in macros.items())
+    driver = resources.files("aerorelay.control").joinpath("rti_hpipm.c").read_text()
+    source = generated_c(*stage_functions(spec)) + "\n" + head + driver
+    cdir = _casadi_dir()
+    return shared_library(
+        "nmpc_rti", source, spec.key(), flags=(*flags, f"-I{cdir / 'include'}"),
+        link=(f"-L{cdir}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{cdir}", "-lm"),
+    )
+
+
+def _state_bound_indices(spec: OcpSpec) -> list[int]:
+    """Indices of the OCP state with bounds (workspace position, motor speeds)."""
+    nr = spec.vehicle.n_rotors
+    return [0, 1, 2, *range(12, 12 + nr)]
+
+
+class HpipmRti:
+    """Owns one engine instance (HPIPM workspace + plan) inside the compiled library.
+
+    ``step(xa0, P)`` linearizes at the current guess, solves the QP, applies the step, shifts the
+    plan and returns the first input. ``P`` is the ``(NP, N+1)`` parameter matrix.
+    """
+
+    INFO = 7
+
+    def __init__(self, spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50,
+                 tol_comp: float = 1e-4, warm_start: bool = True, hessian_reg: float = 1e-8,
+                 ric_alg: int = 1, pred_corr: bool = True, mu0: float = 0.0):
+        self.spec = spec
+        lib = ctypes.CDLL(str(build_library(spec)))
+        lib.rti_create.restype = ctypes.c_void_p
+        lib.rti_create.argtypes = [_dp, ctypes.POINTER(ctypes.c_int), _dp, _dp, _dp, _dp]
+        lib.rti_step.argtypes = [ctypes.c_void_p, _dp, _dp, ctypes.c_int, _dp, _dp]
+        lib.rti_step.restype = ctypes.c_int
+        lib.rti_set_plan.argtypes = [ctypes.c_void_p, _dp, _dp]
+        lib.rti_get_plan.argtypes = [ctypes.c_void_p, _dp, _dp, _dp, _dp]
+        lib.rti_free.argtypes = [ctypes.c_void_p]
+        self._lib = lib
+        v, nr = spec.vehicle, spec.vehicle.n_rotors
+        idx = _state_bound_indices(spec)
+        lbx = np.array([*spec.workspace_min, *([v.omega_min] * nr)], float)
+        ubx = np.array([*spec.workspace_max, *([v.omega_max] * nr)], float)
+        n2 = condensed_horizon if 0 < condensed_horizon < spec.horizon else spec.horizon
+        settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg, int(pred_corr), mu0], float)
+        self._keep = [np.array(idx, np.int32), lbx, ubx, np.full(nr, v.omega_dot_min), np.full(nr, v.omega_dot_max)]
+        self._mem = lib.rti_create(_ptr(settings), self._keep[0].ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+                                   *(_ptr(a) for a in self._keep[1:]))
+        if not self._mem:
+            raise MemoryError("could not create the HPIPM RTI engine")
+        N, nx, nw = spec.horizon, spec.nx, spec.nw
+        self._plans = [np.zeros((N + 1) * nx), np.zeros(N * nw), np.zeros((N + 1) * nx), np.zeros(N * nw)]
+        self._u = np.zeros(nr)
+        self._info = np.zeros(self.INFO)
+
+    def __del__(self):
+        mem, lib = getattr(self, "_mem", None), getattr(self, "_lib", None)
+        if mem and lib is not None:
+            lib.rti_free(mem)
+            self._mem = None
+
+    def set_plan(self, X: np.ndarray, W: np.ndarray):
+        """Set the guess from ``X (nx, N+1)`` and ``W (nw, N)``."""
+        Xf = np.asarray(X, float).reshape(-1, order="F")
+        Wf = np.asarray(W, float).reshape(-1, order="F")
+        self._lib.rti_set_plan(self._mem, _ptr(Xf), _ptr(Wf))
+
+    def plan(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(Xb, Wb, X, W)``: the current guess and the last solution before its shift."""
+        self._lib.rti_get_plan(self._mem, *(_ptr(a) for a in self._plans))
+        N, nx, nw = self.spec.horizon, self.spec.nx, self.spec.nw
+        shapes = [(nx, N + 1), (nw, N), (nx, N + 1), (nw, N)]
+        return tuple(a.reshape(s, order="F").copy() for a, s in zip(self._plans, shapes))
+
+    def step(self, xa0: np.ndarray, P: np.ndarray, shift: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Run one RTI; returns ``(u0, info)`` with info = ok, status, iterations, slack max,
+        preparation ms, QP ms (see ``rti_step`` in rti_hpipm.c)."""
+        x = np.ascontiguousarray(xa0, float)
+        Pf = np.asfortranarray(P, float)
+        self._lib.rti_step(self._mem, _ptr(x), _ptr(Pf), int(shift), _ptr(self._u), _ptr(self._info))
+        return self._u.copy(), self._info.copy()
+
+
+def _ptr(a: np.ndarray):
+    assert a.dtype == np.float64 and (a.flags.c_contiguous or a.flags.f_contiguous)
+    return a.ctypes.data_as(_dp)
