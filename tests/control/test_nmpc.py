@@ -203,3 +203,9 @@ def test_without_a_c_compiler_the_controller_falls_back_to_casadi(monkeypatch, c
     assert "casadi.conic route" in caplog.text
     x = VEH.hover_state(HOME)
     assert ctrl.step(x, np.zeros(6), params(HOME)).ok
+
+
+@pytest.mark.parametrize("field,value", [("backend", "acados"), ("warm_start", "hot"), ("riccati", "lu"), ("tol_comp", 0.0)])
+def test_bad_settings_are_named(field, value):
+    with pytest.raises(ValueError, match=f"NmpcSettings.{field}"):
+        NmpcSettings(**{field: value})

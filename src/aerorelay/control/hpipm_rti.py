@@ -82,7 +82,7 @@ class HpipmRti:
     INFO = 7
 
     def __init__(self, spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50,
-                 tol_comp: float = 1e-4, warm_start: bool = True, hessian_reg: float = 1e-8,
+                 tol_comp: float = 1e-4, warm_start: int = 2, hessian_reg: float = 1e-8,
                  ric_alg: int = 1, pred_corr: bool = True, mu0: float = 0.0):
         self.spec = spec
         lib = ctypes.CDLL(str(build_library(spec)))

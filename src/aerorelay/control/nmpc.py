@@ -157,20 +157,37 @@ class NmpcSettings:
     """How the RTI is solved. Defaults measured on the nominal tilted mission (see README, Speed)."""
 
     backend: str = "hpipm"  # "hpipm" (compiled engine) or "casadi" (casadi.conic route)
-    # HPIPM complementarity tolerance 1e-4 + primal warm start: 4.6 instead of 8.9 IPM iterations
-    # per step on the nominal mission, same capacities to 3 digits (measured, see the issue note)
-    tol_comp: float = 1e-4
+    # HPIPM's complementarity tolerance. Nominal tilted mission, hpipm backend, primal-dual warm
+    # start: 1e-4 -> 2.8 IPM iterations per step, 1e-3 -> 2.25, 1e-2 -> 1.3; C_min 4.736e-4,
+    # 4.733e-4, 4.664e-4 (README, Speed). 1e-3 keeps C_min within 0.2% of the 1e-4 solution.
+    tol_comp: float = 1e-3
     iter_max: int = 50
+    # hpipm backend: "primal_dual" starts each IPM from the guess and the previous QP's multipliers
+    # (4.1 -> 2.8 iterations at tol 1e-4; cold after a reset or a failure, and a failed warm
+    # solve is retried cold); "primal" from the guess only; "none" cold
+    warm_start: str = "primal_dual"
     condensed_horizon: int = 0  # hpipm backend: partial condensing to this many stages (0: none)
     riccati: str = "square_root"  # hpipm backend: HPIPM's Riccati recursion, "square_root" or "classical"
     qp_solver: str = "hpipm"  # casadi backend: the casadi.conic plugin and its options
     qp_options: dict | None = None
     compile: bool = True
 
+    def __post_init__(self):
+        choices = {"backend": ("hpipm", "casadi"), "warm_start": ("none", "primal", "primal_dual"),
+                   "riccati": ("square_root", "classical")}
+        for name, allowed in choices.items():
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"NmpcSettings.{name} must be one of {allowed}, got {getattr(self, name)!r}")
+        if not 0.0 < self.tol_comp < 1.0:
+            raise ValueError(f"NmpcSettings.tol_comp must be in (0, 1), got {self.tol_comp}")
+        if self.iter_max < 1 or self.condensed_horizon < 0:
+            raise ValueError("NmpcSettings.iter_max must be >= 1 and condensed_horizon >= 0")
+
     def conic_options(self) -> dict:
         if self.qp_options is not None:
             return dict(self.qp_options)
         if self.qp_solver == "hpipm":
+            # casadi's hpipm plugin: primal warm start only (a primal-dual one made every QP fail)
             return {"hpipm": {"mode": "speed_abs", "iter_max": self.iter_max, "res_m_max": self.tol_comp, "warm_start": 1}}
         return {}
 
@@ -232,6 +249,7 @@ class _HpipmEngine:
     def __init__(self, spec: OcpSpec, settings: NmpcSettings):
         self.rti = HpipmRti(spec, condensed_horizon=settings.condensed_horizon, iter_max=settings.iter_max,
                             tol_comp=settings.tol_comp, hessian_reg=HESSIAN_REG,
+                            warm_start={"none": 0, "primal": 1, "primal_dual": 2}[settings.warm_start],
                             ric_alg={"classical": 0, "square_root": 1}[settings.riccati])
 
     def reset(self, X: np.ndarray, W: np.ndarray):
@@ -261,8 +279,6 @@ class NMPC:
         self.spec = spec
         self.settings = settings or NmpcSettings()
         backend = self.settings.backend
-        if backend not in ("hpipm", "casadi"):
-            raise ValueError(f"NmpcSettings.backend must be 'hpipm' or 'casadi', got {backend!r}")
         self.engine = None
         if backend == "hpipm" and self.settings.compile:
             try:

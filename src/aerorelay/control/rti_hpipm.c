@@ -29,7 +29,7 @@
 #define RTI_BIG 1e8
 
 typedef struct {
-  int n2, iter_max, warm_start, ric_alg, pred_corr;
+  int n2, iter_max, warm_start, ric_alg, pred_corr, cold; /* cold: no usable multipliers yet */
   double tol_comp, reg, mu0;
   int idxbx[RTI_NBX], idxbu[RTI_NU];
   double lbx[RTI_NBX], ubx[RTI_NBX], lbu[RTI_NR], ubu[RTI_NR];
@@ -89,6 +89,7 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   m->ric_alg = (int)settings[5];
   m->pred_corr = (int)settings[6];
   m->mu0 = settings[7];
+  m->cold = 1;
   for (i = 0; i < RTI_NBX; i++) { m->idxbx[i] = idxbx[i]; m->lbx[i] = lbx[i]; m->ubx[i] = ubx[i]; }
   for (i = 0; i < RTI_NR; i++) { m->lbu[i] = lbu[i]; m->ubu[i] = ubu[i]; }
   for (i = 0; i < RTI_NU; i++) m->idxbu[i] = i;
@@ -160,6 +161,7 @@ void rti_free(rti_mem *m) {
 void rti_set_plan(rti_mem *m, const double *Xb, const double *Wb) {
   memcpy(m->Xb, Xb, sizeof(m->Xb));
   memcpy(m->Wb, Wb, sizeof(m->Wb));
+  m->cold = 1;
 }
 
 void rti_get_plan(rti_mem *m, double *Xb, double *Wb, double *X, double *W) {
@@ -248,6 +250,19 @@ static void rti_shift(rti_mem *m, const double *X, const double *W) {
   memcpy(m->Wb + (RTI_N - 1) * RTI_NW, W + (RTI_N - 1) * RTI_NW, sizeof(double) * RTI_NW);
 }
 
+/* Run the IPM. warm_start 0: cold; 1: primal (the step is zero: the guess); 2: primal at the
+ * guess plus the previous QP's multipliers and slacks. Returns HPIPM's status. */
+static int rti_solve(rti_mem *m, struct d_ocp_qp *qp, struct d_ocp_qp_sol *sol, int warm_start, int *iter) {
+  int k, status;
+  if (warm_start >= 1)
+    for (k = 0; k <= qp->dim->N; k++) blasfeo_dvecse(qp->dim->nu[k] + qp->dim->nx[k], 0.0, sol->ux + k, 0);
+  d_ocp_qp_ipm_arg_set_warm_start(&warm_start, &m->ipm_arg);
+  d_ocp_qp_ipm_solve(qp, sol, &m->ipm_arg, &m->ipm_ws);
+  d_ocp_qp_ipm_get_status(&m->ipm_ws, &status);
+  d_ocp_qp_ipm_get_iter(&m->ipm_ws, iter);
+  return status;
+}
+
 /* One RTI step. xa0: measured (augmented) state; P: (NP, N+1) column-major parameters.
  * u: first input, clipped to its bounds. info: ok, hpipm status, iterations, slack max,
  * preparation ms, QP ms (condensing + IPM + expansion + update). Returns ok. */
@@ -265,13 +280,14 @@ int rti_step(rti_mem *m, const double *xa0, const double *P, int shift, double *
     qp = &m->qp2;
     sol = &m->sol2;
   }
-  if (m->warm_start == 1) /* primal warm start at the guess: the step is zero */
-    for (k = 0; k <= qp->dim->N; k++) blasfeo_dvecse(qp->dim->nu[k] + qp->dim->nx[k], 0.0, sol->ux + k, 0);
   double t2 = rti_now_ms();
-  d_ocp_qp_ipm_solve(qp, sol, &m->ipm_arg, &m->ipm_ws);
+  status = rti_solve(m, qp, sol, m->cold ? 0 : m->warm_start, &iter);
+  if (status != 0 && !m->cold && m->warm_start) { /* a warm start gone wrong: once more from cold */
+    int iter2 = 0;
+    status = rti_solve(m, qp, sol, 0, &iter2);
+    iter += iter2;
+  }
   double t3 = rti_now_ms();
-  d_ocp_qp_ipm_get_status(&m->ipm_ws, &status);
-  d_ocp_qp_ipm_get_iter(&m->ipm_ws, &iter);
   if (m->n2 < N) d_part_cond_qp_expand_sol(&m->qp, &m->sol2, &m->sol, &m->cond_arg, &m->cond_ws);
   ok = status == 0;
   for (k = 0; k <= N && ok; k++) {
@@ -287,6 +303,7 @@ int rti_step(rti_mem *m, const double *xa0, const double *P, int shift, double *
     for (i = 0; i < nu; i++) ok = ok && isfinite(W[i]);
     if (RTI_CONSTRAINED && k >= 1 && W[RTI_NR] > slack_max) slack_max = W[RTI_NR];
   }
+  m->cold = !ok;
   if (ok) {
     for (i = 0; i < RTI_NR; i++) u[i] = rti_clip(m->W[i], m->lbu[i], m->ubu[i]);
     if (shift) rti_shift(m, m->X, m->W);
