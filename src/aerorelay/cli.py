@@ -165,6 +165,9 @@ def bench(
     backend: str = typer.Option("hpipm", "--backend", help="QP route: hpipm (compiled engine) or casadi (casadi.conic)"),
     condense: int = typer.Option(0, "--condense", min=0, help="hpipm backend: partial condensing to this many stages (0: none)"),
     qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
+    tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
+    warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
+    simd: bool = typer.Option(True, "--simd/--no-simd", help="hpipm backend: AVX2 BLASFEO kernels where the CPU has them"),
 ):
     """Time the controller on a mission: preparation vs QP, percentiles, deadline misses, IPOPT ratio."""
     import json
@@ -174,20 +177,19 @@ def bench(
     from .control.nmpc import NmpcSettings
     from .sim.closed_loop import ClosedLoop
 
-    if backend not in ("hpipm", "casadi"):
-        _fail(f"--backend must be 'hpipm' or 'casadi', got {backend!r}")
+    try:
+        settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
+                                warm_start=warm_start, simd_kernels=simd)
+    except ValueError as exc:
+        _fail(str(exc))
     sc = _load_or_exit(scenario)
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
-    settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver)
     ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
     res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-    route = f"hpipm engine, condensed to {condense} stages" if backend == "hpipm" and condense else (
-        "hpipm engine" if backend == "hpipm" else f"casadi.conic {qp_solver}")
     res["scenario"] = f"{sc.name} ({sc.controller.variant})"
-    res["route"] = route
-    t = Table(title=f"bench: {res['scenario']}, {route}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
+    t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
         t.add_column(c, justify="right")
@@ -195,6 +197,9 @@ def bench(
         if key in res:
             t.add_row(key.removesuffix("_ms"), *[f"{res[key][c]:.3f}" for c in ("mean", "p50", "p95", "p99", "max")])
     console.print(t)
+    it = res["qp_iterations"]
+    console.print(f"QP route: {res['route']}; IPM iterations per step: mean {it['mean']:.2f}, p99 {it['p99']:.0f}, "
+                  f"max {it['max']}", markup=False, highlight=False)
     console.print(
         f"wall {res['wall_s']:.1f} s for {res['sim_s']:.1f} s simulated (x{res['real_time_factor']:.2f} real time); "
         f"deadline misses vs {res['control_period_ms']:g} ms period: {res['deadline_misses']}; "

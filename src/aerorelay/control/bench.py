@@ -21,7 +21,8 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
     result = loop.run()
     wall = time.perf_counter() - wall0
     t = np.array(loop.timings)
-    prep, qp, whole = t[:, 0], t[:, 1], t.sum(axis=1)
+    prep, qp, iters = t[:, 0], t[:, 1], t[:, 2]
+    whole = prep + qp
     period_ms = loop.sc.control_period_s * 1e3
     out = {
         "steps": int(len(t)),
@@ -35,6 +36,8 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "deadline_misses": int(np.sum(whole > period_ms)),
         "misses_at_500Hz": int(np.sum(whole > 2.0)),
         "qp_failures": result.qp_failures,
+        "qp_iterations": {"mean": float(iters.mean()), "p99": float(np.percentile(iters, 99)), "max": int(iters.max())},
+        "route": loop.nmpc.route(),
     }
     points = [p for p in loop.bench_points if p[3] is not None][:ipopt_points]
     if points:

@@ -11,6 +11,7 @@ horizon, and leaves one Python -> C call per control step.
 from __future__ import annotations
 
 import ctypes
+import platform
 from importlib import resources
 from pathlib import Path
 
@@ -48,8 +49,18 @@ def _casadi_dir() -> Path:
     return Path(ca.__file__).parent
 
 
-def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",)) -> Path:
-    """Generate, compile (once, cached) and return the engine's shared library."""
+def cpu_has_avx2_fma() -> bool:
+    """Whether this (Linux, x86-64) CPU advertises AVX2 and FMA (False where it cannot be told)."""
+    try:
+        flags = Path("/proc/cpuinfo").read_text().split()
+    except OSError:
+        return False
+    return platform.machine() in ("x86_64", "AMD64") and "avx2" in flags and "fma" in flags
+
+
+def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels: bool = True) -> Path:
+    """Generate, compile (once, cached) and return the engine's shared library. With
+    ``simd_kernels`` and an AVX2/FMA CPU, ``blasfeo_avx2.c`` is compiled in (see there)."""
     nr = spec.vehicle.n_rotors
     idxbx = _state_bound_indices(spec)
     macros = {
@@ -57,7 +68,10 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",)) -> Path:
         "RTI_NBX": len(idxbx), "RTI_CONSTRAINED": int(spec.constrained), "RTI_MU_INDEX": ParamIndex.mu,
     }
     head = "".join(f"#define {k} {v}\n" for k, v in macros.items())
-    driver = resources.files("aerorelay.control").joinpath("rti_hpipm.c").read_text()
+    here = resources.files("aerorelay.control")
+    driver = here.joinpath("rti_hpipm.c").read_text()
+    if simd_kernels and cpu_has_avx2_fma():
+        head = here.joinpath("blasfeo_avx2.c").read_text() + "\n#define RTI_SIMD 1\nextern long long aerorelay_simd_kernel_calls;\n" + head
     source = generated_c(*stage_functions(spec)) + "\n" + head + driver
     cdir = _casadi_dir()
     return shared_library(
@@ -83,9 +97,10 @@ class HpipmRti:
 
     def __init__(self, spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50,
                  tol_comp: float = 1e-4, warm_start: int = 2, hessian_reg: float = 1e-8,
-                 ric_alg: int = 1, pred_corr: bool = True, mu0: float = 0.0):
+                 ric_alg: int = 1, pred_corr: bool = True, mu0: float = 0.0, simd_kernels: bool = True):
         self.spec = spec
-        lib = ctypes.CDLL(str(build_library(spec)))
+        lib = ctypes.CDLL(str(build_library(spec, simd_kernels=simd_kernels)))
+        lib.rti_simd_kernel_calls.restype = ctypes.c_longlong
         lib.rti_create.restype = ctypes.c_void_p
         lib.rti_create.argtypes = [_dp, ctypes.POINTER(ctypes.c_int), _dp, _dp, _dp, _dp]
         lib.rti_step.argtypes = [ctypes.c_void_p, _dp, _dp, ctypes.c_int, _dp, _dp]
@@ -115,6 +130,11 @@ class HpipmRti:
         if mem and lib is not None:
             lib.rti_free(mem)
             self._mem = None
+
+    def simd_kernel_calls(self) -> int:
+        """Calls of the AVX2 BLASFEO kernels so far in this process (-1: not compiled in; 0 after
+        solves: compiled in but not used, e.g. libblasfeo was bound earlier by another user)."""
+        return int(self._lib.rti_simd_kernel_calls())
 
     def set_plan(self, X: np.ndarray, W: np.ndarray):
         """Set the guess from ``X (nx, N+1)`` and ``W (nw, N)``."""

@@ -168,6 +168,8 @@ class NmpcSettings:
     warm_start: str = "primal_dual"
     condensed_horizon: int = 0  # hpipm backend: partial condensing to this many stages (0: none)
     riccati: str = "square_root"  # hpipm backend: HPIPM's Riccati recursion, "square_root" or "classical"
+    # hpipm backend: on AVX2/FMA CPUs, replace BLASFEO's two hottest generic kernels (blasfeo_avx2.c)
+    simd_kernels: bool = True
     qp_solver: str = "hpipm"  # casadi backend: the casadi.conic plugin and its options
     qp_options: dict | None = None
     compile: bool = True
@@ -250,7 +252,8 @@ class _HpipmEngine:
         self.rti = HpipmRti(spec, condensed_horizon=settings.condensed_horizon, iter_max=settings.iter_max,
                             tol_comp=settings.tol_comp, hessian_reg=HESSIAN_REG,
                             warm_start={"none": 0, "primal": 1, "primal_dual": 2}[settings.warm_start],
-                            ric_alg={"classical": 0, "square_root": 1}[settings.riccati])
+                            ric_alg={"classical": 0, "square_root": 1}[settings.riccati],
+                            simd_kernels=settings.simd_kernels)
 
     def reset(self, X: np.ndarray, W: np.ndarray):
         self.rti.set_plan(X, W)
@@ -290,6 +293,17 @@ class NMPC:
         self._lbz, self._ubz = absolute_bounds(spec)
         self.initialized = False
         self.failures = 0
+
+    def route(self) -> str:
+        """How the QP is solved, for reports: backend, options, and whether the AVX2 kernels ran."""
+        st = self.settings
+        if isinstance(self.engine, _HpipmEngine):
+            calls = self.engine.rti.simd_kernel_calls()
+            simd = "generic BLASFEO kernels" if calls < 0 else (
+                "AVX2 BLASFEO kernels" if calls > 0 else "AVX2 kernels compiled in, not (yet) used")
+            cond = f", condensed to {st.condensed_horizon} stages" if 0 < st.condensed_horizon < self.spec.horizon else ""
+            return f"hpipm engine ({st.warm_start} warm start, tol {st.tol_comp:g}{cond}, {simd})"
+        return f"casadi.conic {st.qp_solver} (tol {st.tol_comp:g})"
 
     def absolute_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds on ``z = [xa_0, w_0, ..., xa_N]`` in absolute coordinates (see ``absolute_bounds``)."""

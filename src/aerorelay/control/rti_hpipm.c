@@ -151,6 +151,15 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   return m;
 }
 
+/* How often the AVX2 kernels of blasfeo_avx2.c ran (-1: not compiled in). */
+long long rti_simd_kernel_calls(void) {
+#ifdef RTI_SIMD
+  return aerorelay_simd_kernel_calls;
+#else
+  return -1;
+#endif
+}
+
 void rti_free(rti_mem *m) {
   int i;
   if (!m) return;

@@ -130,7 +130,7 @@ class ClosedLoop:
         k_db = sc.perturbations.fading_k_db
         self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=sc.seed + 1)
         self.sw_stage, self.sw_term = stage_weights(sc)
-        self.timings: list[tuple[float, float]] = []  # (preparation ms, QP ms) per control step
+        self.timings: list[tuple[float, float, int]] = []  # (preparation ms, QP ms, IPM iterations) per step
         self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 
     def _parameters(self, ref, p2, v2, a2) -> np.ndarray:
@@ -193,7 +193,7 @@ class ClosedLoop:
             if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
                 self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
             info = self.nmpc.step(x, u, P, shift=shift)
-            self.timings.append((info.prep_ms, info.qp_ms))
+            self.timings.append((info.prep_ms, info.qp_ms, info.qp_iters))
             u = info.u
             jam_on, g21, g10, v12, v10 = self._channel(t, x, src.p, eta2)
             self._record(log, k, t, x, u, src.p, eta2, ref, jam_on, g21, g10, v12, v10, info)
