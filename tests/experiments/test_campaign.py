@@ -90,6 +90,13 @@ def test_two_runs_resume_and_summary(tiny, tmp_path, client):
     shutil.rmtree(run_dir(out, specs[1]))
     res = run_campaign(specs, out, client=client)
     assert (res.ran, res.skipped) == (1, 1) and first.stat().st_mtime_ns == stamp
+    # a run flown with other solver settings is stale: recomputed, the other one kept
+    stale = run_dir(out, specs[1]) / "metrics.json"
+    m = json.loads(stale.read_text())
+    assert m["controller"].startswith("hpipm/primal_dual")
+    stale.write_text(json.dumps({**m, "controller": "casadi/hpipm/tol=0.0001/iter_max=50"}))
+    res = run_campaign(specs, out, client=client)
+    assert (res.ran, res.skipped) == (1, 1) and first.stat().st_mtime_ns == stamp
     # summary numbers are the per-run metrics
     study = find_studies(tiny)[0]
     summary = summarize([study], specs, out)

@@ -185,6 +185,12 @@ class NmpcSettings:
         if self.iter_max < 1 or self.condensed_horizon < 0:
             raise ValueError("NmpcSettings.iter_max must be >= 1 and condensed_horizon >= 0")
 
+    def fingerprint(self) -> str:
+        """The settings that change a closed loop's numbers (not only its speed): recorded with
+        every run so that a campaign recomputes runs made with another solver configuration."""
+        route = f"hpipm/{self.warm_start}/cond={self.condensed_horizon}" if self.backend == "hpipm" else f"casadi/{self.qp_solver}"
+        return f"{route}/tol={self.tol_comp:g}/iter_max={self.iter_max}"
+
     def conic_options(self) -> dict:
         if self.qp_options is not None:
             return dict(self.qp_options)

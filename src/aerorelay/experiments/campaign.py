@@ -3,7 +3,7 @@
 Each run writes its own folder ``OUT/runs/<study>/<group>/seed<k>`` atomically (see
 ``sim.outputs.write_run``); ``OUT/manifest.json`` records every run's scenario hash, seed,
 status, wall time, package version and error. A run whose folder holds ``metrics.json`` for the
-same scenario hash is finished and never recomputed, so re-running a command resumes it: an
+same scenario and the same solver settings is finished and never recomputed, so re-running a command resumes it: an
 interrupted campaign loses no finished run. A run that raises is recorded as failed and the
 campaign goes on.
 """
@@ -30,11 +30,19 @@ def run_dir(out: Path, spec: RunSpec) -> Path:
 
 
 def is_finished(out: Path, spec: RunSpec) -> bool:
-    """A finished run has metrics.json and the same resolved scenario (hash of its TOML)."""
+    """A finished run has metrics.json, the same resolved scenario (its TOML) and was flown by a
+    controller with the current solver settings (``NmpcSettings.fingerprint``)."""
+    from ..control.nmpc import NmpcSettings
+
     d = run_dir(out, spec)
     if not (d / "metrics.json").exists() or not (d / "scenario.toml").exists():
         return False
-    return (d / "scenario.toml").read_text() == spec.scenario_toml
+    if (d / "scenario.toml").read_text() != spec.scenario_toml:
+        return False
+    try:
+        return json.loads((d / "metrics.json").read_text()).get("controller") == NmpcSettings().fingerprint()
+    except (OSError, ValueError):
+        return False
 
 
 def execute_run(spec: RunSpec, out: str, figures: bool = False) -> dict:

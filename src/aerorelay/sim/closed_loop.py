@@ -93,6 +93,7 @@ class MissionResult:
     sim_s: float
     qp_failures: int
     scenario: Scenario
+    controller: str = ""  # NmpcSettings.fingerprint() of the controller that flew it
 
 
 class ClosedLoop:
@@ -204,7 +205,7 @@ class ClosedLoop:
             if progress is not None:
                 progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
-        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, sc)
+        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, sc, self.nmpc.settings.fingerprint())
 
     def _record(self, log, k, t, x, u, p2, eta2, ref, jam_on, g21, g10, v12, v10, info):
         se21, se10 = math.log2(1 + g21), math.log2(1 + g10)

@@ -31,6 +31,7 @@ def write_run(result: MissionResult, out: Path, *, figures: bool = True) -> dict
     out.parent.mkdir(parents=True, exist_ok=True)
     sc = result.scenario
     metrics = compute_metrics(result.log, sc, wall_s=result.wall_s, sim_s=result.sim_s)
+    metrics["controller"] = result.controller
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         (tmp / "scenario.toml").write_text(sc.to_toml())
