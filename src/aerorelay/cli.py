@@ -160,6 +160,8 @@ def compare(
 def bench(
     scenario: Path = typer.Argument(..., help="scenario TOML file (default mission: the constrained tilted nominal)"),
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
+    variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
+    control_rate_hz: float = typer.Option(None, "--control-rate-hz", help="controller rate (overrides sim.control_rate_hz)"),
     ipopt_points: int = typer.Option(3, "--ipopt-points", help="states at which a full IPOPT solve is timed"),
     json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file"),
     backend: str = typer.Option("hpipm", "--backend", help="QP route: hpipm (compiled engine) or casadi (casadi.conic)"),
@@ -183,8 +185,12 @@ def bench(
     except ValueError as exc:
         _fail(str(exc))
     sc = _load_or_exit(scenario)
-    if duration is not None:
-        sc = sc.with_updates({"sim.duration_s": duration})
+    updates = {k: v for k, v in (("sim.duration_s", duration), ("controller.variant", variant),
+                                 ("sim.control_rate_hz", control_rate_hz)) if v is not None}
+    try:
+        sc = sc.with_updates(updates)
+    except ScenarioError as exc:
+        _fail(str(exc))
     ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
     res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
