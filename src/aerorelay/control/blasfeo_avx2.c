@@ -17,85 +17,60 @@
 
 long long aerorelay_simd_kernel_calls = 0;
 
-__attribute__((target("avx2,fma"))) static inline void rti_store_4x4(__m256d d0, __m256d d1, __m256d d2, __m256d d3, const double *alpha,
-                                 const double *beta, const double *C, double *D) {
-  __m256d a = _mm256_broadcast_sd(alpha);
-  d0 = _mm256_mul_pd(a, d0);
-  d1 = _mm256_mul_pd(a, d1);
-  d2 = _mm256_mul_pd(a, d2);
-  d3 = _mm256_mul_pd(a, d3);
-  if (*beta != 0.0) {
-    __m256d b = _mm256_broadcast_sd(beta);
-    d0 = _mm256_fmadd_pd(b, _mm256_loadu_pd(C + 0), d0);
-    d1 = _mm256_fmadd_pd(b, _mm256_loadu_pd(C + 4), d1);
-    d2 = _mm256_fmadd_pd(b, _mm256_loadu_pd(C + 8), d2);
-    d3 = _mm256_fmadd_pd(b, _mm256_loadu_pd(C + 12), d3);
-  }
-  _mm256_storeu_pd(D + 0, d0);
-  _mm256_storeu_pd(D + 4, d1);
-  _mm256_storeu_pd(D + 8, d2);
-  _mm256_storeu_pd(D + 12, d3);
+#define RTI_AVX2 __attribute__((target("avx2,fma")))
+
+/* c[j] += a * b[j * stride], j = 0..3: one column of A times one row of B (stride 1 in a panel
+ * of B^T, 4 along a panel-major row of B) */
+RTI_AVX2 static inline void rti_rank1(__m256d a, const double *b, int stride, __m256d *c) {
+  c[0] = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b), c[0]);
+  c[1] = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + stride), c[1]);
+  c[2] = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 2 * stride), c[2]);
+  c[3] = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 3 * stride), c[3]);
 }
 
-/* column j of A B^T += A(:, l) * B(j, l); two accumulator sets hide the FMA latency */
-__attribute__((target("avx2,fma"))) void kernel_dgemm_nt_4x4_lib4(int kmax, double *alpha, double *A, double *B, double *beta, double *C, double *D) {
-  __m256d c0 = _mm256_setzero_pd(), c1 = c0, c2 = c0, c3 = c0, e0 = c0, e1 = c0, e2 = c0, e3 = c0;
-  int l = 0;
-  aerorelay_simd_kernel_calls++;
-  for (; l + 1 < kmax; l += 2) {
-    __m256d a = _mm256_loadu_pd(A + 4 * l), f = _mm256_loadu_pd(A + 4 * l + 4);
-    const double *b = B + 4 * l;
-    c0 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 0), c0);
-    c1 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 1), c1);
-    c2 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 2), c2);
-    c3 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 3), c3);
-    e0 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(b + 4), e0);
-    e1 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(b + 5), e1);
-    e2 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(b + 6), e2);
-    e3 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(b + 7), e3);
+/* D(:, j) = alpha (c[j] + e[j]) + beta C(:, j); C is not read when beta == 0 */
+RTI_AVX2 static inline void rti_store_4x4(const __m256d *c, const __m256d *e, const double *alpha,
+                                          const double *beta, const double *C, double *D) {
+  __m256d a = _mm256_broadcast_sd(alpha), b = _mm256_broadcast_sd(beta);
+  int j;
+  for (j = 0; j < 4; j++) {
+    __m256d d = _mm256_mul_pd(a, _mm256_add_pd(c[j], e[j]));
+    if (*beta != 0.0) d = _mm256_fmadd_pd(b, _mm256_loadu_pd(C + 4 * j), d);
+    _mm256_storeu_pd(D + 4 * j, d);
   }
-  if (l < kmax) {
-    __m256d a = _mm256_loadu_pd(A + 4 * l);
-    const double *b = B + 4 * l;
-    c0 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 0), c0);
-    c1 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 1), c1);
-    c2 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 2), c2);
-    c3 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 3), c3);
-  }
-  rti_store_4x4(_mm256_add_pd(c0, e0), _mm256_add_pd(c1, e1), _mm256_add_pd(c2, e2), _mm256_add_pd(c3, e3),
-                alpha, beta, C, D);
 }
 
-/* column j of A B += A(:, l) * B(l, j), with B(l, j) at B + ((offsetB + l) / 4) 4 sdb + (offsetB + l) % 4 + 4 j */
-__attribute__((target("avx2,fma"))) void kernel_dgemm_nn_4x4_lib4(int kmax, double *alpha, double *A, int offsetB, double *B, int sdb, double *beta,
-                              double *C, double *D) {
-  __m256d c0 = _mm256_setzero_pd(), c1 = c0, c2 = c0, c3 = c0, e0 = c0, e1 = c0, e2 = c0, e3 = c0;
-  int l = 0, r = offsetB;
-  const double *panel = B;
+/* two accumulator sets (even and odd l) hide the FMA latency */
+RTI_AVX2 void kernel_dgemm_nt_4x4_lib4(int kmax, double *alpha, double *A, double *B, double *beta, double *C,
+                                       double *D) {
+  __m256d c[4], e[4];
+  int l = 0, j;
+  for (j = 0; j < 4; j++) c[j] = e[j] = _mm256_setzero_pd();
   aerorelay_simd_kernel_calls++;
   for (; l + 1 < kmax; l += 2) {
-    const double *b = panel + r, *g;
-    __m256d a = _mm256_loadu_pd(A + 4 * l), f = _mm256_loadu_pd(A + 4 * l + 4);
+    rti_rank1(_mm256_loadu_pd(A + 4 * l), B + 4 * l, 1, c);
+    rti_rank1(_mm256_loadu_pd(A + 4 * l + 4), B + 4 * l + 4, 1, e);
+  }
+  if (l < kmax) rti_rank1(_mm256_loadu_pd(A + 4 * l), B + 4 * l, 1, c);
+  rti_store_4x4(c, e, alpha, beta, C, D);
+}
+
+/* row l of B is row r = (offsetB + l) % 4 of panel (offsetB + l) / 4, panels 4 sdb apart */
+RTI_AVX2 void kernel_dgemm_nn_4x4_lib4(int kmax, double *alpha, double *A, int offsetB, double *B, int sdb,
+                                       double *beta, double *C, double *D) {
+  __m256d c[4], e[4];
+  int l = 0, j, r = offsetB;
+  const double *panel = B, *b, *g;
+  for (j = 0; j < 4; j++) c[j] = e[j] = _mm256_setzero_pd();
+  aerorelay_simd_kernel_calls++;
+  for (; l + 1 < kmax; l += 2) {
+    b = panel + r;
     if (++r == 4) { r = 0; panel += 4 * sdb; }
     g = panel + r;
     if (++r == 4) { r = 0; panel += 4 * sdb; }
-    c0 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 0), c0);
-    c1 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 4), c1);
-    c2 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 8), c2);
-    c3 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 12), c3);
-    e0 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(g + 0), e0);
-    e1 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(g + 4), e1);
-    e2 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(g + 8), e2);
-    e3 = _mm256_fmadd_pd(f, _mm256_broadcast_sd(g + 12), e3);
+    rti_rank1(_mm256_loadu_pd(A + 4 * l), b, 4, c);
+    rti_rank1(_mm256_loadu_pd(A + 4 * l + 4), g, 4, e);
   }
-  if (l < kmax) {
-    const double *b = panel + r;
-    __m256d a = _mm256_loadu_pd(A + 4 * l);
-    c0 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 0), c0);
-    c1 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 4), c1);
-    c2 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 8), c2);
-    c3 = _mm256_fmadd_pd(a, _mm256_broadcast_sd(b + 12), c3);
-  }
-  rti_store_4x4(_mm256_add_pd(c0, e0), _mm256_add_pd(c1, e1), _mm256_add_pd(c2, e2), _mm256_add_pd(c3, e3),
-                alpha, beta, C, D);
+  if (l < kmax) rti_rank1(_mm256_loadu_pd(A + 4 * l), panel + r, 4, c);
+  rti_store_4x4(c, e, alpha, beta, C, D);
 }

@@ -180,6 +180,17 @@ void rti_get_plan(rti_mem *m, double *Xb, double *Wb, double *X, double *W) {
   memcpy(W, m->W, sizeof(m->W));
 }
 
+/* State bounds of stage k >= 1 as bounds on the step from the guess xb. */
+static void rti_set_state_bounds(rti_mem *m, int k, const double *xb) {
+  int i;
+  for (i = 0; i < RTI_NBX; i++) {
+    m->lbxk[i] = m->lbx[i] - xb[m->idxbx[i]];
+    m->ubxk[i] = m->ubx[i] - xb[m->idxbx[i]];
+  }
+  d_ocp_qp_set_lbx(k, m->lbxk, &m->qp);
+  d_ocp_qp_set_ubx(k, m->ubxk, &m->qp);
+}
+
 /* Fill stage k (< N) of HPIPM's QP from the stage linearization at (Xb_k, Wb_k, P_k). */
 static void rti_fill_stage(rti_mem *m, int k, const double *P, const double *dx0) {
   int i, j, nu = k == 0 ? RTI_NR : RTI_NU;
@@ -207,12 +218,7 @@ static void rti_fill_stage(rti_mem *m, int k, const double *P, const double *dx0
     d_ocp_qp_set_Q(k, m->Q, &m->qp);
     d_ocp_qp_set_S(k, m->S, &m->qp);
     d_ocp_qp_set_q(k, m->g, &m->qp);
-    for (i = 0; i < RTI_NBX; i++) {
-      m->lbxk[i] = m->lbx[i] - xb[m->idxbx[i]];
-      m->ubxk[i] = m->ubx[i] - xb[m->idxbx[i]];
-    }
-    d_ocp_qp_set_lbx(k, m->lbxk, &m->qp);
-    d_ocp_qp_set_ubx(k, m->ubxk, &m->qp);
+    rti_set_state_bounds(m, k, xb);
   }
   d_ocp_qp_set_B(k, m->B, &m->qp); /* first nu columns of the column-major B */
   d_ocp_qp_set_b(k, m->b, &m->qp);
@@ -235,7 +241,7 @@ static void rti_fill_stage(rti_mem *m, int k, const double *P, const double *dx0
 }
 
 static void rti_fill_terminal(rti_mem *m, const double *P) {
-  int i, j, N = RTI_N;
+  int j, N = RTI_N;
   const double *xb = m->Xb + N * RTI_NX;
   m->arg[0] = xb; m->arg[1] = P + N * RTI_NP;
   m->res[0] = m->Q; m->res[1] = m->b; /* reuse buffers: H_N, g_N */
@@ -243,12 +249,7 @@ static void rti_fill_terminal(rti_mem *m, const double *P) {
   for (j = 0; j < RTI_NX; j++) m->Q[j + j * RTI_NX] += m->reg;
   d_ocp_qp_set_Q(N, m->Q, &m->qp);
   d_ocp_qp_set_q(N, m->b, &m->qp);
-  for (i = 0; i < RTI_NBX; i++) {
-    m->lbxk[i] = m->lbx[i] - xb[m->idxbx[i]];
-    m->ubxk[i] = m->ubx[i] - xb[m->idxbx[i]];
-  }
-  d_ocp_qp_set_lbx(N, m->lbxk, &m->qp);
-  d_ocp_qp_set_ubx(N, m->ubxk, &m->qp);
+  rti_set_state_bounds(m, N, xb);
 }
 
 /* Shift the plan (X, W) one stage into the guess (Xb, Wb), repeating the last stage. */
