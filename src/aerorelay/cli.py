@@ -103,9 +103,12 @@ def run(
     loop = ClosedLoop(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
             TimeElapsedColumn(), TimeRemainingColumn())
-    with Progress(*cols, console=err_console, transient=False) as prog:
+    # no refresh thread: it would hold the GIL while the controller's C call returns and inflate
+    # the measured step times; the bar is redrawn from the loop every 50 steps instead
+    with Progress(*cols, console=err_console, transient=False, auto_refresh=False) as prog:
         task = prog.add_task("mission", total=1)
-        result = loop.run(progress=lambda k, n: prog.update(task, completed=k, total=n) if k % 50 == 0 or k == n else None)
+        result = loop.run(progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
+                          if k % 50 == 0 or k == n else None)
     metrics = write_run(result, out, figures=not no_figures)
     console.print(f"wrote {out}", markup=False, highlight=False)
     console.print(_metrics_table({"value": metrics}))
