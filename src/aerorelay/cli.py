@@ -245,6 +245,7 @@ def reproduce(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from . import __version__
+    from .control.nmpc import NmpcSettings
     from .experiments.campaign import load_manifest, run_campaign
     from .experiments.study import StudyError, expand, find_studies
     from .report.html import render_report
@@ -276,7 +277,8 @@ def reproduce(
     meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
             "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
             "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s,
-            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs)}
+            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
+            "controller": NmpcSettings().fingerprint()}
     summary = summarize(chosen, specs, out, {"campaign": meta})
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     (out / "report.html").write_text(render_report(summary, chosen, specs, out, manifest))

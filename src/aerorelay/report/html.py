@@ -163,6 +163,7 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
             f"{'quick mode (fewer seeds, shorter missions where the study allows)' if meta.get('quick') else 'full campaign'}; "
             f"this invocation ran {meta.get('runs_ran', 0)} runs and skipped {meta.get('runs_skipped', 0)} finished ones "
             f"in {meta.get('wall_s') or 0:.0f} s wall; the runs' own wall times add up to {meta.get('runs_compute_s') or 0:.0f} s. "
+            f"Controller: {html.escape(str(meta.get('controller', 'not recorded')))}. "
             f"Normalized capacities (B = 1). Solve times measured "
             f"with runs in parallel on the same cores: use <code>aerorelay bench</code> for isolated timing.</p>")
     toc = "<p>" + " · ".join(f'<a href="#{s.name}">{html.escape(s.name)}</a>' for s in studies) + "</p>"
