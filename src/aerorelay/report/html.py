@@ -28,6 +28,7 @@ table{border-collapse:collapse;margin:1em 0;font-size:13px}td,th{border:1px soli
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.yes{color:#176a1f;font-weight:600}
 .no{color:#b00020;font-weight:600}.na{color:#777}img{max-width:100%;border:1px solid #eee;margin:4px 0}
 .warn{background:#fff4e0;border-left:4px solid #f0a000;padding:6px 10px}code{background:#f5f5f5;padding:0 3px}
+.wide{overflow-x:auto;max-width:100%}
 """
 
 
@@ -124,7 +125,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
 def _table(headers, rows) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>"
 
 
 def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Path, manifest: dict) -> str:
