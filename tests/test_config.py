@@ -82,3 +82,11 @@ def test_trajectory_csv_resolved_next_to_the_scenario_and_checked(tmp_path):
     f.write_text('[mission]\ntrajectory_csv = "bad.csv"\n')
     with pytest.raises(ScenarioError, match="missing CSV columns"):
         load_scenario(f)
+
+
+@pytest.mark.parametrize("pert,stochastic", [
+    ({}, False), ({"fading_k_db": 6.0}, True), ({"fading_k_db": float("inf")}, False),
+    ({"csi_noise_m": 0.1}, True), ({"process_noise_v": 0.2}, True), ({"process_noise_w": 0.2}, True),
+])
+def test_seed_matters_only_for_random_perturbations(pert, stochastic):
+    assert parse_scenario({"perturbations": pert}).perturbations.stochastic is stochastic

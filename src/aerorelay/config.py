@@ -256,6 +256,12 @@ class PerturbationConfig(_Strict):
     process_noise_v: float = Field(0.0, ge=0.0, description="translational acceleration noise std, m/s^2")
     process_noise_w: float = Field(0.0, ge=0.0, description="rotational acceleration noise std, rad/s^2")
 
+    @property
+    def stochastic(self) -> bool:
+        """Whether the seed changes anything: fading with finite K, CSI or process noise."""
+        fading = self.fading_k_db is not None and math.isfinite(self.fading_k_db)
+        return fading or self.csi_noise_m > 0 or self.process_noise_v > 0 or self.process_noise_w > 0
+
 
 class Scenario(_Strict):
     """A complete, validated relay scenario."""

@@ -4,6 +4,8 @@ A study TOML names a ``base`` scenario (path relative to the repository root), a
 ``[[runs]]`` (an id and dotted-key ``set`` updates), an optional ``[grid]`` whose cartesian
 product multiplies the runs, ``seeds`` Monte Carlo repetitions, and ``[[paper]]`` reference
 numbers. ``--quick`` shortens missions to ``quick_duration_s`` and uses ``quick_seeds`` seeds.
+A run without any random element (no finite-K fading, no CSI or process noise) is flown once,
+whatever ``seeds`` says: its repetitions would be identical.
 """
 
 from __future__ import annotations
@@ -114,7 +116,8 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
             updates.update(zip(grid_keys, combo))
             label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(grid_keys, combo))
             group = label if run.id == "base" and label else (f"{run.id}[{label}]" if label else run.id)
-            for s in range(seeds):
+            deterministic = not _updated(base, updates, f"study {study.name}, run {group}").perturbations.stochastic
+            for s in range(1 if deterministic else seeds):  # more seeds would fly the same run again
                 u = dict(updates)
                 u["seed"] = base.seed + s
                 if quick and study.quick_duration_s is not None:
@@ -126,6 +129,13 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
                     raise StudyError(f"study {study.name}, run {group}: {exc}") from None
                 specs.append(RunSpec(study.name, group, s, sc.to_toml()))
     return specs
+
+
+def _updated(base: Scenario, updates: dict, where: str) -> Scenario:
+    try:
+        return base.with_updates(updates)
+    except ScenarioError as exc:
+        raise StudyError(f"{where}: {exc}") from None
 
 
 def scenario_of(spec: RunSpec) -> Scenario:
