@@ -15,7 +15,7 @@
  */
 #include <immintrin.h>
 
-long long aerorelay_simd_kernel_calls = 0;
+int aerorelay_simd_kernels_ran = 0; /* set (relaxed atomic store) by every call */
 
 #define RTI_AVX2 __attribute__((target("avx2,fma")))
 
@@ -46,7 +46,7 @@ RTI_AVX2 void kernel_dgemm_nt_4x4_lib4(int kmax, double *alpha, double *A, doubl
   __m256d c[4], e[4];
   int l = 0, j;
   for (j = 0; j < 4; j++) c[j] = e[j] = _mm256_setzero_pd();
-  aerorelay_simd_kernel_calls++;
+  __atomic_store_n(&aerorelay_simd_kernels_ran, 1, __ATOMIC_RELAXED);
   for (; l + 1 < kmax; l += 2) {
     rti_rank1(_mm256_loadu_pd(A + 4 * l), B + 4 * l, 1, c);
     rti_rank1(_mm256_loadu_pd(A + 4 * l + 4), B + 4 * l + 4, 1, e);
@@ -62,7 +62,7 @@ RTI_AVX2 void kernel_dgemm_nn_4x4_lib4(int kmax, double *alpha, double *A, int o
   int l = 0, j, r = offsetB;
   const double *panel = B, *b, *g;
   for (j = 0; j < 4; j++) c[j] = e[j] = _mm256_setzero_pd();
-  aerorelay_simd_kernel_calls++;
+  __atomic_store_n(&aerorelay_simd_kernels_ran, 1, __ATOMIC_RELAXED);
   for (; l + 1 < kmax; l += 2) {
     b = panel + r;
     if (++r == 4) { r = 0; panel += 4 * sdb; }

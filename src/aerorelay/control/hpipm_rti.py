@@ -71,7 +71,7 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels
     here = resources.files("aerorelay.control")
     driver = here.joinpath("rti_hpipm.c").read_text()
     if simd_kernels and cpu_has_avx2_fma():
-        head = here.joinpath("blasfeo_avx2.c").read_text() + "\n#define RTI_SIMD 1\nextern long long aerorelay_simd_kernel_calls;\n" + head
+        head = here.joinpath("blasfeo_avx2.c").read_text() + "\n#define RTI_SIMD 1\nextern int aerorelay_simd_kernels_ran;\n" + head
     source = generated_c(*stage_functions(spec)) + "\n" + head + driver
     cdir = _casadi_dir()
     return shared_library(
@@ -100,7 +100,7 @@ class HpipmRti:
                  ric_alg: int = 1, pred_corr: bool = True, mu0: float = 0.0, simd_kernels: bool = True):
         self.spec = spec
         lib = ctypes.CDLL(str(build_library(spec, simd_kernels=simd_kernels)))
-        lib.rti_simd_kernel_calls.restype = ctypes.c_longlong
+        lib.rti_simd_kernels_ran.restype = ctypes.c_int
         lib.rti_create.restype = ctypes.c_void_p
         lib.rti_create.argtypes = [_dp, ctypes.POINTER(ctypes.c_int), _dp, _dp, _dp, _dp]
         lib.rti_step.argtypes = [ctypes.c_void_p, _dp, _dp, ctypes.c_int, _dp, _dp]
@@ -131,10 +131,10 @@ class HpipmRti:
             lib.rti_free(mem)
             self._mem = None
 
-    def simd_kernel_calls(self) -> int:
-        """Calls of the AVX2 BLASFEO kernels so far in this process (-1: not compiled in; 0 after
-        solves: compiled in but not used, e.g. libblasfeo was bound earlier by another user)."""
-        return int(self._lib.rti_simd_kernel_calls())
+    def simd_kernels_ran(self) -> int:
+        """1 if the AVX2 BLASFEO kernels have run in this process, 0 if not (after solves: compiled
+        in but not used, e.g. libblasfeo was bound earlier by another user), -1 if not compiled in."""
+        return int(self._lib.rti_simd_kernels_ran())
 
     def set_plan(self, X: np.ndarray, W: np.ndarray):
         """Set the guess from ``X (nx, N+1)`` and ``W (nw, N)``."""

@@ -304,9 +304,9 @@ class NMPC:
         """How the QP is solved, for reports: backend, options, and whether the AVX2 kernels ran."""
         st = self.settings
         if isinstance(self.engine, _HpipmEngine):
-            calls = self.engine.rti.simd_kernel_calls()
-            simd = "generic BLASFEO kernels" if calls < 0 else (
-                "AVX2 BLASFEO kernels" if calls > 0 else "AVX2 kernels compiled in, not (yet) used")
+            ran = self.engine.rti.simd_kernels_ran()
+            simd = "generic BLASFEO kernels" if ran < 0 else (
+                "AVX2 BLASFEO kernels" if ran > 0 else "AVX2 kernels compiled in, not (yet) used")
             cond = f", condensed to {st.condensed_horizon} stages" if 0 < st.condensed_horizon < self.spec.horizon else ""
             return f"hpipm engine ({st.warm_start} warm start, tol {st.tol_comp:g}{cond}, {simd})"
         return f"casadi.conic {st.qp_solver} (tol {st.tol_comp:g})"

@@ -151,10 +151,10 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   return m;
 }
 
-/* How often the AVX2 kernels of blasfeo_avx2.c ran (-1: not compiled in). */
-long long rti_simd_kernel_calls(void) {
+/* Whether the AVX2 kernels of blasfeo_avx2.c have run in this process (-1: not compiled in). */
+int rti_simd_kernels_ran(void) {
 #ifdef RTI_SIMD
-  return aerorelay_simd_kernel_calls;
+  return __atomic_load_n(&aerorelay_simd_kernels_ran, __ATOMIC_RELAXED);
 #else
   return -1;
 #endif
