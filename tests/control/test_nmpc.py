@@ -202,7 +202,7 @@ def test_without_a_c_compiler_the_controller_falls_back_to_casadi(monkeypatch, c
     monkeypatch.setattr(codegen, "cache_dir", lambda: __import__("pathlib").Path("/nonexistent-cache"))
     monkeypatch.setattr(codegen.shutil, "which", lambda name: None)
     ctrl = nmpc_module.NMPC(SPEC, NmpcSettings(backend="hpipm"))
-    assert isinstance(ctrl.engine, nmpc_module._ConicEngine)
+    assert isinstance(ctrl.engine, nmpc_module.ConicEngine)
     assert "casadi.conic route" in caplog.text
     x = VEH.hover_state(HOME)
     assert ctrl.step(x, np.zeros(6), params(HOME)).ok

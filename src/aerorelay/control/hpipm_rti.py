@@ -19,30 +19,10 @@ import casadi as ca
 import numpy as np
 
 from .codegen import generated_c, shared_library
-from .ocp import NP, OcpSpec, ParamIndex, alignment_constraint, discrete_dynamics, stage_residual, terminal_residual
+from .linearization import stage_linearization, terminal_linearization
+from .ocp import NP, OcpSpec, ParamIndex
 
 _dp = ctypes.POINTER(ctypes.c_double)
-
-
-def stage_functions(spec: OcpSpec) -> tuple[ca.Function, ca.Function]:
-    """Dense-output SX functions ``stage_lin(xa, w, p) -> (xn, A, B, H, g[, h, Jh])`` and
-    ``term_lin(xa, p) -> (H, g)``: Gauss-Newton Hessian ``H = J'J`` and gradient ``g = J'r`` of
-    the least-squares cost over ``z = (xa, w)``, dynamics and alignment-constraint Jacobians."""
-    xa, w, p = ca.SX.sym("xa", spec.nx), ca.SX.sym("w", spec.nw), ca.SX.sym("p", NP)
-    z = ca.vertcat(xa, w)
-    xn = discrete_dynamics(spec, xa, w)
-    r = stage_residual(spec, xa, w, p)
-    J = ca.jacobian(r, z)
-    outs = [xn, ca.jacobian(xn, xa), ca.jacobian(xn, w), ca.mtimes(J.T, J), ca.mtimes(J.T, r)]
-    if spec.constrained:
-        h = alignment_constraint(spec, xa, w, p)
-        outs += [h, ca.jacobian(h, z)]
-    stage = ca.Function("stage_lin", [xa, w, p], [ca.densify(o) for o in outs])
-    xt = ca.SX.sym("xt", spec.nx)
-    rt = terminal_residual(spec, xt, p)
-    Jt = ca.jacobian(rt, xt)
-    term = ca.Function("term_lin", [xt, p], [ca.densify(ca.mtimes(Jt.T, Jt)), ca.densify(ca.mtimes(Jt.T, rt))])
-    return stage, term
 
 
 def _casadi_dir() -> Path:
@@ -72,7 +52,7 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels
     driver = here.joinpath("rti_hpipm.c").read_text()
     if simd_kernels and cpu_has_avx2_fma():
         head = here.joinpath("blasfeo_avx2.c").read_text() + "\n#define RTI_SIMD 1\nextern int aerorelay_simd_kernels_ran;\n" + head
-    source = generated_c(*stage_functions(spec)) + "\n" + head + driver
+    source = generated_c(stage_linearization(spec, dense=True), terminal_linearization(spec, dense=True)) + "\n" + head + driver
     cdir = _casadi_dir()
     return shared_library(
         "nmpc_rti", source, spec.key(), flags=(*flags, f"-I{cdir / 'include'}"),

@@ -8,7 +8,8 @@ Feedback: the structured QP is solved by HPIPM. Two interchangeable backends
 - ``"hpipm"`` (default): the whole step is one call into a compiled engine
   (``hpipm_rti.py``): HPIPM's structures persist between steps, optional partial condensing.
 - ``"casadi"``: the linearization as a compiled CasADi function and the QP through
-  ``casadi.conic`` (any of CasADi's QP plugins; HPIPM by default), with three calls per step.
+  ``casadi.conic`` (any of CasADi's QP plugins; HPIPM by default), three calls per step
+  (``conic_route.py``).
 
 A QP failure (solver status, NaN) is counted and answered with the shifted previous plan's
 input, clipped to the bounds; the plan is shifted and the next step starts from it.
@@ -18,18 +19,16 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
-from .codegen import CompileError, compiled
+from .codegen import CompileError
+from .conic_route import ConicEngine
 from .hpipm_rti import HpipmRti
-from .ocp import NP, OcpSpec, ParamIndex, alignment_constraint, discrete_dynamics, stage_residual, terminal_residual
+from .ocp import HESSIAN_REG, OcpSpec, ParamIndex, absolute_bounds, pack_plan
 
 log = logging.getLogger(__name__)
-INF = 1e8
-HESSIAN_REG = 1e-8
 
 
 @dataclass
@@ -47,109 +46,6 @@ class StepInfo:
     @property
     def solve_ms(self) -> float:
         return self.prep_ms + self.qp_ms
-
-
-def _stage_linearization(spec: OcpSpec) -> ca.Function:
-    xa, w, p = ca.SX.sym("xa", spec.nx), ca.SX.sym("w", spec.nw), ca.SX.sym("p", NP)
-    z = ca.vertcat(xa, w)
-    xn = discrete_dynamics(spec, xa, w)
-    r = stage_residual(spec, xa, w, p)
-    Jr = ca.jacobian(r, z)
-    H = ca.mtimes(Jr.T, Jr)
-    g = ca.mtimes(Jr.T, r)
-    outs = [xn, ca.jacobian(xn, xa), ca.jacobian(xn, w), H, g]
-    if spec.constrained:
-        h = alignment_constraint(spec, xa, w, p)
-        outs += [h, ca.jacobian(h, z)]
-    return ca.Function("stage_lin", [xa, w, p], outs)
-
-
-def _terminal_linearization(spec: OcpSpec) -> ca.Function:
-    xa, p = ca.SX.sym("xa", spec.nx), ca.SX.sym("p", NP)
-    r = terminal_residual(spec, xa, p)
-    J = ca.jacobian(r, xa)
-    return ca.Function("term_lin", [xa, p], [ca.mtimes(J.T, J), ca.mtimes(J.T, r)])
-
-
-def _pack_mx(X, W):
-    """``z = [xa_0; w_0; ...; xa_(N-1); w_(N-1); xa_N]`` from state and control matrices."""
-    N = W.shape[1]
-    return ca.vertcat(ca.vec(ca.vertcat(X[:, :N], W)), X[:, N])
-
-
-def pack_plan(X: np.ndarray, W: np.ndarray) -> np.ndarray:
-    """numpy twin of ``_pack_mx``: ``z = [xa_0; w_0; ...; xa_N]`` from ``(nx, N+1)`` and ``(nw, N)``."""
-    N = W.shape[1]
-    return np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
-
-
-def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds on ``z`` in absolute coordinates: motor speeds and workspace on states k >= 1,
-    motor accelerations on inputs, slack ``pi_k >= 0`` for k >= 1 (fixed to 0 at k = 0 and in the
-    unconstrained variant). Unbounded entries are +-INF."""
-    v, N, nx, nw, nr = spec.vehicle, spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
-    lbx, ubx = -INF * np.ones((nx, N + 1)), INF * np.ones((nx, N + 1))
-    lbx[0:3, 1:] = np.array(spec.workspace_min)[:, None]
-    ubx[0:3, 1:] = np.array(spec.workspace_max)[:, None]
-    lbx[12 : 12 + nr, 1:], ubx[12 : 12 + nr, 1:] = v.omega_min, v.omega_max
-    lbw, ubw = np.zeros((nw, N)), np.zeros((nw, N))
-    lbw[:nr], ubw[:nr] = v.omega_dot_min, v.omega_dot_max
-    if spec.constrained:
-        ubw[nr, 1:] = INF
-    return pack_plan(lbx, lbw), pack_plan(ubx, ubw)
-
-
-def build_preparation(spec: OcpSpec) -> ca.Function:
-    """MX function ``(Xb, Wb, P, xa0) -> (H, g, A, lba, uba, lbx, ubx)``: the QP in the step ``dz``
-    around the guess ``(Xb, Wb)``, in HPIPM's stage structure, with the initial state fixed to ``xa0``."""
-    N, nx, nw = spec.horizon, spec.nx, spec.nw
-    Xb, Wb, P = ca.MX.sym("Xb", nx, N + 1), ca.MX.sym("Wb", nw, N), ca.MX.sym("P", NP, N + 1)
-    xa0 = ca.MX.sym("xa0", nx)
-    outs = _stage_linearization(spec).map(N, "serial")(Xb[:, :N], Wb, P[:, :N])
-    xn, Ak, Bk, Hk, gk = outs[:5]
-    HN, gN = _terminal_linearization(spec)(Xb[:, N], P[:, N])
-    nz = spec.nz
-    blocks_H, blocks_g, rows, lb, ub = [], [], [], [], []
-    negI = -ca.DM.eye(nx)
-    for k in range(N):
-        off = k * (nx + nw)
-        blocks_H.append(Hk[:, k * (nx + nw) : (k + 1) * (nx + nw)])
-        blocks_g.append(gk[:, k])
-        dyn = ca.horzcat(Ak[:, k * nx : (k + 1) * nx], Bk[:, k * nw : (k + 1) * nw], negI)
-        rows.append(ca.horzcat(ca.MX(nx, off), dyn, ca.MX(nx, nz - off - dyn.shape[1])))
-        gap = -(xn[:, k] - Xb[:, k + 1])
-        lb.append(gap)
-        ub.append(gap)
-        if spec.constrained and k >= 1:
-            hk, Jh = outs[5][:, k], outs[6][:, k * (nx + nw) : (k + 1) * (nx + nw)]
-            rows.append(ca.horzcat(ca.MX(1, off), Jh, ca.MX(1, nz - off - (nx + nw))))
-            lb.append(P[ParamIndex.mu, k] - hk)
-            ub.append(ca.MX(ca.DM(INF)))
-    H = ca.diagcat(*blocks_H, HN) + HESSIAN_REG * ca.DM.eye(nz)
-    g = ca.vertcat(*blocks_g, gN)
-    A = ca.vertcat(*rows)
-    lbz, ubz = absolute_bounds(spec)
-    zb = _pack_mx(Xb, Wb)
-    x0_step = xa0 - Xb[:, 0]
-    lbx = ca.vertcat(x0_step, ca.DM(lbz[nx:]) - zb[nx:])
-    ubx = ca.vertcat(x0_step, ca.DM(ubz[nx:]) - zb[nx:])
-    return ca.Function("nmpc_prep", [Xb, Wb, P, xa0], [H, g, A, ca.vertcat(*lb), ca.vertcat(*ub), lbx, ubx],
-                       ["Xb", "Wb", "P", "xa0"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
-
-
-def build_update(spec: OcpSpec) -> ca.Function:
-    """MX function ``(Xb, Wb, dz) -> (X_shift, W_shift, u0, slack_max, check)``: apply the QP step,
-    shift the plan one stage for the next guess, read the first input; ``check`` is NaN when ``dz`` is."""
-    N, nx, nw, nr = spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
-    Xb, Wb, dz = ca.MX.sym("Xb", nx, N + 1), ca.MX.sym("Wb", nw, N), ca.MX.sym("dz", spec.nz)
-    body = ca.reshape(dz[: N * (nx + nw)], nx + nw, N)
-    X = Xb + ca.horzcat(body[:nx, :], dz[N * (nx + nw) :])
-    W = Wb + body[nx:, :]
-    Xs = ca.horzcat(X[:, 1:], X[:, N])
-    Ws = ca.horzcat(W[:, 1:], W[:, N - 1])
-    slack = ca.mmax(W[nr, 1:]) if N > 1 else ca.MX(0)
-    return ca.Function("nmpc_update", [Xb, Wb, dz], [X, W, Xs, Ws, W[:nr, 0], slack, ca.sum1(dz)],
-                       ["Xb", "Wb", "dz"], ["X", "W", "Xs", "Ws", "u0", "slack", "check"])
 
 
 @dataclass
@@ -200,55 +96,6 @@ class NmpcSettings:
         return {}
 
 
-class _ConicEngine:
-    """casadi.conic route: compiled preparation, QP solver plugin, MX update (three calls)."""
-
-    def __init__(self, spec: OcpSpec, settings: NmpcSettings):
-        self.spec = spec
-        N, nx, nw = spec.horizon, spec.nx, spec.nw
-        prep = build_preparation(spec)
-        self.prep = compiled(prep, spec.key()) if settings.compile else prep
-        self.update = build_update(spec)
-        sp = {"h": prep.sparsity_out("H"), "a": prep.sparsity_out("A")}
-        ng = [0] + [1 if spec.constrained else 0] * (N - 1) + [0]
-        opts = settings.conic_options()
-        if settings.qp_solver == "hpipm":
-            opts.update({"N": N, "nx": [nx] * (N + 1), "nu": [nw] * N + [0], "ng": ng})
-        opts.setdefault("error_on_fail", False)
-        self.qp = ca.conic("nmpc_qp", settings.qp_solver, sp, opts)
-        self.nz = spec.nz
-        self.na = prep.sparsity_out("A").size1()
-        self._dz0 = ca.DM.zeros(self.nz)
-
-    def reset(self, X: np.ndarray, W: np.ndarray):
-        self.Xb, self.Wb = ca.DM(X), ca.DM(W)
-        self.lam_x = ca.DM.zeros(self.nz)
-        self.lam_a = ca.DM.zeros(self.na)
-
-    def plan(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array(self.Xb), np.array(self.Wb)
-
-    def step(self, xa0: np.ndarray, P: np.ndarray, shift: bool):
-        """-> (ok, first input or fallback input, status, preparation ms, slack max, iterations)."""
-        t0 = time.perf_counter()
-        H, g, A, lba, uba, lbx, ubx = self.prep(self.Xb, self.Wb, P, xa0)
-        t1 = time.perf_counter()
-        sol = self.qp(h=H, g=g, a=A, lba=lba, uba=uba, lbx=lbx, ubx=ubx, x0=self._dz0, lam_x0=self.lam_x, lam_a0=self.lam_a)
-        stats = self.qp.stats()
-        X, W, Xs, Ws, u0, slack, check = self.update(self.Xb, self.Wb, sol["x"])
-        status = str(stats.get("return_status", "unknown"))
-        iters = int(stats.get("iter_count", 0) or 0)
-        if bool(stats.get("success", False)) and np.isfinite(float(check)):
-            self.Xb, self.Wb = (Xs, Ws) if shift else (X, W)
-            self.lam_x, self.lam_a = sol["lam_x"], sol["lam_a"]
-            return True, np.array(u0).ravel(), status, (t1 - t0) * 1e3, float(slack), iters
-        u_fallback = np.array(self.Wb[: self.spec.vehicle.n_rotors, 0]).ravel()
-        _, _, self.Xb, self.Wb, _, _, _ = self.update(self.Xb, self.Wb, self._dz0)  # shift the guess
-        self.lam_x = ca.DM.zeros(self.nz)
-        self.lam_a = ca.DM.zeros(self.na)
-        return False, u_fallback, status, (t1 - t0) * 1e3, float("nan"), iters
-
-
 class _HpipmEngine:
     """Compiled engine: linearization + HPIPM (+ partial condensing) + update in one C call."""
 
@@ -295,7 +142,7 @@ class NMPC:
             except CompileError as err:
                 log.warning("compiled HPIPM engine unavailable (%s); using the casadi.conic route", err)
         if self.engine is None:
-            self.engine = _ConicEngine(spec, self.settings)
+            self.engine = ConicEngine(spec, self.settings)
         self._lbz, self._ubz = absolute_bounds(spec)
         self.initialized = False
         self.failures = 0

@@ -43,6 +43,8 @@ class ParamIndex:
 
 
 NP = ParamIndex.size
+INF = 1e8  # 'unbounded' in the QP's bound vectors
+HESSIAN_REG = 1e-8  # added to the Gauss-Newton Hessian's diagonal (both QP routes)
 
 
 @dataclass(frozen=True)
@@ -141,3 +143,25 @@ def misalignment_function(spec: OcpSpec) -> ca.Function:
     p2 = ca.SX.sym("p2", 3)
     R = rotation_zyx(x[3:6])
     return ca.Function("mis", [x, p2], [misalignment(x[0:3], R, p2), misalignment(x[0:3], R, ca.DM(spec.bs_position))])
+
+
+def pack_plan(X: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """numpy twin of ``conic_route._pack_mx``: ``z = [xa_0; w_0; ...; xa_N]`` from ``(nx, N+1)`` and ``(nw, N)``."""
+    N = W.shape[1]
+    return np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
+
+
+def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on ``z`` in absolute coordinates: motor speeds and workspace on states k >= 1,
+    motor accelerations on inputs, slack ``pi_k >= 0`` for k >= 1 (fixed to 0 at k = 0 and in the
+    unconstrained variant). Unbounded entries are +-INF."""
+    v, N, nx, nw, nr = spec.vehicle, spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
+    lbx, ubx = -INF * np.ones((nx, N + 1)), INF * np.ones((nx, N + 1))
+    lbx[0:3, 1:] = np.array(spec.workspace_min)[:, None]
+    ubx[0:3, 1:] = np.array(spec.workspace_max)[:, None]
+    lbx[12 : 12 + nr, 1:], ubx[12 : 12 + nr, 1:] = v.omega_min, v.omega_max
+    lbw, ubw = np.zeros((nw, N)), np.zeros((nw, N))
+    lbw[:nr], ubw[:nr] = v.omega_dot_min, v.omega_dot_max
+    if spec.constrained:
+        ubw[nr, 1:] = INF
+    return pack_plan(lbx, lbw), pack_plan(ubx, ubw)

@@ -6,7 +6,7 @@
  * macros (RTI_N, RTI_NX, RTI_NW, RTI_NR, RTI_NP, RTI_NBX, RTI_CONSTRAINED, RTI_MU_INDEX) and
  * linked against the HPIPM and BLASFEO libraries shipped in CasADi's wheel.
  *
- * The QP is the one of ``nmpc.build_preparation`` in HPIPM's native stage form, with two
+ * The QP is the one of ``conic_route.build_preparation`` in HPIPM's native stage form, with two
  * variables removed that the CasADi route keeps fixed by equal bounds: the initial state step
  * (eliminated: b_0 = A_0 dx_0 + gap_0, r_0 += S_0 dx_0) and the stage-0 slack (fixed to 0).
  * HPIPM's structures are created once; each step linearizes, optionally partially condenses
