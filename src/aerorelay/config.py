@@ -191,6 +191,10 @@ class ControllerConfig(_Strict):
     exact_input_rate: bool = Field(
         True, description="input-rate cost through an augmented state (exact) or the previous plan (faster)"
     )
+    senses_jammer_state: bool = Field(
+        False, description="after localization, the generator plans with P_J = 0 while the jammer is OFF "
+        "(it senses the schedule); otherwise it plans with the nominal power throughout"
+    )
     weights: Weights = Field(default_factory=Weights)
     workspace: Workspace = Field(default_factory=Workspace)
 

@@ -109,3 +109,15 @@ def test_disturbances_are_seeded_and_leave_the_true_source_path_alone():
     np.testing.assert_array_equal(a["p1_x"], b["p1_x"])  # same seed, same run
     assert not np.allclose(a["p1_x"], c["p1_x"])
     np.testing.assert_allclose(a["p2_x"], c["p2_x"])  # the true MRAV-2 path is untouched by CSI noise
+
+
+@pytest.mark.parametrize("senses", [False, True])
+def test_generator_jammer_power_before_and_after_localization(senses):
+    sc = parse_scenario({"jammer": {"schedule": "on_off", "on_s": 5.0, "off_s": 5.0, "localization_delay_s": 2.0},
+                         "controller": {"senses_jammer_state": senses}})
+    loop = ClosedLoop(sc)
+    pw = sc.jammer.power_w
+    assert loop.jammer.power_at(7.0) == 0.0 and loop.jammer.power_at(3.0) == pw  # OFF at 7 s, ON at 3 s
+    assert loop._planned_jammer_power(1.0) == 0.0  # not localized yet: BS-only planning
+    assert loop._planned_jammer_power(3.0) == pw
+    assert loop._planned_jammer_power(7.0) == (0.0 if senses else pw)

@@ -97,13 +97,20 @@ def evaluate_claims(summary: dict) -> list[dict]:
 
     parts, ok = [], True
     for plat, tol in (("tilted", 0.05), ("coplanar", 0.2)):
-        dev = g("on_off", f"{plat}_on_off", "max_deviation_m")
-        o_on, o_al = g("on_off", f"{plat}_on_off", "outage_fraction"), g("on_off", f"{plat}_always_on", "outage_fraction")
+        # judged on the run whose controller senses the schedule when the study has it: without
+        # sensing the trajectory equals the always-on one by construction
+        run = f"{plat}_on_off_sensed" if g("on_off", f"{plat}_on_off_sensed", "c_min") is not None else f"{plat}_on_off"
+        dev = g("on_off", run, "max_deviation_m")
+        o_on, o_al = g("on_off", run, "outage_fraction"), g("on_off", f"{plat}_always_on", "outage_fraction")
         if None in (dev, o_on, o_al):
             ok = None
             break
         ok = ok and o_on <= o_al + 1e-12 and dev <= tol
-        parts.append(f"{plat}: deviation {dev:.3g} m (paper <= {tol} m), outage {o_on:.3g} vs always-on {o_al:.3g}")
+        sensed = "schedule sensed" if run.endswith("_sensed") else "schedule not sensed"
+        blind = g("on_off", f"{plat}_on_off", "max_deviation_m") if run.endswith("_sensed") else None
+        also = "" if blind is None else f" (not sensed: {blind:.3g} m)"
+        parts.append(f"{plat} ({sensed}): deviation {dev:.3g} m{also} (paper <= {tol} m), "
+                     f"outage {o_on:.3g} vs always-on {o_al:.3g}")
     claims.append(_claim("ON-OFF jamming adds no outages and the trajectory stays close to always-on", ok,
                          "; ".join(parts) or "not run"))
 

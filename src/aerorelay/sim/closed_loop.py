@@ -134,6 +134,15 @@ class ClosedLoop:
         self.timings: list[tuple[float, float, int]] = []  # (preparation ms, QP ms, IPM iterations) per step
         self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 
+    def _planned_jammer_power(self, t: float) -> float:
+        """P_J the generator plans with: 0 before localization (tau_E); afterwards the nominal
+        power, or the power actually radiated now when the controller senses the schedule."""
+        if not self.jammer.is_localized(t):
+            return 0.0
+        if self.sc.controller.senses_jammer_state:
+            return float(self.jammer.power_at(t))
+        return self.sc.jammer.power_w
+
     def _parameters(self, ref, p2, v2, a2) -> np.ndarray:
         """Per-stage parameters: governed reference extrapolated at v_ref, MRAV-2 at constant acceleration."""
         N, ts, I = self.spec.horizon, self.spec.ts, ParamIndex
@@ -185,7 +194,7 @@ class ClosedLoop:
             # what the controller knows: MRAV-2 over the optical link, the jammer after tau_E (with CSI noise)
             p2_meas = src.p + self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else src.p
             pj_meas = self.jammer.position + (self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else 0.0)
-            pj_plan = sc.jammer.power_w if self.jammer.is_localized(t) else 0.0
+            pj_plan = self._planned_jammer_power(t)
             if self.planned is not None:
                 ref = self.planned.update(t)
             else:
