@@ -10,7 +10,8 @@
  * variables removed that the CasADi route keeps fixed by equal bounds: the initial state step
  * (eliminated: b_0 = A_0 dx_0 + gap_0, r_0 += S_0 dx_0) and the stage-0 slack (fixed to 0).
  * HPIPM's structures are created once; each step linearizes, optionally partially condenses
- * to RTI_N2 stages, runs the IPM, expands, applies the step and shifts the plan.
+ * (to the runtime setting n2 < N stages), runs the IPM, expands, applies the step and shifts
+ * the plan.
  */
 #include <stdlib.h>
 #include <string.h>
