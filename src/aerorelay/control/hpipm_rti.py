@@ -20,7 +20,7 @@ import numpy as np
 
 from .codegen import generated_c, shared_library
 from .linearization import stage_linearization, terminal_linearization
-from .ocp import NP, OcpSpec, ParamIndex
+from .ocp import INF, NP, OcpSpec, ParamIndex, absolute_bounds
 
 _dp = ctypes.POINTER(ctypes.c_double)
 
@@ -42,7 +42,7 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels
     """Generate, compile (once, cached) and return the engine's shared library. With
     ``simd_kernels`` and an AVX2/FMA CPU, ``blasfeo_avx2.c`` is compiled in (see there)."""
     nr = spec.vehicle.n_rotors
-    idxbx = _state_bound_indices(spec)
+    idxbx = stage_bounds(spec)[0]
     macros = {
         "RTI_N": spec.horizon, "RTI_NX": spec.nx, "RTI_NW": spec.nw, "RTI_NR": nr, "RTI_NP": NP,
         "RTI_NBX": len(idxbx), "RTI_CONSTRAINED": int(spec.constrained), "RTI_MU_INDEX": ParamIndex.mu,
@@ -60,10 +60,15 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels
     )
 
 
-def _state_bound_indices(spec: OcpSpec) -> list[int]:
-    """Indices of the OCP state with bounds (workspace position, motor speeds)."""
-    nr = spec.vehicle.n_rotors
-    return [0, 1, 2, *range(12, 12 + nr)]
+def stage_bounds(spec: OcpSpec) -> tuple[np.ndarray, ...]:
+    """``(idxbx, lbx, ubx, lbu, ubu)`` from ``ocp.absolute_bounds``: the bounded state entries
+    and their bounds (the same at every stage k >= 1), and the motor-acceleration bounds. The
+    slack's bound (``pi >= 0`` for k >= 1) is built into the engine."""
+    lbz, ubz = absolute_bounds(spec)
+    nx, nw, nr = spec.nx, spec.nw, spec.vehicle.n_rotors
+    s1 = slice(nx + nw, 2 * nx + nw)  # the states of stage 1
+    idx = np.flatnonzero((lbz[s1] > -INF) | (ubz[s1] < INF)).astype(np.int32)
+    return idx, lbz[s1][idx].copy(), ubz[s1][idx].copy(), lbz[nx : nx + nr].copy(), ubz[nx : nx + nr].copy()
 
 
 class HpipmRti:
@@ -73,11 +78,11 @@ class HpipmRti:
     plan and returns the first input. ``P`` is the ``(NP, N+1)`` parameter matrix.
     """
 
-    INFO = 7
+    INFO = 6
 
     def __init__(self, spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50,
                  tol_comp: float = 1e-4, warm_start: int = 2, hessian_reg: float = 1e-8,
-                 ric_alg: int = 1, pred_corr: bool = True, mu0: float = 0.0, simd_kernels: bool = True):
+                 ric_alg: int = 1, simd_kernels: bool = True):
         self.spec = spec
         lib = ctypes.CDLL(str(build_library(spec, simd_kernels=simd_kernels)))
         lib.rti_simd_kernels_ran.restype = ctypes.c_int
@@ -89,13 +94,10 @@ class HpipmRti:
         lib.rti_get_plan.argtypes = [ctypes.c_void_p, _dp, _dp, _dp, _dp]
         lib.rti_free.argtypes = [ctypes.c_void_p]
         self._lib = lib
-        v, nr = spec.vehicle, spec.vehicle.n_rotors
-        idx = _state_bound_indices(spec)
-        lbx = np.array([*spec.workspace_min, *([v.omega_min] * nr)], float)
-        ubx = np.array([*spec.workspace_max, *([v.omega_max] * nr)], float)
+        nr = spec.vehicle.n_rotors
         n2 = condensed_horizon if 0 < condensed_horizon < spec.horizon else spec.horizon
-        settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg, int(pred_corr), mu0], float)
-        self._keep = [np.array(idx, np.int32), lbx, ubx, np.full(nr, v.omega_dot_min), np.full(nr, v.omega_dot_max)]
+        settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg], float)
+        self._keep = list(stage_bounds(spec))
         self._mem = lib.rti_create(_ptr(settings), self._keep[0].ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
                                    *(_ptr(a) for a in self._keep[1:]))
         if not self._mem:

@@ -30,8 +30,8 @@
 #define RTI_BIG 1e8
 
 typedef struct {
-  int n2, iter_max, warm_start, ric_alg, pred_corr, cold; /* cold: no usable multipliers yet */
-  double tol_comp, reg, mu0;
+  int n2, iter_max, warm_start, ric_alg, cold; /* cold: no usable multipliers yet */
+  double tol_comp, reg;
   int idxbx[RTI_NBX], idxbu[RTI_NU];
   double lbx[RTI_NBX], ubx[RTI_NBX], lbu[RTI_NR], ubu[RTI_NR];
   double Xb[(RTI_N + 1) * RTI_NX], Wb[RTI_N * RTI_NW]; /* linearization point (the guess) */
@@ -74,7 +74,7 @@ static double rti_now_ms(void) {
 
 static double rti_clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
-/* settings: n2, iter_max, warm_start, tol_comp, reg; bounds: idxbx, lbx, ubx (k >= 1), lbu, ubu. */
+/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg; bounds: idxbx, lbx, ubx (k >= 1), lbu, ubu. */
 void rti_free(rti_mem *m);
 
 rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx, const double *ubx,
@@ -88,8 +88,6 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   m->tol_comp = settings[3];
   m->reg = settings[4];
   m->ric_alg = (int)settings[5];
-  m->pred_corr = (int)settings[6];
-  m->mu0 = settings[7];
   m->cold = 1;
   for (i = 0; i < RTI_NBX; i++) { m->idxbx[i] = idxbx[i]; m->lbx[i] = lbx[i]; m->ubx[i] = ubx[i]; }
   for (i = 0; i < RTI_NR; i++) { m->lbu[i] = lbu[i]; m->ubu[i] = ubu[i]; }
@@ -133,8 +131,6 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
     d_ocp_qp_ipm_arg_set_tol_comp(&m->tol_comp, &m->ipm_arg);
     d_ocp_qp_ipm_arg_set_warm_start(&m->warm_start, &m->ipm_arg);
     d_ocp_qp_ipm_arg_set_ric_alg(&m->ric_alg, &m->ipm_arg);
-    d_ocp_qp_ipm_arg_set_pred_corr(&m->pred_corr, &m->ipm_arg);
-    if (m->mu0 > 0) d_ocp_qp_ipm_arg_set_mu0(&m->mu0, &m->ipm_arg);
     d_ocp_qp_ipm_ws_create(d, &m->ipm_arg, &m->ipm_ws, rti_alloc(m, d_ocp_qp_ipm_ws_memsize(d, &m->ipm_arg)));
   }
   /* one-sided constraints: the slack's upper bound and the alignment row's upper bound are masked */
@@ -291,14 +287,12 @@ int rti_step(rti_mem *m, const double *xa0, const double *P, int shift, double *
     qp = &m->qp2;
     sol = &m->sol2;
   }
-  double t2 = rti_now_ms();
   status = rti_solve(m, qp, sol, m->cold ? 0 : m->warm_start, &iter);
   if (status != 0 && !m->cold && m->warm_start) { /* a warm start gone wrong: once more from cold */
     int iter2 = 0;
     status = rti_solve(m, qp, sol, 0, &iter2);
     iter += iter2;
   }
-  double t3 = rti_now_ms();
   if (m->n2 < N) d_part_cond_qp_expand_sol(&m->qp, &m->sol2, &m->sol, &m->cond_arg, &m->cond_ws);
   ok = status == 0;
   for (k = 0; k <= N && ok; k++) {
@@ -332,6 +326,5 @@ int rti_step(rti_mem *m, const double *xa0, const double *P, int shift, double *
   info[3] = slack_max;
   info[4] = t1 - t0;
   info[5] = rti_now_ms() - t1;
-  info[6] = t3 - t2;
   return ok;
 }
