@@ -28,8 +28,20 @@ def _load_or_exit(path: Path) -> Scenario:
         raise typer.Exit(EXIT_BAD_INPUT) from None
 
 
+def _with_overrides(sc: Scenario, overrides: dict) -> Scenario:
+    """``sc`` with the command-line overrides that were given (dotted keys; None = not given),
+    validated like a scenario file: a bad value exits 2 naming the field and its allowed range."""
+    updates = {k: v for k, v in overrides.items() if v is not None}
+    try:
+        return sc.with_updates(updates) if updates else sc
+    except ScenarioError as exc:
+        _fail(str(exc))
+
+
 def _fail(message: str):
-    err_console.print(f"[bold red]error[/] {message}", highlight=False)
+    from rich.markup import escape
+
+    err_console.print(f"[bold red]error[/] {escape(message)}", highlight=False)
     raise typer.Exit(EXIT_BAD_INPUT)
 
 
@@ -85,21 +97,7 @@ def run(
     from .sim.closed_loop import ClosedLoop
     from .sim.outputs import write_run
 
-    sc = _load_or_exit(scenario)
-    updates = {}
-    if variant is not None:
-        if variant not in ("constrained", "unconstrained"):
-            err_console.print(f"--variant: must be constrained or unconstrained (got {variant!r})")
-            raise typer.Exit(EXIT_BAD_INPUT)
-        updates["controller.variant"] = variant
-    if duration is not None:
-        updates["sim.duration_s"] = duration
-    if updates:
-        try:
-            sc = sc.with_updates(updates)
-        except ScenarioError as exc:
-            err_console.print(str(exc), markup=False)
-            raise typer.Exit(EXIT_BAD_INPUT) from None
+    sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "sim.duration_s": duration})
     loop = ClosedLoop(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
             TimeElapsedColumn(), TimeRemainingColumn())
@@ -187,13 +185,8 @@ def bench(
                                 warm_start=warm_start, simd_kernels=simd)
     except ValueError as exc:
         _fail(str(exc))
-    sc = _load_or_exit(scenario)
-    updates = {k: v for k, v in (("sim.duration_s", duration), ("controller.variant", variant),
-                                 ("sim.control_rate_hz", control_rate_hz)) if v is not None}
-    try:
-        sc = sc.with_updates(updates)
-    except ScenarioError as exc:
-        _fail(str(exc))
+    sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
+                                                   "sim.control_rate_hz": control_rate_hz})
     ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
     res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
