@@ -116,18 +116,15 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
             updates.update(zip(grid_keys, combo))
             label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(grid_keys, combo))
             group = label if run.id == "base" and label else (f"{run.id}[{label}]" if label else run.id)
-            deterministic = not _updated(base, updates, f"study {study.name}, run {group}").perturbations.stochastic
+            where = f"study {study.name}, run {group}"
+            deterministic = not _updated(base, updates, where).perturbations.stochastic
             for s in range(1 if deterministic else seeds):  # more seeds would fly the same run again
                 u = dict(updates)
                 u["seed"] = base.seed + s
                 if quick and study.quick_duration_s is not None:
                     u["sim.duration_s"] = min(study.quick_duration_s, base.duration_s)
                 u["name"] = f"{study.name}/{group}"
-                try:
-                    sc = base.with_updates(u)
-                except ScenarioError as exc:
-                    raise StudyError(f"study {study.name}, run {group}: {exc}") from None
-                specs.append(RunSpec(study.name, group, s, sc.to_toml()))
+                specs.append(RunSpec(study.name, group, s, _updated(base, u, where).to_toml()))
     return specs
 
 
