@@ -212,3 +212,22 @@ def test_without_a_c_compiler_the_controller_falls_back_to_casadi(monkeypatch, c
 def test_bad_settings_are_named(field, value):
     with pytest.raises(ValueError, match=f"NmpcSettings.{field}"):
         NmpcSettings(**{field: value})
+
+
+def test_unpack_plan_inverts_pack_plan():
+    from aerorelay.control.ocp import pack_plan, unpack_plan
+
+    rng = np.random.default_rng(0)
+    X, W = rng.normal(size=(SPEC.nx, SPEC.horizon + 1)), rng.normal(size=(SPEC.nw, SPEC.horizon))
+    Xu, Wu = unpack_plan(SPEC, pack_plan(X, W))
+    np.testing.assert_array_equal(Xu, X)
+    np.testing.assert_array_equal(Wu, W)
+
+
+def test_bench_times_ipopt_also_for_the_lagged_input_rate():
+    from aerorelay.control.bench import benchmark_closed_loop
+    from aerorelay.sim.closed_loop import ClosedLoop
+
+    sc = SC.with_updates({"controller.exact_input_rate": False, "sim.duration_s": 4.0})
+    res = benchmark_closed_loop(ClosedLoop(sc), ipopt_points=1)
+    assert res["ipopt_converged"] == "1/1" and res["qp_failures"] == 0

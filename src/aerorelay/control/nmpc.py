@@ -172,20 +172,25 @@ class NMPC:
         self.engine.reset(np.tile(np.asarray(xa0, float)[:, None], (1, N + 1)), np.zeros((self.spec.nw, N)))
         self.initialized = True
 
+    def ocp_data(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The OCP's initial state and parameters for plant state ``x`` and last input ``u_prev``:
+        ``(x, u_prev)`` with the exact input-rate cost; otherwise ``x``, and ``P`` with the
+        ``u_prev`` rows taken from ``u_prev`` and the plan's inputs ``W`` (``(nw, N)``)."""
+        if self.spec.exact_input_rate:
+            return np.concatenate([x, u_prev]), P
+        P = P.copy()
+        P[ParamIndex.u_prev, 0] = u_prev
+        P[ParamIndex.u_prev, 1:] = W[: self.spec.vehicle.n_rotors, :]
+        return np.asarray(x, float), P
+
     def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:
         """One RTI: linearize at the (shifted) guess, solve the QP, return its first input."""
-        v, nr = self.spec.vehicle, self.spec.vehicle.n_rotors
+        v = self.spec.vehicle
         t0 = time.perf_counter()
-        if self.spec.exact_input_rate:
-            xa0 = np.concatenate([x, u_prev])
-        else:
-            xa0 = np.asarray(x, float)
-            P = P.copy()
-            P[ParamIndex.u_prev, 0] = u_prev
         if not self.initialized:
-            self.reset(xa0)
-        if not self.spec.exact_input_rate:
-            P[ParamIndex.u_prev, 1:] = self.engine.plan()[1][:nr, :]
+            self.reset(self.ocp_data(x, u_prev, P, np.zeros((self.spec.nw, self.spec.horizon)))[0])
+        W = None if self.spec.exact_input_rate else self.engine.plan()[1]
+        xa0, P = self.ocp_data(x, u_prev, P, W)
         ok, u, status, prep_ms, slack, iters = self.engine.step(xa0, P, shift)
         whole_ms = (time.perf_counter() - t0) * 1e3
         # on failure u is the guess's first input (the previous plan shifted to now)

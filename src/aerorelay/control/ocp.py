@@ -151,6 +151,13 @@ def pack_plan(X: np.ndarray, W: np.ndarray) -> np.ndarray:
     return np.concatenate([np.vstack([X[:, :N], W]).T.reshape(-1), X[:, N]])
 
 
+def unpack_plan(spec: OcpSpec, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of ``pack_plan``: ``(X (nx, N+1), W (nw, N))`` from ``z``."""
+    N, nx, nw = spec.horizon, spec.nx, spec.nw
+    body = np.asarray(z[: N * (nx + nw)]).reshape(N, nx + nw).T
+    return np.column_stack([body[:nx], z[N * (nx + nw) :]]), body[nx:].copy()
+
+
 def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on ``z`` in absolute coordinates: motor speeds and workspace on states k >= 1,
     motor accelerations on inputs, slack ``pi_k >= 0`` for k >= 1 (fixed to 0 at k = 0 and in the
