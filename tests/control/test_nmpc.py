@@ -4,7 +4,7 @@ import pytest
 from aerorelay.config import parse_scenario
 from aerorelay.control.full_nlp import FullNlp
 from aerorelay.control.nmpc import NMPC, NmpcSettings
-from aerorelay.control.ocp import NP, ParamIndex as I
+from aerorelay.control.ocp import NP, ParamIndex as I, unpack_plan
 from aerorelay.sim.closed_loop import ocp_spec, plant_step_function, stage_weights
 
 SC = parse_scenario({})
@@ -98,7 +98,7 @@ def test_rti_converges_to_ipopt_solution(nmpc):
     assert ok
     nx = SPEC.nx
     np.testing.assert_allclose(z_rti[nx : nx + 6], z_ip[nx : nx + 6], rtol=0.01, atol=0.05)  # first input
-    pos = lambda z: np.array([z[k * (nx + 7) : k * (nx + 7) + 3] for k in range(SPEC.horizon)])
+    pos = lambda z: unpack_plan(SPEC, z)[0][:3, : SPEC.horizon]
     np.testing.assert_allclose(pos(z_rti), pos(z_ip), atol=1e-3)
 
 
@@ -169,8 +169,7 @@ def test_compiled_engine_solves_the_same_qp_as_casadi_conic(updates):
     np.testing.assert_allclose(infos[0].u, infos[1].u, rtol=1e-5, atol=1e-4)
     assert infos[0].slack_max == pytest.approx(infos[1].slack_max, rel=1e-5, abs=1e-9)
     za, zb = a.guess(), b.guess()
-    nx = spec.nx
-    pos = lambda z: np.array([z[k * (nx + 7) : k * (nx + 7) + 12] for k in range(SPEC.horizon)])
+    pos = lambda z: unpack_plan(spec, z)[0][:12, : spec.horizon]
     np.testing.assert_allclose(pos(za), pos(zb), atol=5e-4)  # positions, attitudes, velocities, rates
 
 
