@@ -195,7 +195,7 @@ def bench(
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
         t.add_column(c, justify="right")
-    for key in ("preparation_ms", "qp_ms", "step_ms", "ipopt_ms"):
+    for key in ("preparation_ms", "feedback_ms", "step_ms", "ipopt_ms"):
         if key in res:
             t.add_row(key.removesuffix("_ms"), *[f"{res[key][c]:.3f}" for c in ("mean", "p50", "p95", "p99", "max")])
     console.print(t)
@@ -205,7 +205,8 @@ def bench(
     console.print(
         f"wall {res['wall_s']:.1f} s for {res['sim_s']:.1f} s simulated (x{res['real_time_factor']:.2f} real time); "
         f"deadline misses vs {res['control_period_ms']:g} ms period: {res['deadline_misses']}; "
-        f"steps over 2 ms (500 Hz): {res['misses_at_500Hz']}; QP failures: {res['qp_failures']}",
+        f"steps over 2 ms (500 Hz): {res['misses_at_500Hz']}; QP failures: {res['qp_failures']}; "
+        f"fail-safe episodes: {res['fallback_episodes']}",
         markup=False, highlight=False,
     )
     if "ipopt_over_rti_mean" in res:

@@ -13,11 +13,12 @@ from typing import Annotated, Literal
 
 import numpy as np
 import tomli_w
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
+from .control.terms import COST_TERMS
 from .models.antenna import DipolePattern, SinPowerPattern
 from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
-from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, hexarotor
+from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 MIN_NODE_SEPARATION_M = 0.1
@@ -28,7 +29,8 @@ class ScenarioError(ValueError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+    # no inf / NaN anywhere unless a field says so (fading K = inf means "no fading")
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
 
 
 class Rotor(_Strict):
@@ -42,7 +44,8 @@ class Rotor(_Strict):
 class PlatformConfig(_Strict):
     """Relay vehicle (MRAV-1). Hexarotor by default; ``rotors`` overrides the layout."""
 
-    tilt_deg: float = Field(20.0, ge=0.0, le=60.0, description="hexarotor alternating tilt about each arm, deg")
+    rotor_count: int = Field(6, ge=3, le=16, description="rotors of the star layout (arms evenly spaced)")
+    tilt_deg: float = Field(20.0, ge=0.0, le=60.0, description="alternating tilt of each rotor about its arm, deg")
     arm_length_m: float = Field(HEXAROTOR_ARM_LENGTH_M, gt=0.0, le=5.0)
     rotors: list[Rotor] | None = Field(None, min_length=4, description="custom layout; overrides tilt/arm")
     mass_kg: float = Field(2.57, gt=0.0)
@@ -88,7 +91,7 @@ class PlatformConfig(_Strict):
             omega_dot_max=self.omega_dot_max_hz_s,
         )
         if self.rotors is None:
-            return hexarotor(self.tilt_deg, self.arm_length_m, **params)
+            return star_multirotor(self.rotor_count, self.tilt_deg, self.arm_length_m, **params)
         axes = np.array([r.axis for r in self.rotors], float)
         axes /= np.linalg.norm(axes, axis=1, keepdims=True)
         return Multirotor(
@@ -143,18 +146,28 @@ class JammerConfig(_Strict):
         return Jammer(np.array(self.position, float), self.power_w, sched, self.localization_delay_s)
 
 
-class Weights(_Strict):
-    """NMPC cost weights: each is the diagonal entry ``q`` of a term ``q * r^2`` (see README)."""
+def _weights_model() -> type[BaseModel]:
+    """``[controller.weights]``: one field per cost term of ``control/terms.py`` (and
+    ``<name>_terminal`` for a term with its own terminal weight). Each is the diagonal entry
+    ``q`` of a term ``q * r^2`` (see README)."""
+    fields: dict = {}
+    for t in COST_TERMS:
+        bound = {"gt": 0.0} if t.strictly_positive else {"ge": 0.0}
+        fields[t.name] = (float, Field(t.default, description=t.doc, **bound))
+        if t.own_terminal:
+            fields[f"{t.name}_terminal"] = (float, Field(float(t.terminal), ge=0.0, description=f"terminal: {t.doc}"))
+    return create_model("Weights", __base__=_Strict, __doc__=_weights_model.__doc__, **fields)
 
-    position: float = Field(1.0, ge=0.0)
-    position_terminal: float = Field(10.0, ge=0.0)
-    velocity: float = Field(2.0, ge=0.0)
-    thrust_direction: float = Field(300.0, ge=0.0)
-    misalignment: float = Field(10.0, ge=0.0)
-    misalignment_terminal: float = Field(10.0, ge=0.0)
-    input_rate: float = Field(1e-5, gt=0.0, description="on u_k - u_(k-1), (Hz/s)^-2")
-    body_rate: float = Field(1.0, ge=0.0, description="regularizer on omega")
-    yaw: float = Field(1.0, ge=0.0, description="regularizer on psi (nothing else fixes the yaw)")
+
+Weights = _weights_model()
+
+
+class FailsafeConfig(_Strict):
+    """When the brake law takes over from the NMPC, and when the NMPC takes over again."""
+
+    failures_to_fallback: int = Field(3, ge=1, le=1000, description="consecutive QP failures before the hand-over")
+    successes_to_resume: int = Field(5, ge=1, le=1000, description="consecutive QP successes before the NMPC resumes")
+    workspace_margin_m: float = Field(0.5, ge=0.0, le=5.0, description="the brake law's hold point keeps this far inside the workspace")
 
 
 class Workspace(_Strict):
@@ -195,8 +208,9 @@ class ControllerConfig(_Strict):
         False, description="after localization, the generator plans with P_J = 0 while the jammer is OFF "
         "(it senses the schedule); otherwise it plans with the nominal power throughout"
     )
-    weights: Weights = Field(default_factory=Weights)
+    weights: Weights = Field(default_factory=Weights)  # type: ignore[valid-type]
     workspace: Workspace = Field(default_factory=Workspace)
+    failsafe: FailsafeConfig = Field(default_factory=FailsafeConfig)
 
 
 class MissionConfig(_Strict):
@@ -249,13 +263,13 @@ class SimConfig(_Strict):
 
     plant_rate_hz: float = Field(1000.0, gt=0.0, le=20000.0)
     control_rate_hz: float | None = Field(None, gt=0.0, le=500.0, description="default 1/Ts")
-    duration_s: float | None = Field(None, gt=0.0, description="default: the mission's length")
+    duration_s: float | None = Field(None, gt=0.0, allow_inf_nan=False, description="default: the mission's length")
 
 
 class PerturbationConfig(_Strict):
     """Disturbances unknown to the controller (robustness studies)."""
 
-    fading_k_db: float | None = Field(None, ge=0.0, description="Rician K in dB; omit or inf for none")
+    fading_k_db: float | None = Field(None, ge=0.0, allow_inf_nan=True, description="Rician K in dB; omit or inf for none")
     csi_noise_m: float = Field(0.0, ge=0.0, description="std of position noise on MRAV-2 and jammer")
     process_noise_v: float = Field(0.0, ge=0.0, description="translational acceleration noise std, m/s^2")
     process_noise_w: float = Field(0.0, ge=0.0, description="rotational acceleration noise std, rad/s^2")
@@ -370,6 +384,9 @@ def _format_errors(err: ValidationError) -> str:
             msg, shown = "unknown field", ""
         elif e["type"] in _BOUND_ERRORS:
             msg = f"must be in {_allowed_range(tuple(e['loc']))}"
+        elif e["type"] == "finite_number":
+            rng = _allowed_range(tuple(e["loc"]))
+            msg = f"must be a finite number{' in ' + rng if rng else ''}"
         lines.append(f"{loc}: {msg}{shown}")
     return "\n".join(lines)
 
@@ -386,9 +403,13 @@ def load_scenario(path: str | Path) -> Scenario:
     """Load and validate a TOML scenario file; raises ScenarioError naming each bad field."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ScenarioError(f"{path}: no such scenario file") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"{path}: is a folder, not a scenario file") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): scenario files are UTF-8 TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     csv = data.get("mission", {}).get("trajectory_csv") if isinstance(data.get("mission"), dict) else None

@@ -26,8 +26,24 @@ def test_bench_rti_step(benchmark, loop_mid_mission):
     assert info.ok and np.all(np.isfinite(info.u))
 
 
+def test_bench_feedback_phase(benchmark, loop_mid_mission):
+    """The latency that matters on hardware: measurement in, input out (preparation done before)."""
+    x, u, P, _ = loop_mid_mission.bench_points[0]
+    nmpc = loop_mid_mission.nmpc
+
+    def feedback():
+        nmpc.prepare(P, u)
+        return nmpc.feedback(x, u, False)
+
+    info = benchmark(feedback)
+    assert info.ok
+
+
 def test_bench_trajectory_generator(benchmark, loop_mid_mission):
     loop = loop_mid_mission
     src = loop.source.state(9.0)
-    ref = benchmark(loop.tg.update, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.jammer.position, 1.0)
+    from aerorelay.planning.base import PlannerInput
+
+    inp = PlannerInput(9.0, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.jammer.position, 1.0)
+    ref = benchmark(loop.planner.update, inp)
     assert np.all(np.isfinite(ref.p_ref))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from aerorelay.control.hpipm_rti import HpipmRti, _casadi_dir, cpu_has_avx2_fma
-from aerorelay.sim.closed_loop import ocp_spec
+from aerorelay.control.relay import ocp_spec
 from aerorelay.config import parse_scenario
 
 pytestmark = pytest.mark.skipif(not cpu_has_avx2_fma(), reason="CPU without AVX2/FMA: kernels not compiled in")
@@ -79,14 +79,14 @@ def test_hpipm_uses_them_when_loaded_first():
     code = ("import numpy as np\n"
             "from aerorelay.config import parse_scenario\n"
             "from aerorelay.control.nmpc import NMPC\n"
-            "from aerorelay.control.ocp import NP, ParamIndex as I\n"
-            "from aerorelay.sim.closed_loop import ocp_spec\n"
-            "spec = ocp_spec(parse_scenario({}))\n"
+            "from aerorelay.control.relay import ocp_spec, weight_parameters\n"
+            "sc = parse_scenario({})\n"
+            "spec = ocp_spec(sc)\n"
             "c = NMPC(spec)\n"
             "x = spec.vehicle.hover_state(np.array([0.0, 0.0, 3.0]))\n"
             "assert c.engine.rti.simd_kernels_ran() == 0\n"
-            "P = np.zeros((NP, spec.horizon + 1)); P[I.sw_pos : I.sw_slack + 1] = 1.0\n"
-            "P[I.rho_d] = np.array([0, 0, 1.0])[:, None]; P[I.p_ref] = np.array([0.5, 0.0, 3.0])[:, None]\n"
+            "P = spec.params.matrix(spec.horizon + 1, {'p_ref': [0.5, 0.0, 3.0], 'v_ref': 0.0, 'rho_d': [0, 0, 1.0],\n"
+            "    'p2': [2.0, 1.0, 3.0], 'mu': 0.2, **weight_parameters(sc, spec)})\n"
             "assert c.step(x, np.zeros(6), P).ok\n"
             "print(c.engine.rti.simd_kernels_ran(), c.route())\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)

@@ -55,6 +55,26 @@ def test_planned_reference_interpolates(plan):
 
 
 def test_baseline_a_plans_with_isotropic_surrogate():
-    loop = ClosedLoop(SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"}))
-    assert loop.tg.sp.mu == 1.0 and loop.planned is None
-    assert ClosedLoop(SC).tg.sp.mu == SC.controller.mu
+    from aerorelay.planning.base import build_planner
+    from aerorelay.planning.registry import GeneratorPlanner
+
+    src = source_trajectory(SC.mission)
+    a = build_planner(SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"}), src)
+    assert isinstance(a, GeneratorPlanner) and a.generator.sp.mu == 1.0
+    assert build_planner(SC, src).generator.sp.mu == SC.controller.mu
+
+
+def test_every_planner_answers_through_one_interface():
+    """The closed loop never branches on planner names: each registered planner returns a Reference
+    from the same PlannerInput (baseline B from its plan, made once, without a generator)."""
+    from aerorelay.planning.base import PlannerInput, build_planner
+
+    short = SC.with_updates({"sim.duration_s": 4.0})
+    src = source_trajectory(short.mission)
+    s = src.state(1.0)
+    inp = PlannerInput(1.0, 0.015, np.array(short.nodes.relay), s.p, s.v, s.a, np.array(short.jammer.position), 1.0)
+    for name in ("trajectory_generator", "isotropic", "single_shot"):
+        planner = build_planner(short.with_updates({"controller.planner": name}), src)
+        ref = planner.update(inp)
+        assert ref.p_ref.shape == (3,) and np.all(np.isfinite(ref.p_ref)), name
+        assert hasattr(planner, "generator") == (name != "single_shot"), name

@@ -8,6 +8,7 @@ new library. When no C compiler is available the caller falls back (a warning is
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import logging
 import os
@@ -41,23 +42,33 @@ def generated_c(*funs: ca.Function) -> str:
 
 def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] = ("-O2",),
                    link: tuple[str, ...] = ()) -> Path:
-    """Path of ``source`` compiled to a shared library, built once and cached; raises CompileError."""
+    """Path of ``source`` compiled to a shared library, built once and cached; raises CompileError.
+
+    Concurrent builders (dask workers starting together) serialize on a file lock in the cache
+    folder; the library is compiled in a temporary folder inside the cache folder (same
+    filesystem) and published with ``os.replace``, so nobody ever loads a half-written file.
+    """
     digest = hashlib.sha256(f"{source}|{key}|{ca.__version__}|{flags}|{link}".encode()).hexdigest()[:16]
-    lib = cache_dir() / f"{name}_{digest}.so"
+    folder = cache_dir()
+    lib = folder / f"{name}_{digest}.so"
     if lib.exists():
         return lib
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         raise CompileError("no C compiler (gcc or cc) on PATH")
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as tmp:
-        src, out = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
-        src.write_text(source)
-        res = subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out), str(src), *link],
-                             capture_output=True, text=True)
-        if res.returncode != 0:
-            raise CompileError(f"compiling {name} failed: {res.stderr[-2000:]}")
-        shutil.move(str(out), lib)  # atomic within one filesystem; concurrent builders are harmless
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / f".{name}_{digest}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if lib.exists():  # another process built it while we waited
+            return lib
+        with tempfile.TemporaryDirectory(dir=folder, prefix=f".{name}_") as tmp:
+            src, out = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
+            src.write_text(source)
+            res = subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(out), str(src), *link],
+                                 capture_output=True, text=True)
+            if res.returncode != 0:
+                raise CompileError(f"compiling {name} failed: {res.stderr[-2000:]}")
+            os.replace(out, lib)
     return lib
 
 

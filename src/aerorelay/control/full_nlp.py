@@ -5,7 +5,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .ocp import NP, OcpSpec, ParamIndex, alignment_constraint, discrete_dynamics, stage_residual, terminal_residual
+from .ocp import OcpSpec
 
 
 class FullNlp:
@@ -13,15 +13,15 @@ class FullNlp:
 
     def __init__(self, spec: OcpSpec, ipopt_options: dict | None = None):
         self.spec = spec
-        N, nx, nw = spec.horizon, spec.nx, spec.nw
-        xa0, P = ca.MX.sym("xa0", nx), ca.MX.sym("P", NP, N + 1)
+        N, nx, nw, ng = spec.horizon, spec.nx, spec.nw, spec.ng
+        xa0, P = ca.MX.sym("xa0", nx), ca.MX.sym("P", spec.n_params, N + 1)
         X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
         W = [ca.MX.sym(f"w{k}", nw) for k in range(N)]
-        xs, ws, ps = ca.SX.sym("x", nx), ca.SX.sym("w", nw), ca.SX.sym("p", NP)
-        F = ca.Function("F", [xs, ws], [discrete_dynamics(spec, xs, ws)])
-        L = ca.Function("L", [xs, ws, ps], [ca.sumsqr(stage_residual(spec, xs, ws, ps))])
-        LN = ca.Function("LN", [xs, ps], [ca.sumsqr(terminal_residual(spec, xs, ps))])
-        h = ca.Function("h", [xs, ws, ps], [alignment_constraint(spec, xs, ws, ps)])
+        xs, ws, ps = ca.SX.sym("x", nx), ca.SX.sym("w", nw), spec.params.symbol()
+        F = ca.Function("F", [xs, ws], [spec.discrete_dynamics(xs, ws)])
+        L = ca.Function("L", [xs, ws, ps], [ca.sumsqr(spec.stage_residual(xs, ws, ps))])
+        LN = ca.Function("LN", [xs, ps], [ca.sumsqr(spec.terminal_residual(xs, ps))])
+        h = ca.Function("h", [xs, ws, ps], [spec.constraint_expr(xs, ws, ps)])
         J = 0
         g, lbg, ubg = [X[0] - xa0], [np.zeros(nx)], [np.zeros(nx)]
         for k in range(N):
@@ -29,10 +29,10 @@ class FullNlp:
             g.append(F(X[k], W[k]) - X[k + 1])
             lbg.append(np.zeros(nx))
             ubg.append(np.zeros(nx))
-            if spec.constrained and k >= 1:
-                g.append(h(X[k], W[k], P[:, k]) - P[ParamIndex.mu, k])
-                lbg.append(np.zeros(1))
-                ubg.append(np.full(1, np.inf))
+            if ng and k >= 1:
+                g.append(h(X[k], W[k], P[:, k]))
+                lbg.append(np.zeros(ng))
+                ubg.append(np.full(ng, np.inf))
         J += LN(X[N], P[:, N])
         z = ca.vertcat(*[ca.vertcat(X[k], W[k]) for k in range(N)], X[N])
         opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-8, "ipopt.max_iter": 500}

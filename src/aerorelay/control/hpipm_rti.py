@@ -1,28 +1,45 @@
-"""The RTI step as one compiled C call: CasADi-generated stage linearization + HPIPM.
+"""The RTI as two compiled calls: CasADi-generated stage linearization + HPIPM.
 
 ``rti_hpipm.c`` is appended to the C code CasADi generates for the per-stage linearization of
 ``ocp.py`` and linked against the HPIPM and BLASFEO libraries that ship in CasADi's wheel (no
-extra dependency). Compared with ``casadi.conic('hpipm')`` this keeps HPIPM's structures alive
-between steps instead of rebuilding them on every call, drops the two variable blocks the
-conic route fixes by equal bounds (initial state, stage-0 slack), can partially condense the
-horizon, and leaves one Python -> C call per control step.
+extra dependency). Every dimension is taken from the OCP description and checked against the
+generated functions before compiling (``linearization.check_dimensions``). Compared with
+``casadi.conic('hpipm')`` this keeps HPIPM's structures alive between steps, drops the variables
+the conic route fixes by equal bounds (initial state, stage-0 slacks), can partially condense
+the horizon, and splits each step into ``prepare(P)`` (before the measurement) and
+``feedback(xa0)`` (measurement in, input out), like acados' RTI phases.
 """
 
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import json
+import logging
+import os
 import platform
+import subprocess
+import sys
+from functools import cache
 from importlib import resources
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from .codegen import generated_c, shared_library
-from .linearization import stage_linearization, terminal_linearization
-from .ocp import INF, NP, OcpSpec, ParamIndex, absolute_bounds
+from .codegen import cache_dir, generated_c, shared_library
+from .linearization import check_dimensions, stage_linearization, terminal_linearization
+from .ocp import INF, OcpSpec, absolute_bounds
 
+log = logging.getLogger(__name__)
 _dp = ctypes.POINTER(ctypes.c_double)
+
+
+class RtiInfo(ctypes.Structure):
+    """Mirror of ``rti_info`` in rti_hpipm.c (times in ms)."""
+
+    _fields_ = [("ok", ctypes.c_int), ("status", ctypes.c_int), ("iter", ctypes.c_int), ("prepared", ctypes.c_int),
+                ("slack_max", ctypes.c_double), ("prep_ms", ctypes.c_double), ("qp_ms", ctypes.c_double)]
 
 
 def _casadi_dir() -> Path:
@@ -38,21 +55,86 @@ def cpu_has_avx2_fma() -> bool:
     return platform.machine() in ("x86_64", "AMD64") and "avx2" in flags and "fma" in flags
 
 
+@cache
+def blasfeo_matches_avx2_kernels() -> tuple[bool, str]:
+    """Run-time check that the BLASFEO in CasADi's wheel is what ``blasfeo_avx2.c`` was written
+    for (see ``check_blasfeo_in_this_process``). Run in a child process, since loading
+    libblasfeo here before the engine would bind its kernel calls to the generic kernels for
+    good; the verdict is cached on disk per libblasfeo file. Returns ``(ok, reason)``."""
+    lib = _casadi_dir() / "libblasfeo.so"
+    try:
+        st = lib.stat()
+    except OSError as err:
+        return False, f"no libblasfeo ({err})"
+    tag = hashlib.sha256(f"{lib.resolve()}|{st.st_size}|{st.st_mtime_ns}|{ca.__version__}".encode()).hexdigest()[:16]
+    verdict = cache_dir() / f"blasfeo_check_{tag}.json"
+    if verdict.exists():
+        ok, reason = json.loads(verdict.read_text())
+        return bool(ok), str(reason)
+    code = "import json; from aerorelay.control.hpipm_rti import check_blasfeo_in_this_process as c; print(json.dumps(c()))"
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    if res.returncode != 0:
+        return False, f"BLASFEO check failed to run: {res.stderr.strip()[-300:]}"
+    ok, reason = json.loads(res.stdout.strip().splitlines()[-1])
+    verdict.parent.mkdir(parents=True, exist_ok=True)
+    tmp = verdict.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text(json.dumps([ok, reason]))
+    os.replace(tmp, verdict)
+    return bool(ok), str(reason)
+
+
+def check_blasfeo_in_this_process() -> tuple[bool, str]:
+    """The generic target (its headers), panel size 4, and its own ``kernel_dgemm_nt_4x4_lib4``
+    computing ``alpha A B^T + beta C`` on 4 x k panels. Loads libblasfeo into this process."""
+    cdir = _casadi_dir()
+    target = cdir / "include" / "blasfeo_target.h"
+    try:
+        if "#define TARGET_GENERIC" not in target.read_text():
+            return False, "CasADi's BLASFEO is not the generic build"
+        lib = ctypes.CDLL(str(cdir / "libblasfeo.so"))
+        memsize = lib.blasfeo_memsize_dmat
+        memsize.restype, memsize.argtypes = ctypes.c_size_t, [ctypes.c_int, ctypes.c_int]
+        if memsize(4, 4) != memsize(1, 4) or memsize(5, 4) <= memsize(4, 4):  # rows 1-4 share a panel, row 5 starts one
+            return False, "BLASFEO's panel size is not 4"
+        kernel = lib.kernel_dgemm_nt_4x4_lib4
+    except (OSError, AttributeError) as err:
+        return False, f"BLASFEO not usable for the check ({err})"
+    rng = np.random.default_rng(0)
+    k = 5
+    A, B, C = rng.normal(size=4 * k), rng.normal(size=4 * k), rng.normal(size=16)
+    alpha, beta, D = np.array([0.7]), np.array([-1.3]), np.zeros(16)
+    kernel(ctypes.c_int(k), *(_ptr(a) for a in (alpha, A, B, beta, C, D)))
+    a, b = A.reshape(k, 4).T, B.reshape(k, 4).T
+    expected = (alpha[0] * a @ b.T + beta[0] * C.reshape(4, 4).T).T.ravel()
+    if not np.allclose(D, expected, rtol=1e-12, atol=1e-12):
+        return False, "BLASFEO's kernel_dgemm_nt_4x4_lib4 has another contract"
+    return True, "generic BLASFEO, panel size 4"
+
+
+def use_simd_kernels(requested: bool) -> tuple[bool, str]:
+    """Whether the AVX2 kernels go into the engine, and why (for ``aerorelay bench``)."""
+    if not requested:
+        return False, "AVX2 kernels switched off"
+    if not cpu_has_avx2_fma():
+        return False, "CPU without AVX2/FMA"
+    return blasfeo_matches_avx2_kernels()
+
+
 def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels: bool = True) -> Path:
-    """Generate, compile (once, cached) and return the engine's shared library. With
-    ``simd_kernels`` and an AVX2/FMA CPU, ``blasfeo_avx2.c`` is compiled in (see there)."""
-    nr = spec.vehicle.n_rotors
-    idxbx = stage_bounds(spec)[0]
+    """Generate, check, compile (once, cached) and return the engine's shared library. With
+    ``simd_kernels`` (and ``use_simd_kernels``), ``blasfeo_avx2.c`` is compiled in (see there)."""
+    stage, term = stage_linearization(spec, dense=True), terminal_linearization(spec, dense=True)
+    check_dimensions(spec, stage, term)
     macros = {
-        "RTI_N": spec.horizon, "RTI_NX": spec.nx, "RTI_NW": spec.nw, "RTI_NR": nr, "RTI_NP": NP,
-        "RTI_NBX": len(idxbx), "RTI_CONSTRAINED": int(spec.constrained), "RTI_MU_INDEX": ParamIndex.mu,
+        "RTI_N": spec.horizon, "RTI_NX": spec.nx, "RTI_NW": spec.nw, "RTI_NR": spec.n_rotors, "RTI_NS": spec.ns,
+        "RTI_NG": spec.ng, "RTI_NP": spec.n_params, "RTI_NBX": len(stage_bounds(spec)[0]),
     }
     head = "".join(f"#define {k} {v}\n" for k, v in macros.items())
     here = resources.files("aerorelay.control")
     driver = here.joinpath("rti_hpipm.c").read_text()
-    if simd_kernels and cpu_has_avx2_fma():
+    if simd_kernels:
         head = here.joinpath("blasfeo_avx2.c").read_text() + "\n#define RTI_SIMD 1\nextern int aerorelay_simd_kernels_ran;\n" + head
-    source = generated_c(stage_linearization(spec, dense=True), terminal_linearization(spec, dense=True)) + "\n" + head + driver
+    source = generated_c(stage, term) + "\n" + head + driver
     cdir = _casadi_dir()
     return shared_library(
         "nmpc_rti", source, spec.key(), flags=(*flags, f"-I{cdir / 'include'}"),
@@ -63,9 +145,9 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels
 def stage_bounds(spec: OcpSpec) -> tuple[np.ndarray, ...]:
     """``(idxbx, lbx, ubx, lbu, ubu)`` from ``ocp.absolute_bounds``: the bounded state entries
     and their bounds (the same at every stage k >= 1), and the motor-acceleration bounds. The
-    slack's bound (``pi >= 0`` for k >= 1) is built into the engine."""
+    slacks' bounds (``pi >= 0`` for k >= 1) are built into the engine."""
     lbz, ubz = absolute_bounds(spec)
-    nx, nw, nr = spec.nx, spec.nw, spec.vehicle.n_rotors
+    nx, nw, nr = spec.nx, spec.nw, spec.n_rotors
     s1 = slice(nx + nw, 2 * nx + nw)  # the states of stage 1
     idx = np.flatnonzero((lbz[s1] > -INF) | (ubz[s1] < INF)).astype(np.int32)
     return idx, lbz[s1][idx].copy(), ubz[s1][idx].copy(), lbz[nx : nx + nr].copy(), ubz[nx : nx + nr].copy()
@@ -74,38 +156,38 @@ def stage_bounds(spec: OcpSpec) -> tuple[np.ndarray, ...]:
 class HpipmRti:
     """Owns one engine instance (HPIPM workspace + plan) inside the compiled library.
 
-    ``step(xa0, P)`` linearizes at the current guess, solves the QP, applies the step, shifts the
-    plan and returns the first input. ``P`` is the ``(NP, N+1)`` parameter matrix.
+    ``prepare(P)`` linearizes at the current guess (``P``: the ``(n_params, N+1)`` parameter
+    matrix); ``feedback(xa0)`` solves the QP for the measured state, applies the step, shifts the
+    plan and returns the first input with an ``RtiInfo``.
     """
-
-    INFO = 6
 
     def __init__(self, spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50,
                  tol_comp: float = 1e-4, warm_start: int = 2, hessian_reg: float = 1e-8,
                  ric_alg: int = 1, simd_kernels: bool = True):
         self.spec = spec
-        lib = ctypes.CDLL(str(build_library(spec, simd_kernels=simd_kernels)))
+        self.simd_compiled, self.simd_reason = use_simd_kernels(simd_kernels)
+        lib = ctypes.CDLL(str(build_library(spec, simd_kernels=self.simd_compiled)))
         lib.rti_simd_kernels_ran.restype = ctypes.c_int
         lib.rti_create.restype = ctypes.c_void_p
         lib.rti_create.argtypes = [_dp, ctypes.POINTER(ctypes.c_int), _dp, _dp, _dp, _dp]
-        lib.rti_step.argtypes = [ctypes.c_void_p, _dp, _dp, ctypes.c_int, _dp, _dp]
-        lib.rti_step.restype = ctypes.c_int
+        lib.rti_prepare.argtypes = [ctypes.c_void_p, _dp, ctypes.POINTER(RtiInfo)]
+        lib.rti_feedback.argtypes = [ctypes.c_void_p, _dp, ctypes.c_int, _dp, ctypes.POINTER(RtiInfo)]
+        lib.rti_feedback.restype = ctypes.c_int
         lib.rti_set_plan.argtypes = [ctypes.c_void_p, _dp, _dp]
         lib.rti_get_plan.argtypes = [ctypes.c_void_p, _dp, _dp, _dp, _dp]
         lib.rti_free.argtypes = [ctypes.c_void_p]
         self._lib = lib
-        nr = spec.vehicle.n_rotors
         n2 = condensed_horizon if 0 < condensed_horizon < spec.horizon else spec.horizon
         settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg], float)
         self._keep = list(stage_bounds(spec))
         self._mem = lib.rti_create(_ptr(settings), self._keep[0].ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
                                    *(_ptr(a) for a in self._keep[1:]))
         if not self._mem:
-            raise MemoryError("could not create the HPIPM RTI engine")
+            raise MemoryError("could not allocate the HPIPM RTI engine's memory")
         N, nx, nw = spec.horizon, spec.nx, spec.nw
         self._plans = [np.zeros((N + 1) * nx), np.zeros(N * nw), np.zeros((N + 1) * nx), np.zeros(N * nw)]
-        self._u = np.zeros(nr)
-        self._info = np.zeros(self.INFO)
+        self._u = np.zeros(spec.n_rotors)
+        self.info = RtiInfo()
 
     def __del__(self):
         mem, lib = getattr(self, "_mem", None), getattr(self, "_lib", None)
@@ -120,26 +202,42 @@ class HpipmRti:
 
     def set_plan(self, X: np.ndarray, W: np.ndarray):
         """Set the guess from ``X (nx, N+1)`` and ``W (nw, N)``."""
+        N, nx, nw = self.spec.horizon, self.spec.nx, self.spec.nw
+        _check_shape("X", X, (nx, N + 1))
+        _check_shape("W", W, (nw, N))
         Xf = np.asarray(X, float).reshape(-1, order="F")
         Wf = np.asarray(W, float).reshape(-1, order="F")
         self._lib.rti_set_plan(self._mem, _ptr(Xf), _ptr(Wf))
 
-    def plan(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def plan(self) -> tuple[np.ndarray, ...]:
         """``(Xb, Wb, X, W)``: the current guess and the last solution before its shift."""
         self._lib.rti_get_plan(self._mem, *(_ptr(a) for a in self._plans))
         N, nx, nw = self.spec.horizon, self.spec.nx, self.spec.nw
         shapes = [(nx, N + 1), (nw, N), (nx, N + 1), (nw, N)]
-        return tuple(a.reshape(s, order="F").copy() for a, s in zip(self._plans, shapes))
+        return tuple(a.reshape(s, order="F").copy() for a, s in zip(self._plans, shapes, strict=True))
 
-    def step(self, xa0: np.ndarray, P: np.ndarray, shift: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """Run one RTI; returns ``(u0, info)`` with info = ok, status, iterations, slack max,
-        preparation ms, QP ms (see ``rti_step`` in rti_hpipm.c)."""
+    def prepare(self, P: np.ndarray) -> float:
+        """Preparation phase at the current guess; returns its time in ms."""
+        _check_shape("P", P, (self.spec.n_params, self.spec.horizon + 1))
+        self._P = np.asfortranarray(P, float)  # kept alive until feedback (the C side reads it now only)
+        self._lib.rti_prepare(self._mem, _ptr(self._P), ctypes.byref(self.info))
+        return float(self.info.prep_ms)
+
+    def feedback(self, xa0: np.ndarray, shift: bool = True) -> tuple[np.ndarray, RtiInfo]:
+        """Feedback phase for the measured state ``xa0``; returns ``(u0, info)``."""
+        _check_shape("xa0", xa0, (self.spec.nx,))
         x = np.ascontiguousarray(xa0, float)
-        Pf = np.asfortranarray(P, float)
-        self._lib.rti_step(self._mem, _ptr(x), _ptr(Pf), int(shift), _ptr(self._u), _ptr(self._info))
-        return self._u.copy(), self._info.copy()
+        self._lib.rti_feedback(self._mem, _ptr(x), int(shift), _ptr(self._u), ctypes.byref(self.info))
+        return self._u.copy(), self.info
+
+
+def _check_shape(name: str, a, shape: tuple[int, ...]):
+    if np.shape(a) != shape:
+        raise ValueError(f"{name} has shape {np.shape(a)}, the OCP needs {shape}")
 
 
 def _ptr(a: np.ndarray):
-    assert a.dtype == np.float64 and (a.flags.c_contiguous or a.flags.f_contiguous)
+    if a.dtype != np.float64 or not (a.flags.c_contiguous or a.flags.f_contiguous):
+        raise TypeError(f"engine buffers must be contiguous float64 arrays, got {a.dtype} "
+                        f"(contiguous: {a.flags.c_contiguous or a.flags.f_contiguous})")
     return a.ctypes.data_as(_dp)

@@ -124,16 +124,16 @@ class Multirotor:
         return np.sum(self.c_tau * s**3 * 2.0 * np.pi, axis=-1)
 
 
-def hexarotor_layout(tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M):
-    """Hexarotor rotor layout: arms every 60 deg starting on body +x.
+def star_layout(n_rotors: int, tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M):
+    """Star rotor layout: ``n_rotors`` arms evenly spaced starting on body +x.
 
-    Rotor i (0-based) sits at ``L (cos b_i, sin b_i, 0)`` with ``b_i = i * 60 deg``; its axis is
-    body z rotated about the arm by ``(-1)^i * tilt`` (alternating, as in Ryll et al.); its spin
-    is ``s_i = (-1)^i`` so the drag moments cancel in hover.
+    Rotor i (0-based) sits at ``L (cos b_i, sin b_i, 0)`` with ``b_i = i * 360 deg / n``; its axis
+    is body z rotated about the arm by ``(-1)^i * tilt`` (alternating, as in Ryll et al.); its spin
+    is ``s_i = (-1)^i`` so the drag moments cancel in hover (use an even count for that).
     """
-    i = np.arange(6)
-    beta = np.radians(60.0 * i)
-    arm = np.stack([np.cos(beta), np.sin(beta), np.zeros(6)], axis=-1)
+    i = np.arange(n_rotors)
+    beta = 2.0 * np.pi * i / n_rotors
+    arm = np.stack([np.cos(beta), np.sin(beta), np.zeros(n_rotors)], axis=-1)
     alpha = np.radians(tilt_deg) * (-1.0) ** i
     # Rodrigues about the (horizontal) arm axis a: z_P = cos(alpha) e3 + sin(alpha) (a x e3).
     axes = np.cos(alpha)[:, None] * E3 + np.sin(alpha)[:, None] * np.cross(arm, E3)
@@ -141,7 +141,18 @@ def hexarotor_layout(tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LE
     return arm_length * arm, axes, spins
 
 
+def hexarotor_layout(tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M):
+    """The paper's hexarotor layout: ``star_layout(6, ...)`` (arms every 60 deg)."""
+    return star_layout(6, tilt_deg, arm_length)
+
+
+def star_multirotor(n_rotors: int, tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M,
+                    **params) -> Multirotor:
+    """A multirotor with the star layout of ``star_layout``."""
+    positions, axes, spins = star_layout(n_rotors, tilt_deg, arm_length)
+    return Multirotor(positions=positions, axes=axes, spins=spins, **params)
+
+
 def hexarotor(tilt_deg: float = 0.0, arm_length: float = HEXAROTOR_ARM_LENGTH_M, **params) -> Multirotor:
     """The paper's hexarotor: ``tilt_deg=0`` coplanar, ``tilt_deg=20`` tilted (fully actuated)."""
-    positions, axes, spins = hexarotor_layout(tilt_deg, arm_length)
-    return Multirotor(positions=positions, axes=axes, spins=spins, **params)
+    return star_multirotor(6, tilt_deg, arm_length, **params)

@@ -64,7 +64,7 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario):
 def fig_constraints(df: pd.DataFrame, sc: Scenario):
     p = sc.platform
     fig, axes = plt.subplots(4, 1, figsize=(7, 8), sharex=True)
-    for i in range(1, 7):
+    for i in range(1, p.vehicle().n_rotors + 1):
         axes[0].plot(df["t"], df[f"Omega_{i}"], lw=0.8)
         axes[1].plot(df["t"], df[f"u_{i}"], lw=0.6)
     for ax, lo, hi, lab in ((axes[0], p.omega_min_hz, p.omega_max_hz, r"$\Omega$ (Hz)"),

@@ -1,9 +1,10 @@
-"""Closed-loop relay mission: trajectory generator + NMPC + RK4 plant + true channel.
+"""Closed-loop relay mission: planner + relay controller + RK4 plant + true channel.
 
-The plant (MRAV-1) is integrated by RK4 at ``sim.plant_rate_hz`` with the NMPC input held over
-each control period. At every control step the true channel is evaluated with real antenna
-gains and both vehicles' attitudes (MRAV-2's follows its acceleration), with Rician fading
-when configured. One log row per control step.
+The plant (MRAV-1) is integrated by RK4 at ``sim.plant_rate_hz`` with the controller's input
+held over each control period. At every control step the true channel is evaluated with real
+antenna gains and both vehicles' attitudes (MRAV-2's follows its acceleration), with Rician
+fading when configured. One log row per control step; the columns follow the vehicle's rotor
+count (``log_columns``).
 """
 
 from __future__ import annotations
@@ -16,47 +17,24 @@ import casadi as ca
 import numpy as np
 
 from ..config import Scenario
-from ..control.nmpc import NMPC, NmpcSettings
-from ..control.ocp import NP, OcpSpec, ParamIndex
+from ..control.nmpc import NmpcSettings, StepInfo
+from ..control.relay import RelayController
 from ..models.channel import end_to_end_capacity, jammer_gain_sq, legitimate_gain_sq, misalignment, mutual_alignment, sinr
 from ..models.fading import RicianFading
-from ..models.geometry import E3, rotation_zyx
-from ..planning.baselines import PlannedReference, SingleShotPlanner
-from ..planning.trajectory_generator import SurrogateParams, TrajectoryGenerator
+from ..models.geometry import rotation_zyx
+from ..planning.base import PlannerInput, build_planner
 from .mission import source_trajectory
 
-LOG_COLUMNS = (
-    ["t", "p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z", "omega1_x", "omega1_y", "omega1_z"]
-    + [f"Omega_{i}" for i in range(1, 7)]
-    + [f"u_{i}" for i in range(1, 7)]
-    + ["p2_x", "p2_y", "p2_z", "phi2", "theta2", "psi2", "pd_x", "pd_y", "pd_z", "jammer_on", "gamma_21", "gamma_10",
-       "se_21", "se_10", "capacity", "v_12", "v_10", "mutual_alignment", "slack_max", "solve_ms", "qp_status", "taylor_rel_err"]
-)
-
-
-def ocp_spec(sc: Scenario) -> OcpSpec:
-    """The NMPC problem structure described by a scenario."""
-    c = sc.controller
-    return OcpSpec(
-        vehicle=sc.platform.vehicle(),
-        horizon=c.horizon,
-        ts=c.ts_s,
-        constrained=c.variant == "constrained",
-        bs_position=tuple(sc.nodes.bs),
-        workspace_min=tuple(c.workspace.min),
-        workspace_max=tuple(c.workspace.max),
-        exact_input_rate=c.exact_input_rate,
+def log_columns(n_rotors: int) -> list[str]:
+    """The per-step log's columns, in order, for a relay with ``n_rotors`` rotors."""
+    return (
+        ["t", "p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z", "omega1_x", "omega1_y", "omega1_z"]
+        + [f"Omega_{i}" for i in range(1, n_rotors + 1)]
+        + [f"u_{i}" for i in range(1, n_rotors + 1)]
+        + ["p2_x", "p2_y", "p2_z", "phi2", "theta2", "psi2", "pd_x", "pd_y", "pd_z", "jammer_on", "gamma_21", "gamma_10",
+           "se_21", "se_10", "capacity", "v_12", "v_10", "mutual_alignment", "slack_max", "solve_ms", "feedback_ms",
+           "qp_status", "fallback", "taylor_rel_err"]
     )
-
-
-def stage_weights(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """Square-rooted weight slots of the stage and terminal parameter vectors (ParamIndex order)."""
-    w = sc.controller.weights
-    mis = w.misalignment if sc.controller.variant == "constrained" else 0.0
-    mis_n = w.misalignment_terminal if sc.controller.variant == "constrained" else 0.0
-    stage = [w.position, w.velocity, w.thrust_direction, mis, w.body_rate, w.yaw, w.input_rate, sc.controller.q_slack]
-    term = [w.position_terminal, w.velocity, w.thrust_direction, mis_n, w.body_rate, w.yaw, 0.0, 0.0]
-    return np.sqrt(stage), np.sqrt(term)
 
 
 def plant_step_function(sc: Scenario) -> ca.Function:
@@ -94,6 +72,7 @@ class MissionResult:
     qp_failures: int
     scenario: Scenario
     controller: str = ""  # NmpcSettings.fingerprint() of the controller that flew it
+    fallback_episodes: int = 0
 
 
 class ClosedLoop:
@@ -101,62 +80,34 @@ class ClosedLoop:
 
     def __init__(self, sc: Scenario, nmpc_settings: NmpcSettings | None = None):
         self.sc = sc
-        self.veh = sc.platform.vehicle()
-        self.spec = ocp_spec(sc)
-        self.nmpc = NMPC(self.spec, nmpc_settings)
+        self.controller = RelayController(sc, nmpc_settings)
+        self.spec = self.controller.spec
+        self.veh = self.spec.vehicle
+        self.columns = log_columns(self.veh.n_rotors)
         self.plant = plant_step_function(sc)
         self.source = source_trajectory(sc.mission)
+        self.planner = build_planner(sc, self.source)
         self.jammer = sc.jammer.build()
         self.pattern = sc.antenna.build()
-        ch = sc.channel
-        planner = sc.controller.planner
-        # baseline A plans with isotropic antennas: H_bar = G_bar / d, i.e. the surrogate with mu = 1
-        mu_plan = 1.0 if planner == "isotropic" else sc.controller.mu
-        self.planned = None
-        if planner == "single_shot":
-            plan = SingleShotPlanner(max_speed=sc.controller.governor_speed_m_s, gravity=self.veh.gravity,
-                                     tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, g_bar=sc.antenna.g_bar).plan(
-                self.source, np.array(sc.nodes.relay, float), sc.nodes.bs, sc.duration_s,
-                sc.controller.workspace.min, sc.controller.workspace.max)
-            self.planned = PlannedReference(plan)
-        self.tg = TrajectoryGenerator(
-            SurrogateParams(mu_plan, sc.antenna.g_bar, ch.tx_power_w, ch.noise_power_w, ch.bandwidth),
-            sc.nodes.bs,
-            governor_speed=sc.controller.governor_speed_m_s,
-            eig_floor=sc.controller.hessian_eig_floor,
-            workspace_min=sc.controller.workspace.min,
-            workspace_max=sc.controller.workspace.max,
-        )
         self.rng = np.random.default_rng(sc.seed)
         k_db = sc.perturbations.fading_k_db
         self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=sc.seed + 1)
-        self.sw_stage, self.sw_term = stage_weights(sc)
-        self.timings: list[tuple[float, float, int]] = []  # (preparation ms, QP ms, IPM iterations) per step
-        self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        # (preparation ms, feedback ms, IPM iterations) per step
+        self.timings: list[tuple[float, float, int]] = []
+        self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]] = []
+
+    @property
+    def nmpc(self):
+        return self.controller.nmpc
 
     def _planned_jammer_power(self, t: float) -> float:
-        """P_J the generator plans with: 0 before localization (tau_E); afterwards the nominal
+        """P_J the planner plans with: 0 before localization (tau_E); afterwards the nominal
         power, or the power actually radiated now when the controller senses the schedule."""
         if not self.jammer.is_localized(t):
             return 0.0
         if self.sc.controller.senses_jammer_state:
             return float(self.jammer.power_at(t))
         return self.sc.jammer.power_w
-
-    def _parameters(self, ref, p2, v2, a2) -> np.ndarray:
-        """Per-stage parameters: governed reference extrapolated at v_ref, MRAV-2 at constant acceleration."""
-        N, ts, I = self.spec.horizon, self.spec.ts, ParamIndex
-        tk = ts * np.arange(N + 1)
-        P = np.empty((NP, N + 1))
-        P[I.p_ref] = ref.p_ref[:, None] + ref.v_ref[:, None] * tk
-        P[I.v_ref] = ref.v_ref[:, None]
-        thrust = ref.a_ref + self.veh.gravity * E3
-        P[I.rho_d] = (thrust / np.linalg.norm(thrust))[:, None]  # rho_d = (a_d + g e3)/|a_d + g e3|
-        P[I.p2] = p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2
-        P[I.sw_pos : I.sw_slack + 1, :N] = self.sw_stage[:, None]
-        P[I.sw_pos : I.sw_slack + 1, N] = self.sw_term
-        P[I.mu] = self.sc.controller.mu
-        return P
 
     def _channel(self, t, x1, p2, eta2):
         """True SINRs (real gains, jammer schedule, fading) and the relay's misalignments."""
@@ -183,8 +134,9 @@ class ClosedLoop:
         shift = period >= self.spec.ts - 1e-12
         x = veh.hover_state(sc.nodes.relay)
         u = np.zeros(veh.n_rotors)
-        log = {c: np.empty(n_steps) for c in LOG_COLUMNS}
+        log: dict[str, np.ndarray] = {c: np.empty(n_steps) for c in self.columns}
         log["qp_status"] = np.empty(n_steps, dtype=object)
+        log["fallback"] = np.zeros(n_steps, dtype=bool)
         pert = sc.perturbations
         wall0 = time.perf_counter()
         for k in range(n_steps):
@@ -194,19 +146,16 @@ class ClosedLoop:
             # what the controller knows: MRAV-2 over the optical link, the jammer after tau_E (with CSI noise)
             p2_meas = src.p + self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else src.p
             pj_meas = self.jammer.position + (self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else 0.0)
-            pj_plan = self._planned_jammer_power(t)
-            if self.planned is not None:
-                ref = self.planned.update(t)
-            else:
-                ref = self.tg.update(period, x[0:3], p2_meas, src.v, src.a, pj_meas, pj_plan)
-            P = self._parameters(ref, p2_meas, src.v, src.a)
+            ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas,
+                                                   self._planned_jammer_power(t)))
+            P = self.controller.parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
                 self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
-            info = self.nmpc.step(x, u, P, shift=shift)
-            self.timings.append((info.prep_ms, info.qp_ms, info.qp_iters))
+            info = self.controller.step(x, u, P, shift=shift)
+            self.timings.append((info.prep_ms, info.feedback_ms, info.qp_iters))
             u = info.u
             jam_on, g21, g10, v12, v10 = self._channel(t, x, src.p, eta2)
-            self._record(log, k, t, x, u, src.p, eta2, ref, jam_on, g21, g10, v12, v10, info)
+            self._record(log, k, t, x, u, src.p, eta2, ref, (jam_on, g21, g10, v12, v10), info)
             d = np.concatenate([self.rng.normal(0.0, pert.process_noise_v, 3), self.rng.normal(0.0, pert.process_noise_w, 3)])
             x = np.asarray(self.plant(x, u, d)).ravel()
             if not np.all(np.isfinite(x)):
@@ -214,16 +163,23 @@ class ClosedLoop:
             if progress is not None:
                 progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
-        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, sc, self.nmpc.settings.fingerprint())
+        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, sc, self.nmpc.settings.fingerprint(),
+                             self.controller.fallback_episodes)
 
-    def _record(self, log, k, t, x, u, p2, eta2, ref, jam_on, g21, g10, v12, v10, info):
+    def _record(self, log, k, t, x, u, p2, eta2, ref, channel, info: StepInfo):
+        jam_on, g21, g10, v12, v10 = channel
+        nr = self.veh.n_rotors
+        if x.shape != (self.veh.nx,) or u.shape != (nr,):
+            raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
         se21, se10 = math.log2(1 + g21), math.log2(1 + g10)
-        row = (
-            [t, *x[0:3], *x[3:6], *x[6:9], *x[9:12], *x[12:18], *u, *p2, *eta2, *ref.p_ref, float(jam_on), g21, g10,
+        values = (
+            [t, *x[0:12], *x[12 : 12 + nr], *u, *p2, *eta2, *ref.p_ref, float(jam_on), g21, g10,
              se21, se10, float(end_to_end_capacity(g21, g10, self.sc.channel.bandwidth)), v12, v10,
-             float(mutual_alignment(v12, v10)), info.slack_max, info.solve_ms]
+             float(mutual_alignment(v12, v10)), info.slack_max, info.solve_ms, info.feedback_ms]
         )
-        for name, val in zip(LOG_COLUMNS, row):
+        numeric = [c for c in self.columns if c not in ("qp_status", "fallback", "taylor_rel_err")]
+        for name, val in zip(numeric, values, strict=True):
             log[name][k] = val
         log["qp_status"][k] = info.status if info.ok else f"failed:{info.status}"
+        log["fallback"][k] = info.fallback
         log["taylor_rel_err"][k] = ref.taylor_rel_err

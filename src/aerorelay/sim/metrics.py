@@ -14,12 +14,12 @@ from ..models.vehicle import Multirotor
 SLACK_ACTIVE_FRACTION_OF_MU = 0.0125
 
 
-def _speeds(log) -> np.ndarray:
-    return np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
-
-
-def _inputs(log) -> np.ndarray:
-    return np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
+def _rotor_columns(log, prefix: str, n_rotors: int) -> np.ndarray:
+    """``(steps, n_rotors)`` from the columns ``prefix1..n``; raises if the log has another count."""
+    have = sum(1 for c in log if c.startswith(prefix) and c[len(prefix):].isdigit())
+    if have != n_rotors:
+        raise ValueError(f"the log has {have} '{prefix}*' columns, the vehicle has {n_rotors} rotors")
+    return np.column_stack([log[f"{prefix}{i}"] for i in range(1, n_rotors + 1)])
 
 
 def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: Multirotor | None = None) -> dict:
@@ -32,7 +32,8 @@ def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: 
     solve = np.asarray(log["solve_ms"], float)
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
     pd = np.column_stack([log["pd_x"], log["pd_y"], log["pd_z"]])
-    speeds, inputs = _speeds(log), _inputs(log)
+    speeds, inputs = _rotor_columns(log, "Omega_", veh.n_rotors), _rotor_columns(log, "u_", veh.n_rotors)
+    fallback = np.asarray(log["fallback"], bool) if "fallback" in log else np.zeros(cap.size, bool)
     slack = np.nan_to_num(np.asarray(log["slack_max"], float), nan=np.inf)
     return {
         "c_min": float(cap.min()),
@@ -43,6 +44,7 @@ def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: 
         "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= sc.controller.mu)),
         "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(sc.controller.mu, 1e-9))),
         "infeasible_fraction": float(np.mean(failed)),
+        "fallback_fraction": float(np.mean(fallback)),
         "solve_ms": {**stats_ms(solve), "std": float(solve.std())},
         "position_error_mean_m": float(np.mean(np.linalg.norm(p1 - pd, axis=1))),
         "distance_m": float(np.sum(np.linalg.norm(np.diff(p1, axis=0), axis=1))),

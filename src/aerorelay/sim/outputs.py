@@ -9,15 +9,20 @@ from pathlib import Path
 
 import pandas as pd
 
-from .closed_loop import LOG_COLUMNS, MissionResult
+from .closed_loop import MissionResult, log_columns
 from .metrics import compute_metrics
 
 
 def log_frame(result: MissionResult) -> pd.DataFrame:
     """The per-step log as a DataFrame with the documented column order."""
-    df = pd.DataFrame({c: result.log[c] for c in LOG_COLUMNS})
+    columns = log_columns(result.scenario.platform.vehicle().n_rotors)
+    missing = [c for c in columns if c not in result.log]
+    if missing:
+        raise ValueError(f"the mission log lacks the columns {missing} of its vehicle")
+    df = pd.DataFrame({c: result.log[c] for c in columns})
     df["jammer_on"] = df["jammer_on"].astype(bool)
     df["qp_status"] = df["qp_status"].astype(str)
+    df["fallback"] = df["fallback"].astype(bool)
     return df
 
 
@@ -32,6 +37,7 @@ def write_run(result: MissionResult, out: Path, *, figures: bool = True) -> dict
     sc = result.scenario
     metrics = compute_metrics(result.log, sc, wall_s=result.wall_s, sim_s=result.sim_s)
     metrics["controller"] = result.controller
+    metrics["fallback_episodes"] = result.fallback_episodes
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         (tmp / "scenario.toml").write_text(sc.to_toml())

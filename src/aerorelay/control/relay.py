@@ -1,0 +1,133 @@
+"""The relay controller built from a scenario: OCP, NMPC, stage parameters and the fail-safe.
+
+``RelayController(scenario)`` owns the NMPC (``nmpc.py``) and the brake law (``failsafe.py``).
+Each control step: ``parameters(ref, p2, v2, a2)`` fills the named stage parameters from the
+planner's reference and MRAV-2's state; ``step(x, u_prev, P)`` runs one RTI. After
+``controller.failsafe.failures_to_fallback`` consecutive QP failures, or at once on a non-finite
+state or input, the plan is reset and the brake law flies the relay to rest inside the
+workspace; the NMPC is tried again every step from a fresh plan and takes over after
+``successes_to_resume`` consecutive successes. Every episode is logged.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+
+from ..config import Scenario
+from ..models.geometry import E3
+from .failsafe import BrakeLaw
+from .nmpc import NMPC, NmpcSettings, StepInfo
+from .ocp import OcpSpec
+
+log = logging.getLogger(__name__)
+
+
+def ocp_spec(sc: Scenario) -> OcpSpec:
+    """The NMPC problem structure described by a scenario."""
+    c = sc.controller
+    return OcpSpec(
+        vehicle=sc.platform.vehicle(),
+        horizon=c.horizon,
+        ts=c.ts_s,
+        constrained=c.variant == "constrained",
+        bs_position=tuple(sc.nodes.bs),
+        workspace_min=tuple(c.workspace.min),
+        workspace_max=tuple(c.workspace.max),
+        exact_input_rate=c.exact_input_rate,
+    )
+
+
+def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
+    """The ``sw_*`` stage parameters: square roots of the weights in columns 0..N-1 and of the
+    terminal weights in column N (0 for terms without a terminal part and for slacks)."""
+    w = sc.controller.weights
+    out = {}
+    for t in spec.terms:
+        stage = getattr(w, t.name)
+        terminal = 0.0 if t.terminal is None else (getattr(w, f"{t.name}_terminal") if t.own_terminal else stage)
+        out[f"sw_{t.name}"] = np.sqrt(np.r_[np.full(spec.horizon, stage), terminal])
+    for c in spec.soft_constraints:
+        out[f"sw_slack_{c.name}"] = np.sqrt(np.r_[np.full(spec.horizon, sc.controller.q_slack), 0.0])
+    return out
+
+
+class RelayController:
+    """NMPC + fail-safe for one scenario (stateful; one instance per mission)."""
+
+    def __init__(self, sc: Scenario, settings: NmpcSettings | None = None):
+        self.sc = sc
+        self.spec = ocp_spec(sc)
+        self.nmpc = NMPC(self.spec, settings)
+        self.weights = weight_parameters(sc, self.spec)
+        fs = sc.controller.failsafe
+        ws = sc.controller.workspace
+        self.brake = BrakeLaw(self.spec.vehicle, ws.min, ws.max, margin_m=fs.workspace_margin_m)
+        self.failures_to_fallback, self.successes_to_resume = fs.failures_to_fallback, fs.successes_to_resume
+        self.fallback_active = False
+        self.fallback_episodes = 0
+        self._consecutive_failures = 0
+        self._successes = 0
+        self._hold = np.zeros(3)
+
+    @property
+    def settings(self) -> NmpcSettings:
+        return self.nmpc.settings
+
+    def parameters(self, ref, p2, v2, a2) -> np.ndarray:
+        """Stage parameters: the governed reference extrapolated at ``v_ref``, ``rho_d`` from
+        ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration, mu, weights."""
+        spec = self.spec
+        tk = spec.ts * np.arange(spec.horizon + 1)
+        thrust = np.asarray(ref.a_ref, float) + spec.vehicle.gravity * E3
+        values = {
+            "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
+            "v_ref": ref.v_ref,
+            "rho_d": thrust / np.linalg.norm(thrust),
+            "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2,
+            "mu": self.sc.controller.mu,
+            **self.weights,
+        }
+        return spec.params.matrix(spec.horizon + 1, values)
+
+    def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:
+        """One control step: the NMPC's input, or the brake law's while the NMPC cannot fly."""
+        x = np.asarray(x, float)
+        if not np.all(np.isfinite(x)):
+            self._enter_fallback(x, "non-finite state")
+            return StepInfo(self.brake(x, self._hold), False, "non-finite state", 0.0, 0.0, float("nan"), fallback=True)
+        if self.fallback_active:
+            return self._fallback_step(x, u_prev, P, shift)
+        info = self.nmpc.step(x, u_prev, P, shift)
+        if info.ok and np.all(np.isfinite(info.u)):
+            self._consecutive_failures = 0
+            return info
+        self._consecutive_failures += 1
+        if self._consecutive_failures >= self.failures_to_fallback or not np.all(np.isfinite(info.u)):
+            self._enter_fallback(x, f"{self._consecutive_failures} consecutive QP failures ({info.status})")
+            return replace(info, u=self.brake(x, self._hold), fallback=True)
+        return info
+
+    def _enter_fallback(self, x: np.ndarray, why: str):
+        if not self.fallback_active:
+            self.fallback_active = True
+            self.fallback_episodes += 1
+            self._hold = self.brake.hold_point(x[0:3]) if np.all(np.isfinite(x[0:3])) else self.brake.hold_point(self._hold)
+            log.warning("fail-safe: %s; brake law holds the relay at %s", why, np.round(self._hold, 2))
+        self._successes = 0
+        self._consecutive_failures = 0
+        self.nmpc.initialized = False  # the next NMPC attempt starts from a fresh plan
+
+    def _fallback_step(self, x, u_prev, P, shift) -> StepInfo:
+        """Brake law input; the NMPC is tried from a fresh plan and resumes after enough successes."""
+        self.nmpc.initialized = False
+        info = self.nmpc.step(x, u_prev, P, shift)
+        self._successes = self._successes + 1 if info.ok else 0
+        if self._successes >= self.successes_to_resume:
+            self.fallback_active = False
+            self._successes = 0
+            log.warning("fail-safe: NMPC resumes after %d successful QPs", self.successes_to_resume)
+            return info
+        return replace(info, u=self.brake(x, self._hold), fallback=True)

@@ -1,0 +1,123 @@
+"""The NMPC's cost terms and constraints as data (paper eq. 20-27).
+
+Each ``CostTerm`` is a least-squares residual ``r`` weighted as ``q |r|^2``; its ``name`` is also
+its weight's field in ``[controller.weights]`` (and ``<name>_terminal`` when it has its own
+terminal weight) and its stage parameter ``sw_<name>`` (the square root of ``q``). Each
+``Constraint`` is ``h(stage) >= 0`` on stages 1..N-1; a soft one gets its own slack ``pi >= 0``
+in the stage input (``h + pi >= 0``) with the penalty ``controller.q_slack * pi^2``.
+
+**Adding a cost term or a constraint is one entry in ``COST_TERMS`` or ``CONSTRAINTS``**: the
+scenario schema, the parameter layout, the linearization, both QP routes, the compiled engine
+and the full NLP take their dimensions from these lists. A term or constraint that needs a new
+reference signal also declares it in ``REFERENCE_SIGNALS`` and the planner's reference fills it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import casadi as ca
+
+from ..models.channel import misalignment, mutual_alignment
+from ..models.geometry import rotation_zyx
+
+# Signals fed to every stage by the controller (name, size): the planner's reference and what
+# the relay knows of the others. Units: m, m/s, unit vector, m, dimensionless.
+REFERENCE_SIGNALS: tuple[tuple[str, int], ...] = (
+    ("p_ref", 3),  # governed position reference, world
+    ("v_ref", 3),  # velocity reference, world
+    ("rho_d", 3),  # desired thrust direction (a_d + g e3)/|a_d + g e3| (eq. 20)
+    ("p2", 3),  # MRAV-2's predicted position, world
+    ("mu", 1),  # minimum mutual alignment (eq. 27e)
+)
+
+
+class StageVars:
+    """Named quantities of one stage for the term and constraint expressions (CasADi symbols).
+
+    ``xa = (p, eta, v, omega, Omega[, u_prev])``, ``w = (u, pi_1..pi_ns)``, ``p`` the stage's
+    parameter vector unpacked by name. Derived quantities are computed once per stage.
+    """
+
+    def __init__(self, spec, xa, w, p: dict[str, Any]):
+        nr = spec.vehicle.n_rotors
+        self.pos, self.eta, self.vel, self.omega = xa[0:3], xa[3:6], xa[6:9], xa[9:12]
+        self.speeds = xa[12 : 12 + nr]
+        self.u = None if w is None else w[:nr]
+        self.slack = {} if w is None else {c.name: w[nr + i] for i, c in enumerate(spec.soft_constraints)}
+        self.u_prev = xa[12 + nr :] if spec.exact_input_rate else p.get("u_prev")
+        self.p = p
+        self.bs = ca.DM(spec.bs_position)
+
+    @cached_property
+    def R(self):
+        return rotation_zyx(self.eta)
+
+    @cached_property
+    def rho(self):
+        """Thrust direction R e3 (body z in the world frame)."""
+        return self.R[:, 2]
+
+    @cached_property
+    def v12(self):
+        """Directional cosine squared toward MRAV-2 (eq. 23)."""
+        return misalignment(self.pos, self.R, self.p["p2"])
+
+    @cached_property
+    def v10(self):
+        """Directional cosine squared toward the base station (eq. 23)."""
+        return misalignment(self.pos, self.R, self.bs)
+
+
+@dataclass(frozen=True)
+class CostTerm:
+    """A weighted least-squares term ``q |residual(stage)|^2``.
+
+    ``terminal``: ``"stage"`` reuses the stage weight at the terminal stage, a number gives the
+    default of an own terminal weight ``<name>_terminal``, ``None`` means no terminal term (the
+    residual needs the stage input). ``comms_aware`` terms are dropped in the unconstrained variant.
+    """
+
+    name: str
+    residual: Callable[[StageVars], Any]
+    default: float
+    doc: str
+    terminal: str | float | None = "stage"
+    comms_aware: bool = False
+    strictly_positive: bool = False
+
+    @property
+    def own_terminal(self) -> bool:
+        return self.terminal is not None and self.terminal != "stage"
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """``expression(stage) >= 0`` (rows: the expression's length) on stages 1..N-1."""
+
+    name: str
+    expression: Callable[[StageVars], Any]
+    doc: str
+    soft: bool = True
+    comms_aware: bool = True
+
+
+COST_TERMS: tuple[CostTerm, ...] = (
+    CostTerm("position", lambda s: s.pos - s.p["p_ref"], 1.0, "position tracking (eq. 20), m^-2", terminal=10.0),
+    CostTerm("velocity", lambda s: s.vel - s.p["v_ref"], 2.0, "velocity tracking (eq. 20), (m/s)^-2"),
+    CostTerm("thrust_direction", lambda s: s.rho - s.p["rho_d"], 300.0, "thrust direction R e3 vs rho_d (eq. 20)"),
+    CostTerm("misalignment", lambda s: ca.vertcat(s.v12, s.v10), 10.0, "misalignment (v_12, v_10) (eq. 23)",
+             terminal=10.0, comms_aware=True),
+    CostTerm("body_rate", lambda s: s.omega, 1.0, "regularizer on omega, (rad/s)^-2"),
+    CostTerm("yaw", lambda s: s.eta[2], 1.0, "regularizer on psi (nothing else fixes the yaw), rad^-2"),
+    CostTerm("input_rate", lambda s: s.u - s.u_prev, 1e-5, "on u_k - u_(k-1) (eq. 22), (Hz/s)^-2",
+             terminal=None, strictly_positive=True),
+)
+
+CONSTRAINTS: tuple[Constraint, ...] = (
+    Constraint("mutual_alignment", lambda s: mutual_alignment(s.v12, s.v10) - s.p["mu"],
+               "(1 - v_12)(1 - v_10) >= mu - pi (eq. 27e)"),
+)
