@@ -90,3 +90,42 @@ def test_trajectory_csv_resolved_next_to_the_scenario_and_checked(tmp_path):
 ])
 def test_seed_matters_only_for_random_perturbations(pert, stochastic):
     assert parse_scenario({"perturbations": pert}).perturbations.stochastic is stochastic
+
+
+# -- property: loading any scenario table either succeeds or raises the named scenario error --
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+_SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
+                     st.text(max_size=8), st.lists(st.floats(-20, 20), max_size=5))
+_FIELDS = {
+    "platform": ["tilt_deg", "rotor_count", "mass_kg", "omega_min_hz", "omega_max_hz", "inertia_kgm2", "arm_length_m"],
+    "controller": ["variant", "horizon", "mu", "ts_s", "q_slack", "planner"],
+    "sim": ["duration_s", "control_rate_hz", "plant_rate_hz"],
+    "nodes": ["bs", "relay"],
+    "jammer": ["power_w", "position", "schedule"],
+    "perturbations": ["fading_k_db", "csi_noise_m"],
+    "channel": ["noise_power_w", "bandwidth"],
+}
+_TABLES = st.fixed_dictionaries({}, optional={
+    sec: st.dictionaries(st.sampled_from(keys + ["bogus"]), _SCALARS, max_size=3) for sec, keys in _FIELDS.items()})
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_TABLES)
+def test_any_scenario_table_loads_or_names_its_error(table):
+    import tomli_w
+
+    try:
+        sc = parse_scenario(table)
+    except ScenarioError as exc:
+        lines = str(exc).splitlines()
+        assert lines and all(":" in line for line in lines)  # every line names a field (or "scenario")
+        return
+    assert parse_scenario(tomllib_loads(sc.to_toml())) == sc  # a valid one round-trips
+    assert tomli_w.dumps(sc.model_dump(exclude_none=True))
+
+
+def tomllib_loads(text):
+    import tomllib
+
+    return tomllib.loads(text)

@@ -64,7 +64,9 @@ def model_summary(sc: Scenario) -> Table:
     t = Table(title=f"model summary: {sc.name}", show_header=True)
     t.add_column("quantity")
     t.add_column("value", justify="right")
-    t.add_row("rotors / tilt", f"{veh.n_rotors} / {sc.platform.tilt_deg:g} deg")
+    axis_tilt = np.degrees(np.arccos(np.clip(veh.axes[:, 2], -1.0, 1.0))).max()
+    layout = "custom layout" if sc.platform.rotors is not None else "star layout"
+    t.add_row("rotors / max axis tilt", f"{veh.n_rotors} ({layout}) / {axis_tilt:.1f} deg")
     t.add_row("allocation rank [F; M]", str(np.linalg.matrix_rank(np.vstack([F, M]))))
     t.add_row("hover speeds (Hz)", ", ".join(f"{h:.2f}" for h in hover))
     t.add_row("hover shaft power (W)", f"{veh.shaft_power(hover):.1f}")

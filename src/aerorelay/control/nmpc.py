@@ -44,6 +44,7 @@ class StepInfo:
     slack_max: float
     qp_iters: int = 0
     fallback: bool = False  # the input came from the fail-safe brake law
+    input_finite: bool = True  # the solver's input was finite (a NaN/inf one is never applied)
 
     @property
     def solve_ms(self) -> float:
@@ -237,6 +238,8 @@ class NMPC:
         prep_ms = self._prep_ms if self._prepared else 0.0
         self._prepared = False
         # on failure u is the guess's first input (the previous plan shifted to now)
+        finite = bool(np.all(np.isfinite(u)))
+        ok = ok and finite
         u = np.clip(np.nan_to_num(u), v.omega_dot_min, v.omega_dot_max)
         if ok:
             slack_max = max(slack, 0.0)
@@ -244,7 +247,7 @@ class NMPC:
             self.failures += 1
             log.warning("NMPC QP failed (%s); applying the shifted previous input", status)
             slack_max = float("nan")
-        return StepInfo(u, ok, status, prep_ms, feedback_ms, slack_max, iters)
+        return StepInfo(u, ok, status, prep_ms, feedback_ms, slack_max, iters, input_finite=finite)
 
     def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:
         """One RTI: prepare at the (shifted) guess, then feedback for ``x``."""

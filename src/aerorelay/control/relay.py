@@ -101,11 +101,11 @@ class RelayController:
         if self.fallback_active:
             return self._fallback_step(x, u_prev, P, shift)
         info = self.nmpc.step(x, u_prev, P, shift)
-        if info.ok and np.all(np.isfinite(info.u)):
+        if info.ok:
             self._consecutive_failures = 0
             return info
         self._consecutive_failures += 1
-        if self._consecutive_failures >= self.failures_to_fallback or not np.all(np.isfinite(info.u)):
+        if self._consecutive_failures >= self.failures_to_fallback or not info.input_finite:
             self._enter_fallback(x, f"{self._consecutive_failures} consecutive QP failures ({info.status})")
             return replace(info, u=self.brake(x, self._hold), fallback=True)
         return info

@@ -1,0 +1,96 @@
+"""The fail-safe: brake law on any vehicle, hand-over after repeated QP failures, resumption."""
+
+import numpy as np
+import pytest
+
+from aerorelay.config import load_scenario, parse_scenario
+from aerorelay.control.failsafe import BrakeLaw
+from aerorelay.sim.closed_loop import ClosedLoop, plant_step_function
+
+SCEN = "scenarios"
+
+
+@pytest.mark.parametrize("preset", ["nominal_tilted", "nominal_coplanar", "quad_x", "octo_tilted"])
+def test_brake_law_stops_any_vehicle_at_its_hold_point(preset):
+    sc = load_scenario(f"{SCEN}/{preset}.toml")
+    veh = sc.platform.vehicle()
+    ws = sc.controller.workspace
+    law = BrakeLaw(veh, ws.min, ws.max)
+    plant = plant_step_function(sc)
+    x = veh.hover_state([0.0, 0.0, 5.0])
+    x[3:6] = np.radians([10.0, -8.0, 20.0])
+    x[6:9] = [1.0, -0.8, -1.0]  # moving at 1.6 m/s, tilted, yawed
+    hold = law.hold_point(x[:3])
+    zmin = np.inf
+    for _ in range(int(6.0 / sc.control_period_s)):
+        x = np.asarray(plant(x, law(x, hold), np.zeros(6))).ravel()
+        zmin = min(zmin, x[2])
+    assert np.linalg.norm(x[:3] - hold) < 0.1
+    assert np.linalg.norm(x[6:9]) < 0.05 and np.degrees(np.abs(x[3:5])).max() < 2.0
+    assert zmin > 3.5  # braked without a dive
+    assert np.all(x[12:] >= veh.omega_min - 1e-9) and np.all(x[12:] <= veh.omega_max + 1e-9)
+
+
+def test_hold_point_is_inside_the_shrunk_workspace():
+    sc = parse_scenario({})
+    ws = sc.controller.workspace
+    law = BrakeLaw(sc.platform.vehicle(), ws.min, ws.max, margin_m=0.5)
+    np.testing.assert_allclose(law.hold_point([-10.0, 0.0, 0.0]), [-6.5, 0.0, 1.0])
+
+
+def _failing_engine(loop, fail_steps):
+    """Make the NMPC engine's feedback fail on the given step numbers (as a broken QP would)."""
+    engine = loop.nmpc.engine
+    real = engine.feedback
+    count = {"k": 0}
+
+    def feedback(xa0, shift):
+        k = count["k"]
+        count["k"] += 1
+        ok, u, status, slack, iters = real(xa0, shift)
+        if k in fail_steps:
+            return False, np.full_like(u, np.nan), "INJECTED", float("nan"), iters
+        return ok, u, status, slack, iters
+
+    engine.feedback = feedback
+
+
+def test_injected_failures_hand_over_to_the_brake_law_and_back():
+    sc = parse_scenario({"nodes": {"relay": [-6.95, 5.79, 0.9]}, "sim": {"duration_s": 6.0}})  # 0.4 m above the floor
+    loop = ClosedLoop(sc)
+    _failing_engine(loop, set(range(60, 260)))  # every QP fails from 0.9 s to 3.9 s
+    res = loop.run()
+    fb = res.log["fallback"]
+    t = res.log["t"]
+    assert res.fallback_episodes == 1
+    assert not fb[:60].any() and fb[62:260].all()  # hand-over after the third consecutive failure
+    assert not fb[-50:].any()  # the NMPC resumed
+    ws = sc.controller.workspace
+    p1 = np.column_stack([res.log[f"p1_{a}"] for a in "xyz"])
+    assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)
+    assert np.all(np.isfinite(p1)) and t[-1] == pytest.approx(6.0)
+
+
+def test_non_finite_input_hands_over_at_once():
+    sc = parse_scenario({"sim": {"duration_s": 1.5}})
+    loop = ClosedLoop(sc)
+    _failing_engine(loop, {30})
+    res = loop.run()
+    assert res.log["fallback"][30]  # a NaN input is not applied, not even once
+    assert res.fallback_episodes == 1 and not res.log["fallback"][-1]
+
+
+@pytest.mark.slow
+def test_weights_that_break_the_qp_never_take_the_relay_out_of_the_workspace():
+    """Misalignment 100 (terminal 100), position 0.1 (terminal 0.1), velocity 0.1: ~1% of the QPs
+    fail late in the mission. The first release let the relay fall to z = -57 m; the fail-safe
+    keeps it inside the box for the whole 47 s mission."""
+    sc = load_scenario(f"{SCEN}/nominal_tilted.toml").with_updates({
+        "controller.weights.misalignment": 100.0, "controller.weights.misalignment_terminal": 100.0,
+        "controller.weights.position": 0.1, "controller.weights.position_terminal": 0.1,
+        "controller.weights.velocity": 0.1})
+    res = ClosedLoop(sc).run()
+    assert res.qp_failures > 0 and res.fallback_episodes > 0
+    ws = sc.controller.workspace
+    p1 = np.column_stack([res.log[f"p1_{a}"] for a in "xyz"])
+    assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)
