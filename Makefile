@@ -1,6 +1,6 @@
 # Two entry points for a fresh machine with only Python 3.11 and pip:
 #   make run   -> set up .venv, fly the demo mission and write a report
-#   make test  -> set up .venv (with test extras) and run the test suite
+#   make test  -> set up .venv (with test extras), lint (ruff), type-check (mypy), run the test suite
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -23,6 +23,8 @@ run: $(VENV)/.installed
 	$(BIN)/aerorelay compare $(OUT)/unconstrained $(OUT)/constrained
 
 test: $(VENV)/.installed
+	$(BIN)/ruff check src tests
+	$(BIN)/mypy src
 	$(BIN)/python -m pytest -q
 
 bench: $(VENV)/.installed

@@ -93,7 +93,8 @@ def test_seed_matters_only_for_random_perturbations(pert, stochastic):
 
 
 # -- property: loading any scenario table either succeeds or raises the named scenario error --
-from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 _SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
                      st.text(max_size=8), st.lists(st.floats(-20, 20), max_size=5))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 import typer
@@ -36,9 +37,10 @@ def _with_overrides(sc: Scenario, overrides: dict) -> Scenario:
         return sc.with_updates(updates) if updates else sc
     except ScenarioError as exc:
         _fail(str(exc))
+        raise  # unreachable: _fail exits
 
 
-def _fail(message: str):
+def _fail(message: str) -> NoReturn:
     from rich.markup import escape
 
     err_console.print(f"[bold red]error[/] {escape(message)}", highlight=False)
@@ -156,7 +158,7 @@ def compare(
             raise typer.Exit(EXIT_BAD_INPUT)
         runs[str(d)] = json.loads(f.read_text())
     console.print(f"A = {run_a}\nB = {run_b}", markup=False, highlight=False)
-    console.print(_metrics_table(dict(zip(("A", "B"), runs.values())), ratio=True))
+    console.print(_metrics_table(dict(zip(("A", "B"), runs.values(), strict=False)), ratio=True))
 
 
 @app.command()

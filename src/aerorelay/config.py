@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import tomli_w
@@ -79,7 +79,7 @@ class PlatformConfig(_Strict):
 
     def vehicle(self) -> Multirotor:
         """Build the vehicle model described by this configuration."""
-        params = dict(
+        params: dict[str, Any] = dict(
             mass=self.mass_kg,
             inertia=np.diag(self.inertia_kgm2),
             gravity=self.gravity_m_s2,
@@ -152,10 +152,10 @@ def _weights_model() -> type[BaseModel]:
     ``q`` of a term ``q * r^2`` (see README)."""
     fields: dict = {}
     for t in COST_TERMS:
-        bound = {"gt": 0.0} if t.strictly_positive else {"ge": 0.0}
-        fields[t.name] = (float, Field(t.default, description=t.doc, **bound))
+        low = {"gt": 0.0} if t.strictly_positive else {"ge": 0.0}
+        fields[t.name] = (float, Field(t.default, description=t.doc, **low))  # type: ignore[call-overload]
         if t.own_terminal:
-            fields[f"{t.name}_terminal"] = (float, Field(float(t.terminal), ge=0.0, description=f"terminal: {t.doc}"))
+            fields[f"{t.name}_terminal"] = (float, Field(float(t.terminal), ge=0.0, description=f"terminal: {t.doc}"))  # type: ignore[arg-type]
     return create_model("Weights", __base__=_Strict, __doc__=_weights_model.__doc__, **fields)
 
 
@@ -235,7 +235,7 @@ class MissionConfig(_Strict):
         t = [w[0] for w in wps]
         if t[0] != 0.0:
             raise ValueError(f"the first waypoint time must be 0 s, got {t[0]}")
-        if any(b <= a for a, b in zip(t, t[1:])):
+        if any(b <= a for a, b in zip(t, t[1:], strict=False)):
             raise ValueError(f"waypoint times must be strictly increasing, got {t}")
         return wps
 
@@ -337,7 +337,7 @@ class Scenario(_Strict):
         """The resolved scenario as TOML text (every default spelled out)."""
         return tomli_w.dumps(self.model_dump(exclude_none=True))
 
-    def with_updates(self, updates: dict) -> "Scenario":
+    def with_updates(self, updates: dict) -> Scenario:
         """A new validated scenario with dotted-key updates, e.g. ``{"controller.variant": "unconstrained"}``."""
         data = self.model_dump(exclude_none=True)
         for key, value in updates.items():
@@ -354,7 +354,8 @@ _BOUND_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_e
 
 def _allowed_range(loc: tuple) -> str:
     """Human-readable allowed range of the numeric field at ``loc`` (e.g. ``[0, 1]``, ``(0, inf)``)."""
-    model, info = Scenario, None
+    model: type[BaseModel] | None = Scenario
+    info = None
     for part in loc:
         if not isinstance(part, str) or model is None or part not in model.model_fields:
             return ""

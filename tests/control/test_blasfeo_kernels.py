@@ -5,9 +5,9 @@ import ctypes
 import numpy as np
 import pytest
 
+from aerorelay.config import parse_scenario
 from aerorelay.control.hpipm_rti import HpipmRti, _casadi_dir, cpu_has_avx2_fma
 from aerorelay.control.relay import ocp_spec
-from aerorelay.config import parse_scenario
 
 pytestmark = pytest.mark.skipif(not cpu_has_avx2_fma(), reason="CPU without AVX2/FMA: kernels not compiled in")
 

@@ -184,7 +184,7 @@ def test_alignment_constraint_acts_only_in_constrained_variant(plant):
         spec = ocp_spec(sc)
         ctrl = NMPC(spec)
         P = params(steep, p2=p2, sc=sc, spec=spec)
-        x, _ = fly(ctrl, plant, VEH.hover_state(steep), 200, lambda k: P)
+        x, _ = fly(ctrl, plant, VEH.hover_state(steep), 200, lambda k, P=P: P)
         R = rotation_zyx(x[3:6])
         result[variant] = mutual_alignment(misalignment(x[:3], R, p2), misalignment(x[:3], R, np.zeros(3)))
     assert result["unconstrained"] < 0.17

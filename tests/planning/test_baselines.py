@@ -5,7 +5,6 @@ from aerorelay.config import parse_scenario
 from aerorelay.models.channel import end_to_end_capacity, link_sinr
 from aerorelay.models.geometry import E3, attitude_from_thrust, rotation_zyx
 from aerorelay.planning.baselines import PlannedReference, SingleShotPlanner
-from aerorelay.sim.closed_loop import ClosedLoop
 from aerorelay.sim.mission import source_trajectory
 
 SC = parse_scenario({})

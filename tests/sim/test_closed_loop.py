@@ -10,9 +10,9 @@ from aerorelay.config import parse_scenario
 from aerorelay.models.channel import end_to_end_capacity, link_sinr
 from aerorelay.models.geometry import rotation_batch
 from aerorelay.sim.closed_loop import ClosedLoop, log_columns
+from aerorelay.sim.metrics import compute_metrics
 
 LOG_COLUMNS = log_columns(6)
-from aerorelay.sim.metrics import compute_metrics
 
 SHORT = parse_scenario({}).with_updates({"sim.duration_s": 3.0})
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import casadi as ca
 
 log = logging.getLogger(__name__)
+CASADI_VERSION: str = getattr(ca, "__version__", "unknown")
 
 
 class CompileError(RuntimeError):
@@ -48,7 +49,7 @@ def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] =
     folder; the library is compiled in a temporary folder inside the cache folder (same
     filesystem) and published with ``os.replace``, so nobody ever loads a half-written file.
     """
-    digest = hashlib.sha256(f"{source}|{key}|{ca.__version__}|{flags}|{link}".encode()).hexdigest()[:16]
+    digest = hashlib.sha256(f"{source}|{key}|{CASADI_VERSION}|{flags}|{link}".encode()).hexdigest()[:16]
     folder = cache_dir()
     lib = folder / f"{name}_{digest}.so"
     if lib.exists():

@@ -22,7 +22,7 @@ class FullNlp:
         L = ca.Function("L", [xs, ws, ps], [ca.sumsqr(spec.stage_residual(xs, ws, ps))])
         LN = ca.Function("LN", [xs, ps], [ca.sumsqr(spec.terminal_residual(xs, ps))])
         h = ca.Function("h", [xs, ws, ps], [spec.constraint_expr(xs, ws, ps)])
-        J = 0
+        J: ca.MX = ca.MX(0)
         g, lbg, ubg = [X[0] - xa0], [np.zeros(nx)], [np.zeros(nx)]
         for k in range(N):
             J += L(X[k], W[k], P[:, k])

@@ -27,7 +27,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .codegen import cache_dir, generated_c, shared_library
+from .codegen import CASADI_VERSION, cache_dir, generated_c, shared_library
 from .linearization import check_dimensions, stage_linearization, terminal_linearization
 from .ocp import INF, OcpSpec, absolute_bounds
 
@@ -66,7 +66,7 @@ def blasfeo_matches_avx2_kernels() -> tuple[bool, str]:
         st = lib.stat()
     except OSError as err:
         return False, f"no libblasfeo ({err})"
-    tag = hashlib.sha256(f"{lib.resolve()}|{st.st_size}|{st.st_mtime_ns}|{ca.__version__}".encode()).hexdigest()[:16]
+    tag = hashlib.sha256(f"{lib.resolve()}|{st.st_size}|{st.st_mtime_ns}|{CASADI_VERSION}".encode()).hexdigest()[:16]
     verdict = cache_dir() / f"blasfeo_check_{tag}.json"
     if verdict.exists():
         ok, reason = json.loads(verdict.read_text())

@@ -117,7 +117,8 @@ class _HpipmEngine:
         self.rti.set_plan(X, W)
 
     def plan(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.rti.plan()[:2]
+        Xb, Wb = self.rti.plan()[:2]
+        return Xb, Wb
 
     def prepare(self, P: np.ndarray) -> float:
         return self.rti.prepare(P)
@@ -143,19 +144,20 @@ class NMPC:
     def __init__(self, spec: OcpSpec, settings: NmpcSettings | None = None):
         self.spec = spec
         self.settings = settings or NmpcSettings()
-        self.engine: _HpipmEngine | ConicEngine | None = None
-        if self.settings.backend == "hpipm" and self.settings.compile:
-            try:
-                self.engine = _HpipmEngine(spec, self.settings)
-            except CompileError as err:
-                log.warning("compiled HPIPM engine unavailable (%s); using the casadi.conic route", err)
-        if self.engine is None:
-            self.engine = ConicEngine(spec, self.settings)
+        self.engine: _HpipmEngine | ConicEngine = self._build_engine()
         self._lbz, self._ubz = absolute_bounds(spec)
         self.initialized = False
         self.failures = 0
         self._prep_ms = 0.0
         self._prepared = False
+
+    def _build_engine(self) -> _HpipmEngine | ConicEngine:
+        if self.settings.backend == "hpipm" and self.settings.compile:
+            try:
+                return _HpipmEngine(self.spec, self.settings)
+            except CompileError as err:
+                log.warning("compiled HPIPM engine unavailable (%s); using the casadi.conic route", err)
+        return ConicEngine(self.spec, self.settings)
 
     def route(self) -> str:
         """How the QP is solved, for reports: backend, options, and whether the AVX2 kernels ran."""

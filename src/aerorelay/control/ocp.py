@@ -99,7 +99,7 @@ class OcpSpec:
         fields = list(REFERENCE_SIGNALS)
         fields += [(f"sw_{t.name}", 1) for t in self.terms]
         fields += [(f"sw_slack_{c.name}", 1) for c in self.soft_constraints]
-        internal = ()
+        internal: tuple[str, ...] = ()
         if not self.exact_input_rate:
             fields.append(("u_prev", self.vehicle.n_rotors))
             internal = ("u_prev",)

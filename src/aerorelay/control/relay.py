@@ -33,11 +33,15 @@ def ocp_spec(sc: Scenario) -> OcpSpec:
         horizon=c.horizon,
         ts=c.ts_s,
         constrained=c.variant == "constrained",
-        bs_position=tuple(sc.nodes.bs),
-        workspace_min=tuple(c.workspace.min),
-        workspace_max=tuple(c.workspace.max),
+        bs_position=_vec3(sc.nodes.bs),
+        workspace_min=_vec3(c.workspace.min),
+        workspace_max=_vec3(c.workspace.max),
         exact_input_rate=c.exact_input_rate,
     )
+
+
+def _vec3(v) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])
 
 
 def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:

@@ -48,7 +48,7 @@ class StageVars:
         self.speeds = xa[12 : 12 + nr]
         self.u = None if w is None else w[:nr]
         self.slack = {} if w is None else {c.name: w[nr + i] for i, c in enumerate(spec.soft_constraints)}
-        self.u_prev = xa[12 + nr :] if spec.exact_input_rate else p.get("u_prev")
+        self.u_prev: Any = xa[12 + nr :] if spec.exact_input_rate else p.get("u_prev")
         self.p = p
         self.bs = ca.DM(spec.bs_position)
 

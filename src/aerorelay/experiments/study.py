@@ -113,8 +113,8 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
     for run in study.runs:
         for combo in combos:
             updates = dict(run.set)
-            updates.update(zip(grid_keys, combo))
-            label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(grid_keys, combo))
+            updates.update(zip(grid_keys, combo, strict=False))
+            label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(grid_keys, combo, strict=False))
             group = label if run.id == "base" and label else (f"{run.id}[{label}]" if label else run.id)
             where = f"study {study.name}, run {group}"
             deterministic = not _updated(base, updates, where).perturbations.stochastic

@@ -21,7 +21,8 @@ _AXIS_EPS = 1e-12
 class AntennaPattern(Protocol):
     """Interface for a pluggable pattern: gain from the cosine of the elevation angle."""
 
-    g_bar: float
+    @property
+    def g_bar(self) -> float: ...
 
     def gain_from_cos(self, c):
         """Power gain for ``c = cos(theta)``, in [0, g_bar]. numpy arrays (vectorized)."""

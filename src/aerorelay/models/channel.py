@@ -100,7 +100,8 @@ def surrogate_sinr(p_tx, p_rx, p_jam, *, mu: float, g_bar: float, tx_power: floa
     return sinr(h_sq, f_sq, tx_power=tx_power, jam_power=jam_power, noise_power=noise_power)
 
 
-def inverse_capacity(p1, p2, p0, p_jam, *, mu: float, g_bar: float, tx_power: float, jam_power: float, noise_power: float, bandwidth: float = 1.0):
+def inverse_capacity(p1, p2, p0, p_jam, *, mu: float, g_bar: float, tx_power: float, jam_power, noise_power: float,
+                     bandwidth: float = 1.0):
     """Trajectory-generator cost ``f(kappa) = (1/B)(1/log2(1+G_21) + 1/log2(1+G_10))`` (eq. 15). *Dual*.
 
     Built on the conservative surrogate SINRs; ``kappa = (p1, p2)``; ``p0`` is the BS.

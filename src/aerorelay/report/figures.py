@@ -85,7 +85,7 @@ def fig_constraints(df: pd.DataFrame, sc: Scenario):
 
 def fig_tracking(df: pd.DataFrame, sc: Scenario):
     fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
-    for i, ax_name in enumerate("xyz"):
+    for _i, ax_name in enumerate("xyz"):
         axes[0].plot(df["t"], df[f"p1_{ax_name}"] - df[f"pd_{ax_name}"], label=f"e_p{ax_name}")
     axes[0].set_ylabel("position error (m)")
     axes[0].legend(fontsize=7)
@@ -106,7 +106,7 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
     """A self-contained interactive 3D view of both vehicles, the BS and the jammer."""
     import plotly.graph_objects as go
 
-    hover = [f"t={t:.2f}s C={c:.2e}" for t, c in zip(df["t"], df["capacity"])]
+    hover = [f"t={t:.2f}s C={c:.2e}" for t, c in zip(df["t"], df["capacity"], strict=False)]
     fig = go.Figure([
         go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name="MRAV-1 (relay)",
                      line=dict(color=df["capacity"], colorscale="Viridis", width=6, colorbar=dict(title="C")), text=hover),

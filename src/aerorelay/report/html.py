@@ -80,7 +80,7 @@ def _bars_figure(study_sum: dict) -> str | None:
         return None
     names = list(groups)
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
-    for ax, key in zip(axes, ("c_min", "c_mean")):
+    for ax, key in zip(axes, ("c_min", "c_mean"), strict=False):
         vals = [groups[g][key] for g in names]
         errs = [groups[g].get(key + ".std", 0.0) for g in names]
         ax.bar(range(len(names)), np.maximum(vals, 1e-9), yerr=errs, color="#4a78b0")

@@ -44,17 +44,21 @@ def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
     groups: dict[str, list[RunSpec]] = {}
     for s in specs:
         groups.setdefault(s.group, []).append(s)
-    gsum, missing = {}, []
+    gsum: dict[str, dict] = {}
+    missing: list[str] = []
     for g, runs in groups.items():
-        ms = []
+        ms: list[dict] = []
         for r in runs:
             m = _load_metrics(out, r)
-            (ms if m is not None else missing).append(m if m is not None else r.key)
+            if m is not None:
+                ms.append(m)
+            else:
+                missing.append(r.key)
         if not ms:
             continue
-        entry = {"n": len(ms), "runs": [r.key for r in runs]}
+        entry: dict = {"n": len(ms), "runs": [r.key for r in runs]}
         for key in SCALAR_METRICS:
-            vals = np.array([metric(m, key) for m in ms], float)
+            vals = np.asarray([metric(m, key) for m in ms], dtype=float)
             entry[key] = float(vals.mean())
             if len(vals) > 1:
                 entry[key + ".std"] = float(vals.std(ddof=1))
@@ -66,7 +70,7 @@ def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
             gsum[a]["max_deviation_m"] = float(np.max(np.linalg.norm(ta[:n] - tb[:n], axis=1)))
     paper = []
     for p in study.paper:
-        ours = gsum.get(p.run, {}).get(p.metric)
+        ours: float | None = gsum.get(p.run, {}).get(p.metric)
         ratio = (ours / p.value) if (ours is not None and p.value not in (0, 0.0)) else None
         paper.append({"run": p.run, "metric": p.metric, "paper": p.value, "ours": ours, "ratio": ratio, "note": p.note})
     return {"name": study.name, "title": study.title, "description": study.description, "groups": gsum,
@@ -95,7 +99,8 @@ def evaluate_claims(summary: dict) -> list[dict]:
     claims.append(_claim("tilted beats coplanar (constrained C_min)", None if None in (t, cp) else bool(t > cp),
                          "not run" if None in (t, cp) else f"tilted {t:.3g} vs coplanar {cp:.3g}"))
 
-    parts, ok = [], True
+    parts: list[str] = []
+    ok: bool | None = True
     for plat, tol in (("tilted", 0.05), ("coplanar", 0.2)):
         # judged on the run whose controller senses the schedule when the study has it: without
         # sensing the trajectory equals the always-on one by construction
@@ -120,8 +125,8 @@ def evaluate_claims(summary: dict) -> list[dict]:
     if None in cons + unc:
         claims.append(_claim("fading: constrained above unconstrained at every K, gap widening as K falls", None, "not run"))
     else:
-        above = all(a > b for a, b in zip(cons, unc))
-        ratios = [a / b if b > 0 else math.inf for a, b in zip(cons, unc)]
+        above = all(a > b for a, b in zip(cons, unc, strict=False))
+        ratios = [a / b if b > 0 else math.inf for a, b in zip(cons, unc, strict=False)]
         widening = all(ratios[i] >= ratios[i + 1] for i in range(len(ratios) - 1))
         claims.append(_claim("fading: constrained above unconstrained at every K, gap widening as K falls",
                              bool(above and widening),

@@ -25,6 +25,7 @@ from ..models.geometry import rotation_zyx
 from ..planning.base import PlannerInput, build_planner
 from .mission import source_trajectory
 
+
 def log_columns(n_rotors: int) -> list[str]:
     """The per-step log's columns, in order, for a relay with ``n_rotors`` rotors."""
     return (
