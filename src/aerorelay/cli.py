@@ -175,6 +175,7 @@ def bench(
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
     warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
     simd: bool = typer.Option(True, "--simd/--no-simd", help="hpipm backend: AVX2 BLASFEO kernels where the CPU has them"),
+    feedback: str = typer.Option(None, "--feedback", help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
 ):
     """Time the controller on a mission: preparation vs QP, percentiles, deadline misses, IPOPT ratio."""
     import json
@@ -186,7 +187,7 @@ def bench(
 
     try:
         settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
-                                warm_start=warm_start, simd_kernels=simd)
+                                warm_start=warm_start, simd_kernels=simd, feedback=feedback)
     except ValueError as exc:
         _fail(str(exc))
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,

@@ -227,3 +227,37 @@ def test_bench_times_ipopt_also_for_the_lagged_input_rate():
     sc = SC.with_updates({"controller.exact_input_rate": False, "sim.duration_s": 4.0})
     res = benchmark_closed_loop(ClosedLoop(sc), ipopt_points=1)
     assert res["ipopt_converged"] == "1/1" and res["qp_failures"] == 0
+
+
+def test_sensitivity_feedback_matches_a_solve_for_the_measured_state():
+    """The preparation solves at the predicted state; the feedback's first-order correction for a
+    measured state 1 cm / 1 cm/s off agrees with a full solve to < 1e-3 Hz/s, and the error
+    shrinks with the offset (the correction is the solution's derivative, not a fixed gain)."""
+    x = VEH.hover_state(HOME)
+    x[3:6] = np.radians([4.0, -3.0, 10.0])
+    P = params(HOME + np.array([0.5, 0.3, -0.2]), p2=np.array([3.0, 1.0, 8.0]))
+    errors, moves = [], []
+    for off in (1e-2, 1e-3):
+        us = []
+        for fb in ("solve", "sensitivity"):
+            c = NMPC(SPEC, NmpcSettings(feedback=fb, tol_comp=1e-8, iter_max=100))
+            c.reset(np.concatenate([x, np.zeros(6)]))
+            for _ in range(5):
+                u_pred = c.step(x, np.zeros(6), P, shift=False).u
+            x2 = x.copy()
+            x2[0:3] += off
+            x2[6:9] += off
+            info = c.step(x2, np.zeros(6), P, shift=False)
+            assert info.ok
+            us.append(info.u)
+        errors.append(np.abs(us[0] - us[1]).max())
+        moves.append(np.abs(us[0] - u_pred).max())
+    assert errors[0] < 1e-3 and errors[1] < 0.2 * errors[0]
+    assert moves[1] > 100 * errors[1]  # the correction is most of the input's change
+    assert NMPC(SPEC).route().count("sensitivity feedback") == 1
+
+
+def test_sensitivity_feedback_needs_the_uncondensed_engine():
+    with pytest.raises(ValueError, match="NmpcSettings.feedback"):
+        NmpcSettings(feedback="sensitivity", backend="casadi")
+    assert NmpcSettings(backend="casadi").feedback == "solve" and NmpcSettings().feedback == "sensitivity"

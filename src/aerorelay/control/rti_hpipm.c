@@ -1,5 +1,10 @@
 /* aerorelay real-time-iteration engine: the NMPC's RTI in two compiled calls.
  *
+ * Two feedback modes (settings[6]): 0 = the feedback phase embeds the measured state and runs the
+ * IPM; 1 = the preparation phase also runs the IPM at the predicted state (dx_0 = 0) and the
+ * feedback applies the forward sensitivity of that solution in the direction (A_0 dx_0, S_0 dx_0)
+ * (one Riccati sweep with the factorization at the solution, HPIPM's d_ocp_qp_ipm_sens_frw).
+ *
  * Appended by aerorelay.control.hpipm_rti to the CasADi-generated C code of the per-stage
  * linearization ``stage_lin(xa, w, p) -> (xn, A, B, H, g, h, Jh)`` and of the terminal one
  * ``term_lin(xa, p) -> (H, g)`` (dense outputs, column-major), compiled with the dimensions as
@@ -24,6 +29,7 @@
 #include <hpipm_d_ocp_qp_dim.h>
 #include <hpipm_d_ocp_qp.h>
 #include <hpipm_d_ocp_qp_sol.h>
+#include <hpipm_d_ocp_qp_seed.h>
 #include <hpipm_d_ocp_qp_ipm.h>
 #include <hpipm_d_part_cond.h>
 
@@ -39,6 +45,8 @@ typedef struct { /* mirrored by hpipm_rti.RtiInfo */
 
 typedef struct {
   int n2, iter_max, warm_start, ric_alg, cold, prepared; /* cold: no usable multipliers yet */
+  int feedback_mode; /* 0: feedback solves the QP; 1: prepare solves it at the predicted state, feedback corrects */
+  int pred_status, pred_iter; /* feedback_mode 1: the preparation's IPM */
   double tol_comp, reg;
   int idxbx[RTI_NBX], idxbu[RTI_NW];
   double lbx[RTI_NBX], ubx[RTI_NBX], lbu[RTI_NR], ubu[RTI_NR];
@@ -61,7 +69,8 @@ typedef struct {
   int block_size[RTI_N + 1];
   struct d_ocp_qp_dim dim, dim2;
   struct d_ocp_qp qp, qp2;
-  struct d_ocp_qp_sol sol, sol2;
+  struct d_ocp_qp_sol sol, sol2, sens;
+  struct d_ocp_qp_seed seed;
   struct d_part_cond_qp_arg cond_arg;
   struct d_part_cond_qp_ws cond_ws;
   struct d_ocp_qp_ipm_arg ipm_arg;
@@ -98,7 +107,7 @@ void rti_free(rti_mem *m) {
 #define RTI_TRY_ALLOC(var, size) do { (var) = rti_alloc(m, (size)); if (!(var)) goto fail; } while (0)
 #define RTI_MAX(a, b) ((a) > (b) ? (a) : (b))
 
-/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg; bounds: idxbx, lbx, ubx (k >= 1),
+/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg, feedback_mode; bounds: idxbx, lbx, ubx (k >= 1),
  * lbu, ubu (motor accelerations). Returns NULL when memory cannot be had. */
 rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx, const double *ubx,
                     const double *lbu, const double *ubu) {
@@ -114,6 +123,7 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   m->tol_comp = settings[3];
   m->reg = settings[4];
   m->ric_alg = (int)settings[5];
+  m->feedback_mode = (int)settings[6];
   m->cold = 1;
   for (i = 0; i < RTI_NBX; i++) { m->idxbx[i] = idxbx[i]; m->lbx[i] = lbx[i]; m->ubx[i] = ubx[i]; }
   for (i = 0; i < RTI_NR; i++) { m->lbu[i] = lbu[i]; m->ubu[i] = ubu[i]; }
@@ -136,6 +146,10 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   d_ocp_qp_dim_set_all(m->nx, m->nu, m->nbx, m->nbu, m->ng, m->ns, &m->dim);
   RTI_TRY_ALLOC(mem, d_ocp_qp_memsize(&m->dim)); d_ocp_qp_create(&m->dim, &m->qp, mem);
   RTI_TRY_ALLOC(mem, d_ocp_qp_sol_memsize(&m->dim)); d_ocp_qp_sol_create(&m->dim, &m->sol, mem);
+  if (m->feedback_mode == 1) {
+    RTI_TRY_ALLOC(mem, d_ocp_qp_sol_memsize(&m->dim)); d_ocp_qp_sol_create(&m->dim, &m->sens, mem);
+    RTI_TRY_ALLOC(mem, d_ocp_qp_seed_memsize(&m->dim)); d_ocp_qp_seed_create(&m->dim, &m->seed, mem);
+  }
   if (m->n2 < N) {
     RTI_TRY_ALLOC(mem, d_ocp_qp_dim_memsize(m->n2)); d_ocp_qp_dim_create(m->n2, &m->dim2, mem);
     d_part_cond_qp_compute_block_size(N, m->n2, m->block_size);
@@ -154,6 +168,10 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   d_ocp_qp_ipm_arg_set_tol_comp(&m->tol_comp, &m->ipm_arg);
   d_ocp_qp_ipm_arg_set_warm_start(&m->warm_start, &m->ipm_arg);
   d_ocp_qp_ipm_arg_set_ric_alg(&m->ric_alg, &m->ipm_arg);
+  if (m->feedback_mode == 1) { /* the factorization at the solution, for the sensitivity */
+    int one = 1;
+    d_ocp_qp_ipm_arg_set_update_fact_exit(&one, &m->ipm_arg);
+  }
   RTI_TRY_ALLOC(mem, d_ocp_qp_ipm_ws_memsize(d, &m->ipm_arg)); d_ocp_qp_ipm_ws_create(d, &m->ipm_arg, &m->ipm_ws, mem);
   /* one-sided constraints: the slacks' upper bounds and the rows' upper bounds are masked */
   for (k = 0; k < N; k++) d_ocp_qp_set_idxbu(k, m->idxbu, &m->qp);
@@ -296,13 +314,21 @@ static void rti_prepare_terminal(rti_mem *m, const double *P) {
   rti_set_state_bounds(m, N, xb);
 }
 
-/* Preparation phase: P is the (NP, N+1) column-major parameter matrix. */
+static int rti_solve_qp(rti_mem *m, int *iter);
+
+/* Preparation phase: P is the (NP, N+1) column-major parameter matrix. In feedback_mode 1 the
+ * QP is also solved here, at the predicted initial state (the guess's, dx_0 = 0). */
 void rti_prepare(rti_mem *m, const double *P, rti_info *info) {
   int k;
   double t0 = rti_now_ms();
   rti_prepare_stage0(m, P);
   for (k = 1; k < RTI_N; k++) rti_prepare_stage(m, k, P);
   rti_prepare_terminal(m, P);
+  if (m->feedback_mode == 1) {
+    d_ocp_qp_set_b(0, m->b0, &m->qp);
+    d_ocp_qp_set_r(0, m->r0, &m->qp);
+    m->pred_status = rti_solve_qp(m, &m->pred_iter);
+  }
   m->prepared = 1;
   info->prep_ms = rti_now_ms() - t0;
 }
@@ -328,6 +354,26 @@ static int rti_solve(rti_mem *m, struct d_ocp_qp *qp, struct d_ocp_qp_sol *sol, 
   return status;
 }
 
+/* Solve the filled QP (partial condensing, warm start with a cold retry, expansion). */
+static int rti_solve_qp(rti_mem *m, int *iter) {
+  int status, N = RTI_N;
+  struct d_ocp_qp *qp = &m->qp;
+  struct d_ocp_qp_sol *sol = &m->sol;
+  if (m->n2 < N) {
+    d_part_cond_qp_cond(&m->qp, &m->qp2, &m->cond_arg, &m->cond_ws);
+    qp = &m->qp2;
+    sol = &m->sol2;
+  }
+  status = rti_solve(m, qp, sol, m->cold ? 0 : m->warm_start, iter);
+  if (status != 0 && !m->cold && m->warm_start) { /* a warm start gone wrong: once more from cold */
+    int iter2 = 0;
+    status = rti_solve(m, qp, sol, 0, &iter2);
+    *iter += iter2;
+  }
+  if (m->n2 < N) d_part_cond_qp_expand_sol(&m->qp, &m->sol2, &m->sol, &m->cond_arg, &m->cond_ws);
+  return status;
+}
+
 /* Read the QP's solution into the plan (X, W) = guess + step; 0 if any entry is not finite. */
 static int rti_apply_step(rti_mem *m, const double *dx0, double *slack_max) {
   int k, i, ok = 1, N = RTI_N;
@@ -335,10 +381,20 @@ static int rti_apply_step(rti_mem *m, const double *dx0, double *slack_max) {
     double *X = m->X + k * RTI_NX, *W = m->W + k * RTI_NW;
     const double *xb = m->Xb + k * RTI_NX, *wb = m->Wb + k * RTI_NW;
     if (k == 0) memcpy(m->dx, dx0, sizeof(m->dx));
-    else d_ocp_qp_sol_get_x(k, &m->sol, m->dx);
+    else {
+      d_ocp_qp_sol_get_x(k, &m->sol, m->dx);
+      if (m->feedback_mode == 1) { /* predicted solution + its first-order correction */
+        d_ocp_qp_sol_get_x(k, &m->sens, m->xn);
+        for (i = 0; i < RTI_NX; i++) m->dx[i] += m->xn[i];
+      }
+    }
     for (i = 0; i < RTI_NX; i++) { X[i] = xb[i] + m->dx[i]; ok = ok && isfinite(X[i]); }
     if (k == N) break;
     d_ocp_qp_sol_get_u(k, &m->sol, m->du);
+    if (m->feedback_mode == 1) {
+      d_ocp_qp_sol_get_u(k, &m->sens, m->r);
+      for (i = 0; i < m->nu[k]; i++) m->du[i] += m->r[i];
+    }
     for (i = 0; i < RTI_NW; i++) W[i] = i < m->nu[k] ? wb[i] + m->du[i] : 0.0; /* stage-0 slacks are 0 */
     for (i = 0; i < RTI_NW; i++) ok = ok && isfinite(W[i]);
     for (i = RTI_NR; i < RTI_NW && k >= 1; i++) if (W[i] > *slack_max) *slack_max = W[i];
@@ -349,10 +405,8 @@ static int rti_apply_step(rti_mem *m, const double *dx0, double *slack_max) {
 /* Feedback phase: xa0 is the measured (augmented) state. u: first input, clipped to its bounds
  * (on failure: the previous plan's input for now). Returns info->ok. */
 int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *info) {
-  int N = RTI_N, i, j, status = 0, iter = 0, ok;
+  int i, j, status = 0, iter = 0, ok;
   double t0 = rti_now_ms(), dx0[RTI_NX], slack_max = 0.0;
-  struct d_ocp_qp *qp = &m->qp;
-  struct d_ocp_qp_sol *sol = &m->sol;
   info->prepared = m->prepared;
   if (!m->prepared) { /* the caller skipped rti_prepare: refuse rather than solve a stale QP */
     info->ok = 0; info->status = -1; info->iter = 0; info->slack_max = NAN; info->qp_ms = 0.0;
@@ -360,26 +414,27 @@ int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *
     return 0;
   }
   for (i = 0; i < RTI_NX; i++) dx0[i] = xa0[i] - m->Xb[i];
-  memcpy(m->b, m->b0, sizeof(m->b0)); /* b_0 = gap_0 + A_0 dx_0, r_0 = r_0 + S_0 dx_0 */
-  memcpy(m->r, m->r0, sizeof(m->r0));
+  /* the initial state enters stage 0 only: b_0 = gap_0 + A_0 dx_0, r_0 = r_0 + S_0 dx_0 */
+  for (i = 0; i < RTI_NX; i++) m->b[i] = m->feedback_mode == 1 ? 0.0 : m->b0[i];
+  for (i = 0; i < RTI_NR; i++) m->r[i] = m->feedback_mode == 1 ? 0.0 : m->r0[i];
   for (j = 0; j < RTI_NX; j++) {
     for (i = 0; i < RTI_NX; i++) m->b[i] += m->A0[i + j * RTI_NX] * dx0[j];
     for (i = 0; i < RTI_NR; i++) m->r[i] += m->S0[i + j * RTI_NR] * dx0[j];
   }
-  d_ocp_qp_set_b(0, m->b, &m->qp);
-  d_ocp_qp_set_r(0, m->r, &m->qp);
-  if (m->n2 < N) {
-    d_part_cond_qp_cond(&m->qp, &m->qp2, &m->cond_arg, &m->cond_ws);
-    qp = &m->qp2;
-    sol = &m->sol2;
+  if (m->feedback_mode == 1) { /* the predicted solution's sensitivity in the direction (db_0, dr_0) */
+    status = m->pred_status;
+    iter = m->pred_iter;
+    if (status == 0) {
+      d_ocp_qp_seed_set_zero(&m->seed);
+      d_ocp_qp_seed_set_seed_b(0, m->b, &m->seed);
+      d_ocp_qp_seed_set_seed_r(0, m->r, &m->seed);
+      d_ocp_qp_ipm_sens_frw(&m->qp, &m->seed, &m->sens, &m->ipm_arg, &m->ipm_ws);
+    }
+  } else {
+    d_ocp_qp_set_b(0, m->b, &m->qp);
+    d_ocp_qp_set_r(0, m->r, &m->qp);
+    status = rti_solve_qp(m, &iter);
   }
-  status = rti_solve(m, qp, sol, m->cold ? 0 : m->warm_start, &iter);
-  if (status != 0 && !m->cold && m->warm_start) { /* a warm start gone wrong: once more from cold */
-    int iter2 = 0;
-    status = rti_solve(m, qp, sol, 0, &iter2);
-    iter += iter2;
-  }
-  if (m->n2 < N) d_part_cond_qp_expand_sol(&m->qp, &m->sol2, &m->sol, &m->cond_arg, &m->cond_ws);
   ok = status == 0 && rti_apply_step(m, dx0, &slack_max);
   m->cold = !ok;
   m->prepared = 0;
