@@ -3,7 +3,8 @@
 A study TOML names a ``base`` scenario (path relative to the repository root), a list of
 ``[[runs]]`` (an id and dotted-key ``set`` updates), an optional ``[grid]`` whose cartesian
 product multiplies the runs, ``seeds`` Monte Carlo repetitions, and ``[[paper]]`` reference
-numbers. ``--quick`` shortens missions to ``quick_duration_s`` and uses ``quick_seeds`` seeds.
+numbers, and ``[[claims]]``: the paper's qualitative claims as conditions on the study's
+metrics (see ``Claim``), judged in the report. ``--quick`` shortens missions to ``quick_duration_s`` and uses ``quick_seeds`` seeds.
 A run without any random element (no finite-K fading, no CSI or process noise) is flown once,
 whatever ``seeds`` says: its repetitions would be identical.
 """
@@ -16,9 +17,9 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ..config import Scenario, ScenarioError, load_scenario
 
@@ -41,6 +42,48 @@ class PaperValue(BaseModel):
     note: str = ""
 
 
+def parse_term(text: str) -> list[tuple[str, str]]:
+    """``"metric@group"`` or ``"metric@group / metric@group"`` -> ``[(group, metric), ...]``."""
+    parts = [p.strip() for p in text.split(" / ")]
+    if len(parts) > 2 or any("@" not in p for p in parts):
+        raise ValueError(f"{text!r}: write metric@run or metric@run / metric@run")
+    return [(p.split("@", 1)[1], p.split("@", 1)[0]) for p in parts]
+
+
+class Condition(BaseModel):
+    """``left op right * factor + tol``; ``left`` and ``right`` are ``metric@run`` or a ratio
+    ``metric@run / metric@run``; ``value`` replaces ``right`` by a number."""
+
+    model_config = ConfigDict(extra="forbid")
+    left: str
+    op: Literal["<", "<=", ">", ">="]
+    right: str | None = None
+    value: float | None = None
+    factor: float = 1.0
+    tol: float = 0.0
+
+    @model_validator(mode="after")
+    def _one_right_side(self):
+        if (self.right is None) == (self.value is None):
+            raise ValueError("give exactly one of right (metric@run) and value (a number)")
+        parse_term(self.left)
+        if self.right is not None:
+            parse_term(self.right)
+        return self
+
+    def runs(self) -> set[str]:
+        terms = [self.left] + ([self.right] if self.right else [])
+        return {g for t in terms for g, _ in parse_term(t)}
+
+
+class Claim(BaseModel):
+    """A qualitative claim of the paper, held when every condition holds."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = Field(min_length=1)
+    all: list[Condition] = Field(min_length=1)
+
+
 class Study(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(pattern=r"^[a-z0-9_]+$")
@@ -54,6 +97,20 @@ class Study(BaseModel):
     quick_seeds: int = Field(1, ge=1)
     paper: list[PaperValue] = Field(default_factory=list)
     compare_trajectories: list[tuple[str, str]] = Field(default_factory=list)
+    claims: list[Claim] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _references_exist(self):
+        """Every run a claim, a paper value or a trajectory comparison names exists: renaming a
+        run cannot drop a claim silently."""
+        groups = set(group_names(self))
+        named = {(f"claim {c.text!r}", g) for c in self.claims for cond in c.all for g in cond.runs()}
+        named |= {(f"paper value {p.metric}", p.run) for p in self.paper}
+        named |= {("compare_trajectories", g) for pair in self.compare_trajectories for g in pair}
+        missing = sorted(f"{where}: run {g!r}" for where, g in named if g not in groups)
+        if missing:
+            raise ValueError("unknown runs (" + "; ".join(missing) + f"); runs: {sorted(groups)}")
+        return self
 
 
 @dataclass(frozen=True)
@@ -100,22 +157,36 @@ def find_studies(folder: Path, names: list[str] | None = None) -> list[Study]:
     return studies
 
 
+def _combos(study) -> tuple[list[str], list[tuple]]:
+    keys = list(study.grid)
+    return keys, (list(itertools.product(*study.grid.values())) if keys else [()])
+
+
+def _group(run_id: str, keys: list[str], combo: tuple) -> str:
+    label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(keys, combo, strict=True))
+    return label if run_id == "base" and label else (f"{run_id}[{label}]" if label else run_id)
+
+
+def group_names(study) -> list[str]:
+    """The study's run groups (run ids times grid labels), in expansion order."""
+    keys, combos = _combos(study)
+    return [_group(run.id, keys, combo) for run in study.runs for combo in combos]
+
+
 def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
     """All runs of a study, each with its validated, fully resolved scenario."""
     try:
         base = load_scenario(root / study.base)
     except ScenarioError as exc:
         raise StudyError(f"study {study.name}: base scenario: {exc}") from None
-    grid_keys = list(study.grid)
-    combos = list(itertools.product(*study.grid.values())) if grid_keys else [()]
+    grid_keys, combos = _combos(study)
     seeds = study.quick_seeds if quick else study.seeds
     specs = []
     for run in study.runs:
         for combo in combos:
             updates = dict(run.set)
-            updates.update(zip(grid_keys, combo, strict=False))
-            label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(grid_keys, combo, strict=False))
-            group = label if run.id == "base" and label else (f"{run.id}[{label}]" if label else run.id)
+            updates.update(zip(grid_keys, combo, strict=True))
+            group = _group(run.id, grid_keys, combo)
             where = f"study {study.name}, run {group}"
             deterministic = not _updated(base, updates, where).perturbations.stochastic
             for s in range(1 if deterministic else seeds):  # more seeds would fly the same run again

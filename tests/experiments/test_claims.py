@@ -1,0 +1,56 @@
+"""Claims declared as data in the study files, judged on the group metrics."""
+
+import pytest
+
+from aerorelay.experiments.study import Claim, Study, StudyError, load_study
+from aerorelay.report.summary import evaluate_claim
+
+
+def _study(**kw):
+    base = dict(name="s", title="t", base="scenarios/nominal_tilted.toml",
+                runs=[{"id": "a"}, {"id": "b"}], claims=[{"text": "a beats b", "all": [
+                    {"left": "c_min@a", "op": ">=", "right": "c_min@b", "factor": 10.0}]}])
+    base.update(kw)
+    return Study.model_validate(base)
+
+
+def test_claim_holds_and_fails_on_the_numbers():
+    claim = _study().claims[0]
+    holds, evidence = evaluate_claim(claim, {"a": {"c_min": 1e-3}, "b": {"c_min": 1e-5}})
+    assert holds is True and "c_min@a = 0.001 >= 10 x c_min@b = 1e-05: yes" in evidence
+    holds, _ = evaluate_claim(claim, {"a": {"c_min": 1e-3}, "b": {"c_min": 1e-3}})
+    assert holds is False
+
+
+def test_claim_with_a_missing_run_is_not_evaluated():
+    holds, evidence = evaluate_claim(_study().claims[0], {"a": {"c_min": 1e-3}})
+    assert holds is None and "c_min@b not run" in evidence
+
+
+def test_ratio_terms_and_numeric_bounds():
+    claim = Claim.model_validate({"text": "x", "all": [
+        {"left": "c_mean@a / c_mean@b", "op": ">=", "value": 2.0},
+        {"left": "d@a", "op": "<=", "value": 0.05}]})
+    assert evaluate_claim(claim, {"a": {"c_mean": 3.0, "d": 0.01}, "b": {"c_mean": 1.0}})[0] is True
+    assert evaluate_claim(claim, {"a": {"c_mean": 1.5, "d": 0.01}, "b": {"c_mean": 1.0}})[0] is False
+
+
+def test_renaming_a_run_cannot_drop_a_claim_silently():
+    with pytest.raises(ValueError, match="unknown runs.*claim 'a beats b': run 'b'"):
+        _study(runs=[{"id": "a"}, {"id": "b_renamed"}])
+
+
+@pytest.mark.parametrize("cond", [{"left": "c_min", "op": ">", "value": 1.0},
+                                  {"left": "c_min@a", "op": ">", "value": 1.0, "right": "c_min@b"},
+                                  {"left": "c_min@a", "op": "=>", "value": 1.0}])
+def test_bad_conditions_are_rejected(cond):
+    with pytest.raises(ValueError):
+        Claim.model_validate({"text": "x", "all": [cond]})
+
+
+def test_a_study_file_with_a_dangling_claim_is_a_study_error(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text('name = "s"\ntitle = "t"\nbase = "x.toml"\n[[runs]]\nid = "a"\n'
+                 '[[claims]]\ntext = "c"\nall = [{ left = "c_min@gone", op = ">", value = 0.0 }]\n')
+    with pytest.raises(StudyError, match="gone"):
+        load_study(f)
