@@ -118,14 +118,23 @@ def run(
 
 KEY_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
-    "slack_active_fraction", "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m",
+    "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
+    "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
     "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "wall_s", "sim_s",
 )
 
 
-def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
+def _lookup(m: dict, key: str):
+    """A dotted metric, or None where an older run folder does not have it."""
     from .report.summary import metric
 
+    try:
+        return metric(m, key)
+    except (KeyError, TypeError):
+        return None
+
+
+def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
     t = Table(show_header=True)
     t.add_column("metric")
     for name in runs:
@@ -133,11 +142,14 @@ def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
     if ratio:
         t.add_column("ratio B/A", justify="right")
     for key in KEY_METRICS:
-        vals = [metric(m, key) for m in runs.values()]
-        row = [key, *[f"{v:.4g}" for v in vals]]
+        vals = [_lookup(m, key) for m in runs.values()]
+        row = [key, *["-" if v is None else f"{v:.4g}" for v in vals]]
         if ratio:
             a, b = vals
-            row.append(f"{b / a:.3g}" if a not in (0, 0.0) else ("inf" if b else "-"))
+            if a is None or b is None:
+                row.append("-")
+            else:
+                row.append(f"{b / a:.3g}" if a not in (0, 0.0) else ("inf" if b else "-"))
         t.add_row(*row)
     return t
 

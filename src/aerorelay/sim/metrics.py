@@ -46,6 +46,7 @@ def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: 
         "infeasible_fraction": float(np.mean(failed)),
         "fallback_fraction": float(np.mean(fallback)),
         "solve_ms": {**stats_ms(solve), "std": float(solve.std())},
+        "feedback_ms": stats_ms(np.asarray(log["feedback_ms"], float)) if "feedback_ms" in log else None,
         "position_error_mean_m": float(np.mean(np.linalg.norm(p1 - pd, axis=1))),
         "distance_m": float(np.sum(np.linalg.norm(np.diff(p1, axis=0), axis=1))),
         "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
