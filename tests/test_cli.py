@@ -1,5 +1,6 @@
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from aerorelay.cli import app
@@ -64,3 +65,24 @@ def test_any_rotor_count_end_to_end(tmp_path):
         m = json.loads((out / "metrics.json").read_text())
         assert m["infeasible_fraction"] == 0 and m["fallback_fraction"] == 0
         assert (out / "constraints.png").stat().st_size > 0
+
+
+def test_bound_command_and_run_report_the_efficiency(tmp_path):
+    import json
+
+    import pandas as pd
+
+    scen = tmp_path / "s.toml"
+    scen.write_text('[sim]\nduration_s = 1.5\n[bound]\ngrid_m = 1.0\n')
+    res = runner.invoke(app, ["bound", str(scen), "--out", str(tmp_path / "b")])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "b" / "bound.json").read_text())
+    assert set(summary) >= {"static", "path_mean", "path_maxmin", "resolution", "assumptions"}
+    assert summary["resolution"]["grid_m"] == 1.0 and summary["resolution"]["times"] == 4
+    assert (tmp_path / "b" / "bound.png").stat().st_size > 0
+    res = runner.invoke(app, ["run", str(scen), "--out", str(tmp_path / "r"), "--no-figures"])
+    assert res.exit_code == 0, res.output
+    m = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert m["capacity_efficiency_mean"] == pytest.approx(m["c_mean"] / summary["path_mean"]["mean"])
+    assert m["capacity_efficiency_min"] == pytest.approx(m["c_min"] / summary["path_maxmin"]["min"])
+    assert len(pd.read_parquet(tmp_path / "r" / "bound.parquet")) == 4

@@ -94,8 +94,10 @@ def run(
     variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
+    no_bound: bool = typer.Option(False, "--no-bound", help="skip the capacity bound (computed once per scenario geometry, cached)"),
 ):
-    """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json and figures."""
+    """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json, the
+    capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from .sim.closed_loop import ClosedLoop
@@ -111,9 +113,49 @@ def run(
         task = prog.add_task("mission", total=1)
         result = loop.run(progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
                           if k % 50 == 0 or k == n else None)
-    metrics = write_run(result, out, figures=not no_figures)
+    bound = None if no_bound else _bound_with_progress(sc)
+    metrics = write_run(result, out, figures=not no_figures, bound=bound)
     console.print(f"wrote {out}", markup=False, highlight=False)
     console.print(_metrics_table({"value": metrics}))
+
+
+def _bound_with_progress(sc: Scenario):
+    """The scenario's capacity bound (cached by geometry), with a progress bar when computed."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from .planning.bound import cached_bound
+
+    with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
+                  TimeElapsedColumn(), console=err_console, transient=True) as prog:
+        task = prog.add_task("bound", total=1)
+        return cached_bound(sc, progress=lambda k, n: prog.update(task, completed=k, total=n))
+
+
+@app.command()
+def bound(
+    scenario: Path = typer.Argument(..., help="scenario TOML file"),
+    out: Path = typer.Option(..., "--out", help="output folder: bound.json, bound.parquet, bound.png"),
+):
+    """The best link the physics allows on this scenario: static and path capacity bounds."""
+    import json
+
+    from .planning.bound import write_bound
+    from .report.figures import fig_bound
+
+    sc = _load_or_exit(scenario)
+    b = _bound_with_progress(sc)
+    summary = write_bound(b, out)
+    fig = fig_bound(b.frame(), sc)
+    fig.savefig(out / "bound.png", dpi=110)
+    t = Table(title=f"capacity bounds: {sc.name}")
+    for c in ("bound", "mean C", "min C", "outage"):
+        t.add_column(c, justify="right" if c != "bound" else "left")
+    for name in ("static", "path_mean", "path_maxmin"):
+        s = summary[name]
+        t.add_row(name, f"{s['mean']:.3e}", f"{s['min']:.3e}", f"{s['outage_fraction']:.1%}")
+    console.print(t)
+    console.print(f"resolution: {json.dumps(summary['resolution'])}", markup=False, highlight=False)
+    console.print(f"wrote {out}", markup=False, highlight=False)
 
 
 KEY_METRICS = (
@@ -121,6 +163,7 @@ KEY_METRICS = (
     "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
     "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
     "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "wall_s", "sim_s",
+    "capacity_efficiency_mean", "capacity_efficiency_min",
 )
 
 

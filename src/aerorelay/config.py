@@ -281,6 +281,15 @@ class PerturbationConfig(_Strict):
         return fading or self.csi_noise_m > 0 or self.process_noise_v > 0 or self.process_noise_w > 0
 
 
+class BoundConfig(_Strict):
+    """Resolution of the capacity bounds (``aerorelay bound``, planning/bound.py)."""
+
+    max_speed_m_s: float = Field(1.0, gt=0.0, le=20.0, description="speed limit of the path bounds, m/s")
+    grid_m: float = Field(0.5, ge=0.1, le=3.0, description="position grid spacing, m")
+    dt_s: float = Field(0.5, ge=0.05, le=5.0, description="time grid spacing, s")
+    axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the relay antenna axes searched, deg")
+
+
 class Scenario(_Strict):
     """A complete, validated relay scenario."""
 
@@ -296,6 +305,7 @@ class Scenario(_Strict):
     mission: MissionConfig = Field(default_factory=MissionConfig)
     sim: SimConfig = Field(default_factory=SimConfig)
     perturbations: PerturbationConfig = Field(default_factory=PerturbationConfig)
+    bound: BoundConfig = Field(default_factory=BoundConfig)
 
     @model_validator(mode="after")
     def _consistent(self):

@@ -42,9 +42,13 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
     return fig
 
 
-def fig_capacity(df: pd.DataFrame, sc: Scenario):
+def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = None):
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     ax = axes[0]
+    if bound is not None:  # what the physics allows, behind the run
+        ax.semilogy(bound["t"], bound["static"], color="0.6", lw=1, ls="--", label="static bound (best pose per instant)")
+        ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.2, alpha=0.8, label="path bound (best mean, <= v_max)")
+        ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=1.2, alpha=0.8, label="path bound (best minimum)")
     ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
     ax.axhline(sc.channel.outage_threshold, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
@@ -124,6 +128,21 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
     return fig.to_html(include_plotlyjs=include_plotlyjs, full_html=True)
 
 
+def fig_bound(bound: pd.DataFrame, sc: Scenario):
+    """The three capacity bounds of a scenario over time (``aerorelay bound``)."""
+    fig, ax = plt.subplots(figsize=(7, 3.4))
+    ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static bound (best pose per instant)")
+    ax.semilogy(bound["t"], bound["path_mean"], color="C2", label="path bound, best mean")
+    ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", label="path bound, best minimum")
+    ax.axhline(sc.channel.outage_threshold, color="r", ls=":", lw=1, label="outage threshold")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("C (bit/s/Hz)")
+    ax.set_title(f"{sc.name}: capacity bounds", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 FIGURES = {
     "trajectory_3d.png": fig_trajectory_3d,
     "capacity.png": fig_capacity,
@@ -132,10 +151,10 @@ FIGURES = {
 }
 
 
-def write_run_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
-    """Write every PNG figure and ``trajectory.html`` into ``out``."""
+def write_run_figures(df: pd.DataFrame, sc: Scenario, out: Path, bound: pd.DataFrame | None = None) -> None:
+    """Write every PNG figure and ``trajectory.html`` into ``out`` (``capacity.png`` with the bound behind)."""
     for name, make in FIGURES.items():
-        fig = make(df, sc)
+        fig = fig_capacity(df, sc, bound) if name == "capacity.png" else make(df, sc)
         fig.savefig(out / name, dpi=110)
         plt.close(fig)
     (out / "trajectory.html").write_text(trajectory_html(df, sc))

@@ -26,7 +26,7 @@ def log_frame(result: MissionResult) -> pd.DataFrame:
     return df
 
 
-def write_run(result: MissionResult, out: Path, *, figures: bool = True) -> dict:
+def write_run(result: MissionResult, out: Path, *, figures: bool = True, bound=None) -> dict:
     """Write scenario.toml, timeseries.parquet, metrics.json (+ figures) to ``out``; return the metrics.
 
     Everything is first written to a temporary sibling folder which then replaces ``out``, so an
@@ -38,16 +38,24 @@ def write_run(result: MissionResult, out: Path, *, figures: bool = True) -> dict
     metrics = compute_metrics(result.log, sc, wall_s=result.wall_s, sim_s=result.sim_s)
     metrics["controller"] = result.controller
     metrics["fallback_episodes"] = result.fallback_episodes
+    if bound is not None:  # how far from what the physics allows (planning/bound.py)
+        metrics["capacity_efficiency_mean"] = metrics["c_mean"] / float(bound.path_mean.mean())
+        metrics["capacity_efficiency_min"] = metrics["c_min"] / float(bound.path_maxmin.min())
+        metrics["bound"] = bound.summary()
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         (tmp / "scenario.toml").write_text(sc.to_toml())
         df = log_frame(result)
         df.to_parquet(tmp / "timeseries.parquet", index=False)
         (tmp / "metrics.json").write_text(json.dumps(metrics, indent=2))
+        if bound is not None:
+            from ..planning.bound import write_bound
+
+            write_bound(bound, tmp)
         if figures:
             from ..report.figures import write_run_figures
 
-            write_run_figures(df, sc, tmp)
+            write_run_figures(df, sc, tmp, bound.frame() if bound is not None else None)
         if out.exists():
             shutil.rmtree(out)
         tmp.rename(out)

@@ -1,0 +1,233 @@
+"""The best link the physics allows: capacity bounds of a scenario (no controller involved).
+
+For the scenario's MRAV-2 path and attitude, jammer position and schedule and the true channel
+(dipole gains at every node, the BS's vertical dipole, fading ignored), on a time grid of
+``bound.dt_s``:
+
+- **static bound** ``C_static(t)``: the best end-to-end capacity over relay positions in the
+  workspace box and relay antenna axes the platform can hold in hover (``Multirotor.
+  hover_tilt_limit``, yaw free; vertical only for a coplanar platform). Grid search
+  (``bound.grid_m``, axes every ``bound.axis_step_deg``) refined by a local continuous search
+  from the best cell, so it sits at (or within a hair of) the true per-instant maximum.
+- **path bounds**: the best relay path from the scenario's start at speed <= ``bound.
+  max_speed_m_s``, by dynamic programming over the position grid: once maximizing the mean of
+  C (``path_mean``), once its minimum (``path_maxmin``; among the paths keeping that minimum, the
+  one with the best mean). Per step the path may move to any cell
+  whose centre lies within ``max_speed * dt + grid / 2`` (the half cell absorbs the grid's
+  quantization); the attitude at each instant is the best holdable one (attitude changes are
+  taken as free).
+
+``compute_bound(scenario)`` returns a ``CapacityBound``; ``cached_bound`` keeps it on disk keyed by
+everything it depends on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+from scipy.optimize import minimize
+
+from ..models.capacity_field import axis_cone, relay_capacity
+from ..models.geometry import E3
+
+BOUND_VERSION = "1"  # bump when the computation changes: cached bounds are recomputed
+
+
+@dataclass
+class CapacityBound:
+    """Bounds on a time grid (s); capacities normalized (B = 1 gives bit/s/Hz); positions m, world."""
+
+    t: np.ndarray
+    static: np.ndarray
+    static_position: np.ndarray
+    static_axis: np.ndarray
+    path_mean: np.ndarray
+    path_mean_position: np.ndarray
+    path_maxmin: np.ndarray
+    path_maxmin_position: np.ndarray
+    resolution: dict = field(default_factory=dict)
+    outage_threshold: float = 1e-3
+
+    def summary(self) -> dict:
+        """``bound.json``: mean / min / outage of each bound and the resolution used."""
+        def stats(c: np.ndarray) -> dict:
+            return {"mean": float(c.mean()), "min": float(c.min()), "outage_fraction": float(np.mean(c < self.outage_threshold))}
+
+        return {"static": stats(self.static), "path_mean": stats(self.path_mean), "path_maxmin": stats(self.path_maxmin),
+                "resolution": self.resolution, "assumptions": ASSUMPTIONS}
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: getattr(self, k) for k in ("t", "static", "static_position", "static_axis", "path_mean",
+                                              "path_mean_position", "path_maxmin", "path_maxmin_position")}
+
+    def frame(self):
+        """Time series as a DataFrame (one row per time of the bound's grid)."""
+        import pandas as pd
+
+        cols: dict[str, np.ndarray] = {"t": self.t, "static": self.static, "path_mean": self.path_mean,
+                                       "path_maxmin": self.path_maxmin}
+        for name in ("static_position", "static_axis", "path_mean_position", "path_maxmin_position"):
+            for i, ax in enumerate("xyz"):
+                cols[f"{name}_{ax}"] = getattr(self, name)[:, i]
+        return pd.DataFrame(cols)
+
+
+ASSUMPTIONS = ("true channel of the scenario (dipole gains at every node, BS dipole vertical, isotropic jammer at its "
+               "true position and schedule from t = 0), fading ignored; relay anywhere in the workspace box with any "
+               "antenna axis the platform can hold in hover (yaw free); attitude changes free; path bounds on the "
+               "position grid, one move per time step to a cell within max_speed * dt + grid / 2")
+
+
+class _Scene:
+    """What the capacity at time t depends on, from a scenario."""
+
+    def __init__(self, sc):
+        from ..sim.mission import source_trajectory
+
+        self.sc = sc
+        self.source = source_trajectory(sc.mission)
+        self.jammer = sc.jammer.build()
+        self.pattern = sc.antenna.build()
+        self.gravity = sc.platform.gravity_m_s2
+
+    def capacity(self, t: float, positions, axes) -> np.ndarray:
+        s = self.source.state(t)
+        thrust = s.a + self.gravity * E3
+        ch = self.sc.channel
+        return relay_capacity(positions, axes, p2=s.p, b2=thrust / np.linalg.norm(thrust), p0=self.sc.nodes.bs, b0=E3,
+                              pj=self.sc.jammer.position, jam_power=float(self.jammer.power_at(t)), pattern=self.pattern,
+                              tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
+
+
+def _axis(tilt: float, az: float) -> np.ndarray:
+    return np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+
+
+def _refine(scene: _Scene, t: float, p: np.ndarray, b: np.ndarray, lo, hi, max_tilt: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """Local continuous maximization of C over (position, axis) from a grid optimum."""
+    tilt0, az0 = float(np.arccos(np.clip(b[2], -1, 1))), float(np.arctan2(b[1], b[0]))
+    x0 = np.r_[p, tilt0, az0] if max_tilt > 0 else np.asarray(p, float)
+
+    def neg_c(x):
+        axis = _axis(x[3], x[4]) if max_tilt > 0 else E3
+        return -float(scene.capacity(t, x[:3][None], axis[None])[0, 0])
+
+    bounds = list(zip(lo, hi, strict=True)) + ([(0.0, max_tilt), (None, None)] if max_tilt > 0 else [])
+    res = minimize(neg_c, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 60})
+    x = res.x if -res.fun >= -neg_c(x0) else x0
+    axis = _axis(x[3], x[4]) if max_tilt > 0 else E3
+    return -neg_c(x), np.asarray(x[:3], float), axis
+
+
+def _footprint(radius_cells: float) -> np.ndarray:
+    r = int(np.floor(radius_cells))
+    g = np.arange(-r, r + 1)
+    X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
+    return (X**2 + Y**2 + Z**2) <= radius_cells**2 + 1e-9
+
+
+def _dp(values: np.ndarray, start: tuple[int, ...], footprint: np.ndarray, kind: str) -> list[tuple[int, ...]]:
+    """Best path through ``values`` (T, nx, ny, nz) from ``start``: max sum (``mean``) or max min."""
+    T = values.shape[0]
+    V = np.empty_like(values)
+    V[-1] = values[-1]
+    for k in range(T - 2, -1, -1):
+        reach = ndimage.maximum_filter(V[k + 1], footprint=footprint, mode="constant", cval=-np.inf)
+        V[k] = values[k] + reach if kind == "mean" else np.minimum(values[k], reach)
+    offsets = np.argwhere(footprint) - np.array(footprint.shape) // 2
+    path = [start]
+    for k in range(1, T):
+        cand = np.array(path[-1]) + offsets
+        ok = np.all((cand >= 0) & (cand < np.array(values.shape[1:])), axis=1)
+        cand = cand[ok]
+        best = cand[np.argmax(V[k][tuple(cand.T)])]
+        path.append(tuple(int(i) for i in best))
+    return path
+
+
+def compute_bound(sc, progress=None) -> CapacityBound:
+    """The static and path bounds of a scenario (see the module docstring)."""
+    b = sc.bound
+    scene = _Scene(sc)
+    veh = sc.platform.vehicle()
+    max_tilt = veh.hover_tilt_limit
+    axes = axis_cone(max_tilt, np.radians(b.axis_step_deg))
+    lo, hi = np.array(sc.controller.workspace.min, float), np.array(sc.controller.workspace.max, float)
+    grid = [np.arange(lo[i], hi[i] + 1e-9, b.grid_m) for i in range(3)]
+    shape = tuple(len(g) for g in grid)
+    X, Y, Z = np.meshgrid(*grid, indexing="ij")
+    cells = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    times = np.arange(0.0, sc.duration_s + 1e-9, b.dt_s)
+    best = np.empty((len(times), cells.shape[0]))
+    best_axis = np.empty((len(times), cells.shape[0]), dtype=np.int32)
+    static, static_p, static_b = np.empty(len(times)), np.empty((len(times), 3)), np.empty((len(times), 3))
+    for k, t in enumerate(times):
+        C = scene.capacity(t, cells, axes)
+        best_axis[k] = np.argmax(C, axis=1)
+        best[k] = C[np.arange(C.shape[0]), best_axis[k]]
+        i = int(np.argmax(best[k]))
+        static[k], static_p[k], static_b[k] = _refine(scene, t, cells[i], axes[best_axis[k, i]], lo, hi, max_tilt)
+        if progress is not None:
+            progress(k + 1, len(times))
+    start = tuple(int(np.argmin(np.abs(grid[i] - sc.nodes.relay[i]))) for i in range(3))
+    fp = _footprint((sc.bound.max_speed_m_s * b.dt_s + 0.5 * b.grid_m) / b.grid_m)
+    values = best.reshape(len(times), *shape)
+    paths = {}
+    for kind in ("mean", "maxmin"):
+        idx = _dp(values, start, fp, kind)
+        if kind == "maxmin":  # among the paths that keep the best minimum, the one with the best mean
+            floor = min(values[(k, *ix)] for k, ix in enumerate(idx))
+            idx = _dp(np.where(values >= floor, values, -np.inf), start, fp, "mean")
+        flat = np.array([np.ravel_multi_index(ix, shape) for ix in idx])
+        paths[kind] = (best[np.arange(len(times)), flat], cells[flat])
+    resolution = {"grid_m": b.grid_m, "dt_s": b.dt_s, "axis_step_deg": b.axis_step_deg, "max_speed_m_s": b.max_speed_m_s,
+                  "hover_tilt_limit_deg": float(np.degrees(max_tilt)), "axes": int(len(axes)), "cells": int(cells.shape[0]),
+                  "times": int(len(times)), "path_step_radius_m": float(sc.bound.max_speed_m_s * b.dt_s + 0.5 * b.grid_m)}
+    return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
+                         paths["maxmin"][1], resolution, sc.channel.outage_threshold)
+
+
+def bound_key(sc) -> str:
+    """Everything the bound depends on (not the controller, except its workspace box)."""
+    data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "mission", "bound"})
+    data["workspace"] = sc.controller.workspace.model_dump()
+    data["duration_s"] = sc.duration_s
+    text = json.dumps(data, sort_keys=True, default=str) + BOUND_VERSION
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def cached_bound(sc, progress=None) -> CapacityBound:
+    """``compute_bound`` once per scenario geometry, kept in the cache folder (``$AERORELAY_CACHE``)."""
+    from ..control.codegen import cache_dir
+
+    path = cache_dir() / "bounds" / f"bound_{bound_key(sc)}.npz"
+    if path.exists():
+        with np.load(path, allow_pickle=False) as z:
+            resolution = json.loads(str(z["resolution"]))
+            arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold")}
+            return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]))
+    bound = compute_bound(sc, progress)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+    with os.fdopen(fd, "wb") as f:
+        payload: dict = {**bound.arrays(), "resolution": json.dumps(bound.resolution), "outage_threshold": bound.outage_threshold}
+        np.savez(f, **payload)
+    os.replace(tmp, path)
+    return bound
+
+
+def write_bound(bound: CapacityBound, out: Path) -> dict:
+    """``bound.parquet`` (time series) and ``bound.json`` (summary) into ``out``; returns the summary."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    bound.frame().to_parquet(out / "bound.parquet", index=False)
+    summary = bound.summary()
+    (out / "bound.json").write_text(json.dumps(summary, indent=2))
+    return summary
