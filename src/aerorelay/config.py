@@ -191,10 +191,12 @@ class ControllerConfig(_Strict):
     """Trajectory generator + communications-aware NMPC."""
 
     variant: Literal["constrained", "unconstrained"] = "constrained"
-    planner: Literal["trajectory_generator", "isotropic", "single_shot"] = Field(
+    planner: Literal["trajectory_generator", "isotropic", "single_shot", "capacity"] = Field(
         "trajectory_generator",
-        description="the paper's generator; baseline A (isotropic surrogate); baseline B (single-shot plan)",
+        description="the paper's generator; baseline A (isotropic surrogate); baseline B (single-shot plan); "
+        "capacity: the capacity-seeking planner (planning/capacity_planner.py)",
     )
+    capacity_speed_m_s: float = Field(1.0, gt=0.0, le=5.0, description="capacity planner: reference speed limit, m/s")
     ts_s: float = Field(0.015, gt=0.0, le=1.0, description="NMPC sampling period Ts")
     horizon: int = Field(30, ge=1, le=200, description="N shooting intervals")
     mu: float = Field(0.2, ge=0.0, le=1.0, description="minimum mutual alignment")

@@ -86,10 +86,11 @@ class RelayController:
         spec = self.spec
         tk = spec.ts * np.arange(spec.horizon + 1)
         thrust = np.asarray(ref.a_ref, float) + spec.vehicle.gravity * E3
+        rho_d = thrust / np.linalg.norm(thrust) if ref.axis is None else ref.axis  # a planner's antenna axis wins
         values = {
             "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
             "v_ref": ref.v_ref,
-            "rho_d": thrust / np.linalg.norm(thrust),
+            "rho_d": rho_d,
             "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2,
             "mu": self.sc.controller.mu,
             **self.weights,

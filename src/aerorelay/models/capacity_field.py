@@ -27,6 +27,18 @@ def axis_cone(max_tilt: float, step: float) -> np.ndarray:
     return np.array(axes)
 
 
+def axis_set(azimuths: np.ndarray, limits: np.ndarray, step: float) -> np.ndarray:
+    """Unit axes with tilt <= ``limits`` (rad) toward each of ``azimuths`` (rad, increasing over a
+    full turn), on tilt rings every ``step`` rad with azimuths about ``step`` apart. Vertical first."""
+    axes = [np.array([0.0, 0.0, 1.0])]
+    for tilt in np.arange(step, max(float(np.max(limits)), 0.0) + 1e-9, step):
+        n = max(6, int(np.ceil(2 * np.pi * np.sin(tilt) / step)))
+        az = 2 * np.pi * np.arange(n) / n
+        ok = tilt <= np.interp(az, azimuths, limits, period=2 * np.pi) + 1e-9
+        axes.extend(np.column_stack([np.sin(tilt) * np.cos(az[ok]), np.sin(tilt) * np.sin(az[ok]), np.full(ok.sum(), np.cos(tilt))]))
+    return np.array(axes)
+
+
 def _unit(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n2 = np.sum(d * d, axis=-1)
     return d / np.sqrt(n2)[..., None], n2

@@ -95,6 +95,21 @@ class Multirotor:
                       method="highs")
         return bool(res.status == 0)
 
+    def hover_tilt_limits(self, azimuths) -> np.ndarray:
+        """Largest hover tilt (rad) toward each body azimuth (rad), bisection to 0.1 deg: with zero
+        yaw, the antenna axis tilts the vehicle can hold toward each world azimuth."""
+        out = []
+        for az in np.asarray(azimuths, float):
+            lo, hi = 0.0, np.radians(89.0)
+            if not self.can_hover_tilted(np.radians(0.1), az):
+                out.append(0.0)
+                continue
+            while hi - lo > np.radians(0.1):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if self.can_hover_tilted(mid, az) else (lo, mid)
+            out.append(lo)
+        return np.array(out)
+
     @cached_property
     def hover_tilt_limit(self) -> float:
         """Largest body tilt (rad) the vehicle can hold in hover toward its best body azimuth (yaw

@@ -86,12 +86,14 @@ ASSUMPTIONS = ("true channel of the scenario (dipole gains at every node, BS dip
 
 
 class _Scene:
-    """What the capacity at time t depends on, from a scenario."""
+    """What the capacity at time t depends on, from a scenario (``jammer_known=False``: as planned
+    before take-off, without the jammer)."""
 
-    def __init__(self, sc):
+    def __init__(self, sc, jammer_known: bool = True):
         from ..sim.mission import source_trajectory
 
         self.sc = sc
+        self.jammer_known = jammer_known
         self.source = source_trajectory(sc.mission)
         self.jammer = sc.jammer.build()
         self.pattern = sc.antenna.build()
@@ -102,7 +104,8 @@ class _Scene:
         thrust = s.a + self.gravity * E3
         ch = self.sc.channel
         return relay_capacity(positions, axes, p2=s.p, b2=thrust / np.linalg.norm(thrust), p0=self.sc.nodes.bs, b0=E3,
-                              pj=self.sc.jammer.position, jam_power=float(self.jammer.power_at(t)), pattern=self.pattern,
+                              pj=self.sc.jammer.position, jam_power=float(self.jammer.power_at(t)) if self.jammer_known else 0.0,
+                              pattern=self.pattern,
                               tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
 
 
@@ -152,6 +155,21 @@ def _dp(values: np.ndarray, start: tuple[int, ...], footprint: np.ndarray, kind:
     return path
 
 
+def position_grid(lo, hi, step: float) -> tuple[list[np.ndarray], np.ndarray]:
+    """Grid axes and the ``(M, 3)`` cell centres of the box ``[lo, hi]`` every ``step`` m."""
+    grid = [np.arange(lo[i], hi[i] + 1e-9, step) for i in range(3)]
+    X, Y, Z = np.meshgrid(*grid, indexing="ij")
+    return grid, np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+
+
+def best_path(scene: _Scene, cells: np.ndarray, shape: tuple[int, ...], axes: np.ndarray, times: np.ndarray,
+              start: tuple[int, ...], radius_cells: float) -> np.ndarray:
+    """Positions ``(T, 3)`` of the max-mean path through the best-axis capacity landscape."""
+    values = np.stack([scene.capacity(t, cells, axes).max(axis=1) for t in times]).reshape(len(times), *shape)
+    idx = _dp(values, start, _footprint(radius_cells), "mean")
+    return cells[[np.ravel_multi_index(ix, shape) for ix in idx]]
+
+
 def compute_bound(sc, progress=None) -> CapacityBound:
     """The static and path bounds of a scenario (see the module docstring)."""
     b = sc.bound
@@ -160,10 +178,8 @@ def compute_bound(sc, progress=None) -> CapacityBound:
     max_tilt = veh.hover_tilt_limit
     axes = axis_cone(max_tilt, np.radians(b.axis_step_deg))
     lo, hi = np.array(sc.controller.workspace.min, float), np.array(sc.controller.workspace.max, float)
-    grid = [np.arange(lo[i], hi[i] + 1e-9, b.grid_m) for i in range(3)]
+    grid, cells = position_grid(lo, hi, b.grid_m)
     shape = tuple(len(g) for g in grid)
-    X, Y, Z = np.meshgrid(*grid, indexing="ij")
-    cells = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
     times = np.arange(0.0, sc.duration_s + 1e-9, b.dt_s)
     best = np.empty((len(times), cells.shape[0]))
     best_axis = np.empty((len(times), cells.shape[0]), dtype=np.int32)

@@ -56,3 +56,10 @@ def _baseline_b(sc, source):
                                 tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, g_bar=sc.antenna.g_bar)
     plan = planner.plan(source, np.array(sc.nodes.relay, float), sc.nodes.bs, sc.duration_s, c.workspace.min, c.workspace.max)
     return FixedPlanReference(PlannedReference(plan))
+
+
+@register_planner("capacity")
+def _capacity_seeking(sc, source):
+    from .capacity_planner import CapacityPlanner
+
+    return CapacityPlanner(sc)

@@ -38,6 +38,7 @@ class Reference:
     a_ref: np.ndarray
     taylor_rel_err: float  # |f - f2| / |f| of the previous step's expansion, at the current kappa
     regularized: bool  # H11 needed an eigenvalue floor
+    axis: np.ndarray | None = None  # desired antenna (body z) axis, unit, world; None: from a_ref (eq. 20)
 
 
 def _build_expansion(sp: SurrogateParams) -> ca.Function:

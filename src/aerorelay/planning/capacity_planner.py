@@ -1,0 +1,125 @@
+"""Capacity-seeking relay planner: references from the true, antenna-aware capacity (beyond the paper).
+
+Two layers. **Before take-off** (like baseline B, from MRAV-2's mission plan, without the jammer,
+which is not localized yet): a coarse route, the max-mean path through the capacity landscape
+(best holdable antenna axis per cell) on a ``route_grid_m`` grid every ``route_dt_s`` at the
+planner's speed limit, by the dynamic programming of ``planning/bound.py``. It picks the basin of
+the landscape to be in at each time, so the reference never has to jump between far-apart
+near-equal optima. **In flight**, every ``replan_every`` control steps the planner evaluates the true end-to-end capacity
+(``models.capacity_field``: dipole gains at every node, the jammer's position and power as the
+relay knows them, MRAV-2 predicted ``lookahead_s`` ahead at constant acceleration with its antenna
+along its thrust) at candidate relay poses around its current target: positions on a 27-point
+stencil ``step_m`` apart, each with every antenna axis the platform can hold in hover
+(``Multirotor.hover_tilt_limit``; vertical only for a coplanar platform). The best candidate
+becomes the new target (hill climbing over poses); the target stays within ``leash_m`` of the
+route (at the look-ahead time), and the position reference moves toward it at <= ``controller.
+capacity_speed_m_s``. The antenna axis reference turns toward the best axis at <= ``axis_rate``
+and is fed to the NMPC as its thrust-direction (body z) reference.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import numpy as np
+
+from ..models.capacity_field import axis_set, relay_capacity
+from ..models.geometry import E3
+from .base import PlannerInput
+from .trajectory_generator import Reference
+
+
+class CapacityPlanner:
+    """Hill climbing on the true capacity over (position, antenna axis), speed-limited reference."""
+
+    def __init__(self, sc, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
+                 axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.5,
+                 route_grid_m: float = 1.0, route_dt_s: float = 1.0):
+        veh = sc.platform.vehicle()
+        # the NMPC holds zero yaw: only the tilts the platform can hold toward each azimuth at zero
+        # yaw (with a 10% margin) are axes it can actually fly
+        az = np.radians(np.arange(0.0, 360.0, 10.0))
+        limits = 0.9 * veh.hover_tilt_limits(az)
+        self.tilt_limit = float(limits.max())
+        self.axes = axis_set(az, limits, np.radians(axis_step_deg))
+        ws = sc.controller.workspace
+        self.lo, self.hi = np.array(ws.min, float) + margin_m, np.array(ws.max, float) - margin_m
+        self.offsets = step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
+        self.speed = sc.controller.capacity_speed_m_s
+        self.replan_every, self.leash, self.lookahead = replan_every, leash_m, lookahead_s
+        self.axis_rate = np.radians(axis_rate_deg_s)
+        self.gravity = sc.platform.gravity_m_s2
+        ch = sc.channel
+        self.channel = dict(p0=np.array(sc.nodes.bs, float), b0=E3, pattern=sc.antenna.build(), tx_power=ch.tx_power_w,
+                            noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
+        t0 = time.perf_counter()
+        self.route_t, self.route_p = self._preflight_route(sc, route_grid_m, route_dt_s)
+        self.preflight_s = time.perf_counter() - t0
+        self.p_ref: np.ndarray | None = None
+        self.target: np.ndarray | None = None
+        self.axis = E3.copy()
+        self.axis_goal = E3.copy()
+        self.best_capacity = 0.0
+        self._k = 0
+
+    def _preflight_route(self, sc, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        from .bound import _Scene, best_path, position_grid
+
+        grid, cells = position_grid(self.lo, self.hi, grid_m)
+        shape = tuple(len(g) for g in grid)
+        times = np.arange(0.0, sc.duration_s + dt_s, dt_s)
+        start = tuple(int(np.argmin(np.abs(grid[i] - np.clip(sc.nodes.relay[i], self.lo[i], self.hi[i])))) for i in range(3))
+        route = best_path(_Scene(sc, jammer_known=False), cells, shape, self.axes, times, start, self.speed * dt_s / grid_m)
+        return times, route
+
+    def route_at(self, t: float) -> np.ndarray:
+        """The pre-flight route at time ``t`` (linear between its points)."""
+        return np.array([np.interp(t, self.route_t, self.route_p[:, i]) for i in range(3)])
+
+    def _predicted_source(self, inp: PlannerInput) -> tuple[np.ndarray, np.ndarray]:
+        tau = self.lookahead
+        p2 = inp.p2 + inp.v2 * tau + 0.5 * inp.a2 * tau**2
+        thrust = inp.a2 + self.gravity * E3
+        return p2, thrust / np.linalg.norm(thrust)
+
+    def _replan(self, inp: PlannerInput):
+        assert self.target is not None and self.p_ref is not None
+        p2, b2 = self._predicted_source(inp)
+        anchor = self.route_at(inp.t + self.lookahead)
+        cand = self.target + self.offsets
+        off = cand - anchor  # stay within the leash of the route
+        n = np.linalg.norm(off, axis=1, keepdims=True)
+        cand = np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
+        C = relay_capacity(cand, self.axes, p2=p2, b2=b2, pj=inp.jammer_position, jam_power=inp.jammer_power, **self.channel)
+        i, j = np.unravel_index(int(np.argmax(C)), C.shape)
+        self.target = cand[i]
+        self.axis_goal = self.axes[j]
+        self.best_capacity = float(C[i, j])
+
+    def _turn_axis(self, dt: float):
+        """Rotate the axis reference toward the goal at <= axis_rate (great-circle step)."""
+        c = float(np.clip(self.axis @ self.axis_goal, -1.0, 1.0))
+        ang = np.arccos(c)
+        if ang < 1e-9:
+            return
+        frac = min(1.0, self.axis_rate * dt / ang)
+        v = (1 - frac) * self.axis + frac * self.axis_goal
+        self.axis = v / np.linalg.norm(v)
+
+    def update(self, inp: PlannerInput) -> Reference:
+        if self.p_ref is None or self.target is None:
+            self.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
+            self.target = self.p_ref.copy()
+        if self._k % self.replan_every == 0:
+            self._replan(inp)
+        self._k += 1
+        step = self.target - self.p_ref
+        n = float(np.linalg.norm(step))
+        max_step = self.speed * inp.dt
+        if n > max_step:
+            step *= max_step / n
+        self.p_ref = self.p_ref + step
+        self._turn_axis(inp.dt)
+        axis = self.axis.copy() if self.tilt_limit > 0 else None  # a coplanar relay tilts only by accelerating
+        return Reference(self.target.copy(), self.p_ref.copy(), step / inp.dt, np.zeros(3), 0.0, False, axis)
