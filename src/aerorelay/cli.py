@@ -92,6 +92,7 @@ def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
     out: Path = typer.Option(..., "--out", help="output folder (replaced if it exists)"),
     variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
+    planner: str = typer.Option(None, "--planner", help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
     no_bound: bool = typer.Option(False, "--no-bound", help="skip the capacity bound (computed once per scenario geometry, cached)"),
@@ -103,7 +104,8 @@ def run(
     from .sim.closed_loop import ClosedLoop
     from .sim.outputs import write_run
 
-    sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "sim.duration_s": duration})
+    sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
+                                                   "sim.duration_s": duration})
     loop = ClosedLoop(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
             TimeElapsedColumn(), TimeRemainingColumn())
@@ -221,6 +223,7 @@ def bench(
     scenario: Path = typer.Argument(..., help="scenario TOML file (default mission: the constrained tilted nominal)"),
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
     variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
+    planner: str = typer.Option(None, "--planner", help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
     control_rate_hz: float = typer.Option(None, "--control-rate-hz", help="controller rate (overrides sim.control_rate_hz)"),
     ipopt_points: int = typer.Option(3, "--ipopt-points", help="states at which a full IPOPT solve is timed"),
     json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file"),
@@ -246,16 +249,18 @@ def bench(
     except ValueError as exc:
         _fail(str(exc))
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
+                                                   "controller.planner": planner,
                                                    "sim.control_rate_hz": control_rate_hz})
     ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
     res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-    res["scenario"] = f"{sc.name} ({sc.controller.variant})"
+    nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
+    res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
     t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
         t.add_column(c, justify="right")
-    for key in ("preparation_ms", "feedback_ms", "step_ms", "ipopt_ms"):
+    for key in ("preparation_ms", "feedback_ms", "step_ms", "planner_ms", "step_with_planner_ms", "ipopt_ms"):
         if key in res:
             t.add_row(key.removesuffix("_ms"), *[f"{res[key][c]:.3f}" for c in ("mean", "p50", "p95", "p99", "max")])
     console.print(t)
@@ -269,6 +274,8 @@ def bench(
         f"fail-safe episodes: {res['fallback_episodes']}",
         markup=False, highlight=False,
     )
+    if res["planner_preflight_s"] > 0:
+        console.print(f"planner's pre-flight route: {res['planner_preflight_s']:.2f} s before take-off", markup=False, highlight=False)
     if "ipopt_over_rti_mean" in res:
         console.print(f"full IPOPT solve / RTI step (means): x{res['ipopt_over_rti_mean']:.0f} "
                       f"(IPOPT converged {res['ipopt_converged']})", markup=False, highlight=False)

@@ -187,6 +187,17 @@ class Workspace(_Strict):
         return all(self.min[i] <= p[i] <= self.max[i] for i in range(3))
 
 
+class CapacityPlannerConfig(_Strict):
+    """The capacity-seeking planner (``controller.planner = "capacity"``). Its NMPC tracks the
+    planner's position and antenna-axis references: the paper's comms-aware terms (misalignment
+    cost, mutual-alignment constraint) are dropped whatever ``controller.variant`` says, and the
+    position weights below replace ``weights.position`` / ``weights.position_terminal``."""
+
+    speed_m_s: float = Field(1.0, gt=0.0, le=5.0, description="reference speed limit, m/s")
+    position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
+    position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
+
+
 class ControllerConfig(_Strict):
     """Trajectory generator + communications-aware NMPC."""
 
@@ -196,7 +207,7 @@ class ControllerConfig(_Strict):
         description="the paper's generator; baseline A (isotropic surrogate); baseline B (single-shot plan); "
         "capacity: the capacity-seeking planner (planning/capacity_planner.py)",
     )
-    capacity_speed_m_s: float = Field(1.0, gt=0.0, le=5.0, description="capacity planner: reference speed limit, m/s")
+
     ts_s: float = Field(0.015, gt=0.0, le=1.0, description="NMPC sampling period Ts")
     horizon: int = Field(30, ge=1, le=200, description="N shooting intervals")
     mu: float = Field(0.2, ge=0.0, le=1.0, description="minimum mutual alignment")
@@ -213,6 +224,13 @@ class ControllerConfig(_Strict):
     weights: Weights = Field(default_factory=Weights)  # type: ignore[valid-type]
     workspace: Workspace = Field(default_factory=Workspace)
     failsafe: FailsafeConfig = Field(default_factory=FailsafeConfig)
+    capacity: CapacityPlannerConfig = Field(default_factory=CapacityPlannerConfig)
+
+    @property
+    def comms_aware(self) -> bool:
+        """Whether the NMPC carries the paper's comms-aware terms (constrained variant, and not
+        the capacity planner, whose antenna-axis reference replaces them)."""
+        return self.variant == "constrained" and self.planner != "capacity"
 
 
 class MissionConfig(_Strict):

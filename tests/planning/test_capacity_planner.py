@@ -22,7 +22,7 @@ def test_capacity_planner_flies_smoothly_inside_the_box(run):
     assert res.qp_failures == 0 and not log["fallback"].any()
     pd = np.column_stack([log["pd_x"], log["pd_y"], log["pd_z"]])
     speed = np.linalg.norm(np.diff(pd, axis=0), axis=1) / SC.control_period_s
-    assert speed.max() <= SC.controller.capacity_speed_m_s + 1e-9  # the reference never jumps
+    assert speed.max() <= SC.controller.capacity.speed_m_s + 1e-9  # the reference never jumps
     ws = SC.controller.workspace
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
     assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)

@@ -22,7 +22,7 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
     result = loop.run()
     wall = time.perf_counter() - wall0
     t = np.array(loop.timings)
-    prep, feedback, iters = t[:, 0], t[:, 1], t[:, 2]
+    prep, feedback, iters, planner = t[:, 0], t[:, 1], t[:, 2], t[:, 3]
     whole = prep + feedback
     period_ms = loop.sc.control_period_s * 1e3
     out = {
@@ -33,6 +33,9 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "preparation_ms": stats_ms(prep),
         "feedback_ms": stats_ms(feedback),
         "step_ms": stats_ms(whole),
+        "planner_ms": stats_ms(planner),
+        "step_with_planner_ms": stats_ms(whole + planner),
+        "planner_preflight_s": float(getattr(loop.planner, "preflight_s", 0.0)),
         "control_period_ms": period_ms,
         "deadline_misses": int(np.sum(whole > period_ms)),
         "misses_at_500Hz": int(np.sum(whole > 2.0)),

@@ -32,7 +32,7 @@ def ocp_spec(sc: Scenario) -> OcpSpec:
         vehicle=sc.platform.vehicle(),
         horizon=c.horizon,
         ts=c.ts_s,
-        constrained=c.variant == "constrained",
+        constrained=c.comms_aware,
         bs_position=_vec3(sc.nodes.bs),
         workspace_min=_vec3(c.workspace.min),
         workspace_max=_vec3(c.workspace.max),
@@ -47,11 +47,14 @@ def _vec3(v) -> tuple[float, float, float]:
 def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
     """The ``sw_*`` stage parameters: square roots of the weights in columns 0..N-1 and of the
     terminal weights in column N (0 for terms without a terminal part and for slacks)."""
-    w = sc.controller.weights
+    w: dict[str, float] = sc.controller.weights.model_dump()  # type: ignore[attr-defined]
+    if sc.controller.planner == "capacity":  # a tracking NMPC under the capacity planner
+        cap = sc.controller.capacity
+        w.update(position=cap.position_weight, position_terminal=cap.position_weight_terminal)
     out = {}
     for t in spec.terms:
-        stage = getattr(w, t.name)
-        terminal = 0.0 if t.terminal is None else (getattr(w, f"{t.name}_terminal") if t.own_terminal else stage)
+        stage = w[t.name]
+        terminal = 0.0 if t.terminal is None else (w[f"{t.name}_terminal"] if t.own_terminal else stage)
         out[f"sw_{t.name}"] = np.sqrt(np.r_[np.full(spec.horizon, stage), terminal])
     for c in spec.soft_constraints:
         out[f"sw_slack_{c.name}"] = np.sqrt(np.r_[np.full(spec.horizon, sc.controller.q_slack), 0.0])

@@ -13,7 +13,7 @@ stencil ``step_m`` apart, each with every antenna axis the platform can hold in 
 (``Multirotor.hover_tilt_limit``; vertical only for a coplanar platform). The best candidate
 becomes the new target (hill climbing over poses); the target stays within ``leash_m`` of the
 route (at the look-ahead time), and the position reference moves toward it at <= ``controller.
-capacity_speed_m_s``. The antenna axis reference turns toward the best axis at <= ``axis_rate``
+capacity.speed_m_s``. The antenna axis reference turns toward the best axis at <= ``axis_rate``
 and is fed to the NMPC as its thrust-direction (body z) reference.
 """
 
@@ -34,8 +34,8 @@ class CapacityPlanner:
     """Hill climbing on the true capacity over (position, antenna axis), speed-limited reference."""
 
     def __init__(self, sc, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
-                 axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.5,
-                 route_grid_m: float = 1.0, route_dt_s: float = 1.0):
+                 axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.2,
+                 route_grid_m: float = 0.5, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 2.0):
         veh = sc.platform.vehicle()
         # the NMPC holds zero yaw: only the tilts the platform can hold toward each azimuth at zero
         # yaw (with a 10% margin) are axes it can actually fly
@@ -46,7 +46,7 @@ class CapacityPlanner:
         ws = sc.controller.workspace
         self.lo, self.hi = np.array(ws.min, float) + margin_m, np.array(ws.max, float) - margin_m
         self.offsets = step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
-        self.speed = sc.controller.capacity_speed_m_s
+        self.speed = sc.controller.capacity.speed_m_s
         self.replan_every, self.leash, self.lookahead = replan_every, leash_m, lookahead_s
         self.axis_rate = np.radians(axis_rate_deg_s)
         self.gravity = sc.platform.gravity_m_s2
@@ -61,6 +61,8 @@ class CapacityPlanner:
         self.axis = E3.copy()
         self.axis_goal = E3.copy()
         self.best_capacity = 0.0
+        self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
+        self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
         self._k = 0
 
     def _preflight_route(self, sc, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -120,6 +122,16 @@ class CapacityPlanner:
         if n > max_step:
             step *= max_step / n
         self.p_ref = self.p_ref + step
+        v_ref = step / inp.dt
+        # acceleration of the reference, low-passed (time constant accel_tau_s) and bounded: the
+        # thrust-direction reference of a relay that can only tilt by accelerating
+        alpha = min(1.0, inp.dt / self.accel_tau)
+        a_raw = (v_ref - self.v_ref) / inp.dt
+        self.a_ref = (1 - alpha) * self.a_ref + alpha * a_raw
+        n = float(np.linalg.norm(self.a_ref))
+        if n > self.max_accel:
+            self.a_ref *= self.max_accel / n
+        self.v_ref = v_ref
         self._turn_axis(inp.dt)
         axis = self.axis.copy() if self.tilt_limit > 0 else None  # a coplanar relay tilts only by accelerating
-        return Reference(self.target.copy(), self.p_ref.copy(), step / inp.dt, np.zeros(3), 0.0, False, axis)
+        return Reference(self.target.copy(), self.p_ref.copy(), v_ref, self.a_ref.copy(), 0.0, False, axis)

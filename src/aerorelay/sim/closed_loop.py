@@ -93,8 +93,8 @@ class ClosedLoop:
         self.rng = np.random.default_rng(sc.seed)
         k_db = sc.perturbations.fading_k_db
         self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=sc.seed + 1)
-        # (preparation ms, feedback ms, IPM iterations) per step
-        self.timings: list[tuple[float, float, int]] = []
+        # (preparation ms, feedback ms, IPM iterations, planner ms) per step
+        self.timings: list[tuple[float, float, int, float]] = []
         self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]] = []
 
     @property
@@ -147,13 +147,15 @@ class ClosedLoop:
             # what the controller knows: MRAV-2 over the optical link, the jammer after tau_E (with CSI noise)
             p2_meas = src.p + self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else src.p
             pj_meas = self.jammer.position + (self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else 0.0)
+            t_plan = time.perf_counter()
             ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas,
                                                    self._planned_jammer_power(t)))
+            planner_ms = (time.perf_counter() - t_plan) * 1e3
             P = self.controller.parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
                 self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
             info = self.controller.step(x, u, P, shift=shift)
-            self.timings.append((info.prep_ms, info.feedback_ms, info.qp_iters))
+            self.timings.append((info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms))
             u = info.u
             jam_on, g21, g10, v12, v10 = self._channel(t, x, src.p, eta2)
             self._record(log, k, t, x, u, src.p, eta2, ref, (jam_on, g21, g10, v12, v10), info)
