@@ -54,3 +54,35 @@ def test_a_study_file_with_a_dangling_claim_is_a_study_error(tmp_path):
                  '[[claims]]\ntext = "c"\nall = [{ left = "c_min@gone", op = ">", value = 0.0 }]\n')
     with pytest.raises(StudyError, match="gone"):
         load_study(f)
+
+
+def test_a_study_with_bound_records_the_efficiency_and_draws_the_bound(tmp_path):
+    import json
+    from pathlib import Path
+
+    from aerorelay.experiments.campaign import execute_run, is_finished, run_dir
+    from aerorelay.experiments.study import expand
+    from aerorelay.report.html import render_report
+    from aerorelay.report.summary import summarize
+
+    root = Path(__file__).resolve().parents[2]
+    study = Study.model_validate({
+        "name": "b", "title": "bound", "base": "scenarios/nominal_tilted.toml", "bound": True,
+        "bound_figures": [["paper", "capacity"]],
+        "runs": [{"id": "paper", "set": {"sim.duration_s": 1.0, "bound.grid_m": 1.0}},
+                 {"id": "capacity", "set": {"sim.duration_s": 1.0, "bound.grid_m": 1.0, "controller.planner": "capacity"}}],
+        "claims": [{"text": "capacity at least as good", "all": [
+            {"left": "capacity_efficiency_mean@capacity", "op": ">=", "right": "capacity_efficiency_mean@paper", "factor": 0.5}]}]})
+    specs = expand(study, root)
+    assert all(s.bound for s in specs)
+    for s in specs:
+        assert not is_finished(tmp_path, s)
+        rec = execute_run(s, str(tmp_path))
+        assert rec["status"] == "done", rec.get("error")
+        assert is_finished(tmp_path, s)
+        m = json.loads((run_dir(tmp_path, s) / "metrics.json").read_text())
+        assert 0 < m["capacity_efficiency_mean"] <= 1.5 and (run_dir(tmp_path, s) / "bound.parquet").exists()
+    summary = summarize([study], specs, tmp_path)
+    assert summary["claims"][0]["holds"] is True
+    page = render_report(summary, [study], specs, tmp_path, {})
+    assert "paper vs capacity vs the bound" in page and "capacity_efficiency_mean" in page

@@ -40,9 +40,12 @@ def is_finished(out: Path, spec: RunSpec) -> bool:
     if (d / "scenario.toml").read_text() != spec.scenario_toml:
         return False
     try:
-        return json.loads((d / "metrics.json").read_text()).get("controller") == NmpcSettings().fingerprint()
+        metrics = json.loads((d / "metrics.json").read_text())
     except (OSError, ValueError):
         return False
+    if spec.bound and "capacity_efficiency_mean" not in metrics:
+        return False
+    return metrics.get("controller") == NmpcSettings().fingerprint()
 
 
 def execute_run(spec: RunSpec, out: str, figures: bool = False) -> dict:
@@ -56,8 +59,14 @@ def execute_run(spec: RunSpec, out: str, figures: bool = False) -> dict:
     try:
         if os.environ.get("AERORELAY_FAIL_RUN") and os.environ["AERORELAY_FAIL_RUN"] in spec.key:
             raise RuntimeError(f"failure injected by AERORELAY_FAIL_RUN for {spec.key}")
-        result = ClosedLoop(scenario_of(spec)).run()
-        metrics = write_run(result, run_dir(Path(out), spec), figures=figures)
+        sc = scenario_of(spec)
+        result = ClosedLoop(sc).run()
+        bound = None
+        if spec.bound:
+            from ..planning.bound import cached_bound
+
+            bound = cached_bound(sc)
+        metrics = write_run(result, run_dir(Path(out), spec), figures=figures, bound=bound)
         record.update(status="done", wall_s=time.perf_counter() - t0, c_min=metrics["c_min"])
     except Exception as exc:  # recorded, the campaign goes on
         record.update(status="failed", wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",

@@ -98,6 +98,10 @@ class Study(BaseModel):
     paper: list[PaperValue] = Field(default_factory=list)
     compare_trajectories: list[tuple[str, str]] = Field(default_factory=list)
     claims: list[Claim] = Field(default_factory=list)
+    # compute each run's capacity bound (planning/bound.py): efficiency metrics and bound figures
+    bound: bool = False
+    # groups drawn together with the bound of the first one's scenario, one figure each
+    bound_figures: list[list[str]] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _references_exist(self):
@@ -107,6 +111,7 @@ class Study(BaseModel):
         named = {(f"claim {c.text!r}", g) for c in self.claims for cond in c.all for g in cond.runs()}
         named |= {(f"paper value {p.metric}", p.run) for p in self.paper}
         named |= {("compare_trajectories", g) for pair in self.compare_trajectories for g in pair}
+        named |= {("bound_figures", g) for fig in self.bound_figures for g in fig}
         missing = sorted(f"{where}: run {g!r}" for where, g in named if g not in groups)
         if missing:
             raise ValueError("unknown runs (" + "; ".join(missing) + f"); runs: {sorted(groups)}")
@@ -121,6 +126,7 @@ class RunSpec:
     group: str  # the run id without the seed: runs of one group are Monte Carlo repetitions
     seed: int
     scenario_toml: str
+    bound: bool = False  # compute the capacity bound with the run
 
     @property
     def key(self) -> str:
@@ -195,7 +201,7 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
                 if quick and study.quick_duration_s is not None:
                     u["sim.duration_s"] = min(study.quick_duration_s, base.duration_s)
                 u["name"] = f"{study.name}/{group}"
-                specs.append(RunSpec(study.name, group, s, _updated(base, u, where).to_toml()))
+                specs.append(RunSpec(study.name, group, s, _updated(base, u, where).to_toml(), study.bound))
     return specs
 
 

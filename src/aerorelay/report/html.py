@@ -32,11 +32,11 @@ th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.yes{color:#
 """
 
 
-def _png(fig) -> str:
+def _png(fig, alt: str = "figure") -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
-    return f'<img alt="figure" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
 
 
 def _fmt(v) -> str:
@@ -72,6 +72,31 @@ def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | Non
     ax.set_title(f"{study.title} (seed 0 of each run)", fontsize=9)
     ax.legend(fontsize=6, ncol=2)
     return _png(fig)
+
+
+def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
+    """One figure per ``bound_figures`` entry: the runs' capacity and the bounds of their scenario."""
+    firsts = _first_run_per_group(specs, out)
+    figs = []
+    for groups in study.bound_figures:
+        runs = [firsts[g] for g in groups if g in firsts]
+        if not runs or not (run_dir(out, runs[0]) / "bound.parquet").exists():
+            continue
+        bound = pd.read_parquet(run_dir(out, runs[0]) / "bound.parquet")
+        fig, ax = plt.subplots(figsize=(8, 3.4))
+        ax.semilogy(bound["t"], bound["path_mean"], color="0.3", lw=2, alpha=0.5, label="bound: best path (mean), <= v_max")
+        ax.semilogy(bound["t"], bound["static"], color="0.5", ls=":", lw=1, label="bound: best pose per instant")
+        for s in runs:
+            df = pd.read_parquet(run_dir(out, s) / "timeseries.parquet", columns=["t", "capacity"])
+            ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1.2, label=s.group)
+        ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("end-to-end C (bit/s/Hz, log scale)")
+        title = " vs ".join(groups) + " vs the bound"
+        ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=7)
+        figs.append(_png(fig, alt=title))
+    return figs
 
 
 def _bars_figure(study_sum: dict) -> str | None:
@@ -136,11 +161,13 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
         parts.append("<h3>Ours beside the paper</h3>" + _table(["metric", "run", "ours", "paper", "ours / paper", "note"], rows))
     groups = study_sum["groups"]
     if groups:
-        extra = [k for k in ("max_deviation_m",) if any(k in g for g in groups.values())]
+        extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min", "fallback_fraction")
+                 if any(k in g for g in groups.values())]
         cols = list(TABLE_METRICS) + extra
         rows = [[html.escape(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
         parts.append("<h3>Runs (means over seeds)</h3>" + _table(["run", "n"] + cols, rows))
-    for fig in (_capacity_figure(study, specs, out), _bars_figure(study_sum), _trajectory_3d(study, specs, out)):
+    for fig in (*_bound_figures(study, specs, out), _capacity_figure(study, specs, out), _bars_figure(study_sum),
+                _trajectory_3d(study, specs, out)):
         if fig:
             parts.append(fig)
     failed = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == "failed"]

@@ -18,7 +18,9 @@ from ..experiments.study import Claim, RunSpec, Study, parse_term
 SCALAR_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction", "slack_active_fraction",
     "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m", "distance_m", "energy_kJ",
-    "final_z_m", "max_tilt_deg", "taylor_rel_err_max",
+    "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "fallback_fraction", "capacity_efficiency_mean",
+    "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min", "bound.path_mean.outage_fraction",
+    "bound.path_maxmin.outage_fraction",
 )
 
 
@@ -58,6 +60,8 @@ def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
             continue
         entry: dict = {"n": len(ms), "runs": [r.key for r in runs]}
         for key in SCALAR_METRICS:
+            if not all(key.split(".")[0] in m for m in ms):  # e.g. efficiency only where a bound was computed
+                continue
             vals = np.asarray([metric(m, key) for m in ms], dtype=float)
             entry[key] = float(vals.mean())
             if len(vals) > 1:
@@ -105,7 +109,8 @@ def evaluate_claim(claim: Claim, groups: dict) -> tuple[bool | None, str]:
         ok = _OPS[c.op](left, bound)
         verdicts.append(ok)
         scale = f"{c.factor:g} x " if c.factor != 1.0 else ""
-        parts.append(f"{ltxt} = {left:.3g} {c.op} {scale}{rtxt}{'' if c.right is None else f' = {right:.3g}'}: "
+        plus = f" + {c.tol:g}" if c.tol else ""
+        parts.append(f"{ltxt} = {left:.3g} {c.op} {scale}{rtxt}{'' if c.right is None else f' = {right:.3g}'}{plus}: "
                      f"{'yes' if ok else 'no'}")
     return all(verdicts), "; ".join(parts)
 
