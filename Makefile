@@ -1,5 +1,6 @@
 # Two entry points for a fresh machine with only Python 3.11 and pip:
-#   make run   -> set up .venv, fly the demo mission and write a report
+#   make run   -> set up .venv, compute the nominal mission's capacity bound, fly it with the paper's
+#                 controller and the capacity-seeking one, compare both beside the bound
 #   make test  -> set up .venv (with test extras), lint (ruff), type-check (mypy), run the test suite
 PYTHON ?= python3
 VENV   := .venv
@@ -18,9 +19,10 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 
 run: $(VENV)/.installed
 	$(BIN)/aerorelay info scenarios/nominal_tilted.toml
-	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --variant constrained --out $(OUT)/constrained
-	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --variant unconstrained --out $(OUT)/unconstrained
-	$(BIN)/aerorelay compare $(OUT)/unconstrained $(OUT)/constrained
+	$(BIN)/aerorelay bound scenarios/nominal_tilted.toml --out $(OUT)/bound
+	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --out $(OUT)/paper
+	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --planner capacity --out $(OUT)/capacity
+	$(BIN)/aerorelay compare $(OUT)/paper $(OUT)/capacity
 
 test: $(VENV)/.installed
 	$(BIN)/ruff check src tests

@@ -165,7 +165,8 @@ KEY_METRICS = (
     "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
     "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
     "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "wall_s", "sim_s",
-    "capacity_efficiency_mean", "capacity_efficiency_min",
+    "capacity_efficiency_mean", "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min",
+    "bound.path_mean.outage_fraction", "bound.static.mean",
 )
 
 

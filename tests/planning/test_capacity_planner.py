@@ -49,3 +49,19 @@ def test_axis_set_respects_the_azimuth_dependent_tilt_limits():
     a = np.arctan2(axes[:, 1], axes[:, 0]) % (2 * np.pi)
     assert np.all(tilt <= np.interp(a, az, limits, period=2 * np.pi) + 1e-9)
     assert np.allclose(np.linalg.norm(axes, axis=1), 1.0) and tilt.max() > np.radians(14.0)
+
+
+def test_logged_capacity_equals_an_independent_recomputation(run):
+    from aerorelay.models.channel import end_to_end_capacity, link_sinr
+    from aerorelay.models.geometry import rotation_batch
+
+    log = run[1].log
+    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
+    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
+    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    kw = dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)
+    g21 = link_sinr(p2, R2, p1, R1, np.array(SC.jammer.position), **kw)
+    g10 = link_sinr(p1, R1, np.zeros(3), np.eye(3), np.array(SC.jammer.position), **kw)
+    np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
+    assert np.degrees(np.arccos(np.cos(log["phi1"]) * np.cos(log["theta1"]))).max() > 5.0  # it does tilt its antenna
