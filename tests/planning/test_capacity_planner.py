@@ -26,6 +26,11 @@ def test_capacity_planner_flies_smoothly_inside_the_box(run):
     ws = SC.controller.workspace
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
     assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)
+    veh = SC.platform.vehicle()
+    speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
+    rates = np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
+    assert speeds.min() >= veh.omega_min - 1e-3 and speeds.max() <= veh.omega_max + 1e-3
+    assert rates.min() >= veh.omega_dot_min - 1e-9 and rates.max() <= veh.omega_dot_max + 1e-9
 
 
 def test_capacity_planner_beats_the_papers_generator_early_in_the_mission(run):
