@@ -86,3 +86,22 @@ def test_bound_command_and_run_report_the_efficiency(tmp_path):
     assert m["capacity_efficiency_mean"] == pytest.approx(m["c_mean"] / summary["path_mean"]["mean"])
     assert m["capacity_efficiency_min"] == pytest.approx(m["c_min"] / summary["path_maxmin"]["min"])
     assert len(pd.read_parquet(tmp_path / "r" / "bound.parquet")) == 4
+
+
+def test_set_overrides_are_validated_and_recorded(tmp_path):
+    import tomllib
+
+    res = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--set", "controller.mu=0.3",
+                              "--set", "nodes.relay=[-6.0, 5.0, 2.0]"])
+    assert res.exit_code == 0, res.output
+    body = res.output.split("\n", 1)[1]
+    data = tomllib.loads(body)
+    assert data["controller"]["mu"] == 0.3 and data["nodes"]["relay"] == [-6.0, 5.0, 2.0]
+    assert "relay = [-6.0, 5.0, 2.0]" in body  # arrays on one line
+    res = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--set", "controller.mu=3"])
+    assert res.exit_code == 2 and "controller.mu" in res.output and "[0, 1]" in res.output
+    res = runner.invoke(app, ["run", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(tmp_path / "r"),
+                              "--no-bound", "--no-figures", "--set", "sim.duration_s=0.3", "--set", "controller.mu=0.25"])
+    assert res.exit_code == 0, res.output
+    recorded = tomllib.loads((tmp_path / "r" / "scenario.toml").read_text())
+    assert recorded["controller"]["mu"] == 0.25 and recorded["sim"]["duration_s"] == 0.3

@@ -29,10 +29,11 @@ def _load_or_exit(path: Path) -> Scenario:
         raise typer.Exit(EXIT_BAD_INPUT) from None
 
 
-def _with_overrides(sc: Scenario, overrides: dict) -> Scenario:
-    """``sc`` with the command-line overrides that were given (dotted keys; None = not given),
-    validated like a scenario file: a bad value exits 2 naming the field and its allowed range."""
-    updates = {k: v for k, v in overrides.items() if v is not None}
+def _with_overrides(sc: Scenario, overrides: dict, sets: list[str] | None = None) -> Scenario:
+    """``sc`` with the ``--set`` items and then the command-line options that were given (dotted
+    keys; None = not given), validated like a scenario file: a bad value exits 2 naming the field
+    and its allowed range."""
+    updates = {**parse_sets(sets), **{k: v for k, v in overrides.items() if v is not None}}
     try:
         return sc.with_updates(updates) if updates else sc
     except ScenarioError as exc:
@@ -47,10 +48,34 @@ def _fail(message: str) -> NoReturn:
     raise typer.Exit(EXIT_BAD_INPUT)
 
 
+SET_HELP = "override a scenario field, e.g. --set controller.mu=0.3 (repeatable; values in TOML syntax)"
+
+
+def parse_sets(items: list[str] | None) -> dict:
+    """``["a.b=1", "c=[1, 2]"]`` -> ``{"a.b": 1, "c": [1, 2]}``: values parsed as TOML (a bare word
+    that is not TOML is taken as a string); a malformed item exits 2 naming it."""
+    import tomllib
+
+    out = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            _fail(f"--set {item!r}: write dotted.key=value")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key.strip()] = value
+    return out
+
+
 @app.command()
-def validate(scenario: Path = typer.Argument(..., help="scenario TOML file")):
+def validate(
+    scenario: Path = typer.Argument(..., help="scenario TOML file"),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
+):
     """Validate a scenario and print it fully resolved (every default spelled out)."""
-    sc = _load_or_exit(scenario)
+    sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     print(f"# {scenario}: valid")
     print(sc.to_toml())
 
@@ -96,6 +121,7 @@ def run(
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
     no_bound: bool = typer.Option(False, "--no-bound", help="skip the capacity bound (computed once per scenario geometry, cached)"),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json, the
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
@@ -105,7 +131,7 @@ def run(
     from .sim.outputs import write_run
 
     sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
-                                                   "sim.duration_s": duration})
+                                                   "sim.duration_s": duration}, set_)
     loop = ClosedLoop(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
             TimeElapsedColumn(), TimeRemainingColumn())
@@ -162,6 +188,7 @@ def bound(
 
 KEY_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
+    "alignment_within_slack_fraction",
     "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
     "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
     "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "wall_s", "sim_s",
@@ -235,6 +262,7 @@ def bench(
     warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
     simd: bool = typer.Option(True, "--simd/--no-simd", help="hpipm backend: AVX2 BLASFEO kernels where the CPU has them"),
     feedback: str = typer.Option(None, "--feedback", help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Time the controller on a mission: preparation vs QP, percentiles, deadline misses, IPOPT ratio."""
     import json
@@ -251,7 +279,7 @@ def bench(
         _fail(str(exc))
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
                                                    "controller.planner": planner,
-                                                   "sim.control_rate_hz": control_rate_hz})
+                                                   "sim.control_rate_hz": control_rate_hz}, set_)
     ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
     res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()

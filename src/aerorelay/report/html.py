@@ -18,7 +18,8 @@ import pandas as pd  # noqa: E402
 from ..experiments.campaign import run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study  # noqa: E402
 
-TABLE_METRICS = ("c_min", "c_mean", "outage_fraction", "alignment_ok_fraction", "slack_active_fraction",
+TABLE_METRICS = ("c_min", "c_mean", "outage_fraction", "alignment_ok_fraction", "alignment_within_slack_fraction",
+                 "slack_active_fraction",
                  "infeasible_fraction", "energy_kJ", "distance_m", "final_z_m", "solve_ms.mean", "solve_ms.p99")
 MAX_CURVES = 8
 
