@@ -16,7 +16,7 @@ import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
 from .control.terms import COST_TERMS
-from .models.antenna import DipolePattern, SinPowerPattern
+from .models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
 
@@ -108,11 +108,25 @@ class AntennaConfig(_Strict):
     pattern: Literal["dipole", "sin_power"] = "dipole"
     exponent: float = Field(2.0, gt=0.0, description="n of the sin^n pattern")
     g_bar: float = Field(1.0, gt=0.0, description="peak (broadside) gain")
+    bs_pattern: Literal["dipole", "isotropic"] = Field(
+        "dipole", description="the base station's antenna: a vertical dipole (of `pattern`) or isotropic (gain g_bar)")
+    source_pattern: Literal["dipole", "isotropic"] = Field(
+        "dipole", description="MRAV-2's antenna: a dipole (of `pattern`) along its body z, or isotropic (gain g_bar)")
+    directivity: float = Field(1.0, gt=0.0, le=10.0,
+                               description="multiplies every dipole's normalized gain (the paper's D = 1.64 informational)")
 
     def build(self):
+        """The relay's pattern (a dipole scaled by the directivity)."""
+        g = self.g_bar * self.directivity
         if self.pattern == "dipole":
-            return DipolePattern(self.g_bar)
-        return SinPowerPattern(self.exponent, self.g_bar)
+            return DipolePattern(g)
+        return SinPowerPattern(self.exponent, g)
+
+    def patterns(self) -> NodePatterns:
+        """Every node's pattern; the trajectory generator's surrogate does not use them (eq. 12-13)."""
+        dipole = self.build()
+        return NodePatterns(relay=dipole, source=dipole if self.source_pattern == "dipole" else IsotropicPattern(self.g_bar),
+                            bs=dipole if self.bs_pattern == "dipole" else IsotropicPattern(self.g_bar))
 
 
 class ChannelConfig(_Strict):

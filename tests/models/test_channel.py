@@ -127,3 +127,37 @@ def test_surrogate_by_hand_and_dual():
     s21 = spectral_efficiency(surrogate_sinr(P2, P1, PJ, mu=mu, g_bar=1.0, **KW))
     s10 = spectral_efficiency(surrogate_sinr(P1, P0, PJ, mu=mu, g_bar=1.0, **KW))
     assert num == pytest.approx(1 / s21 + 1 / s10)
+
+
+def test_node_patterns_from_the_antenna_options():
+    from aerorelay.config import parse_scenario
+    from aerorelay.models.antenna import IsotropicPattern
+
+    pat = parse_scenario({"antenna": {"bs_pattern": "isotropic", "directivity": 1.64}}).antenna.patterns()
+    assert isinstance(pat.bs, IsotropicPattern) and pat.bs.gain_from_cos(np.array([1.0, 0.0])).tolist() == [1.0, 1.0]
+    assert pat.relay.gain_from_cos(0.0) == pytest.approx(1.64) and pat.source is pat.relay
+    assert pat.relay.gain_from_cos(1.0) == 0.0  # still a null on the axis
+
+
+def test_directivity_scales_a_dipole_to_dipole_snr_by_its_square():
+    from aerorelay.config import parse_scenario
+    from aerorelay.models.geometry import rotation_zyx
+
+    rng = np.random.default_rng(5)
+    kw = dict(tx_power=1.0, jam_power=0.0, noise_power=1.0)
+    for _ in range(10):
+        p, q = rng.uniform(-5, 5, 3), rng.uniform(-5, 5, 3)
+        Ra, Rb = rotation_zyx(rng.uniform(-0.5, 0.5, 3)), rotation_zyx(rng.uniform(-0.5, 0.5, 3))
+        g = [link_sinr(p, Ra, q, Rb, PJ, pattern=parse_scenario({"antenna": {"directivity": d}}).antenna.build(), **kw)
+             for d in (1.0, 1.64)]
+        assert g[1] == pytest.approx(1.64**2 * g[0], rel=1e-12)
+
+
+def test_isotropic_receiver_ignores_its_attitude():
+    from aerorelay.models.antenna import IsotropicPattern
+    from aerorelay.models.geometry import rotation_zyx
+
+    iso = IsotropicPattern(1.0)
+    a = link_sinr(P2, I3, P1, I3, PJ, pattern_rx=iso, **KW)
+    b = link_sinr(P2, I3, P1, rotation_zyx(np.array([0.4, -0.3, 1.0])), PJ, pattern_rx=iso, **KW)
+    assert a == pytest.approx(b, rel=1e-12)

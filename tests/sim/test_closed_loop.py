@@ -123,3 +123,25 @@ def test_generator_jammer_power_before_and_after_localization(senses):
     assert loop._planned_jammer_power(1.0) == 0.0  # not localized yet: BS-only planning
     assert loop._planned_jammer_power(3.0) == pw
     assert loop._planned_jammer_power(7.0) == (0.0 if senses else pw)
+
+
+def test_logged_capacity_follows_the_antenna_options():
+    """Isotropic BS and MRAV-2, dipoles scaled by D = 1.64: the log equals an independent
+    recomputation with those patterns, and the controller's flight does not change."""
+    from aerorelay.models.antenna import DipolePattern, IsotropicPattern
+
+    sc = SHORT.with_updates({"sim.duration_s": 0.6, "antenna.bs_pattern": "isotropic", "antenna.source_pattern": "isotropic",
+                             "antenna.directivity": 1.64})
+    log = ClosedLoop(sc).run().log
+    base = ClosedLoop(SHORT.with_updates({"sim.duration_s": 0.6})).run().log
+    np.testing.assert_array_equal(log["p1_x"], base["p1_x"])
+    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
+    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
+    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    pj, kw = np.array(SHORT.jammer.position), dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)
+    relay, iso = DipolePattern(1.64), IsotropicPattern(1.0)
+    g21 = link_sinr(p2, R2, p1, R1, pj, pattern=iso, pattern_rx=relay, **kw)
+    g10 = link_sinr(p1, R1, np.zeros(3), np.eye(3), pj, pattern=relay, pattern_rx=iso, **kw)
+    np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
+    assert log["capacity"].mean() > base["capacity"].mean()

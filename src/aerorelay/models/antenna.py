@@ -64,6 +64,26 @@ class SinPowerPattern:
 
 
 @dataclass(frozen=True)
+class IsotropicPattern:
+    """The same gain ``g_bar`` in every direction (e.g. a base station whose antenna the paper does
+    not specify)."""
+
+    g_bar: float = 1.0
+
+    def gain_from_cos(self, c):
+        return np.full(np.shape(c), self.g_bar, dtype=float)
+
+
+@dataclass(frozen=True)
+class NodePatterns:
+    """The antenna pattern of each node: relay (MRAV-1), source (MRAV-2), base station."""
+
+    relay: AntennaPattern
+    source: AntennaPattern
+    bs: AntennaPattern
+
+
+@dataclass(frozen=True)
 class TabulatedPattern:
     """Measured pattern: gains at elevation angles (deg, ascending in [0, 180]), interpolated."""
 

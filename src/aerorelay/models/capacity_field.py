@@ -45,22 +45,25 @@ def _unit(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def relay_capacity(positions, axes, *, p2, b2, p0, b0, pj, jam_power: float, pattern: AntennaPattern,
-                   tx_power: float, noise_power: float, bandwidth: float = 1.0) -> np.ndarray:
-    """End-to-end capacity ``(M, K)`` for relay positions ``(M, 3)`` and relay axes ``(K, 3)``."""
+                   tx_power: float, noise_power: float, bandwidth: float = 1.0,
+                   pattern_source: AntennaPattern | None = None, pattern_bs: AntennaPattern | None = None) -> np.ndarray:
+    """End-to-end capacity ``(M, K)`` for relay positions ``(M, 3)`` and relay axes ``(K, 3)``;
+    ``pattern`` is the relay's, MRAV-2's and the BS's default to it."""
+    src_pat, bs_pat = pattern_source or pattern, pattern_bs or pattern
     P = np.atleast_2d(np.asarray(positions, float))
     B = np.atleast_2d(np.asarray(axes, float))
     u2, d2sq = _unit(np.asarray(p2, float) - P)  # relay -> MRAV-2
     u0, d0sq = _unit(np.asarray(p0, float) - P)  # relay -> BS
     uj, djsq = _unit(np.asarray(pj, float) - P)  # relay -> jammer
-    g_far2 = pattern.gain_from_cos(-u2 @ np.asarray(b2, float))  # at MRAV-2, toward the relay
-    g_far0 = pattern.gain_from_cos(-u0 @ np.asarray(b0, float))  # at the BS, toward the relay
+    g_far2 = src_pat.gain_from_cos(-u2 @ np.asarray(b2, float))  # at MRAV-2, toward the relay
+    g_far0 = bs_pat.gain_from_cos(-u0 @ np.asarray(b0, float))  # at the BS, toward the relay
     g_r2, g_r0 = pattern.gain_from_cos(u2 @ B.T), pattern.gain_from_cos(u0 @ B.T)  # (M, K) at the relay
     h21 = g_far2[:, None] * g_r2 / d2sq[:, None]  # eq. 6
     h10 = g_far0[:, None] * g_r0 / d0sq[:, None]
     interference1 = jam_power * pattern.gain_from_cos(uj @ B.T) / djsq[:, None] if jam_power > 0 else 0.0  # eq. 7
     # the BS's jammer link does not depend on the relay: F_J0^2 = G(at BS toward jammer) / |pJ - p0|^2
     dj0 = np.asarray(pj, float) - np.asarray(p0, float)
-    f0 = float(pattern.gain_from_cos(np.dot(dj0, b0) / np.linalg.norm(dj0))) / float(dj0 @ dj0)
+    f0 = float(bs_pat.gain_from_cos(np.dot(dj0, b0) / np.linalg.norm(dj0))) / float(dj0 @ dj0)
     g21 = h21 * tx_power / (interference1 + noise_power)  # eq. 5
     g10 = h10 * tx_power / (f0 * jam_power + noise_power)
     a, b = np.log2(1.0 + g21), np.log2(1.0 + g10)

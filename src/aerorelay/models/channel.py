@@ -31,11 +31,12 @@ def mutual_alignment(v_12, v_10):
     return (1.0 - v_12) * (1.0 - v_10)
 
 
-def legitimate_gain_sq(p_tx, R_tx, p_rx, R_rx, pattern: AntennaPattern = DIPOLE):
-    """``H_ij^2 = G(th_D) G(th_A) / |p_j - p_i|^2`` (eq. 6), dipoles along both body z axes."""
+def legitimate_gain_sq(p_tx, R_tx, p_rx, R_rx, pattern: AntennaPattern = DIPOLE, pattern_rx: AntennaPattern | None = None):
+    """``H_ij^2 = G(th_D) G(th_A) / |p_j - p_i|^2`` (eq. 6), antennas along both body z axes
+    (``pattern`` at the transmitter, ``pattern_rx`` at the receiver, default the same)."""
     d = np.asarray(p_rx, float) - np.asarray(p_tx, float)
     g_dep = pattern.gain_from_cos(link_direction_cos(np.asarray(p_tx, float), R_tx, np.asarray(p_rx, float)))
-    g_arr = pattern.gain_from_cos(link_direction_cos(np.asarray(p_rx, float), R_rx, np.asarray(p_tx, float)))
+    g_arr = (pattern_rx or pattern).gain_from_cos(link_direction_cos(np.asarray(p_rx, float), R_rx, np.asarray(p_tx, float)))
     return g_dep * g_arr / np.sum(d * d, axis=-1)
 
 
@@ -62,14 +63,16 @@ def link_sinr(
     jam_power: float,
     noise_power: float,
     pattern: AntennaPattern = DIPOLE,
+    pattern_rx: AntennaPattern | None = None,
 ):
-    """SINR of the link ``tx -> rx`` with real antenna gains (eq. 5-7).
+    """SINR of the link ``tx -> rx`` with real antenna gains (eq. 5-7): ``pattern`` at the
+    transmitter, ``pattern_rx`` (default the same) at the receiver, for both of its links.
 
     Dipoles lie along each node's body z (rotation matrices ``R_tx``, ``R_rx``, body-to-world);
     the jammer at ``p_jam`` is isotropic; ``jam_power = 0`` means no jammer. Vectorized.
     """
-    h_sq = legitimate_gain_sq(p_tx, R_tx, p_rx, R_rx, pattern)
-    f_sq = jammer_gain_sq(p_jam, p_rx, R_rx, pattern) if jam_power > 0 else 0.0
+    h_sq = legitimate_gain_sq(p_tx, R_tx, p_rx, R_rx, pattern, pattern_rx)
+    f_sq = jammer_gain_sq(p_jam, p_rx, R_rx, pattern_rx or pattern) if jam_power > 0 else 0.0
     return sinr(h_sq, f_sq, tx_power=tx_power, jam_power=jam_power, noise_power=noise_power)
 
 

@@ -96,7 +96,7 @@ class _Scene:
         self.jammer_known = jammer_known
         self.source = source_trajectory(sc.mission)
         self.jammer = sc.jammer.build()
-        self.pattern = sc.antenna.build()
+        self.patterns = sc.antenna.patterns()
         self.gravity = sc.platform.gravity_m_s2
 
     def capacity(self, t: float, positions, axes) -> np.ndarray:
@@ -105,7 +105,8 @@ class _Scene:
         ch = self.sc.channel
         return relay_capacity(positions, axes, p2=s.p, b2=thrust / np.linalg.norm(thrust), p0=self.sc.nodes.bs, b0=E3,
                               pj=self.sc.jammer.position, jam_power=float(self.jammer.power_at(t)) if self.jammer_known else 0.0,
-                              pattern=self.pattern,
+                              pattern=self.patterns.relay, pattern_source=self.patterns.source,
+                              pattern_bs=self.patterns.bs,
                               tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
 
 

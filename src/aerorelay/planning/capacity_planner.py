@@ -51,7 +51,9 @@ class CapacityPlanner:
         self.axis_rate = np.radians(axis_rate_deg_s)
         self.gravity = sc.platform.gravity_m_s2
         ch = sc.channel
-        self.channel = dict(p0=np.array(sc.nodes.bs, float), b0=E3, pattern=sc.antenna.build(), tx_power=ch.tx_power_w,
+        pat = sc.antenna.patterns()
+        self.channel = dict(p0=np.array(sc.nodes.bs, float), b0=E3, pattern=pat.relay, pattern_source=pat.source,
+                            pattern_bs=pat.bs, tx_power=ch.tx_power_w,
                             noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(sc, route_grid_m, route_dt_s)

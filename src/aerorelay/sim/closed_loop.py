@@ -89,7 +89,7 @@ class ClosedLoop:
         self.source = source_trajectory(sc.mission)
         self.planner = build_planner(sc, self.source)
         self.jammer = sc.jammer.build()
-        self.pattern = sc.antenna.build()
+        self.patterns = sc.antenna.patterns()
         self.rng = np.random.default_rng(sc.seed)
         k_db = sc.perturbations.fading_k_db
         self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=sc.seed + 1)
@@ -119,10 +119,11 @@ class ClosedLoop:
         pj = self.jammer.position
         PJ = float(self.jammer.power_at(t))
         fade = self.fading.power_gain(4) if self.fading is not None else np.ones(4)
-        h21 = legitimate_gain_sq(p2, R2, p1, R1, self.pattern) * fade[0]
-        h10 = legitimate_gain_sq(p1, R1, p0, R0, self.pattern) * fade[1]
-        f1 = jammer_gain_sq(pj, p1, R1, self.pattern) * fade[2]
-        f0 = jammer_gain_sq(pj, p0, R0, self.pattern) * fade[3]
+        pat = self.patterns
+        h21 = legitimate_gain_sq(p2, R2, p1, R1, pat.source, pat.relay) * fade[0]
+        h10 = legitimate_gain_sq(p1, R1, p0, R0, pat.relay, pat.bs) * fade[1]
+        f1 = jammer_gain_sq(pj, p1, R1, pat.relay) * fade[2]
+        f0 = jammer_gain_sq(pj, p0, R0, pat.bs) * fade[3]
         kw = dict(tx_power=sc.channel.tx_power_w, jam_power=PJ, noise_power=sc.channel.noise_power_w)
         g21, g10 = float(sinr(h21, f1, **kw)), float(sinr(h10, f0, **kw))
         v12, v10 = float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))

@@ -17,10 +17,10 @@ def initial_link_budget(sc: Scenario) -> dict[str, float]:
         tx_power=sc.channel.tx_power_w,
         jam_power=sc.jammer.power_w,
         noise_power=sc.channel.noise_power_w,
-        pattern=sc.antenna.build(),
     )
-    g21 = float(link_sinr(p2, I, p1, I, pj, **kw))
-    g10 = float(link_sinr(p1, I, p0, I, pj, **kw))
+    pat = sc.antenna.patterns()
+    g21 = float(link_sinr(p2, I, p1, I, pj, pattern=pat.source, pattern_rx=pat.relay, **kw))
+    g10 = float(link_sinr(p1, I, p0, I, pj, pattern=pat.relay, pattern_rx=pat.bs, **kw))
     cap = float(end_to_end_capacity(g21, g10, sc.channel.bandwidth))
     ma = float(mutual_alignment(misalignment(p1, I, p2), misalignment(p1, I, p0)))
     return {"gamma_21": g21, "gamma_10": g10, "capacity": cap, "mutual_alignment": ma}
