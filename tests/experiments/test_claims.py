@@ -86,3 +86,23 @@ def test_a_study_with_bound_records_the_efficiency_and_draws_the_bound(tmp_path)
     assert summary["claims"][0]["holds"] is True
     page = render_report(summary, [study], specs, tmp_path, {})
     assert "paper vs capacity vs the bound" in page and "capacity_efficiency_mean" in page
+
+
+def test_combinations_are_ranked_by_their_distance_to_the_paper():
+    from aerorelay.report.summary import rank_against_paper
+
+    study = Study.model_validate({
+        "name": "a", "title": "t", "base": "x.toml", "grid": {"antenna.directivity": [1.0, 1.64], "controller.variant": ["c", "u"]},
+        "ranking": {"pair_key": "controller.variant", "terms": [
+            {"metric": "c_min", "at": "c", "paper": 1e-2}, {"metric": "c_min", "at": "c", "over": "u", "paper": 100.0},
+            {"metric": "slack", "at": "c", "paper": 0.3, "scale": "abs"}]}})
+    groups = {"directivity=1.0,variant=c": {"c_min": 1e-3, "slack": 0.8}, "directivity=1.0,variant=u": {"c_min": 1e-4},
+              "directivity=1.64,variant=c": {"c_min": 1e-2, "slack": 0.3}, "directivity=1.64,variant=u": {"c_min": 1e-4}}
+    ranking = rank_against_paper(study, groups)
+    assert [r["combination"] for r in ranking] == ["directivity=1.64", "directivity=1.0"]
+    assert ranking[0]["distance"] == pytest.approx(0.0)
+    # log10(0.1) = -1, log10(10 / 100) = -1, 0.8 - 0.3 = 0.5: RMS = sqrt((1 + 1 + 0.25) / 3)
+    assert ranking[1]["distance"] == pytest.approx(((1 + 1 + 0.25) / 3) ** 0.5)
+    with pytest.raises(ValueError, match="pair_key"):
+        Study.model_validate({"name": "a", "title": "t", "base": "x.toml", "grid": {"a.b": [1]},
+                              "ranking": {"pair_key": "c.d", "terms": [{"metric": "m", "at": "x", "paper": 1.0}]}})

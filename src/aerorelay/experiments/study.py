@@ -84,6 +84,28 @@ class Claim(BaseModel):
     all: list[Condition] = Field(min_length=1)
 
 
+class RankingTerm(BaseModel):
+    """One term of the distance to the paper: ``metric`` of the run whose pairing key is ``at``
+    (divided by the one at ``over`` if given) against ``paper``; ``scale`` log: log10(ours /
+    paper), rel: (ours - paper) / paper, abs: ours - paper."""
+
+    model_config = ConfigDict(extra="forbid")
+    metric: str
+    at: str
+    over: str | None = None
+    paper: float
+    scale: Literal["log", "rel", "abs"] = "log"
+
+
+class Ranking(BaseModel):
+    """Rank the grid's combinations (all grid keys but ``pair_key``) by their RMS distance to the
+    paper's numbers."""
+
+    model_config = ConfigDict(extra="forbid")
+    pair_key: str
+    terms: list[RankingTerm] = Field(min_length=1)
+
+
 class Study(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(pattern=r"^[a-z0-9_]+$")
@@ -102,6 +124,7 @@ class Study(BaseModel):
     bound: bool = False
     # groups drawn together with the bound of the first one's scenario, one figure each
     bound_figures: list[list[str]] = Field(default_factory=list)
+    ranking: Ranking | None = None
 
     @model_validator(mode="after")
     def _references_exist(self):
@@ -112,6 +135,8 @@ class Study(BaseModel):
         named |= {(f"paper value {p.metric}", p.run) for p in self.paper}
         named |= {("compare_trajectories", g) for pair in self.compare_trajectories for g in pair}
         named |= {("bound_figures", g) for fig in self.bound_figures for g in fig}
+        if self.ranking is not None and self.ranking.pair_key not in self.grid:
+            raise ValueError(f"ranking.pair_key {self.ranking.pair_key!r} is not a grid key ({sorted(self.grid)})")
         missing = sorted(f"{where}: run {g!r}" for where, g in named if g not in groups)
         if missing:
             raise ValueError("unknown runs (" + "; ".join(missing) + f"); runs: {sorted(groups)}")
@@ -171,6 +196,19 @@ def _combos(study) -> tuple[list[str], list[tuple]]:
 def _group(run_id: str, keys: list[str], combo: tuple) -> str:
     label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(keys, combo, strict=True))
     return label if run_id == "base" and label else (f"{run_id}[{label}]" if label else run_id)
+
+
+def combinations(study, pair_key: str) -> dict[str, dict[str, str]]:
+    """Grid combinations without ``pair_key``: ``{combination label: {pair value: group}}``."""
+    keys, combos = _combos(study)
+    out: dict[str, dict[str, str]] = {}
+    for run in study.runs:
+        for combo in combos:
+            rest = [(k, v) for k, v in zip(keys, combo, strict=True) if k != pair_key]
+            label = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in rest)
+            pair = _fmt(dict(zip(keys, combo, strict=True))[pair_key])
+            out.setdefault(label, {})[pair] = _group(run.id, keys, combo)
+    return out
 
 
 def group_names(study) -> list[str]:

@@ -148,6 +148,21 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
     return fig.to_html(full_html=False, include_plotlyjs=False)
 
 
+def _ranking_table(ranking: list[dict]) -> str:
+    """Combinations sorted by distance to the paper, the closest first and named."""
+    names = list(ranking[0]["terms"])
+    rows = []
+    for i, r in enumerate(ranking, 1):
+        cells = [f"{_fmt(r['terms'][n]['ours'])} <span class='na'>({_fmt(r['terms'][n]['paper'])})</span>" for n in names]
+        rows.append([str(i), html.escape(r["combination"]), _fmt(r["distance"]), *cells])
+    best = ranking[0]
+    intro = (f"<h3>Which assumptions come closest to the paper's numbers</h3><p>Distance: root mean square over the "
+             f"terms below of log10(ours / paper) for capacities and their ratio, (ours - paper) for fractions, "
+             f"(ours - paper) / paper for lengths. Closest: <b>{html.escape(best['combination'])}</b> "
+             f"(distance {_fmt(best['distance'])}). Each cell: ours (paper).</p>")
+    return intro + _table(["rank", "assumptions", "distance", *names], rows)
+
+
 def _table(headers, rows) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
@@ -167,6 +182,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
         cols = list(TABLE_METRICS) + extra
         rows = [[html.escape(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
         parts.append("<h3>Runs (means over seeds)</h3>" + _table(["run", "n"] + cols, rows))
+    if study_sum.get("ranking"):
+        parts.append(_ranking_table(study_sum["ranking"]))
     for fig in (*_bound_figures(study, specs, out), _capacity_figure(study, specs, out), _bars_figure(study_sum),
                 _trajectory_3d(study, specs, out)):
         if fig:

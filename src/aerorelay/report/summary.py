@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..experiments.campaign import run_dir
-from ..experiments.study import Claim, RunSpec, Study, parse_term
+from ..experiments.study import Claim, RunSpec, Study, combinations, parse_term
 
 SCALAR_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
@@ -126,9 +126,36 @@ def evaluate_claims(studies: list[Study], per: dict) -> list[dict]:
     return out
 
 
+def rank_against_paper(study: Study, groups: dict) -> list[dict]:
+    """The study's grid combinations sorted by RMS distance to the paper's numbers (``[ranking]``)."""
+    if study.ranking is None:
+        return []
+    rows = []
+    for label, pairs in combinations(study, study.ranking.pair_key).items():
+        terms, errors = {}, []
+        for t in study.ranking.terms:
+            ours = groups.get(pairs.get(t.at, ""), {}).get(t.metric)
+            if t.over is not None and ours is not None:
+                den = groups.get(pairs.get(t.over, ""), {}).get(t.metric)
+                ours = None if not den else ours / den
+            name = f"{t.metric}@{t.at}" + (f"/{t.over}" if t.over else "")
+            terms[name] = {"ours": ours, "paper": t.paper}
+            if ours is None or (t.scale == "log" and ours <= 0):
+                errors.append(math.inf if ours is not None else math.nan)
+                continue
+            errors.append(math.log10(ours / t.paper) if t.scale == "log" else
+                          (ours - t.paper) / t.paper if t.scale == "rel" else ours - t.paper)
+        finite = [e for e in errors if not math.isnan(e)]
+        distance = math.sqrt(sum(e * e for e in finite) / len(finite)) if finite and len(finite) == len(errors) else None
+        rows.append({"combination": label, "distance": distance, "terms": terms})
+    return sorted(rows, key=lambda r: (r["distance"] is None, r["distance"] if r["distance"] is not None else 0.0))
+
+
 def summarize(studies: list[Study], specs: list[RunSpec], out: Path, extra: dict | None = None) -> dict:
     """Summary of a campaign: every study's numbers plus the claims table."""
     per = {s.name: summarize_study(s, [r for r in specs if r.study == s.name], out) for s in studies}
+    for s in studies:
+        per[s.name]["ranking"] = rank_against_paper(s, per[s.name]["groups"])
     summary = {"studies": per, "claims": evaluate_claims(studies, per)}
     summary.update(extra or {})
     return summary
