@@ -46,7 +46,7 @@ def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
     report = out / "report.html"
     report.write_text(render_report(summarize([study], specs, out), [study], specs, out, load_manifest(out)))
 
-    page = browser.new_page()
+    page = browser.new_page(viewport={"width": 1280, "height": 900})
     errors = []
     page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
     page.on("pageerror", lambda e: errors.append(str(e)))
@@ -58,3 +58,8 @@ def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
     assert "two short runs" in page.inner_text("body")
     assert page.eval_on_selector_all(".js-plotly-plot", "els => els.length") == 1  # the 3D view rendered
     assert errors == []
+    # a reader at 1280 px never scrolls sideways: not the page, not a table inside it
+    scroll, width = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
+    assert scroll <= width
+    assert page.evaluate("Array.from(document.querySelectorAll('.wide')).filter(e => e.scrollWidth > e.clientWidth + 1).length") == 0
+    assert page.eval_on_selector_all("details", "els => els.length") >= 1  # the other columns on demand

@@ -18,9 +18,19 @@ import pandas as pd  # noqa: E402
 from ..experiments.campaign import run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study  # noqa: E402
 
+# the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
+MAIN_METRICS = ("c_min", "c_mean", "outage_fraction")
 TABLE_METRICS = ("c_min", "c_mean", "outage_fraction", "alignment_ok_fraction", "alignment_within_slack_fraction",
-                 "slack_active_fraction",
-                 "infeasible_fraction", "energy_kJ", "distance_m", "final_z_m", "solve_ms.mean", "solve_ms.p99")
+                 "slack_active_fraction", "infeasible_fraction", "energy_kJ", "distance_m", "final_z_m", "solve_ms.mean",
+                 "solve_ms.p99")
+# column headers with units, breakable so that tables fit the page
+HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_fraction": "outage fraction",
+           "alignment_ok_fraction": "alignment >= mu", "alignment_within_slack_fraction": "alignment >= mu - 0.02",
+           "slack_active_fraction": "slack active", "infeasible_fraction": "QP failures", "energy_kJ": "energy (kJ)",
+           "distance_m": "distance (m)", "final_z_m": "final z (m)", "solve_ms.mean": "step mean (ms)",
+           "solve_ms.p99": "step p99 (ms)", "max_deviation_m": "max deviation (m)",
+           "capacity_efficiency_mean": "efficiency, mean C", "capacity_efficiency_min": "efficiency, C_min",
+           "fallback_fraction": "fail-safe steps"}
 MAX_CURVES = 8
 
 CSS = """
@@ -29,7 +39,8 @@ table{border-collapse:collapse;margin:1em 0;font-size:13px}td,th{border:1px soli
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.yes{color:#176a1f;font-weight:600}
 .no{color:#b00020;font-weight:600}.na{color:#777}img{max-width:100%;border:1px solid #eee;margin:4px 0}
 .warn{background:#fff4e0;border-left:4px solid #f0a000;padding:6px 10px}code{background:#f5f5f5;padding:0 3px}
-.wide{overflow-x:auto;max-width:100%}
+.wide{overflow-x:auto;max-width:100%}th{white-space:normal;vertical-align:bottom}
+td{overflow-wrap:anywhere}details{margin:.5em 0}summary{cursor:pointer;color:#345}
 """
 
 
@@ -109,14 +120,17 @@ def _bars_figure(study_sum: dict) -> str | None:
     for ax, key in zip(axes, ("c_min", "c_mean"), strict=False):
         vals = [groups[g][key] for g in names]
         errs = [groups[g].get(key + ".std", 0.0) for g in names]
-        ax.bar(range(len(names)), np.maximum(vals, 1e-9), yerr=errs, color="#4a78b0")
+        ax.errorbar(range(len(names)), np.maximum(vals, 1e-9), yerr=errs, fmt="o", color="#4a78b0", label="ours")
         for p in study_sum["paper"]:
             if p["metric"] == key and p["run"] in names:
                 ax.plot(names.index(p["run"]), p["paper"], "r*", ms=10, label="paper")
         ax.set_yscale("log")
+        ax.set_ylabel(f"{HEADERS[key]}, log scale")
         ax.set_xticks(range(len(names)))
-        ax.set_xticklabels(names, rotation=60, ha="right", fontsize=6)
-        ax.set_title(key + " (ours: bars, paper: red stars)", fontsize=9)
+        ax.set_xticklabels([n if len(n) <= 28 else n[:26] + "..." for n in names], rotation=60, ha="right", fontsize=6)
+        ax.set_xlabel("run")
+        ax.grid(axis="y", which="major", alpha=0.3)
+        ax.set_title(key + " (ours: dots with spread over seeds, paper: red stars)", fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -148,19 +162,24 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
     return fig.to_html(full_html=False, include_plotlyjs=False)
 
 
+def _breakable(text: str) -> str:
+    """Escaped text that may wrap after commas and underscores (long run names)."""
+    return html.escape(text).replace(",", ",<wbr>").replace("_", "_<wbr>")
+
+
 def _ranking_table(ranking: list[dict]) -> str:
     """Combinations sorted by distance to the paper, the closest first and named."""
     names = list(ranking[0]["terms"])
     rows = []
     for i, r in enumerate(ranking, 1):
         cells = [f"{_fmt(r['terms'][n]['ours'])} <span class='na'>({_fmt(r['terms'][n]['paper'])})</span>" for n in names]
-        rows.append([str(i), html.escape(r["combination"]), _fmt(r["distance"]), *cells])
+        rows.append([str(i), _breakable(r["combination"]), _fmt(r["distance"]), *cells])
     best = ranking[0]
     intro = (f"<h3>Which assumptions come closest to the paper's numbers</h3><p>Distance: root mean square over the "
              f"terms below of log10(ours / paper) for capacities and their ratio, (ours - paper) for fractions, "
              f"(ours - paper) / paper for lengths. Closest: <b>{html.escape(best['combination'])}</b> "
              f"(distance {_fmt(best['distance'])}). Each cell: ours (paper).</p>")
-    return intro + _table(["rank", "assumptions", "distance", *names], rows)
+    return intro + _table(["rank", "assumptions", "distance", *[n.replace("@", " @ ").replace("/", " / ") for n in names]], rows)
 
 
 def _table(headers, rows) -> str:
@@ -177,11 +196,15 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
         parts.append("<h3>Ours beside the paper</h3>" + _table(["metric", "run", "ours", "paper", "ours / paper", "note"], rows))
     groups = study_sum["groups"]
     if groups:
-        extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min", "fallback_fraction")
+        extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min")
                  if any(k in g for g in groups.values())]
-        cols = list(TABLE_METRICS) + extra
-        rows = [[html.escape(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
-        parts.append("<h3>Runs (means over seeds)</h3>" + _table(["run", "n"] + cols, rows))
+        main = list(MAIN_METRICS) + extra
+        more = [c for c in (*TABLE_METRICS, "fallback_fraction") if c not in main]
+        for cols, title in ((main, "<h3>Runs (means over seeds)</h3>"), (more, None)):
+            rows = [[_breakable(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
+            table = _table(["run", "n"] + [HEADERS.get(c, c) for c in cols], rows)
+            parts.append(title + table if title else f"<details><summary>more columns: {', '.join(HEADERS.get(c, c) for c in cols)}"
+                                                      f"</summary>{table}</details>")
     if study_sum.get("ranking"):
         parts.append(_ranking_table(study_sum["ranking"]))
     for fig in (*_bound_figures(study, specs, out), _capacity_figure(study, specs, out), _bars_figure(study_sum),
@@ -213,8 +236,8 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
             f"Normalized capacities (B = 1). Solve times measured "
             f"with runs in parallel on the same cores: use <code>aerorelay bench</code> for isolated timing.</p>")
     toc = "<p>" + " · ".join(f'<a href="#{s.name}">{html.escape(s.name)}</a>' for s in studies) + "</p>"
-    body = [head, toc, "<h2>The paper's claims on our numbers</h2>",
-            _table(["claim", "verdict", "evidence"], claims_rows)]
+    claims = _table(["claim", "verdict", "evidence"], claims_rows) if claims_rows else "<p>No claims in these studies.</p>"
+    body = [head, toc, "<h2>The paper's claims on our numbers</h2>", claims]
     for s in studies:
         body.append(_study_section(s, summary["studies"][s.name], [r for r in specs if r.study == s.name], out, manifest))
     from plotly.offline import get_plotlyjs
