@@ -106,3 +106,30 @@ def test_combinations_are_ranked_by_their_distance_to_the_paper():
     with pytest.raises(ValueError, match="pair_key"):
         Study.model_validate({"name": "a", "title": "t", "base": "x.toml", "grid": {"a.b": [1]},
                               "ranking": {"pair_key": "c.d", "terms": [{"metric": "m", "at": "x", "paper": 1.0}]}})
+
+
+def test_measured_causes_are_computed_from_the_runs(tmp_path):
+    """jammer_noise and fading read a finished run; their numbers match independent arithmetic."""
+    import re
+    from pathlib import Path
+
+    import numpy as np
+
+    from aerorelay.experiments.campaign import execute_run
+    from aerorelay.experiments.study import Explanation, expand
+    from aerorelay.report.explain import explain
+
+    root = Path(__file__).resolve().parents[2]
+    study = Study.model_validate({"name": "w", "title": "t", "base": "scenarios/nominal_tilted.toml",
+                                  "runs": [{"id": "r", "set": {"sim.duration_s": 0.5}}]})
+    specs = expand(study, root)
+    assert execute_run(specs[0], str(tmp_path))["status"] == "done"
+    text = explain(Explanation(kind="jammer_noise", run="r"), specs, tmp_path)
+    d = np.array([-6.95, -5.79, 1.72])
+    c = d[2] / np.linalg.norm(d)
+    g = (np.cos(np.pi / 2 * c) / np.sqrt(1 - c * c)) ** 2  # the BS's vertical dipole toward the jammer
+    assert f"adds {g / (d @ d):.1%} to the BS's noise" in text
+    text = explain(Explanation(kind="fading", run="r", k_db=[6.0]), specs, tmp_path)
+    change = float(re.search(r"K = 6 dB: ([+-][0-9.]+)%", text).group(1))
+    assert -15.0 < change < 0.0  # Jensen: fading can only lower a concave mean, and not by much at low SNR
+    assert "has no results" in explain(Explanation(kind="fading", run="gone", k_db=[6.0]), specs, tmp_path)

@@ -76,12 +76,30 @@ class Condition(BaseModel):
         return {g for t in terms for g, _ in parse_term(t)}
 
 
+class Explanation(BaseModel):
+    """A measured cause of a difference from the paper, computed from a run of the study
+    (``report/explain.py``): ``ceiling`` (the best relay pose's capacity against ``paper``),
+    ``jammer_noise`` (the jammer's interference against the noise along the run),
+    ``fading`` (the fading arithmetic at the run's SNRs for each of ``k_db``)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["ceiling", "jammer_noise", "fading"]
+    run: str
+    paper: float | None = None
+    k_db: list[float] = Field(default_factory=list)
+    note: str = ""
+
+
 class Claim(BaseModel):
-    """A qualitative claim of the paper, held when every condition holds."""
+    """A qualitative claim of the paper, held when every condition holds. ``why``: measured causes
+    shown when it does not hold; ``contradiction``: where the paper's own numbers disagree (both
+    numbers, as text)."""
 
     model_config = ConfigDict(extra="forbid")
     text: str = Field(min_length=1)
     all: list[Condition] = Field(min_length=1)
+    why: list[Explanation] = Field(default_factory=list)
+    contradiction: str = ""
 
 
 class RankingTerm(BaseModel):
@@ -125,6 +143,8 @@ class Study(BaseModel):
     # groups drawn together with the bound of the first one's scenario, one figure each
     bound_figures: list[list[str]] = Field(default_factory=list)
     ranking: Ranking | None = None
+    # measured causes of the study's differences from the paper (beside the claims' own)
+    why: list[Explanation] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _references_exist(self):
@@ -135,6 +155,7 @@ class Study(BaseModel):
         named |= {(f"paper value {p.metric}", p.run) for p in self.paper}
         named |= {("compare_trajectories", g) for pair in self.compare_trajectories for g in pair}
         named |= {("bound_figures", g) for fig in self.bound_figures for g in fig}
+        named |= {(f"why ({e.kind})", e.run) for e in [*self.why, *(w for c in self.claims for w in c.why)]}
         if self.ranking is not None and self.ranking.pair_key not in self.grid:
             raise ValueError(f"ranking.pair_key {self.ranking.pair_key!r} is not a grid key ({sorted(self.grid)})")
         missing = sorted(f"{where}: run {g!r}" for where, g in named if g not in groups)

@@ -218,12 +218,33 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
     return "\n".join(parts)
 
 
+def _why_section(summary: dict, studies: list[Study]) -> str:
+    """Why our numbers differ: each claim that does not hold with its measured causes, the paper's
+    self-contradictions with both numbers, and the studies' own measured causes."""
+    items = []
+    for c in summary["claims"]:
+        if c["holds"] is False or c.get("contradiction"):
+            causes = "".join(f"<li>{html.escape(w)}</li>" for w in c.get("why", []))
+            if c.get("contradiction"):
+                causes += f"<li><b>The paper contradicts itself:</b> {html.escape(c['contradiction'])}</li>"
+            state = "does not hold" if c["holds"] is False else "holds"
+            items.append(f"<li><b>{html.escape(c['claim'])}</b> ({state})<ul>{causes or '<li>no cause declared</li>'}</ul></li>")
+    for s in studies:
+        for w in summary["studies"][s.name].get("why", []):
+            items.append(f"<li><b>{html.escape(s.title)}</b>: {html.escape(w)}</li>")
+    if not items:
+        return ""
+    return "<h2>Why our numbers differ</h2><ul>" + "".join(items) + "</ul>"
+
+
 def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out: Path, manifest: dict) -> str:
     """The whole report as an HTML string."""
     claims_rows = []
     for c in summary["claims"]:
         verdict = {True: '<span class="yes">holds</span>', False: '<span class="no">does not hold</span>',
                    None: '<span class="na">not evaluated</span>'}[c["holds"]]
+        if c.get("contradiction"):
+            verdict += '<br><span class="na">(the paper contradicts itself here)</span>'
         claims_rows.append([html.escape(c["claim"]), verdict, html.escape(c["evidence"])])
     meta = summary.get("campaign", {})
     head = (f"<h1>aerorelay: reproduction of the paper's experiments</h1>"
@@ -237,7 +258,7 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
             f"with runs in parallel on the same cores: use <code>aerorelay bench</code> for isolated timing.</p>")
     toc = "<p>" + " · ".join(f'<a href="#{s.name}">{html.escape(s.name)}</a>' for s in studies) + "</p>"
     claims = _table(["claim", "verdict", "evidence"], claims_rows) if claims_rows else "<p>No claims in these studies.</p>"
-    body = [head, toc, "<h2>The paper's claims on our numbers</h2>", claims]
+    body = [head, toc, "<h2>The paper's claims on our numbers</h2>", claims, _why_section(summary, studies)]
     for s in studies:
         body.append(_study_section(s, summary["studies"][s.name], [r for r in specs if r.study == s.name], out, manifest))
     from plotly.offline import get_plotlyjs

@@ -116,14 +116,20 @@ def evaluate_claim(claim: Claim, groups: dict) -> tuple[bool | None, str]:
     return all(verdicts), "; ".join(parts)
 
 
-def evaluate_claims(studies: list[Study], per: dict) -> list[dict]:
-    """The claims declared in the studies' ``[[claims]]``, each judged on our numbers."""
-    out = []
+def evaluate_claims(studies: list[Study], per: dict, specs: list[RunSpec] | None = None, out: Path | None = None) -> list[dict]:
+    """The claims declared in the studies' ``[[claims]]``, each judged on our numbers; a claim that
+    does not hold gets its measured causes (``why``), computed from the campaign's runs."""
+    from .explain import explain
+
+    rows = []
     for st in studies:
         for claim in st.claims:
             holds, evidence = evaluate_claim(claim, per.get(st.name, {}).get("groups", {}))
-            out.append({"study": st.name, "claim": claim.text, "holds": holds, "evidence": evidence})
-    return out
+            why = [explain(e, [s for s in specs or [] if s.study == st.name], out) for e in claim.why] \
+                if holds is False and out is not None else []
+            rows.append({"study": st.name, "claim": claim.text, "holds": holds, "evidence": evidence, "why": why,
+                         "contradiction": claim.contradiction})
+    return rows
 
 
 def rank_against_paper(study: Study, groups: dict) -> list[dict]:
@@ -153,9 +159,12 @@ def rank_against_paper(study: Study, groups: dict) -> list[dict]:
 
 def summarize(studies: list[Study], specs: list[RunSpec], out: Path, extra: dict | None = None) -> dict:
     """Summary of a campaign: every study's numbers plus the claims table."""
+    from .explain import explain
+
     per = {s.name: summarize_study(s, [r for r in specs if r.study == s.name], out) for s in studies}
     for s in studies:
         per[s.name]["ranking"] = rank_against_paper(s, per[s.name]["groups"])
-    summary = {"studies": per, "claims": evaluate_claims(studies, per)}
+        per[s.name]["why"] = [explain(e, [r for r in specs if r.study == s.name], out) for e in s.why]
+    summary = {"studies": per, "claims": evaluate_claims(studies, per, specs, out)}
     summary.update(extra or {})
     return summary
