@@ -58,7 +58,7 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
     ax.semilogy(df["t"], np.maximum(df["se_21"], 1e-12), label=r"$\log_2(1+\Gamma_{21})$")
     ax.semilogy(df["t"], np.maximum(df["se_10"], 1e-12), label=r"$\log_2(1+\Gamma_{10})$")
     _shade_jammer_off(ax, df)
-    ax.set_ylabel("spectral efficiency")
+    ax.set_ylabel("spectral efficiency (bit/s/Hz)")
     ax.set_xlabel("t (s)")
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -77,10 +77,10 @@ def fig_constraints(df: pd.DataFrame, sc: Scenario):
         ax.axhline(hi, color="r", ls="--", lw=1)
         ax.set_ylabel(lab)
     axes[2].plot(df["t"], df["slack_max"], color="C3")
-    axes[2].set_ylabel(r"slack $\pi$")
+    axes[2].set_ylabel(r"slack $\pi$ (-)")
     axes[3].plot(df["t"], df["mutual_alignment"], color="C2", label=r"$(1-v_{12})(1-v_{10})$")
     axes[3].axhline(sc.controller.mu, color="r", ls="--", lw=1, label=r"$\mu$")
-    axes[3].set_ylabel("mutual alignment")
+    axes[3].set_ylabel("mutual alignment (-)")
     axes[3].set_xlabel("t (s)")
     axes[3].legend(fontsize=7)
     fig.tight_layout()
@@ -99,7 +99,7 @@ def fig_tracking(df: pd.DataFrame, sc: Scenario):
     axes[1].legend(fontsize=7)
     axes[2].plot(df["t"], df["v_12"], label=r"$v_{12}$")
     axes[2].plot(df["t"], df["v_10"], label=r"$v_{10}$")
-    axes[2].set_ylabel("misalignment")
+    axes[2].set_ylabel("misalignment (-)")
     axes[2].set_xlabel("t (s)")
     axes[2].legend(fontsize=7)
     fig.tight_layout()
@@ -123,7 +123,8 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
         go.Scatter3d(x=[sc.jammer.position[0]], y=[sc.jammer.position[1]], z=[sc.jammer.position[2]], mode="markers",
                      name="jammer", marker=dict(color="red", size=5)),
     ])
-    fig.update_layout(title=f"{sc.name} ({sc.controller.variant})", scene=dict(aspectmode="data"),
+    fig.update_layout(title=f"{sc.name} ({sc.controller.variant})",
+                      scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),
                       margin=dict(l=0, r=0, t=40, b=0))
     return fig.to_html(include_plotlyjs=include_plotlyjs, full_html=True)
 

@@ -157,7 +157,8 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
     traces.append(go.Scatter3d(x=[sc.jammer.position[0]], y=[sc.jammer.position[1]], z=[sc.jammer.position[2]],
                                mode="markers", name="jammer", marker=dict(color="red", size=5)))
     fig = go.Figure(traces)
-    fig.update_layout(height=520, scene=dict(aspectmode="data"), margin=dict(l=0, r=0, t=30, b=0),
+    fig.update_layout(height=520, scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),
+                      margin=dict(l=0, r=0, t=30, b=0),
                       title=dict(text="trajectories (drag to rotate)", font=dict(size=12)))
     return fig.to_html(full_html=False, include_plotlyjs=False)
 
