@@ -87,11 +87,10 @@ class CapacityPlanner:
         thrust = inp.a2 + self.gravity * E3
         return p2, thrust / np.linalg.norm(thrust)
 
-    def _replan(self, inp: PlannerInput):
-        assert self.target is not None and self.p_ref is not None
+    def _replan(self, inp: PlannerInput, target: np.ndarray):
         p2, b2 = self._predicted_source(inp)
         anchor = self.route_at(inp.t + self.lookahead)
-        cand = self.target + self.offsets
+        cand = target + self.offsets
         off = cand - anchor  # stay within the leash of the route
         n = np.linalg.norm(off, axis=1, keepdims=True)
         cand = np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
@@ -116,7 +115,7 @@ class CapacityPlanner:
             self.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
             self.target = self.p_ref.copy()
         if self._k % self.replan_every == 0:
-            self._replan(inp)
+            self._replan(inp, self.target)
         self._k += 1
         step = self.target - self.p_ref
         n = float(np.linalg.norm(step))
