@@ -1,0 +1,42 @@
+"""The vectorized capacity over relay poses against the per-link channel functions (property test)."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aerorelay.models.antenna import DipolePattern, IsotropicPattern
+from aerorelay.models.capacity_field import axis_cone, relay_capacity
+from aerorelay.models.channel import end_to_end_capacity, link_sinr
+from aerorelay.models.geometry import rotation_zyx
+
+coord = st.floats(-8.0, 8.0)
+angle = st.floats(-0.6, 0.6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(p1=st.tuples(coord, coord, st.floats(0.5, 18.0)), p2=st.tuples(coord, coord, st.floats(0.5, 18.0)),
+       eta1=st.tuples(angle, angle, st.floats(-3.0, 3.0)), eta2=st.tuples(angle, angle, st.floats(-3.0, 3.0)),
+       jam=st.floats(0.0, 3.0), d=st.floats(0.5, 2.0), iso_bs=st.booleans(), iso_src=st.booleans())
+def test_relay_capacity_equals_the_link_by_link_channel(p1, p2, eta1, eta2, jam, d, iso_bs, iso_src):
+    p1, p2 = np.array(p1), np.array(p2)
+    pj, p0 = np.array([-6.95, -5.79, 1.72]), np.zeros(3)
+    if min(np.linalg.norm(p1 - p2), np.linalg.norm(p1 - pj), np.linalg.norm(p1 - p0)) < 0.1:
+        return
+    R1, R2 = rotation_zyx(np.array(eta1)), rotation_zyx(np.array(eta2))
+    relay = DipolePattern(d)
+    src, bs = (IsotropicPattern(1.0) if iso_src else relay), (IsotropicPattern(1.0) if iso_bs else relay)
+    kw = dict(tx_power=1.0, jam_power=jam, noise_power=1.0)
+    g21 = link_sinr(p2, R2, p1, R1, pj, pattern=src, pattern_rx=relay, **kw)
+    g10 = link_sinr(p1, R1, p0, np.eye(3), pj, pattern=relay, pattern_rx=bs, **kw)
+    C = relay_capacity(p1[None], R1[:, 2][None], p2=p2, b2=R2[:, 2], p0=p0, b0=np.array([0, 0, 1.0]), pj=pj,
+                       jam_power=jam, pattern=relay, pattern_source=src, pattern_bs=bs, tx_power=1.0, noise_power=1.0)
+    assert np.isclose(C[0, 0], end_to_end_capacity(g21, g10), rtol=1e-9, atol=1e-15)
+
+
+@settings(max_examples=30, deadline=None)
+@given(limit=st.floats(0.0, 0.6), step=st.floats(0.03, 0.2))
+def test_axis_cone_stays_inside_its_limit(limit, step):
+    axes = axis_cone(limit, step)
+    assert np.allclose(np.linalg.norm(axes, axis=1), 1.0)
+    assert np.all(np.arccos(np.clip(axes[:, 2], -1, 1)) <= limit + 1e-9)
+    assert np.allclose(axes[0], [0, 0, 1])
