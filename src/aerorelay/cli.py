@@ -264,7 +264,7 @@ def bench(
     feedback: str = typer.Option(None, "--feedback", help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
-    """Time the controller on a mission: preparation vs QP, percentiles, deadline misses, IPOPT ratio."""
+    """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
     import json
     import platform
 
