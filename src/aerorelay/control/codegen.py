@@ -15,6 +15,8 @@ import os
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import casadi as ca
@@ -41,6 +43,16 @@ def generated_c(*funs: ca.Function) -> str:
         return (Path(tmp) / "gen.c").read_text()
 
 
+@contextmanager
+def cache_lock(path: Path) -> Iterator[None]:
+    """Exclusive lock on ``path``'s cache entry (a ``.lock`` file beside it): processes that would
+    build the same entry (dask workers starting together) wait for the first instead."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.parent / f".{path.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        yield
+
+
 def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] = ("-O2",),
                    link: tuple[str, ...] = ()) -> Path:
     """Path of ``source`` compiled to a shared library, built once and cached; raises CompileError.
@@ -57,9 +69,7 @@ def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] =
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         raise CompileError("no C compiler (gcc or cc) on PATH")
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / f".{name}_{digest}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+    with cache_lock(lib):
         if lib.exists():  # another process built it while we waited
             return lib
         with tempfile.TemporaryDirectory(dir=folder, prefix=f".{name}_") as tmp:

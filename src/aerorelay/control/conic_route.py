@@ -8,8 +8,6 @@ linearizes at the guess; ``feedback(xa0)`` fixes the initial state, solves and u
 
 from __future__ import annotations
 
-import time
-
 import casadi as ca
 import numpy as np
 
@@ -108,11 +106,9 @@ class ConicEngine:
     def plan(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array(self.Xb), np.array(self.Wb)
 
-    def prepare(self, P: np.ndarray) -> float:
-        """Linearize at the guess; returns the preparation time in ms."""
-        t0 = time.perf_counter()
+    def prepare(self, P: np.ndarray) -> None:
+        """Linearize at the guess."""
         self._qp_data = self.prep(self.Xb, self.Wb, P)
-        return (time.perf_counter() - t0) * 1e3
 
     def feedback(self, xa0: np.ndarray, shift: bool):
         """-> (ok, first input or fallback input, status, slack max, iterations)."""

@@ -36,10 +36,9 @@ _dp = ctypes.POINTER(ctypes.c_double)
 
 
 class RtiInfo(ctypes.Structure):
-    """Mirror of ``rti_info`` in rti_hpipm.c (times in ms)."""
+    """Mirror of ``rti_info`` in rti_hpipm.c: the feedback phase's outcome."""
 
-    _fields_ = [("ok", ctypes.c_int), ("status", ctypes.c_int), ("iter", ctypes.c_int), ("prepared", ctypes.c_int),
-                ("slack_max", ctypes.c_double), ("prep_ms", ctypes.c_double), ("qp_ms", ctypes.c_double)]
+    _fields_ = [("ok", ctypes.c_int), ("status", ctypes.c_int), ("iter", ctypes.c_int), ("slack_max", ctypes.c_double)]
 
 
 def _casadi_dir() -> Path:
@@ -170,7 +169,7 @@ class HpipmRti:
         lib.rti_simd_kernels_ran.restype = ctypes.c_int
         lib.rti_create.restype = ctypes.c_void_p
         lib.rti_create.argtypes = [_dp, ctypes.POINTER(ctypes.c_int), _dp, _dp, _dp, _dp]
-        lib.rti_prepare.argtypes = [ctypes.c_void_p, _dp, ctypes.POINTER(RtiInfo)]
+        lib.rti_prepare.argtypes = [ctypes.c_void_p, _dp]
         lib.rti_feedback.argtypes = [ctypes.c_void_p, _dp, ctypes.c_int, _dp, ctypes.POINTER(RtiInfo)]
         lib.rti_feedback.restype = ctypes.c_int
         lib.rti_set_plan.argtypes = [ctypes.c_void_p, _dp, _dp]
@@ -218,12 +217,10 @@ class HpipmRti:
         shapes = [(nx, N + 1), (nw, N), (nx, N + 1), (nw, N)]
         return tuple(a.reshape(s, order="F").copy() for a, s in zip(self._plans, shapes, strict=True))
 
-    def prepare(self, P: np.ndarray) -> float:
-        """Preparation phase at the current guess; returns its time in ms."""
+    def prepare(self, P: np.ndarray) -> None:
+        """Preparation phase at the current guess (the C side reads ``P`` during the call only)."""
         _check_shape("P", P, (self.spec.n_params, self.spec.horizon + 1))
-        self._P = np.asfortranarray(P, float)  # kept alive until feedback (the C side reads it now only)
-        self._lib.rti_prepare(self._mem, _ptr(self._P), ctypes.byref(self.info))
-        return float(self.info.prep_ms)
+        self._lib.rti_prepare(self._mem, _ptr(np.asfortranarray(P, float)))
 
     def feedback(self, xa0: np.ndarray, shift: bool = True) -> tuple[np.ndarray, RtiInfo]:
         """Feedback phase for the measured state ``xa0``; returns ``(u0, info)``."""

@@ -68,9 +68,9 @@ class NmpcSettings:
     # "solve": the feedback phase solves the QP for the measured state; "sensitivity" (hpipm backend,
     # no condensing): the preparation solves it at the state the plan predicted and the feedback
     # applies the solution's first-order correction for the measured one (one Riccati sweep,
-    # HPIPM's sens_frw). Default: "sensitivity" where possible. Nominal tilted mission: feedback
-    # 0.07 / 0.10 ms mean / p99 (solve: 0.48 / 0.78), whole step 0.67 vs 0.62 ms, C_min 4.7323e-4
-    # vs 4.7333e-4 (README, Speed)
+    # HPIPM's sens_frw). Default: "sensitivity" where possible. Nominal tilted mission, alternating
+    # bench runs: feedback 0.08 / 0.12 ms mean / p99 (solve: 0.50 / 0.84), whole step 0.70-0.73 vs
+    # 0.65-0.66 ms, C_min 4.7323e-4 vs 4.7333e-4 (README, Speed)
     feedback: str | None = None
     condensed_horizon: int = 0  # hpipm backend: partial condensing to this many stages (0: none)
     riccati: str = "square_root"  # hpipm backend: HPIPM's Riccati recursion, "square_root" or "classical"
@@ -134,8 +134,8 @@ class _HpipmEngine:
         Xb, Wb = self.rti.plan()[:2]
         return Xb, Wb
 
-    def prepare(self, P: np.ndarray) -> float:
-        return self.rti.prepare(P)
+    def prepare(self, P: np.ndarray) -> None:
+        self.rti.prepare(P)
 
     def feedback(self, xa0: np.ndarray, shift: bool):
         u, info = self.rti.feedback(xa0, shift)

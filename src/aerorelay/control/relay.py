@@ -126,7 +126,6 @@ class RelayController:
             log.warning("fail-safe: %s; brake law holds the relay at %s", why, np.round(self._hold, 2))
         self._successes = 0
         self._consecutive_failures = 0
-        self.nmpc.initialized = False  # the next NMPC attempt starts from a fresh plan
 
     def _fallback_step(self, x, u_prev, P, shift) -> StepInfo:
         """Brake law input; the NMPC is tried from a fresh plan and resumes after enough successes."""

@@ -23,7 +23,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
-#include <time.h>
 
 #include <blasfeo_d_aux.h>
 #include <hpipm_d_ocp_qp_dim.h>
@@ -38,9 +37,9 @@
 #define RTI_BIG 1e8
 #define RTI_MAX_BLOCKS 32
 
-typedef struct { /* mirrored by hpipm_rti.RtiInfo */
-  int ok, status, iter, prepared;
-  double slack_max, prep_ms, qp_ms;
+typedef struct { /* mirrored by hpipm_rti.RtiInfo (the caller times the phases) */
+  int ok, status, iter;
+  double slack_max;
 } rti_info;
 
 typedef struct {
@@ -87,12 +86,6 @@ static void *rti_alloc(rti_mem *m, size_t size) {
   if (!p) return NULL;
   m->blocks[m->nblocks++] = p;
   return (void *)(((size_t)p + 63) & ~(size_t)63);
-}
-
-static double rti_now_ms(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
 static double rti_clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
@@ -318,9 +311,8 @@ static int rti_solve_qp(rti_mem *m, int *iter);
 
 /* Preparation phase: P is the (NP, N+1) column-major parameter matrix. In feedback_mode 1 the
  * QP is also solved here, at the predicted initial state (the guess's, dx_0 = 0). */
-void rti_prepare(rti_mem *m, const double *P, rti_info *info) {
+void rti_prepare(rti_mem *m, const double *P) {
   int k;
-  double t0 = rti_now_ms();
   rti_prepare_stage0(m, P);
   for (k = 1; k < RTI_N; k++) rti_prepare_stage(m, k, P);
   rti_prepare_terminal(m, P);
@@ -330,7 +322,6 @@ void rti_prepare(rti_mem *m, const double *P, rti_info *info) {
     m->pred_status = rti_solve_qp(m, &m->pred_iter);
   }
   m->prepared = 1;
-  info->prep_ms = rti_now_ms() - t0;
 }
 
 /* Shift the plan (X, W) one stage into the guess (Xb, Wb), repeating the last stage. */
@@ -406,10 +397,9 @@ static int rti_apply_step(rti_mem *m, const double *dx0, double *slack_max) {
  * (on failure: the previous plan's input for now). Returns info->ok. */
 int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *info) {
   int i, j, status = 0, iter = 0, ok;
-  double t0 = rti_now_ms(), dx0[RTI_NX], slack_max = 0.0;
-  info->prepared = m->prepared;
+  double dx0[RTI_NX], slack_max = 0.0;
   if (!m->prepared) { /* the caller skipped rti_prepare: refuse rather than solve a stale QP */
-    info->ok = 0; info->status = -1; info->iter = 0; info->slack_max = NAN; info->qp_ms = 0.0;
+    info->ok = 0; info->status = -1; info->iter = 0; info->slack_max = NAN;
     for (i = 0; i < RTI_NR; i++) u[i] = rti_clip(isfinite(m->Wb[i]) ? m->Wb[i] : 0.0, m->lbu[i], m->ubu[i]);
     return 0;
   }
@@ -453,6 +443,5 @@ int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *
   info->status = status;
   info->iter = iter;
   info->slack_max = slack_max;
-  info->qp_ms = rti_now_ms() - t0;
   return ok;
 }

@@ -222,21 +222,22 @@ def bound_key(sc) -> str:
 
 def cached_bound(sc, progress=None) -> CapacityBound:
     """``compute_bound`` once per scenario geometry, kept in the cache folder (``$AERORELAY_CACHE``)."""
-    from ..control.codegen import cache_dir
+    from ..control.codegen import cache_dir, cache_lock
 
     path = cache_dir() / "bounds" / f"bound_{bound_key(sc)}.npz"
-    if path.exists():
-        with np.load(path, allow_pickle=False) as z:
-            resolution = json.loads(str(z["resolution"]))
-            arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold")}
-            return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]))
-    bound = compute_bound(sc, progress)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-    with os.fdopen(fd, "wb") as f:
-        payload: dict = {**bound.arrays(), "resolution": json.dumps(bound.resolution), "outage_threshold": bound.outage_threshold}
-        np.savez(f, **payload)
-    os.replace(tmp, path)
+    with cache_lock(path):  # campaign runs sharing a geometry compute it once
+        if path.exists():
+            with np.load(path, allow_pickle=False) as z:
+                resolution = json.loads(str(z["resolution"]))
+                arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold")}
+                return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]))
+        bound = compute_bound(sc, progress)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+        with os.fdopen(fd, "wb") as f:
+            payload: dict = {**bound.arrays(), "resolution": json.dumps(bound.resolution),
+                             "outage_threshold": bound.outage_threshold}
+            np.savez(f, **payload)
+        os.replace(tmp, path)
     return bound
 
 

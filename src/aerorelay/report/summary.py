@@ -116,7 +116,7 @@ def evaluate_claim(claim: Claim, groups: dict) -> tuple[bool | None, str]:
     return all(verdicts), "; ".join(parts)
 
 
-def evaluate_claims(studies: list[Study], per: dict, specs: list[RunSpec] | None = None, out: Path | None = None) -> list[dict]:
+def evaluate_claims(studies: list[Study], per: dict, specs: list[RunSpec], out: Path) -> list[dict]:
     """The claims declared in the studies' ``[[claims]]``, each judged on our numbers; a claim that
     does not hold gets its measured causes (``why``), computed from the campaign's runs."""
     from .explain import explain
@@ -125,8 +125,7 @@ def evaluate_claims(studies: list[Study], per: dict, specs: list[RunSpec] | None
     for st in studies:
         for claim in st.claims:
             holds, evidence = evaluate_claim(claim, per.get(st.name, {}).get("groups", {}))
-            why = [explain(e, [s for s in specs or [] if s.study == st.name], out) for e in claim.why] \
-                if holds is False and out is not None else []
+            why = [explain(e, [s for s in specs if s.study == st.name], out) for e in claim.why] if holds is False else []
             rows.append({"study": st.name, "claim": claim.text, "holds": holds, "evidence": evidence, "why": why,
                          "contradiction": claim.contradiction})
     return rows

@@ -85,6 +85,7 @@ class ClosedLoop:
         self.spec = self.controller.spec
         self.veh = self.spec.vehicle
         self.columns = log_columns(self.veh.n_rotors)
+        self._numeric_columns = [c for c in self.columns if c not in ("qp_status", "fallback", "taylor_rel_err")]
         self.plant = plant_step_function(sc)
         self.source = source_trajectory(sc.mission)
         self.planner = build_planner(sc, self.source)
@@ -181,8 +182,7 @@ class ClosedLoop:
              se21, se10, float(end_to_end_capacity(g21, g10, self.sc.channel.bandwidth)), v12, v10,
              float(mutual_alignment(v12, v10)), info.slack_max, info.solve_ms, info.feedback_ms]
         )
-        numeric = [c for c in self.columns if c not in ("qp_status", "fallback", "taylor_rel_err")]
-        for name, val in zip(numeric, values, strict=True):
+        for name, val in zip(self._numeric_columns, values, strict=True):
             log[name][k] = val
         log["qp_status"][k] = info.status if info.ok else f"failed:{info.status}"
         log["fallback"][k] = info.fallback
