@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..config import Scenario
-from ..models.geometry import E3
+from ..models.geometry import thrust_direction_from_acceleration
 from .failsafe import BrakeLaw
 from .nmpc import NMPC, NmpcSettings, StepInfo
 from .ocp import OcpSpec
@@ -88,8 +88,8 @@ class RelayController:
         ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration, mu, weights."""
         spec = self.spec
         tk = spec.ts * np.arange(spec.horizon + 1)
-        thrust = np.asarray(ref.a_ref, float) + spec.vehicle.gravity * E3
-        rho_d = thrust / np.linalg.norm(thrust) if ref.axis is None else ref.axis  # a planner's antenna axis wins
+        # rho_d (eq. 20), unless a planner gives the antenna axis itself
+        rho_d = thrust_direction_from_acceleration(ref.a_ref, spec.vehicle.gravity) if ref.axis is None else ref.axis
         values = {
             "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
             "v_ref": ref.v_ref,

@@ -56,6 +56,13 @@ def thrust_direction(eta):
     return R[:, 2].copy()
 
 
+def thrust_direction_from_acceleration(acceleration, gravity: float) -> np.ndarray:
+    """Unit thrust direction ``(a + g e3)/|a + g e3|`` of a vehicle accelerating at ``a`` (m/s^2,
+    world): the body z of a coplanar vehicle, and the paper's ``rho_d`` (eq. 20)."""
+    thrust = np.asarray(acceleration, float) + gravity * E3
+    return thrust / np.linalg.norm(thrust)
+
+
 def attitude_from_thrust(direction, yaw: float = 0.0) -> np.ndarray:
     """ZYX Euler angles (rad) whose body z axis points along ``direction`` with the given yaw.
 

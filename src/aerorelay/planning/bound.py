@@ -35,7 +35,7 @@ from scipy import ndimage
 from scipy.optimize import minimize
 
 from ..models.capacity_field import axis_cone, relay_capacity
-from ..models.geometry import E3
+from ..models.geometry import E3, thrust_direction_from_acceleration
 
 BOUND_VERSION = "1"  # bump when the computation changes: cached bounds are recomputed
 
@@ -85,6 +85,14 @@ ASSUMPTIONS = ("true channel of the scenario (dipole gains at every node, BS dip
                "position grid, one move per time step to a cell within max_speed * dt + grid / 2")
 
 
+def fixed_channel(sc) -> dict:
+    """The ``relay_capacity`` arguments a scenario fixes for the whole mission: the BS (vertical
+    antenna), every node's pattern, powers and bandwidth."""
+    pat, ch = sc.antenna.patterns(), sc.channel
+    return dict(p0=np.array(sc.nodes.bs, float), b0=E3, pattern=pat.relay, pattern_source=pat.source, pattern_bs=pat.bs,
+                tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
+
+
 class _Scene:
     """What the capacity at time t depends on, from a scenario (``jammer_known=False``: as planned
     before take-off, without the jammer)."""
@@ -96,18 +104,14 @@ class _Scene:
         self.jammer_known = jammer_known
         self.source = source_trajectory(sc.mission)
         self.jammer = sc.jammer.build()
-        self.patterns = sc.antenna.patterns()
         self.gravity = sc.platform.gravity_m_s2
+        self.fixed = fixed_channel(sc)
 
     def capacity(self, t: float, positions, axes) -> np.ndarray:
         s = self.source.state(t)
-        thrust = s.a + self.gravity * E3
-        ch = self.sc.channel
-        return relay_capacity(positions, axes, p2=s.p, b2=thrust / np.linalg.norm(thrust), p0=self.sc.nodes.bs, b0=E3,
-                              pj=self.sc.jammer.position, jam_power=float(self.jammer.power_at(t)) if self.jammer_known else 0.0,
-                              pattern=self.patterns.relay, pattern_source=self.patterns.source,
-                              pattern_bs=self.patterns.bs,
-                              tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
+        jam_power = float(self.jammer.power_at(t)) if self.jammer_known else 0.0
+        b2 = thrust_direction_from_acceleration(s.a, self.gravity)
+        return relay_capacity(positions, axes, p2=s.p, b2=b2, pj=self.sc.jammer.position, jam_power=jam_power, **self.fixed)
 
 
 def _axis(tilt: float, az: float) -> np.ndarray:

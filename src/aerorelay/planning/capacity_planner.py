@@ -25,8 +25,9 @@ import time
 import numpy as np
 
 from ..models.capacity_field import axis_set, relay_capacity
-from ..models.geometry import E3
+from ..models.geometry import E3, thrust_direction_from_acceleration
 from .base import PlannerInput
+from .bound import _Scene, best_path, fixed_channel, position_grid
 from .trajectory_generator import Reference
 
 
@@ -50,11 +51,7 @@ class CapacityPlanner:
         self.replan_every, self.leash, self.lookahead = replan_every, leash_m, lookahead_s
         self.axis_rate = np.radians(axis_rate_deg_s)
         self.gravity = sc.platform.gravity_m_s2
-        ch = sc.channel
-        pat = sc.antenna.patterns()
-        self.channel = dict(p0=np.array(sc.nodes.bs, float), b0=E3, pattern=pat.relay, pattern_source=pat.source,
-                            pattern_bs=pat.bs, tx_power=ch.tx_power_w,
-                            noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
+        self.channel = fixed_channel(sc)
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(sc, route_grid_m, route_dt_s)
         self.preflight_s = time.perf_counter() - t0
@@ -68,8 +65,6 @@ class CapacityPlanner:
         self._k = 0
 
     def _preflight_route(self, sc, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-        from .bound import _Scene, best_path, position_grid
-
         grid, cells = position_grid(self.lo, self.hi, grid_m)
         shape = tuple(len(g) for g in grid)
         times = np.arange(0.0, sc.duration_s + dt_s, dt_s)
@@ -84,8 +79,7 @@ class CapacityPlanner:
     def _predicted_source(self, inp: PlannerInput) -> tuple[np.ndarray, np.ndarray]:
         tau = self.lookahead
         p2 = inp.p2 + inp.v2 * tau + 0.5 * inp.a2 * tau**2
-        thrust = inp.a2 + self.gravity * E3
-        return p2, thrust / np.linalg.norm(thrust)
+        return p2, thrust_direction_from_acceleration(inp.a2, self.gravity)
 
     def _replan(self, inp: PlannerInput, target: np.ndarray):
         p2, b2 = self._predicted_source(inp)
