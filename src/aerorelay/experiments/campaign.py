@@ -29,6 +29,15 @@ def run_dir(out: Path, spec: RunSpec) -> Path:
     return Path(out) / "runs" / spec.study / safe / f"seed{spec.seed}"
 
 
+def first_run_per_group(specs: list[RunSpec], out: Path) -> dict[str, RunSpec]:
+    """The first finished run (lowest seed) of every group, in study order."""
+    firsts = {}
+    for s in specs:
+        if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
+            firsts[s.group] = s
+    return firsts
+
+
 def is_finished(out: Path, spec: RunSpec) -> bool:
     """A finished run has metrics.json, the same resolved scenario (its TOML) and was flown by a
     controller with the current solver settings (``NmpcSettings.fingerprint``)."""

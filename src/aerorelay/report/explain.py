@@ -12,17 +12,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..experiments.campaign import run_dir
+from ..experiments.campaign import first_run_per_group, run_dir
 from ..experiments.study import Explanation, RunSpec, scenario_of
 from ..models.fading import RicianFading
 from ..models.geometry import rotation_batch
-
-
-def _first(specs: list[RunSpec], group: str, out: Path) -> RunSpec | None:
-    for s in specs:
-        if s.group == group and (run_dir(out, s) / "timeseries.parquet").exists():
-            return s
-    return None
 
 
 def ceiling(spec: RunSpec, out: Path, paper: float | None) -> str:
@@ -83,7 +76,7 @@ def fading(spec: RunSpec, out: Path, k_db: list[float]) -> str:
 
 def explain(e: Explanation, specs: list[RunSpec], out: Path) -> str:
     """One measured cause as a sentence (or why it could not be computed)."""
-    spec = _first(specs, e.run, out)
+    spec = first_run_per_group(specs, out).get(e.run)
     if spec is None:
         return f"{e.kind}: run '{e.run}' has no results in this campaign."
     if e.kind == "ceiling":

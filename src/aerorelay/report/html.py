@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ..experiments.campaign import run_dir  # noqa: E402
+from ..experiments.campaign import first_run_per_group, run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
@@ -61,17 +61,8 @@ def _fmt(v) -> str:
     return html.escape(str(v))
 
 
-def _first_run_per_group(specs: list[RunSpec], out: Path) -> dict[str, RunSpec]:
-    """The first finished run (lowest seed) of every group, in study order."""
-    firsts = {}
-    for s in specs:
-        if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
-            firsts[s.group] = s
-    return firsts
-
-
 def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | None:
-    firsts = _first_run_per_group(specs, out)
+    firsts = first_run_per_group(specs, out)
     if not firsts:
         return None
     fig, ax = plt.subplots(figsize=(8, 3.6))
@@ -88,7 +79,7 @@ def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | Non
 
 def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
     """One figure per ``bound_figures`` entry: the runs' capacity and the bounds of their scenario."""
-    firsts = _first_run_per_group(specs, out)
+    firsts = first_run_per_group(specs, out)
     figs = []
     for groups in study.bound_figures:
         runs = [firsts[g] for g in groups if g in firsts]
@@ -141,7 +132,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
 
     from ..experiments.study import scenario_of
 
-    firsts = _first_run_per_group(specs, out)
+    firsts = first_run_per_group(specs, out)
     if not firsts or len(firsts) > 6 or study.seeds > 1:
         return None
     traces = []
