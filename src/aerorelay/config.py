@@ -413,7 +413,7 @@ def compact_toml(data: dict, prefix: str = "") -> str:
         elif _is_table_array(v):
             for item in v:
                 lines += ["", f"[[{name}]]", compact_toml(item, name + ".").strip("\n")]
-    return "\n".join(line for line in lines) + "\n"
+    return "\n".join(lines) + "\n"
 
 
 def _is_table_array(v) -> bool:

@@ -95,20 +95,21 @@ class Multirotor:
                       method="highs")
         return bool(res.status == 0)
 
+    def _tilt_limit_toward(self, azimuth: float, known: float = 0.0) -> float:
+        """Largest hover tilt (rad) toward body ``azimuth``, bisection to 0.1 deg; ``known``: a tilt
+        already found elsewhere, returned unchanged when this azimuth cannot beat it."""
+        if not self.can_hover_tilted(known + np.radians(0.1), azimuth):
+            return known
+        lo, hi = known, np.radians(89.0)
+        while hi - lo > np.radians(0.1):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self.can_hover_tilted(mid, azimuth) else (lo, mid)
+        return lo
+
     def hover_tilt_limits(self, azimuths) -> np.ndarray:
         """Largest hover tilt (rad) toward each body azimuth (rad), bisection to 0.1 deg: with zero
         yaw, the antenna axis tilts the vehicle can hold toward each world azimuth."""
-        out = []
-        for az in np.asarray(azimuths, float):
-            lo, hi = 0.0, np.radians(89.0)
-            if not self.can_hover_tilted(np.radians(0.1), az):
-                out.append(0.0)
-                continue
-            while hi - lo > np.radians(0.1):
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if self.can_hover_tilted(mid, az) else (lo, mid)
-            out.append(lo)
-        return np.array(out)
+        return np.array([self._tilt_limit_toward(az) for az in np.asarray(azimuths, float)])
 
     @cached_property
     def hover_tilt_limit(self) -> float:
@@ -116,13 +117,7 @@ class Multirotor:
         free, so any world azimuth): 0 for a coplanar layout. Bisection to 0.1 deg over 72 azimuths."""
         best = 0.0
         for az in np.radians(np.arange(0.0, 360.0, 5.0)):
-            if not self.can_hover_tilted(best + np.radians(0.1), az):
-                continue
-            lo, hi = best, np.radians(89.0)
-            while hi - lo > np.radians(0.1):
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if self.can_hover_tilted(mid, az) else (lo, mid)
-            best = lo
+            best = self._tilt_limit_toward(az, best)
         return float(best)
 
     def hover_state(self, position=(0.0, 0.0, 0.0)) -> np.ndarray:
