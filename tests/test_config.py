@@ -2,7 +2,7 @@ from pathlib import Path
 
 import pytest
 
-from aerorelay.config import ScenarioError, load_scenario, parse_scenario
+from aerorelay.scenario import ScenarioError, load_scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 PRESETS = sorted((ROOT / "scenarios").glob("*.toml"))
@@ -71,7 +71,7 @@ def test_trajectory_csv_resolved_next_to_the_scenario_and_checked(tmp_path):
     f.write_text('[mission]\ntrajectory_csv = "path.csv"\n')
     sc = load_scenario(f)
     assert sc.mission.trajectory_csv == str((tmp_path / "path.csv").resolve())
-    from aerorelay.sim.mission import source_trajectory
+    from aerorelay.models.mission import source_trajectory
 
     assert source_trajectory(sc.mission).state(5.0).p[2] == pytest.approx(3.0)
     assert sc.duration_s == 10.0 and sc.mission.start == [-3.0, 5.0, 2.0]

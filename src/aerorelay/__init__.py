@@ -2,7 +2,24 @@
 
 Implements Silano et al., *Communications-Aware NMPC for Multi-Rotor Aerial Relay Networks
 Under Jamming Interference*: a max-min trajectory generator plus a communications-aware NMPC
-on a generically-tilted multirotor (GTMR) model.
+on a generically-tilted multirotor (GTMR) model, and goes beyond it (capacity bounds, a
+capacity-seeking relay, radio scenes with any number of jammers). The public API is below;
+``aerorelay.api`` documents it.
 """
 
-__version__ = "0.1.0"
+from ._version import __version__
+from .api import Result, bench, bound, link_budget, reproduce, simulate
+from .models.antenna import CosinePattern, DipolePattern, IsotropicPattern, SinPowerPattern, TabulatedPattern
+from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
+from .models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene, route_capacity
+from .planning.base import PlannerContext, PlannerInput, register_planner
+from .planning.trajectory_generator import Reference
+from .scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from .scenario.build import build, build_scene
+
+__all__ = [
+    "__version__", "Result", "bench", "bound", "link_budget", "reproduce", "simulate", "CosinePattern", "DipolePattern",
+    "IsotropicPattern", "SinPowerPattern", "TabulatedPattern", "AlwaysOn", "Jammer", "PeriodicOnOff", "Antenna",
+    "LinkBudget", "Node", "NodePose", "RadioScene", "route_capacity", "PlannerContext", "PlannerInput", "register_planner",
+    "Reference", "Scenario", "ScenarioError", "load_scenario", "parse_scenario", "build", "build_scene",
+]

@@ -10,7 +10,9 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from .config import Scenario, ScenarioError, load_scenario
+from . import api
+from .scenario import Scenario, ScenarioError, load_scenario
+from .scenario.load import parse_sets as _parse_sets
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
 console = Console()
@@ -52,21 +54,11 @@ SET_HELP = "override a scenario field, e.g. --set controller.mu=0.3 (repeatable;
 
 
 def parse_sets(items: list[str] | None) -> dict:
-    """``["a.b=1", "c=[1, 2]"]`` -> ``{"a.b": 1, "c": [1, 2]}``: values parsed as TOML (a bare word
-    that is not TOML is taken as a string); a malformed item exits 2 naming it."""
-    import tomllib
-
-    out = {}
-    for item in items or []:
-        key, sep, text = item.partition("=")
-        if not sep or not key.strip():
-            _fail(f"--set {item!r}: write dotted.key=value")
-        try:
-            value = tomllib.loads(f"v = {text.strip()}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = text.strip()
-        out[key.strip()] = value
-    return out
+    """``--set`` items as dotted keys -> values; a malformed item exits 2 naming it."""
+    try:
+        return _parse_sets(items)
+    except ScenarioError as exc:
+        _fail(str(exc))
 
 
 @app.command()
@@ -82,12 +74,10 @@ def validate(
 
 def model_summary(sc: Scenario) -> Table:
     """A table of the derived physical quantities of a scenario (hover, allocation, channel at t=0)."""
-    from .sim.initial import initial_link_budget
-
     veh = sc.platform.vehicle()
     F, M = veh.allocation()
     hover = veh.hover_speeds()
-    budget = initial_link_budget(sc)
+    budget = api.link_budget(sc)
     t = Table(title=f"model summary: {sc.name}", show_header=True)
     t.add_column("quantity")
     t.add_column("value", justify="right")
@@ -101,6 +91,8 @@ def model_summary(sc: Scenario) -> Table:
     t.add_row("Gamma_10 at t=0", f"{budget['gamma_10']:.4f}")
     t.add_row("end-to-end capacity C at t=0", f"{budget['capacity']:.4f}")
     t.add_row("mutual alignment at t=0", f"{budget['mutual_alignment']:.3f} (mu = {sc.controller.mu})")
+    t.add_row("jammers", str(len(sc.jammer_configs)))
+    t.add_row("interference / noise at t=0: relay, BS (dB)", f"{budget['inr_relay_db']:.1f}, {budget['inr_bs_db']:.1f}")
     t.add_row("mission length (s)", f"{sc.duration_s:g}")
     return t
 
@@ -127,36 +119,31 @@ def run(
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from .sim.closed_loop import ClosedLoop
-    from .sim.outputs import write_run
-
     sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
                                                    "sim.duration_s": duration}, set_)
-    loop = ClosedLoop(sc)
+    if not no_bound:  # computed once per scenario geometry (cached), with its own progress bar
+        _bound_with_progress(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
             TimeElapsedColumn(), TimeRemainingColumn())
     # no refresh thread: it would hold the GIL while the controller's C call returns and inflate
     # the measured step times; the bar is redrawn from the loop every 50 steps instead
     with Progress(*cols, console=err_console, transient=False, auto_refresh=False) as prog:
         task = prog.add_task("mission", total=1)
-        result = loop.run(progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
-                          if k % 50 == 0 or k == n else None)
-    bound = None if no_bound else _bound_with_progress(sc)
-    metrics = write_run(result, out, figures=not no_figures, bound=bound)
+        result = api.simulate(sc, bound=not no_bound, progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
+                              if k % 50 == 0 or k == n else None)
+    result.save(out, figures=not no_figures)
     console.print(f"wrote {out}", markup=False, highlight=False)
-    console.print(_metrics_table({"value": metrics}))
+    console.print(_metrics_table({"value": result.metrics}))
 
 
 def _bound_with_progress(sc: Scenario):
     """The scenario's capacity bound (cached by geometry), with a progress bar when computed."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from .planning.bound import cached_bound
-
     with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
                   TimeElapsedColumn(), console=err_console, transient=True) as prog:
         task = prog.add_task("bound", total=1)
-        return cached_bound(sc, progress=lambda k, n: prog.update(task, completed=k, total=n))
+        return api.bound(sc, progress=lambda k, n: prog.update(task, completed=k, total=n))
 
 
 @app.command()
@@ -167,12 +154,12 @@ def bound(
     """The best link the physics allows on this scenario: static and path capacity bounds."""
     import json
 
-    from .planning.bound import write_bound
     from .report.figures import fig_bound
+    from .store.run_folder import write_bound_files
 
     sc = _load_or_exit(scenario)
     b = _bound_with_progress(sc)
-    summary = write_bound(b, out)
+    summary = write_bound_files(b, out)
     fig = fig_bound(b.frame(), sc)
     fig.savefig(out / "bound.png", dpi=110)
     t = Table(title=f"capacity bounds: {sc.name}")
@@ -266,11 +253,8 @@ def bench(
 ):
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
     import json
-    import platform
 
-    from .control.bench import benchmark_closed_loop
     from .control.nmpc import NmpcSettings
-    from .sim.closed_loop import ClosedLoop
 
     try:
         settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
@@ -280,11 +264,7 @@ def bench(
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
                                                    "controller.planner": planner,
                                                    "sim.control_rate_hz": control_rate_hz}, set_)
-    ClosedLoop(sc.with_updates({"sim.duration_s": 0.1}), settings).run()  # compile / load generated code first
-    res = benchmark_closed_loop(ClosedLoop(sc, settings), ipopt_points=ipopt_points)
-    res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-    nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
-    res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
+    res = api.bench(sc, settings, ipopt_points=ipopt_points)
     t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
@@ -329,49 +309,35 @@ def reproduce(
     workers: int = typer.Option(None, "--workers", help="local cluster size (default: one per core)"),
 ):
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
-    import datetime
-    import json
-
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from . import __version__
-    from .control.nmpc import NmpcSettings
-    from .experiments.campaign import load_manifest, run_campaign
-    from .experiments.study import StudyError, expand, find_studies
-    from .report.html import render_report
-    from .report.summary import summarize
+    from .experiments.campaign import load_manifest
+    from .experiments.study import StudyError
 
     folder = studies_dir or _default_studies_dir()
-    try:
-        chosen = find_studies(folder, studies or None)
-        specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick)]
-    except StudyError as exc:
-        err_console.print(str(exc), markup=False)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
-    console.print(f"{len(specs)} runs in {len(chosen)} studies -> {out}", markup=False, highlight=False)
     cols = (TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
     try:
         with Progress(*cols, console=err_console) as prog:
-            task = prog.add_task("", total=len(specs))
+            task = prog.add_task("", total=1)
+
+            def on_start(n_runs, n_studies):
+                prog.update(task, total=n_runs)
+                console.print(f"{n_runs} runs in {n_studies} studies -> {out}", markup=False, highlight=False)
 
             def progress(done, total, rec):
                 desc = "" if rec is None else f"{rec['key']}: {rec['status']}"
                 prog.update(task, completed=done, description=desc)
 
-            res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress)
+            rep = api.reproduce(studies or None, out=out, quick=quick, studies_dir=folder, scheduler=scheduler, workers=workers,
+                                progress=progress, on_start=on_start)
+    except StudyError as exc:
+        err_console.print(str(exc), markup=False)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
     except KeyboardInterrupt:
         n = sum(r.get("status") == "done" for r in load_manifest(out).values())
         err_console.print(f"interrupted: {n} finished runs are kept in {out}; run the same command to resume", markup=False)
         raise typer.Exit(130) from None
-    manifest = load_manifest(out)
-    meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
-            "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
-            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s,
-            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
-            "controller": NmpcSettings().fingerprint()}
-    summary = summarize(chosen, specs, out, {"campaign": meta})
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
-    (out / "report.html").write_text(render_report(summary, chosen, specs, out, manifest))
+    summary, res, meta = rep.summary, rep.campaign, rep.summary["campaign"]
     t = Table(title="the paper's claims on our numbers")
     t.add_column("claim")
     t.add_column("verdict")

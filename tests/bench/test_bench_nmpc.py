@@ -7,20 +7,22 @@ read from these benchmarks and from ``aerorelay bench``, never asserted in unit 
 import numpy as np
 import pytest
 
-from aerorelay.config import parse_scenario
-from aerorelay.sim.closed_loop import ClosedLoop
+from aerorelay.planning.base import PlannerInput
+from aerorelay.scenario import parse_scenario
+from aerorelay.scenario.build import build
 
 
 @pytest.fixture(scope="module", params=["constrained", "unconstrained"])
 def loop_mid_mission(request):
     sc = parse_scenario({}).with_updates({"controller.variant": request.param, "sim.duration_s": 9.0})
-    loop = ClosedLoop(sc)
+    loop = build(sc).closed_loop()
     loop.run()
     return loop
 
 
 def test_bench_rti_step(benchmark, loop_mid_mission):
-    x, u, P, _ = loop_mid_mission.bench_points[0]
+    bp = loop_mid_mission.bench_points[0]
+    x, u, P = bp.x, bp.u_prev, bp.P
     nmpc = loop_mid_mission.nmpc
     info = benchmark(nmpc.step, x, u, P, False)
     assert info.ok and np.all(np.isfinite(info.u))
@@ -28,7 +30,8 @@ def test_bench_rti_step(benchmark, loop_mid_mission):
 
 def test_bench_feedback_phase(benchmark, loop_mid_mission):
     """The latency that matters on hardware: measurement in, input out (preparation done before)."""
-    x, u, P, _ = loop_mid_mission.bench_points[0]
+    bp = loop_mid_mission.bench_points[0]
+    x, u, P = bp.x, bp.u_prev, bp.P
     nmpc = loop_mid_mission.nmpc
 
     def feedback():
@@ -42,8 +45,6 @@ def test_bench_feedback_phase(benchmark, loop_mid_mission):
 def test_bench_trajectory_generator(benchmark, loop_mid_mission):
     loop = loop_mid_mission
     src = loop.source.state(9.0)
-    from aerorelay.planning.base import PlannerInput
-
-    inp = PlannerInput(9.0, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.jammer.position, 1.0)
+    inp = PlannerInput(9.0, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.scene.jammers[0].position[None], np.ones(1))
     ref = benchmark(loop.planner.update, inp)
     assert np.all(np.isfinite(ref.p_ref))

@@ -5,9 +5,9 @@ import ctypes
 import numpy as np
 import pytest
 
-from aerorelay.config import parse_scenario
 from aerorelay.control.hpipm_rti import HpipmRti, _casadi_dir, cpu_has_avx2_fma
-from aerorelay.control.relay import ocp_spec
+from aerorelay.scenario import parse_scenario
+from aerorelay.scenario.build import ocp_spec
 
 pytestmark = pytest.mark.skipif(not cpu_has_avx2_fma(), reason="CPU without AVX2/FMA: kernels not compiled in")
 
@@ -77,9 +77,9 @@ def test_hpipm_uses_them_when_loaded_first():
     import sys
 
     code = ("import numpy as np\n"
-            "from aerorelay.config import parse_scenario\n"
+            "from aerorelay.scenario import parse_scenario\n"
             "from aerorelay.control.nmpc import NMPC\n"
-            "from aerorelay.control.relay import ocp_spec, weight_parameters\n"
+            "from aerorelay.scenario.build import ocp_spec, weight_parameters\n"
             "sc = parse_scenario({})\n"
             "spec = ocp_spec(sc)\n"
             "c = NMPC(spec)\n"

@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from aerorelay.config import load_scenario, parse_scenario
 from aerorelay.control.failsafe import BrakeLaw
-from aerorelay.sim.closed_loop import ClosedLoop, plant_step_function
+from aerorelay.scenario import load_scenario, parse_scenario
+from aerorelay.scenario.build import build
+from aerorelay.sim.closed_loop import plant_step_function
 
 SCEN = "scenarios"
 
@@ -16,7 +17,7 @@ def test_brake_law_stops_any_vehicle_at_its_hold_point(preset):
     veh = sc.platform.vehicle()
     ws = sc.controller.workspace
     law = BrakeLaw(veh, ws.min, ws.max)
-    plant = plant_step_function(sc)
+    plant = plant_step_function(sc.platform.vehicle(), sc.sim.plant_rate_hz, sc.control_period_s)
     x = veh.hover_state([0.0, 0.0, 5.0])
     x[3:6] = np.radians([10.0, -8.0, 20.0])
     x[6:9] = [1.0, -0.8, -1.0]  # moving at 1.6 m/s, tilted, yawed
@@ -57,7 +58,7 @@ def _failing_engine(loop, fail_steps):
 
 def test_injected_failures_hand_over_to_the_brake_law_and_back():
     sc = parse_scenario({"nodes": {"relay": [-6.95, 5.79, 0.9]}, "sim": {"duration_s": 6.0}})  # 0.4 m above the floor
-    loop = ClosedLoop(sc)
+    loop = build(sc).closed_loop()
     _failing_engine(loop, set(range(60, 260)))  # every QP fails from 0.9 s to 3.9 s
     res = loop.run()
     fb = res.log["fallback"]
@@ -73,7 +74,7 @@ def test_injected_failures_hand_over_to_the_brake_law_and_back():
 
 def test_non_finite_input_hands_over_at_once():
     sc = parse_scenario({"sim": {"duration_s": 1.5}})
-    loop = ClosedLoop(sc)
+    loop = build(sc).closed_loop()
     _failing_engine(loop, {30})
     res = loop.run()
     assert res.log["fallback"][30]  # a NaN input is not applied, not even once
@@ -89,7 +90,7 @@ def test_weights_that_break_the_qp_never_take_the_relay_out_of_the_workspace():
         "controller.weights.misalignment": 100.0, "controller.weights.misalignment_terminal": 100.0,
         "controller.weights.position": 0.1, "controller.weights.position_terminal": 0.1,
         "controller.weights.velocity": 0.1})
-    res = ClosedLoop(sc).run()
+    res = build(sc).closed_loop().run()
     assert res.qp_failures > 0 and res.fallback_episodes > 0
     ws = sc.controller.workspace
     p1 = np.column_stack([res.log[f"p1_{a}"] for a in "xyz"])

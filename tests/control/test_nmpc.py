@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from aerorelay.config import parse_scenario
 from aerorelay.control.full_nlp import FullNlp
 from aerorelay.control.nmpc import NMPC, NmpcSettings
 from aerorelay.control.ocp import unpack_plan
-from aerorelay.control.relay import ocp_spec, weight_parameters
+from aerorelay.scenario import parse_scenario
+from aerorelay.scenario.build import ocp_spec, weight_parameters
 from aerorelay.sim.closed_loop import plant_step_function
 
 SC = parse_scenario({})
@@ -22,7 +22,7 @@ def nmpc(request):
 
 @pytest.fixture(scope="module")
 def plant():
-    return plant_step_function(SC)
+    return plant_step_function(SC.platform.vehicle(), SC.sim.plant_rate_hz, SC.control_period_s)
 
 
 def params(p_ref, v_ref=np.zeros(3), p2=P2, sc=SC, spec=SPEC):
@@ -222,10 +222,10 @@ def test_unpack_plan_inverts_pack_plan():
 
 def test_bench_times_ipopt_also_for_the_lagged_input_rate():
     from aerorelay.control.bench import benchmark_closed_loop
-    from aerorelay.sim.closed_loop import ClosedLoop
+    from aerorelay.scenario.build import build
 
     sc = SC.with_updates({"controller.exact_input_rate": False, "sim.duration_s": 4.0})
-    res = benchmark_closed_loop(ClosedLoop(sc), ipopt_points=1)
+    res = benchmark_closed_loop(build(sc).closed_loop(), ipopt_points=1)
     assert res["ipopt_converged"] == "1/1" and res["qp_failures"] == 0
 
 

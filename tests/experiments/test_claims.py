@@ -128,7 +128,7 @@ def test_measured_causes_are_computed_from_the_runs(tmp_path):
     d = np.array([-6.95, -5.79, 1.72])
     c = d[2] / np.linalg.norm(d)
     g = (np.cos(np.pi / 2 * c) / np.sqrt(1 - c * c)) ** 2  # the BS's vertical dipole toward the jammer
-    assert f"adds {g / (d @ d):.1%} to the BS's noise" in text
+    assert f"add {g / (d @ d):.1%} to the BS's noise" in text
     text = explain(Explanation(kind="fading", run="r", k_db=[6.0]), specs, tmp_path)
     change = float(re.search(r"K = 6 dB: ([+-][0-9.]+)%", text).group(1))
     assert -15.0 < change < 0.0  # Jensen: fading can only lower a concave mean, and not by much at low SNR

@@ -7,15 +7,13 @@ from hypothesis import strategies as st
 from aerorelay.models.channel import (
     end_to_end_capacity,
     inverse_capacity,
-    jammer_gain_sq,
-    legitimate_gain_sq,
-    link_sinr,
     misalignment,
     mutual_alignment,
     spectral_efficiency,
     surrogate_sinr,
 )
 from aerorelay.models.geometry import rotation_zyx
+from tests.reference_channel import jammer_gain_sq, legitimate_gain_sq, link_sinr
 
 I3 = np.eye(3)
 P0 = np.zeros(3)
@@ -116,22 +114,22 @@ def test_misalignment_cases():
 
 def test_surrogate_by_hand_and_dual():
     mu = 0.2
-    g = surrogate_sinr(P2, P1, PJ, mu=mu, g_bar=1.0, **KW)
+    g = surrogate_sinr(P2, P1, [PJ], [1.0], mu=mu, g_bar=1.0, tx_power=1.0, noise_power=1.0)
     d2 = np.sum((P1 - P2) ** 2)
     dj2 = np.sum((PJ - P1) ** 2)
     assert g == pytest.approx((mu / d2) / (1 / dj2 + 1))
     a, b = ca.SX.sym("a", 3), ca.SX.sym("b", 3)
-    f = ca.Function("f", [a, b], [inverse_capacity(a, b, P0, PJ, mu=mu, g_bar=1.0, **KW)])
-    num = inverse_capacity(P1, P2, P0, PJ, mu=mu, g_bar=1.0, **KW)
+    f = ca.Function("f", [a, b], [inverse_capacity(a, b, P0, [PJ], [1.0], mu=mu, g_bar=1.0, tx_power=1.0, noise_power=1.0)])
+    num = inverse_capacity(P1, P2, P0, [PJ], [1.0], mu=mu, g_bar=1.0, tx_power=1.0, noise_power=1.0)
     assert float(f(P1, P2)) == pytest.approx(num, rel=1e-12)
-    s21 = spectral_efficiency(surrogate_sinr(P2, P1, PJ, mu=mu, g_bar=1.0, **KW))
-    s10 = spectral_efficiency(surrogate_sinr(P1, P0, PJ, mu=mu, g_bar=1.0, **KW))
+    s21 = spectral_efficiency(surrogate_sinr(P2, P1, [PJ], [1.0], mu=mu, g_bar=1.0, tx_power=1.0, noise_power=1.0))
+    s10 = spectral_efficiency(surrogate_sinr(P1, P0, [PJ], [1.0], mu=mu, g_bar=1.0, tx_power=1.0, noise_power=1.0))
     assert num == pytest.approx(1 / s21 + 1 / s10)
 
 
 def test_node_patterns_from_the_antenna_options():
-    from aerorelay.config import parse_scenario
     from aerorelay.models.antenna import IsotropicPattern
+    from aerorelay.scenario import parse_scenario
 
     pat = parse_scenario({"antenna": {"bs_pattern": "isotropic", "directivity": 1.64}}).antenna.patterns()
     assert isinstance(pat.bs, IsotropicPattern) and pat.bs.gain_from_cos(np.array([1.0, 0.0])).tolist() == [1.0, 1.0]
@@ -140,8 +138,8 @@ def test_node_patterns_from_the_antenna_options():
 
 
 def test_directivity_scales_a_dipole_to_dipole_snr_by_its_square():
-    from aerorelay.config import parse_scenario
     from aerorelay.models.geometry import rotation_zyx
+    from aerorelay.scenario import parse_scenario
 
     rng = np.random.default_rng(5)
     kw = dict(tx_power=1.0, jam_power=0.0, noise_power=1.0)

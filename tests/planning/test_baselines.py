@@ -1,19 +1,22 @@
 import numpy as np
 import pytest
 
-from aerorelay.config import parse_scenario
-from aerorelay.models.channel import end_to_end_capacity, link_sinr
 from aerorelay.models.geometry import E3, attitude_from_thrust, rotation_zyx
+from aerorelay.models.mission import source_trajectory
+from aerorelay.planning.base import PlannerInput
 from aerorelay.planning.baselines import PlannedReference, SingleShotPlanner
-from aerorelay.sim.mission import source_trajectory
+from aerorelay.planning.registry import GeneratorPlanner
+from aerorelay.scenario import parse_scenario
+from aerorelay.scenario.build import build_planner, build_scene
+from tests.reference_channel import end_to_end_capacity, link_sinr
 
 SC = parse_scenario({})
 
 
 @pytest.fixture(scope="module")
 def plan():
-    return SingleShotPlanner(dt=1.0).plan(source_trajectory(SC.mission), np.array(SC.nodes.relay), SC.nodes.bs, 20.0,
-                                          SC.controller.workspace.min, SC.controller.workspace.max)
+    return SingleShotPlanner(build_scene(SC), dt=1.0).plan(source_trajectory(SC.mission), np.array(SC.nodes.relay), 20.0,
+                                                           SC.controller.workspace.min, SC.controller.workspace.max)
 
 
 def real_mean_capacity(plan, dt):
@@ -54,26 +57,23 @@ def test_planned_reference_interpolates(plan):
 
 
 def test_baseline_a_plans_with_isotropic_surrogate():
-    from aerorelay.planning.base import build_planner
-    from aerorelay.planning.registry import GeneratorPlanner
-
     src = source_trajectory(SC.mission)
-    a = build_planner(SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"}), src)
+    iso = SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"})
+    a = build_planner(iso, iso.platform.vehicle(), build_scene(iso), src)
     assert isinstance(a, GeneratorPlanner) and a.generator.sp.mu == 1.0
-    assert build_planner(SC, src).generator.sp.mu == SC.controller.mu
+    assert build_planner(SC, SC.platform.vehicle(), build_scene(SC), src).generator.sp.mu == SC.controller.mu
 
 
 def test_every_planner_answers_through_one_interface():
     """The closed loop never branches on planner names: each registered planner returns a Reference
     from the same PlannerInput (baseline B from its plan, made once, without a generator)."""
-    from aerorelay.planning.base import PlannerInput, build_planner
-
     short = SC.with_updates({"sim.duration_s": 4.0})
     src = source_trajectory(short.mission)
     s = src.state(1.0)
-    inp = PlannerInput(1.0, 0.015, np.array(short.nodes.relay), s.p, s.v, s.a, np.array(short.jammer.position), 1.0)
+    inp = PlannerInput(1.0, 0.015, np.array(short.nodes.relay), s.p, s.v, s.a, np.array([short.jammer.position]), np.ones(1))
     for name in ("trajectory_generator", "isotropic", "single_shot"):
-        planner = build_planner(short.with_updates({"controller.planner": name}), src)
+        sc = short.with_updates({"controller.planner": name})
+        planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
         ref = planner.update(inp)
         assert ref.p_ref.shape == (3,) and np.all(np.isfinite(ref.p_ref)), name
         assert hasattr(planner, "generator") == (name != "single_shot"), name

@@ -5,23 +5,24 @@ import itertools
 import numpy as np
 import pytest
 
-from aerorelay.config import load_scenario, parse_scenario
-from aerorelay.models.capacity_field import axis_cone
-from aerorelay.planning.bound import _dp, _footprint, _Scene, compute_bound
+from aerorelay.models.axes import axis_cone
+from aerorelay.planning.bound import CapacityLandscape, _dp, _footprint, compute_bound
+from aerorelay.scenario import load_scenario, parse_scenario
+from aerorelay.scenario.build import bound_problem, build_scene, build_source
 
 SHORT = load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 2.0})
 
 
 @pytest.fixture(scope="module")
 def bound():
-    return compute_bound(SHORT)
+    return compute_bound(bound_problem(SHORT))
 
 
 def test_random_feasible_poses_never_beat_the_static_bound(bound):
     """5000 random relay poses (position in the box, axis inside the hover-feasible cone) per
     instant: none exceeds the static bound by more than its stated 1% resolution."""
     rng = np.random.default_rng(7)
-    scene = _Scene(SHORT)
+    scene = CapacityLandscape(build_scene(SHORT), build_source(SHORT), SHORT.platform.gravity_m_s2)
     ws = SHORT.controller.workspace
     limit = SHORT.platform.vehicle().hover_tilt_limit
     for k, t in enumerate(bound.t):

@@ -19,7 +19,7 @@ def make(**kw):
 
 
 def f_surrogate(p1, p2, jam_power):
-    return inverse_capacity(p1, p2, P0, PJ, mu=0.2, g_bar=1.0, tx_power=1.0, jam_power=jam_power, noise_power=1.0)
+    return inverse_capacity(p1, p2, P0, [PJ], [jam_power], mu=0.2, g_bar=1.0, tx_power=1.0, noise_power=1.0)
 
 
 @pytest.mark.parametrize("jam_power", [0.0, 1.0])

@@ -6,11 +6,12 @@ import pytest
 from typer.testing import CliRunner
 
 from aerorelay.cli import app
-from aerorelay.config import parse_scenario
-from aerorelay.models.channel import end_to_end_capacity, link_sinr
 from aerorelay.models.geometry import rotation_batch
-from aerorelay.sim.closed_loop import ClosedLoop, log_columns
+from aerorelay.scenario import parse_scenario
+from aerorelay.scenario.build import build
+from aerorelay.sim.closed_loop import log_columns
 from aerorelay.sim.metrics import compute_metrics
+from tests.reference_channel import end_to_end_capacity, link_sinr
 
 LOG_COLUMNS = log_columns(6)
 
@@ -19,7 +20,7 @@ SHORT = parse_scenario({}).with_updates({"sim.duration_s": 3.0})
 
 @pytest.fixture(scope="module")
 def short_run():
-    return ClosedLoop(SHORT).run()
+    return build(SHORT).closed_loop().run()
 
 
 def test_short_mission_runs_without_failures(short_run):
@@ -58,7 +59,8 @@ def test_logged_capacity_equals_recomputation_from_logged_states(short_run):
 
 
 def test_metrics_from_log(short_run):
-    m = compute_metrics(short_run.log, SHORT, wall_s=1.0, sim_s=3.0)
+    m = compute_metrics(short_run.log, vehicle=SHORT.platform.vehicle(), period_s=SHORT.control_period_s,
+                        outage_threshold=SHORT.channel.outage_threshold, mu=SHORT.controller.mu, wall_s=1.0, sim_s=3.0)
     assert m["c_min"] == pytest.approx(np.min(short_run.log["capacity"]))
     assert 0 <= m["outage_fraction"] <= 1 and m["infeasible_fraction"] == 0
     # hover-dominated 3 s: energy close to hover shaft power x time
@@ -68,7 +70,7 @@ def test_metrics_from_log(short_run):
 
 def test_fading_changes_channel_not_controller():
     sc = SHORT.with_updates({"perturbations.fading_k_db": 6.0, "sim.duration_s": 0.3})
-    a, b = ClosedLoop(sc).run().log, ClosedLoop(SHORT.with_updates({"sim.duration_s": 0.3})).run().log
+    a, b = build(sc).closed_loop().run().log, build(SHORT.with_updates({"sim.duration_s": 0.3})).closed_loop().run().log
     np.testing.assert_allclose(a["p1_x"], b["p1_x"])  # the controller never sees the fading
     assert not np.allclose(a["gamma_21"], b["gamma_21"])
 
@@ -96,7 +98,7 @@ def test_cli_run_writes_outputs_and_compare(tmp_path):
 
 def test_control_rate_500hz_keeps_the_prediction_grid():
     sc = SHORT.with_updates({"sim.control_rate_hz": 500.0, "sim.duration_s": 0.2})
-    log = ClosedLoop(sc).run().log
+    log = build(sc).closed_loop().run().log
     assert len(log["t"]) == 101 and log["t"][1] == pytest.approx(0.002)
     assert np.all(np.isfinite(log["capacity"]))
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
@@ -107,7 +109,7 @@ def test_disturbances_are_seeded_and_leave_the_true_source_path_alone():
     base = SHORT.with_updates({"sim.duration_s": 0.5})
     noisy = base.with_updates({"perturbations.process_noise_v": 0.5, "perturbations.process_noise_w": 0.2,
                                "perturbations.csi_noise_m": 0.1})
-    a, b, c = (ClosedLoop(s).run().log for s in (noisy, noisy, base))
+    a, b, c = (build(s).closed_loop().run().log for s in (noisy, noisy, base))
     np.testing.assert_array_equal(a["p1_x"], b["p1_x"])  # same seed, same run
     assert not np.allclose(a["p1_x"], c["p1_x"])
     np.testing.assert_allclose(a["p2_x"], c["p2_x"])  # the true MRAV-2 path is untouched by CSI noise
@@ -117,12 +119,13 @@ def test_disturbances_are_seeded_and_leave_the_true_source_path_alone():
 def test_generator_jammer_power_before_and_after_localization(senses):
     sc = parse_scenario({"jammer": {"schedule": "on_off", "on_s": 5.0, "off_s": 5.0, "localization_delay_s": 2.0},
                          "controller": {"senses_jammer_state": senses}})
-    loop = ClosedLoop(sc)
+    loop = build(sc).closed_loop()
     pw = sc.jammer.power_w
-    assert loop.jammer.power_at(7.0) == 0.0 and loop.jammer.power_at(3.0) == pw  # OFF at 7 s, ON at 3 s
-    assert loop._planned_jammer_power(1.0) == 0.0  # not localized yet: BS-only planning
-    assert loop._planned_jammer_power(3.0) == pw
-    assert loop._planned_jammer_power(7.0) == (0.0 if senses else pw)
+    jam = loop.scene.jammers[0]
+    assert jam.power_at(7.0) == 0.0 and jam.power_at(3.0) == pw  # OFF at 7 s, ON at 3 s
+    assert loop._planned_jammer_powers(1.0) == [0.0]  # not localized yet: BS-only planning
+    assert loop._planned_jammer_powers(3.0) == [pw]
+    assert loop._planned_jammer_powers(7.0) == [0.0 if senses else pw]
 
 
 def test_logged_capacity_follows_the_antenna_options():
@@ -132,8 +135,8 @@ def test_logged_capacity_follows_the_antenna_options():
 
     sc = SHORT.with_updates({"sim.duration_s": 0.6, "antenna.bs_pattern": "isotropic", "antenna.source_pattern": "isotropic",
                              "antenna.directivity": 1.64})
-    log = ClosedLoop(sc).run().log
-    base = ClosedLoop(SHORT.with_updates({"sim.duration_s": 0.6})).run().log
+    log = build(sc).closed_loop().run().log
+    base = build(SHORT.with_updates({"sim.duration_s": 0.6})).closed_loop().run().log
     np.testing.assert_array_equal(log["p1_x"], base["p1_x"])
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
     p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])

@@ -21,12 +21,12 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
     wall0 = time.perf_counter()
     result = loop.run()
     wall = time.perf_counter() - wall0
-    t = np.array(loop.timings)
-    prep, feedback, iters, planner = t[:, 0], t[:, 1], t[:, 2], t[:, 3]
+    prep, feedback, iters, planner = (np.array([getattr(s, f) for s in loop.timings], float)
+                                      for f in ("prep_ms", "feedback_ms", "qp_iters", "planner_ms"))
     whole = prep + feedback
-    period_ms = loop.sc.control_period_s * 1e3
+    period_ms = loop.settings.period_s * 1e3
     out = {
-        "steps": int(len(t)),
+        "steps": int(len(prep)),
         "sim_s": result.sim_s,
         "wall_s": wall,
         "real_time_factor": result.sim_s / wall,
@@ -44,7 +44,7 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "qp_iterations": {"mean": float(iters.mean()), "p99": float(np.percentile(iters, 99)), "max": int(iters.max())},
         "route": loop.nmpc.route(),
     }
-    points = [p for p in loop.bench_points if p[3] is not None][:ipopt_points]
+    points = [(p.x, p.u_prev, p.P, p.guess) for p in loop.bench_points if p.guess is not None][:ipopt_points]
     if points:
         nlp = FullNlp(loop.nmpc.spec)
         lbz, ubz = loop.nmpc.absolute_bounds()

@@ -8,18 +8,17 @@ new library. When no C compiler is available the caller falls back (a warning is
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import logging
 import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import casadi as ca
+
+from ..store.cache import cache_dir, cache_lock
 
 log = logging.getLogger(__name__)
 CASADI_VERSION: str = getattr(ca, "__version__", "unknown")
@@ -27,10 +26,6 @@ CASADI_VERSION: str = getattr(ca, "__version__", "unknown")
 
 class CompileError(RuntimeError):
     """No C compiler, or the compiler rejected the source."""
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("AERORELAY_CACHE", Path.home() / ".cache" / "aerorelay"))
 
 
 def generated_c(*funs: ca.Function) -> str:
@@ -41,16 +36,6 @@ def generated_c(*funs: ca.Function) -> str:
             cg.add(f)
         cg.generate(tmp + os.sep)
         return (Path(tmp) / "gen.c").read_text()
-
-
-@contextmanager
-def cache_lock(path: Path) -> Iterator[None]:
-    """Exclusive lock on ``path``'s cache entry (a ``.lock`` file beside it): processes that would
-    build the same entry (dask workers starting together) wait for the first instead."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path.parent / f".{path.name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
-        yield
 
 
 def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] = ("-O2",),

@@ -1,6 +1,7 @@
-"""The relay controller built from a scenario: OCP, NMPC, stage parameters and the fail-safe.
+"""The relay controller: OCP, NMPC, stage parameters and the fail-safe.
 
-``RelayController(scenario)`` owns the NMPC (``nmpc.py``) and the brake law (``failsafe.py``).
+``RelayController(spec, weights, mu=..., failsafe=...)`` (built from a scenario by
+``scenario.build``) owns the NMPC (``nmpc.py``) and the brake law (``failsafe.py``).
 Each control step: ``parameters(ref, p2, v2, a2)`` fills the named stage parameters from the
 planner's reference and MRAV-2's state; ``step(x, u_prev, P)`` runs one RTI. After
 ``controller.failsafe.failures_to_fallback`` consecutive QP failures, or at once on a non-finite
@@ -12,11 +13,10 @@ workspace; the NMPC is tried again every step from a fresh plan and takes over a
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..config import Scenario
 from ..models.geometry import thrust_direction_from_acceleration
 from .failsafe import BrakeLaw
 from .nmpc import NMPC, NmpcSettings, StepInfo
@@ -25,53 +25,28 @@ from .ocp import OcpSpec
 log = logging.getLogger(__name__)
 
 
-def ocp_spec(sc: Scenario) -> OcpSpec:
-    """The NMPC problem structure described by a scenario."""
-    c = sc.controller
-    return OcpSpec(
-        vehicle=sc.platform.vehicle(),
-        horizon=c.horizon,
-        ts=c.ts_s,
-        constrained=c.comms_aware,
-        bs_position=_vec3(sc.nodes.bs),
-        workspace_min=_vec3(c.workspace.min),
-        workspace_max=_vec3(c.workspace.max),
-        exact_input_rate=c.exact_input_rate,
-    )
+@dataclass(frozen=True)
+class FailsafeSettings:
+    """When the brake law takes over (consecutive QP failures) and hands back (consecutive
+    successes); how far inside the workspace (m) its hold point stays."""
 
-
-def _vec3(v) -> tuple[float, float, float]:
-    return float(v[0]), float(v[1]), float(v[2])
-
-
-def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
-    """The ``sw_*`` stage parameters: square roots of the weights in columns 0..N-1 and of the
-    terminal weights in column N (0 for terms without a terminal part and for slacks)."""
-    w: dict[str, float] = sc.controller.weights.model_dump()  # type: ignore[attr-defined]
-    if sc.controller.planner == "capacity":  # a tracking NMPC under the capacity planner
-        cap = sc.controller.capacity
-        w.update(position=cap.position_weight, position_terminal=cap.position_weight_terminal)
-    out = {}
-    for t in spec.terms:
-        stage = w[t.name]
-        terminal = 0.0 if t.terminal is None else (w[f"{t.name}_terminal"] if t.own_terminal else stage)
-        out[f"sw_{t.name}"] = np.sqrt(np.r_[np.full(spec.horizon, stage), terminal])
-    for c in spec.soft_constraints:
-        out[f"sw_slack_{c.name}"] = np.sqrt(np.r_[np.full(spec.horizon, sc.controller.q_slack), 0.0])
-    return out
+    failures_to_fallback: int = 3
+    successes_to_resume: int = 5
+    workspace_margin_m: float = 0.5
 
 
 class RelayController:
-    """NMPC + fail-safe for one scenario (stateful; one instance per mission)."""
+    """NMPC + fail-safe for one mission (stateful). ``weights``: the ``sw_*`` stage parameters
+    (square roots of the weights per stage); ``mu``: the mutual-alignment threshold."""
 
-    def __init__(self, sc: Scenario, settings: NmpcSettings | None = None):
-        self.sc = sc
-        self.spec = ocp_spec(sc)
+    def __init__(self, spec: OcpSpec, weights: dict[str, np.ndarray], *, mu: float,
+                 failsafe: FailsafeSettings = FailsafeSettings(), settings: NmpcSettings | None = None):
+        self.spec = spec
+        self.mu = mu
         self.nmpc = NMPC(self.spec, settings)
-        self.weights = weight_parameters(sc, self.spec)
-        fs = sc.controller.failsafe
-        ws = sc.controller.workspace
-        self.brake = BrakeLaw(self.spec.vehicle, ws.min, ws.max, margin_m=fs.workspace_margin_m)
+        self.weights = weights
+        fs = failsafe
+        self.brake = BrakeLaw(spec.vehicle, spec.workspace_min, spec.workspace_max, margin_m=fs.workspace_margin_m)
         self.failures_to_fallback, self.successes_to_resume = fs.failures_to_fallback, fs.successes_to_resume
         self.fallback_active = False
         self.fallback_episodes = 0
@@ -95,7 +70,7 @@ class RelayController:
             "v_ref": ref.v_ref,
             "rho_d": rho_d,
             "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2,
-            "mu": self.sc.controller.mu,
+            "mu": self.mu,
             **self.weights,
         }
         return spec.params.matrix(spec.horizon + 1, values)

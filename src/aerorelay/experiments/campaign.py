@@ -1,7 +1,7 @@
 """Campaign runner: expands studies into runs and flies them on dask.distributed.
 
 Each run writes its own folder ``OUT/runs/<study>/<group>/seed<k>`` atomically (see
-``sim.outputs.write_run``); ``OUT/manifest.json`` records every run's scenario hash, seed,
+``store.run_folder.publish_run``); ``OUT/manifest.json`` records every run's scenario hash, seed,
 status, wall time, package version and error. A run whose folder holds ``metrics.json`` for the
 same scenario and the same solver settings is finished and never recomputed, so re-running a command resumes it: an
 interrupted campaign loses no finished run. A run that raises is recorded as failed and the
@@ -18,7 +18,11 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import __version__
+from dask.distributed import Client, LocalCluster, as_completed
+
+from .._version import __version__
+from ..control.nmpc import NmpcSettings
+from ..scenario.run import simulate
 from .study import RunSpec, scenario_of
 
 log = logging.getLogger(__name__)
@@ -41,8 +45,6 @@ def first_run_per_group(specs: list[RunSpec], out: Path) -> dict[str, RunSpec]:
 def is_finished(out: Path, spec: RunSpec) -> bool:
     """A finished run has metrics.json, the same resolved scenario (its TOML) and was flown by a
     controller with the current solver settings (``NmpcSettings.fingerprint``)."""
-    from ..control.nmpc import NmpcSettings
-
     d = run_dir(out, spec)
     if not (d / "metrics.json").exists() or not (d / "scenario.toml").exists():
         return False
@@ -57,26 +59,17 @@ def is_finished(out: Path, spec: RunSpec) -> bool:
     return metrics.get("controller") == NmpcSettings().fingerprint()
 
 
-def execute_run(spec: RunSpec, out: str, figures: bool = False) -> dict:
+def execute_run(spec: RunSpec, out: str) -> dict:
     """Fly one run and write its folder; never raises (errors are returned). Runs on a worker."""
-    from ..sim.closed_loop import ClosedLoop
-    from ..sim.outputs import write_run
-
     t0 = time.perf_counter()
     record = {"key": spec.key, "study": spec.study, "group": spec.group, "seed": spec.seed,
               "scenario_hash": spec.scenario_hash, "version": __version__, "pid": os.getpid()}
     try:
         if os.environ.get("AERORELAY_FAIL_RUN") and os.environ["AERORELAY_FAIL_RUN"] in spec.key:
             raise RuntimeError(f"failure injected by AERORELAY_FAIL_RUN for {spec.key}")
-        sc = scenario_of(spec)
-        result = ClosedLoop(sc).run()
-        bound = None
-        if spec.bound:
-            from ..planning.bound import cached_bound
-
-            bound = cached_bound(sc)
-        metrics = write_run(result, run_dir(Path(out), spec), figures=figures, bound=bound)
-        record.update(status="done", wall_s=time.perf_counter() - t0, c_min=metrics["c_min"])
+        result = simulate(scenario_of(spec), with_bound=spec.bound)
+        result.save(run_dir(Path(out), spec))
+        record.update(status="done", wall_s=time.perf_counter() - t0, c_min=result.metrics["c_min"])
     except Exception as exc:  # recorded, the campaign goes on
         record.update(status="failed", wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",
                       traceback=traceback.format_exc(limit=8))
@@ -105,8 +98,6 @@ def load_manifest(out: Path) -> dict[str, dict]:
 
 def make_client(scheduler: str | None, n_workers: int | None = None):
     """A dask client: to ``scheduler`` if given, else a local cluster of single-threaded processes."""
-    from dask.distributed import Client, LocalCluster
-
     if scheduler:
         return Client(scheduler)
     n = n_workers or max(1, os.cpu_count() or 1)
@@ -115,10 +106,8 @@ def make_client(scheduler: str | None, n_workers: int | None = None):
 
 
 def run_campaign(specs: list[RunSpec], out: Path, *, client=None, scheduler: str | None = None,
-                 n_workers: int | None = None, progress=None, figures: bool = False) -> CampaignResult:
+                 n_workers: int | None = None, progress=None) -> CampaignResult:
     """Run every unfinished spec on dask; ``progress(done, total, record)`` after each run."""
-    from dask.distributed import as_completed
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     records = load_manifest(out)
@@ -140,7 +129,7 @@ def run_campaign(specs: list[RunSpec], out: Path, *, client=None, scheduler: str
         own = client is None
         client = client or make_client(scheduler, n_workers)
         try:
-            futures = [client.submit(execute_run, s, str(out), figures, pure=False, key=f"run-{s.study}-{s.scenario_hash}-{s.seed}")
+            futures = [client.submit(execute_run, s, str(out), pure=False, key=f"run-{s.study}-{s.scenario_hash}-{s.seed}")
                        for s in todo]
             for fut in as_completed(futures):
                 rec = fut.result()

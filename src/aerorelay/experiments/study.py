@@ -21,7 +21,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ..config import Scenario, ScenarioError, load_scenario
+from ..scenario import Scenario, ScenarioError, load_scenario, parse_scenario
 
 
 class StudyError(ValueError):
@@ -29,9 +29,13 @@ class StudyError(ValueError):
 
 
 class RunVariation(BaseModel):
+    """One run group: ``set`` dotted-key updates on the study's base, or on its own ``base``
+    scenario (path relative to the repository root)."""
+
     model_config = ConfigDict(extra="forbid")
     id: str = Field(min_length=1)
     set: dict[str, Any] = Field(default_factory=dict)
+    base: str | None = None
 
 
 class PaperValue(BaseModel):
@@ -240,14 +244,17 @@ def group_names(study) -> list[str]:
 
 def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
     """All runs of a study, each with its validated, fully resolved scenario."""
-    try:
-        base = load_scenario(root / study.base)
-    except ScenarioError as exc:
-        raise StudyError(f"study {study.name}: base scenario: {exc}") from None
+    bases: dict[str, Scenario] = {}
+    for path in {study.base, *(r.base for r in study.runs if r.base)}:
+        try:
+            bases[path] = load_scenario(root / path)
+        except ScenarioError as exc:
+            raise StudyError(f"study {study.name}: base scenario {path}: {exc}") from None
     grid_keys, combos = _combos(study)
     seeds = study.quick_seeds if quick else study.seeds
     specs = []
     for run in study.runs:
+        base = bases[run.base or study.base]
         for combo in combos:
             updates = dict(run.set)
             updates.update(zip(grid_keys, combo, strict=True))
@@ -272,6 +279,5 @@ def _updated(base: Scenario, updates: dict, where: str) -> Scenario:
 
 
 def scenario_of(spec: RunSpec) -> Scenario:
-    from ..config import parse_scenario
 
     return parse_scenario(tomllib.loads(spec.scenario_toml))

@@ -11,11 +11,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+import casadi as ca
 import numpy as np
 
 from .backend import ops
 
 _AXIS_EPS = 1e-12
+# sin^2(theta) regularization of the symbolic dipole (an NLP needs it smooth on the axis, where
+# the exact gain is 0/0); the numeric form is exact
+SYMBOLIC_AXIS_EPS = 1e-6
 
 
 class AntennaPattern(Protocol):
@@ -26,6 +30,10 @@ class AntennaPattern(Protocol):
 
     def gain_from_cos(self, c):
         """Power gain for ``c = cos(theta)``, in [0, g_bar]. numpy arrays (vectorized)."""
+        ...
+
+    def symbolic_gain_from_cos(self, c):
+        """The same gain for a CasADi expression ``c`` (smooth enough for an NLP)."""
         ...
 
 
@@ -50,6 +58,9 @@ class DipolePattern:
         safe = np.where(s2 > _AXIS_EPS, s2, 1.0)
         return self.g_bar * np.where(s2 > _AXIS_EPS, num / safe, 0.0)
 
+    def symbolic_gain_from_cos(self, c):
+        return self.g_bar * (ca.cos(0.5 * np.pi * c) ** 2 / (1.0 - c * c + SYMBOLIC_AXIS_EPS))
+
 
 @dataclass(frozen=True)
 class SinPowerPattern:
@@ -62,6 +73,9 @@ class SinPowerPattern:
         c = np.clip(np.asarray(c, dtype=float), -1.0, 1.0)
         return self.g_bar * (1.0 - c * c) ** (0.5 * self.exponent)
 
+    def symbolic_gain_from_cos(self, c):
+        return self.g_bar * (1.0 - c * c + SYMBOLIC_AXIS_EPS) ** (0.5 * self.exponent)
+
 
 @dataclass(frozen=True)
 class IsotropicPattern:
@@ -72,6 +86,31 @@ class IsotropicPattern:
 
     def gain_from_cos(self, c):
         return np.full(np.shape(c), self.g_bar, dtype=float)
+
+    def symbolic_gain_from_cos(self, c):
+        return self.g_bar
+
+
+@dataclass(frozen=True)
+class CosinePattern:
+    """Directional (e.g. a jammer's panel or horn): ``G(psi) = g_max max(max(cos psi, 0)^n, back_lobe)``
+    with ``psi`` the angle off boresight (the antenna axis). ``g_max = 1, n = 0, back_lobe = 1`` is
+    isotropic. Here ``c = cos(psi)``."""
+
+    g_max: float = 1.0
+    exponent: float = 0.0
+    back_lobe: float = 0.0
+
+    @property
+    def g_bar(self) -> float:
+        return self.g_max
+
+    def gain_from_cos(self, c):
+        c = np.clip(np.asarray(c, dtype=float), -1.0, 1.0)
+        return self.g_max * np.maximum(np.maximum(c, 0.0) ** self.exponent, self.back_lobe)
+
+    def symbolic_gain_from_cos(self, c):
+        return self.g_max * ca.fmax(ca.fmax(c, 0.0) ** self.exponent, self.back_lobe)
 
 
 @dataclass(frozen=True)
@@ -97,6 +136,10 @@ class TabulatedPattern:
     def gain_from_cos(self, c):
         theta = np.degrees(np.arccos(np.clip(np.asarray(c, dtype=float), -1.0, 1.0)))
         return np.interp(theta, self.theta_deg, self.gain)
+
+    def symbolic_gain_from_cos(self, c):
+        lut = ca.interpolant("pattern", "linear", [list(self.theta_deg)], list(self.gain))
+        return lut(ca.acos(ca.fmin(ca.fmax(c, -1.0), 1.0)) * (180.0 / np.pi))
 
 
 def link_direction_cos(p_from, R_from, p_to):

@@ -1,14 +1,20 @@
-"""Ground jammer: isotropic radiator with a power schedule and a localization delay (Sec. VIII).
+"""Jammers: position (fixed or along timed waypoints), power schedule, antenna, localization delay (Sec. VIII).
 
-Times in s, power in W. "OFF" means zero radiated power. The controller learns the jammer's
-position only ``localization_delay`` s after the mission starts (``tau_E``).
+Times in s, power in W, positions m (world). "OFF" means zero radiated power. The controller
+learns a jammer's position only ``localization_delay`` s after the mission starts (``tau_E``).
+The paper's jammer is isotropic and fixed; a directional one (``CosinePattern``) points its
+boresight at a named node, tracking it, or along a fixed world direction.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from .antenna import AntennaPattern, IsotropicPattern
+from .geometry import E3
+from .mission import SourceTrajectory
 
 
 @dataclass(frozen=True)
@@ -37,16 +43,35 @@ class PeriodicOnOff:
 
 @dataclass(frozen=True)
 class Jammer:
-    """Isotropic ground jammer at ``position`` (m, world) with peak power ``power`` (W)."""
+    """A jammer at ``position`` (m, world; its start when it moves along ``path``) with peak power
+    ``power`` (W). Its antenna ``pattern`` is isotropic by default; a directional pattern's
+    boresight points at the node named ``point_at`` (tracking it) or along ``boresight`` (world)."""
 
     position: np.ndarray
     power: float
     schedule: AlwaysOn | PeriodicOnOff = AlwaysOn()
     localization_delay: float = 2.0
+    path: SourceTrajectory | None = None
+    pattern: AntennaPattern = IsotropicPattern(1.0)
+    point_at: str | None = None
+    boresight: np.ndarray = field(default_factory=lambda: E3.copy())
+    name: str = "jammer"
 
     def power_at(self, t):
         """Radiated power (W) at time ``t`` s: ``power`` when ON, 0 when OFF."""
         return np.where(self.schedule.is_on(t), self.power, 0.0)
+
+    def position_at(self, t: float) -> np.ndarray:
+        """Position (m, world) at time ``t`` s."""
+        return np.asarray(self.position, float) if self.path is None else self.path.state(t).p
+
+    def axis(self, position: np.ndarray, target=None) -> np.ndarray:
+        """Boresight (unit, world) from ``position`` toward ``target`` (``(..., 3)``, the tracked
+        node's position) or the fixed ``boresight``."""
+        if self.point_at is None or target is None:
+            return np.asarray(self.boresight, float)
+        d = np.asarray(target, float) - position
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
     def is_localized(self, t) -> bool:
         """Whether the controller knows the jammer position at time ``t`` (``t >= tau_E``)."""

@@ -1,22 +1,27 @@
 """One interface for every relay planner (the paper's generator, baselines A/B, new ones).
 
-A planner is built from a scenario and MRAV-2's planned path by the factory registered under
-its ``controller.planner`` name, and called once per control step with what the relay knows:
+A planner is an object with ``update(PlannerInput) -> Reference``, called once per control step
+with what the relay knows (``examples/own_planner.py`` is a template). A named planner
+(``controller.planner`` in a scenario) is built by the factory registered under its name from a
+``PlannerContext``, the parts the composition root (``scenario/build.py``) made:
 
-    planner.update(PlannerInput(t, dt, p1, p2, v2, a2, jammer_position, jammer_power)) -> Reference
+    @register_planner("name")
+    def _mine(ctx: PlannerContext) -> Planner: ...
 
-Adding a planner: write the class and register its factory with ``@register_planner("name")``
-(and add the name to ``controller.planner``'s choices in config.py).
+or pass a planner object to ``aerorelay.simulate(sc, planner=...)`` without registering it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
+from ..models.mission import SourceTrajectory
+from ..models.radio import RadioScene
+from ..models.vehicle import Multirotor
 from .trajectory_generator import Reference
 
 
@@ -24,8 +29,9 @@ from .trajectory_generator import Reference
 class PlannerInput:
     """What the relay knows at one control step (world frame, SI units).
 
-    ``jammer_power`` is the power the planner should assume (0 before localization, see
-    ``sim.closed_loop``), ``jammer_position`` the (possibly noisy) localized position.
+    ``jammer_positions`` ``(nJ, 3)`` m: the (possibly noisy) localized positions;
+    ``jammer_powers`` ``(nJ,)`` W: the powers the planner should assume (0 before a jammer is
+    localized, see ``sim.closed_loop``).
     """
 
     t: float
@@ -34,34 +40,49 @@ class PlannerInput:
     p2: np.ndarray
     v2: np.ndarray
     a2: np.ndarray
-    jammer_position: np.ndarray
-    jammer_power: float
+    jammer_positions: np.ndarray
+    jammer_powers: np.ndarray
+
+
+@dataclass(frozen=True)
+class PlannerContext:
+    """What a planner is built from: the radio scene, MRAV-2's planned path, the relay vehicle
+    (built once, with its hover-tilt limits), the workspace box (m), the relay's start (m), the
+    mission length (s), the controller settings (``[controller]`` of a scenario: duck-typed) and
+    the surrogate's ``G_bar``."""
+
+    scene: RadioScene
+    source: SourceTrajectory
+    vehicle: Multirotor
+    workspace_min: np.ndarray
+    workspace_max: np.ndarray
+    relay_start: np.ndarray
+    duration_s: float
+    settings: Any
+    surrogate_g_bar: float = 1.0  # G_bar of the generator's surrogate (eq. 12-13)
 
 
 class Planner(Protocol):
     def update(self, inp: PlannerInput) -> Reference: ...
 
 
-PlannerFactory = Callable[..., Planner]  # (scenario, source trajectory) -> Planner
-_REGISTRY: dict[str, PlannerFactory] = {}
+PlannerFactory = Callable[[PlannerContext], Planner]
+PLANNERS: dict[str, PlannerFactory] = {}
 
 
 def register_planner(name: str) -> Callable[[PlannerFactory], PlannerFactory]:
+    """Register a planner factory under ``name`` (the built-ins: ``planning/registry.py``)."""
     def deco(factory: PlannerFactory) -> PlannerFactory:
-        if name in _REGISTRY:
+        if name in PLANNERS:
             raise ValueError(f"planner {name!r} is registered twice")
-        _REGISTRY[name] = factory
+        PLANNERS[name] = factory
         return factory
     return deco
 
 
-def build_planner(sc, source) -> Planner:
-    """The planner ``sc.controller.planner`` for this scenario and MRAV-2 path."""
-    from . import registry  # noqa: F401  (registers the built-in planners)
-
-    name = sc.controller.planner
+def planner_factory(name: str) -> PlannerFactory:
+    """The factory registered under ``name``; a named error listing the registered ones otherwise."""
     try:
-        factory = _REGISTRY[name]
+        return PLANNERS[name]
     except KeyError:
-        raise ValueError(f"controller.planner: unknown planner {name!r}; registered: {', '.join(sorted(_REGISTRY))}") from None
-    return factory(sc, source)
+        raise ValueError(f"controller.planner: unknown planner {name!r}; registered: {', '.join(sorted(PLANNERS))}") from None

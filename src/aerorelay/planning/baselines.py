@@ -5,7 +5,7 @@
   the isotropic surrogate (``mu = 1``), speed-bounded by the reference governor, tracked by the
   position-tracking NMPC without alignment terms (``controller.variant = "unconstrained"``).
 - Baseline B (``controller.planner = "single_shot"``): ``SingleShotPlanner`` plans the relay's
-  whole trajectory once, before take-off, from MRAV-2's mission plan, with the real dipole gains and
+  whole trajectory once, before take-off, from MRAV-2's mission plan, with the scene's antenna gains and
   each vehicle's antenna tilted with its acceleration (coplanar point masses), but with no jammer
   model, no actuator-rate limits and no replanning; the NMPC without alignment penalty tracks it.
 """
@@ -19,14 +19,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..models.geometry import E3
+from ..models.radio import NodePose, RadioScene
 from .trajectory_generator import Reference
-
-_AXIS_EPS = 1e-6
-
-
-def _dipole_gain_sym(c):
-    """Dipole gain from the cosine of the elevation angle, smooth enough for IPOPT (symbolic)."""
-    return ca.cos(0.5 * np.pi * c) ** 2 / (1.0 - c * c + _AXIS_EPS)
 
 
 @dataclass
@@ -41,17 +35,18 @@ class SingleShotPlanner:
     """Offline max-mean-capacity relay trajectory (baseline B), solved once by IPOPT.
 
     Knots every ``dt`` s; velocities and accelerations by finite differences; the relay's and
-    MRAV-2's antenna axes along ``(a + g e3)/|a + g e3|``; BS antenna vertical; no jammer. The
-    relay speed between knots is bounded by ``max_speed`` (the same bound as the other planners)
-    and a small acceleration penalty keeps the plan trackable.
+    MRAV-2's antenna axes along ``(a + g e3)/|a + g e3|``; the scene's antennas (their symbolic,
+    NLP-smooth forms) and fixed nodes; no jammer. The relay speed between knots is bounded by
+    ``max_speed`` (the same bound as the other planners) and a small acceleration penalty keeps
+    the plan trackable.
     """
 
-    def __init__(self, *, dt: float = 0.5, max_speed: float = 0.5, gravity: float = 9.81, tx_power: float = 1.0,
-                 noise_power: float = 1.0, g_bar: float = 1.0, accel_weight: float = 1e-4):
-        self.dt, self.max_speed, self.g = dt, max_speed, gravity
-        self.tx_power, self.noise_power, self.g_bar, self.accel_weight = tx_power, noise_power, g_bar, accel_weight
+    def __init__(self, scene: RadioScene, *, dt: float = 0.5, max_speed: float = 0.5, gravity: float = 9.81,
+                 accel_weight: float = 1e-4):
+        self.scene = scene
+        self.dt, self.max_speed, self.g, self.accel_weight = dt, max_speed, gravity, accel_weight
 
-    def plan(self, source, p1_start, p0, duration: float, workspace_min, workspace_max) -> SingleShotPlan:
+    def plan(self, source, p1_start, duration: float, workspace_min, workspace_max) -> SingleShotPlan:
         K = int(np.ceil(duration / self.dt)) + 1
         t = np.arange(K) * self.dt
         st = [source.state(tk) for tk in t]
@@ -59,22 +54,14 @@ class SingleShotPlanner:
         rho2 = np.array([s.a + self.g * E3 for s in st])
         rho2 /= np.linalg.norm(rho2, axis=1, keepdims=True)
         P = ca.MX.sym("p", 3, K)
-        p0 = ca.DM(np.asarray(p0, float))
+        no_jammer = np.zeros(len(self.scene.jammers))
+        src, relay = self.scene.name_of("source"), self.scene.name_of("relay")
         caps, g = [], []
         for k in range(K):
             a = (P[:, max(k - 1, 0)] - 2 * P[:, k] + P[:, min(k + 1, K - 1)]) / self.dt**2 if 0 < k < K - 1 else ca.DM.zeros(3)
             rho1 = (a + self.g * ca.DM(E3)) / ca.norm_2(a + self.g * ca.DM(E3))
-            d21 = P[:, k] - ca.DM(p2[k])
-            d10 = p0 - P[:, k]
-            n21, n10 = ca.sumsqr(d21), ca.sumsqr(d10)
-            c2 = ca.dot(d21, ca.DM(rho2[k])) / ca.sqrt(n21)  # at MRAV-2, toward the relay
-            c1 = ca.dot(-d21, rho1) / ca.sqrt(n21)  # at the relay, toward MRAV-2
-            c1b = ca.dot(d10, rho1) / ca.sqrt(n10)  # at the relay, toward the BS
-            cb = d10[2] / ca.sqrt(n10)  # at the vertical BS dipole
-            gam21 = self.g_bar**2 * _dipole_gain_sym(c2) * _dipole_gain_sym(c1) / n21 * self.tx_power / self.noise_power
-            gam10 = self.g_bar**2 * _dipole_gain_sym(c1b) * _dipole_gain_sym(cb) / n10 * self.tx_power / self.noise_power
-            s21, s10 = ca.log1p(gam21) / np.log(2), ca.log1p(gam10) / np.log(2)
-            caps.append(s21 * s10 / (s21 + s10))
+            poses = {src: NodePose(ca.DM(p2[k]), ca.DM(rho2[k])), relay: NodePose(P[:, k], rho1)}
+            caps.append(self.scene.evaluate(float(t[k]), poses, jammer_powers=no_jammer).capacity)  # eq. 5-9
             if k + 1 < K:
                 g.append(ca.sumsqr(P[:, k + 1] - P[:, k]))
         acc = sum(ca.sumsqr(P[:, k - 1] - 2 * P[:, k] + P[:, k + 1]) for k in range(1, K - 1)) / self.dt**4
@@ -109,4 +96,4 @@ class PlannedReference:
         n = np.linalg.norm(a)
         if n > self.max_ref_accel:
             a = a * self.max_ref_accel / n
-        return Reference(p.copy(), p.copy(), v, a, 0.0, False)
+        return Reference(p_opt=p.copy(), p_ref=p.copy(), v_ref=v, a_ref=a)

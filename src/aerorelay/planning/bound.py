@@ -1,7 +1,7 @@
 """The best link the physics allows: capacity bounds of a scenario (no controller involved).
 
-For the scenario's MRAV-2 path and attitude, jammer position and schedule and the true channel
-(dipole gains at every node, the BS's vertical dipole, fading ignored), on a time grid of
+For the scenario's MRAV-2 path and attitude, every jammer's position, antenna and schedule and
+the true channel of the radio scene (``models.radio``; fading ignored), on a time grid of
 ``bound.dt_s``:
 
 - **static bound** ``C_static(t)``: the best end-to-end capacity over relay positions in the
@@ -17,7 +17,8 @@ For the scenario's MRAV-2 path and attitude, jammer position and schedule and th
   quantization); the attitude at each instant is the best holdable one (attitude changes are
   taken as free).
 
-``compute_bound(scenario)`` returns a ``CapacityBound``; ``cached_bound`` keeps it on disk keyed by
+``compute_bound(problem)`` returns a ``CapacityBound`` for a ``BoundProblem`` (the parts the
+composition root builds from a scenario); ``cached_bound`` keeps it on disk under a key of
 everything it depends on.
 """
 
@@ -28,16 +29,38 @@ import json
 import os
 import tempfile
 from dataclasses import dataclass, field
-from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pandas as pd
 from scipy import ndimage
 from scipy.optimize import minimize
 
-from ..models.capacity_field import axis_cone, relay_capacity
+from ..models.axes import axis_cone
 from ..models.geometry import E3, thrust_direction_from_acceleration
+from ..models.mission import SourceTrajectory
+from ..models.radio import NodePose, RadioScene
+from ..models.vehicle import Multirotor
+from ..store.cache import cache_dir, cache_lock
 
-BOUND_VERSION = "1"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "2"  # bump when the computation changes: cached bounds are recomputed
+
+
+@dataclass(frozen=True)
+class BoundProblem:
+    """What a bound depends on: the radio scene, MRAV-2's path, the relay vehicle (its hover-tilt
+    limit), the workspace box and relay start (m, world), the mission length (s), the resolution
+    (``[bound]``: ``grid_m``, ``dt_s``, ``axis_step_deg``, ``max_speed_m_s``) and the outage threshold."""
+
+    scene: RadioScene
+    source: SourceTrajectory
+    vehicle: Multirotor
+    workspace_min: np.ndarray
+    workspace_max: np.ndarray
+    relay_start: np.ndarray
+    duration_s: float
+    resolution: Any
+    outage_threshold: float = 1e-3
 
 
 @dataclass
@@ -54,6 +77,7 @@ class CapacityBound:
     path_maxmin_position: np.ndarray
     resolution: dict = field(default_factory=dict)
     outage_threshold: float = 1e-3
+    assumptions: str = ""
 
     def summary(self) -> dict:
         """``bound.json``: mean / min / outage of each bound and the resolution used."""
@@ -61,16 +85,14 @@ class CapacityBound:
             return {"mean": float(c.mean()), "min": float(c.min()), "outage_fraction": float(np.mean(c < self.outage_threshold))}
 
         return {"static": stats(self.static), "path_mean": stats(self.path_mean), "path_maxmin": stats(self.path_maxmin),
-                "resolution": self.resolution, "assumptions": ASSUMPTIONS}
+                "resolution": self.resolution, "assumptions": self.assumptions}
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: getattr(self, k) for k in ("t", "static", "static_position", "static_axis", "path_mean",
                                               "path_mean_position", "path_maxmin", "path_maxmin_position")}
 
-    def frame(self):
+    def frame(self) -> pd.DataFrame:
         """Time series as a DataFrame (one row per time of the bound's grid)."""
-        import pandas as pd
-
         cols: dict[str, np.ndarray] = {"t": self.t, "static": self.static, "path_mean": self.path_mean,
                                        "path_maxmin": self.path_maxmin}
         for name in ("static_position", "static_axis", "path_mean_position", "path_maxmin_position"):
@@ -79,46 +101,34 @@ class CapacityBound:
         return pd.DataFrame(cols)
 
 
-ASSUMPTIONS = ("true channel of the scenario (dipole gains at every node, BS dipole vertical, isotropic jammer at its "
-               "true position and schedule from t = 0), fading ignored; relay anywhere in the workspace box with any "
-               "antenna axis the platform can hold in hover (yaw free); attitude changes free; path bounds on the "
-               "position grid, one move per time step to a cell within max_speed * dt + grid / 2")
+ASSUMPTIONS = ("fading ignored; relay anywhere in the workspace box with any antenna axis the platform can hold in hover "
+               "(yaw free); attitude changes free; path bounds on the position grid, one move per time step to a cell "
+               "within max_speed * dt + grid / 2")
 
 
-def fixed_channel(sc) -> dict:
-    """The ``relay_capacity`` arguments a scenario fixes for the whole mission: the BS (vertical
-    antenna), every node's pattern, powers and bandwidth."""
-    pat, ch = sc.antenna.patterns(), sc.channel
-    return dict(p0=np.array(sc.nodes.bs, float), b0=E3, pattern=pat.relay, pattern_source=pat.source, pattern_bs=pat.bs,
-                tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, bandwidth=ch.bandwidth)
+class CapacityLandscape:
+    """The true end-to-end capacity over relay poses at time t (``jammer_known=False``: as planned
+    before take-off, with every jammer silent)."""
 
+    def __init__(self, scene: RadioScene, source: SourceTrajectory, gravity: float, jammer_known: bool = True):
+        self.scene, self.source, self.gravity = scene, source, gravity
+        self.silent = None if jammer_known else np.zeros(len(scene.jammers))
+        self.source_name = scene.name_of("source")
 
-class _Scene:
-    """What the capacity at time t depends on, from a scenario (``jammer_known=False``: as planned
-    before take-off, without the jammer)."""
-
-    def __init__(self, sc, jammer_known: bool = True):
-        from ..sim.mission import source_trajectory
-
-        self.sc = sc
-        self.jammer_known = jammer_known
-        self.source = source_trajectory(sc.mission)
-        self.jammer = sc.jammer.build()
-        self.gravity = sc.platform.gravity_m_s2
-        self.fixed = fixed_channel(sc)
+    def source_pose(self, t: float) -> NodePose:
+        s = self.source.state(t)
+        return NodePose(s.p, thrust_direction_from_acceleration(s.a, self.gravity))
 
     def capacity(self, t: float, positions, axes) -> np.ndarray:
-        s = self.source.state(t)
-        jam_power = float(self.jammer.power_at(t)) if self.jammer_known else 0.0
-        b2 = thrust_direction_from_acceleration(s.a, self.gravity)
-        return relay_capacity(positions, axes, p2=s.p, b2=b2, pj=self.sc.jammer.position, jam_power=jam_power, **self.fixed)
+        """``(M, K)`` for relay positions ``(M, 3)`` x antenna axes ``(K, 3)``."""
+        return self.scene.relay_grid(t, positions, axes, {self.source_name: self.source_pose(t)}, jammer_powers=self.silent)
 
 
 def _axis(tilt: float, az: float) -> np.ndarray:
     return np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
 
 
-def _refine(scene: _Scene, t: float, p: np.ndarray, b: np.ndarray, lo, hi, max_tilt: float) -> tuple[float, np.ndarray, np.ndarray]:
+def _refine(scene: CapacityLandscape, t: float, p: np.ndarray, b: np.ndarray, lo, hi, max_tilt: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Local continuous maximization of C over (position, axis) from a grid optimum."""
     tilt0, az0 = float(np.arccos(np.clip(b[2], -1, 1))), float(np.arctan2(b[1], b[0]))
     x0 = np.r_[p, tilt0, az0] if max_tilt > 0 else np.asarray(p, float)
@@ -167,7 +177,7 @@ def position_grid(lo, hi, step: float) -> tuple[list[np.ndarray], np.ndarray]:
     return grid, np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
 
 
-def best_path(scene: _Scene, cells: np.ndarray, shape: tuple[int, ...], axes: np.ndarray, times: np.ndarray,
+def best_path(scene: CapacityLandscape, cells: np.ndarray, shape: tuple[int, ...], axes: np.ndarray, times: np.ndarray,
               start: tuple[int, ...], radius_cells: float) -> np.ndarray:
     """Positions ``(T, 3)`` of the max-mean path through the best-axis capacity landscape."""
     values = np.stack([scene.capacity(t, cells, axes).max(axis=1) for t in times]).reshape(len(times), *shape)
@@ -175,17 +185,16 @@ def best_path(scene: _Scene, cells: np.ndarray, shape: tuple[int, ...], axes: np
     return cells[[np.ravel_multi_index(ix, shape) for ix in idx]]
 
 
-def compute_bound(sc, progress=None) -> CapacityBound:
-    """The static and path bounds of a scenario (see the module docstring)."""
-    b = sc.bound
-    scene = _Scene(sc)
-    veh = sc.platform.vehicle()
-    max_tilt = veh.hover_tilt_limit
+def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
+    """The static and path bounds of a problem (see the module docstring)."""
+    b = pb.resolution
+    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity)
+    max_tilt = pb.vehicle.hover_tilt_limit
     axes = axis_cone(max_tilt, np.radians(b.axis_step_deg))
-    lo, hi = np.array(sc.controller.workspace.min, float), np.array(sc.controller.workspace.max, float)
+    lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
     grid, cells = position_grid(lo, hi, b.grid_m)
     shape = tuple(len(g) for g in grid)
-    times = np.arange(0.0, sc.duration_s + 1e-9, b.dt_s)
+    times = np.arange(0.0, pb.duration_s + 1e-9, b.dt_s)
     best = np.empty((len(times), cells.shape[0]))
     best_axis = np.empty((len(times), cells.shape[0]), dtype=np.int32)
     static, static_p, static_b = np.empty(len(times)), np.empty((len(times), 3)), np.empty((len(times), 3))
@@ -197,8 +206,8 @@ def compute_bound(sc, progress=None) -> CapacityBound:
         static[k], static_p[k], static_b[k] = _refine(scene, t, cells[i], axes[best_axis[k, i]], lo, hi, max_tilt)
         if progress is not None:
             progress(k + 1, len(times))
-    start = tuple(int(np.argmin(np.abs(grid[i] - sc.nodes.relay[i]))) for i in range(3))
-    fp = _footprint((sc.bound.max_speed_m_s * b.dt_s + 0.5 * b.grid_m) / b.grid_m)
+    start = tuple(int(np.argmin(np.abs(grid[i] - pb.relay_start[i]))) for i in range(3))
+    fp = _footprint((b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m) / b.grid_m)
     values = best.reshape(len(times), *shape)
     paths = {}
     for kind in ("mean", "maxmin"):
@@ -210,46 +219,32 @@ def compute_bound(sc, progress=None) -> CapacityBound:
         paths[kind] = (best[np.arange(len(times)), flat], cells[flat])
     resolution = {"grid_m": b.grid_m, "dt_s": b.dt_s, "axis_step_deg": b.axis_step_deg, "max_speed_m_s": b.max_speed_m_s,
                   "hover_tilt_limit_deg": float(np.degrees(max_tilt)), "axes": int(len(axes)), "cells": int(cells.shape[0]),
-                  "times": int(len(times)), "path_step_radius_m": float(sc.bound.max_speed_m_s * b.dt_s + 0.5 * b.grid_m)}
+                  "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m)}
     return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
-                         paths["maxmin"][1], resolution, sc.channel.outage_threshold)
+                         paths["maxmin"][1], resolution, pb.outage_threshold, f"{pb.scene.describe()}; {ASSUMPTIONS}")
 
 
-def bound_key(sc) -> str:
-    """Everything the bound depends on (not the controller, except its workspace box)."""
-    data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "mission", "bound"})
-    data["workspace"] = sc.controller.workspace.model_dump()
-    data["duration_s"] = sc.duration_s
-    text = json.dumps(data, sort_keys=True, default=str) + BOUND_VERSION
-    return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-
-def cached_bound(sc, progress=None) -> CapacityBound:
-    """``compute_bound`` once per scenario geometry, kept in the cache folder (``$AERORELAY_CACHE``)."""
-    from ..control.codegen import cache_dir, cache_lock
-
-    path = cache_dir() / "bounds" / f"bound_{bound_key(sc)}.npz"
+def cached_bound(pb: BoundProblem, key: str, progress=None) -> CapacityBound:
+    """``compute_bound`` once per ``key`` (everything the problem depends on), kept in the cache folder."""
+    path = cache_dir() / "bounds" / f"bound_{key}.npz"
     with cache_lock(path):  # campaign runs sharing a geometry compute it once
         if path.exists():
             with np.load(path, allow_pickle=False) as z:
                 resolution = json.loads(str(z["resolution"]))
-                arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold")}
-                return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]))
-        bound = compute_bound(sc, progress)
+                arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold", "assumptions")}
+                return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]),
+                                     assumptions=str(z["assumptions"]))
+        bound = compute_bound(pb, progress)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
         with os.fdopen(fd, "wb") as f:
             payload: dict = {**bound.arrays(), "resolution": json.dumps(bound.resolution),
-                             "outage_threshold": bound.outage_threshold}
+                             "outage_threshold": bound.outage_threshold, "assumptions": bound.assumptions}
             np.savez(f, **payload)
         os.replace(tmp, path)
     return bound
 
 
-def write_bound(bound: CapacityBound, out: Path) -> dict:
-    """``bound.parquet`` (time series) and ``bound.json`` (summary) into ``out``; returns the summary."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    bound.frame().to_parquet(out / "bound.parquet", index=False)
-    summary = bound.summary()
-    (out / "bound.json").write_text(json.dumps(summary, indent=2))
-    return summary
+def bound_key(data: dict) -> str:
+    """Cache key of a bound from the plain data it depends on (the composition root gathers it)."""
+    text = json.dumps(data, sort_keys=True, default=str) + BOUND_VERSION
+    return hashlib.sha256(text.encode()).hexdigest()[:20]

@@ -6,8 +6,8 @@ which is not localized yet): a coarse route, the max-mean path through the capac
 planner's speed limit, by the dynamic programming of ``planning/bound.py``. It picks the basin of
 the landscape to be in at each time, so the reference never has to jump between far-apart
 near-equal optima. **In flight**, every ``replan_every`` control steps the planner evaluates the true end-to-end capacity
-(``models.capacity_field``: dipole gains at every node, the jammer's position and power as the
-relay knows them, MRAV-2 predicted ``lookahead_s`` ahead at constant acceleration with its antenna
+(``models.radio``: the scene's antenna gains at every node, every jammer's position and power as
+the relay knows them, MRAV-2 predicted ``lookahead_s`` ahead at constant acceleration with its antenna
 along its thrust) at candidate relay poses around its current target: positions on a 27-point
 stencil ``step_m`` apart, each with every antenna axis the platform can hold in hover
 (``Multirotor.hover_tilt_limit``; vertical only for a coplanar platform). The best candidate
@@ -24,36 +24,37 @@ import time
 
 import numpy as np
 
-from ..models.capacity_field import axis_set, relay_capacity
+from ..models.axes import axis_set
 from ..models.geometry import E3, thrust_direction_from_acceleration
-from .base import PlannerInput
-from .bound import _Scene, best_path, fixed_channel, position_grid
+from ..models.radio import NodePose
+from .base import PlannerContext, PlannerInput
+from .bound import CapacityLandscape, best_path, position_grid
 from .trajectory_generator import Reference
 
 
 class CapacityPlanner:
     """Hill climbing on the true capacity over (position, antenna axis), speed-limited reference."""
 
-    def __init__(self, sc, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
+    def __init__(self, ctx: PlannerContext, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.2,
                  route_grid_m: float = 0.5, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 2.0):
-        veh = sc.platform.vehicle()
+        veh = ctx.vehicle
         # the NMPC holds zero yaw: only the tilts the platform can hold toward each azimuth at zero
         # yaw (with a 10% margin) are axes it can actually fly
         az = np.radians(np.arange(0.0, 360.0, 10.0))
         limits = 0.9 * veh.hover_tilt_limits(az)
         self.tilt_limit = float(limits.max())
         self.axes = axis_set(az, limits, np.radians(axis_step_deg))
-        ws = sc.controller.workspace
-        self.lo, self.hi = np.array(ws.min, float) + margin_m, np.array(ws.max, float) - margin_m
+        self.lo, self.hi = np.asarray(ctx.workspace_min, float) + margin_m, np.asarray(ctx.workspace_max, float) - margin_m
         self.offsets = step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
-        self.speed = sc.controller.capacity.speed_m_s
+        self.speed = ctx.settings.capacity.speed_m_s
         self.replan_every, self.leash, self.lookahead = replan_every, leash_m, lookahead_s
         self.axis_rate = np.radians(axis_rate_deg_s)
-        self.gravity = sc.platform.gravity_m_s2
-        self.channel = fixed_channel(sc)
+        self.gravity = veh.gravity
+        self.scene = ctx.scene
+        self.source_name = ctx.scene.name_of("source")
         t0 = time.perf_counter()
-        self.route_t, self.route_p = self._preflight_route(sc, route_grid_m, route_dt_s)
+        self.route_t, self.route_p = self._preflight_route(ctx, route_grid_m, route_dt_s)
         self.preflight_s = time.perf_counter() - t0
         self.p_ref: np.ndarray | None = None
         self.target: np.ndarray | None = None
@@ -64,12 +65,13 @@ class CapacityPlanner:
         self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
         self._k = 0
 
-    def _preflight_route(self, sc, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         grid, cells = position_grid(self.lo, self.hi, grid_m)
         shape = tuple(len(g) for g in grid)
-        times = np.arange(0.0, sc.duration_s + dt_s, dt_s)
-        start = tuple(int(np.argmin(np.abs(grid[i] - np.clip(sc.nodes.relay[i], self.lo[i], self.hi[i])))) for i in range(3))
-        route = best_path(_Scene(sc, jammer_known=False), cells, shape, self.axes, times, start, self.speed * dt_s / grid_m)
+        times = np.arange(0.0, ctx.duration_s + dt_s, dt_s)
+        start = tuple(int(np.argmin(np.abs(grid[i] - np.clip(ctx.relay_start[i], self.lo[i], self.hi[i])))) for i in range(3))
+        landscape = CapacityLandscape(ctx.scene, ctx.source, self.gravity, jammer_known=False)
+        route = best_path(landscape, cells, shape, self.axes, times, start, self.speed * dt_s / grid_m)
         return times, route
 
     def route_at(self, t: float) -> np.ndarray:
@@ -88,7 +90,8 @@ class CapacityPlanner:
         off = cand - anchor  # stay within the leash of the route
         n = np.linalg.norm(off, axis=1, keepdims=True)
         cand = np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
-        C = relay_capacity(cand, self.axes, p2=p2, b2=b2, pj=inp.jammer_position, jam_power=inp.jammer_power, **self.channel)
+        C = self.scene.relay_grid(inp.t, cand, self.axes, {self.source_name: NodePose(p2, b2)},
+                                  jammer_positions=inp.jammer_positions, jammer_powers=inp.jammer_powers)
         i, j = np.unravel_index(int(np.argmax(C)), C.shape)
         self.target = cand[i]
         self.axis_goal = self.axes[j]
@@ -129,4 +132,4 @@ class CapacityPlanner:
         self.v_ref = v_ref
         self._turn_axis(inp.dt)
         axis = self.axis.copy() if self.tilt_limit > 0 else None  # a coplanar relay tilts only by accelerating
-        return Reference(self.target.copy(), self.p_ref.copy(), v_ref, self.a_ref.copy(), 0.0, False, axis)
+        return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=self.a_ref.copy(), axis=axis)

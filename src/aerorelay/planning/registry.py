@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from .base import PlannerInput, register_planner
+from .base import PlannerContext, PlannerInput, register_planner
 from .baselines import PlannedReference, SingleShotPlanner
+from .capacity_planner import CapacityPlanner
 from .trajectory_generator import Reference, SurrogateParams, TrajectoryGenerator
 
 
@@ -16,7 +15,7 @@ class GeneratorPlanner:
         self.generator = generator
 
     def update(self, inp: PlannerInput) -> Reference:
-        return self.generator.update(inp.dt, inp.p1, inp.p2, inp.v2, inp.a2, inp.jammer_position, inp.jammer_power)
+        return self.generator.update(inp.dt, inp.p1, inp.p2, inp.v2, inp.a2, inp.jammer_positions, inp.jammer_powers)
 
 
 class FixedPlanReference:
@@ -29,37 +28,34 @@ class FixedPlanReference:
         return self.reference.update(inp.t)
 
 
-def _generator(sc, mu: float) -> TrajectoryGenerator:
-    ch, c = sc.channel, sc.controller
+def _generator(ctx: PlannerContext, mu: float) -> TrajectoryGenerator:
+    b, c = ctx.scene.budget, ctx.settings
+    gains = tuple(float(j.pattern.g_bar) for j in ctx.scene.jammers)  # the surrogate's conservative jammer gain: its peak
     return TrajectoryGenerator(
-        SurrogateParams(mu, sc.antenna.g_bar, ch.tx_power_w, ch.noise_power_w, ch.bandwidth),
-        sc.nodes.bs, governor_speed=c.governor_speed_m_s, eig_floor=c.hessian_eig_floor,
-        workspace_min=c.workspace.min, workspace_max=c.workspace.max,
+        SurrogateParams(mu, ctx.surrogate_g_bar, b.tx_power, b.noise_power, b.bandwidth, gains),
+        ctx.scene.fixed_pose(ctx.scene.name_of("base_station")).position, governor_speed=c.governor_speed_m_s,
+        eig_floor=c.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max,
     )
 
 
 @register_planner("trajectory_generator")
-def _paper_generator(sc, source):
-    return GeneratorPlanner(_generator(sc, sc.controller.mu))
+def _paper_generator(ctx: PlannerContext):
+    return GeneratorPlanner(_generator(ctx, ctx.settings.mu))
 
 
 @register_planner("isotropic")
-def _baseline_a(sc, source):
+def _baseline_a(ctx: PlannerContext):
     # baseline A plans with isotropic antennas: H_bar = G_bar / d, i.e. the surrogate with mu = 1
-    return GeneratorPlanner(_generator(sc, 1.0))
+    return GeneratorPlanner(_generator(ctx, 1.0))
 
 
 @register_planner("single_shot")
-def _baseline_b(sc, source):
-    ch, c = sc.channel, sc.controller
-    planner = SingleShotPlanner(max_speed=c.governor_speed_m_s, gravity=sc.platform.gravity_m_s2,
-                                tx_power=ch.tx_power_w, noise_power=ch.noise_power_w, g_bar=sc.antenna.g_bar)
-    plan = planner.plan(source, np.array(sc.nodes.relay, float), sc.nodes.bs, sc.duration_s, c.workspace.min, c.workspace.max)
+def _baseline_b(ctx: PlannerContext):
+    planner = SingleShotPlanner(ctx.scene, max_speed=ctx.settings.governor_speed_m_s, gravity=ctx.vehicle.gravity)
+    plan = planner.plan(ctx.source, ctx.relay_start, ctx.duration_s, ctx.workspace_min, ctx.workspace_max)
     return FixedPlanReference(PlannedReference(plan))
 
 
 @register_planner("capacity")
-def _capacity_seeking(sc, source):
-    from .capacity_planner import CapacityPlanner
-
-    return CapacityPlanner(sc)
+def _capacity_seeking(ctx: PlannerContext):
+    return CapacityPlanner(ctx)

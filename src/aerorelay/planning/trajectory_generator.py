@@ -26,28 +26,30 @@ class SurrogateParams:
     tx_power: float
     noise_power: float
     bandwidth: float = 1.0
+    jam_gains: tuple[float, ...] = (1.0,)  # each jammer's peak gain (1: the paper's isotropic jammer)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Reference:
-    """Output of one generator step (world frame)."""
+    """Output of one planner step (world frame): what the NMPC tracks."""
 
     p_opt: np.ndarray  # minimizer of the local quadratic model, eq. 17 (clipped to the workspace)
     p_ref: np.ndarray  # governed position reference fed to the NMPC
     v_ref: np.ndarray
     a_ref: np.ndarray
-    taylor_rel_err: float  # |f - f2| / |f| of the previous step's expansion, at the current kappa
-    regularized: bool  # H11 needed an eigenvalue floor
+    taylor_rel_err: float = 0.0  # |f - f2| / |f| of the previous step's expansion, at the current kappa
+    regularized: bool = False  # H11 needed an eigenvalue floor
     axis: np.ndarray | None = None  # desired antenna (body z) axis, unit, world; None: from a_ref (eq. 20)
 
 
 def _build_expansion(sp: SurrogateParams) -> ca.Function:
-    """CasADi function (p1, p2, p0, pJ, P_J) -> (f, g1, g2, H11, H12, H22) by automatic differentiation."""
-    p1, p2, p0, pj = (ca.SX.sym(n, 3) for n in ("p1", "p2", "p0", "pj"))
-    PJ = ca.SX.sym("PJ")
+    """CasADi function (p1, p2, p0, pJ (3 x nJ), P_J (nJ)) -> (f, g1, g2, H11, H12, H22) by automatic differentiation."""
+    nj = len(sp.jam_gains)
+    p1, p2, p0 = (ca.SX.sym(n, 3) for n in ("p1", "p2", "p0"))
+    pj, PJ = ca.SX.sym("pj", 3, nj), ca.SX.sym("PJ", nj)
     f = inverse_capacity(
-        p1, p2, p0, pj, mu=sp.mu, g_bar=sp.g_bar, tx_power=sp.tx_power, jam_power=PJ,
-        noise_power=sp.noise_power, bandwidth=sp.bandwidth,
+        p1, p2, p0, [pj[:, k] for k in range(nj)], [PJ[k] for k in range(nj)], mu=sp.mu, g_bar=sp.g_bar,
+        tx_power=sp.tx_power, noise_power=sp.noise_power, bandwidth=sp.bandwidth, jam_gains=sp.jam_gains,
     )
     kappa = ca.vertcat(p1, p2)
     H, g = ca.hessian(f, kappa)
@@ -84,9 +86,11 @@ class TrajectoryGenerator:
         self._prev: tuple | None = None  # (kappa_e, f, g, H) of the last expansion
         self.p_ref: np.ndarray | None = None
 
-    def expansion(self, p1, p2, p_jam, jam_power: float):
-        """Value, gradient blocks and Hessian blocks of ``f`` at ``kappa = (p1, p2)``."""
-        out = self._expand(p1, p2, self.p0, p_jam, jam_power)
+    def expansion(self, p1, p2, p_jam, jam_power):
+        """Value, gradient blocks and Hessian blocks of ``f`` at ``kappa = (p1, p2)``; jammers at
+        ``p_jam`` ``(nJ, 3)`` (or one ``(3,)``) radiating ``jam_power`` ``(nJ,)`` W."""
+        pj = np.asarray(p_jam, float).reshape(-1, 3).T
+        out = self._expand(p1, p2, self.p0, pj, np.atleast_1d(np.asarray(jam_power, float)))
         f, g1, g2, H11, H12, H22 = (np.array(o) for o in out)
         return float(f.item()), g1.ravel(), g2.ravel(), H11, H12, H22
 
@@ -98,7 +102,7 @@ class TrajectoryGenerator:
             return H11, False
         return (V * np.maximum(lam, floor)) @ V.T, True
 
-    def _taylor_error(self, p1, p2, f_now: float, p_jam, jam_power: float) -> float:
+    def _taylor_error(self, p1, p2, f_now: float, p_jam, jam_power) -> float:
         """``|f - f2| / |f|`` at the new ``kappa`` for the previous step's expansion (eq. 20).
 
         Both sides use the previous step's jammer knowledge, so a change of the cost function
@@ -108,27 +112,27 @@ class TrajectoryGenerator:
         if self._prev is None:
             return 0.0
         kappa_e, f_e, g_e, H_e, pj_e, PJ_e = self._prev
-        if PJ_e != jam_power or not np.array_equal(pj_e, p_jam):
+        if not np.array_equal(PJ_e, jam_power) or not np.array_equal(pj_e, p_jam):
             f_now = self.expansion(p1, p2, pj_e, PJ_e)[0]
         d = np.concatenate([p1, p2]) - kappa_e
         f2 = f_e + g_e @ d + 0.5 * d @ H_e @ d
         return abs(f_now - f2) / abs(f_now)
 
-    def optimum(self, p1, p2, v2, a2, p_jam, jam_power: float):
+    def optimum(self, p1, p2, v2, a2, p_jam, jam_power):
         """Eq. 17-19 at the expansion point ``kappa_e = (p1, p2)`` (so ``delta_2 = 0``)."""
         f, g1, g2, H11, H12, H22 = self.expansion(p1, p2, p_jam, jam_power)
         err = self._taylor_error(p1, p2, f, p_jam, jam_power)
         H = np.block([[H11, H12], [H12.T, H22]])
-        self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H, np.array(p_jam, float), jam_power)
+        self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H, np.array(p_jam, float), np.array(jam_power, float))
         H11r, reg = self._regularize(H11)
         K = np.linalg.solve(H11r, H12)
         p_opt = np.clip(p1 - np.linalg.solve(H11r, g1), self.lo, self.hi)
         return p_opt, -K @ v2, -K @ a2, err, reg
 
-    def update(self, dt: float, p1, p2, v2, a2, p_jam, jam_power: float) -> Reference:
+    def update(self, dt: float, p1, p2, v2, a2, p_jam, jam_power) -> Reference:
         """One generator step of length ``dt`` s from the relay position ``p1`` and MRAV-2's state."""
         p1, p2, v2, a2 = (np.asarray(a, float) for a in (p1, p2, v2, a2))
-        p_opt, v_d, a_d, err, reg = self.optimum(p1, p2, v2, a2, np.asarray(p_jam, float), jam_power)
+        p_opt, v_d, a_d, err, reg = self.optimum(p1, p2, v2, a2, np.asarray(p_jam, float), np.asarray(jam_power, float))
         if self.p_ref is None:
             self.p_ref = p1.copy()
         step = p_opt - self.p_ref
@@ -139,7 +143,7 @@ class TrajectoryGenerator:
         self.p_ref = self.p_ref + step
         v_ref = step / dt if n > max_step else _clip_norm(v_d, self.governor_speed)
         a_ref = _clip_norm(a_d, self.max_ref_accel)
-        return Reference(p_opt, self.p_ref.copy(), v_ref, a_ref, err, reg)
+        return Reference(p_opt=p_opt, p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=a_ref, taylor_rel_err=err, regularized=reg)
 
 
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:

@@ -14,15 +14,15 @@ import pandas as pd
 
 from ..experiments.campaign import first_run_per_group, run_dir
 from ..experiments.study import Explanation, RunSpec, scenario_of
+from ..models.channel import end_to_end_capacity
 from ..models.fading import RicianFading
 from ..models.geometry import rotation_batch
+from ..scenario.build import build_scene, scenario_bound
 
 
 def ceiling(spec: RunSpec, out: Path, paper: float | None) -> str:
     """The static bound's minimum over the mission: no relay pose reaches a higher C_min."""
-    from ..planning.bound import cached_bound
-
-    b = cached_bound(scenario_of(spec)).summary()
+    b = scenario_bound(scenario_of(spec)).summary()
     smin, pmin = b["static"]["min"], b["path_maxmin"]["min"]
     text = (f"ceiling: on this scenario no relay pose anywhere in the workspace, at any attitude the platform can hold, "
             f"keeps C above {smin:.3g} all mission long (best path from the start at <= "
@@ -34,30 +34,32 @@ def ceiling(spec: RunSpec, out: Path, paper: float | None) -> str:
 
 
 def jammer_noise(spec: RunSpec, out: Path) -> str:
-    """The jammer's interference against the noise, at the BS and along the run's relay path."""
+    """Every jammer's interference against the noise, at the BS and along the run's relay path
+    (the scene's channel, ``RadioScene.interference``)."""
     sc = scenario_of(spec)
     df = pd.read_parquet(run_dir(out, spec) / "timeseries.parquet")
-    pat = sc.antenna.patterns()
-    pj, p0 = np.array(sc.jammer.position), np.array(sc.nodes.bs, float)
-    noise, pw = sc.channel.noise_power_w, sc.jammer.power_w
-    d0 = pj - p0
-    at_bs = float(pat.bs.gain_from_cos(d0[2] / np.linalg.norm(d0))) * pw / float(d0 @ d0) / noise
+    scene = build_scene(sc)
+    noise = scene.budget.noise_power
     p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
+    t = df["t"].to_numpy()
     R1 = rotation_batch(df[["phi1", "theta1", "psi1"]].to_numpy())
-    d1 = pj - p1
-    n1 = np.linalg.norm(d1, axis=1)
-    c = np.einsum("ki,ki->k", d1, R1[:, :, 2]) / n1
-    at_relay = pat.relay.gain_from_cos(c) * pw / n1**2 / noise
-    return (f"jammer vs noise: with a {pw:g} W jammer {np.linalg.norm(d0):.2f} m from the BS and {noise:g} W of noise, the "
-            f"jammer adds {at_bs:.1%} to the BS's noise and at most {at_relay.max():.1%} (mean {at_relay.mean():.1%}) to "
-            f"the relay's along run '{spec.group}': switching it off, or knowing it later, can change the SINRs by about "
-            f"that much and the capacity by less.")
+    peak = np.array([j.power for j in scene.jammers])
+    relay, bs = scene.node("relay"), scene.fixed_pose("bs")
+    at_relay, at_bs = np.empty(len(t)), np.empty(len(t))
+    for k in range(len(t)):
+        pose = scene.pose("relay", p1[k], R1[k])
+        em = scene.emitters(float(t[k]), {"relay": pose, "source": pose, "bs": bs}, powers=peak)
+        at_relay[k] = float(scene.interference(em, pose, relay.antenna.pattern)) / noise
+        at_bs[k] = float(scene.interference(em, bs, scene.node("bs").antenna.pattern)) / noise
+    where = ", ".join(f"{j.power:g} W '{j.name}' {np.linalg.norm(j.position_at(0.0) - bs.position):.2f} m from the BS"
+                      for j in scene.jammers) or "no jammer"
+    return (f"jammer vs noise: with {where} and {noise:g} W of noise, the jammers add {at_bs.max():.1%} to the BS's noise "
+            f"and at most {at_relay.max():.1%} (mean {at_relay.mean():.1%}) to the relay's along run '{spec.group}': "
+            f"switching them off, or knowing them later, can change the SINRs by about that much and the capacity by less.")
 
 
 def fading(spec: RunSpec, out: Path, k_db: list[float]) -> str:
     """Mean capacity under unit-mean Rician fading of every link, at the run's SNRs (its unfaded log)."""
-    from ..models.channel import end_to_end_capacity
-
     df = pd.read_parquet(run_dir(out, spec) / "timeseries.parquet", columns=["gamma_21", "gamma_10", "capacity"])
     g21, g10 = df["gamma_21"].to_numpy(), df["gamma_10"].to_numpy()
     c0 = float(np.mean(end_to_end_capacity(g21, g10)))

@@ -10,10 +10,28 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+import plotly.graph_objects as go  # noqa: E402
 
-from ..config import Scenario  # noqa: E402
+from ..scenario import Scenario  # noqa: E402
+from ..scenario.build import build_jammer  # noqa: E402
 
 RELAY, SOURCE = "#d4a017", "#7b3fa0"
+
+
+def jammer_tracks(sc: Scenario, t: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """Every jammer's name and positions ``(len(t), 3)`` (m) at the times ``t`` (s)."""
+    return [(j.name, np.array([j.position_at(float(tk)) for tk in t])) for j in map(build_jammer, sc.jammer_configs)]
+
+
+def jammer_traces(sc: Scenario, t: np.ndarray) -> list:
+    """plotly traces: a marker at each jammer's start and its track when it moves."""
+    out = []
+    for name, P in jammer_tracks(sc, t):
+        moving = bool(np.ptp(P, axis=0).max() > 1e-9)
+        out.append(go.Scatter3d(x=P[:, 0] if moving else P[:1, 0], y=P[:, 1] if moving else P[:1, 1],
+                                z=P[:, 2] if moving else P[:1, 2], mode="lines" if moving else "markers", name=name,
+                                line=dict(color="red", width=3), marker=dict(color="red", size=5)))
+    return out
 
 
 def _shade_jammer_off(ax, df):
@@ -30,7 +48,10 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
     ax.plot(df["p2_x"], df["p2_y"], df["p2_z"], color=SOURCE, label="MRAV-2 (source)")
     ax.plot(df["pd_x"], df["pd_y"], df["pd_z"], color=RELAY, ls=":", lw=1, label="relay reference")
     ax.scatter(*sc.nodes.bs, color="k", s=30, label="BS")
-    ax.scatter(*sc.jammer.position, color="r", s=30, label="jammer")
+    for i, (name, P) in enumerate(jammer_tracks(sc, df["t"].to_numpy())):
+        ax.scatter(*P[0], color="r", s=30, label="jammer" if i == 0 else None)
+        if np.ptp(P, axis=0).max() > 1e-9:
+            ax.plot(P[:, 0], P[:, 1], P[:, 2], color="r", lw=1, label=f"{name} (moving)")
     for c, col in ((("p1_x", "p1_y", "p1_z"), RELAY), (("p2_x", "p2_y", "p2_z"), SOURCE)):
         ax.scatter(*[df[k].iloc[0] for k in c], color=col, marker="o", s=15)
         ax.scatter(*[df[k].iloc[-1] for k in c], color=col, marker="^", s=25)
@@ -107,9 +128,7 @@ def fig_tracking(df: pd.DataFrame, sc: Scenario):
 
 
 def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) -> str:
-    """A self-contained interactive 3D view of both vehicles, the BS and the jammer."""
-    import plotly.graph_objects as go
-
+    """A self-contained interactive 3D view of both vehicles, the BS and the jammers."""
     hover = [f"t={t:.2f}s C={c:.2e}" for t, c in zip(df["t"], df["capacity"], strict=False)]
     fig = go.Figure([
         go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name="MRAV-1 (relay)",
@@ -120,8 +139,7 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
                      line=dict(color=RELAY, width=2, dash="dot")),
         go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",
                      marker=dict(color="black", size=5)),
-        go.Scatter3d(x=[sc.jammer.position[0]], y=[sc.jammer.position[1]], z=[sc.jammer.position[2]], mode="markers",
-                     name="jammer", marker=dict(color="red", size=5)),
+        *jammer_traces(sc, df["t"].to_numpy()),
     ])
     fig.update_layout(title=f"{sc.name} ({sc.controller.variant})",
                       scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),

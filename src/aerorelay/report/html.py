@@ -14,9 +14,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+import plotly.graph_objects as go  # noqa: E402
+from plotly.offline import get_plotlyjs  # noqa: E402
 
 from ..experiments.campaign import first_run_per_group, run_dir  # noqa: E402
-from ..experiments.study import RunSpec, Study  # noqa: E402
+from ..experiments.study import RunSpec, Study, scenario_of  # noqa: E402
+from .figures import jammer_traces  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
 MAIN_METRICS = ("c_min", "c_mean", "outage_fraction")
@@ -128,9 +131,6 @@ def _bars_figure(study_sum: dict) -> str | None:
 
 def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
     """Interactive 3D view (plotly) of the relay paths of a small study, with MRAV-2, BS and jammer."""
-    import plotly.graph_objects as go
-
-    from ..experiments.study import scenario_of
 
     firsts = first_run_per_group(specs, out)
     if not firsts or len(firsts) > 6 or study.seeds > 1:
@@ -145,8 +145,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
     sc = scenario_of(next(iter(firsts.values())))
     traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",
                                marker=dict(color="black", size=5)))
-    traces.append(go.Scatter3d(x=[sc.jammer.position[0]], y=[sc.jammer.position[1]], z=[sc.jammer.position[2]],
-                               mode="markers", name="jammer", marker=dict(color="red", size=5)))
+    traces.extend(jammer_traces(sc, np.arange(0.0, sc.duration_s + 1e-9, 0.5)))
     fig = go.Figure(traces)
     fig.update_layout(height=520, scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),
                       margin=dict(l=0, r=0, t=30, b=0),
@@ -253,7 +252,6 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
     body = [head, toc, "<h2>The paper's claims on our numbers</h2>", claims, _why_section(summary, studies)]
     for s in studies:
         body.append(_study_section(s, summary["studies"][s.name], [r for r in specs if r.study == s.name], out, manifest))
-    from plotly.offline import get_plotlyjs
 
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>aerorelay report</title>"
             f"<style>{CSS}</style><script>{get_plotlyjs()}</script></head><body>{''.join(body)}</body></html>")

@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..experiments.campaign import run_dir
 from ..experiments.study import Claim, RunSpec, Study, combinations, parse_term
+from .explain import explain
 
 SCALAR_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
@@ -119,7 +120,6 @@ def evaluate_claim(claim: Claim, groups: dict) -> tuple[bool | None, str]:
 def evaluate_claims(studies: list[Study], per: dict, specs: list[RunSpec], out: Path) -> list[dict]:
     """The claims declared in the studies' ``[[claims]]``, each judged on our numbers; a claim that
     does not hold gets its measured causes (``why``), computed from the campaign's runs."""
-    from .explain import explain
 
     rows = []
     for st in studies:
@@ -158,7 +158,6 @@ def rank_against_paper(study: Study, groups: dict) -> list[dict]:
 
 def summarize(studies: list[Study], specs: list[RunSpec], out: Path, extra: dict | None = None) -> dict:
     """Summary of a campaign: every study's numbers plus the claims table."""
-    from .explain import explain
 
     per = {s.name: summarize_study(s, [r for r in specs if r.study == s.name], out) for s in studies}
     for s in studies:

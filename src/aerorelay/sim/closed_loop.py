@@ -1,9 +1,9 @@
-"""Closed-loop relay mission: planner + relay controller + RK4 plant + true channel.
+"""Closed-loop relay mission: planner + relay controller + RK4 plant + the radio scene's true channel.
 
 The plant (MRAV-1) is integrated by RK4 at ``sim.plant_rate_hz`` with the controller's input
-held over each control period. At every control step the true channel is evaluated with real
-antenna gains and both vehicles' attitudes (MRAV-2's follows its acceleration), with Rician
-fading when configured. One log row per control step; the columns follow the vehicle's rotor
+held over each control period. At every control step the true channel (``models.radio``) is
+evaluated with the scene's antennas, both vehicles' attitudes (MRAV-2's follows its
+acceleration) and every jammer, with Rician fading when configured. One log row per control step; the columns follow the vehicle's rotor
 count (``log_columns``).
 """
 
@@ -16,14 +16,15 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ..config import Scenario
-from ..control.nmpc import NmpcSettings, StepInfo
+from ..control.nmpc import StepInfo
 from ..control.relay import RelayController
-from ..models.channel import end_to_end_capacity, jammer_gain_sq, legitimate_gain_sq, misalignment, mutual_alignment, sinr
+from ..models.channel import misalignment, mutual_alignment
 from ..models.fading import RicianFading
 from ..models.geometry import rotation_zyx
-from ..planning.base import PlannerInput, build_planner
-from .mission import source_trajectory
+from ..models.mission import SourceTrajectory
+from ..models.radio import ChannelState, RadioScene
+from ..models.vehicle import Multirotor
+from ..planning.base import Planner, PlannerInput
 
 
 def log_columns(n_rotors: int) -> list[str]:
@@ -38,15 +39,14 @@ def log_columns(n_rotors: int) -> list[str]:
     )
 
 
-def plant_step_function(sc: Scenario) -> ca.Function:
+def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float) -> ca.Function:
     """CasADi function ``(x, u, d) -> x`` advancing one control period with RK4 sub-steps.
 
     ``d = (a_dist (m/s^2, world), alpha_dist (rad/s^2, body))`` is a process disturbance held
     over the period.
     """
-    veh = sc.platform.vehicle()
-    n_sub = int(round(sc.sim.plant_rate_hz * sc.control_period_s))
-    dt = 1.0 / sc.sim.plant_rate_hz
+    n_sub = int(round(plant_rate_hz * period_s))
+    dt = 1.0 / plant_rate_hz
     x, u, d = ca.SX.sym("x", veh.nx), ca.SX.sym("u", veh.n_rotors), ca.SX.sym("d", 6)
 
     def f(xx):
@@ -63,6 +63,25 @@ def plant_step_function(sc: Scenario) -> ca.Function:
     return ca.Function("plant_step", [x, u, d], [xk])
 
 
+@dataclass(frozen=True)
+class SimSettings:
+    """How a mission is flown: control period and length (s), plant rate (Hz), the relay's start
+    (m), the seed, and the disturbances unknown to the controller (CSI noise m, process noise
+    m/s^2 and rad/s^2, Rician K in dB or None); ``senses_jammer_state``: the planner plans with the
+    power actually radiated (0 while a jammer is OFF) instead of the nominal one."""
+
+    period_s: float
+    duration_s: float
+    plant_rate_hz: float
+    relay_start: np.ndarray
+    seed: int = 0
+    csi_noise_m: float = 0.0
+    process_noise_v: float = 0.0
+    process_noise_w: float = 0.0
+    fading_k_db: float | None = None
+    senses_jammer_state: bool = False
+
+
 @dataclass
 class MissionResult:
     """Per-step log (dict of equal-length arrays) and run facts."""
@@ -71,115 +90,125 @@ class MissionResult:
     wall_s: float
     sim_s: float
     qp_failures: int
-    scenario: Scenario
     controller: str = ""  # NmpcSettings.fingerprint() of the controller that flew it
     fallback_episodes: int = 0
 
 
-class ClosedLoop:
-    """Simulates one scenario. ``run(progress)`` returns a MissionResult."""
+@dataclass(frozen=True)
+class StepTiming:
+    """Per control step: preparation and feedback phases (ms), IPM iterations, planner (ms)."""
 
-    def __init__(self, sc: Scenario, nmpc_settings: NmpcSettings | None = None):
-        self.sc = sc
-        self.controller = RelayController(sc, nmpc_settings)
-        self.spec = self.controller.spec
-        self.veh = self.spec.vehicle
+    prep_ms: float
+    feedback_ms: float
+    qp_iters: int
+    planner_ms: float
+
+
+@dataclass(frozen=True)
+class BenchPoint:
+    """A state the controller met, to time a full solve at (``control.bench``)."""
+
+    x: np.ndarray
+    u_prev: np.ndarray
+    P: np.ndarray
+    guess: np.ndarray | None
+
+
+class ClosedLoop:
+    """Flies one mission from its parts (``scenario.build`` makes them from a scenario):
+    ``run(progress)`` returns a MissionResult."""
+
+    def __init__(self, *, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory, planner: Planner,
+                 controller: RelayController, plant: ca.Function, settings: SimSettings):
+        self.veh, self.scene, self.source, self.planner = vehicle, scene, source, planner
+        self.controller, self.plant, self.settings = controller, plant, settings
+        self.spec = controller.spec
         self.columns = log_columns(self.veh.n_rotors)
         self._numeric_columns = [c for c in self.columns if c not in ("qp_status", "fallback", "taylor_rel_err")]
-        self.plant = plant_step_function(sc)
-        self.source = source_trajectory(sc.mission)
-        self.planner = build_planner(sc, self.source)
-        self.jammer = sc.jammer.build()
-        self.patterns = sc.antenna.patterns()
-        self.rng = np.random.default_rng(sc.seed)
-        k_db = sc.perturbations.fading_k_db
-        self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=sc.seed + 1)
-        # (preparation ms, feedback ms, IPM iterations, planner ms) per step
-        self.timings: list[tuple[float, float, int, float]] = []
-        self.bench_points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]] = []
+        self.rng = np.random.default_rng(settings.seed)
+        k_db = settings.fading_k_db
+        self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=settings.seed + 1)
+        self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
+        self.timings: list[StepTiming] = []
+        self.bench_points: list[BenchPoint] = []
 
     @property
     def nmpc(self):
         return self.controller.nmpc
 
-    def _planned_jammer_power(self, t: float) -> float:
-        """P_J the planner plans with: 0 before localization (tau_E); afterwards the nominal
-        power, or the power actually radiated now when the controller senses the schedule."""
-        if not self.jammer.is_localized(t):
-            return 0.0
-        if self.sc.controller.senses_jammer_state:
-            return float(self.jammer.power_at(t))
-        return self.sc.jammer.power_w
+    def _planned_jammer_powers(self, t: float) -> np.ndarray:
+        """P_J per jammer the planner plans with: 0 before its localization (tau_E); afterwards the
+        nominal power, or the power actually radiated now when the controller senses the schedule."""
+        return np.array([0.0 if not j.is_localized(t) else float(j.power_at(t)) if self.settings.senses_jammer_state
+                         else j.power for j in self.scene.jammers])
 
-    def _channel(self, t, x1, p2, eta2):
-        """True SINRs (real gains, jammer schedule, fading) and the relay's misalignments."""
-        sc = self.sc
-        p0 = np.array(sc.nodes.bs, float)
+    def _channel(self, t, x1, p2, eta2) -> tuple[ChannelState, float, float]:
+        """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments."""
         p1, R1 = x1[0:3], rotation_zyx(x1[3:6])
-        R2, R0 = rotation_zyx(eta2), np.eye(3)
-        pj = self.jammer.position
-        PJ = float(self.jammer.power_at(t))
-        fade = self.fading.power_gain(4) if self.fading is not None else np.ones(4)
-        pat = self.patterns
-        h21 = legitimate_gain_sq(p2, R2, p1, R1, pat.source, pat.relay) * fade[0]
-        h10 = legitimate_gain_sq(p1, R1, p0, R0, pat.relay, pat.bs) * fade[1]
-        f1 = jammer_gain_sq(pj, p1, R1, pat.relay) * fade[2]
-        f0 = jammer_gain_sq(pj, p0, R0, pat.bs) * fade[3]
-        kw = dict(tx_power=sc.channel.tx_power_w, jam_power=PJ, noise_power=sc.channel.noise_power_w)
-        g21, g10 = float(sinr(h21, f1, **kw)), float(sinr(h10, f0, **kw))
-        v12, v10 = float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
-        return PJ > 0, g21, g10, v12, v10
+        poses = {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
+                 self.names["source"]: self.scene.pose(self.names["source"], p2, rotation_zyx(eta2))}
+        fade = self.fading.power_gain(self.scene.fading_links) if self.fading is not None else None
+        state = self.scene.evaluate(t, poses, fading=fade)
+        p0 = self.scene.fixed_pose(self.names["base_station"]).position
+        return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
+
+    def _measured_jammers(self, t: float) -> np.ndarray:
+        """Jammer positions ``(nJ, 3)`` as the controller knows them (with CSI noise)."""
+        noise = self.settings.csi_noise_m
+        return np.array([j.position_at(t) + (self.rng.normal(0.0, noise, 3) if noise > 0 else 0.0)
+                         for j in self.scene.jammers]).reshape(-1, 3)
 
     def run(self, progress=None) -> MissionResult:
-        sc, veh = self.sc, self.veh
-        period = sc.control_period_s
-        n_steps = int(math.floor(sc.duration_s / period + 1e-9)) + 1
+        st, veh = self.settings, self.veh
+        period = st.period_s
+        n_steps = int(math.floor(st.duration_s / period + 1e-9)) + 1
         shift = period >= self.spec.ts - 1e-12
-        x = veh.hover_state(sc.nodes.relay)
+        x = veh.hover_state(st.relay_start)
         u = np.zeros(veh.n_rotors)
         log: dict[str, np.ndarray] = {c: np.empty(n_steps) for c in self.columns}
         log["qp_status"] = np.empty(n_steps, dtype=object)
         log["fallback"] = np.zeros(n_steps, dtype=bool)
-        pert = sc.perturbations
         wall0 = time.perf_counter()
         for k in range(n_steps):
             t = k * period
             src = self.source.state(t)
             eta2 = src.attitude(veh.gravity)
-            # what the controller knows: MRAV-2 over the optical link, the jammer after tau_E (with CSI noise)
-            p2_meas = src.p + self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else src.p
-            pj_meas = self.jammer.position + (self.rng.normal(0.0, pert.csi_noise_m, 3) if pert.csi_noise_m > 0 else 0.0)
+            # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
+            p2_meas = src.p + self.rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
+            pj_meas = self._measured_jammers(t)
             t_plan = time.perf_counter()
             ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas,
-                                                   self._planned_jammer_power(t)))
+                                                   self._planned_jammer_powers(t)))
             planner_ms = (time.perf_counter() - t_plan) * 1e3
             P = self.controller.parameters(ref, p2_meas, src.v, src.a)
-            if k % 500 == 250:  # (x, u_prev, P, guess) samples for benchmarking a full solve at the same points
-                self.bench_points.append((x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
+            if k % 500 == 250:  # samples for benchmarking a full solve at the same points
+                self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
             info = self.controller.step(x, u, P, shift=shift)
-            self.timings.append((info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms))
+            self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms))
             u = info.u
-            jam_on, g21, g10, v12, v10 = self._channel(t, x, src.p, eta2)
-            self._record(log, k, t, x, u, src.p, eta2, ref, (jam_on, g21, g10, v12, v10), info)
-            d = np.concatenate([self.rng.normal(0.0, pert.process_noise_v, 3), self.rng.normal(0.0, pert.process_noise_w, 3)])
+            channel, v12, v10 = self._channel(t, x, src.p, eta2)
+            self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
+            d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
             x = np.asarray(self.plant(x, u, d)).ravel()
             if not np.all(np.isfinite(x)):
                 raise FloatingPointError(f"plant state became non-finite at t = {t:.3f} s")
             if progress is not None:
                 progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
-        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, sc, self.nmpc.settings.fingerprint(),
+        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, self.nmpc.settings.fingerprint(),
                              self.controller.fallback_episodes)
 
-    def _record(self, log, k, t, x, u, p2, eta2, ref, channel, info: StepInfo):
-        jam_on, g21, g10, v12, v10 = channel
+    def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, v12: float, v10: float, info: StepInfo):
+        g21, g10 = (float(g) for g in channel.sinr)
+        jam_on = any(float(j.power_at(t)) > 0 for j in self.scene.jammers)
         nr = self.veh.n_rotors
         if x.shape != (self.veh.nx,) or u.shape != (nr,):
             raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
         se21, se10 = math.log2(1 + g21), math.log2(1 + g10)
+        cap = float(channel.capacity)
         values = (
             [t, *x[0:12], *x[12 : 12 + nr], *u, *p2, *eta2, *ref.p_ref, float(jam_on), g21, g10,
-             se21, se10, float(end_to_end_capacity(g21, g10, self.sc.channel.bandwidth)), v12, v10,
+             se21, se10, cap, v12, v10,
              float(mutual_alignment(v12, v10)), info.slack_max, info.solve_ms, info.feedback_ms]
         )
         for name, val in zip(self._numeric_columns, values, strict=True):

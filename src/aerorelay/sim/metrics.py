@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import Scenario
 from ..control.bench import stats_ms
 from ..models.vehicle import Multirotor
 
@@ -25,11 +24,14 @@ def _rotor_columns(log, prefix: str, n_rotors: int) -> np.ndarray:
     return np.column_stack([log[f"{prefix}{i}"] for i in range(1, n_rotors + 1)])
 
 
-def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: Multirotor | None = None) -> dict:
-    """Metrics of one mission. Capacities normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
-    veh = vehicle or sc.platform.vehicle()
+def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
+                    wall_s: float, sim_s: float) -> dict:
+    """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
+    ``outage_threshold``, alignment threshold ``mu``. Capacities normalized (B = 1 gives bit/s/Hz);
+    energy is shaft energy."""
+    veh = vehicle
     cap = np.asarray(log["capacity"], float)
-    period = sc.control_period_s
+    period = period_s
     status = np.asarray(log["qp_status"], dtype=object)
     failed = np.array([str(s).startswith("failed") for s in status])
     solve = np.asarray(log["solve_ms"], float)
@@ -43,11 +45,11 @@ def compute_metrics(log, sc: Scenario, *, wall_s: float, sim_s: float, vehicle: 
         "c_mean": float(cap.mean()),
         "se_21_mean": float(np.mean(log["se_21"])),
         "se_10_mean": float(np.mean(log["se_10"])),
-        "outage_fraction": float(np.mean(cap < sc.channel.outage_threshold)),
-        "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= sc.controller.mu)),
+        "outage_fraction": float(np.mean(cap < outage_threshold)),
+        "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= mu)),
         "alignment_within_slack_fraction": float(np.mean(np.asarray(log["mutual_alignment"])
-                                                         >= sc.controller.mu - ALIGNMENT_TOLERANCE)),
-        "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(sc.controller.mu, 1e-9))),
+                                                         >= mu - ALIGNMENT_TOLERANCE)),
+        "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(mu, 1e-9))),
         "infeasible_fraction": float(np.mean(failed)),
         "fallback_fraction": float(np.mean(fallback)),
         "solve_ms": {**stats_ms(solve), "std": float(solve.std())},

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..models.geometry import E3, attitude_from_thrust
+from .geometry import E3, attitude_from_thrust
 
 CSV_COLUMNS = ("t", "px", "py", "pz", "vx", "vy", "vz", "ax", "ay", "az")
 
@@ -70,6 +70,29 @@ class MinimumJerkPath(SourceTrajectory):
         vel = (30 * s**2 - 60 * s**3 + 30 * s**4) / T
         acc = (60 * s - 180 * s**2 + 120 * s**3) / T**2
         return SourceState(self.p[i] + pos * dp, vel * dp, acc * dp)
+
+
+class LinearPath(SourceTrajectory):
+    """Straight segments at constant speed through ``waypoints`` rows ``[t, x, y, z]`` (e.g. a
+    jammer driving along a road); holds the first/last point outside the waypoints' times.
+    Acceleration is zero inside a segment (the corners are instantaneous turns)."""
+
+    def __init__(self, waypoints):
+        wp = np.asarray(waypoints, dtype=float)
+        self.t = wp[:, 0]
+        self.p = wp[:, 1:4]
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    def state(self, t: float) -> SourceState:
+        if t <= self.t[0] or t >= self.t[-1]:
+            return SourceState((self.p[0] if t <= self.t[0] else self.p[-1]).copy(), np.zeros(3), np.zeros(3))
+        i = int(np.searchsorted(self.t, t, side="right") - 1)
+        T = self.t[i + 1] - self.t[i]
+        v = (self.p[i + 1] - self.p[i]) / T
+        return SourceState(self.p[i] + v * (t - self.t[i]), v, np.zeros(3))
 
 
 class CsvPath(SourceTrajectory):

@@ -7,18 +7,17 @@ the paper's Table I values and SPEC.md's resolved choices, so an empty ``[sectio
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
-from .control.terms import COST_TERMS
-from .models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
-from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
-from .models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
+from ..control.terms import COST_TERMS
+from ..models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
+from ..models.mission import CsvPath
+from ..models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
+from .tomltext import compact_toml
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 MIN_NODE_SEPARATION_M = 0.1
@@ -114,6 +113,14 @@ class AntennaConfig(_Strict):
         "dipole", description="MRAV-2's antenna: a dipole (of `pattern`) along its body z, or isotropic (gain g_bar)")
     directivity: float = Field(1.0, gt=0.0, le=10.0,
                                description="multiplies every dipole's normalized gain (the paper's D = 1.64 informational)")
+    bs_axis: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 1.0], description="the base station's antenna axis, world")
+
+    @field_validator("bs_axis")
+    @classmethod
+    def _nonzero_axis(cls, v):
+        if math.hypot(*v) < 1e-9:
+            raise ValueError("must be a non-zero direction")
+        return v
 
     def build(self):
         """The relay's pattern (a dipole scaled by the directivity)."""
@@ -145,19 +152,55 @@ class NodesConfig(_Strict):
     relay: Vec3 = Field(default_factory=lambda: [-6.95, 5.79, 1.72])
 
 
-class JammerConfig(_Strict):
-    """Isotropic ground jammer."""
+Waypoint = Annotated[list[float], Field(min_length=4, max_length=4)]
 
-    position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72])
+
+def _check_waypoint_times(wps: list[list[float]], first_zero: bool) -> None:
+    t = [w[0] for w in wps]
+    if first_zero and t[0] != 0.0:
+        raise ValueError(f"the first waypoint time must be 0 s, got {t[0]}")
+    if t[0] < 0.0:
+        raise ValueError(f"waypoint times must be >= 0 s, got {t[0]}")
+    if any(b <= a for a, b in zip(t, t[1:], strict=False)):
+        raise ValueError(f"waypoint times must be strictly increasing, got {t}")
+
+
+class JammerConfig(_Strict):
+    """A ground jammer: fixed at ``position`` or moving along timed ``waypoints``; isotropic
+    (the paper's) or ``cosine``: ``G(psi) = g_max max(max(cos psi, 0)^exponent, back_lobe)``,
+    ``psi`` off boresight, pointed at a node (``point_at``, tracking it) or along ``boresight``."""
+
+    name: str = Field("jammer", min_length=1, description="names the jammer in logs and reports")
+    position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72], description="m, world (the start when moving)")
+    waypoints: list[Waypoint] | None = Field(None, min_length=2, description="timed path [[t_s, x, y, z], ...]")
+    path: Literal["linear", "minimum_jerk"] = Field("linear", description="how the jammer moves between waypoints")
     power_w: float = Field(1.0, ge=0.0)
     schedule: Literal["always_on", "on_off"] = "always_on"
     on_s: float = Field(5.0, gt=0.0)
     off_s: float = Field(5.0, gt=0.0)
     localization_delay_s: float = Field(2.0, ge=0.0, description="tau_E")
+    pattern: Literal["isotropic", "cosine"] = "isotropic"
+    g_max: float = Field(1.0, gt=0.0, le=1e4, description="cosine pattern: peak gain (linear)")
+    exponent: float = Field(0.0, ge=0.0, le=100.0, description="cosine pattern: n of max(cos psi, 0)^n")
+    back_lobe: float = Field(0.0, ge=0.0, le=1.0, description="cosine pattern: gain floor relative to g_max")
+    point_at: Literal["bs", "relay", "source"] | None = Field(None, description="cosine pattern: the node it tracks")
+    boresight: Vec3 | None = Field(None, description="cosine pattern: fixed boresight direction, world")
 
-    def build(self) -> Jammer:
-        sched = AlwaysOn() if self.schedule == "always_on" else PeriodicOnOff(self.on_s, self.off_s)
-        return Jammer(np.array(self.position, float), self.power_w, sched, self.localization_delay_s)
+    @model_validator(mode="after")
+    def _path_and_pointing(self):
+        if self.waypoints is not None:
+            _check_waypoint_times(self.waypoints, first_zero=False)
+            start = list(self.waypoints[0][1:])
+            if "position" in self.model_fields_set and self.position != start:
+                raise ValueError(f"position {self.position} differs from waypoints[0] {start}: omit position for a moving jammer")
+            object.__setattr__(self, "position", start)
+        if self.pattern == "cosine" and (self.point_at is None) == (self.boresight is None):
+            raise ValueError("a cosine jammer needs exactly one of point_at (a node) and boresight (a direction)")
+        if self.pattern == "isotropic" and (self.point_at is not None or self.boresight is not None):
+            raise ValueError("point_at / boresight apply to pattern = \"cosine\" only")
+        if self.boresight is not None and math.hypot(*self.boresight) < 1e-9:
+            raise ValueError("boresight must be a non-zero direction")
+        return self
 
 
 def _weights_model() -> type[BaseModel]:
@@ -250,7 +293,7 @@ class ControllerConfig(_Strict):
 class MissionConfig(_Strict):
     """MRAV-2 path: minimum-jerk segments through timed waypoints ``[t_s, x, y, z]`` or a CSV."""
 
-    waypoints: list[Annotated[list[float], Field(min_length=4, max_length=4)]] = Field(
+    waypoints: list[Waypoint] = Field(
         default_factory=lambda: [
             [0.0, -3.04, 5.79, 1.72],
             [12.0, -1.5, 4.29, 9.0],
@@ -266,19 +309,13 @@ class MissionConfig(_Strict):
     @field_validator("waypoints")
     @classmethod
     def _increasing_times(cls, wps):
-        t = [w[0] for w in wps]
-        if t[0] != 0.0:
-            raise ValueError(f"the first waypoint time must be 0 s, got {t[0]}")
-        if any(b <= a for a, b in zip(t, t[1:], strict=False)):
-            raise ValueError(f"waypoint times must be strictly increasing, got {t}")
+        _check_waypoint_times(wps, first_zero=True)
         return wps
 
     @property
     def duration_s(self) -> float:
         """Mission length (s): the last waypoint's time, or the CSV's last time."""
         if self.trajectory_csv and Path(self.trajectory_csv).is_file():
-            from .sim.mission import CsvPath
-
             return CsvPath(self.trajectory_csv).duration
         return self.waypoints[-1][0]
 
@@ -286,8 +323,6 @@ class MissionConfig(_Strict):
     def start(self) -> list[float]:
         """MRAV-2's initial position (m)."""
         if self.trajectory_csv and Path(self.trajectory_csv).is_file():
-            from .sim.mission import CsvPath
-
             return [float(v) for v in CsvPath(self.trajectory_csv).state(0.0).p]
         return list(self.waypoints[0][1:])
 
@@ -334,19 +369,46 @@ class Scenario(_Strict):
     antenna: AntennaConfig = Field(default_factory=AntennaConfig)
     channel: ChannelConfig = Field(default_factory=ChannelConfig)
     nodes: NodesConfig = Field(default_factory=NodesConfig)
-    jammer: JammerConfig = Field(default_factory=JammerConfig)
+    jammer: JammerConfig | None = Field(None, description="one jammer (the paper's); or [[jammers]] for any number")
+    jammers: list[JammerConfig] | None = Field(None, max_length=32, description="any number of jammers (array of tables)")
     controller: ControllerConfig = Field(default_factory=ControllerConfig)
     mission: MissionConfig = Field(default_factory=MissionConfig)
     sim: SimConfig = Field(default_factory=SimConfig)
     perturbations: PerturbationConfig = Field(default_factory=PerturbationConfig)
     bound: BoundConfig = Field(default_factory=BoundConfig)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _one_jammer_table(cls, data):
+        if isinstance(data, dict):
+            if data.get("jammer") is not None and data.get("jammers") is not None:
+                raise ValueError("give either [jammer] (one jammer) or [[jammers]] (any number), not both")
+            if data.get("jammer") is None and data.get("jammers") is None:
+                data = {**data, "jammer": {}}
+        return data
+
+    @property
+    def jammer_configs(self) -> list[JammerConfig]:
+        """Every jammer of the scenario, in order ([jammer] or [[jammers]])."""
+        return list(self.jammers) if self.jammers is not None else [self.jammer] if self.jammer is not None else []
+
+    def _jammer_field(self, i: int) -> str:
+        return "jammer" if self.jammers is None else f"jammers[{i}]"
+
     @model_validator(mode="after")
     def _consistent(self):
+        if self.jammers is not None:
+            for i, j in enumerate(self.jammers):  # several unnamed jammers are numbered
+                if "name" not in j.model_fields_set and len(self.jammers) > 1:
+                    object.__setattr__(j, "name", f"jammer{i + 1}")
+            names = [j.name for j in self.jammers]
+            dup = sorted({n for n in names if names.count(n) > 1})
+            if dup:
+                raise ValueError(f"jammers: names must be unique, {dup} used more than once")
         pts = {
             "nodes.bs": self.nodes.bs,
             "nodes.relay": self.nodes.relay,
-            "jammer.position": self.jammer.position,
+            **{f"{self._jammer_field(i)}.position": j.position for i, j in enumerate(self.jammer_configs)},
             "mission.waypoints[0]": self.mission.start,
         }
         names = list(pts)
@@ -385,42 +447,34 @@ class Scenario(_Strict):
         """A new validated scenario with dotted-key updates, e.g. ``{"controller.variant": "unconstrained"}``."""
         data = self.model_dump(exclude_none=True)
         for key, value in updates.items():
-            node = data
+            node: Any = data
             *parents, leaf = key.split(".")
-            for p in parents:
-                node = node.setdefault(p, {})
-            node[leaf] = value
+            try:
+                for p in parents:
+                    node = node[int(p)] if isinstance(node, list) else node.setdefault(p, {})
+                if isinstance(node, list):
+                    node[int(leaf)] = value
+                elif not isinstance(node, dict):
+                    raise TypeError
+                else:
+                    node[leaf] = value
+            except (TypeError, ValueError, IndexError, AttributeError):
+                raise ScenarioError(f"{key}: not a field of the scenario (a table or list index is missing or out of range)") from None
         return parse_scenario(data)
 
 
-def _toml_value(v) -> str:
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, float) and math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return tomli_w.dumps({"v": v})[4:].strip()  # TOML's own scalar syntax (strings, numbers, booleans)
-
-
-def compact_toml(data: dict, prefix: str = "") -> str:
-    """TOML text with every array of scalars (or of arrays) on one line; tables and arrays of
-    tables as sections. Round-trips through ``tomllib``."""
-    scalars = {k: v for k, v in data.items() if not isinstance(v, dict) and not _is_table_array(v)}
-    lines = [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
-    for k, v in data.items():
-        name = f"{prefix}{k}"
-        if isinstance(v, dict):
-            lines += ["", f"[{name}]", compact_toml(v, name + ".").strip("\n")]
-        elif _is_table_array(v):
-            for item in v:
-                lines += ["", f"[[{name}]]", compact_toml(item, name + ".").strip("\n")]
-    return "\n".join(lines) + "\n"
-
-
-def _is_table_array(v) -> bool:
-    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
-
-
 _BOUND_ERRORS = {"greater_than", "greater_than_equal", "less_than", "less_than_equal"}
+
+
+def _submodel(ann) -> type[BaseModel] | None:
+    """The pydantic model inside an annotation (``X``, ``X | None``, ``list[X]``, ``list[X] | None``)."""
+    if isinstance(ann, type) and issubclass(ann, BaseModel):
+        return ann
+    for arg in getattr(ann, "__args__", ()):
+        found = _submodel(arg)
+        if found is not None:
+            return found
+    return None
 
 
 def _allowed_range(loc: tuple) -> str:
@@ -428,11 +482,12 @@ def _allowed_range(loc: tuple) -> str:
     model: type[BaseModel] | None = Scenario
     info = None
     for part in loc:
+        if isinstance(part, int):  # an index into a list of tables
+            continue
         if not isinstance(part, str) or model is None or part not in model.model_fields:
             return ""
         info = model.model_fields[part]
-        ann = info.annotation
-        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+        model = _submodel(info.annotation)
     lo, hi, lo_open, hi_open = "-inf", "inf", True, True
     for m in info.metadata if info else []:
         for attr, is_lo, is_open in (("gt", 1, 1), ("ge", 1, 0), ("lt", 0, 1), ("le", 0, 0)):
@@ -469,37 +524,3 @@ def parse_scenario(data: dict) -> Scenario:
         return Scenario.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError(_format_errors(exc)) from None
-
-
-def load_scenario(path: str | Path) -> Scenario:
-    """Load and validate a TOML scenario file; raises ScenarioError naming each bad field."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ScenarioError(f"{path}: no such scenario file") from None
-    except IsADirectoryError:
-        raise ScenarioError(f"{path}: is a folder, not a scenario file") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): scenario files are UTF-8 TOML") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    csv = data.get("mission", {}).get("trajectory_csv") if isinstance(data.get("mission"), dict) else None
-    if isinstance(csv, str) and csv and not Path(csv).is_absolute():
-        data["mission"]["trajectory_csv"] = str((path.parent / csv).resolve())  # relative to the scenario file
-    sc = parse_scenario(data)
-    if sc.mission.trajectory_csv:
-        _check_trajectory_csv(Path(sc.mission.trajectory_csv))
-    return sc
-
-
-def _check_trajectory_csv(csv: Path) -> None:
-    """Validate a user MRAV-2 trajectory before any work starts (header and time column)."""
-    from .sim.mission import CsvPath
-
-    if not csv.is_file():
-        raise ScenarioError(f"mission.trajectory_csv: no such file {csv}")
-    try:
-        CsvPath(csv)
-    except ValueError as exc:
-        raise ScenarioError(f"mission.trajectory_csv: {exc}") from None

@@ -1,13 +1,15 @@
-"""The vectorized capacity over relay poses against the per-link channel functions (property test)."""
+"""The radio scene's vectorized capacity over relay poses against the independent per-link reference (property test)."""
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aerorelay.models.antenna import DipolePattern, IsotropicPattern
-from aerorelay.models.capacity_field import axis_cone, relay_capacity
-from aerorelay.models.channel import end_to_end_capacity, link_sinr
+from aerorelay.models.axes import axis_cone
 from aerorelay.models.geometry import rotation_zyx
+from aerorelay.models.jammer import Jammer
+from aerorelay.models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene
+from tests.reference_channel import end_to_end_capacity, link_sinr
 
 coord = st.floats(-8.0, 8.0)
 angle = st.floats(-0.6, 0.6)
@@ -28,8 +30,9 @@ def test_relay_capacity_equals_the_link_by_link_channel(p1, p2, eta1, eta2, jam,
     kw = dict(tx_power=1.0, jam_power=jam, noise_power=1.0)
     g21 = link_sinr(p2, R2, p1, R1, pj, pattern=src, pattern_rx=relay, **kw)
     g10 = link_sinr(p1, R1, p0, np.eye(3), pj, pattern=relay, pattern_rx=bs, **kw)
-    C = relay_capacity(p1[None], R1[:, 2][None], p2=p2, b2=R2[:, 2], p0=p0, b0=np.array([0, 0, 1.0]), pj=pj,
-                       jam_power=jam, pattern=relay, pattern_source=src, pattern_bs=bs, tx_power=1.0, noise_power=1.0)
+    scene = RadioScene((Node("bs", "base_station", Antenna(bs), p0), Node("source", "source", Antenna(src)),
+                        Node("relay", "relay", Antenna(relay))), (Jammer(pj, jam),), LinkBudget(1.0, 1.0))
+    C = scene.relay_grid(0.0, p1[None], R1[:, 2][None], {"source": NodePose(p2, R2[:, 2])})
     assert np.isclose(C[0, 0], end_to_end_capacity(g21, g10), rtol=1e-9, atol=1e-15)
 
 

@@ -1,0 +1,114 @@
+"""The Python API: load a scenario, fly it, bound it, benchmark it, reproduce the paper.
+
+    import aerorelay as ar
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"controller.mu": 0.3})
+    result = ar.simulate(sc)            # result.timeseries (DataFrame), result.metrics (dict)
+    result.save("runs/mine")            # the run folder `aerorelay run` writes, figures included
+    bound = ar.bound(sc)                # the best link the physics allows (cached per geometry)
+
+Parts can be passed instead of named in TOML: ``ar.simulate(sc, planner=MyPlanner())`` (any
+object with ``update(PlannerInput) -> Reference``), ``jammers=[ar.Jammer(...)]`` or a whole
+``scene=ar.RadioScene(...)`` with your own antenna patterns.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import platform
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from ._version import __version__
+from .control.bench import benchmark_closed_loop
+from .control.nmpc import NmpcSettings
+from .experiments.campaign import CampaignResult, load_manifest, run_campaign
+from .experiments.study import Study, expand, find_studies
+from .planning.bound import CapacityBound
+from .report.figures import write_run_figures
+from .report.html import render_report
+from .report.summary import summarize
+from .scenario import Scenario
+from .scenario.build import build, scenario_bound
+from .scenario.run import RunResult
+from .scenario.run import simulate as _simulate
+from .sim.initial import initial_link_budget
+
+
+class Result(RunResult):
+    """A flown mission (``timeseries``, ``metrics``, ``bound``); ``save`` writes its run folder
+    with the figures (``figures=False``: data files only)."""
+
+    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True) -> Path:
+        def writer(tmp: Path) -> None:
+            if figures:
+                write_run_figures(self.timeseries, self.scenario, tmp, self.bound.frame() if self.bound is not None else None)
+            if extra is not None:
+                extra(tmp)
+
+        return super().save(folder, writer)
+
+
+def simulate(sc: Scenario, *, bound: bool = False, **parts) -> Result:
+    """Fly ``sc``; ``bound=True`` also computes its capacity bound (efficiency in the metrics).
+    Keyword parts (``planner``, ``jammers``, ``scene``, ``nmpc_settings``, ``progress``) replace the
+    scenario's (see ``scenario.run.simulate``)."""
+    r = _simulate(sc, with_bound=bound, **parts)
+    return Result(r.scenario, r.mission, r.timeseries, r.metrics, r.bound)
+
+
+def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound:
+    """The scenario's capacity bounds (static and path), computed once per geometry and cached."""
+    return scenario_bound(sc, progress)
+
+
+def link_budget(sc: Scenario) -> dict[str, float]:
+    """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry."""
+    parts_scene = build(sc).scene
+    return initial_link_budget(parts_scene, sc.nodes.relay, sc.mission.start)
+
+
+def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
+    """Time the controller on a mission (preparation, feedback, planner; IPOPT at a few states)."""
+    build(sc.with_updates({"sim.duration_s": 0.1}), nmpc_settings=settings).closed_loop().run()  # compile / load first
+    parts = build(sc, nmpc_settings=settings)
+    res = benchmark_closed_loop(parts.closed_loop(), ipopt_points=ipopt_points)
+    res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
+    nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
+    res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
+    return res
+
+
+@dataclass
+class Reproduction:
+    """What ``reproduce`` did: the studies and runs, the campaign's outcome, the summary it wrote."""
+
+    studies: list[Study]
+    runs: list
+    campaign: CampaignResult
+    summary: dict
+    report: Path
+
+
+def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool = False, studies_dir: str | Path = "experiments",
+              scheduler: str | None = None, workers: int | None = None, progress=None, on_start=None) -> Reproduction:
+    """Run the named studies (default: all in ``studies_dir``) as a campaign on dask (resuming a
+    previous one in ``out``), then write ``report.html`` and ``summary.json``. ``on_start(n_runs,
+    n_studies)`` is called once the studies are expanded."""
+    folder, out = Path(studies_dir), Path(out)
+    chosen = find_studies(folder, studies or None)
+    specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick)]
+    if on_start is not None:
+        on_start(len(specs), len(chosen))
+    res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress)
+    manifest = load_manifest(out)
+    meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
+            "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
+            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s,
+            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
+            "controller": NmpcSettings().fingerprint()}
+    summary = summarize(chosen, specs, out, {"campaign": meta})
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    (out / "report.html").write_text(render_report(summary, chosen, specs, out, manifest))
+    return Reproduction(chosen, specs, res, summary, out / "report.html")

@@ -1,0 +1,33 @@
+"""Relay antenna axes to search: cones of unit axes within a tilt limit (the bound, the capacity planner).
+
+A dipole's gain depends on its axis only (not on yaw), so a relay attitude enters the channel
+(``models.radio``) only through its body z axis; these sets sample the axes a platform can hold.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def axis_cone(max_tilt: float, step: float) -> np.ndarray:
+    """Unit axes within ``max_tilt`` rad of vertical: rings every ``step`` rad of tilt (and one at
+    ``max_tilt``), azimuths spaced about ``step`` along each ring. ``(K, 3)``; vertical first."""
+    tilts = [0.0] + [t for t in np.arange(step, max_tilt, step)] + ([max_tilt] if max_tilt > 1e-9 else [])
+    axes = [np.array([0.0, 0.0, 1.0])]
+    for tilt in tilts[1:]:
+        n = max(6, int(np.ceil(2 * np.pi * np.sin(tilt) / step)))
+        az = 2 * np.pi * np.arange(n) / n
+        axes.extend(np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.full(n, np.cos(tilt))]))
+    return np.array(axes)
+
+
+def axis_set(azimuths: np.ndarray, limits: np.ndarray, step: float) -> np.ndarray:
+    """Unit axes with tilt <= ``limits`` (rad) toward each of ``azimuths`` (rad, increasing over a
+    full turn), on tilt rings every ``step`` rad with azimuths about ``step`` apart. Vertical first."""
+    axes = [np.array([0.0, 0.0, 1.0])]
+    for tilt in np.arange(step, max(float(np.max(limits)), 0.0) + 1e-9, step):
+        n = max(6, int(np.ceil(2 * np.pi * np.sin(tilt) / step)))
+        az = 2 * np.pi * np.arange(n) / n
+        ok = tilt <= np.interp(az, azimuths, limits, period=2 * np.pi) + 1e-9
+        axes.extend(np.column_stack([np.sin(tilt) * np.cos(az[ok]), np.sin(tilt) * np.sin(az[ok]), np.full(ok.sum(), np.cos(tilt))]))
+    return np.array(axes)

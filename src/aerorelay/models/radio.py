@@ -1,0 +1,286 @@
+"""The radio scene and the one channel implementation behind every consumer (paper eq. 5-9).
+
+A ``RadioScene`` holds named nodes with roles (base station, source, relay), each with an antenna
+(a pattern and its axis in the node's body frame), any number of jammers (``models.jammer``) and
+the link budget. ``RadioScene.evaluate(t, poses)`` returns the SINR of every hop of the route
+(source -> relay -> base station, any length) and the end-to-end capacity. The closed loop's true
+channel, the initial link budget, the capacity bound, the capacity planner, baseline B and the
+report all call it.
+
+Units: positions m (world frame), powers W, bandwidth normalized (B = 1 gives bit/s/Hz). A pose
+is a position and the antenna axis in the world (``NodePose``); numpy arrays broadcast, so one
+call evaluates one pose or a grid of relay positions ``(M, 1, 3)`` x antenna axes ``(1, K, 3)``.
+``link_gain`` and ``route_capacity`` also take CasADi expressions (baseline B's NLP).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+
+from .antenna import AntennaPattern
+from .backend import is_symbolic, ops
+from .geometry import E3
+from .jammer import Jammer
+
+Role = Literal["base_station", "source", "relay"]
+
+
+@dataclass(frozen=True)
+class Antenna:
+    """An antenna: its pattern and its axis in the node's body frame (unit; dipoles along body z)."""
+
+    pattern: AntennaPattern
+    axis: np.ndarray = field(default_factory=lambda: E3.copy())
+
+    def world_axis(self, R) -> np.ndarray:
+        """The axis in the world for a body-to-world rotation ``R`` (``(..., 3, 3)``)."""
+        R = np.asarray(R, float)
+        if np.array_equal(self.axis, E3):
+            return R[..., :, 2]
+        return np.einsum("...ij,j->...i", R, np.asarray(self.axis, float))
+
+
+@dataclass(frozen=True)
+class Node:
+    """A radio node: ``name``, ``role``, antenna; ``position`` (m, world) for a fixed node (its
+    attitude is then the identity), None for a vehicle whose pose the simulation gives."""
+
+    name: str
+    role: Role
+    antenna: Antenna
+    position: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class LinkBudget:
+    """Transmit power ``P_U`` and noise power ``sigma^2`` (W), bandwidth ``B`` (normalized)."""
+
+    tx_power: float = 1.0
+    noise_power: float = 1.0
+    bandwidth: float = 1.0
+
+
+@dataclass(frozen=True)
+class NodePose:
+    """Where a node is (``(..., 3)`` m, world) and where its antenna points (``(..., 3)`` unit, world);
+    numpy arrays, or CasADi 3-vectors for a symbolic evaluation (baseline B's NLP)."""
+
+    position: Any
+    axis: Any
+
+
+@dataclass(frozen=True)
+class Emitter:
+    """A jammer at one instant: position (m), boresight (unit, world), pattern, radiated power (W)."""
+
+    position: np.ndarray
+    axis: np.ndarray
+    pattern: AntennaPattern
+    power: float
+
+
+@dataclass(frozen=True)
+class ChannelState:
+    """One evaluation of the channel: per hop of the route (in route order) the SINR and the
+    interference ``sum_j F_Jj^2 P_J`` at its receiver (W); the end-to-end capacity."""
+
+    hops: tuple[tuple[str, str], ...]
+    sinr: tuple[np.ndarray, ...]
+    interference: tuple[np.ndarray, ...]
+    capacity: np.ndarray
+
+    def spectral_efficiency(self) -> tuple[np.ndarray, ...]:
+        """``log2(1 + Gamma_k)`` per hop, bit/s/Hz (eq. 8 with B = 1)."""
+        return tuple(np.log2(1.0 + g) for g in self.sinr)
+
+
+def _dot(a, b):
+    """``<a, b>`` over the last axis, broadcasting; an outer grid ``(M, 1, 3) x (1, K, 3)`` as one matmul."""
+    if is_symbolic(a, b):
+        return ops(a, b).dot(a, b)
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if a.ndim == 3 and b.ndim == 3 and a.shape[1] == 1 and b.shape[0] == 1:
+        return a[:, 0, :] @ b[0].T
+    if b.ndim == 1:
+        return a @ b
+    if a.ndim == 1:
+        return b @ a
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _gain(pattern: AntennaPattern, c):
+    return pattern.symbolic_gain_from_cos(c) if is_symbolic(c) else pattern.gain_from_cos(c)
+
+
+def link_gain(p_tx, b_tx, pat_tx: AntennaPattern, p_rx, b_rx, pat_rx: AntennaPattern):
+    """``G_tx(th_D) G_rx(th_A) / |p_rx - p_tx|^2`` (eq. 6; eq. 7 with the jammer as transmitter).
+
+    ``b_tx``, ``b_rx``: antenna axes (unit, world); each gain from the cosine of the angle between
+    the link and the axis at that end. numpy (broadcast) or CasADi 3-vectors.
+    """
+    if is_symbolic(p_tx, b_tx, p_rx, b_rx):
+        p_tx, b_tx, p_rx, b_rx = (v if is_symbolic(v) else ca.DM(np.asarray(v, float)) for v in (p_tx, b_tx, p_rx, b_rx))
+    else:
+        p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
+    d = p_rx - p_tx
+    n2 = _dot(d, d)
+    n = ops(n2).sqrt(n2)
+    return _gain(pat_tx, _dot(d, b_tx) / n) * _gain(pat_rx, -_dot(d, b_rx) / n) / n2
+
+
+def spectral_efficiency(gamma):
+    """``log2(1 + Gamma)`` in bit/s/Hz (eq. 8 with B = 1); ``log1p`` for CasADi expressions."""
+    if is_symbolic(gamma):
+        return ops(gamma).log1p(gamma) / np.log(2.0)
+    return np.log2(1.0 + np.asarray(gamma, float))
+
+
+def route_capacity(sinrs: Sequence, bandwidth: float = 1.0):
+    """End-to-end capacity of a route with equal time shares: ``C = B / sum_k 1/log2(1 + Gamma_k)``
+    (eq. 9 for two hops, ``B a b / (a + b)``). Zero when any hop is dead. numpy (broadcast) or CasADi."""
+    se = [spectral_efficiency(g) for g in sinrs]
+    if is_symbolic(*se):
+        return bandwidth / sum(1.0 / s for s in se)
+    se = list(np.broadcast_arrays(*se))
+    # B prod_k s_k / sum_k prod_(j != k) s_j: the same value, written so that two hops give eq. 9's
+    # B a b / (a + b) operation for operation
+    num = np.prod(se, axis=0)
+    den = sum(np.prod([s for j, s in enumerate(se) if j != k], axis=0) for k in range(len(se)))
+    alive = np.all([s > 0 for s in se], axis=0)
+    return bandwidth * np.where(alive, num / np.where(alive, den, 1.0), 0.0)
+
+
+@dataclass(frozen=True)
+class RadioScene:
+    """Nodes, jammers, link budget and the route data takes (node names, source first, base station last)."""
+
+    nodes: tuple[Node, ...]
+    jammers: tuple[Jammer, ...] = ()
+    budget: LinkBudget = LinkBudget()
+    route: tuple[str, ...] = ("source", "relay", "bs")
+
+    def __post_init__(self):
+        names = [n.name for n in self.nodes]
+        if len(set(names)) != len(names):
+            raise ValueError(f"radio scene: node names must be unique, got {names}")
+        missing = [r for r in self.route if r not in names]
+        if missing or len(self.route) < 2:
+            raise ValueError(f"radio scene: route {list(self.route)} must name >= 2 of the nodes {names}")
+        if self.node(self.route[0]).role != "source" or self.node(self.route[-1]).role != "base_station":
+            raise ValueError("radio scene: the route must start at a source and end at a base station")
+        for j in self.jammers:
+            if j.point_at is not None and j.point_at not in names:
+                raise ValueError(f"jammer {j.name!r}: point_at {j.point_at!r} is not a node ({', '.join(names)})")
+
+    def node(self, name: str) -> Node:
+        for n in self.nodes:
+            if n.name == name:
+                return n
+        raise KeyError(f"radio scene has no node {name!r}")
+
+    def name_of(self, role: Role) -> str:
+        """The first node with this role."""
+        return next(n.name for n in self.nodes if n.role == role)
+
+    @property
+    def hops(self) -> tuple[tuple[str, str], ...]:
+        return tuple(zip(self.route[:-1], self.route[1:], strict=True))
+
+    @property
+    def fading_links(self) -> int:
+        """Links a fading draw multiplies: every hop, then every (hop receiver, jammer) pair."""
+        return len(self.hops) * (1 + len(self.jammers))
+
+    def fixed_pose(self, name: str) -> NodePose:
+        """Pose of a fixed node (identity attitude)."""
+        n = self.node(name)
+        if n.position is None:
+            raise ValueError(f"node {name!r} moves: its pose comes from the simulation")
+        return NodePose(np.asarray(n.position, float), n.antenna.world_axis(np.eye(3)))
+
+    def pose(self, name: str, position, R) -> NodePose:
+        """Pose of node ``name`` at ``position`` with body-to-world rotation ``R``."""
+        return NodePose(np.asarray(position, float), self.node(name).antenna.world_axis(R))
+
+    def emitters(self, t: float, poses: Mapping[str, NodePose], *, positions=None, powers=None) -> list[Emitter]:
+        """Every jammer at time ``t``: true position and power, or the given ``positions`` ``(nJ, 3)``
+        and ``powers`` ``(nJ,)`` (what a controller knows); boresights track their target node."""
+        out = []
+        for i, j in enumerate(self.jammers):
+            p = np.asarray(positions[i], float) if positions is not None else j.position_at(t)
+            power = float(powers[i]) if powers is not None else float(j.power_at(t))
+            target = poses[j.point_at].position if j.point_at is not None and power != 0.0 else None
+            out.append(Emitter(p, j.axis(p, target), j.pattern, power))
+        return out
+
+    @staticmethod
+    def interference(emitters: Sequence[Emitter], rx: NodePose, pat_rx: AntennaPattern, fading=None):
+        """``sum_j F_Jj^2 P_J`` at a receiver (eq. 7), W; ``fading`` one power gain per emitter."""
+        total = 0.0
+        for i, e in enumerate(emitters):
+            if e.power == 0.0:
+                continue
+            f = link_gain(e.position, e.axis, e.pattern, rx.position, rx.axis, pat_rx)
+            if fading is not None:
+                f = f * fading[i]
+            total = total + f * e.power
+        return total
+
+    def evaluate(self, t: float, poses: Mapping[str, NodePose], *, jammer_positions=None, jammer_powers=None,
+                 fading=None) -> ChannelState:
+        """SINR of every hop (eq. 5) and the end-to-end capacity (eq. 9) with the nodes at ``poses``
+        (fixed nodes may be omitted). The jammers are the true ones at ``t`` unless
+        ``jammer_positions`` ``(nJ, 3)`` / ``jammer_powers`` ``(nJ,)`` say what a controller knows;
+        ``fading``: ``fading_links`` power gains (hops first, then each receiver's jammer links)."""
+        poses = {n.name: self.fixed_pose(n.name) for n in self.nodes if n.position is not None and n.name not in poses} | dict(poses)
+        emitters = self.emitters(t, poses, positions=jammer_positions, powers=jammer_powers)
+        b, nh, nj = self.budget, len(self.hops), len(emitters)
+        sinrs, interference = [], []
+        with np.errstate(divide="ignore", invalid="ignore"):  # a jammer on a receiver: infinite interference
+            for k, (tx, rx) in enumerate(self.hops):
+                h = link_gain(poses[tx].position, poses[tx].axis, self.node(tx).antenna.pattern,
+                              poses[rx].position, poses[rx].axis, self.node(rx).antenna.pattern)
+                if fading is not None:
+                    h = h * fading[k]
+                jam_fade = None if fading is None else fading[nh + k * nj: nh + (k + 1) * nj]
+                i_rx = self.interference(emitters, poses[rx], self.node(rx).antenna.pattern, jam_fade)
+                if not is_symbolic(i_rx):
+                    i_rx = np.nan_to_num(i_rx, nan=np.inf)
+                sinrs.append(h * b.tx_power / (i_rx + b.noise_power))  # eq. 5
+                interference.append(i_rx)
+        return ChannelState(self.hops, tuple(sinrs), tuple(interference), route_capacity(sinrs, b.bandwidth))
+
+    def relay_grid(self, t: float, positions, axes, poses: Mapping[str, NodePose], *, jammer_positions=None,
+                   jammer_powers=None, relay: str = "relay") -> np.ndarray:
+        """End-to-end capacity ``(M, K)`` for relay positions ``(M, 3)`` x relay antenna axes ``(K, 3)``
+        (world), the other moving nodes at ``poses``, the jammers as in ``evaluate``."""
+        P = np.atleast_2d(np.asarray(positions, float))[:, None, :]
+        B = np.atleast_2d(np.asarray(axes, float))[None, :, :]
+        state = self.evaluate(t, {**poses, relay: NodePose(P, B)}, jammer_positions=jammer_positions, jammer_powers=jammer_powers)
+        return np.broadcast_to(state.capacity, (P.shape[0], B.shape[1]))
+
+    def describe(self) -> str:
+        """The scene's assumptions in words (``bound.json``, reports)."""
+        def pattern(p: AntennaPattern) -> str:
+            return f"{type(p).__name__.removesuffix('Pattern').lower()} (peak gain {p.g_bar:g})"
+
+        parts = []
+        for n in self.nodes:
+            where = f" at {np.round(np.asarray(n.position, float), 2).tolist()} m" if n.position is not None else ""
+            parts.append(f"{n.role} '{n.name}'{where}: {pattern(n.antenna.pattern)} antenna, axis "
+                         f"{np.round(n.antenna.axis, 3).tolist()} in its body frame")
+        for j in self.jammers:
+            where = "moving along timed waypoints" if j.path is not None else f"fixed at {np.round(j.position, 2).tolist()} m"
+            aim = f", pointed at '{j.point_at}'" if j.point_at else ""
+            parts.append(f"jammer '{j.name}' {where}, {j.power:g} W peak, {type(j.schedule).__name__}, "
+                         f"{pattern(j.pattern)}{aim}")
+        if not self.jammers:
+            parts.append("no jammer")
+        b = self.budget
+        parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; route {' -> '.join(self.route)}")
+        return "; ".join(parts)

@@ -1,0 +1,178 @@
+"""The composition root: a validated ``Scenario`` -> the parts a mission is made of.
+
+The only module that knows both the schema and the parts. ``models``, ``planning``,
+``control`` and ``sim`` take parts (a vehicle, a radio scene, a path, settings dataclasses),
+never a ``Scenario``. The vehicle is built once per mission (its hover-tilt limits are cached on
+it) and shared by the planner, the controller, the plant and the bound.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..control.nmpc import NmpcSettings
+from ..control.ocp import OcpSpec
+from ..control.relay import FailsafeSettings, RelayController
+from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
+from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
+from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
+from ..models.radio import Antenna, LinkBudget, Node, RadioScene
+from ..models.vehicle import Multirotor
+from ..planning import registry  # noqa: F401  (registers the built-in planners)
+from ..planning.base import Planner, PlannerContext, planner_factory
+from ..planning.bound import BoundProblem, CapacityBound, bound_key, cached_bound, compute_bound
+from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
+from .schema import JammerConfig, Scenario
+
+ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
+
+
+def build_jammer(cfg: JammerConfig) -> Jammer:
+    """A jammer from its ``[jammer]`` / ``[[jammers]]`` table."""
+    sched = AlwaysOn() if cfg.schedule == "always_on" else PeriodicOnOff(cfg.on_s, cfg.off_s)
+    path: SourceTrajectory | None = None
+    if cfg.waypoints is not None:
+        path = LinearPath(cfg.waypoints) if cfg.path == "linear" else MinimumJerkPath(cfg.waypoints)
+    pattern: AntennaPattern = IsotropicPattern(1.0)
+    if cfg.pattern == "cosine":
+        pattern = CosinePattern(cfg.g_max, cfg.exponent, cfg.back_lobe)
+    boresight = np.array(cfg.boresight, float) / np.linalg.norm(cfg.boresight) if cfg.boresight is not None else np.array([0.0, 0.0, 1.0])
+    return Jammer(np.array(cfg.position, float), cfg.power_w, sched, cfg.localization_delay_s, path, pattern,
+                  cfg.point_at, boresight, cfg.name)
+
+
+def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
+    """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_axis``), source
+    'source' (MRAV-2) and relay 'relay' (MRAV-1), antennas along body z; every jammer."""
+    pat = sc.antenna.patterns()
+    bs_axis = np.array(sc.antenna.bs_axis, float) / np.linalg.norm(sc.antenna.bs_axis)
+    nodes = (Node("bs", "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
+             Node("source", "source", Antenna(pat.source)),
+             Node("relay", "relay", Antenna(pat.relay)))
+    ch = sc.channel
+    jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
+    return RadioScene(nodes, jams, LinkBudget(ch.tx_power_w, ch.noise_power_w, ch.bandwidth), ("source", "relay", "bs"))
+
+
+def build_source(sc: Scenario) -> SourceTrajectory:
+    """MRAV-2's path (minimum-jerk waypoints or the user's CSV)."""
+    return source_trajectory(sc.mission)
+
+
+def _workspace(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    ws = sc.controller.workspace
+    return np.array(ws.min, float), np.array(ws.max, float)
+
+
+def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None) -> OcpSpec:
+    """The NMPC problem structure described by a scenario."""
+    c = sc.controller
+    lo, hi = _workspace(sc)
+    return OcpSpec(vehicle=vehicle or sc.platform.vehicle(), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
+                   bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
+                   exact_input_rate=c.exact_input_rate)
+
+
+def _vec3(v) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])
+
+
+def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
+    """The ``sw_*`` stage parameters: square roots of the weights in columns 0..N-1 and of the
+    terminal weights in column N (0 for terms without a terminal part and for slacks)."""
+    w: dict[str, float] = sc.controller.weights.model_dump()  # type: ignore[attr-defined]
+    if sc.controller.planner == "capacity":  # a tracking NMPC under the capacity planner
+        cap = sc.controller.capacity
+        w.update(position=cap.position_weight, position_terminal=cap.position_weight_terminal)
+    out = {}
+    for t in spec.terms:
+        stage = w[t.name]
+        terminal = 0.0 if t.terminal is None else (w[f"{t.name}_terminal"] if t.own_terminal else stage)
+        out[f"sw_{t.name}"] = np.sqrt(np.r_[np.full(spec.horizon, stage), terminal])
+    for c in spec.soft_constraints:
+        out[f"sw_slack_{c.name}"] = np.sqrt(np.r_[np.full(spec.horizon, sc.controller.q_slack), 0.0])
+    return out
+
+
+def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings | None = None) -> RelayController:
+    """NMPC + fail-safe for the scenario's controller settings."""
+    spec = ocp_spec(sc, vehicle)
+    fs = sc.controller.failsafe
+    return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
+                           failsafe=FailsafeSettings(fs.failures_to_fallback, fs.successes_to_resume, fs.workspace_margin_m),
+                           settings=settings)
+
+
+def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> PlannerContext:
+    lo, hi = _workspace(sc)
+    return PlannerContext(scene, source, vehicle, lo, hi, np.array(sc.nodes.relay, float), sc.duration_s, sc.controller,
+                          sc.antenna.g_bar)
+
+
+def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:
+    """The planner named by ``controller.planner``."""
+    return planner_factory(sc.controller.planner)(planner_context(sc, vehicle, scene, source))
+
+
+def sim_settings(sc: Scenario) -> SimSettings:
+    p = sc.perturbations
+    return SimSettings(sc.control_period_s, sc.duration_s, sc.sim.plant_rate_hz, np.array(sc.nodes.relay, float), sc.seed,
+                       p.csi_noise_m, p.process_noise_v, p.process_noise_w, p.fading_k_db, sc.controller.senses_jammer_state)
+
+
+@dataclass
+class Parts:
+    """Everything a mission is made of, built once from a scenario."""
+
+    scenario: Scenario
+    vehicle: Multirotor
+    scene: RadioScene
+    source: SourceTrajectory
+    planner: Planner
+    controller: RelayController
+    plant: ca.Function
+    settings: SimSettings
+
+    def closed_loop(self) -> ClosedLoop:
+        return ClosedLoop(vehicle=self.vehicle, scene=self.scene, source=self.source, planner=self.planner,
+                          controller=self.controller, plant=self.plant, settings=self.settings)
+
+
+def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
+          jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None) -> Parts:
+    """The parts of ``sc``; ``planner``, ``scene`` or ``jammers`` given here replace the ones the
+    scenario names (objects with the same interface: see ``planning.base``, ``models.radio``)."""
+    vehicle = sc.platform.vehicle()
+    scene = scene or build_scene(sc, jammers)
+    source = build_source(sc)
+    planner = planner or build_planner(sc, vehicle, scene, source)
+    controller = build_controller(sc, vehicle, nmpc_settings)
+    plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
+    return Parts(sc, vehicle, scene, source, planner, controller, plant, sim_settings(sc))
+
+
+def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> BoundProblem:
+    lo, hi = _workspace(sc)
+    return BoundProblem(scene or build_scene(sc), build_source(sc), vehicle or sc.platform.vehicle(), lo, hi,
+                        np.array(sc.nodes.relay, float), sc.duration_s, sc.bound, sc.channel.outage_threshold)
+
+
+def scenario_bound_key(sc: Scenario) -> str:
+    """Everything the bound depends on (not the controller, except its workspace box)."""
+    data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers", "mission", "bound"})
+    data["workspace"] = sc.controller.workspace.model_dump()
+    data["duration_s"] = sc.duration_s
+    return bound_key(data)
+
+
+def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:
+    """The scenario's capacity bound, computed once per geometry and cached (a scene passed in is
+    not part of the cache key: its bound is computed afresh)."""
+    pb = bound_problem(sc, vehicle, scene)
+    if scene is not None:
+        return compute_bound(pb, progress)
+    return cached_bound(pb, scenario_bound_key(sc), progress)
+

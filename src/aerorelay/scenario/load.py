@@ -1,0 +1,61 @@
+"""Reading scenario files: TOML text, ``--set`` overrides, user trajectory files, with named errors."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from ..models.mission import CsvPath
+from .schema import Scenario, ScenarioError, parse_scenario
+
+
+def parse_sets(items: list[str] | None) -> dict:
+    """``["a.b=1", "c=[1, 2]"]`` -> ``{"a.b": 1, "c": [1, 2]}``: values parsed as TOML (a bare word
+    that is not TOML is taken as a string); a malformed item raises ScenarioError naming it."""
+    out = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError(f"--set {item!r}: write dotted.key=value")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key.strip()] = value
+    return out
+
+
+def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scenario:  # noqa: A002 (the API's word)
+    """Load and validate a TOML scenario file, then apply ``set`` (dotted keys -> values, or
+    ``"key=value"`` strings as on the command line); raises ScenarioError naming each bad field."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: no such scenario file") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"{path}: is a folder, not a scenario file") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): scenario files are UTF-8 TOML") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    csv = data.get("mission", {}).get("trajectory_csv") if isinstance(data.get("mission"), dict) else None
+    if isinstance(csv, str) and csv and not Path(csv).is_absolute():
+        data["mission"]["trajectory_csv"] = str((path.parent / csv).resolve())  # relative to the scenario file
+    sc = parse_scenario(data)
+    updates = parse_sets(set) if isinstance(set, list) else (set or {})
+    if updates:
+        sc = sc.with_updates(updates)
+    if sc.mission.trajectory_csv:
+        _check_trajectory_csv(Path(sc.mission.trajectory_csv))
+    return sc
+
+
+def _check_trajectory_csv(csv: Path) -> None:
+    """Validate a user MRAV-2 trajectory before any work starts (header and time column)."""
+    if not csv.is_file():
+        raise ScenarioError(f"mission.trajectory_csv: no such file {csv}")
+    try:
+        CsvPath(csv)
+    except ValueError as exc:
+        raise ScenarioError(f"mission.trajectory_csv: {exc}") from None

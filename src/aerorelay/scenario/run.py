@@ -1,0 +1,65 @@
+"""Fly a scenario: its parts (``build``), the closed loop, the metrics, optionally the bound; a
+``RunResult`` with the time series and metrics that ``save`` writes as a run folder."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from ..control.nmpc import NmpcSettings
+from ..models.jammer import Jammer
+from ..models.radio import RadioScene
+from ..planning.base import Planner
+from ..planning.bound import CapacityBound
+from ..sim.closed_loop import MissionResult, log_columns
+from ..sim.metrics import compute_metrics
+from ..store.run_folder import log_frame, publish_run
+from .build import build, scenario_bound
+from .schema import Scenario
+
+
+@dataclass
+class RunResult:
+    """One flown mission: ``timeseries`` (one row per control step, the parquet's columns),
+    ``metrics`` (as ``metrics.json``), the capacity ``bound`` when computed, the raw ``mission``."""
+
+    scenario: Scenario
+    mission: MissionResult
+    timeseries: pd.DataFrame
+    metrics: dict
+    bound: CapacityBound | None = None
+
+    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None) -> Path:
+        """Write the run folder (scenario.toml, timeseries.parquet, metrics.json, bound files)."""
+        publish_run(Path(folder), self.scenario.to_toml(), self.timeseries, self.metrics, bound=self.bound, extra=extra)
+        return Path(folder)
+
+
+def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBound | None) -> dict:
+    """``metrics.json`` of a mission (with its efficiency against the bound, when given)."""
+    m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage_threshold,
+                        mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s)
+    m["controller"] = mission.controller
+    m["fallback_episodes"] = mission.fallback_episodes
+    if bound is not None:  # how far from what the physics allows (planning/bound.py)
+        m["capacity_efficiency_mean"] = m["c_mean"] / float(bound.path_mean.mean())
+        m["capacity_efficiency_min"] = m["c_min"] / float(bound.path_maxmin.min())
+        m["bound"] = bound.summary()
+    return m
+
+
+def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
+             jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None, with_bound: bool = False,
+             progress: Callable[[int, int], None] | None = None,
+             bound_progress: Callable[[int, int], None] | None = None) -> RunResult:
+    """Fly ``sc`` (parts given here replace the scenario's: a planner object, a radio scene, a
+    list of jammers); ``with_bound``: also compute (or load) the capacity bound."""
+    parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
+    mission = parts.closed_loop().run(progress)
+    injected = parts.scene if (scene is not None or jammers is not None) else None
+    bound = scenario_bound(sc, bound_progress, parts.vehicle, injected) if with_bound else None
+    df = log_frame(mission.log, log_columns(parts.vehicle.n_rotors))
+    return RunResult(sc, mission, df, run_metrics(sc, mission, parts.vehicle, bound), bound)
