@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from aerorelay.control.failsafe import BrakeLaw
+from aerorelay.control.ocp import QpResult
 from aerorelay.scenario import load_scenario, parse_scenario
 from aerorelay.scenario.build import build
 from aerorelay.sim.closed_loop import plant_step_function
@@ -48,10 +49,10 @@ def _failing_engine(loop, fail_steps):
     def feedback(xa0, shift):
         k = count["k"]
         count["k"] += 1
-        ok, u, status, slack, iters = real(xa0, shift)
+        qp = real(xa0, shift)
         if k in fail_steps:
-            return False, np.full_like(u, np.nan), "INJECTED", float("nan"), iters
-        return ok, u, status, slack, iters
+            return QpResult(False, np.full_like(qp.u, np.nan), "INJECTED", float("nan"), qp.iterations)
+        return qp
 
     engine.feedback = feedback
 

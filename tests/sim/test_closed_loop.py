@@ -28,7 +28,7 @@ def test_short_mission_runs_without_failures(short_run):
     assert len(log["t"]) == int(3.0 / 0.015) + 1
     assert short_run.qp_failures == 0
     for c in LOG_COLUMNS:
-        if c not in ("qp_status", "fallback"):
+        if c not in ("qp_ok", "qp_status", "fallback"):
             assert np.all(np.isfinite(log[c])), c
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from .codegen import compiled
 from .linearization import check_dimensions, stage_linearization, terminal_linearization
-from .ocp import HESSIAN_REG, INF, OcpSpec, absolute_bounds
+from .ocp import HESSIAN_REG, INF, OcpSpec, QpResult, absolute_bounds
 
 
 def _pack_mx(X, W):
@@ -110,10 +110,10 @@ class ConicEngine:
         """Linearize at the guess."""
         self._qp_data = self.prep(self.Xb, self.Wb, P)
 
-    def feedback(self, xa0: np.ndarray, shift: bool):
-        """-> (ok, first input or fallback input, status, slack max, iterations)."""
+    def feedback(self, xa0: np.ndarray, shift: bool) -> QpResult:
+        """Solve the prepared QP for ``xa0``: the first input, or the fallback input on failure."""
         if self._qp_data is None:
-            return False, self._fallback(), "not prepared", float("nan"), 0
+            return QpResult(False, self._fallback(), "not prepared", float("nan"), 0)
         H, g, A, lba, uba, lbx, ubx = self._qp_data
         self._qp_data = None
         x0_step = ca.DM(xa0) - self.Xb[:, 0]
@@ -127,8 +127,8 @@ class ConicEngine:
         if bool(stats.get("success", False)) and np.isfinite(float(check)):
             self.Xb, self.Wb = (Xs, Ws) if shift else (X, W)
             self.lam_x, self.lam_a = sol["lam_x"], sol["lam_a"]
-            return True, np.array(u0).ravel(), status, float(slack), iters
-        return False, self._fallback(), status, float("nan"), iters
+            return QpResult(True, np.array(u0).ravel(), status, float(slack), iters)
+        return QpResult(False, self._fallback(), status, float("nan"), iters)
 
     def _fallback(self) -> np.ndarray:
         """The guess's first input (the previous plan shifted to now); the guess is shifted on."""

@@ -27,7 +27,7 @@ import numpy as np
 from .codegen import CompileError
 from .conic_route import ConicEngine
 from .hpipm_rti import HpipmRti
-from .ocp import HESSIAN_REG, OcpSpec, absolute_bounds, pack_plan
+from .ocp import HESSIAN_REG, OcpSpec, QpResult, absolute_bounds, pack_plan
 
 log = logging.getLogger(__name__)
 
@@ -137,12 +137,12 @@ class _HpipmEngine:
     def prepare(self, P: np.ndarray) -> None:
         self.rti.prepare(P)
 
-    def feedback(self, xa0: np.ndarray, shift: bool):
+    def feedback(self, xa0: np.ndarray, shift: bool) -> QpResult:
         u, info = self.rti.feedback(xa0, shift)
         status = self.STATUS.get(info.status, f"status {info.status}")
         if not info.ok and info.status == 0:
             status = "NaN in solution"
-        return bool(info.ok), u, status, float(info.slack_max), int(info.iter)
+        return QpResult(bool(info.ok), u, status, float(info.slack_max), int(info.iter))
 
 
 class NMPC:
@@ -249,7 +249,8 @@ class NMPC:
         v = self.spec.vehicle
         t0 = time.perf_counter()
         xa0 = self.initial_state(x, u_prev)
-        ok, u, status, slack, iters = self.engine.feedback(xa0, shift)
+        qp = self.engine.feedback(xa0, shift)
+        ok, u, status, slack, iters = qp.ok, qp.u, qp.status, qp.slack_max, qp.iterations
         feedback_ms = (time.perf_counter() - t0) * 1e3
         prep_ms = self._prep_ms if self._prepared else 0.0
         self._prepared = False

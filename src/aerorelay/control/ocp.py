@@ -31,6 +31,19 @@ HESSIAN_REG = 1e-8  # added to the Gauss-Newton Hessian's diagonal (both QP rout
 
 
 @dataclass(frozen=True)
+class QpResult:
+    """What an engine's feedback phase returns: whether the QP solved, the first input to apply
+    (the shifted previous plan's on failure, Hz/s), the solver's status text, the largest slack
+    (NaN on failure) and the interior-point iterations."""
+
+    ok: bool
+    u: np.ndarray
+    status: str
+    slack_max: float
+    iterations: int
+
+
+@dataclass(frozen=True)
 class OcpSpec:
     """Structure of the OCP: vehicle, horizon, sampling, bounds, and the terms and constraints.
 

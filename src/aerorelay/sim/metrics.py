@@ -32,8 +32,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
     veh = vehicle
     cap = np.asarray(log["capacity"], float)
     period = period_s
-    status = np.asarray(log["qp_status"], dtype=object)
-    failed = np.array([str(s).startswith("failed") for s in status])
+    failed = ~np.asarray(log["qp_ok"], bool)
     solve = np.asarray(log["solve_ms"], float)
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
     pd = np.column_stack([log["pd_x"], log["pd_y"], log["pd_z"]])

@@ -25,6 +25,7 @@ def log_frame(log: dict, columns: list[str]) -> pd.DataFrame:
     df = pd.DataFrame({c: log[c] for c in columns})
     df["jammer_on"] = df["jammer_on"].astype(bool)
     df["qp_status"] = df["qp_status"].astype(str)
+    df["qp_ok"] = df["qp_ok"].astype(bool)
     df["fallback"] = df["fallback"].astype(bool)
     return df
 

@@ -1,0 +1,25 @@
+"""Every script in examples/ runs (a short mission each) and prints what it promises."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
+
+
+def test_every_example_is_tested():
+    assert {p.name for p in EXAMPLES} >= {"fly_nominal.py", "two_jammers_one_moving.py", "directional_jammer.py",
+                                          "own_planner.py", "dask_sweep.py"}
+
+
+@pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.name)
+def test_example_runs(script, tmp_path):
+    env = {**os.environ, "AERORELAY_EXAMPLE_DURATION": "1.0", "AERORELAY_EXAMPLE_OUT": str(tmp_path / "out"),
+           "AERORELAY_EXAMPLE_BOUND": "0"}
+    res = subprocess.run([sys.executable, str(script)], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "C_min" in res.stdout or "c_min" in res.stdout.lower(), res.stdout
