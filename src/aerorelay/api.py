@@ -30,7 +30,7 @@ from .report.figures import write_run_figures
 from .report.html import render_report
 from .report.summary import summarize
 from .scenario import Scenario
-from .scenario.build import build, scenario_bound
+from .scenario.build import build, build_scene, scenario_bound
 from .scenario.run import RunResult
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
@@ -65,8 +65,7 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
 
 def link_budget(sc: Scenario) -> dict[str, float]:
     """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry."""
-    parts_scene = build(sc).scene
-    return initial_link_budget(parts_scene, sc.nodes.relay, sc.mission.start)
+    return initial_link_budget(build_scene(sc), sc.nodes.relay, sc.mission.start)
 
 
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
