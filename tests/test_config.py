@@ -30,7 +30,7 @@ def test_nominal_values_are_the_papers():
     [
         ({"platform": {"mass_kg": -1.0}}, "platform.mass_kg", "(0, inf)"),
         ({"platform": {"omega_min_hz": 60.0, "omega_max_hz": 50.0}}, "platform", "must be <"),
-        ({"controller": {"ts_s": 0.0}}, "controller.ts_s", "(0, 1]"),
+        ({"controller": {"ts_s": 0.0}}, "controller.ts_s", "(0, 0.05]"),
         ({"controller": {"horizon": 0}}, "controller.horizon", "[1, 200]"),
         ({"controller": {"mu": 1.5}}, "controller.mu", "[0, 1]"),
         ({"perturbations": {"fading_k_db": -3.0}}, "perturbations.fading_k_db", "[0, inf)"),

@@ -34,6 +34,7 @@ from .scenario.build import build, build_scene, scenario_bound
 from .scenario.run import RunResult
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
+from .store.outputs import check_output_folder, write_atomic
 
 
 class Result(RunResult):
@@ -91,7 +92,8 @@ class Reproduction:
 
 
 def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool = False, studies_dir: str | Path = "experiments",
-              scheduler: str | None = None, workers: int | None = None, progress=None, on_start=None) -> Reproduction:
+              scheduler: str | None = None, workers: int | None = None, progress=None, on_start=None,
+              wait: bool = False) -> Reproduction:
     """Run the named studies (default: all in ``studies_dir``) as a campaign on dask (resuming a
     previous one in ``out``), then write ``report.html`` and ``summary.json``. ``on_start(n_runs,
     n_studies)`` is called once the studies are expanded."""
@@ -100,14 +102,18 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
     specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick)]
     if on_start is not None:
         on_start(len(specs), len(chosen))
-    res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress)
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers: must be >= 1, got {workers}")
+    check_output_folder(out, "campaign")
+    res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
     manifest = load_manifest(out)
     meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
             "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
-            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs), "wall_s": res.wall_s,
+            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs),
+            "runs_unsafe": sum(manifest.get(s.key, {}).get("status") == "unsafe" for s in specs), "wall_s": res.wall_s,
             "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
             "controller": NmpcSettings().fingerprint()}
     summary = summarize(chosen, specs, out, {"campaign": meta})
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
-    (out / "report.html").write_text(render_report(summary, chosen, specs, out, manifest))
+    write_atomic(out / "summary.json", json.dumps(summary, indent=1, default=str))
+    write_atomic(out / "report.html", render_report(summary, chosen, specs, out, manifest))
     return Reproduction(chosen, specs, res, summary, out / "report.html")

@@ -13,12 +13,15 @@ from rich.table import Table
 from . import api
 from .scenario import Scenario, ScenarioError, load_scenario
 from .scenario.load import parse_sets as _parse_sets
+from .scenario.run import FIGURES_BYTES, check_run_size, log_bytes
+from .store.outputs import OutputError, check_output_folder
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
 console = Console()
 err_console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
+EXIT_UNSAFE = 3  # the run finished but the relay left its workspace or flipped (metrics.json: unsafe, unsafe_reason)
 
 
 def _load_or_exit(path: Path) -> Scenario:
@@ -41,6 +44,14 @@ def _with_overrides(sc: Scenario, overrides: dict, sets: list[str] | None = None
     except ScenarioError as exc:
         _fail(str(exc))
         raise  # unreachable: _fail exits
+
+
+def _check_out(out: Path, kind: str, need_bytes: int = 0) -> None:
+    """``--out`` checked before any work: a named error and exit 2 when it cannot take the output."""
+    try:
+        check_output_folder(out, kind, need_bytes=need_bytes)
+    except OutputError as exc:
+        _fail(str(exc))
 
 
 def _fail(message: str) -> NoReturn:
@@ -107,7 +118,7 @@ def info(scenario: Path = typer.Argument(..., help="scenario TOML file")):
 @app.command()
 def run(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
-    out: Path = typer.Option(..., "--out", help="output folder (replaced if it exists)"),
+    out: Path = typer.Option(..., "--out", help="output folder (new, empty, or an earlier run folder, which is replaced)"),
     variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
     planner: str = typer.Option(None, "--planner", help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
     duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
@@ -121,6 +132,11 @@ def run(
 
     sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
                                                    "sim.duration_s": duration}, set_)
+    try:
+        check_run_size(sc)
+    except ScenarioError as exc:
+        _fail(str(exc))
+    _check_out(out, "run", need_bytes=log_bytes(sc) + (0 if no_figures else FIGURES_BYTES))
     if not no_bound:  # computed once per scenario geometry (cached), with its own progress bar
         _bound_with_progress(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
@@ -134,6 +150,9 @@ def run(
     result.save(out, figures=not no_figures)
     console.print(f"wrote {out}", markup=False, highlight=False)
     console.print(_metrics_table({"value": result.metrics}))
+    if result.metrics["unsafe"]:
+        err_console.print(f"[bold red]unsafe run[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
+        raise typer.Exit(EXIT_UNSAFE)
 
 
 def _bound_with_progress(sc: Scenario):
@@ -155,13 +174,16 @@ def bound(
     import json
 
     from .report.figures import fig_bound
+    from .store.outputs import new_sibling, swap_in
     from .store.run_folder import write_bound_files
 
     sc = _load_or_exit(scenario)
+    _check_out(out, "bound")
     b = _bound_with_progress(sc)
-    summary = write_bound_files(b, out)
-    fig = fig_bound(b.frame(), sc)
-    fig.savefig(out / "bound.png", dpi=110)
+    tmp = new_sibling(out)
+    summary = write_bound_files(b, tmp)
+    fig_bound(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+    swap_in(tmp, out, "bound")
     t = Table(title=f"capacity bounds: {sc.name}")
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
@@ -178,7 +200,8 @@ KEY_METRICS = (
     "alignment_within_slack_fraction",
     "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
     "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
-    "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "wall_s", "sim_s",
+    "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "min_altitude_m", "box_violation_max_m", "safety_violations",
+    "taylor_rel_err_max", "wall_s", "sim_s",
     "capacity_efficiency_mean", "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min",
     "bound.path_mean.outage_fraction", "bound.static.mean",
 )
@@ -228,7 +251,12 @@ def compare(
         if not f.exists():
             err_console.print(f"{d}: no metrics.json (is it an `aerorelay run` output folder?)", markup=False)
             raise typer.Exit(EXIT_BAD_INPUT)
-        runs[str(d)] = json.loads(f.read_text())
+        try:
+            runs[str(d)] = json.loads(f.read_text())
+        except (OSError, ValueError) as exc:
+            _fail(f"{f}: not a readable metrics file ({type(exc).__name__}: {exc})")
+        if not isinstance(runs[str(d)], dict):
+            _fail(f"{f}: not a metrics object")
     console.print(f"A = {run_a}\nB = {run_b}", markup=False, highlight=False)
     console.print(_metrics_table(dict(zip(("A", "B"), runs.values(), strict=False)), ratio=True))
 
@@ -306,13 +334,16 @@ def reproduce(
     quick: bool = typer.Option(False, "--quick", help="fewer Monte Carlo seeds, shorter missions where the study allows"),
     scheduler: str = typer.Option(None, "--scheduler", help="address of an existing dask scheduler (default: local cluster)"),
     studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)"),
-    workers: int = typer.Option(None, "--workers", help="local cluster size (default: one per core)"),
+    workers: int = typer.Option(None, "--workers", min=1, help="local cluster size (default: one per core)"),
+    wait: bool = typer.Option(False, "--wait", help="wait for another campaign running in the same folder instead of refusing"),
 ):
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from .experiments.campaign import load_manifest
+    from .experiments.campaign import CampaignBusyError, load_manifest
     from .experiments.study import StudyError
+
+    _check_out(out, "campaign")
 
     folder = studies_dir or _default_studies_dir()
     cols = (TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
@@ -329,10 +360,9 @@ def reproduce(
                 prog.update(task, completed=done, description=desc)
 
             rep = api.reproduce(studies or None, out=out, quick=quick, studies_dir=folder, scheduler=scheduler, workers=workers,
-                                progress=progress, on_start=on_start)
-    except StudyError as exc:
-        err_console.print(str(exc), markup=False)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
+                                progress=progress, on_start=on_start, wait=wait)
+    except (StudyError, CampaignBusyError, OutputError) as exc:
+        _fail(str(exc))
     except KeyboardInterrupt:
         n = sum(r.get("status") == "done" for r in load_manifest(out).values())
         err_console.print(f"interrupted: {n} finished runs are kept in {out}; run the same command to resume", markup=False)
@@ -347,7 +377,9 @@ def reproduce(
     console.print(t)
     console.print(f"ran {res.ran} runs ({meta['runs_failed']} failed), skipped {res.skipped} finished ones, "
                   f"wall {res.wall_s:.0f} s; report: {out / 'report.html'}", markup=False, highlight=False)
-    if meta["runs_failed"]:
+    if meta.get("runs_unsafe"):
+        err_console.print(f"{meta['runs_unsafe']} unsafe run(s): listed in the report, their numbers not used", markup=False)
+    if meta["runs_failed"] or meta.get("runs_unsafe"):
         raise typer.Exit(1)
 
 

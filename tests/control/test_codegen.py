@@ -17,5 +17,5 @@ def test_concurrent_builders_publish_one_complete_library(tmp_path):
     lib = ctypes.CDLL(paths.pop())
     lib.twice.restype, lib.twice.argtypes = ctypes.c_double, [ctypes.c_double]
     assert lib.twice(21.0) == 42.0
-    leftovers = [f.name for f in tmp_path.iterdir() if not f.name.endswith((".so", ".lock"))]
+    leftovers = [f.name for f in tmp_path.iterdir() if not f.name.endswith((".so", ".so.sha256", ".lock"))]
     assert leftovers == []  # the temporary build folders are gone

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from ..store.cache import cache_dir, cache_lock
+from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 
 log = logging.getLogger(__name__)
 CASADI_VERSION: str = getattr(ca, "__version__", "unknown")
@@ -49,14 +49,16 @@ def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] =
     digest = hashlib.sha256(f"{source}|{key}|{CASADI_VERSION}|{flags}|{link}".encode()).hexdigest()[:16]
     folder = cache_dir()
     lib = folder / f"{name}_{digest}.so"
-    if lib.exists():
+    if entry_is_intact(lib):
         return lib
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         raise CompileError("no C compiler (gcc or cc) on PATH")
     with cache_lock(lib):
-        if lib.exists():  # another process built it while we waited
+        if entry_is_intact(lib):  # another process built it while we waited
             return lib
+        if lib.exists():
+            log.warning("cached library %s is corrupt or unverified: rebuilt", lib)
         with tempfile.TemporaryDirectory(dir=folder, prefix=f".{name}_") as tmp:
             src, out = Path(tmp) / f"{name}.c", Path(tmp) / f"{name}.so"
             src.write_text(source)
@@ -64,7 +66,7 @@ def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] =
                                  capture_output=True, text=True)
             if res.returncode != 0:
                 raise CompileError(f"compiling {name} failed: {res.stderr[-2000:]}")
-            os.replace(out, lib)
+            publish_checked(out, lib)
     return lib
 
 

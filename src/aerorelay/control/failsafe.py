@@ -2,12 +2,14 @@
 
 A geometric controller (Lee, Leok, McClamroch, 2010) on the vehicle's own allocation: a PD law
 on position and velocity gives the desired force ``f_d = m (a_cmd + g e3)`` (world), the body z
-axis is aligned with it (zero yaw), a PD law on the rotation error gives the desired moment,
+axis is aligned with it (keeping the current heading), a PD law on the rotation error gives the desired moment,
 and the motor speeds come from a bounded least-squares allocation ``[F; M] Omega^2 = [R' f_d;
 M_d]`` with ``Omega`` in its bounds (a fully-actuated platform uses its lateral force too; a
 coplanar one has zero rows there). The motors are driven toward those speeds at a rate inside
 ``[omega_dot_min, omega_dot_max]``. The hold point is the position where the law took over,
-clipped into the workspace box shrunk by ``margin_m``.
+clipped into the workspace box shrunk by ``margin_m``. The allocation is prioritized: while the
+body z axis is far from the desired one, the moment rows dominate and the collective thrust is
+held at half the weight, so the law recovers from any attitude (an inverted relay included).
 """
 
 from __future__ import annotations
@@ -71,13 +73,31 @@ class BrakeLaw:
         f_d = veh.mass * (a_cmd + veh.gravity * E3)
         R = rotation_zyx(eta)
         b3 = f_d / np.linalg.norm(f_d)
-        b2 = np.cross(b3, np.array([1.0, 0.0, 0.0]))
+        # keep the current heading (a brake needs no yaw; a 180 deg yaw error would take the
+        # moments the tilt needs): body x projected off the desired body z
+        heading = R[:, 0] if abs(R[:, 0] @ b3) < 0.95 else R[:, 1]
+        b2 = np.cross(b3, heading)
         b2 /= np.linalg.norm(b2)
-        Rd = np.column_stack([np.cross(b2, b3), b2, b3])  # zero yaw, body z along f_d
+        Rd = np.column_stack([np.cross(b2, b3), b2, b3])  # body z along f_d
         e_R = 0.5 * _vee(Rd.T @ R - R.T @ Rd)
+        z = R[:, 2]
+        if z @ b3 < 0.0:  # beyond 90 deg Lee's error shrinks toward its 180 deg singularity: turn body z by the angle itself
+            axis = np.cross(z, b3)
+            n_axis = np.linalg.norm(axis)
+            axis = axis / n_axis if n_axis > 1e-6 else R[:, 0]
+            e_R = -np.arccos(np.clip(z @ b3, -1.0, 1.0)) * (R.T @ axis)
         J = np.asarray(veh.inertia, float)
         M_d = -self.kR @ e_R - self.kw @ w + np.cross(w, J @ w)
-        target = np.concatenate([R.T @ f_d, M_d])
-        w2 = lsq_linear(self.A, target, bounds=self.bounds, method="bvls").x
+        # prioritized allocation: far from the desired attitude (an inverted or steeply tilted
+        # relay cannot push where f_d points) the moments come first and the collective thrust is
+        # held at half the weight, so differential thrust can turn the vehicle back
+        align = float(b3 @ R[:, 2])
+        f_body = R.T @ f_d
+        w_force = 1.0
+        if align < 0.5:
+            w_force, f_body = 0.1, np.array([0.0, 0.0, 0.5 * veh.mass * veh.gravity])
+        rows = np.r_[np.full(3, w_force), np.ones(3)]
+        target = np.concatenate([f_body, M_d])
+        w2 = lsq_linear(self.A * rows[:, None], target * rows, bounds=self.bounds, method="bvls").x
         u = (np.sqrt(w2) - speeds) / self.g.motor_time_constant
         return np.clip(u, veh.omega_dot_min, veh.omega_dot_max)

@@ -68,17 +68,23 @@ def blasfeo_matches_avx2_kernels() -> tuple[bool, str]:
     tag = hashlib.sha256(f"{lib.resolve()}|{st.st_size}|{st.st_mtime_ns}|{CASADI_VERSION}".encode()).hexdigest()[:16]
     verdict = cache_dir() / f"blasfeo_check_{tag}.json"
     if verdict.exists():
-        ok, reason = json.loads(verdict.read_text())
-        return bool(ok), str(reason)
+        try:
+            ok, reason = json.loads(verdict.read_text())
+            return bool(ok), str(reason)
+        except (OSError, ValueError, TypeError):
+            log.warning("kernel check %s is corrupt: checked again", verdict)
     code = "import json; from aerorelay.control.hpipm_rti import check_blasfeo_in_this_process as c; print(json.dumps(c()))"
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     if res.returncode != 0:
         return False, f"BLASFEO check failed to run: {res.stderr.strip()[-300:]}"
     ok, reason = json.loads(res.stdout.strip().splitlines()[-1])
-    verdict.parent.mkdir(parents=True, exist_ok=True)
-    tmp = verdict.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_text(json.dumps([ok, reason]))
-    os.replace(tmp, verdict)
+    try:
+        verdict.parent.mkdir(parents=True, exist_ok=True)
+        tmp = verdict.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(json.dumps([ok, reason]))
+        os.replace(tmp, verdict)
+    except OSError as err:  # an unwritable cache only costs the check next time
+        log.warning("kernel check not cached (%s)", err)
     return bool(ok), str(reason)
 
 

@@ -7,7 +7,9 @@ planner's reference and MRAV-2's state; ``step(x, u_prev, P)`` runs one RTI. Aft
 ``controller.failsafe.failures_to_fallback`` consecutive QP failures, or at once on a non-finite
 state or input, the plan is reset and the brake law flies the relay to rest inside the
 workspace; the NMPC is tried again every step from a fresh plan and takes over after
-``successes_to_resume`` consecutive successes. Every episode is logged.
+``successes_to_resume`` consecutive successes. The flight-safety supervisor (``supervisor.py``)
+hands over at once, whatever the QP status, when the state leaves its safety envelope, and the
+NMPC resumes only from inside it. Every episode is logged.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from ..models.geometry import thrust_direction_from_acceleration
 from .failsafe import BrakeLaw
 from .nmpc import NMPC, NmpcSettings, StepInfo
 from .ocp import OcpSpec
+from .supervisor import SafetyEnvelope
 
 log = logging.getLogger(__name__)
 
@@ -40,8 +43,12 @@ class RelayController:
     (square roots of the weights per stage); ``mu``: the mutual-alignment threshold."""
 
     def __init__(self, spec: OcpSpec, weights: dict[str, np.ndarray], *, mu: float,
-                 failsafe: FailsafeSettings = FailsafeSettings(), settings: NmpcSettings | None = None):
+                 failsafe: FailsafeSettings = FailsafeSettings(), settings: NmpcSettings | None = None,
+                 envelope: SafetyEnvelope | None = None):
         self.spec = spec
+        self.envelope = envelope  # None: no supervisor (QP failures alone hand over)
+        self.last_violations: list[str] = []
+        self.safety_handovers = 0
         self.mu = mu
         self.nmpc = NMPC(self.spec, settings)
         self.weights = weights
@@ -81,6 +88,11 @@ class RelayController:
         if not np.all(np.isfinite(x)):
             self._enter_fallback(x, "non-finite state")
             return StepInfo(self.brake(x, self._hold), False, "non-finite state", 0.0, 0.0, float("nan"), fallback=True)
+        unsafe = self.envelope.violations(x) if self.envelope is not None else []
+        self.last_violations = unsafe
+        if unsafe:  # outside the safety envelope: the brake law flies, whatever the QP says
+            self.safety_handovers += not self.fallback_active
+            self._enter_fallback(x, "safety envelope: " + "; ".join(unsafe))
         if self.fallback_active:
             return self._fallback_step(x, u_prev, P, shift)
         info = self.nmpc.step(x, u_prev, P, shift)
@@ -106,7 +118,9 @@ class RelayController:
         """Brake law input; the NMPC is tried from a fresh plan and resumes after enough successes."""
         self.nmpc.initialized = False
         info = self.nmpc.step(x, u_prev, P, shift)
-        self._successes = self._successes + 1 if info.ok else 0
+        resting = self.envelope is None or (self.envelope.at_rest(x) and self.safety_handovers < self.envelope.max_handovers)
+        may_resume = not self.last_violations and (self.safety_handovers == 0 or resting)
+        self._successes = self._successes + 1 if info.ok and may_resume else 0
         if self._successes >= self.successes_to_resume:
             self.fallback_active = False
             self._successes = 0

@@ -10,6 +10,7 @@ campaign goes on.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
 import os
@@ -18,11 +19,15 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+import pyarrow as pa
+import pyarrow.parquet as pq
 from dask.distributed import Client, LocalCluster, as_completed
 
 from .._version import __version__
 from ..control.nmpc import NmpcSettings
 from ..scenario.run import simulate
+from ..store.outputs import check_output_folder, mark, write_atomic
+from ..store.run_folder import BOUND_JSON, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 from .study import RunSpec, scenario_of
 
 log = logging.getLogger(__name__)
@@ -34,29 +39,44 @@ def run_dir(out: Path, spec: RunSpec) -> Path:
 
 
 def first_run_per_group(specs: list[RunSpec], out: Path) -> dict[str, RunSpec]:
-    """The first finished run (lowest seed) of every group, in study order."""
-    firsts = {}
+    """The first verified finished run (lowest seed) of every group, in study order."""
+    firsts: dict[str, RunSpec] = {}
     for s in specs:
-        if s.group not in firsts and (run_dir(out, s) / "timeseries.parquet").exists():
+        if s.group not in firsts and is_finished(out, s):
             firsts[s.group] = s
     return firsts
 
 
-def is_finished(out: Path, spec: RunSpec) -> bool:
-    """A finished run has metrics.json, the same resolved scenario (its TOML) and was flown by a
-    controller with the current solver settings (``NmpcSettings.fingerprint``)."""
-    d = run_dir(out, spec)
-    if not (d / "metrics.json").exists() or not (d / "scenario.toml").exists():
-        return False
-    if (d / "scenario.toml").read_text() != spec.scenario_toml:
-        return False
+def _run_problem(d: Path, spec: RunSpec) -> str | None:
+    """Why the run folder ``d`` is not a finished, trustworthy run of ``spec`` (None: it is)."""
+    for name in (SCENARIO_FILE, METRICS_FILE, TIMESERIES_FILE):
+        f = d / name
+        if not f.is_file() or f.stat().st_size == 0:
+            return f"{name} missing or empty"
     try:
-        metrics = json.loads((d / "metrics.json").read_text())
-    except (OSError, ValueError):
-        return False
-    if spec.bound and "capacity_efficiency_mean" not in metrics:
-        return False
-    return metrics.get("controller") == NmpcSettings().fingerprint()
+        if (d / SCENARIO_FILE).read_text() != spec.scenario_toml:
+            return "another scenario"
+        metrics = json.loads((d / METRICS_FILE).read_text())
+        rows = pq.read_metadata(d / TIMESERIES_FILE).num_rows
+    except (OSError, ValueError, pa.ArrowException) as exc:
+        return f"unreadable: {type(exc).__name__}: {exc}"
+    if not isinstance(metrics, dict) or rows != metrics.get("steps"):
+        return f"{TIMESERIES_FILE} has {rows} rows, metrics.json says {metrics.get('steps') if isinstance(metrics, dict) else '?'}"
+    if spec.bound and ("capacity_efficiency_mean" not in metrics or not (d / BOUND_JSON).is_file()):
+        return "no bound"
+    if metrics.get("unsafe", False):
+        return f"unsafe: {metrics.get('unsafe_reason', '')}"
+    if metrics.get("controller") != NmpcSettings().fingerprint():
+        return "flown with other solver settings"
+    return None
+
+
+def is_finished(out: Path, spec: RunSpec) -> bool:
+    """A finished run is verified, not assumed: scenario.toml (the same resolved scenario),
+    metrics.json (parses; flown with the current solver settings, ``NmpcSettings.fingerprint``;
+    not unsafe) and timeseries.parquet (a readable footer with the metrics' row count), each
+    non-empty, and the bound's files when the study asks for them."""
+    return _run_problem(run_dir(out, spec), spec) is None
 
 
 def execute_run(spec: RunSpec, out: str) -> dict:
@@ -69,7 +89,10 @@ def execute_run(spec: RunSpec, out: str) -> dict:
             raise RuntimeError(f"failure injected by AERORELAY_FAIL_RUN for {spec.key}")
         result = simulate(scenario_of(spec), with_bound=spec.bound)
         result.save(run_dir(Path(out), spec))
-        record.update(status="done", wall_s=time.perf_counter() - t0, c_min=result.metrics["c_min"])
+        unsafe = result.metrics["unsafe"]
+        record.update(status="unsafe" if unsafe else "done", wall_s=time.perf_counter() - t0, c_min=result.metrics["c_min"])
+        if unsafe:
+            record["error"] = f"unsafe: {result.metrics['unsafe_reason']}"
     except Exception as exc:  # recorded, the campaign goes on
         record.update(status="failed", wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",
                       traceback=traceback.format_exc(limit=8))
@@ -85,40 +108,77 @@ class CampaignResult:
     wall_s: float
 
 
+class CampaignBusyError(RuntimeError):
+    """Another campaign holds the folder's lock."""
+
+
+LOCK_FILE = ".campaign.lock"
+
+
 def _write_manifest(out: Path, records: dict[str, dict]) -> None:
-    tmp = out / "manifest.json.tmp"
-    tmp.write_text(json.dumps(records, indent=1, sort_keys=True))
-    tmp.replace(out / "manifest.json")
+    write_atomic(out / "manifest.json", json.dumps(records, indent=1, sort_keys=True))
 
 
 def load_manifest(out: Path) -> dict[str, dict]:
+    """The campaign's manifest; a corrupt or foreign one (not a JSON object of run records) is
+    set aside as ``manifest.json.corrupt`` with a warning, and rebuilt from the run folders."""
     f = Path(out) / "manifest.json"
-    return json.loads(f.read_text()) if f.exists() else {}
+    if not f.exists():
+        return {}
+    try:
+        data = json.loads(f.read_text())
+        if isinstance(data, dict) and all(isinstance(v, dict) for v in data.values()):
+            return data
+        why = "not a JSON object of run records"
+    except (OSError, ValueError) as exc:
+        why = f"{type(exc).__name__}: {exc}"
+    log.warning("%s is unreadable (%s): rebuilt from the run folders", f, why)
+    os.replace(f, f.with_suffix(".json.corrupt"))
+    return {}
 
 
 def make_client(scheduler: str | None, n_workers: int | None = None):
-    """A dask client: to ``scheduler`` if given, else a local cluster of single-threaded processes."""
+    """A dask client: to ``scheduler`` if given (a named error after 10 s when it does not answer),
+    else a local cluster of single-threaded processes."""
     if scheduler:
-        return Client(scheduler)
+        try:
+            return Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise CampaignBusyError(f"--scheduler {scheduler}: no dask scheduler answers there ({exc})") from None
     n = n_workers or max(1, os.cpu_count() or 1)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
     return Client(cluster)
 
 
+def _record(spec: RunSpec, status: str, **extra) -> dict:
+    return {"key": spec.key, "study": spec.study, "group": spec.group, "seed": spec.seed,
+            "scenario_hash": spec.scenario_hash, "status": status, "version": __version__, **extra}
+
+
 def run_campaign(specs: list[RunSpec], out: Path, *, client=None, scheduler: str | None = None,
-                 n_workers: int | None = None, progress=None) -> CampaignResult:
-    """Run every unfinished spec on dask; ``progress(done, total, record)`` after each run."""
-    out = Path(out)
+                 n_workers: int | None = None, progress=None, wait: bool = False) -> CampaignResult:
+    """Run every unfinished spec on dask; ``progress(done, total, record)`` after each run. One
+    campaign per folder: a second one refuses (CampaignBusyError) unless ``wait``."""
+    out = check_output_folder(out, "campaign")
     out.mkdir(parents=True, exist_ok=True)
+    with open(out / LOCK_FILE, "w") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+        except BlockingIOError:
+            raise CampaignBusyError(f"--out {out}: another campaign is running in this folder (lock {LOCK_FILE}); "
+                                    "wait for it or pass --wait") from None
+        mark(out, "campaign")
+        return _run_locked(specs, out, client, scheduler, n_workers, progress)
+
+
+def _run_locked(specs, out: Path, client, scheduler, n_workers, progress) -> CampaignResult:
     records = load_manifest(out)
     todo = [s for s in specs if not is_finished(out, s)]
     for s in specs:
         if s not in todo:
             rec = records.get(s.key, {})
             if rec.get("status") != "done" or rec.get("scenario_hash") != s.scenario_hash:
-                records[s.key] = {"key": s.key, "study": s.study, "group": s.group, "seed": s.seed,
-                                  "scenario_hash": s.scenario_hash, "status": "done", "version": __version__,
-                                  "wall_s": rec.get("wall_s")}
+                records[s.key] = _record(s, "done", wall_s=rec.get("wall_s"))
     _write_manifest(out, records)
     t0 = time.perf_counter()
     done = len(specs) - len(todo)
@@ -129,10 +189,15 @@ def run_campaign(specs: list[RunSpec], out: Path, *, client=None, scheduler: str
         own = client is None
         client = client or make_client(scheduler, n_workers)
         try:
-            futures = [client.submit(execute_run, s, str(out), pure=False, key=f"run-{s.study}-{s.scenario_hash}-{s.seed}")
-                       for s in todo]
-            for fut in as_completed(futures):
-                rec = fut.result()
+            futures = {client.submit(execute_run, s, str(out), pure=False, key=f"run-{s.study}-{s.scenario_hash}-{s.seed}"): s
+                       for s in todo}
+            for fut in as_completed(list(futures)):
+                spec = futures.pop(fut)
+                try:
+                    rec = fut.result()
+                except Exception as exc:  # a worker that died (KilledWorker) fails its run, not the campaign
+                    rec = _record(spec, "failed", error=f"{type(exc).__name__}: {exc}")
+                fut.release()  # a finished run is never recomputed after a worker loss
                 records[rec["key"]] = rec
                 failed += rec["status"] != "done"
                 done += 1

@@ -8,6 +8,7 @@ zero yaw), so its antenna tilts with it.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -99,10 +100,22 @@ class CsvPath(SourceTrajectory):
     """A user trajectory from a CSV with header ``t,px,py,pz,vx,vy,vz,ax,ay,az`` (linear interpolation)."""
 
     def __init__(self, path: str | Path):
-        data = np.genfromtxt(path, delimiter=",", names=True)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # numpy's warnings (empty file, ragged rows) become named errors
+                data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
+        except (OSError, ValueError, UserWarning) as exc:
+            raise ValueError(f"{path}: not a readable CSV ({exc})") from None
         missing = [c for c in CSV_COLUMNS if c not in (data.dtype.names or ())]
         if missing:
             raise ValueError(f"{path}: missing CSV columns {missing}; expected {','.join(CSV_COLUMNS)}")
+        if data.size < 2:
+            raise ValueError(f"{path}: needs at least 2 rows of data, has {data.size}")
+        for c in CSV_COLUMNS:
+            col = np.asarray(data[c], float)
+            bad = np.flatnonzero(~np.isfinite(col))
+            if bad.size:
+                raise ValueError(f"{path}: column {c} row {bad[0] + 1} is not a finite number")
         self.t = np.asarray(data["t"], float)
         if np.any(np.diff(self.t) <= 0):
             raise ValueError(f"{path}: column t must be strictly increasing")

@@ -26,9 +26,12 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 import tempfile
+import zipfile
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -41,8 +44,9 @@ from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.mission import SourceTrajectory
 from ..models.radio import NodePose, RadioScene
 from ..models.vehicle import Multirotor
-from ..store.cache import cache_dir, cache_lock
+from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 
+log = logging.getLogger(__name__)
 BOUND_VERSION = "2"  # bump when the computation changes: cached bounds are recomputed
 
 
@@ -228,19 +232,22 @@ def cached_bound(pb: BoundProblem, key: str, progress=None) -> CapacityBound:
     """``compute_bound`` once per ``key`` (everything the problem depends on), kept in the cache folder."""
     path = cache_dir() / "bounds" / f"bound_{key}.npz"
     with cache_lock(path):  # campaign runs sharing a geometry compute it once
-        if path.exists():
-            with np.load(path, allow_pickle=False) as z:
-                resolution = json.loads(str(z["resolution"]))
-                arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold", "assumptions")}
-                return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]),
-                                     assumptions=str(z["assumptions"]))
+        if entry_is_intact(path):
+            try:
+                with np.load(path, allow_pickle=False) as z:
+                    resolution = json.loads(str(z["resolution"]))
+                    arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold", "assumptions")}
+                    return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]),
+                                         assumptions=str(z["assumptions"]))
+            except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
+                log.warning("cached bound %s is unreadable (%s): recomputed", path, exc)
         bound = compute_bound(pb, progress)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
         with os.fdopen(fd, "wb") as f:
             payload: dict = {**bound.arrays(), "resolution": json.dumps(bound.resolution),
                              "outage_threshold": bound.outage_threshold, "assumptions": bound.assumptions}
             np.savez(f, **payload)
-        os.replace(tmp, path)
+        publish_checked(Path(tmp), path)
     return bound
 
 

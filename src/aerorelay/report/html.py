@@ -206,6 +206,11 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
     if failed or study_sum["missing_runs"]:
         items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in failed)
         parts.append(f'<div class="warn">{len(study_sum["missing_runs"])} run(s) without results.<ul>{items}</ul></div>')
+    unsafe = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == "unsafe"]
+    if unsafe:
+        items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in unsafe)
+        parts.append(f'<div class="warn">{len(unsafe)} unsafe run(s): the relay left its world whatever the QPs '
+                     f'reported; their numbers are not used.<ul>{items}</ul></div>')
     return "\n".join(parts)
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..experiments.campaign import run_dir
+from ..experiments.campaign import is_finished, run_dir
 from ..experiments.study import Claim, RunSpec, Study, combinations, parse_term
 from .explain import explain
 
@@ -34,8 +34,11 @@ def metric(m: dict, dotted: str):
 
 
 def _load_metrics(out: Path, spec: RunSpec) -> dict | None:
-    f = run_dir(out, spec) / "metrics.json"
-    return json.loads(f.read_text()) if f.exists() else None
+    """A run's metrics, or None unless the run is verified finished (``campaign.is_finished``):
+    the report never reads a truncated, foreign or unsafe run."""
+    if not is_finished(out, spec):
+        return None
+    return json.loads((run_dir(out, spec) / "metrics.json").read_text())
 
 
 def _trajectory(out: Path, spec: RunSpec) -> np.ndarray:

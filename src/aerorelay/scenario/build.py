@@ -16,6 +16,7 @@ import numpy as np
 from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
+from ..control.supervisor import SafetyEnvelope
 from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
@@ -103,7 +104,16 @@ def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings |
     fs = sc.controller.failsafe
     return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
                            failsafe=FailsafeSettings(fs.failures_to_fallback, fs.successes_to_resume, fs.workspace_margin_m),
-                           settings=settings)
+                           settings=settings, envelope=safety_envelope(sc, vehicle) if fs.supervisor else None)
+
+
+def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
+    """The supervisor's envelope from ``[controller.failsafe]`` and the workspace box."""
+    fs = sc.controller.failsafe
+    lo, hi = _workspace(sc)
+    return SafetyEnvelope.for_vehicle(vehicle, lo, hi, box_tolerance_m=fs.box_tolerance_m, max_tilt_deg=fs.max_tilt_deg,
+                                      max_speed_m_s=fs.max_speed_m_s, max_body_rate_rad_s=fs.max_body_rate_rad_s,
+                                      max_handovers=fs.max_safety_handovers)
 
 
 def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> PlannerContext:

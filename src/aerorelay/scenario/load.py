@@ -5,7 +5,6 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from ..models.mission import CsvPath
 from .schema import Scenario, ScenarioError, parse_scenario
 
 
@@ -39,23 +38,16 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
         raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): scenario files are UTF-8 TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
     csv = data.get("mission", {}).get("trajectory_csv") if isinstance(data.get("mission"), dict) else None
     if isinstance(csv, str) and csv and not Path(csv).is_absolute():
         data["mission"]["trajectory_csv"] = str((path.parent / csv).resolve())  # relative to the scenario file
-    sc = parse_scenario(data)
+    try:
+        sc = parse_scenario(data)
+    except RecursionError:
+        raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
     updates = parse_sets(set) if isinstance(set, list) else (set or {})
     if updates:
         sc = sc.with_updates(updates)
-    if sc.mission.trajectory_csv:
-        _check_trajectory_csv(Path(sc.mission.trajectory_csv))
     return sc
-
-
-def _check_trajectory_csv(csv: Path) -> None:
-    """Validate a user MRAV-2 trajectory before any work starts (header and time column)."""
-    if not csv.is_file():
-        raise ScenarioError(f"mission.trajectory_csv: no such file {csv}")
-    try:
-        CsvPath(csv)
-    except ValueError as exc:
-        raise ScenarioError(f"mission.trajectory_csv: {exc}") from None

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +19,7 @@ from ..sim.closed_loop import MissionResult, log_columns
 from ..sim.metrics import compute_metrics
 from ..store.run_folder import log_frame, publish_run
 from .build import build, scenario_bound
-from .schema import Scenario
+from .schema import Scenario, ScenarioError
 
 
 @dataclass
@@ -38,10 +39,32 @@ class RunResult:
         return Path(folder)
 
 
+FIGURES_BYTES = 12_000_000  # the figures of one run (trajectory.html ~5.3 MB, PNGs)
+
+
+def log_bytes(sc: Scenario) -> int:
+    """Bytes the mission's per-step log takes in memory (8 per value)."""
+    steps = int(sc.duration_s / sc.control_period_s) + 1
+    n_rotors = sc.platform.rotor_count if sc.platform.rotors is None else len(sc.platform.rotors)
+    return steps * len(log_columns(n_rotors)) * 8
+
+
+def check_run_size(sc: Scenario) -> None:
+    """A named error, before any work, when the log would not fit in half of this machine's memory."""
+    need = log_bytes(sc)
+    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if need > total // 2:
+        most = (total // 2) / need * sc.duration_s
+        raise ScenarioError(f"sim.duration_s: {sc.duration_s:g} s needs {need / 1e9:.1f} GB for its log, more than half of "
+                            f"this machine's {total / 1e9:.0f} GB; at most about {most:.0f} s here")
+
+
 def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBound | None) -> dict:
     """``metrics.json`` of a mission (with its efficiency against the bound, when given)."""
     m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage_threshold,
-                        mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s)
+                        mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
+                        workspace_min=sc.controller.workspace.min, workspace_max=sc.controller.workspace.max,
+                        box_tolerance_m=sc.controller.failsafe.box_tolerance_m)
     m["controller"] = mission.controller
     m["fallback_episodes"] = mission.fallback_episodes
     if bound is not None:  # how far from what the physics allows (planning/bound.py)
@@ -57,6 +80,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
              bound_progress: Callable[[int, int], None] | None = None) -> RunResult:
     """Fly ``sc`` (parts given here replace the scenario's: a planner object, a radio scene, a
     list of jammers); ``with_bound``: also compute (or load) the capacity bound."""
+    check_run_size(sc)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     mission = parts.closed_loop().run(progress)
     injected = parts.scene if (scene is not None or jammers is not None) else None

@@ -21,6 +21,9 @@ from .tomltext import compact_toml
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 MIN_NODE_SEPARATION_M = 0.1
+MIN_MOTOR_RATE_HZ_S = 20.0  # slower motors cannot follow a braking manoeuvre (|omega_dot| bounds below this are rejected)
+MIN_PREDICTION_S = 0.3  # horizon x Ts: shorter predictions cannot plan a stop inside the workspace
+MAX_TS_S = 0.05  # one RK4 step per Ts: longer periods do not resolve the attitude dynamics
 
 
 class ScenarioError(ValueError):
@@ -39,6 +42,13 @@ class Rotor(_Strict):
     axis: Vec3
     spin: Literal[-1, 1]
 
+    @field_validator("axis")
+    @classmethod
+    def _nonzero(cls, v):
+        if math.hypot(*v) < 1e-9:
+            raise ValueError("a rotor's thrust axis must be a non-zero direction")
+        return v
+
 
 class PlatformConfig(_Strict):
     """Relay vehicle (MRAV-1). Hexarotor by default; ``rotors`` overrides the layout."""
@@ -54,8 +64,10 @@ class PlatformConfig(_Strict):
     c_tau: float = Field(2.5e-5, ge=0.0, description="drag-moment coefficient, N m/Hz^2")
     omega_min_hz: float = Field(16.0, ge=0.0)
     omega_max_hz: float = Field(100.0, gt=0.0)
-    omega_dot_min_hz_s: float = Field(-300.0, lt=0.0)
-    omega_dot_max_hz_s: float = Field(400.0, gt=0.0)
+    omega_dot_min_hz_s: float = Field(-300.0, le=-MIN_MOTOR_RATE_HZ_S, description="most negative motor acceleration, Hz/s")
+    omega_dot_max_hz_s: float = Field(400.0, ge=MIN_MOTOR_RATE_HZ_S, description="largest motor acceleration, Hz/s")
+    min_hover_margin: float = Field(0.2, ge=0.0, lt=1.0, description="fraction of omega_max_hz every motor keeps "
+                                    "above its hover speed (thrust headroom to brake and recover)")
 
     @field_validator("inertia_kgm2")
     @classmethod
@@ -70,10 +82,22 @@ class PlatformConfig(_Strict):
             raise ValueError(
                 f"omega_min_hz ({self.omega_min_hz}) must be < omega_max_hz ({self.omega_max_hz})"
             )
+        veh = self.vehicle()
+        F, M = veh.allocation()
+        if np.linalg.matrix_rank(np.vstack([F, M]), tol=1e-9 * max(1.0, float(np.abs(F).max()))) < 4 or \
+                np.linalg.matrix_rank(M, tol=1e-12) < 3:
+            raise ValueError("the rotor layout's allocation cannot produce thrust plus three independent moments "
+                             f"(rank [F; M] = {np.linalg.matrix_rank(np.vstack([F, M]))}, rank M = {np.linalg.matrix_rank(M)}): "
+                             "the vehicle cannot hold its attitude")
         try:
-            self.vehicle().hover_speeds()
+            hover = veh.hover_speeds()
         except HoverInfeasibleError as exc:
             raise ValueError(str(exc)) from None
+        limit = (1.0 - self.min_hover_margin) * self.omega_max_hz
+        if float(np.max(hover)) > limit + 1e-9:
+            raise ValueError(f"hover needs {np.max(hover):.2f} Hz, above {limit:.2f} Hz = (1 - min_hover_margin "
+                             f"{self.min_hover_margin:g}) x omega_max_hz: no thrust left to brake or recover; raise "
+                             "omega_max_hz or state a smaller min_hover_margin")
         return self
 
     def vehicle(self) -> Multirotor:
@@ -225,6 +249,13 @@ class FailsafeConfig(_Strict):
     failures_to_fallback: int = Field(3, ge=1, le=1000, description="consecutive QP failures before the hand-over")
     successes_to_resume: int = Field(5, ge=1, le=1000, description="consecutive QP successes before the NMPC resumes")
     workspace_margin_m: float = Field(0.5, ge=0.0, le=5.0, description="the brake law's hold point keeps this far inside the workspace")
+    supervisor: bool = Field(True, description="the flight-safety supervisor: outside its envelope the brake law flies at once")
+    box_tolerance_m: float = Field(0.05, ge=0.0, le=2.0, description="envelope: how far past the workspace box, m")
+    max_tilt_deg: float = Field(45.0, gt=0.0, le=89.0, description="envelope: body tilt, deg")
+    max_speed_m_s: float = Field(10.0, gt=0.0, le=50.0, description="envelope: speed, m/s")
+    max_body_rate_rad_s: float = Field(6.0, gt=0.0, le=50.0, description="envelope: body rates, rad/s")
+    max_safety_handovers: int = Field(1, ge=1, le=1000, description="after this many envelope hand-overs the brake law "
+                                      "keeps the relay for the rest of the mission")
 
 
 class Workspace(_Strict):
@@ -265,7 +296,7 @@ class ControllerConfig(_Strict):
         "capacity: the capacity-seeking planner (planning/capacity_planner.py)",
     )
 
-    ts_s: float = Field(0.015, gt=0.0, le=1.0, description="NMPC sampling period Ts")
+    ts_s: float = Field(0.015, gt=0.0, le=MAX_TS_S, description="NMPC sampling period Ts (one RK4 step per period)")
     horizon: int = Field(30, ge=1, le=200, description="N shooting intervals")
     mu: float = Field(0.2, ge=0.0, le=1.0, description="minimum mutual alignment")
     q_slack: float = Field(1e4, gt=0.0, description="q_pi")
@@ -282,6 +313,14 @@ class ControllerConfig(_Strict):
     workspace: Workspace = Field(default_factory=Workspace)
     failsafe: FailsafeConfig = Field(default_factory=FailsafeConfig)
     capacity: CapacityPlannerConfig = Field(default_factory=CapacityPlannerConfig)
+
+    @model_validator(mode="after")
+    def _prediction_long_enough(self):
+        if self.horizon * self.ts_s < MIN_PREDICTION_S - 1e-12:
+            raise ValueError(f"horizon x ts_s = {self.horizon} x {self.ts_s:g} s = {self.horizon * self.ts_s:.3g} s: the NMPC "
+                             f"must predict >= {MIN_PREDICTION_S} s to plan a stop inside the workspace (horizon >= "
+                             f"{math.ceil(MIN_PREDICTION_S / self.ts_s - 1e-9)} at this ts_s)")
+        return self
 
     @property
     def comms_aware(self) -> bool:
@@ -310,7 +349,20 @@ class MissionConfig(_Strict):
     @classmethod
     def _increasing_times(cls, wps):
         _check_waypoint_times(wps, first_zero=True)
+        low = [w for w in wps if w[3] < 0.0]
+        if low:
+            raise ValueError(f"MRAV-2's path goes below ground (z < 0) at {low[0]}")
         return wps
+
+    @field_validator("trajectory_csv")
+    @classmethod
+    def _readable_csv(cls, v):
+        if v is None:
+            return v
+        if not Path(v).is_file():
+            raise ValueError(f"no such file {v}")
+        CsvPath(v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
+        return v
 
     @property
     def duration_s(self) -> float:

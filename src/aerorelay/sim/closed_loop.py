@@ -35,7 +35,7 @@ def log_columns(n_rotors: int) -> list[str]:
         + [f"u_{i}" for i in range(1, n_rotors + 1)]
         + ["p2_x", "p2_y", "p2_z", "phi2", "theta2", "psi2", "pd_x", "pd_y", "pd_z", "jammer_on", "gamma_21", "gamma_10",
            "se_21", "se_10", "capacity", "v_12", "v_10", "mutual_alignment", "slack_max", "solve_ms", "feedback_ms",
-           "qp_ok", "qp_status", "fallback", "taylor_rel_err"]
+           "qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err"]
     )
 
 
@@ -124,7 +124,8 @@ class ClosedLoop:
         self.controller, self.plant, self.settings = controller, plant, settings
         self.spec = controller.spec
         self.columns = log_columns(self.veh.n_rotors)
-        self._numeric_columns = [c for c in self.columns if c not in ("qp_ok", "qp_status", "fallback", "taylor_rel_err")]
+        self._numeric_columns = [c for c in self.columns
+                                 if c not in ("qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err")]
         self.rng = np.random.default_rng(settings.seed)
         k_db = settings.fading_k_db
         self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=settings.seed + 1)
@@ -168,6 +169,7 @@ class ClosedLoop:
         log: dict[str, np.ndarray] = {c: np.empty(n_steps) for c in self.columns}
         log["qp_status"] = np.empty(n_steps, dtype=object)
         log["qp_ok"] = np.zeros(n_steps, dtype=bool)
+        log["safety_violation"] = np.zeros(n_steps, dtype=bool)
         log["fallback"] = np.zeros(n_steps, dtype=bool)
         wall0 = time.perf_counter()
         for k in range(n_steps):
@@ -217,4 +219,5 @@ class ClosedLoop:
         log["qp_ok"][k] = info.ok
         log["qp_status"][k] = info.status
         log["fallback"][k] = info.fallback
+        log["safety_violation"][k] = bool(self.controller.last_violations)
         log["taylor_rel_err"][k] = ref.taylor_rel_err

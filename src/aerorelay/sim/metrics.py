@@ -24,11 +24,32 @@ def _rotor_columns(log, prefix: str, n_rotors: int) -> np.ndarray:
     return np.column_stack([log[f"{prefix}{i}"] for i in range(1, n_rotors + 1)])
 
 
+FLIPPED_TILT_DEG = 90.0  # a body tilt beyond this is an inverted vehicle
+
+
+def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, workspace_min, workspace_max,
+                   box_tolerance_m: float) -> dict:
+    """Whether the relay stayed in its world: ``box_violation_max_m`` (largest distance outside the
+    workspace box, 0 inside), ``min_altitude_m``, ``max_tilt_deg``, ``safety_violations`` (steps
+    outside the supervisor's envelope) and the verdict ``unsafe`` with its ``unsafe_reason``: a
+    run that left the box (beyond the tolerance) or flipped is unsafe whatever the QPs reported."""
+    outside = np.max(np.c_[np.asarray(workspace_min, float) - p1, p1 - np.asarray(workspace_max, float)], axis=1)
+    box = float(max(outside.max(), 0.0))
+    reasons = []
+    if box > box_tolerance_m:
+        reasons.append(f"left the workspace by {box:.2f} m")
+    if tilt_deg.max() > FLIPPED_TILT_DEG:
+        reasons.append(f"flipped (tilt {tilt_deg.max():.0f} deg)")
+    return {"unsafe": bool(reasons), "unsafe_reason": "; ".join(reasons), "safety_violations": int(np.sum(violation)),
+            "box_violation_max_m": box, "min_altitude_m": float(p1[:, 2].min()), "max_tilt_deg": float(tilt_deg.max())}
+
+
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
-                    wall_s: float, sim_s: float) -> dict:
+                    wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
+                    box_tolerance_m: float = 0.05) -> dict:
     """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
-    ``outage_threshold``, alignment threshold ``mu``. Capacities normalized (B = 1 gives bit/s/Hz);
-    energy is shaft energy."""
+    ``outage_threshold``, alignment threshold ``mu``, in the workspace box (m). Capacities
+    normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
     veh = vehicle
     cap = np.asarray(log["capacity"], float)
     period = period_s
@@ -39,6 +60,8 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
     speeds, inputs = _rotor_columns(log, "Omega_", veh.n_rotors), _rotor_columns(log, "u_", veh.n_rotors)
     fallback = np.asarray(log["fallback"], bool) if "fallback" in log else np.zeros(cap.size, bool)
     slack = np.nan_to_num(np.asarray(log["slack_max"], float), nan=np.inf)
+    tilt = np.degrees(np.arccos(np.clip(np.cos(log["phi1"]) * np.cos(log["theta1"]), -1, 1)))
+    violation = np.asarray(log["safety_violation"], bool) if "safety_violation" in log else np.zeros(cap.size, bool)
     return {
         "c_min": float(cap.min()),
         "c_mean": float(cap.mean()),
@@ -58,7 +81,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
         "taylor_rel_err_max": float(np.max(log["taylor_rel_err"])),
         "final_z_m": float(p1[-1, 2]),
-        "max_tilt_deg": float(np.degrees(np.max(np.arccos(np.clip(np.cos(log["phi1"]) * np.cos(log["theta1"]), -1, 1))))),
+        **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m),
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
         "steps": int(cap.size),

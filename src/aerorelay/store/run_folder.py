@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import json
 import shutil
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
+
+from .outputs import new_sibling, swap_in
 
 SCENARIO_FILE = "scenario.toml"
 TIMESERIES_FILE = "timeseries.parquet"
@@ -27,6 +28,7 @@ def log_frame(log: dict, columns: list[str]) -> pd.DataFrame:
     df["qp_status"] = df["qp_status"].astype(str)
     df["qp_ok"] = df["qp_ok"].astype(bool)
     df["fallback"] = df["fallback"].astype(bool)
+    df["safety_violation"] = df["safety_violation"].astype(bool)
     return df
 
 
@@ -43,11 +45,11 @@ def write_bound_files(bound, out: Path) -> dict:
 def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics: dict, *, bound=None,
                 extra: Callable[[Path], None] | None = None) -> None:
     """Write scenario.toml, timeseries.parquet, metrics.json (+ the bound's files, + what ``extra``
-    writes, e.g. figures) into a temporary sibling folder, which then replaces ``out``: an
-    interrupted write never leaves a half-finished run folder behind."""
+    writes, e.g. figures) into a temporary sibling folder, which then replaces ``out`` (only if
+    ``out`` is one of the program's own run folders, ``store.outputs``): an interrupted write never
+    leaves a half-finished run folder behind, and nobody else's files are ever deleted."""
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp = new_sibling(out)
     try:
         (tmp / SCENARIO_FILE).write_text(scenario_toml)
         timeseries.to_parquet(tmp / TIMESERIES_FILE, index=False)
@@ -56,9 +58,7 @@ def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics
             write_bound_files(bound, tmp)
         if extra is not None:
             extra(tmp)
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
+        swap_in(tmp, out, "run")
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
