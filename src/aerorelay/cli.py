@@ -15,6 +15,7 @@ from .scenario import Scenario, ScenarioError, load_scenario
 from .scenario.load import parse_sets as _parse_sets
 from .scenario.run import FIGURES_BYTES, check_run_size, log_bytes
 from .store.outputs import OutputError, check_output_folder
+from .store.run_folder import METRICS_FILE
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
 console = Console()
@@ -247,7 +248,7 @@ def compare(
 
     runs = {}
     for d in (run_a, run_b):
-        f = d / "metrics.json"
+        f = d / METRICS_FILE
         if not f.exists():
             err_console.print(f"{d}: no metrics.json (is it an `aerorelay run` output folder?)", markup=False)
             raise typer.Exit(EXIT_BAD_INPUT)

@@ -18,6 +18,7 @@ from ..models.channel import end_to_end_capacity
 from ..models.fading import RicianFading
 from ..models.geometry import rotation_batch
 from ..scenario.build import build_scene, scenario_bound
+from ..store.run_folder import TIMESERIES_FILE
 
 
 def ceiling(spec: RunSpec, out: Path, paper: float | None) -> str:
@@ -37,7 +38,7 @@ def jammer_noise(spec: RunSpec, out: Path) -> str:
     """Every jammer's interference against the noise, at the BS and along the run's relay path
     (the scene's channel, ``RadioScene.interference``)."""
     sc = scenario_of(spec)
-    df = pd.read_parquet(run_dir(out, spec) / "timeseries.parquet")
+    df = pd.read_parquet(run_dir(out, spec) / TIMESERIES_FILE)
     scene = build_scene(sc)
     noise = scene.budget.noise_power
     p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
@@ -60,7 +61,7 @@ def jammer_noise(spec: RunSpec, out: Path) -> str:
 
 def fading(spec: RunSpec, out: Path, k_db: list[float]) -> str:
     """Mean capacity under unit-mean Rician fading of every link, at the run's SNRs (its unfaded log)."""
-    df = pd.read_parquet(run_dir(out, spec) / "timeseries.parquet", columns=["gamma_21", "gamma_10", "capacity"])
+    df = pd.read_parquet(run_dir(out, spec) / TIMESERIES_FILE, columns=["gamma_21", "gamma_10", "capacity"])
     g21, g10 = df["gamma_21"].to_numpy(), df["gamma_10"].to_numpy()
     c0 = float(np.mean(end_to_end_capacity(g21, g10)))
     parts = []

@@ -19,6 +19,7 @@ from plotly.offline import get_plotlyjs  # noqa: E402
 
 from ..experiments.campaign import first_run_per_group, run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study, scenario_of  # noqa: E402
+from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
@@ -70,7 +71,7 @@ def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | Non
         return None
     fig, ax = plt.subplots(figsize=(8, 3.6))
     for g, s in list(firsts.items())[:MAX_CURVES]:
-        df = pd.read_parquet(run_dir(out, s) / "timeseries.parquet", columns=["t", "capacity"])
+        df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["t", "capacity"])
         ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1, label=g)
     ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
     ax.set_xlabel("t (s)")
@@ -86,14 +87,14 @@ def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
     figs = []
     for groups in study.bound_figures:
         runs = [firsts[g] for g in groups if g in firsts]
-        if not runs or not (run_dir(out, runs[0]) / "bound.parquet").exists():
+        if not runs or not (run_dir(out, runs[0]) / BOUND_PARQUET).exists():
             continue
-        bound = pd.read_parquet(run_dir(out, runs[0]) / "bound.parquet")
+        bound = pd.read_parquet(run_dir(out, runs[0]) / BOUND_PARQUET)
         fig, ax = plt.subplots(figsize=(8, 3.4))
         ax.semilogy(bound["t"], bound["path_mean"], color="0.3", lw=2, alpha=0.5, label="bound: best path (mean), <= v_max")
         ax.semilogy(bound["t"], bound["static"], color="0.5", ls=":", lw=1, label="bound: best pose per instant")
         for s in runs:
-            df = pd.read_parquet(run_dir(out, s) / "timeseries.parquet", columns=["t", "capacity"])
+            df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["t", "capacity"])
             ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1.2, label=s.group)
         ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
         ax.set_xlabel("t (s)")
@@ -137,7 +138,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
         return None
     traces = []
     for i, (g, s) in enumerate(firsts.items()):
-        df = pd.read_parquet(run_dir(out, s) / "timeseries.parquet", columns=["p1_x", "p1_y", "p1_z", "p2_x", "p2_y", "p2_z"])
+        df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["p1_x", "p1_y", "p1_z", "p2_x", "p2_y", "p2_z"])
         traces.append(go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name=f"relay: {g}", line=dict(width=5)))
         if i == 0:
             traces.append(go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2",

@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..experiments.campaign import is_finished, run_dir
 from ..experiments.study import Claim, RunSpec, Study, combinations, parse_term
+from ..store.run_folder import METRICS_FILE, TIMESERIES_FILE
 from .explain import explain
 
 SCALAR_METRICS = (
@@ -38,11 +39,11 @@ def _load_metrics(out: Path, spec: RunSpec) -> dict | None:
     the report never reads a truncated, foreign or unsafe run."""
     if not is_finished(out, spec):
         return None
-    return json.loads((run_dir(out, spec) / "metrics.json").read_text())
+    return json.loads((run_dir(out, spec) / METRICS_FILE).read_text())
 
 
 def _trajectory(out: Path, spec: RunSpec) -> np.ndarray:
-    df = pd.read_parquet(run_dir(out, spec) / "timeseries.parquet", columns=["p1_x", "p1_y", "p1_z"])
+    df = pd.read_parquet(run_dir(out, spec) / TIMESERIES_FILE, columns=["p1_x", "p1_y", "p1_z"])
     return df.to_numpy()
 
 
