@@ -23,8 +23,8 @@ from pathlib import Path
 from ._version import __version__
 from .control.bench import benchmark_closed_loop
 from .control.nmpc import NmpcSettings
-from .experiments.campaign import CampaignResult, load_manifest, run_campaign
-from .experiments.study import Study, expand, find_studies
+from .experiments.campaign import CampaignResult, is_finished, load_manifest, run_campaign
+from .experiments.study import Study, StudyError, expand, find_studies
 from .planning.bound import CapacityBound
 from .report.figures import write_run_figures
 from .report.html import render_report
@@ -34,7 +34,7 @@ from .scenario.build import build, build_scene, scenario_bound
 from .scenario.run import RunResult
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
-from .store.outputs import check_output_folder, write_atomic
+from .store.outputs import check_output_folder, mark, write_atomic
 
 
 class Result(RunResult):
@@ -91,6 +91,51 @@ class Reproduction:
     report: Path
 
 
+CAMPAIGN_FILE = "campaign.json"  # which studies a campaign folder holds, and whether in quick mode
+
+
+def _write_report(chosen: list[Study], specs: list, out: Path, meta: dict) -> dict:
+    manifest = load_manifest(out)
+    meta = {**meta, "runs_total": len(specs), "runs_finished": sum(is_finished(out, s) for s in specs),
+            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs),
+            "runs_unsafe": sum(manifest.get(s.key, {}).get("status") == "unsafe" for s in specs),
+            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
+            "controller": NmpcSettings().fingerprint()}
+    summary = summarize(chosen, specs, out, {"campaign": meta})
+    write_atomic(out / "summary.json", json.dumps(summary, indent=1, default=str))
+    write_atomic(out / "report.html", render_report(summary, chosen, specs, out, manifest))
+    return summary
+
+
+def _campaign_info(out: Path) -> dict:
+    """Studies and quick mode of a campaign folder: its campaign.json, or (older folders) the study
+    names in its manifest and the mode in its summary.json."""
+    try:
+        return json.loads((out / CAMPAIGN_FILE).read_text())
+    except (OSError, ValueError):
+        pass
+    studies = sorted({r["study"] for r in load_manifest(out).values() if "study" in r})
+    if not studies:
+        raise StudyError(f"{out}: no campaign here (no {CAMPAIGN_FILE}, no runs in manifest.json): run aerorelay reproduce first")
+    try:
+        quick = bool(json.loads((out / "summary.json").read_text())["campaign"]["quick"])
+    except (OSError, ValueError, KeyError, TypeError):
+        quick = False
+    return {"studies": studies, "quick": quick}
+
+
+def report(out: str | Path, *, studies_dir: str | Path = "experiments") -> dict:
+    """Render ``report.html`` and ``summary.json`` of a campaign folder from whatever runs are
+    finished (partial studies marked as such); the summary is returned."""
+    out, folder = Path(out), Path(studies_dir)
+    info = _campaign_info(out)
+    chosen = find_studies(folder, info["studies"])
+    specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=info["quick"])]
+    meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": info["quick"],
+            "runs_ran": 0, "runs_skipped": 0, "wall_s": 0.0}
+    return _write_report(chosen, specs, out, meta)
+
+
 def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool = False, studies_dir: str | Path = "experiments",
               scheduler: str | None = None, workers: int | None = None, progress=None, on_start=None,
               wait: bool = False) -> Reproduction:
@@ -105,15 +150,16 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
     if workers is not None and workers < 1:
         raise ValueError(f"--workers: must be >= 1, got {workers}")
     check_output_folder(out, "campaign")
-    res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
-    manifest = load_manifest(out)
-    meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": quick,
-            "runs_total": len(specs), "runs_ran": res.ran, "runs_skipped": res.skipped,
-            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs),
-            "runs_unsafe": sum(manifest.get(s.key, {}).get("status") == "unsafe" for s in specs), "wall_s": res.wall_s,
-            "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
-            "controller": NmpcSettings().fingerprint()}
-    summary = summarize(chosen, specs, out, {"campaign": meta})
-    write_atomic(out / "summary.json", json.dumps(summary, indent=1, default=str))
-    write_atomic(out / "report.html", render_report(summary, chosen, specs, out, manifest))
+    date = datetime.datetime.now().isoformat(timespec="seconds")
+    out.mkdir(parents=True, exist_ok=True)
+    mark(out, "campaign")
+    write_atomic(out / CAMPAIGN_FILE, json.dumps({"studies": [st.name for st in chosen], "quick": quick}))
+    try:
+        res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
+    except KeyboardInterrupt:  # the runs that finished are reported before the interrupt goes on
+        _write_report(chosen, specs, out, {"version": __version__, "date": date, "quick": quick, "interrupted": True})
+        raise
+    meta = {"version": __version__, "date": date, "quick": quick, "runs_ran": res.ran, "runs_skipped": res.skipped,
+            "wall_s": res.wall_s}
+    summary = _write_report(chosen, specs, out, meta)
     return Reproduction(chosen, specs, res, summary, out / "report.html")

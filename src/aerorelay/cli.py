@@ -366,7 +366,8 @@ def reproduce(
         _fail(str(exc))
     except KeyboardInterrupt:
         n = sum(r.get("status") == "done" for r in load_manifest(out).values())
-        err_console.print(f"interrupted: {n} finished runs are kept in {out}; run the same command to resume", markup=False)
+        err_console.print(f"interrupted: {n} finished runs are kept in {out} (partial report: {out / 'report.html'}); "
+                          "run the same command to resume", markup=False)
         raise typer.Exit(130) from None
     summary, res, meta = rep.summary, rep.campaign, rep.summary["campaign"]
     t = Table(title="the paper's claims on our numbers")
@@ -382,6 +383,23 @@ def reproduce(
         err_console.print(f"{meta['runs_unsafe']} unsafe run(s): listed in the report, their numbers not used", markup=False)
     if meta["runs_failed"] or meta.get("runs_unsafe"):
         raise typer.Exit(1)
+
+
+@app.command("report")
+def report_cmd(
+    out: Path = typer.Argument(..., help="campaign folder (an aerorelay reproduce --out)"),
+    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)"),
+):
+    """Render report.html and summary.json from whatever runs of a campaign are finished (partial studies marked)."""
+    from .experiments.study import StudyError
+
+    try:
+        summary = api.report(out, studies_dir=studies_dir or _default_studies_dir())
+    except StudyError as exc:
+        _fail(str(exc))
+    meta = summary["campaign"]
+    console.print(f"{meta['runs_finished']} of {meta['runs_total']} runs finished; report: {out / 'report.html'}",
+                  markup=False, highlight=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

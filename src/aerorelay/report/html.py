@@ -244,7 +244,13 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
             verdict += '<br><span class="na">(the paper contradicts itself here)</span>'
         claims_rows.append([html.escape(c["claim"]), verdict, html.escape(c["evidence"])])
     meta = summary.get("campaign", {})
-    head = (f"<h1>aerorelay: reproduction of the paper's experiments</h1>"
+    paper_like = any(st.paper for st in studies)
+    title = "reproduction of the paper's experiments" if paper_like else "; ".join(st.title or st.name for st in studies)
+    partial = meta.get("runs_finished") is not None and meta.get("runs_finished") < meta.get("runs_total", 0)
+    note = (f"<div class='warn'>Partial report: {meta.get('runs_finished')} of {meta.get('runs_total')} runs finished; "
+            f"studies with missing runs say so. Run the same <code>aerorelay reproduce</code> command to resume.</div>"
+            if partial else "")
+    head = (f"<h1>aerorelay: {html.escape(title)}</h1>{note}"
             f"<p>aerorelay {html.escape(str(meta.get('version', '')))}, {html.escape(str(meta.get('date', '')))}; "
             f"{meta.get('runs_total', 0)} runs ({meta.get('runs_failed', 0)} failed), "
             f"{'quick mode (fewer seeds, shorter missions where the study allows)' if meta.get('quick') else 'full campaign'}; "
@@ -254,8 +260,10 @@ def render_report(summary: dict, studies: list[Study], specs: list[RunSpec], out
             f"Normalized capacities (B = 1). Solve times measured "
             f"with runs in parallel on the same cores: use <code>aerorelay bench</code> for isolated timing.</p>")
     toc = "<p>" + " · ".join(f'<a href="#{s.name}">{html.escape(s.name)}</a>' for s in studies) + "</p>"
-    claims = _table(["claim", "verdict", "evidence"], claims_rows) if claims_rows else "<p>No claims in these studies.</p>"
-    body = [head, toc, "<h2>The paper's claims on our numbers</h2>", claims, _why_section(summary, studies)]
+    body = [head, toc]
+    if claims_rows:
+        heading = "The paper's claims on our numbers" if any(st.paper for st in studies) else "Claims on our numbers"
+        body += [f"<h2>{heading}</h2>", _table(["claim", "verdict", "evidence"], claims_rows), _why_section(summary, studies)]
     for s in studies:
         body.append(_study_section(s, summary["studies"][s.name], [r for r in specs if r.study == s.name], out, manifest))
 
