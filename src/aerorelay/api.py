@@ -16,9 +16,12 @@ from __future__ import annotations
 import datetime
 import json
 import platform
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+
+import pandas as pd
 
 from ._version import __version__
 from .control.bench import benchmark_closed_loop
@@ -28,23 +31,27 @@ from .experiments.study import Study, StudyError, expand, find_studies
 from .planning.bound import CapacityBound
 from .report.figures import write_run_figures
 from .report.html import render_report
+from .report.mcap_export import MCAP_FILE, write_run_mcap
 from .report.summary import summarize
-from .scenario import Scenario
+from .scenario import Scenario, parse_scenario
 from .scenario.build import build, build_scene, scenario_bound
 from .scenario.run import RunResult
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
-from .store.outputs import check_output_folder, mark, write_atomic
+from .store.outputs import OutputError, check_output_folder, is_own_folder, mark, write_atomic
+from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 
 
 class Result(RunResult):
     """A flown mission (``timeseries``, ``metrics``, ``bound``); ``save`` writes its run folder
-    with the figures (``figures=False``: data files only)."""
+    with the figures and ``run.mcap`` for Foxglove (``figures=False``: data files only)."""
 
     def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True) -> Path:
         def writer(tmp: Path) -> None:
             if figures:
-                write_run_figures(self.timeseries, self.scenario, tmp, self.bound.frame() if self.bound is not None else None)
+                bound = self.bound.frame() if self.bound is not None else None
+                write_run_figures(self.timeseries, self.scenario, tmp, bound)
+                write_run_mcap(self.timeseries, self.scenario, tmp / MCAP_FILE, bound)
             if extra is not None:
                 extra(tmp)
 
@@ -78,6 +85,19 @@ def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: i
     nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
     res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
     return res
+
+
+def export(run_dir: str | Path, fmt: str = "mcap") -> Path:
+    """Write ``run.mcap`` into an existing run folder (runs written before MCAP export, campaign runs)."""
+    d = Path(run_dir)
+    if fmt != "mcap":
+        raise ValueError(f"--format: only 'mcap' is supported, got {fmt!r}")
+    if not is_own_folder(d, "run"):
+        raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
+    sc = parse_scenario(tomllib.loads((d / SCENARIO_FILE).read_text()))
+    df = pd.read_parquet(d / TIMESERIES_FILE)
+    bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
+    return write_run_mcap(df, sc, d / MCAP_FILE, bound)
 
 
 @dataclass

@@ -385,6 +385,19 @@ def reproduce(
         raise typer.Exit(1)
 
 
+@app.command()
+def export(
+    run_dir: Path = typer.Argument(..., help="a run folder (aerorelay run --out, or a campaign's runs/<study>/<run>/seed<k>)"),
+    fmt: str = typer.Option("mcap", "--format", help="mcap: run.mcap with Foxglove's schemas"),
+):
+    """Write run.mcap into a run folder: frames, the 3D scene and the time series for Foxglove."""
+    try:
+        path = api.export(run_dir, fmt)
+    except (OutputError, ValueError) as exc:
+        _fail(str(exc))
+    console.print(f"wrote {path} (open it in Foxglove; docs/foxglove_layout.json arranges the panels)", markup=False, highlight=False)
+
+
 @app.command("report")
 def report_cmd(
     out: Path = typer.Argument(..., help="campaign folder (an aerorelay reproduce --out)"),
