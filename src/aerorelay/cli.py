@@ -201,7 +201,7 @@ KEY_METRICS = (
     "alignment_within_slack_fraction",
     "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
     "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
-    "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "min_altitude_m", "box_violation_max_m", "safety_violations",
+    "distance_m", "energy_kJ", "motor_saturation_fraction", "rate_saturation_fraction", "final_z_m", "max_tilt_deg", "min_altitude_m", "box_violation_max_m", "safety_violations",
     "taylor_rel_err_max", "wall_s", "sim_s",
     "capacity_efficiency_mean", "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min",
     "bound.path_mean.outage_fraction", "bound.static.mean",

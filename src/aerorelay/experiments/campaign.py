@@ -27,7 +27,7 @@ from .._version import __version__
 from ..control.nmpc import NmpcSettings
 from ..scenario.run import simulate
 from ..store.outputs import check_output_folder, mark, write_atomic
-from ..store.run_folder import BOUND_JSON, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
+from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, SCENARIO_FILE, TIMESERIES_FILE
 from .study import RunSpec, scenario_of
 
 log = logging.getLogger(__name__)
@@ -54,7 +54,10 @@ def _run_problem(d: Path, spec: RunSpec) -> str | None:
         if not f.is_file() or f.stat().st_size == 0:
             return f"{name} missing or empty"
     try:
-        if (d / SCENARIO_FILE).read_text() != spec.scenario_toml:
+        expected = spec.scenario_toml
+        if "trajectory_csv" in expected:  # the run folder names its own copy of the mission
+            expected = scenario_of(spec).to_toml(MISSION_CSV)
+        if (d / SCENARIO_FILE).read_text() != expected:
             return "another scenario"
         metrics = json.loads((d / METRICS_FILE).read_text())
         rows = pq.read_metadata(d / TIMESERIES_FILE).num_rows

@@ -26,7 +26,7 @@ from .figures import jammer_traces  # noqa: E402
 MAIN_METRICS = ("c_min", "c_mean", "outage_fraction")
 TABLE_METRICS = ("c_min", "c_mean", "outage_fraction", "alignment_ok_fraction", "alignment_within_slack_fraction",
                  "slack_active_fraction", "infeasible_fraction", "energy_kJ", "distance_m", "final_z_m", "solve_ms.mean",
-                 "solve_ms.p99")
+                 "solve_ms.p99", "motor_saturation_fraction", "rate_saturation_fraction")
 # column headers with units, breakable so that tables fit the page
 HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_fraction": "outage fraction",
            "alignment_ok_fraction": "alignment >= mu", "alignment_within_slack_fraction": "alignment >= mu - 0.02",
@@ -34,7 +34,8 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "distance_m": "distance (m)", "final_z_m": "final z (m)", "solve_ms.mean": "step mean (ms)",
            "solve_ms.p99": "step p99 (ms)", "max_deviation_m": "max deviation (m)",
            "capacity_efficiency_mean": "efficiency, mean C", "capacity_efficiency_min": "efficiency, C_min",
-           "fallback_fraction": "fail-safe steps"}
+           "fallback_fraction": "fail-safe steps", "motor_saturation_fraction": "a motor at a speed bound",
+           "rate_saturation_fraction": "a motor at a rate bound"}
 MAX_CURVES = 8
 
 CSS = """

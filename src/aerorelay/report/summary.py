@@ -21,7 +21,8 @@ SCALAR_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
     "alignment_within_slack_fraction", "slack_active_fraction",
     "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m", "distance_m", "energy_kJ",
-    "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "fallback_fraction", "capacity_efficiency_mean",
+    "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "fallback_fraction", "motor_saturation_fraction",
+    "rate_saturation_fraction", "min_altitude_m", "box_violation_max_m", "capacity_efficiency_mean",
     "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min", "bound.path_mean.outage_fraction",
     "bound.path_maxmin.outage_fraction",
 )

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,7 @@ from ..planning.base import Planner
 from ..planning.bound import CapacityBound
 from ..sim.closed_loop import MissionResult, log_columns
 from ..sim.metrics import compute_metrics
-from ..store.run_folder import log_frame, publish_run
+from ..store.run_folder import MISSION_CSV, log_frame, publish_run
 from .build import build, scenario_bound
 from .schema import Scenario, ScenarioError
 
@@ -34,8 +35,19 @@ class RunResult:
     bound: CapacityBound | None = None
 
     def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None) -> Path:
-        """Write the run folder (scenario.toml, timeseries.parquet, metrics.json, bound files)."""
-        publish_run(Path(folder), self.scenario.to_toml(), self.timeseries, self.metrics, bound=self.bound, extra=extra)
+        """Write the run folder (scenario.toml, timeseries.parquet, metrics.json, bound files). It holds
+        everything to fly the run again: a CSV mission is copied beside the scenario as
+        ``mission.csv`` and named relative to it, so ``aerorelay run FOLDER/scenario.toml`` re-flies it."""
+        csv = self.scenario.mission.trajectory_csv
+
+        def with_mission(tmp: Path) -> None:
+            if csv:
+                shutil.copyfile(csv, tmp / MISSION_CSV)
+            if extra is not None:
+                extra(tmp)
+
+        toml = self.scenario.to_toml(MISSION_CSV if csv else None)
+        publish_run(Path(folder), toml, self.timeseries, self.metrics, bound=self.bound, extra=with_mission)
         return Path(folder)
 
 

@@ -491,13 +491,22 @@ class Scenario(_Strict):
     def duration_s(self) -> float:
         return self.sim.duration_s if self.sim.duration_s is not None else self.mission.duration_s
 
-    def to_toml(self) -> str:
-        """The resolved scenario as TOML text (every default spelled out), arrays on one line."""
-        return compact_toml(self.model_dump(exclude_none=True))
+    def to_toml(self, mission_file: str | None = None) -> str:
+        """The resolved scenario as TOML text (every default spelled out), arrays on one line, with
+        only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
+        the CSV's path (a run folder holds its own copy)."""
+        data = self.model_dump(exclude_none=True)
+        if self.mission.trajectory_csv:
+            data["mission"].pop("waypoints", None)
+            if mission_file is not None:
+                data["mission"]["trajectory_csv"] = mission_file
+        return compact_toml(data)
 
     def with_updates(self, updates: dict) -> Scenario:
         """A new validated scenario with dotted-key updates, e.g. ``{"controller.variant": "unconstrained"}``."""
         data = self.model_dump(exclude_none=True)
+        if self.mission.trajectory_csv and "mission.waypoints" in updates:  # waypoints given: they fly, not the CSV
+            data["mission"].pop("trajectory_csv")
         for key, value in updates.items():
             node: Any = data
             *parents, leaf = key.split(".")

@@ -44,6 +44,19 @@ def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, 
             "box_violation_max_m": box, "min_altitude_m": float(p1[:, 2].min()), "max_tilt_deg": float(tilt_deg.max())}
 
 
+SATURATION_BAND = 0.01  # a motor within 1% (of its bound's magnitude) of a bound is saturated
+
+
+def saturation_metrics(speeds: np.ndarray, inputs: np.ndarray, veh: Multirotor) -> dict:
+    """Fraction of steps with any rotor's speed within 1% of a speed bound (``motor_saturation_fraction``)
+    and with any rotor's rate command within 1% of a rate bound (``rate_saturation_fraction``)."""
+    band = SATURATION_BAND
+    motor = (speeds <= veh.omega_min + band * veh.omega_min) | (speeds >= veh.omega_max - band * veh.omega_max)
+    rate = (inputs <= veh.omega_dot_min * (1 - band)) | (inputs >= veh.omega_dot_max * (1 - band))
+    return {"motor_saturation_fraction": float(np.mean(motor.any(axis=1))),
+            "rate_saturation_fraction": float(np.mean(rate.any(axis=1)))}
+
+
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
                     box_tolerance_m: float = 0.05) -> dict:
@@ -83,6 +96,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "final_z_m": float(p1[-1, 2]),
         **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m),
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
+        **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
         "steps": int(cap.size),
         "wall_s": float(wall_s),

@@ -16,6 +16,7 @@ TIMESERIES_FILE = "timeseries.parquet"
 METRICS_FILE = "metrics.json"
 BOUND_JSON = "bound.json"
 BOUND_PARQUET = "bound.parquet"
+MISSION_CSV = "mission.csv"  # a CSV mission's copy, named by the run's scenario.toml
 
 
 def log_frame(log: dict, columns: list[str]) -> pd.DataFrame:
