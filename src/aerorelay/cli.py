@@ -75,8 +75,8 @@ def parse_sets(items: list[str] | None) -> dict:
 
 @app.command()
 def validate(
-    scenario: Path = typer.Argument(..., help="scenario TOML file"),
-    set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
 ):
     """Validate a scenario and print it fully resolved (every default spelled out)."""
     sc = _with_overrides(_load_or_exit(scenario), {}, set_)
@@ -110,22 +110,26 @@ def model_summary(sc: Scenario) -> Table:
 
 
 @app.command()
-def info(scenario: Path = typer.Argument(..., help="scenario TOML file")):
+def info(
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+):
     """Print the scenario's derived model quantities: hover, allocation rank, initial link budget."""
-    sc = _load_or_exit(scenario)
+    sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     console.print(model_summary(sc))
 
 
 @app.command()
 def run(
-    scenario: Path = typer.Argument(..., help="scenario TOML file"),
-    out: Path = typer.Option(..., "--out", help="output folder (new, empty, or an earlier run folder, which is replaced)"),
-    variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
-    planner: str = typer.Option(None, "--planner", help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
-    duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    out: Path = typer.Option(..., "--out", help="output folder (new, empty, or an earlier run folder, which is replaced)", show_default=False),
+    variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)", show_default=False),
+    planner: str = typer.Option(None, "--planner", show_default=False,
+                                help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
+    duration: float = typer.Option(None, "--duration", help="simulate only this many seconds", show_default=False),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
     no_bound: bool = typer.Option(False, "--no-bound", help="skip the capacity bound (computed once per scenario geometry, cached)"),
-    set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
 ):
     """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json, the
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
@@ -168,8 +172,9 @@ def _bound_with_progress(sc: Scenario):
 
 @app.command()
 def bound(
-    scenario: Path = typer.Argument(..., help="scenario TOML file"),
-    out: Path = typer.Option(..., "--out", help="output folder: bound.json, bound.parquet, bound.png"),
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    out: Path = typer.Option(..., "--out", help="output folder: bound.json, bound.parquet, bound.png", show_default=False),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
 ):
     """The best link the physics allows on this scenario: static and path capacity bounds."""
     import json
@@ -178,7 +183,7 @@ def bound(
     from .store.outputs import new_sibling, swap_in
     from .store.run_folder import write_bound_files
 
-    sc = _load_or_exit(scenario)
+    sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     _check_out(out, "bound")
     b = _bound_with_progress(sc)
     tmp = new_sibling(out)
@@ -241,8 +246,8 @@ def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
 
 @app.command()
 def compare(
-    run_a: Path = typer.Argument(..., help="first run folder (A)"),
-    run_b: Path = typer.Argument(..., help="second run folder (B)"),
+    run_a: Path = typer.Argument(..., help="first run folder (A)", show_default=False),
+    run_b: Path = typer.Argument(..., help="second run folder (B)", show_default=False),
 ):
     """Print the key metrics of two runs side by side, with the ratio B/A."""
     import json
@@ -265,21 +270,23 @@ def compare(
 
 @app.command()
 def bench(
-    scenario: Path = typer.Argument(..., help="scenario TOML file (default mission: the constrained tilted nominal)"),
-    duration: float = typer.Option(None, "--duration", help="simulate only this many seconds"),
-    variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)"),
-    planner: str = typer.Option(None, "--planner", help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
-    control_rate_hz: float = typer.Option(None, "--control-rate-hz", help="controller rate (overrides sim.control_rate_hz)"),
+    scenario: Path = typer.Argument(..., help="scenario TOML file, e.g. scenarios/nominal_tilted.toml", show_default=False),
+    duration: float = typer.Option(None, "--duration", help="simulate only this many seconds", show_default=False),
+    variant: str = typer.Option(None, "--variant", help="constrained | unconstrained (overrides the scenario)", show_default=False),
+    planner: str = typer.Option(None, "--planner", show_default=False,
+                                help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
+    control_rate_hz: float = typer.Option(None, "--control-rate-hz", help="controller rate (overrides sim.control_rate_hz)", show_default=False),
     ipopt_points: int = typer.Option(3, "--ipopt-points", help="states at which a full IPOPT solve is timed"),
-    json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file"),
+    json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file", show_default=False),
     backend: str = typer.Option("hpipm", "--backend", help="QP route: hpipm (compiled engine) or casadi (casadi.conic)"),
     condense: int = typer.Option(0, "--condense", min=0, help="hpipm backend: partial condensing to this many stages (0: none)"),
     qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
     warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
     simd: bool = typer.Option(True, "--simd/--no-simd", help="hpipm backend: AVX2 BLASFEO kernels where the CPU has them"),
-    feedback: str = typer.Option(None, "--feedback", help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
-    set_: list[str] = typer.Option(None, "--set", help=SET_HELP),
+    feedback: str = typer.Option(None, "--feedback", show_default=False,
+                                 help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
 ):
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
     import json
@@ -331,12 +338,12 @@ def _default_studies_dir() -> Path:
 
 @app.command()
 def reproduce(
-    studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)"),
-    out: Path = typer.Option(..., "--out", help="campaign folder (re-running the same command resumes it)"),
+    studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)", show_default=False),
+    out: Path = typer.Option(..., "--out", help="campaign folder (re-running the same command resumes it)", show_default=False),
     quick: bool = typer.Option(False, "--quick", help="fewer Monte Carlo seeds, shorter missions where the study allows"),
-    scheduler: str = typer.Option(None, "--scheduler", help="address of an existing dask scheduler (default: local cluster)"),
-    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)"),
-    workers: int = typer.Option(None, "--workers", min=1, help="local cluster size (default: one per core)"),
+    scheduler: str = typer.Option(None, "--scheduler", help="address of an existing dask scheduler (default: local cluster)", show_default=False),
+    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)", show_default=False),
+    workers: int = typer.Option(None, "--workers", min=1, help="local cluster size (default: one per core)", show_default=False),
     wait: bool = typer.Option(False, "--wait", help="wait for another campaign running in the same folder instead of refusing"),
 ):
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
@@ -388,7 +395,7 @@ def reproduce(
 
 @app.command()
 def export(
-    run_dir: Path = typer.Argument(..., help="a run folder (aerorelay run --out, or a campaign's runs/<study>/<run>/seed<k>)"),
+    run_dir: Path = typer.Argument(..., help="a run folder (aerorelay run --out, or a campaign's runs/<study>/<run>/seed<k>)", show_default=False),
     fmt: str = typer.Option("mcap", "--format", help="mcap: run.mcap with Foxglove's schemas"),
 ):
     """Write run.mcap into a run folder: frames, the 3D scene and the time series for Foxglove."""
@@ -401,8 +408,8 @@ def export(
 
 @app.command("report")
 def report_cmd(
-    out: Path = typer.Argument(..., help="campaign folder (an aerorelay reproduce --out)"),
-    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)"),
+    out: Path = typer.Argument(..., help="campaign folder (an aerorelay reproduce --out)", show_default=False),
+    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)", show_default=False),
 ):
     """Render report.html and summary.json from whatever runs of a campaign are finished (partial studies marked)."""
     from .experiments.study import StudyError

@@ -101,3 +101,13 @@ def test_taylor_error_ignores_a_change_of_jammer_knowledge():
     f_new = f_surrogate(P1 + 0.005, P2 + 0.005, 0.0)
     expected = abs(f_new - (f0 + np.concatenate([g1, g2]) @ d + 0.5 * d @ H @ d)) / f_new
     assert r.taylor_rel_err == pytest.approx(expected, rel=1e-6, abs=1e-15)
+
+
+def test_a_degenerate_surrogate_holds_the_last_reference_instead_of_raising():
+    """mu = 0 makes the surrogate's inverse capacity infinite (rejected for scenarios); the generator
+    itself, given it anyway, holds its reference rather than feeding NaNs to the NMPC."""
+    gen = TrajectoryGenerator(SurrogateParams(0.0, 1.0, 1.0, 1.0), P0, governor_speed=0.5, eig_floor=1e-3,
+                              workspace_min=[-7, -6, 0.5], workspace_max=[7, 6, 19])
+    ref = gen.update(0.015, P1, P2, np.zeros(3), np.zeros(3), PJ[None], np.ones(1))
+    np.testing.assert_array_equal(ref.p_ref, P1)
+    assert np.all(ref.v_ref == 0) and np.all(np.isfinite(ref.a_ref))

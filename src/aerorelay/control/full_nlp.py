@@ -35,7 +35,7 @@ class FullNlp:
                 ubg.append(np.full(ng, np.inf))
         J += LN(X[N], P[:, N])
         z = ca.vertcat(*[ca.vertcat(X[k], W[k]) for k in range(N)], X[N])
-        opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-8, "ipopt.max_iter": 500}
+        opts: dict = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-8, "ipopt.max_iter": 500}
         opts.update(ipopt_options or {})
         self.solver = ca.nlpsol("full_nmpc", "ipopt", {"x": z, "p": ca.vertcat(xa0, ca.vec(P)), "f": J, "g": ca.vertcat(*g)}, opts)
         self.lbg, self.ubg = np.concatenate(lbg), np.concatenate(ubg)

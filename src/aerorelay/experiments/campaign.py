@@ -27,7 +27,7 @@ from .._version import __version__
 from ..control.nmpc import NmpcSettings
 from ..scenario.run import simulate
 from ..store.outputs import check_output_folder, mark, write_atomic
-from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, SCENARIO_FILE, TIMESERIES_FILE
+from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, MISSION_ULOG, SCENARIO_FILE, TIMESERIES_FILE
 from .study import RunSpec, scenario_of
 
 log = logging.getLogger(__name__)
@@ -55,8 +55,9 @@ def _run_problem(d: Path, spec: RunSpec) -> str | None:
             return f"{name} missing or empty"
     try:
         expected = spec.scenario_toml
-        if "trajectory_csv" in expected:  # the run folder names its own copy of the mission
-            expected = scenario_of(spec).to_toml(MISSION_CSV)
+        if "trajectory_csv" in expected or "trajectory_ulog" in expected:  # the run folder names its own copy
+            sc = scenario_of(spec)
+            expected = sc.to_toml(MISSION_ULOG if sc.mission.trajectory_ulog else MISSION_CSV)
         if (d / SCENARIO_FILE).read_text() != expected:
             return "another scenario"
         metrics = json.loads((d / METRICS_FILE).read_text())
@@ -209,5 +210,8 @@ def _run_locked(specs, out: Path, client, scheduler, n_workers, progress) -> Cam
                     progress(done, len(specs), rec)
         finally:
             if own:
+                cluster = getattr(client, "cluster", None)
                 client.close()
+                if cluster is not None:  # the local cluster's worker processes end with it
+                    cluster.close()
     return CampaignResult(records, len(specs) - len(todo), len(todo), failed, time.perf_counter() - t0)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pyulog import ULog
+from scipy.interpolate import make_smoothing_spline
 
 from .geometry import E3, attitude_from_thrust
 
@@ -96,30 +98,14 @@ class LinearPath(SourceTrajectory):
         return SourceState(self.p[i] + v * (t - self.t[i]), v, np.zeros(3))
 
 
-class CsvPath(SourceTrajectory):
-    """A user trajectory from a CSV with header ``t,px,py,pz,vx,vy,vz,ax,ay,az`` (linear interpolation)."""
+class SampledPath(SourceTrajectory):
+    """A path from samples: times ``t`` (s, increasing), positions, velocities, accelerations
+    ``(n, 3)`` (world), linearly interpolated; holds the first/last sample outside them."""
 
-    def __init__(self, path: str | Path):
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("error")  # numpy's warnings (empty file, ragged rows) become named errors
-                data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
-        except (OSError, ValueError, UserWarning) as exc:
-            raise ValueError(f"{path}: not a readable CSV ({exc})") from None
-        missing = [c for c in CSV_COLUMNS if c not in (data.dtype.names or ())]
-        if missing:
-            raise ValueError(f"{path}: missing CSV columns {missing}; expected {','.join(CSV_COLUMNS)}")
-        if data.size < 2:
-            raise ValueError(f"{path}: needs at least 2 rows of data, has {data.size}")
-        for c in CSV_COLUMNS:
-            col = np.asarray(data[c], float)
-            bad = np.flatnonzero(~np.isfinite(col))
-            if bad.size:
-                raise ValueError(f"{path}: column {c} row {bad[0] + 1} is not a finite number")
-        self.t = np.asarray(data["t"], float)
-        if np.any(np.diff(self.t) <= 0):
-            raise ValueError(f"{path}: column t must be strictly increasing")
-        self.cols = {c: np.asarray(data[c], float) for c in CSV_COLUMNS[1:]}
+    def __init__(self, t, p, v, a):
+        self.t = np.asarray(t, float)
+        names = ("px", "py", "pz", "vx", "vy", "vz", "ax", "ay", "az")
+        self.cols = dict(zip(names, np.column_stack([p, v, a]).T, strict=True))
 
     @property
     def duration(self) -> float:
@@ -132,8 +118,98 @@ class CsvPath(SourceTrajectory):
         )
 
 
+def smooth_derivatives(t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity and acceleration of sampled positions ``(n, 3)`` from a cubic smoothing spline per
+    axis (scipy's ``make_smoothing_spline``, its smoothing chosen by generalized cross-validation)."""
+    v, a = np.empty_like(p), np.empty_like(p)
+    for i in range(3):
+        spl = make_smoothing_spline(t, p[:, i])
+        v[:, i], a[:, i] = spl.derivative(1)(t), spl.derivative(2)(t)
+    return v, a
+
+
+POSITION_COLUMNS = ("t", "px", "py", "pz")
+
+
+class CsvPath(SampledPath):
+    """A user trajectory from a CSV with header ``t,px,py,pz,vx,vy,vz,ax,ay,az``, or positions only
+    ``t,px,py,pz`` (velocity and acceleration then from a smoothing spline); linear interpolation."""
+
+    def __init__(self, path: str | Path):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # numpy's warnings (empty file, ragged rows) become named errors
+                data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
+        except (OSError, ValueError, UserWarning) as exc:
+            raise ValueError(f"{path}: not a readable CSV ({exc})") from None
+        names = data.dtype.names or ()
+        full = all(c in names for c in CSV_COLUMNS)
+        if not full and not all(c in names for c in POSITION_COLUMNS):
+            missing = [c for c in CSV_COLUMNS if c not in names]
+            raise ValueError(f"{path}: missing CSV columns {missing}; expected {','.join(CSV_COLUMNS)} or {','.join(POSITION_COLUMNS)}")
+        if data.size < (2 if full else 4):
+            raise ValueError(f"{path}: needs at least {2 if full else 4} rows of data, has {data.size}")
+        for c in CSV_COLUMNS if full else POSITION_COLUMNS:
+            col = np.asarray(data[c], float)
+            bad = np.flatnonzero(~np.isfinite(col))
+            if bad.size:
+                raise ValueError(f"{path}: column {c} row {bad[0] + 1} is not a finite number")
+        t = np.asarray(data["t"], float)
+        if np.any(np.diff(t) <= 0):
+            raise ValueError(f"{path}: column t must be strictly increasing")
+        p = np.column_stack([np.asarray(data[c], float) for c in ("px", "py", "pz")])
+        if full:
+            v = np.column_stack([np.asarray(data[c], float) for c in ("vx", "vy", "vz")])
+            a = np.column_stack([np.asarray(data[c], float) for c in ("ax", "ay", "az")])
+        else:
+            v, a = smooth_derivatives(t, p)
+        super().__init__(t, p, v, a)
+
+
+def ned_to_world(p_ned: np.ndarray, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """PX4's local NED (x north, y east, z down) to this project's world frame (z up): east, north,
+    up, then turned by ``yaw_deg`` about z and shifted by ``offset`` (m)."""
+    enu = np.column_stack([p_ned[:, 1], p_ned[:, 0], -p_ned[:, 2]])
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return enu @ R.T + np.asarray(offset, float)
+
+
+class UlogPath(SampledPath):
+    """MRAV-2's path from a PX4 flight log (ULog): ``vehicle_local_position`` (x, y, z, vx, vy, vz,
+    ax, ay, az; NED) converted to the world frame (``ned_to_world``; velocities and accelerations
+    turned, not shifted), time from the first sample (s)."""
+
+    TOPIC = "vehicle_local_position"
+
+    def __init__(self, path: str | Path, *, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)):
+        try:
+            log = ULog(str(path), message_name_filter_list=[self.TOPIC])
+        except Exception as exc:  # pyulog raises several kinds on a corrupt file
+            raise ValueError(f"{path}: not a readable PX4 ULog ({type(exc).__name__}: {exc})") from None
+        data = next((d for d in log.data_list if d.name == self.TOPIC), None)
+        if data is None:
+            raise ValueError(f"{path}: no {self.TOPIC} topic in this ULog")
+        d = data.data
+        need = ("timestamp", "x", "y", "z", "vx", "vy", "vz", "ax", "ay", "az")
+        missing = [f for f in need if f not in d]
+        if missing:
+            raise ValueError(f"{path}: {self.TOPIC} lacks the fields {missing}")
+        t = (np.asarray(d["timestamp"], float) - float(d["timestamp"][0])) * 1e-6
+        if t.size < 2 or np.any(np.diff(t) <= 0):
+            raise ValueError(f"{path}: {self.TOPIC} needs >= 2 samples at increasing times")
+        cols = {f: np.asarray(d[f], float) for f in need[1:]}
+        if not all(np.all(np.isfinite(c)) for c in cols.values()):
+            raise ValueError(f"{path}: {self.TOPIC} holds non-finite values")
+        turn = (lambda x, y, z: ned_to_world(np.column_stack([x, y, z]), yaw_deg))
+        p = ned_to_world(np.column_stack([cols["x"], cols["y"], cols["z"]]), yaw_deg, offset)
+        super().__init__(t, p, turn(cols["vx"], cols["vy"], cols["vz"]), turn(cols["ax"], cols["ay"], cols["az"]))
+
+
 def source_trajectory(mission) -> SourceTrajectory:
-    """Build MRAV-2's path from a ``MissionConfig``."""
+    """Build MRAV-2's path from a ``MissionConfig``: a ULog, a CSV, or waypoints."""
+    if getattr(mission, "trajectory_ulog", None):
+        return UlogPath(mission.trajectory_ulog, yaw_deg=mission.ulog_yaw_deg, offset=mission.ulog_offset_m)
     if mission.trajectory_csv:
         return CsvPath(mission.trajectory_csv)
     return MinimumJerkPath(mission.waypoints)

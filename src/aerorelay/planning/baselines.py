@@ -67,7 +67,7 @@ class SingleShotPlanner:
         acc = sum(ca.sumsqr(P[:, k - 1] - 2 * P[:, k] + P[:, k + 1]) for k in range(1, K - 1)) / self.dt**4
         mean_c = sum(caps) / K
         nlp = {"x": ca.vec(P), "f": -mean_c * 1e3 + self.accel_weight * acc, "g": ca.vertcat(*g)}
-        solver = ca.nlpsol("single_shot", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
+        solver = ca.nlpsol("single_shot", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
                                                            "ipopt.max_iter": 500, "ipopt.tol": 1e-6})
         lo = np.tile(np.asarray(workspace_min, float)[:, None], (1, K))
         hi = np.tile(np.asarray(workspace_max, float)[:, None], (1, K))

@@ -9,12 +9,15 @@ m (world), velocities m/s, accelerations m/s^2.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from ..models.channel import inverse_capacity
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,8 @@ class TrajectoryGenerator:
     def optimum(self, p1, p2, v2, a2, p_jam, jam_power):
         """Eq. 17-19 at the expansion point ``kappa_e = (p1, p2)`` (so ``delta_2 = 0``)."""
         f, g1, g2, H11, H12, H22 = self.expansion(p1, p2, p_jam, jam_power)
+        if not (np.isfinite(f) and np.all(np.isfinite(g1)) and np.all(np.isfinite(H11)) and np.all(np.isfinite(H12))):
+            raise _NonFinite
         err = self._taylor_error(p1, p2, f, p_jam, jam_power)
         H = np.block([[H11, H12], [H12.T, H22]])
         self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H, np.array(p_jam, float), np.array(jam_power, float))
@@ -130,9 +135,16 @@ class TrajectoryGenerator:
         return p_opt, -K @ v2, -K @ a2, err, reg
 
     def update(self, dt: float, p1, p2, v2, a2, p_jam, jam_power) -> Reference:
-        """One generator step of length ``dt`` s from the relay position ``p1`` and MRAV-2's state."""
+        """One generator step of length ``dt`` s from the relay position ``p1`` and MRAV-2's state.
+        A non-finite expansion (a degenerate geometry) holds the last reference instead (logged)."""
         p1, p2, v2, a2 = (np.asarray(a, float) for a in (p1, p2, v2, a2))
-        p_opt, v_d, a_d, err, reg = self.optimum(p1, p2, v2, a2, np.asarray(p_jam, float), np.asarray(jam_power, float))
+        try:
+            p_opt, v_d, a_d, err, reg = self.optimum(p1, p2, v2, a2, np.asarray(p_jam, float), np.asarray(jam_power, float))
+        except _NonFinite:
+            log.warning("trajectory generator: non-finite surrogate at p1 = %s; holding the last reference", np.round(p1, 2))
+            hold = self.p_ref.copy() if self.p_ref is not None else p1.copy()
+            self.p_ref = hold
+            return Reference(p_opt=hold, p_ref=hold.copy(), v_ref=np.zeros(3), a_ref=np.zeros(3))
         if self.p_ref is None:
             self.p_ref = p1.copy()
         step = p_opt - self.p_ref
@@ -144,6 +156,10 @@ class TrajectoryGenerator:
         v_ref = step / dt if n > max_step else _clip_norm(v_d, self.governor_speed)
         a_ref = _clip_norm(a_d, self.max_ref_accel)
         return Reference(p_opt=p_opt, p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=a_ref, taylor_rel_err=err, regularized=reg)
+
+
+class _NonFinite(ArithmeticError):
+    """The surrogate's expansion is not finite at this geometry."""
 
 
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:

@@ -52,15 +52,20 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
         ax.scatter(*P[0], color="r", s=30, label="jammer" if i == 0 else None)
         if np.ptp(P, axis=0).max() > 1e-9:
             ax.plot(P[:, 0], P[:, 1], P[:, 2], color="r", lw=1, label=f"{name} (moving)")
-    for c, col in ((("p1_x", "p1_y", "p1_z"), RELAY), (("p2_x", "p2_y", "p2_z"), SOURCE)):
-        ax.scatter(*[df[k].iloc[0] for k in c], color=col, marker="o", s=15)
-        ax.scatter(*[df[k].iloc[-1] for k in c], color=col, marker="^", s=25)
+    for i, (c, col) in enumerate(((("p1_x", "p1_y", "p1_z"), RELAY), (("p2_x", "p2_y", "p2_z"), SOURCE))):
+        ax.scatter(*[df[k].iloc[0] for k in c], color=col, marker="o", s=15, label="start (o)" if i == 0 else None)
+        ax.scatter(*[df[k].iloc[-1] for k in c], color=col, marker="^", s=25, label="end (^)" if i == 0 else None)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
     ax.legend(loc="upper left", fontsize=7)
-    ax.set_title(f"{sc.name} ({sc.controller.variant})", fontsize=9)
+    ax.set_title(_run_title(sc), fontsize=9)
     return fig
+
+
+def _run_title(sc: Scenario) -> str:
+    """Scenario, planner and NMPC variant: what flew."""
+    return f"{sc.name} ({sc.controller.planner} planner, {sc.controller.variant} NMPC)"
 
 
 def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = None):
@@ -68,8 +73,8 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
     ax = axes[0]
     if bound is not None:  # what the physics allows, behind the run
         ax.semilogy(bound["t"], bound["static"], color="0.6", lw=1, ls="--", label="static bound (best pose per instant)")
-        ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.2, alpha=0.8, label="path bound (best mean, <= v_max)")
-        ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=1.2, alpha=0.8, label="path bound (best minimum)")
+        ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound (best minimum)")
+        ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound (best mean, <= v_max)")
     ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
     ax.axhline(sc.channel.outage_threshold, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
@@ -90,13 +95,14 @@ def fig_constraints(df: pd.DataFrame, sc: Scenario):
     p = sc.platform
     fig, axes = plt.subplots(4, 1, figsize=(7, 8), sharex=True)
     for i in range(1, p.vehicle().n_rotors + 1):
-        axes[0].plot(df["t"], df[f"Omega_{i}"], lw=0.8)
-        axes[1].plot(df["t"], df[f"u_{i}"], lw=0.6)
+        axes[0].plot(df["t"], df[f"Omega_{i}"], lw=0.8, label=f"rotor {i}")
+        axes[1].plot(df["t"], df[f"u_{i}"], lw=0.6, label=f"rotor {i}")
     for ax, lo, hi, lab in ((axes[0], p.omega_min_hz, p.omega_max_hz, r"$\Omega$ (Hz)"),
                             (axes[1], p.omega_dot_min_hz_s, p.omega_dot_max_hz_s, r"$\dot\Omega$ (Hz/s)")):
-        ax.axhline(lo, color="r", ls="--", lw=1)
+        ax.axhline(lo, color="r", ls="--", lw=1, label="bounds")
         ax.axhline(hi, color="r", ls="--", lw=1)
         ax.set_ylabel(lab)
+        ax.legend(fontsize=6, ncol=4, loc="upper right")
     axes[2].plot(df["t"], df["slack_max"], color="C3")
     axes[2].set_ylabel(r"slack $\pi$ (-)")
     axes[3].plot(df["t"], df["mutual_alignment"], color="C2", label=r"$(1-v_{12})(1-v_{10})$")
@@ -132,7 +138,9 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
     hover = [f"t={t:.2f}s C={c:.2e}" for t, c in zip(df["t"], df["capacity"], strict=False)]
     fig = go.Figure([
         go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name="MRAV-1 (relay)",
-                     line=dict(color=df["capacity"], colorscale="Viridis", width=6, colorbar=dict(title="C")), text=hover),
+                     line=dict(color=df["capacity"], colorscale="Viridis", width=6,
+                               colorbar=dict(title=dict(text="C (bit/s/Hz)", side="right"), x=1.0, len=0.6, y=0.35)),
+                     text=hover),
         go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2 (source)",
                      line=dict(color=SOURCE, width=4)),
         go.Scatter3d(x=df["pd_x"], y=df["pd_y"], z=df["pd_z"], mode="lines", name="relay reference",
@@ -141,9 +149,11 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
                      marker=dict(color="black", size=5)),
         *jammer_traces(sc, df["t"].to_numpy()),
     ])
-    fig.update_layout(title=f"{sc.name} ({sc.controller.variant})",
-                      scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),
-                      margin=dict(l=0, r=0, t=40, b=0))
+    fig.update_layout(title=_run_title(sc), height=720,
+                      scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)",
+                                 camera=dict(eye=dict(x=1.5, y=1.5, z=0.8))),
+                      legend=dict(x=0.0, y=1.0, xanchor="left", yanchor="top", bgcolor="rgba(255,255,255,0.7)"),
+                      margin=dict(l=10, r=80, t=50, b=10))
     return fig.to_html(include_plotlyjs=include_plotlyjs, full_html=True)
 
 
@@ -151,8 +161,8 @@ def fig_bound(bound: pd.DataFrame, sc: Scenario):
     """The three capacity bounds of a scenario over time (``aerorelay bound``)."""
     fig, ax = plt.subplots(figsize=(7, 3.4))
     ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static bound (best pose per instant)")
-    ax.semilogy(bound["t"], bound["path_mean"], color="C2", label="path bound, best mean")
-    ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", label="path bound, best minimum")
+    ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound, best minimum")
+    ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound, best mean")
     ax.axhline(sc.channel.outage_threshold, color="r", ls=":", lw=1, label="outage threshold")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("C (bit/s/Hz)")

@@ -45,7 +45,7 @@ th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.yes{color:#
 .no{color:#b00020;font-weight:600}.na{color:#777}img{max-width:100%;border:1px solid #eee;margin:4px 0}
 .warn{background:#fff4e0;border-left:4px solid #f0a000;padding:6px 10px}code{background:#f5f5f5;padding:0 3px}
 .wide{overflow-x:auto;max-width:100%}th{white-space:normal;vertical-align:bottom}
-td{overflow-wrap:anywhere}details{margin:.5em 0}summary{cursor:pointer;color:#345}
+td{overflow-wrap:anywhere}td.text{text-align:left}details{margin:.5em 0}summary{cursor:pointer;color:#345}
 """
 
 
@@ -70,15 +70,19 @@ def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | Non
     firsts = first_run_per_group(specs, out)
     if not firsts:
         return None
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+    fig, ax = plt.subplots(figsize=(9, 3.8))
     for g, s in list(firsts.items())[:MAX_CURVES]:
         df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["t", "capacity"])
-        ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1, label=g)
+        c = np.maximum(df["capacity"].to_numpy(), 1e-9)
+        window = max(1, int(round(1.0 / max(float(np.median(np.diff(df["t"]))), 1e-9))))  # 1 s moving mean: fading noise off
+        smooth = pd.Series(c).rolling(window, center=True, min_periods=1).mean().to_numpy()
+        ax.semilogy(df["t"], smooth, lw=1.4, label=g)
     ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("end-to-end C (bit/s/Hz)")
+    ax.set_ylabel("end-to-end C, 1 s mean (bit/s/Hz)")
     ax.set_title(f"{study.title} (seed 0 of each run)", fontsize=9)
-    ax.legend(fontsize=6, ncol=2)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    fig.tight_layout()
     return _png(fig)
 
 
@@ -175,9 +179,19 @@ def _ranking_table(ranking: list[dict]) -> str:
     return intro + _table(["rank", "assumptions", "distance", *[n.replace("@", " @ ").replace("/", " / ") for n in names]], rows)
 
 
+def _is_number(cell) -> bool:
+    try:
+        float(str(cell).replace("%", "").replace("x", "", 1))
+        return True
+    except ValueError:
+        return str(cell) in ("-", "", "inf", "nan")
+
+
 def _table(headers, rows) -> str:
+    """Numbers right-aligned, text (claims, evidence, notes) left-aligned."""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" if _is_number(c) else f"<td class='text'>{c}</td>" for c in r) + "</tr>"
+                   for r in rows)
     return f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>"
 
 

@@ -59,7 +59,7 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
 
 
 def build_source(sc: Scenario) -> SourceTrajectory:
-    """MRAV-2's path (minimum-jerk waypoints or the user's CSV)."""
+    """MRAV-2's path (minimum-jerk waypoints, the user's CSV or a PX4 flight log)."""
     return source_trajectory(sc.mission)
 
 

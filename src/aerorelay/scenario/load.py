@@ -40,9 +40,10 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
-    csv = data.get("mission", {}).get("trajectory_csv") if isinstance(data.get("mission"), dict) else None
-    if isinstance(csv, str) and csv and not Path(csv).is_absolute():
-        data["mission"]["trajectory_csv"] = str((path.parent / csv).resolve())  # relative to the scenario file
+    for key in ("trajectory_csv", "trajectory_ulog"):  # mission files are named relative to the scenario file
+        f = data.get("mission", {}).get(key) if isinstance(data.get("mission"), dict) else None
+        if isinstance(f, str) and f and not Path(f).is_absolute():
+            data["mission"][key] = str((path.parent / f).resolve())
     try:
         sc = parse_scenario(data)
     except RecursionError:

@@ -18,7 +18,7 @@ from ..planning.base import Planner
 from ..planning.bound import CapacityBound
 from ..sim.closed_loop import MissionResult, log_columns
 from ..sim.metrics import compute_metrics
-from ..store.run_folder import MISSION_CSV, log_frame, publish_run
+from ..store.run_folder import MISSION_CSV, MISSION_ULOG, log_frame, publish_run
 from .build import build, scenario_bound
 from .schema import Scenario, ScenarioError
 
@@ -38,15 +38,16 @@ class RunResult:
         """Write the run folder (scenario.toml, timeseries.parquet, metrics.json, bound files). It holds
         everything to fly the run again: a CSV mission is copied beside the scenario as
         ``mission.csv`` and named relative to it, so ``aerorelay run FOLDER/scenario.toml`` re-flies it."""
-        csv = self.scenario.mission.trajectory_csv
+        m = self.scenario.mission
+        copy = MISSION_ULOG if m.trajectory_ulog else MISSION_CSV if m.trajectory_csv else None
 
         def with_mission(tmp: Path) -> None:
-            if csv:
-                shutil.copyfile(csv, tmp / MISSION_CSV)
+            if copy is not None and m.flown_file is not None:
+                shutil.copyfile(m.flown_file, tmp / copy)
             if extra is not None:
                 extra(tmp)
 
-        toml = self.scenario.to_toml(MISSION_CSV if csv else None)
+        toml = self.scenario.to_toml(copy)
         publish_run(Path(folder), toml, self.timeseries, self.metrics, bound=self.bound, extra=with_mission)
         return Path(folder)
 

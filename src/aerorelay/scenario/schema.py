@@ -6,6 +6,7 @@ the paper's Table I values and SPEC.md's resolved choices, so an empty ``[sectio
 
 from __future__ import annotations
 
+import difflib
 import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -15,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from ..control.terms import COST_TERMS
 from ..models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
-from ..models.mission import CsvPath
+from ..models.mission import CsvPath, MinimumJerkPath, UlogPath
 from ..models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
 from .tomltext import compact_toml
 
@@ -315,6 +316,13 @@ class ControllerConfig(_Strict):
     capacity: CapacityPlannerConfig = Field(default_factory=CapacityPlannerConfig)
 
     @model_validator(mode="after")
+    def _surrogate_defined(self):
+        if self.mu <= 0.0 and self.planner == "trajectory_generator":
+            raise ValueError("mu = 0 makes the trajectory generator's surrogate link H_bar = sqrt(mu) G_bar / d vanish "
+                             "(its inverse capacity is infinite); use mu > 0 with controller.planner = 'trajectory_generator'")
+        return self
+
+    @model_validator(mode="after")
     def _prediction_long_enough(self):
         if self.horizon * self.ts_s < MIN_PREDICTION_S - 1e-12:
             raise ValueError(f"horizon x ts_s = {self.horizon} x {self.ts_s:g} s = {self.horizon * self.ts_s:.3g} s: the NMPC "
@@ -343,7 +351,10 @@ class MissionConfig(_Strict):
         ],
         min_length=2,
     )
-    trajectory_csv: str | None = Field(None, description="CSV with columns t,px,py,pz,vx,vy,vz,ax,ay,az")
+    trajectory_csv: str | None = Field(None, description="CSV with columns t,px,py,pz,vx,vy,vz,ax,ay,az (or t,px,py,pz)")
+    trajectory_ulog: str | None = Field(None, description="PX4 flight log (ULog): vehicle_local_position, NED")
+    ulog_yaw_deg: float = Field(0.0, ge=-360.0, le=360.0, description="turns the ULog's east-north frame about z, deg")
+    ulog_offset_m: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="shifts the ULog's path, m (world)")
 
     @field_validator("waypoints")
     @classmethod
@@ -364,18 +375,46 @@ class MissionConfig(_Strict):
         CsvPath(v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
         return v
 
+    @model_validator(mode="after")
+    def _readable_ulog(self):
+        if self.trajectory_ulog is None:
+            return self
+        if self.trajectory_csv is not None:
+            raise ValueError("give one of trajectory_csv and trajectory_ulog, not both")
+        if not Path(self.trajectory_ulog).is_file():
+            raise ValueError(f"trajectory_ulog: no such file {self.trajectory_ulog}")
+        try:
+            path = UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
+        except ValueError as exc:
+            raise ValueError(f"trajectory_ulog: {exc}") from None
+        low = path.cols["pz"].min()
+        if low < 0.0:
+            raise ValueError(f"trajectory_ulog: MRAV-2's path goes below ground (z = {low:.2f} m; shift it with ulog_offset_m)")
+        return self
+
+    @property
+    def flown_file(self) -> str | None:
+        """The mission file that flies (ULog or CSV), if any."""
+        return self.trajectory_ulog or self.trajectory_csv
+
+    def path(self):
+        """MRAV-2's path object (``models.mission``)."""
+        if self.trajectory_ulog:
+            return UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
+        return CsvPath(self.trajectory_csv) if self.trajectory_csv else MinimumJerkPath(self.waypoints)
+
     @property
     def duration_s(self) -> float:
-        """Mission length (s): the last waypoint's time, or the CSV's last time."""
-        if self.trajectory_csv and Path(self.trajectory_csv).is_file():
-            return CsvPath(self.trajectory_csv).duration
-        return self.waypoints[-1][0]
+        """Mission length (s): the last waypoint's time, or the flight file's last time."""
+        f = self.flown_file
+        return self.path().duration if f and Path(f).is_file() else self.waypoints[-1][0]
 
     @property
     def start(self) -> list[float]:
         """MRAV-2's initial position (m)."""
-        if self.trajectory_csv and Path(self.trajectory_csv).is_file():
-            return [float(v) for v in CsvPath(self.trajectory_csv).state(0.0).p]
+        f = self.flown_file
+        if f and Path(f).is_file():
+            return [float(v) for v in self.path().state(0.0).p]
         return list(self.waypoints[0][1:])
 
 
@@ -496,17 +535,22 @@ class Scenario(_Strict):
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
         the CSV's path (a run folder holds its own copy)."""
         data = self.model_dump(exclude_none=True)
-        if self.mission.trajectory_csv:
-            data["mission"].pop("waypoints", None)
+        m = data["mission"]
+        if self.mission.flown_file:
+            m.pop("waypoints", None)
             if mission_file is not None:
-                data["mission"]["trajectory_csv"] = mission_file
+                m["trajectory_ulog" if self.mission.trajectory_ulog else "trajectory_csv"] = mission_file
+        if not self.mission.trajectory_ulog:
+            m.pop("ulog_yaw_deg", None)
+            m.pop("ulog_offset_m", None)
         return compact_toml(data)
 
     def with_updates(self, updates: dict) -> Scenario:
         """A new validated scenario with dotted-key updates, e.g. ``{"controller.variant": "unconstrained"}``."""
         data = self.model_dump(exclude_none=True)
-        if self.mission.trajectory_csv and "mission.waypoints" in updates:  # waypoints given: they fly, not the CSV
-            data["mission"].pop("trajectory_csv")
+        if self.mission.flown_file and "mission.waypoints" in updates:  # waypoints given: they fly, not the file
+            data["mission"].pop("trajectory_csv", None)
+            data["mission"].pop("trajectory_ulog", None)
         for key, value in updates.items():
             node: Any = data
             *parents, leaf = key.split(".")
@@ -561,6 +605,21 @@ def _allowed_range(loc: tuple) -> str:
     return f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
 
 
+def _did_you_mean(loc: tuple) -> str:
+    """'; did you mean X?' for an unknown field close to one of its table's fields."""
+    model: type[BaseModel] | None = Scenario
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        if model is None or not isinstance(part, str) or part not in model.model_fields:
+            return ""
+        model = _submodel(model.model_fields[part].annotation)
+    if model is None:
+        return ""
+    close = difflib.get_close_matches(str(loc[-1]), list(model.model_fields), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
 def _format_errors(err: ValidationError) -> str:
     lines = []
     for e in err.errors():
@@ -569,7 +628,7 @@ def _format_errors(err: ValidationError) -> str:
         got = e.get("input")
         shown = "" if isinstance(got, dict) or e["type"] == "missing" else f" (got {got!r})"
         if e["type"] == "extra_forbidden":
-            msg, shown = "unknown field", ""
+            msg, shown = "unknown field" + _did_you_mean(tuple(e["loc"])), ""
         elif e["type"] in _BOUND_ERRORS:
             msg = f"must be in {_allowed_range(tuple(e['loc']))}"
         elif e["type"] == "finite_number":

@@ -17,6 +17,7 @@ METRICS_FILE = "metrics.json"
 BOUND_JSON = "bound.json"
 BOUND_PARQUET = "bound.parquet"
 MISSION_CSV = "mission.csv"  # a CSV mission's copy, named by the run's scenario.toml
+MISSION_ULOG = "mission.ulg"  # a ULog mission's copy
 
 
 def log_frame(log: dict, columns: list[str]) -> pd.DataFrame:
