@@ -47,8 +47,8 @@ class SourceTrajectory:
         return self.state(t).attitude(gravity)
 
 
-class MinimumJerkPath(SourceTrajectory):
-    """Rest-to-rest minimum-jerk segments through ``waypoints`` rows ``[t, x, y, z]``."""
+class _WaypointPath(SourceTrajectory):
+    """A path through timed ``waypoints`` rows ``[t, x, y, z]`` (s, m)."""
 
     def __init__(self, waypoints):
         wp = np.asarray(waypoints, dtype=float)
@@ -58,6 +58,10 @@ class MinimumJerkPath(SourceTrajectory):
     @property
     def duration(self) -> float:
         return float(self.t[-1])
+
+
+class MinimumJerkPath(_WaypointPath):
+    """Rest-to-rest minimum-jerk segments through ``waypoints`` rows ``[t, x, y, z]``."""
 
     def state(self, t: float) -> SourceState:
         if t <= self.t[0]:
@@ -75,19 +79,10 @@ class MinimumJerkPath(SourceTrajectory):
         return SourceState(self.p[i] + pos * dp, vel * dp, acc * dp)
 
 
-class LinearPath(SourceTrajectory):
+class LinearPath(_WaypointPath):
     """Straight segments at constant speed through ``waypoints`` rows ``[t, x, y, z]`` (e.g. a
     jammer driving along a road); holds the first/last point outside the waypoints' times.
     Acceleration is zero inside a segment (the corners are instantaneous turns)."""
-
-    def __init__(self, waypoints):
-        wp = np.asarray(waypoints, dtype=float)
-        self.t = wp[:, 0]
-        self.p = wp[:, 1:4]
-
-    @property
-    def duration(self) -> float:
-        return float(self.t[-1])
 
     def state(self, t: float) -> SourceState:
         if t <= self.t[0] or t >= self.t[-1]:

@@ -27,6 +27,12 @@ MIN_PREDICTION_S = 0.3  # horizon x Ts: shorter predictions cannot plan a stop i
 MAX_TS_S = 0.05  # one RK4 step per Ts: longer periods do not resolve the attitude dynamics
 
 
+def _nonzero_direction(v: list[float], what: str) -> list[float]:
+    if math.hypot(*v) < 1e-9:
+        raise ValueError(f"{what} must be a non-zero direction")
+    return v
+
+
 class ScenarioError(ValueError):
     """A scenario failed validation; ``str()`` lists one line per bad field."""
 
@@ -43,12 +49,7 @@ class Rotor(_Strict):
     axis: Vec3
     spin: Literal[-1, 1]
 
-    @field_validator("axis")
-    @classmethod
-    def _nonzero(cls, v):
-        if math.hypot(*v) < 1e-9:
-            raise ValueError("a rotor's thrust axis must be a non-zero direction")
-        return v
+    _nonzero = field_validator("axis")(lambda v: _nonzero_direction(v, "a rotor's thrust axis"))
 
 
 class PlatformConfig(_Strict):
@@ -140,12 +141,7 @@ class AntennaConfig(_Strict):
                                description="multiplies every dipole's normalized gain (the paper's D = 1.64 informational)")
     bs_axis: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 1.0], description="the base station's antenna axis, world")
 
-    @field_validator("bs_axis")
-    @classmethod
-    def _nonzero_axis(cls, v):
-        if math.hypot(*v) < 1e-9:
-            raise ValueError("must be a non-zero direction")
-        return v
+    _nonzero_axis = field_validator("bs_axis")(lambda v: _nonzero_direction(v, "the base station's antenna axis"))
 
     def build(self):
         """The relay's pattern (a dipole scaled by the directivity)."""
@@ -223,8 +219,8 @@ class JammerConfig(_Strict):
             raise ValueError("a cosine jammer needs exactly one of point_at (a node) and boresight (a direction)")
         if self.pattern == "isotropic" and (self.point_at is not None or self.boresight is not None):
             raise ValueError("point_at / boresight apply to pattern = \"cosine\" only")
-        if self.boresight is not None and math.hypot(*self.boresight) < 1e-9:
-            raise ValueError("boresight must be a non-zero direction")
+        if self.boresight is not None:
+            _nonzero_direction(self.boresight, "boresight")
         return self
 
 
