@@ -12,7 +12,8 @@ never triggers on them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,6 +36,14 @@ class SafetyEnvelope:
     rest_speed_m_s: float = 1.0  # after a hand-over the NMPC resumes only from rest: slower than this
     rest_tilt_deg: float = 20.0  # and tilted less than this
     max_handovers: int = 1  # then the brake law keeps the relay for the rest of the mission
+    _lo: list[float] = field(init=False, repr=False, compare=False, default_factory=list)
+    _hi: list[float] = field(init=False, repr=False, compare=False, default_factory=list)
+    _cos_max_tilt: float = field(init=False, repr=False, compare=False, default=1.0)
+
+    def __post_init__(self):  # plain floats for the per-step check
+        object.__setattr__(self, "_lo", [float(v) for v in self.workspace_min])
+        object.__setattr__(self, "_hi", [float(v) for v in self.workspace_max])
+        object.__setattr__(self, "_cos_max_tilt", math.cos(math.radians(self.max_tilt_deg)))
 
     @classmethod
     def for_vehicle(cls, vehicle: Multirotor, workspace_min, workspace_max, **limits) -> SafetyEnvelope:
@@ -48,23 +57,27 @@ class SafetyEnvelope:
         return bool(np.linalg.norm(x[6:9]) < self.rest_speed_m_s and tilt < self.rest_tilt_deg)
 
     def violations(self, x: np.ndarray) -> list[str]:
-        """What the state ``(p, eta, v, omega, Omega)`` violates (empty: inside the envelope)."""
-        x = np.asarray(x, float)
-        if not np.all(np.isfinite(x)):
+        """What the state ``(p, eta, v, omega, Omega)`` violates (empty: inside the envelope).
+        Scalar arithmetic: this runs every control step (a few microseconds)."""
+        vals = np.asarray(x, float).tolist()
+        if not all(math.isfinite(a) for a in vals):
             return ["non-finite state"]
         out = []
-        p, eta, v, w, speeds = x[0:3], x[3:6], x[6:9], x[9:12], x[12:]
-        outside = float(np.max(np.r_[self.workspace_min - p, p - self.workspace_max]))
+        lo, hi = self._lo, self._hi
+        outside = max(max(lo[i] - vals[i], vals[i] - hi[i]) for i in range(3))
         if outside > self.box_tolerance_m:
             out.append(f"{outside:.2f} m outside the workspace")
-
-        tilt = np.degrees(np.arccos(np.clip(np.cos(eta[0]) * np.cos(eta[1]), -1.0, 1.0)))
-        if tilt > self.max_tilt_deg:
-            out.append(f"tilt {tilt:.0f} deg > {self.max_tilt_deg:g}")
-        if np.linalg.norm(v) > self.max_speed_m_s:
-            out.append(f"speed {np.linalg.norm(v):.1f} m/s > {self.max_speed_m_s:g}")
-        if np.max(np.abs(w)) > self.max_body_rate_rad_s:
-            out.append(f"body rate {np.max(np.abs(w)):.1f} rad/s > {self.max_body_rate_rad_s:g}")
-        if speeds.min() < 0.99 * self.omega_min or speeds.max() > 1.01 * self.omega_max:
-            out.append(f"motor speeds [{speeds.min():.1f}, {speeds.max():.1f}] Hz outside [{self.omega_min:g}, {self.omega_max:g}]")
+        cos_tilt = math.cos(vals[3]) * math.cos(vals[4])
+        if cos_tilt < self._cos_max_tilt:
+            out.append(f"tilt {math.degrees(math.acos(max(-1.0, min(1.0, cos_tilt)))):.0f} deg > {self.max_tilt_deg:g}")
+        speed = math.sqrt(vals[6] ** 2 + vals[7] ** 2 + vals[8] ** 2)
+        if speed > self.max_speed_m_s:
+            out.append(f"speed {speed:.1f} m/s > {self.max_speed_m_s:g}")
+        rate = max(abs(vals[9]), abs(vals[10]), abs(vals[11]))
+        if rate > self.max_body_rate_rad_s:
+            out.append(f"body rate {rate:.1f} rad/s > {self.max_body_rate_rad_s:g}")
+        speeds = vals[12:]
+        if min(speeds) < 0.99 * self.omega_min or max(speeds) > 1.01 * self.omega_max:
+            out.append(f"motor speeds [{min(speeds):.1f}, {max(speeds):.1f}] Hz outside [{self.omega_min:g}, {self.omega_max:g}]")
         return out
+
