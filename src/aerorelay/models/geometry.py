@@ -63,6 +63,21 @@ def thrust_direction_from_acceleration(acceleration, gravity: float) -> np.ndarr
     return thrust / np.linalg.norm(thrust)
 
 
+def align_with_thrust(axis, acceleration, gravity: float) -> np.ndarray:
+    """``axis`` (unit, world) turned by the rotation that takes ``e3`` to the thrust direction of
+    ``acceleration`` (shortest arc): a hover antenna axis carried along when the vehicle tilts to
+    accelerate. Zero acceleration returns ``axis``."""
+    axis = np.asarray(axis, float)
+    f = thrust_direction_from_acceleration(acceleration, gravity)
+    k = np.cross(E3, f)
+    s, c = float(np.linalg.norm(k)), float(f[2])
+    if s < 1e-12:
+        return axis.copy()
+    k /= s
+    # Rodrigues' formula
+    return axis * c + np.cross(k, axis) * s + k * (k @ axis) * (1.0 - c)
+
+
 def attitude_from_thrust(direction, yaw: float = 0.0) -> np.ndarray:
     """ZYX Euler angles (rad) whose body z axis points along ``direction`` with the given yaw.
 

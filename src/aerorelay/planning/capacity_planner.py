@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from ..models.axes import axis_set
-from ..models.geometry import E3, thrust_direction_from_acceleration
+from ..models.geometry import E3, align_with_thrust, thrust_direction_from_acceleration
 from ..models.radio import NodePose
 from .base import PlannerContext, PlannerInput
 from .bound import CapacityLandscape, best_path, position_grid
@@ -107,6 +107,24 @@ class CapacityPlanner:
         v = (1 - frac) * self.axis + frac * self.axis_goal
         self.axis = v / np.linalg.norm(v)
 
+    def _velocity_toward(self, d_vec: np.ndarray, dt: float) -> np.ndarray:
+        """Reference velocity (m/s, world) toward the target ``d_vec`` away: at most ``speed``, slow
+        enough to stop on it at ``max_accel`` (v <= sqrt(2 a d)), changing by <= ``max_accel dt``
+        per step (a reference that jumps from 3 m/s to rest overshoots by metres)."""
+        d = float(np.linalg.norm(d_vec))
+        if d < 1e-9:
+            v_des = np.zeros(3)
+        else:
+            v_des = d_vec / d * min(self.speed, np.sqrt(2.0 * self.max_accel * d))
+        dv = v_des - self.v_ref
+        n = float(np.linalg.norm(dv))
+        if n > self.max_accel * dt:
+            dv *= self.max_accel * dt / n
+        v = self.v_ref + dv
+        if float(np.linalg.norm(v)) * dt >= d:  # would pass the target within the step: land on it
+            return d_vec / dt
+        return v
+
     def update(self, inp: PlannerInput) -> Reference:
         if self.p_ref is None or self.target is None:
             self.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
@@ -114,13 +132,8 @@ class CapacityPlanner:
         if self._k % self.replan_every == 0:
             self._replan(inp, self.target)
         self._k += 1
-        step = self.target - self.p_ref
-        n = float(np.linalg.norm(step))
-        max_step = self.speed * inp.dt
-        if n > max_step:
-            step *= max_step / n
-        self.p_ref = self.p_ref + step
-        v_ref = step / inp.dt
+        v_ref = self._velocity_toward(self.target - self.p_ref, inp.dt)
+        self.p_ref = self.p_ref + v_ref * inp.dt
         # acceleration of the reference, low-passed (time constant accel_tau_s) and bounded: the
         # thrust-direction reference of a relay that can only tilt by accelerating
         alpha = min(1.0, inp.dt / self.accel_tau)
@@ -131,5 +144,7 @@ class CapacityPlanner:
             self.a_ref *= self.max_accel / n
         self.v_ref = v_ref
         self._turn_axis(inp.dt)
-        axis = self.axis.copy() if self.tilt_limit > 0 else None  # a coplanar relay tilts only by accelerating
+        # a coplanar relay tilts only by accelerating (rho_d from a_ref); a tilted one holds the
+        # antenna axis relative to the thrust its acceleration needs
+        axis = align_with_thrust(self.axis, self.a_ref, self.gravity) if self.tilt_limit > 0 else None
         return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=self.a_ref.copy(), axis=axis)

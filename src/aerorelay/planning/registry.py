@@ -58,4 +58,5 @@ def _baseline_b(ctx: PlannerContext):
 
 @register_planner("capacity")
 def _capacity_seeking(ctx: PlannerContext):
-    return CapacityPlanner(ctx)
+    cfg = ctx.settings.capacity
+    return CapacityPlanner(ctx, max_accel_m_s2=cfg.max_accel_m_s2, margin_m=cfg.margin_m)

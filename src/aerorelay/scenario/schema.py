@@ -279,6 +279,8 @@ class CapacityPlannerConfig(_Strict):
     position weights below replace ``weights.position`` / ``weights.position_terminal``."""
 
     speed_m_s: float = Field(1.0, gt=0.0, le=5.0, description="reference speed limit, m/s")
+    max_accel_m_s2: float = Field(4.0, gt=0.0, le=8.0, description="reference acceleration limit (speeding up and braking), m/s^2")
+    margin_m: float = Field(0.05, ge=0.0, le=2.0, description="the reference keeps this far inside the workspace box, m")
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
 
