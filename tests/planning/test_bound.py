@@ -45,6 +45,10 @@ def test_paths_start_at_the_relay_and_respect_the_speed_limit(bound):
         assert np.linalg.norm(pos[0] - np.array(SHORT.nodes.relay)) <= np.sqrt(3) * r["grid_m"] / 2 + 1e-9
         steps = np.linalg.norm(np.diff(pos, axis=0), axis=1)
         assert steps.max() <= r["path_step_radius_m"] + 1e-9
+        assert steps.max() / r["dt_s"] <= r["max_path_speed_m_s"] + 1e-9
+    # the stated grid allowance (defaults 1 m/s, 0.5 m grid, 0.5 s): a diagonal cell, sqrt(2) x 0.5 m per 0.5 s
+    assert (r["max_speed_m_s"], r["grid_m"], r["dt_s"]) == (1.0, 0.5, 0.5)
+    assert r["max_path_speed_m_s"] == pytest.approx(np.sqrt(2.0))
     assert bound.path_mean.mean() >= bound.path_maxmin.mean() - 1e-12
     assert bound.path_maxmin.min() >= bound.path_mean.min() - 1e-12
     assert np.all(bound.static >= bound.path_mean - 1e-12)

@@ -47,7 +47,7 @@ from ..models.vehicle import Multirotor
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 
 log = logging.getLogger(__name__)
-BOUND_VERSION = "2"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "3"  # bump when the computation changes: cached bounds are recomputed
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,8 @@ class CapacityBound:
 
 ASSUMPTIONS = ("fading ignored; relay anywhere in the workspace box with any antenna axis the platform can hold in hover "
                "(yaw free); attitude changes free; path bounds on the position grid, one move per time step to a cell "
-               "within max_speed * dt + grid / 2")
+               "within max_speed * dt + grid / 2 (the grid allowance: resolution.max_path_speed_m_s is the fastest such "
+               "move, so the path bounds stay upper bounds at max_speed)")
 
 
 class CapacityLandscape:
@@ -153,6 +154,14 @@ def _footprint(radius_cells: float) -> np.ndarray:
     g = np.arange(-r, r + 1)
     X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
     return (X**2 + Y**2 + Z**2) <= radius_cells**2 + 1e-9
+
+
+def fastest_step_m_s(footprint: np.ndarray, grid_m: float, dt_s: float) -> float:
+    """The fastest Euclidean speed (m/s) one move of ``footprint`` allows: above ``max_speed`` by
+    the grid allowance (a diagonal move at 1 m/s, 0.5 m grid, 0.5 s is 1.41 m/s), so the path
+    bounds stay upper bounds for a relay at ``max_speed``."""
+    offsets = np.argwhere(footprint) - np.array(footprint.shape) // 2
+    return float(np.linalg.norm(offsets, axis=1).max() * grid_m / dt_s)
 
 
 def _dp(values: np.ndarray, start: tuple[int, ...], footprint: np.ndarray, kind: str) -> list[tuple[int, ...]]:
@@ -223,7 +232,8 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
         paths[kind] = (best[np.arange(len(times)), flat], cells[flat])
     resolution = {"grid_m": b.grid_m, "dt_s": b.dt_s, "axis_step_deg": b.axis_step_deg, "max_speed_m_s": b.max_speed_m_s,
                   "hover_tilt_limit_deg": float(np.degrees(max_tilt)), "axes": int(len(axes)), "cells": int(cells.shape[0]),
-                  "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m)}
+                  "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m),
+                  "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s)}
     return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
                          paths["maxmin"][1], resolution, pb.outage_threshold, f"{pb.scene.describe()}; {ASSUMPTIONS}")
 
