@@ -44,6 +44,7 @@ class StageVars:
 
     def __init__(self, spec, xa, w, p: dict[str, Any]):
         nr = spec.vehicle.n_rotors
+        self.vehicle = spec.vehicle
         self.pos, self.eta, self.vel, self.omega = xa[0:3], xa[3:6], xa[6:9], xa[9:12]
         self.speeds = xa[12 : 12 + nr]
         self.u = None if w is None else w[:nr]
@@ -60,6 +61,12 @@ class StageVars:
     def rho(self):
         """Thrust direction R e3 (body z in the world frame)."""
         return self.R[:, 2]
+
+    @cached_property
+    def shaft_power_residual(self):
+        """``r`` with ``|r|^2`` the aerodynamic shaft power ``sum_i 2 pi c_tau Omega_i^3`` (W,
+        ``Multirotor.shaft_power``); ``(Omega^2)^(3/4)`` keeps it smooth for any sign."""
+        return ca.sqrt(2.0 * ca.pi * self.vehicle.c_tau) * (self.speeds**2) ** 0.75
 
     @cached_property
     def v12(self):
@@ -113,6 +120,8 @@ COST_TERMS: tuple[CostTerm, ...] = (
              terminal=10.0, comms_aware=True),
     CostTerm("body_rate", lambda s: s.omega, 1.0, "regularizer on omega, (rad/s)^-2"),
     CostTerm("yaw", lambda s: s.eta[2], 1.0, "regularizer on psi (nothing else fixes the yaw), rad^-2"),
+    CostTerm("shaft_power", lambda s: s.shaft_power_residual, 0.0,
+             "shaft power sum 2 pi c_tau Omega^3 (energy-aware term, the paper's 4th future work), W^-1", terminal=None),
     CostTerm("input_rate", lambda s: s.u - s.u_prev, 1e-5, "on u_k - u_(k-1) (eq. 22), (Hz/s)^-2",
              terminal=None, strictly_positive=True),
 )

@@ -128,6 +128,24 @@ class Ranking(BaseModel):
     terms: list[RankingTerm] = Field(min_length=1)
 
 
+class Tradeoff(BaseModel):
+    """A trade-off figure: each run id a series (its grid groups its points), ``y[i]`` against
+    ``x`` (group means), with ``bounds[i]`` (the run's capacity bound, e.g. at its speed limit)
+    drawn as a dashed line in the series' colour: the front a user picks a point from."""
+
+    model_config = ConfigDict(extra="forbid")
+    x: str = "energy_kJ"
+    y: list[str] = Field(default_factory=lambda: ["c_mean", "c_min"], min_length=1)
+    bounds: list[str | None] = Field(default_factory=list)
+    title: str = ""
+
+    @model_validator(mode="after")
+    def _one_bound_per_y(self):
+        if self.bounds and len(self.bounds) != len(self.y):
+            raise ValueError(f"tradeoff.bounds has {len(self.bounds)} entries, y has {len(self.y)}: one bound (or null) per y")
+        return self
+
+
 class Study(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(pattern=r"^[a-z0-9_]+$")
@@ -147,6 +165,7 @@ class Study(BaseModel):
     # groups drawn together with the bound of the first one's scenario, one figure each
     bound_figures: list[list[str]] = Field(default_factory=list)
     ranking: Ranking | None = None
+    tradeoffs: list[Tradeoff] = Field(default_factory=list)
     # measured causes of the study's differences from the paper (beside the claims' own)
     why: list[Explanation] = Field(default_factory=list)
 
@@ -234,6 +253,12 @@ def combinations(study, pair_key: str) -> dict[str, dict[str, str]]:
             pair = _fmt(dict(zip(keys, combo, strict=True))[pair_key])
             out.setdefault(label, {})[pair] = _group(run.id, keys, combo)
     return out
+
+
+def groups_of_run(study, run_id: str) -> list[str]:
+    """The groups one ``[[runs]]`` entry expands into (one per grid combination)."""
+    keys, combos = _combos(study)
+    return [_group(run_id, keys, combo) for combo in combos]
 
 
 def group_names(study) -> list[str]:

@@ -5,7 +5,8 @@ which is not localized yet): a coarse route, the max-mean path through the capac
 (best holdable antenna axis per cell) on a ``route_grid_m`` grid every ``route_dt_s`` at the
 planner's speed limit, by the dynamic programming of ``planning/bound.py``. It picks the basin of
 the landscape to be in at each time, so the reference never has to jump between far-apart
-near-equal optima. **In flight**, every ``replan_every`` control steps the planner evaluates the true end-to-end capacity
+near-equal optima. **In flight**, once per ``replan_every`` control steps (the candidates scored a
+share per step, so each step costs the same) the planner evaluates the true end-to-end capacity
 (``models.radio``: the scene's antenna gains at every node, every jammer's position and power as
 the relay knows them, MRAV-2 predicted ``lookahead_s`` ahead at constant acceleration with its antenna
 along its thrust) at candidate relay poses around its current target: positions on a 27-point
@@ -13,8 +14,9 @@ stencil ``step_m`` apart, each with every antenna axis the platform can hold in 
 (``Multirotor.hover_tilt_limit``; vertical only for a coplanar platform). The best candidate
 becomes the new target (hill climbing over poses); the target stays within ``leash_m`` of the
 route (at the look-ahead time), and the position reference moves toward it at <= ``controller.
-capacity.speed_m_s``. The antenna axis reference turns toward the best axis at <= ``axis_rate``
-and is fed to the NMPC as its thrust-direction (body z) reference.
+capacity.speed_m_s``, speeding up and braking at <= ``max_accel_m_s2`` so it stops on the target.
+The antenna axis reference turns toward the best axis at <= ``axis_rate``; turned with the
+thrust direction the reference's acceleration needs, it is the NMPC's body z reference.
 """
 
 from __future__ import annotations
@@ -83,19 +85,38 @@ class CapacityPlanner:
         p2 = inp.p2 + inp.v2 * tau + 0.5 * inp.a2 * tau**2
         return p2, thrust_direction_from_acceleration(inp.a2, self.gravity)
 
-    def _replan(self, inp: PlannerInput, target: np.ndarray):
-        p2, b2 = self._predicted_source(inp)
+    def _candidates(self, inp: PlannerInput, target: np.ndarray) -> np.ndarray:
+        """The stencil around ``target``, kept within the leash of the route and inside the box."""
         anchor = self.route_at(inp.t + self.lookahead)
         cand = target + self.offsets
         off = cand - anchor  # stay within the leash of the route
         n = np.linalg.norm(off, axis=1, keepdims=True)
-        cand = np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
-        C = self.scene.relay_grid(inp.t, cand, self.axes, {self.source_name: NodePose(p2, b2)},
-                                  jammer_positions=inp.jammer_positions, jammer_powers=inp.jammer_powers)
-        i, j = np.unravel_index(int(np.argmax(C)), C.shape)
-        self.target = cand[i]
-        self.axis_goal = self.axes[j]
-        self.best_capacity = float(C[i, j])
+        return np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
+
+    def _replan_part(self, inp: PlannerInput, part: int):
+        """Part ``part`` of ``replan_every`` of one replan: the candidates are drawn (and MRAV-2
+        predicted) on part 0, a share of them is scored per control step (a constant planner
+        cost per step instead of a spike every ``replan_every`` steps), the best becomes the
+        target on the last part."""
+        if part == 0:
+            assert self.target is not None  # update() sets it before the first replan
+            p2, b2 = self._predicted_source(inp)
+            self._pending = (inp.t, self._candidates(inp, self.target), NodePose(p2, b2), inp.jammer_positions,
+                             inp.jammer_powers)
+            self._scores = []
+        t, cand, pose, pj, PJ = self._pending
+        chunk = np.array_split(np.arange(len(cand)), self.replan_every)[part]
+        if len(chunk):
+            self._scores.append((chunk, self.scene.relay_grid(t, cand[chunk], self.axes, {self.source_name: pose},
+                                                              jammer_positions=pj, jammer_powers=PJ)))
+        if part == self.replan_every - 1:
+            C = np.full((len(cand), len(self.axes)), -np.inf)
+            for idx, c in self._scores:
+                C[idx] = c
+            i, j = np.unravel_index(int(np.argmax(C)), C.shape)
+            self.target = cand[i]
+            self.axis_goal = self.axes[j]
+            self.best_capacity = float(C[i, j])
 
     def _turn_axis(self, dt: float):
         """Rotate the axis reference toward the goal at <= axis_rate (great-circle step)."""
@@ -129,8 +150,7 @@ class CapacityPlanner:
         if self.p_ref is None or self.target is None:
             self.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
             self.target = self.p_ref.copy()
-        if self._k % self.replan_every == 0:
-            self._replan(inp, self.target)
+        self._replan_part(inp, self._k % self.replan_every)
         self._k += 1
         v_ref = self._velocity_toward(self.target - self.p_ref, inp.dt)
         self.p_ref = self.p_ref + v_ref * inp.dt

@@ -18,7 +18,7 @@ import plotly.graph_objects as go  # noqa: E402
 from plotly.offline import get_plotlyjs  # noqa: E402
 
 from ..experiments.campaign import first_run_per_group, run_dir  # noqa: E402
-from ..experiments.study import RunSpec, Study, scenario_of  # noqa: E402
+from ..experiments.study import RunSpec, Study, groups_of_run, scenario_of  # noqa: E402
 from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
 
@@ -108,6 +108,37 @@ def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7)
         figs.append(_png(fig, alt=title))
+    return figs
+
+
+def _tradeoff_figures(study: Study, study_sum: dict) -> list[str]:
+    """One figure per ``[[tradeoffs]]``: per run id a line through its grid groups' (x, y) means,
+    its bound (if declared) dashed in the same colour."""
+    groups, figs = study_sum["groups"], []
+    for tr in study.tradeoffs:
+        fig, axes = plt.subplots(1, len(tr.y), figsize=(4.6 * len(tr.y), 3.6), squeeze=False)
+        for j, (ax, key) in enumerate(zip(axes[0], tr.y, strict=True)):
+            bound_key = tr.bounds[j] if tr.bounds else None
+            for i, run in enumerate(study.runs):
+                pts = [(groups[g][tr.x], groups[g][key], g) for g in groups_of_run(study, run.id)
+                       if g in groups and tr.x in groups[g] and key in groups[g]]
+                if not pts:
+                    continue
+                pts.sort()
+                color = f"C{i % 10}"
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", color=color, ms=4, label=run.id)
+                bvals = [groups[g][bound_key] for _, _, g in pts if bound_key and bound_key in groups[g]]
+                if bvals:
+                    ax.axhline(float(np.mean(bvals)), color=color, ls="--", lw=0.9, alpha=0.7)
+            ax.set_xlabel(HEADERS.get(tr.x, tr.x))
+            ax.set_ylabel(HEADERS.get(key, key))
+            ax.grid(alpha=0.3)
+            ax.set_title(f"{key} vs {tr.x}" + (f" (dashed: {bound_key})" if bound_key else ""), fontsize=8)
+        axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        if tr.title:
+            fig.suptitle(tr.title, fontsize=9)
+        fig.tight_layout()
+        figs.append(_png(fig, alt=tr.title or "trade-off"))
     return figs
 
 
@@ -214,7 +245,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                                                       f"</summary>{table}</details>")
     if study_sum.get("ranking"):
         parts.append(_ranking_table(study_sum["ranking"]))
-    for fig in (*_bound_figures(study, specs, out), _capacity_figure(study, specs, out), _bars_figure(study_sum),
+    for fig in (*_tradeoff_figures(study, study_sum), *_bound_figures(study, specs, out), _capacity_figure(study, specs, out),
+                _bars_figure(study_sum),
                 _trajectory_3d(study, specs, out)):
         if fig:
             parts.append(fig)

@@ -281,8 +281,20 @@ class CapacityPlannerConfig(_Strict):
     speed_m_s: float = Field(1.0, gt=0.0, le=5.0, description="reference speed limit, m/s")
     max_accel_m_s2: float = Field(4.0, gt=0.0, le=8.0, description="reference acceleration limit (speeding up and braking), m/s^2")
     margin_m: float = Field(0.05, ge=0.0, le=2.0, description="the reference keeps this far inside the workspace box, m")
+    leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
+    route_grid_m: float = Field(0.5, ge=0.1, le=3.0, description="grid of the pre-flight route, m")
+    lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
+                                      "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
+    axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
+
+    @property
+    def lookahead(self) -> float:
+        """MRAV-2's prediction horizon for the target, s (``lookahead_s``, or 1 s up to 1 m/s and
+        1 m / ``speed_m_s`` above: measured on the nominal tilted mission at 3 m/s, mean C 0.796 /
+        0.818 / 0.835 of the path bound at 1 / 0.5 / 0 s; at 1 m/s 0.842 / 0.832 at 1 / 0.5 s)."""
+        return self.lookahead_s if self.lookahead_s is not None else min(1.0, 1.0 / self.speed_m_s)
 
 
 class ControllerConfig(_Strict):
