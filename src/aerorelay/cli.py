@@ -11,6 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 from . import api
+from .control.nmpc import NmpcSettings
 from .scenario import Scenario, ScenarioError, load_scenario
 from .scenario.load import parse_sets as _parse_sets
 from .scenario.run import FIGURES_BYTES, check_run_size, log_bytes
@@ -283,6 +284,9 @@ def bench(
     qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
     warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
+    iter_max: int = typer.Option(NmpcSettings.iter_max, "--iter-max", min=1, help="QP interior-point iteration cap"),
+    accept_tol: float = typer.Option(NmpcSettings.accept_tol, "--accept-tol", min=0.0,
+                                     help="hpipm backend: use a capped QP whose primal residuals are <= this (0: never)"),
     simd: bool = typer.Option(True, "--simd/--no-simd", help="hpipm backend: AVX2 BLASFEO kernels where the CPU has them"),
     feedback: str = typer.Option(None, "--feedback", show_default=False,
                                  help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
@@ -291,11 +295,11 @@ def bench(
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
     import json
 
-    from .control.nmpc import NmpcSettings
 
     try:
         settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
-                                warm_start=warm_start, simd_kernels=simd, feedback=feedback)
+                                warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,
+                                accept_tol=accept_tol)
     except ValueError as exc:
         _fail(str(exc))
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,

@@ -42,6 +42,9 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "qp_failures": result.qp_failures,
         "fallback_episodes": result.fallback_episodes,
         "qp_iterations": {"mean": float(iters.mean()), "p99": float(np.percentile(iters, 99)), "max": int(iters.max())},
+        "qp_capped": int(np.sum(np.asarray(result.log["qp_status"]) == "CAPPED")),
+        "step_p99_over_p50": float(np.percentile(whole + planner, 99) / np.percentile(whole + planner, 50)),
+        "c_min": float(np.min(result.log["capacity"])),
         "route": loop.nmpc.route(),
     }
     points = [(p.x, p.u_prev, p.P, p.guess) for p in loop.bench_points if p.guess is not None][:ipopt_points]

@@ -61,6 +61,9 @@ class NmpcSettings:
     # 4.733e-4, 4.664e-4 (README, Speed). 1e-3 keeps C_min within 0.2% of the 1e-4 solution.
     tol_comp: float = 1e-3
     iter_max: int = 50
+    # hpipm backend: a QP the iteration cap stopped is used when HPIPM's largest residual is
+    # <= accept_tol (0: never; it counts as a failure)
+    accept_tol: float = 0.0
     # hpipm backend: "primal_dual" starts each IPM from the guess and the previous QP's multipliers
     # (4.1 -> 2.8 iterations at tol 1e-4; cold after a reset or a failure, and a failed warm
     # solve is retried cold); "primal" from the guess only; "none" cold
@@ -101,7 +104,8 @@ class NmpcSettings:
         every run so that a campaign recomputes runs made with another solver configuration."""
         route = (f"hpipm/{self.warm_start}/cond={self.condensed_horizon}/feedback={self.feedback}" if self.backend == "hpipm"
                  else f"casadi/{self.qp_solver}")
-        return f"{route}/tol={self.tol_comp:g}/iter_max={self.iter_max}"
+        accept = f"/accept={self.accept_tol:g}" if self.accept_tol > 0 else ""
+        return f"{route}/tol={self.tol_comp:g}/iter_max={self.iter_max}{accept}"
 
     def conic_options(self) -> dict:
         if self.qp_options is not None:
@@ -125,7 +129,7 @@ class _HpipmEngine:
                             warm_start={"none": 0, "primal": 1, "primal_dual": 2}[settings.warm_start],
                             ric_alg={"classical": 0, "square_root": 1}[settings.riccati],
                             simd_kernels=settings.simd_kernels,
-                            feedback_mode=int(settings.feedback == "sensitivity"))
+                            feedback_mode=int(settings.feedback == "sensitivity"), accept_tol=settings.accept_tol)
 
     def reset(self, X: np.ndarray, W: np.ndarray):
         self.rti.set_plan(X, W)
@@ -139,10 +143,10 @@ class _HpipmEngine:
 
     def feedback(self, xa0: np.ndarray, shift: bool) -> QpResult:
         u, info = self.rti.feedback(xa0, shift)
-        status = self.STATUS.get(info.status, f"status {info.status}")
+        status = "CAPPED" if info.capped else self.STATUS.get(info.status, f"status {info.status}")
         if not info.ok and info.status == 0:
             status = "NaN in solution"
-        return QpResult(bool(info.ok), u, status, float(info.slack_max), int(info.iter))
+        return QpResult(bool(info.ok), u, status, float(info.slack_max), int(info.iter), bool(info.capped))
 
 
 class NMPC:

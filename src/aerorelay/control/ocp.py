@@ -34,13 +34,15 @@ HESSIAN_REG = 1e-8  # added to the Gauss-Newton Hessian's diagonal (both QP rout
 class QpResult:
     """What an engine's feedback phase returns: whether the QP solved, the first input to apply
     (the shifted previous plan's on failure, Hz/s), the solver's status text, the largest slack
-    (NaN on failure) and the interior-point iterations."""
+    (NaN on failure), the interior-point iterations and whether the iteration cap stopped the
+    solver on a solution that passed the quality check (status ``CAPPED``)."""
 
     ok: bool
     u: np.ndarray
     status: str
     slack_max: float
     iterations: int
+    capped: bool = False
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@
 #include <hpipm_d_ocp_qp_sol.h>
 #include <hpipm_d_ocp_qp_seed.h>
 #include <hpipm_d_ocp_qp_ipm.h>
+#include <hpipm_d_ocp_qp_res.h>
 #include <hpipm_d_part_cond.h>
 
 #define RTI_NZ (RTI_NX + RTI_NW)
@@ -38,15 +39,16 @@
 #define RTI_MAX_BLOCKS 32
 
 typedef struct { /* mirrored by hpipm_rti.RtiInfo (the caller times the phases) */
-  int ok, status, iter;
-  double slack_max;
+  int ok, status, iter, capped; /* capped: the IPM hit iter_max and its residuals passed accept_tol */
+  double slack_max, res_max;    /* res_max: a capped IPM's largest primal residual (NaN: not computed) */
 } rti_info;
 
 typedef struct {
   int n2, iter_max, warm_start, ric_alg, cold, prepared; /* cold: no usable multipliers yet */
   int feedback_mode; /* 0: feedback solves the QP; 1: prepare solves it at the predicted state, feedback corrects */
   int pred_status, pred_iter; /* feedback_mode 1: the preparation's IPM */
-  double tol_comp, reg;
+  int capped, pred_capped;    /* the last IPM stopped at iter_max with residuals <= accept_tol */
+  double tol_comp, reg, accept_tol, qp_res, pred_qp_res;
   int idxbx[RTI_NBX], idxbu[RTI_NW];
   double lbx[RTI_NBX], ubx[RTI_NBX], lbu[RTI_NR], ubu[RTI_NR];
   double Xb[(RTI_N + 1) * RTI_NX], Wb[RTI_N * RTI_NW]; /* linearization point (the guess) */
@@ -74,6 +76,8 @@ typedef struct {
   struct d_part_cond_qp_ws cond_ws;
   struct d_ocp_qp_ipm_arg ipm_arg;
   struct d_ocp_qp_ipm_ws ipm_ws;
+  struct d_ocp_qp_res qres; /* residuals of an iteration-capped solution */
+  struct d_ocp_qp_res_ws qres_ws;
   void *blocks[RTI_MAX_BLOCKS];
   int nblocks;
 } rti_mem;
@@ -100,7 +104,7 @@ void rti_free(rti_mem *m) {
 #define RTI_TRY_ALLOC(var, size) do { (var) = rti_alloc(m, (size)); if (!(var)) goto fail; } while (0)
 #define RTI_MAX(a, b) ((a) > (b) ? (a) : (b))
 
-/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg, feedback_mode; bounds: idxbx, lbx, ubx (k >= 1),
+/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg, feedback_mode, accept_tol; bounds: idxbx, lbx, ubx (k >= 1),
  * lbu, ubu (motor accelerations). Returns NULL when memory cannot be had. */
 rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx, const double *ubx,
                     const double *lbu, const double *ubu) {
@@ -117,6 +121,7 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   m->reg = settings[4];
   m->ric_alg = (int)settings[5];
   m->feedback_mode = (int)settings[6];
+  m->accept_tol = settings[7];
   m->cold = 1;
   for (i = 0; i < RTI_NBX; i++) { m->idxbx[i] = idxbx[i]; m->lbx[i] = lbx[i]; m->ubx[i] = ubx[i]; }
   for (i = 0; i < RTI_NR; i++) { m->lbu[i] = lbu[i]; m->ubu[i] = ubu[i]; }
@@ -166,6 +171,8 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
     d_ocp_qp_ipm_arg_set_update_fact_exit(&one, &m->ipm_arg);
   }
   RTI_TRY_ALLOC(mem, d_ocp_qp_ipm_ws_memsize(d, &m->ipm_arg)); d_ocp_qp_ipm_ws_create(d, &m->ipm_arg, &m->ipm_ws, mem);
+  RTI_TRY_ALLOC(mem, d_ocp_qp_res_memsize(d)); d_ocp_qp_res_create(d, &m->qres, mem);
+  RTI_TRY_ALLOC(mem, d_ocp_qp_res_ws_memsize(d)); d_ocp_qp_res_ws_create(d, &m->qres_ws, mem);
   /* one-sided constraints: the slacks' upper bounds and the rows' upper bounds are masked */
   for (k = 0; k < N; k++) d_ocp_qp_set_idxbu(k, m->idxbu, &m->qp);
   for (k = 1; k <= N; k++) d_ocp_qp_set_idxbx(k, m->idxbx, &m->qp);
@@ -320,6 +327,8 @@ void rti_prepare(rti_mem *m, const double *P) {
     d_ocp_qp_set_b(0, m->b0, &m->qp);
     d_ocp_qp_set_r(0, m->r0, &m->qp);
     m->pred_status = rti_solve_qp(m, &m->pred_iter);
+    m->pred_capped = m->capped;
+    m->pred_qp_res = m->qp_res;
   }
   m->prepared = 1;
 }
@@ -342,7 +351,23 @@ static int rti_solve(rti_mem *m, struct d_ocp_qp *qp, struct d_ocp_qp_sol *sol, 
   d_ocp_qp_ipm_solve(qp, sol, &m->ipm_arg, &m->ipm_ws);
   d_ocp_qp_ipm_get_status(&m->ipm_ws, &status);
   d_ocp_qp_ipm_get_iter(&m->ipm_ws, iter);
-  return status;
+  m->qp_res = NAN;
+  m->capped = 0;
+  if (status == 1 && m->accept_tol > 0.0) {
+    /* an iteration cap with a quality check: an interior-point iterate the cap stopped is a
+     * primal-feasible but not yet optimal step; it is used when its primal residuals (the
+     * linearized dynamics and every inequality row; computed here, the speed_abs IPM does not)
+     * are within accept_tol. Stationarity and complementarity are not checked: far from zero
+     * after a few iterations (the step is suboptimal, pushed into the interior) */
+    double r[2];
+    d_ocp_qp_res_compute(qp, sol, &m->qres, &m->qres_ws);
+    d_ocp_qp_res_compute_inf_norm(&m->qres);
+    d_ocp_qp_res_get_max_res_eq(&m->qres, r);
+    d_ocp_qp_res_get_max_res_ineq(&m->qres, r + 1);
+    m->qp_res = isfinite(r[0]) && isfinite(r[1]) ? RTI_MAX(fabs(r[0]), fabs(r[1])) : INFINITY;
+    m->capped = m->qp_res <= m->accept_tol;
+  }
+  return m->capped ? 0 : status;
 }
 
 /* Solve the filled QP (partial condensing, warm start with a cold retry, expansion). */
@@ -399,7 +424,7 @@ int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *
   int i, j, status = 0, iter = 0, ok;
   double dx0[RTI_NX], slack_max = 0.0;
   if (!m->prepared) { /* the caller skipped rti_prepare: refuse rather than solve a stale QP */
-    info->ok = 0; info->status = -1; info->iter = 0; info->slack_max = NAN;
+    info->ok = 0; info->status = -1; info->iter = 0; info->capped = 0; info->slack_max = NAN; info->res_max = NAN;
     for (i = 0; i < RTI_NR; i++) u[i] = rti_clip(isfinite(m->Wb[i]) ? m->Wb[i] : 0.0, m->lbu[i], m->ubu[i]);
     return 0;
   }
@@ -414,6 +439,8 @@ int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *
   if (m->feedback_mode == 1) { /* the predicted solution's sensitivity in the direction (db_0, dr_0) */
     status = m->pred_status;
     iter = m->pred_iter;
+    m->capped = m->pred_capped;
+    m->qp_res = m->pred_qp_res;
     if (status == 0) {
       d_ocp_qp_seed_set_zero(&m->seed);
       d_ocp_qp_seed_set_seed_b(0, m->b, &m->seed);
@@ -442,6 +469,8 @@ int rti_feedback(rti_mem *m, const double *xa0, int shift, double *u, rti_info *
   info->ok = ok;
   info->status = status;
   info->iter = iter;
+  info->capped = m->capped;
   info->slack_max = slack_max;
+  info->res_max = m->qp_res;
   return ok;
 }

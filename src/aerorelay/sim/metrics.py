@@ -86,6 +86,8 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
                                                          >= mu - ALIGNMENT_TOLERANCE)),
         "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(mu, 1e-9))),
         "infeasible_fraction": float(np.mean(failed)),
+        # QPs the iteration cap stopped on a primal-feasible iterate (NmpcSettings.accept_tol)
+        "qp_capped_fraction": float(np.mean(np.asarray(log["qp_status"]) == "CAPPED")) if "qp_status" in log else 0.0,
         "fallback_fraction": float(np.mean(fallback)),
         "solve_ms": {**stats_ms(solve), "std": float(solve.std())},
         "feedback_ms": stats_ms(np.asarray(log["feedback_ms"], float)) if "feedback_ms" in log else None,
