@@ -38,6 +38,7 @@ from .scenario.build import build, build_scene, scenario_bound
 from .scenario.run import RunResult
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
+from .sim.initial import link_budget_lines as initial_link_budget_lines
 from .store.outputs import OutputError, check_output_folder, is_own_folder, mark, write_atomic
 from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 
@@ -74,6 +75,11 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
 def link_budget(sc: Scenario) -> dict[str, float]:
     """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry."""
     return initial_link_budget(build_scene(sc), sc.nodes.relay, sc.mission.start)
+
+
+def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
+    """The initial link budget line by line in the scenario's units (``aerorelay info``)."""
+    return initial_link_budget_lines(build_scene(sc), sc.nodes.relay, sc.mission.start, physical=sc.channel.physical)
 
 
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:

@@ -118,6 +118,12 @@ def info(
     """Print the scenario's derived model quantities: hover, allocation rank, initial link budget."""
     sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     console.print(model_summary(sc))
+    t = Table(title=f"link budget at t=0 ({sc.channel.units} units, level attitudes, jammers at peak)", show_header=True)
+    t.add_column("quantity")
+    t.add_column("value", justify="right")
+    for name, value in api.link_budget_lines(sc):
+        t.add_row(name, value)
+    console.print(t)
 
 
 @app.command()

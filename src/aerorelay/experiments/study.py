@@ -285,7 +285,7 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
             updates.update(zip(grid_keys, combo, strict=True))
             group = _group(run.id, grid_keys, combo)
             where = f"study {study.name}, run {group}"
-            deterministic = not _updated(base, updates, where).perturbations.stochastic
+            deterministic = not _updated(base, updates, where).stochastic
             for s in range(1 if deterministic else seeds):  # more seeds would fly the same run again
                 u = dict(updates)
                 u["seed"] = base.seed + s

@@ -39,3 +39,38 @@ class RicianFading:
     def power_gain(self, size=None):
         """Draw independent power gains ``alpha^2`` (mean 1)."""
         return self.amplitude(size) ** 2
+
+
+class ClarkeRicianFading:
+    """Rician fading that evolves in time (Clarke / Jakes spectrum), one process per link.
+
+    The diffuse part of each link is a sum of ``n_sinusoids`` unit phasors with random arrival
+    angles ``alpha_m`` and phases: ``n(t) = M^-1/2 sum_m exp(j phi_m(t))``, ``phi_m`` advancing
+    by ``2 pi f_D cos(alpha_m) dt`` per step, so ``E|n|^2 = 1`` and ``E[n(t) n*(t + tau)] =
+    J0(2 pi f_D tau)`` (Clarke's autocorrelation) for a constant Doppler frequency ``f_D`` (Hz);
+    ``f_D`` may change from step to step (the link's relative speed). ``h = sqrt(K/(K+1)) +
+    sqrt(1/(K+1)) n``, amplitude ``|h|``, ``E|h|^2 = 1``. Seeded per run.
+    """
+
+    def __init__(self, k_db: float, n_links: int, seed: int | None = None, n_sinusoids: int = 32):
+        self.k = k_factor_linear(k_db)
+        rng = np.random.default_rng(seed)
+        self._cos = np.cos(rng.uniform(0.0, 2.0 * np.pi, (n_links, n_sinusoids)))
+        self._phase = rng.uniform(0.0, 2.0 * np.pi, (n_links, n_sinusoids))
+        self._m = n_sinusoids
+
+    def diffuse(self) -> np.ndarray:
+        """The diffuse part ``n`` per link now (complex, ``E|n|^2 = 1``)."""
+        return np.exp(1j * self._phase).sum(axis=1) / math.sqrt(self._m)
+
+    def advance(self, doppler_hz, dt: float) -> None:
+        """Move every link ``dt`` (s) on at its Doppler frequency ``doppler_hz`` (Hz, per link)."""
+        self._phase = self._phase + 2.0 * np.pi * np.asarray(doppler_hz, float)[:, None] * self._cos * dt
+
+    def amplitude(self, doppler_hz, dt: float) -> np.ndarray:
+        """The amplitudes ``|h|`` now, then advance every link by ``dt`` (s) at ``doppler_hz``."""
+        if math.isinf(self.k):
+            return np.ones(self._phase.shape[0])
+        n = self.diffuse()
+        self.advance(doppler_hz, dt)
+        return np.abs(math.sqrt(self.k / (self.k + 1.0)) + math.sqrt(1.0 / (self.k + 1.0)) * n)

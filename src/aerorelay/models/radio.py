@@ -26,6 +26,7 @@ from .antenna import AntennaPattern
 from .backend import is_symbolic, ops
 from .geometry import E3
 from .jammer import Jammer
+from .propagation import PathGain
 
 Role = Literal["base_station", "source", "relay"]
 
@@ -117,8 +118,9 @@ def _gain(pattern: AntennaPattern, c):
     return pattern.symbolic_gain_from_cos(c) if is_symbolic(c) else pattern.gain_from_cos(c)
 
 
-def link_gain(p_tx, b_tx, pat_tx: AntennaPattern, p_rx, b_rx, pat_rx: AntennaPattern):
-    """``G_tx(th_D) G_rx(th_A) / |p_rx - p_tx|^2`` (eq. 6; eq. 7 with the jammer as transmitter).
+def link_gain(p_tx, b_tx, pat_tx: AntennaPattern, p_rx, b_rx, pat_rx: AntennaPattern, path: PathGain | None = None):
+    """``G_tx(th_D) G_rx(th_A) / |p_rx - p_tx|^2`` (eq. 6; eq. 7 with the jammer as transmitter);
+    with ``path``, ``G_tx G_rx K |p_rx - p_tx|^-n`` (``models/propagation.py``).
 
     ``b_tx``, ``b_rx``: antenna axes (unit, world); each gain from the cosine of the angle between
     the link and the axis at that end. numpy (broadcast) or CasADi 3-vectors.
@@ -130,7 +132,8 @@ def link_gain(p_tx, b_tx, pat_tx: AntennaPattern, p_rx, b_rx, pat_rx: AntennaPat
     d = p_rx - p_tx
     n2 = _dot(d, d)
     n = ops(n2).sqrt(n2)
-    return _gain(pat_tx, _dot(d, b_tx) / n) * _gain(pat_rx, -_dot(d, b_rx) / n) / n2
+    g = _gain(pat_tx, _dot(d, b_tx) / n) * _gain(pat_rx, -_dot(d, b_rx) / n)
+    return g / n2 if path is None or path.is_paper else g * path.gain_from_d2(n2)
 
 
 def spectral_efficiency(gamma):
@@ -163,6 +166,7 @@ class RadioScene:
     jammers: tuple[Jammer, ...] = ()
     budget: LinkBudget = LinkBudget()
     route: tuple[str, ...] = ("source", "relay", "bs")
+    path_gain: PathGain = PathGain()  # deterministic large-scale propagation of every link
 
     def __post_init__(self):
         names = [n.name for n in self.nodes]
@@ -218,14 +222,13 @@ class RadioScene:
             out.append(Emitter(p, j.axis(p, target), j.pattern, power))
         return out
 
-    @staticmethod
-    def interference(emitters: Sequence[Emitter], rx: NodePose, pat_rx: AntennaPattern, fading=None):
+    def interference(self, emitters: Sequence[Emitter], rx: NodePose, pat_rx: AntennaPattern, fading=None):
         """``sum_j F_Jj^2 P_J`` at a receiver (eq. 7), W; ``fading`` one power gain per emitter."""
         total = 0.0
         for i, e in enumerate(emitters):
             if e.power == 0.0:
                 continue
-            f = link_gain(e.position, e.axis, e.pattern, rx.position, rx.axis, pat_rx)
+            f = link_gain(e.position, e.axis, e.pattern, rx.position, rx.axis, pat_rx, self.path_gain)
             if fading is not None:
                 f = f * fading[i]
             total = total + f * e.power
@@ -244,7 +247,7 @@ class RadioScene:
         with np.errstate(divide="ignore", invalid="ignore"):  # a jammer on a receiver: infinite interference
             for k, (tx, rx) in enumerate(self.hops):
                 h = link_gain(poses[tx].position, poses[tx].axis, self.node(tx).antenna.pattern,
-                              poses[rx].position, poses[rx].axis, self.node(rx).antenna.pattern)
+                              poses[rx].position, poses[rx].axis, self.node(rx).antenna.pattern, self.path_gain)
                 if fading is not None:
                     h = h * fading[k]
                 jam_fade = None if fading is None else fading[nh + k * nj: nh + (k + 1) * nj]
@@ -283,4 +286,6 @@ class RadioScene:
             parts.append("no jammer")
         b = self.budget
         parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; route {' -> '.join(self.route)}")
+        if not self.path_gain.is_paper:
+            parts.append(f"path gain {self.path_gain.scale:.4g} d^-{self.path_gain.exponent:g}")
         return "; ".join(parts)

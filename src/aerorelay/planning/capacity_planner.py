@@ -38,8 +38,8 @@ class CapacityPlanner:
     """Hill climbing on the true capacity over (position, antenna axis), speed-limited reference."""
 
     def __init__(self, ctx: PlannerContext, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
-                 axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.2,
-                 route_grid_m: float = 0.5, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 2.0):
+                 axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
+                 route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0):
         veh = ctx.vehicle
         # the NMPC holds zero yaw: only the tilts the platform can hold toward each azimuth at zero
         # yaw (with a 10% margin) are axes it can actually fly

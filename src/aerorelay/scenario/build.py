@@ -20,12 +20,14 @@ from ..control.supervisor import SafetyEnvelope
 from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
+from ..models.propagation import PathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import Planner, PlannerContext, planner_factory
 from ..planning.bound import BoundProblem, CapacityBound, bound_key, cached_bound, compute_bound
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
+from ..sim.perturbations import PerturbationSettings
 from .schema import JammerConfig, Scenario
 
 ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
@@ -41,7 +43,7 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
     if cfg.pattern == "cosine":
         pattern = CosinePattern(cfg.g_max, cfg.exponent, cfg.back_lobe)
     boresight = np.array(cfg.boresight, float) / np.linalg.norm(cfg.boresight) if cfg.boresight is not None else np.array([0.0, 0.0, 1.0])
-    return Jammer(np.array(cfg.position, float), cfg.power_w, sched, cfg.localization_delay_s, path, pattern,
+    return Jammer(np.array(cfg.position, float), cfg.peak_power_w, sched, cfg.localization_delay_s, path, pattern,
                   cfg.point_at, boresight, cfg.name)
 
 
@@ -55,7 +57,19 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
              Node("relay", "relay", Antenna(pat.relay)))
     ch = sc.channel
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
-    return RadioScene(nodes, jams, LinkBudget(ch.tx_power_w, ch.noise_power_w, ch.bandwidth), ("source", "relay", "bs"))
+    return RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), ("source", "relay", "bs"), path_gain(ch))
+
+
+def path_gain(ch) -> PathGain:
+    """The deterministic large-scale path gain of ``[channel]`` / ``[channel.propagation]``."""
+    prop = ch.propagation
+    if prop.model == "free_space":
+        return PathGain.free_space(ch.carrier_hz) if ch.physical else PathGain()
+    loss = prop.reference_loss_db
+    if loss is None:  # free space at d0
+        loss = float(free_space_loss_db(prop.reference_distance_m, ch.carrier_hz)) if ch.physical else \
+            20.0 * float(np.log10(prop.reference_distance_m))
+    return PathGain.log_distance(prop.exponent, prop.reference_distance_m, loss)
 
 
 def build_source(sc: Scenario) -> SourceTrajectory:
@@ -129,8 +143,12 @@ def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: 
 
 def sim_settings(sc: Scenario) -> SimSettings:
     p = sc.perturbations
+    ch = sc.channel
+    noise = PerturbationSettings(p.fading_k_db, ch.fading.model, ch.propagation.shadowing_std_db, ch.propagation.decorrelation_m,
+                                 ch.carrier_hz)
     return SimSettings(sc.control_period_s, sc.duration_s, sc.sim.plant_rate_hz, np.array(sc.nodes.relay, float), sc.seed,
-                       p.csi_noise_m, p.process_noise_v, p.process_noise_w, p.fading_k_db, sc.controller.senses_jammer_state)
+                       p.csi_noise_m, p.process_noise_v, p.process_noise_w, p.fading_k_db, sc.controller.senses_jammer_state,
+                       noise)
 
 
 @dataclass

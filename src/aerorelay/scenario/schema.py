@@ -157,13 +157,67 @@ class AntennaConfig(_Strict):
                             bs=dipole if self.bs_pattern == "dipole" else IsotropicPattern(self.g_bar))
 
 
-class ChannelConfig(_Strict):
-    """Link budget (normalized units, paper Table I)."""
+BOLTZMANN_J_K = 1.380649e-23
 
-    bandwidth: float = Field(1.0, gt=0.0, description="B, normalized")
-    tx_power_w: float = Field(1.0, gt=0.0, description="P_U")
-    noise_power_w: float = Field(1.0, gt=0.0, description="sigma^2")
-    outage_threshold: float = Field(1e-3, gt=0.0, description="outage when C is below this")
+
+class PropagationConfig(_Strict):
+    """Large-scale propagation (``models/propagation.py``). ``free_space``: the paper's ``1/d^2``
+    (Friis with the wavelength in physical units); ``log_distance``: ``PL(d0) + 10 n log10(d/d0)``.
+    Log-normal shadowing (dB, zero mean, correlated ``exp(-Delta d / decorrelation_m)`` along each
+    link's motion) perturbs the plant's channel only: controllers plan with the deterministic part."""
+
+    model: Literal["free_space", "log_distance"] = "free_space"
+    exponent: float = Field(2.0, ge=1.0, le=6.0, description="log_distance: path-loss exponent n")
+    reference_distance_m: float = Field(1.0, gt=0.0, le=1000.0, description="log_distance: d0, m")
+    reference_loss_db: float | None = Field(None, ge=-100.0, le=200.0, description="log_distance: PL(d0), dB "
+                                            "(default: free space at d0: Friis in physical units, 0 dB normalized)")
+    shadowing_std_db: float = Field(0.0, ge=0.0, le=20.0, description="log-normal shadowing std, dB (0: none)")
+    decorrelation_m: float = Field(10.0, gt=0.0, le=1000.0, description="shadowing decorrelation distance, m")
+
+
+class ChannelFadingConfig(_Strict):
+    """Small-scale fading model for ``perturbations.fading_k_db``: ``iid`` (the paper's robustness
+    runs: an independent Rician draw per control step) or ``doppler`` (Rician whose diffuse part
+    is a Gauss-Markov process with the correlation ``J0(2 pi f_D tau)`` at the control period,
+    ``f_D`` from each link's relative speed and ``channel.carrier_hz``)."""
+
+    model: Literal["iid", "doppler"] = "iid"
+
+
+class ChannelConfig(_Strict):
+    """Link budget. ``units = "normalized"``: the paper's (Table I; B = 1, powers in W, C in
+    bit/s/Hz). ``units = "physical"``: carrier (Hz), bandwidth (Hz), transmit power (dBm), noise
+    ``k T B`` plus a noise figure (dB), Friis free space with the wavelength; C in bit/s."""
+
+    units: Literal["normalized", "physical"] = "normalized"
+    bandwidth: float = Field(1.0, gt=0.0, description="B, normalized (units = normalized)")
+    tx_power_w: float = Field(1.0, gt=0.0, description="P_U (units = normalized)")
+    noise_power_w: float = Field(1.0, gt=0.0, description="sigma^2 (units = normalized)")
+    carrier_hz: float = Field(2.4e9, ge=1e8, le=1e11, description="carrier frequency, Hz (physical units, Doppler fading)")
+    bandwidth_hz: float = Field(20e6, ge=1e3, le=1e10, description="bandwidth, Hz (units = physical)")
+    tx_power_dbm: float = Field(20.0, ge=-30.0, le=60.0, description="transmit power of MRAV-2 and the relay, dBm (physical)")
+    noise_figure_db: float = Field(7.0, ge=0.0, le=30.0, description="receiver noise figure, dB (physical)")
+    temperature_k: float = Field(290.0, gt=0.0, le=1000.0, description="noise temperature, K (physical)")
+    outage_threshold: float = Field(1e-3, gt=0.0, description="outage when C is below this (bit/s/Hz normalized; bit/s physical)")
+    propagation: PropagationConfig = Field(default_factory=PropagationConfig)
+    fading: ChannelFadingConfig = Field(default_factory=ChannelFadingConfig)
+
+    @property
+    def physical(self) -> bool:
+        return self.units == "physical"
+
+    def link_budget_values(self) -> tuple[float, float, float]:
+        """``(P_U W, noise W, B)``: the normalized fields, or ``10^((dBm - 30)/10)``, ``k T B
+        10^(NF/10)`` and ``B`` in Hz."""
+        if not self.physical:
+            return self.tx_power_w, self.noise_power_w, self.bandwidth
+        noise = BOLTZMANN_J_K * self.temperature_k * self.bandwidth_hz * 10.0 ** (self.noise_figure_db / 10.0)
+        return dbm_to_w(self.tx_power_dbm), noise, self.bandwidth_hz
+
+
+def dbm_to_w(dbm: float) -> float:
+    """``10^((dBm - 30)/10)`` W."""
+    return 10.0 ** ((dbm - 30.0) / 10.0)
 
 
 class NodesConfig(_Strict):
@@ -196,6 +250,7 @@ class JammerConfig(_Strict):
     waypoints: list[Waypoint] | None = Field(None, min_length=2, description="timed path [[t_s, x, y, z], ...]")
     path: Literal["linear", "minimum_jerk"] = Field("linear", description="how the jammer moves between waypoints")
     power_w: float = Field(1.0, ge=0.0)
+    power_dbm: float | None = Field(None, ge=-30.0, le=90.0, description="peak power in dBm (replaces power_w)")
     schedule: Literal["always_on", "on_off"] = "always_on"
     on_s: float = Field(5.0, gt=0.0)
     off_s: float = Field(5.0, gt=0.0)
@@ -206,6 +261,11 @@ class JammerConfig(_Strict):
     back_lobe: float = Field(0.0, ge=0.0, le=1.0, description="cosine pattern: gain floor relative to g_max")
     point_at: Literal["bs", "relay", "source"] | None = Field(None, description="cosine pattern: the node it tracks")
     boresight: Vec3 | None = Field(None, description="cosine pattern: fixed boresight direction, world")
+
+    @property
+    def peak_power_w(self) -> float:
+        """``power_w``, or ``power_dbm`` in W when given."""
+        return dbm_to_w(self.power_dbm) if self.power_dbm is not None else self.power_w
 
     @model_validator(mode="after")
     def _path_and_pointing(self):
@@ -282,7 +342,8 @@ class CapacityPlannerConfig(_Strict):
     max_accel_m_s2: float = Field(4.0, gt=0.0, le=8.0, description="reference acceleration limit (speeding up and braking), m/s^2")
     margin_m: float = Field(0.05, ge=0.0, le=2.0, description="the reference keeps this far inside the workspace box, m")
     leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
-    route_grid_m: float = Field(0.5, ge=0.1, le=3.0, description="grid of the pre-flight route, m")
+    route_grid_m: float = Field(1.0, ge=0.1, le=3.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
+                                "take-off, 1 m: 0.3-0.6 s on this VM, capacity within 0.01 of the bound either way)")
     lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
                                       "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
@@ -530,6 +591,11 @@ class Scenario(_Strict):
                 f"(sim.plant_rate_hz = {self.sim.plant_rate_hz})"
             )
         return self
+
+    @property
+    def stochastic(self) -> bool:
+        """Whether the seed changes anything: the perturbations' or log-normal shadowing."""
+        return self.perturbations.stochastic or self.channel.propagation.shadowing_std_db > 0
 
     @property
     def control_period_s(self) -> float:

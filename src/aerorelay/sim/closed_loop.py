@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -19,12 +19,12 @@ import numpy as np
 from ..control.nmpc import StepInfo
 from ..control.relay import RelayController
 from ..models.channel import misalignment, mutual_alignment
-from ..models.fading import RicianFading
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput
+from .perturbations import LinkPerturbations, PerturbationSettings
 
 
 def log_columns(n_rotors: int) -> list[str]:
@@ -80,6 +80,8 @@ class SimSettings:
     process_noise_w: float = 0.0
     fading_k_db: float | None = None
     senses_jammer_state: bool = False
+    # fading model, shadowing and carrier of the plant's random channel terms (sim/perturbations.py)
+    channel_noise: PerturbationSettings | None = None
 
 
 @dataclass
@@ -127,8 +129,10 @@ class ClosedLoop:
         self._numeric_columns = [c for c in self.columns
                                  if c not in ("qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err")]
         self.rng = np.random.default_rng(settings.seed)
-        k_db = settings.fading_k_db
-        self.fading = None if k_db is None or math.isinf(k_db) else RicianFading(k_db, seed=settings.seed + 1)
+        noise = settings.channel_noise or PerturbationSettings()
+        self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
+                                               seed=settings.seed)
+        self.columns = self.columns + self.perturbations.columns
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
         self.timings: list[StepTiming] = []
         self.bench_points: list[BenchPoint] = []
@@ -143,12 +147,15 @@ class ClosedLoop:
         return np.array([0.0 if not j.is_localized(t) else float(j.power_at(t)) if self.settings.senses_jammer_state
                          else j.power for j in self.scene.jammers])
 
-    def _channel(self, t, x1, p2, eta2) -> tuple[ChannelState, float, float]:
+    def _channel(self, t, x1, p2, eta2, v2) -> tuple[ChannelState, float, float]:
         """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments."""
         p1, R1 = x1[0:3], rotation_zyx(x1[3:6])
         poses = {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
                  self.names["source"]: self.scene.pose(self.names["source"], p2, rotation_zyx(eta2))}
-        fade = self.fading.power_gain(self.scene.fading_links) if self.fading is not None else None
+        positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]:
+                     self.scene.fixed_pose(self.names["base_station"]).position}
+        velocities = {self.names["relay"]: x1[6:9], self.names["source"]: v2, self.names["base_station"]: np.zeros(3)}
+        fade, self._noise_values = self.perturbations.step(t, positions, velocities)
         state = self.scene.evaluate(t, poses, fading=fade)
         p0 = self.scene.fixed_pose(self.names["base_station"]).position
         return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
@@ -189,7 +196,7 @@ class ClosedLoop:
             info = self.controller.step(x, u, P, shift=shift)
             self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms))
             u = info.u
-            channel, v12, v10 = self._channel(t, x, src.p, eta2)
+            channel, v12, v10 = self._channel(t, x, src.p, eta2, src.v)
             self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
             d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
             x = np.asarray(self.plant(x, u, d)).ravel()
@@ -221,3 +228,5 @@ class ClosedLoop:
         log["fallback"][k] = info.fallback
         log["safety_violation"][k] = bool(self.controller.last_violations)
         log["taylor_rel_err"][k] = ref.taylor_rel_err
+        for name, val in self._noise_values.items():
+            log[name][k] = val

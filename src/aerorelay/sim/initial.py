@@ -24,3 +24,40 @@ def initial_link_budget(scene: RadioScene, relay_position, source_position) -> d
     inr = [10 * np.log10(float(i) / scene.budget.noise_power) if float(i) > 0 else -np.inf for i in state.interference]
     return {"gamma_21": g21, "gamma_10": g10, "capacity": float(state.capacity), "mutual_alignment": ma,
             "inr_relay_db": inr[0], "inr_bs_db": inr[1]}
+
+
+def _db(x: float) -> float:
+    return 10.0 * float(np.log10(x)) if x > 0 else -np.inf
+
+
+def link_budget_lines(scene: RadioScene, relay_position, source_position, *, physical: bool) -> list[tuple[str, str]]:
+    """The initial link budget line by line (level attitudes, jammers at peak): per hop distance,
+    path loss, antenna gains, received, interference and noise powers, SINR; the capacity. Powers
+    in dBm (``physical``) or dBW (the paper's normalized 1 W units), gains in dBi."""
+    I = np.eye(3)
+    p1, p2 = np.asarray(relay_position, float), np.asarray(source_position, float)
+    relay, source = scene.name_of("relay"), scene.name_of("source")
+    poses = {relay: scene.pose(relay, p1, I), source: scene.pose(source, p2, I)}
+    poses = {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None} | poses
+    state = scene.evaluate(0.0, poses, jammer_powers=np.array([j.power for j in scene.jammers]))
+    b = scene.budget
+    unit, off = ("dBm", 30.0) if physical else ("dBW", 0.0)
+    rows = [("transmit power", f"{_db(b.tx_power) + off:.1f} {unit}"), ("noise power", f"{_db(b.noise_power) + off:.1f} {unit}")]
+    for j in scene.jammers:
+        rows.append((f"jammer '{j.name}' peak power", f"{_db(j.power) + off:.1f} {unit}"))
+    for k, (tx, rx) in enumerate(state.hops):
+        ptx, prx = poses[tx], poses[rx]
+        d = prx.position - ptx.position
+        dist = float(np.linalg.norm(d))
+        g_tx = scene.node(tx).antenna.pattern.gain_from_cos(float(d @ ptx.axis) / dist)
+        g_rx = scene.node(rx).antenna.pattern.gain_from_cos(float(-d @ prx.axis) / dist)
+        loss = -_db(float(scene.path_gain.gain_from_d2(dist**2)))
+        rx_power = _db(b.tx_power * g_tx * g_rx * float(scene.path_gain.gain_from_d2(dist**2))) + off
+        rows += [(f"{tx} -> {rx}: distance", f"{dist:.2f} m"), (f"{tx} -> {rx}: path loss", f"{loss:.1f} dB"),
+                 (f"{tx} -> {rx}: antenna gains tx / rx", f"{_db(g_tx):.1f} / {_db(g_rx):.1f} dBi"),
+                 (f"{tx} -> {rx}: received power", f"{rx_power:.1f} {unit}"),
+                 (f"{tx} -> {rx}: interference at {rx}", f"{_db(float(state.interference[k])) + off:.1f} {unit}"),
+                 (f"{tx} -> {rx}: SINR", f"{_db(float(state.sinr[k])):.1f} dB")]
+    cap = float(state.capacity)
+    rows.append(("end-to-end capacity", f"{cap / 1e6:.3f} Mbit/s" if physical else f"{cap:.4g} bit/s/Hz"))
+    return rows

@@ -1,0 +1,149 @@
+"""Large-scale propagation: path gain as a function of distance, and log-normal shadowing.
+
+The paper's channel is ``G / d^2`` (eq. 6): free space with the wavelength factor folded into
+its normalized units. A ``PathGain`` generalizes that to ``K d^-n`` (``K`` = ``10^(-PL(d0)/10)
+d0^n``): free space in physical units (Friis, ``K = (lambda / 4 pi)^2``, ``n = 2``) and the
+log-distance model (``PL(d) = PL(d0) + 10 n log10(d / d0)``). ``Rma3gppAerial`` is the RMa-AV
+model of 3GPP TR 36.777 Annex B (aerial UEs 10-300 m): LoS probability, LoS / NLoS path loss and
+shadow-fading standard deviation. ``GudmundsonShadowing`` draws log-normal shadowing (dB) that is
+correlated along each link's motion, ``exp(-Delta d / d_corr)`` (Gudmundson 1991).
+
+Distances in m, frequencies in Hz (the 3GPP formulas take GHz inside), losses in dB.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+SPEED_OF_LIGHT_M_S = 299_792_458.0
+
+
+def wavelength_m(carrier_hz: float) -> float:
+    """``lambda = c / f`` (m)."""
+    return SPEED_OF_LIGHT_M_S / carrier_hz
+
+
+def free_space_loss_db(distance_m, carrier_hz: float):
+    """Friis free-space loss ``20 log10(4 pi d / lambda)`` (dB): 100.05 dB at 1 km, 2.4 GHz."""
+    return 20.0 * np.log10(4.0 * np.pi * np.asarray(distance_m, float) / wavelength_m(carrier_hz))
+
+
+@dataclass(frozen=True)
+class PathGain:
+    """``g(d) = K d^-n`` (linear power gain between isotropic antennas). ``K = 1, n = 2`` is the
+    paper's normalized free space (eq. 6); ``gain_from_d2`` works on numpy arrays and CasADi."""
+
+    scale: float = 1.0
+    exponent: float = 2.0
+
+    @classmethod
+    def free_space(cls, carrier_hz: float) -> PathGain:
+        """Friis: ``K = (lambda / 4 pi)^2``, ``n = 2``."""
+        return cls((wavelength_m(carrier_hz) / (4.0 * math.pi)) ** 2, 2.0)
+
+    @classmethod
+    def log_distance(cls, exponent: float, reference_distance_m: float, reference_loss_db: float) -> PathGain:
+        """``PL(d) = PL(d0) + 10 n log10(d / d0)``: ``K = 10^(-PL(d0)/10) d0^n``."""
+        return cls(10.0 ** (-reference_loss_db / 10.0) * reference_distance_m**exponent, exponent)
+
+    @property
+    def is_paper(self) -> bool:
+        """The paper's normalized ``1 / d^2`` (kept operation for operation)."""
+        return self.scale == 1.0 and self.exponent == 2.0
+
+    def gain_from_d2(self, d2):
+        """``K (d^2)^(-n/2)`` from the squared distance (numpy or CasADi)."""
+        if self.exponent == 2.0:
+            return self.scale / d2
+        return self.scale * d2 ** (-0.5 * self.exponent)
+
+    def loss_db(self, distance_m):
+        """``-10 log10 g(d)`` (dB)."""
+        d = np.asarray(distance_m, float)
+        return -10.0 * np.log10(self.scale) + 10.0 * self.exponent * np.log10(d)
+
+
+# --- 3GPP TR 36.777 Annex B, RMa-AV (aerial UE 10 m < h_UT <= 300 m, d_2D <= 10 km) ----------
+
+RMA_AV_MIN_HEIGHT_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MAX_D2D_M = 10.0, 300.0, 10_000.0
+
+
+def check_rma_av_range(h_ut, d2d, what: str = "link"):
+    """Raise ``ValueError`` naming the range when a height or 2D distance is outside RMa-AV's."""
+    h, d = np.asarray(h_ut, float), np.asarray(d2d, float)
+    if np.any(h <= RMA_AV_MIN_HEIGHT_M) or np.any(h > RMA_AV_MAX_HEIGHT_M):
+        raise ValueError(f"{what}: 3GPP RMa-AV (TR 36.777 Table B-2) holds for aerial heights in "
+                         f"({RMA_AV_MIN_HEIGHT_M:g}, {RMA_AV_MAX_HEIGHT_M:g}] m, got {h.min():.2f}-{h.max():.2f} m")
+    if np.any(d > RMA_AV_MAX_D2D_M):
+        raise ValueError(f"{what}: 3GPP RMa-AV holds for 2D distances <= {RMA_AV_MAX_D2D_M:g} m, got {d.max():.0f} m")
+
+
+def rma_av_los_probability(d2d, h_ut):
+    """TR 36.777 Table B-1, RMa-AV: 1 for ``d2D <= d1``, else ``d1/d2D + exp(-d2D/p1)(1 - d1/d2D)``
+    with ``p1 = max(15021 log10 h - 16053, 1000)``, ``d1 = max(1350.8 log10 h - 1602, 18)`` for
+    10 < h <= 40 m; 1 above 40 m."""
+    d, h = np.asarray(d2d, float), np.asarray(h_ut, float)
+    lh = np.log10(h)
+    p1 = np.maximum(15021.0 * lh - 16053.0, 1000.0)
+    d1 = np.maximum(1350.8 * lh - 1602.0, 18.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        far = d1 / d + np.exp(-d / p1) * (1.0 - d1 / d)
+    p = np.where(d <= d1, 1.0, far)
+    return np.where(h > 40.0, 1.0, p)
+
+
+def rma_av_path_loss_db(d3d, h_ut, carrier_hz: float, los):
+    """TR 36.777 Table B-2, RMa-AV (dB; ``f_c`` in GHz inside):
+    LoS ``max(23.9 - 1.8 log10 h, 20) log10 d3D + 20 log10(40 pi f_c / 3)``;
+    NLoS ``max(PL_LoS, -12 + (35 - 5.3 log10 h) log10 d3D + 20 log10(40 pi f_c / 3))``."""
+    d, h = np.asarray(d3d, float), np.asarray(h_ut, float)
+    fc = carrier_hz / 1e9
+    tail = 20.0 * np.log10(40.0 * np.pi * fc / 3.0)
+    pl_los = np.maximum(23.9 - 1.8 * np.log10(h), 20.0) * np.log10(d) + tail
+    pl_nlos = np.maximum(pl_los, -12.0 + (35.0 - 5.3 * np.log10(h)) * np.log10(d) + tail)
+    return np.where(np.asarray(los, bool), pl_los, pl_nlos)
+
+
+def rma_av_shadow_std_db(h_ut, los):
+    """TR 36.777 Table B-3, RMa-AV: LoS ``4.2 exp(-0.0046 h)``, NLoS 6 dB (10 < h <= 40 m)."""
+    h = np.asarray(h_ut, float)
+    return np.where(np.asarray(los, bool), 4.2 * np.exp(-0.0046 * h), 6.0)
+
+
+def rma_av_expected_gain(d3d, d2d, h_ut, carrier_hz: float):
+    """The deterministic part a controller plans with: ``P_LoS g_LoS + (1 - P_LoS) g_NLoS``
+    (linear power gain, no shadowing realization)."""
+    p = rma_av_los_probability(d2d, h_ut)
+    g_los = 10.0 ** (-rma_av_path_loss_db(d3d, h_ut, carrier_hz, True) / 10.0)
+    g_nlos = 10.0 ** (-rma_av_path_loss_db(d3d, h_ut, carrier_hz, False) / 10.0)
+    return p * g_los + (1.0 - p) * g_nlos
+
+
+class GudmundsonShadowing:
+    """Log-normal shadowing per link, ``X`` (dB) with standard deviation ``std_db`` and
+    autocorrelation ``exp(-Delta d / d_corr)`` along the distance the link's ends moved
+    (Gudmundson's first-order model): ``X_k = rho X_(k-1) + sqrt(1 - rho^2) sigma w``,
+    ``rho = exp(-Delta d_k / d_corr)``, ``X_0 ~ N(0, sigma^2)``. Seeded per run."""
+
+    def __init__(self, n_links: int, std_db, decorrelation_m: float, seed: int | None = None):
+        if decorrelation_m <= 0:
+            raise ValueError(f"shadowing decorrelation distance must be > 0 m, got {decorrelation_m}")
+        self.std = np.broadcast_to(np.asarray(std_db, float), (n_links,)).copy()
+        self.d_corr = decorrelation_m
+        self._rng = np.random.default_rng(seed)
+        self.x_db = self.std * self._rng.standard_normal(n_links)
+
+    def step(self, moved_m) -> np.ndarray:
+        """Advance by the distances ``moved_m`` (per link, m) and return the shadowing in dB."""
+        rho = np.exp(-np.asarray(moved_m, float) / self.d_corr)
+        w = self._rng.standard_normal(self.x_db.shape)
+        self.x_db = rho * self.x_db + np.sqrt(1.0 - rho**2) * self.std * w
+        return self.x_db.copy()
+
+    @staticmethod
+    def power_gain(x_db) -> np.ndarray:
+        """``10^(X/10)``."""
+        return 10.0 ** (np.asarray(x_db, float) / 10.0)

@@ -1,0 +1,121 @@
+"""The plant's random channel terms per link, composed from ``models/fading.py`` and
+``models/propagation.py``: small-scale fading (the paper's i.i.d. Rician draw per control step,
+or Doppler fading that evolves in time) and log-normal shadowing correlated along each link's
+motion. The controller never sees them (it plans with the deterministic channel); every value is
+logged, so a run's capacity can be recomputed from its log alone.
+
+Links are in ``RadioScene.fading_links`` order: every hop of the route, then every (hop
+receiver, jammer) pair. Log columns: ``fade_amp_<tx>_<rx>`` (amplitude |h|) and
+``shadow_db_<tx>_<rx>`` (dB); the power gain of a link is ``fade_amp^2 10^(shadow_db / 10)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.fading import ClarkeRicianFading, RicianFading
+from ..models.propagation import SPEED_OF_LIGHT_M_S, GudmundsonShadowing
+from ..models.radio import RadioScene
+
+
+@dataclass(frozen=True)
+class PerturbationSettings:
+    """Rician K (dB; None or inf: no fading), ``fading_model`` ``"iid"`` or ``"doppler"``,
+    shadowing std (dB; 0: none) and decorrelation distance (m), carrier (Hz, for the Doppler
+    frequency ``f_D = |v_tx - v_rx| f_c / c``)."""
+
+    k_db: float | None = None
+    fading_model: str = "iid"
+    shadow_std_db: float = 0.0
+    decorrelation_m: float = 10.0
+    carrier_hz: float = 2.4e9
+
+
+def link_endpoints(scene: RadioScene) -> list[tuple[str, str, int | None]]:
+    """``(tx, rx, jammer index or None)`` per link, in ``fading_links`` order."""
+    out: list[tuple[str, str, int | None]] = [(tx, rx, None) for tx, rx in scene.hops]
+    for _, rx in scene.hops:
+        out += [(j.name, rx, i) for i, j in enumerate(scene.jammers)]
+    return out
+
+
+class LinkPerturbations:
+    """Per control step: ``gains, values = step(t, positions, velocities)``; ``gains`` (or None
+    when nothing is random) multiplies the links' received powers, ``values`` fills the log."""
+
+    def __init__(self, scene: RadioScene, settings: PerturbationSettings, *, period_s: float, seed: int):
+        self.scene, self.period = scene, period_s
+        self.links = link_endpoints(scene)
+        n = len(self.links)
+        fading_on = settings.k_db is not None and not math.isinf(settings.k_db)
+        k = float(settings.k_db) if settings.k_db is not None else math.inf
+        self.doppler = fading_on and settings.fading_model == "doppler"
+        self.iid = RicianFading(k, seed=seed + 1) if fading_on and not self.doppler else None
+        self.clarke = ClarkeRicianFading(k, n, seed=seed + 1) if self.doppler else None
+        self.shadowing = (GudmundsonShadowing(n, settings.shadow_std_db, settings.decorrelation_m, seed=seed + 2)
+                          if settings.shadow_std_db > 0 else None)
+        self.carrier = settings.carrier_hz
+        labels = [f"{tx}_{rx}" for tx, rx, _ in self.links]
+        self.fade_columns = [f"fade_amp_{lb}" for lb in labels] if fading_on else []
+        self.shadow_columns = [f"shadow_db_{lb}" for lb in labels] if self.shadowing is not None else []
+        self._prev_offsets: np.ndarray | None = None
+
+    @property
+    def columns(self) -> list[str]:
+        return self.fade_columns + self.shadow_columns
+
+    @property
+    def active(self) -> bool:
+        return bool(self.columns)
+
+    def _ends(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Per link the relative position ``p_rx - p_tx`` (m) and relative velocity (m/s)."""
+        dp, dv = [], []
+        for tx, rx, j in self.links:
+            if j is None:
+                p_tx, v_tx = positions[tx], velocities[tx]
+            else:
+                jam = self.scene.jammers[j]
+                p_tx = jam.position_at(t)
+                v_tx = (p_tx - jam.position_at(max(t - self.period, 0.0))) / self.period
+            dp.append(np.asarray(positions[rx], float) - p_tx)
+            dv.append(np.asarray(velocities[rx], float) - v_tx)
+        return np.array(dp), np.array(dv)
+
+    def step(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray | None, dict[str, np.ndarray]]:
+        if not self.active:
+            return None, {}
+        n = len(self.links)
+        gains = np.ones(n)
+        values: dict[str, np.ndarray] = {}
+        offsets, rel_v = self._ends(t, positions, velocities)
+        if self.iid is not None:
+            amp = np.asarray(self.iid.amplitude(n), float)
+            gains = gains * amp**2
+            values.update(zip(self.fade_columns, amp, strict=True))
+        elif self.clarke is not None:
+            f_d = np.linalg.norm(rel_v, axis=1) * self.carrier / SPEED_OF_LIGHT_M_S
+            amp = self.clarke.amplitude(f_d, self.period)
+            gains = gains * amp**2
+            values.update(zip(self.fade_columns, amp, strict=True))
+        if self.shadowing is not None:
+            first = self._prev_offsets is None
+            x_db = self.shadowing.x_db.copy() if first else self.shadowing.step(
+                np.linalg.norm(offsets - self._prev_offsets, axis=1))
+            self._prev_offsets = offsets
+            gains = gains * GudmundsonShadowing.power_gain(x_db)
+            values.update(zip(self.shadow_columns, x_db, strict=True))
+        return gains, values
+
+
+def gains_from_log(row: dict, columns_fade: list[str], columns_shadow: list[str], n_links: int) -> np.ndarray:
+    """A link power-gain vector from one logged row: ``fade_amp^2 10^(shadow_db/10)``."""
+    g = np.ones(n_links)
+    if columns_fade:
+        g = g * np.array([row[c] for c in columns_fade], float) ** 2
+    if columns_shadow:
+        g = g * 10.0 ** (np.array([row[c] for c in columns_shadow], float) / 10.0)
+    return g

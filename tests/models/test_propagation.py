@@ -1,0 +1,115 @@
+"""Propagation and time-correlated fading against independent values: Friis, log-distance,
+3GPP TR 36.777 RMa-AV at sample heights and distances, Gudmundson shadowing statistics, Clarke
+fading's power, K factor and autocorrelation."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.special import j0
+
+from aerorelay.models.fading import ClarkeRicianFading
+from aerorelay.models.propagation import (
+    GudmundsonShadowing,
+    PathGain,
+    check_rma_av_range,
+    free_space_loss_db,
+    rma_av_expected_gain,
+    rma_av_los_probability,
+    rma_av_path_loss_db,
+    rma_av_shadow_std_db,
+)
+
+
+def test_friis_at_1_km_and_2_4_ghz_is_100_05_db():
+    assert free_space_loss_db(1000.0, 2.4e9) == pytest.approx(100.05, abs=0.01)
+    assert PathGain.free_space(2.4e9).loss_db(1000.0) == pytest.approx(100.05, abs=0.01)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(1.5, 6.0), st.floats(0.5, 50.0), st.floats(0.0, 80.0), st.floats(0.1, 5000.0))
+def test_log_distance_is_its_reference_loss_plus_10_n_per_decade(n, d0, pl0, d):
+    g = PathGain.log_distance(n, d0, pl0)
+    assert g.loss_db(d) == pytest.approx(pl0 + 10.0 * n * math.log10(d / d0), abs=1e-9)
+    assert g.gain_from_d2(d * d) == pytest.approx(10.0 ** (-g.loss_db(d) / 10.0), rel=1e-9)
+
+
+def test_the_papers_free_space_is_one_over_d_squared():
+    g = PathGain()
+    assert g.is_paper and g.gain_from_d2(16.0) == 1.0 / 16.0
+
+
+# TR 36.777 Table B-1..B-3 (RMa-AV), evaluated by hand from the standard's printed formulas:
+# h = 30 m, d3D = 500 m, fc = 2 GHz: LoS (23.9 - 1.8 log10 30) log10 500 + 20 log10(40 pi 2/3)
+# = 21.2412 x 2.69897 + 38.4622 = 95.792 dB; NLoS -12 + (35 - 5.3 log10 30) log10 500 + 38.4622
+# = -12 + 27.1713 x 2.69897 + 38.4622 = 99.797 dB; h = 20 m, d2D = 500 m: d1 = 1350.8 x 1.30103
+# - 1602 = 155.43 m, p1 = 15021 x 1.30103 - 16053 = 3489.8 m, P_LoS = 155.43/500 + e^(-500/3489.8)
+# (1 - 155.43/500) = 0.9080; sigma_LoS(30 m) = 4.2 e^(-0.138) = 3.659 dB.
+def test_rma_av_matches_the_standards_equations_at_sample_points():
+    assert rma_av_path_loss_db(500.0, 30.0, 2e9, True) == pytest.approx(95.792, abs=0.005)
+    assert rma_av_path_loss_db(500.0, 30.0, 2e9, False) == pytest.approx(99.797, abs=0.005)
+    assert rma_av_los_probability(500.0, 20.0) == pytest.approx(0.9080, abs=1e-4)
+    assert rma_av_los_probability(100.0, 20.0) == 1.0  # d2D <= d1
+    assert rma_av_los_probability(5000.0, 50.0) == 1.0  # above 40 m always LoS
+    assert rma_av_shadow_std_db(30.0, True) == pytest.approx(3.659, abs=1e-3)
+    assert rma_av_shadow_std_db(30.0, False) == 6.0
+    # NLoS never below LoS (the standard's max), and the expected gain lies between the two
+    for d in (50.0, 300.0, 3000.0):
+        lo, hi = rma_av_path_loss_db(d, 25.0, 2e9, True), rma_av_path_loss_db(d, 25.0, 2e9, False)
+        assert hi >= lo
+        g = rma_av_expected_gain(d, d, 25.0, 2e9)
+        assert 10 ** (-hi / 10) <= g <= 10 ** (-lo / 10)
+
+
+def test_rma_av_validity_range_is_a_named_error():
+    with pytest.raises(ValueError, match=r"RMa-AV .* aerial heights in \(10, 300\] m"):
+        check_rma_av_range(5.0, 100.0, "relay-bs")
+    with pytest.raises(ValueError, match="2D distances <= 10000 m"):
+        check_rma_av_range(50.0, 2e4)
+    check_rma_av_range(50.0, 500.0)
+
+
+def test_rma_av_constants_are_the_ones_tr3gpp_prints():
+    """Cross-check against the PyPI package tr3gpp (the standard's tables as data), if installed."""
+    tr = pytest.importorskip("tr3gpp.tr36777")
+    b = tr.annex("B")
+    los = " ".join(e.los_probability for e in b.los_probability(scenario="RMa-AV"))
+    assert all(c in los for c in ("15021", "16053", "1350.8", "1602"))
+    pl = " ".join(e.pathloss for e in b.pathloss(scenario="RMa-AV", condition="LOS"))
+    pl += " ".join(e.pathloss for e in b.pathloss(scenario="RMa-AV", condition="NLOS"))
+    assert all(c in pl for c in ("23.9 - 1.8", "-12 + (35 - 5.3", "40\\pi f_c}{3}"))
+
+
+def test_shadowing_has_its_std_and_autocorrelation_exp_minus_one_at_the_decorrelation_distance():
+    n, sigma, dc = 4000, 6.0, 10.0
+    sh = GudmundsonShadowing(n, sigma, dc, seed=3)
+    x0 = sh.x_db.copy()
+    steps = 20  # 20 steps of 0.5 m: 10 m = d_corr
+    for _ in range(steps):
+        x = sh.step(np.full(n, dc / steps))
+    assert np.std(x0) == pytest.approx(sigma, rel=0.05) and np.std(x) == pytest.approx(sigma, rel=0.05)
+    rho = np.corrcoef(x0, x)[0, 1]
+    assert rho == pytest.approx(math.exp(-1.0), abs=4.0 / math.sqrt(n))  # sampling error ~1/sqrt(n)
+
+
+def test_clarke_fading_has_unit_power_its_k_factor_and_a_j0_autocorrelation():
+    n_links, k_db, f_d, dt = 3000, 6.0, 20.0, 0.005
+    fad = ClarkeRicianFading(k_db, n_links, seed=5)
+    amps = np.array([fad.amplitude(np.full(n_links, f_d), dt) for _ in range(6)])  # (lags, links)
+    p = amps**2
+    assert p.mean() == pytest.approx(1.0, abs=0.03)
+    # K from the moments (Rician: E|h|^4 / E|h|^2^2 = (K^2 + 4K + 2) / (K + 1)^2)
+    m = (p**2).mean() / p.mean() ** 2
+    k_est = (2 - m + math.sqrt(2 - m)) / (m - 1)
+    assert 10 * math.log10(k_est) == pytest.approx(k_db, abs=1.0)
+    # the diffuse part's autocorrelation at the first lags is J0(2 pi f_D tau)
+    z = []
+    for _ in range(6):
+        z.append(fad.diffuse())
+        fad.advance(np.full(n_links, f_d), dt)
+    z = np.array(z)
+    for lag in (1, 2, 3, 5):
+        r = np.mean(z[lag] * np.conj(z[0])).real
+        assert r == pytest.approx(j0(2 * np.pi * f_d * lag * dt), abs=0.05)
