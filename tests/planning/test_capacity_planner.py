@@ -99,3 +99,15 @@ def test_capacity_planner_keeps_its_link_at_three_metres_per_second():
     the reference braked; now its capacity stays near the 1 m/s run's level."""
     fast = build(SC.with_updates({"controller.capacity.speed_m_s": 3.0})).closed_loop().run()
     assert fast.log["capacity"].min() > 3e-3
+
+
+@pytest.mark.parametrize("speed", [0.5, 1.0, 3.0])
+def test_preflight_route_moves_at_every_speed_limit(speed):
+    """The coarse route's step covers at least one cell (at 0.5 m/s a 1 s step on the 1 m grid
+    could not move: the relay stayed at its start, C_min 0.05 of the bound) and never outruns the
+    speed limit by more than the grid allows."""
+    planner = build(SC.with_updates({"controller.capacity.speed_m_s": speed})).closed_loop().planner
+    steps = np.linalg.norm(np.diff(planner.route_p, axis=0), axis=1) / np.diff(planner.route_t)
+    assert np.ptp(planner.route_p, axis=0).max() > 1.0
+    grid = SC.controller.capacity.route_grid_m
+    assert steps.max() <= max(speed, grid / np.diff(planner.route_t).min()) * np.sqrt(3) + 1e-9

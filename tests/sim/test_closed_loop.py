@@ -148,3 +148,14 @@ def test_logged_capacity_follows_the_antenna_options():
     g10 = link_sinr(p1, R1, np.zeros(3), np.eye(3), pj, pattern=relay, pattern_rx=iso, **kw)
     np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
     assert log["capacity"].mean() > base["capacity"].mean()
+
+
+def test_outage_durations_count_runs_of_consecutive_outage_steps():
+    from aerorelay.sim.metrics import outage_durations
+
+    o = np.array([0, 1, 1, 0, 0, 1, 1, 1, 1, 0, 1], bool)
+    d = outage_durations(o, 0.5)
+    assert d == {"outage_events": 3, "outage_duration_mean_s": pytest.approx((1.0 + 2.0 + 0.5) / 3),
+                 "outage_duration_max_s": 2.0}
+    assert outage_durations(np.zeros(5, bool), 0.1) == {"outage_events": 0, "outage_duration_mean_s": 0.0,
+                                                        "outage_duration_max_s": 0.0}

@@ -70,6 +70,8 @@ class CapacityPlanner:
     def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         grid, cells = position_grid(self.lo, self.hi, grid_m)
         shape = tuple(len(g) for g in grid)
+        # at least one cell per step: on a 1 m grid at 0.5 m/s a 1 s step could not move at all
+        dt_s = max(dt_s, grid_m / self.speed)
         times = np.arange(0.0, ctx.duration_s + dt_s, dt_s)
         start = tuple(int(np.argmin(np.abs(grid[i] - np.clip(ctx.relay_start[i], self.lo[i], self.hi[i])))) for i in range(3))
         landscape = CapacityLandscape(ctx.scene, ctx.source, self.gravity, jammer_known=False)

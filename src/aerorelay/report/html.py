@@ -23,12 +23,13 @@ from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
-MAIN_METRICS = ("c_min", "c_mean", "outage_fraction")
+MAIN_METRICS = ("c_min", "c_mean", "outage_fraction", "outage_duration_mean_s", "outage_duration_max_s")
 TABLE_METRICS = ("c_min", "c_mean", "outage_fraction", "alignment_ok_fraction", "alignment_within_slack_fraction",
                  "slack_active_fraction", "infeasible_fraction", "energy_kJ", "distance_m", "final_z_m", "solve_ms.mean",
                  "solve_ms.p99", "motor_saturation_fraction", "rate_saturation_fraction")
 # column headers with units, breakable so that tables fit the page
 HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_fraction": "outage fraction",
+           "outage_duration_mean_s": "outage duration, mean (s)", "outage_duration_max_s": "longest outage (s)",
            "alignment_ok_fraction": "alignment >= mu", "alignment_within_slack_fraction": "alignment >= mu - 0.02",
            "slack_active_fraction": "slack active", "infeasible_fraction": "QP failures", "energy_kJ": "energy (kJ)",
            "distance_m": "distance (m)", "final_z_m": "final z (m)", "solve_ms.mean": "step mean (ms)",

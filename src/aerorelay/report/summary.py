@@ -18,7 +18,8 @@ from ..store.run_folder import METRICS_FILE, TIMESERIES_FILE
 from .explain import explain
 
 SCALAR_METRICS = (
-    "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
+    "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "outage_events", "outage_duration_mean_s",
+    "outage_duration_max_s", "alignment_ok_fraction",
     "alignment_within_slack_fraction", "slack_active_fraction",
     "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m", "distance_m", "energy_kJ",
     "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "fallback_fraction", "motor_saturation_fraction",

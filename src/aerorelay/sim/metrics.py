@@ -57,6 +57,16 @@ def saturation_metrics(speeds: np.ndarray, inputs: np.ndarray, veh: Multirotor) 
             "rate_saturation_fraction": float(np.mean(rate.any(axis=1)))}
 
 
+def outage_durations(outage: np.ndarray, period_s: float) -> dict[str, float | int]:
+    """How long each outage lasts (the number a link layer cares about): the count of outage
+    events (runs of consecutive steps below the threshold), their mean and longest duration (s)."""
+    o = np.asarray(outage, bool).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], o, [0]]))
+    lengths = (np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)) * period_s
+    return {"outage_events": int(lengths.size), "outage_duration_mean_s": float(lengths.mean()) if lengths.size else 0.0,
+            "outage_duration_max_s": float(lengths.max()) if lengths.size else 0.0}
+
+
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
                     box_tolerance_m: float = 0.05) -> dict:
@@ -81,6 +91,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "se_21_mean": float(np.mean(log["se_21"])),
         "se_10_mean": float(np.mean(log["se_10"])),
         "outage_fraction": float(np.mean(cap < outage_threshold)),
+        **outage_durations(cap < outage_threshold, period),
         "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= mu)),
         "alignment_within_slack_fraction": float(np.mean(np.asarray(log["mutual_alignment"])
                                                          >= mu - ALIGNMENT_TOLERANCE)),
