@@ -8,7 +8,7 @@ import pytest
 from aerorelay.models.axes import axis_set
 from aerorelay.planning.capacity_planner import CapacityPlanner
 from aerorelay.scenario import load_scenario
-from aerorelay.scenario.build import build
+from aerorelay.scenario.build import build, build_planner, build_scene, build_source
 
 SC = load_scenario("scenarios/nominal_tilted.toml").with_updates({"controller.planner": "capacity", "sim.duration_s": 8.0})
 
@@ -106,7 +106,8 @@ def test_preflight_route_moves_at_every_speed_limit(speed):
     """The coarse route's step covers at least one cell (at 0.5 m/s a 1 s step on the 1 m grid
     could not move: the relay stayed at its start, C_min 0.05 of the bound) and never outruns the
     speed limit by more than the grid allows."""
-    planner = build(SC.with_updates({"controller.capacity.speed_m_s": speed})).closed_loop().planner
+    sc = SC.with_updates({"controller.capacity.speed_m_s": speed})
+    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), build_source(sc))
     steps = np.linalg.norm(np.diff(planner.route_p, axis=0), axis=1) / np.diff(planner.route_t)
     assert np.ptp(planner.route_p, axis=0).max() > 1.0
     grid = SC.controller.capacity.route_grid_m
