@@ -1,6 +1,7 @@
 """Geometry helpers against independent properties (hypothesis)."""
 
 import numpy as np
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -8,8 +9,10 @@ from aerorelay.models.geometry import E3, align_with_thrust, thrust_direction_fr
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.floats(-1, 1), min_size=3, max_size=3), st.lists(st.floats(-15, 15), min_size=3, max_size=3))
-def test_align_with_thrust_carries_a_hover_axis_along_with_the_thrust(axis, accel):
+@given(st.lists(st.floats(-1, 1), min_size=3, max_size=3), st.lists(st.floats(-15, 15), min_size=2, max_size=2),
+       st.floats(-9.0, 15.0))
+def test_align_with_thrust_carries_a_hover_axis_along_with_the_thrust(axis, accel_xy, accel_z):
+    accel = [*accel_xy, accel_z]  # a_z > -g: the thrust points up
     a = np.asarray(axis)
     assume(np.linalg.norm(a) > 1e-3)
     a = a / np.linalg.norm(a)
@@ -20,3 +23,8 @@ def test_align_with_thrust_carries_a_hover_axis_along_with_the_thrust(axis, acce
     assert abs(out @ f - a @ E3) < 1e-9  # the axis keeps its angle to the thrust
     np.testing.assert_allclose(align_with_thrust(E3, acc, 9.81), f, atol=1e-12)  # e3 goes to the thrust
     np.testing.assert_allclose(align_with_thrust(a, np.zeros(3), 9.81), a, atol=1e-15)
+
+
+def test_align_with_thrust_refuses_a_downward_thrust():
+    with pytest.raises(ValueError, match="downward thrust"):
+        align_with_thrust(E3, np.array([0.0, 0.0, -10.0]), 9.81)

@@ -69,6 +69,9 @@ def align_with_thrust(axis, acceleration, gravity: float) -> np.ndarray:
     accelerate. Zero acceleration returns ``axis``."""
     axis = np.asarray(axis, float)
     f = thrust_direction_from_acceleration(acceleration, gravity)
+    if f[2] <= 0.0:
+        raise ValueError(f"acceleration {np.round(acceleration, 3).tolist()} m/s^2 needs a downward thrust: "
+                         "no multirotor attitude flies it (a_z must exceed -g)")
     k = np.cross(E3, f)
     s, c = float(np.linalg.norm(k)), float(f[2])
     if s < 1e-12:
