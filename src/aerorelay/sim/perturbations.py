@@ -91,7 +91,8 @@ class LinkPerturbations:
         n = len(self.links)
         gains = np.ones(n)
         values: dict[str, np.ndarray] = {}
-        offsets, rel_v = self._ends(t, positions, velocities)
+        if self.clarke is not None or self.shadowing is not None:  # i.i.d. fading needs no geometry
+            offsets, rel_v = self._ends(t, positions, velocities)
         if self.iid is not None:
             amp = np.asarray(self.iid.amplitude(n), float)
             gains = gains * amp**2
@@ -110,12 +111,3 @@ class LinkPerturbations:
             values.update(zip(self.shadow_columns, x_db, strict=True))
         return gains, values
 
-
-def gains_from_log(row: dict, columns_fade: list[str], columns_shadow: list[str], n_links: int) -> np.ndarray:
-    """A link power-gain vector from one logged row: ``fade_amp^2 10^(shadow_db/10)``."""
-    g = np.ones(n_links)
-    if columns_fade:
-        g = g * np.array([row[c] for c in columns_fade], float) ** 2
-    if columns_shadow:
-        g = g * 10.0 ** (np.array([row[c] for c in columns_shadow], float) / 10.0)
-    return g
