@@ -3,9 +3,10 @@
 The paper's channel is ``G / d^2`` (eq. 6): free space with the wavelength factor folded into
 its normalized units. A ``PathGain`` generalizes that to ``K d^-n`` (``K`` = ``10^(-PL(d0)/10)
 d0^n``): free space in physical units (Friis, ``K = (lambda / 4 pi)^2``, ``n = 2``) and the
-log-distance model (``PL(d) = PL(d0) + 10 n log10(d / d0)``). ``Rma3gppAerial`` is the RMa-AV
-model of 3GPP TR 36.777 Annex B (aerial UEs 10-300 m): LoS probability, LoS / NLoS path loss and
-shadow-fading standard deviation. ``GudmundsonShadowing`` draws log-normal shadowing (dB) that is
+log-distance model (``PL(d) = PL(d0) + 10 n log10(d / d0)``). The ``rma_av_*`` functions are the
+RMa-AV model of 3GPP TR 36.777 Annex B (aerial UEs 10-300 m): LoS probability, LoS / NLoS path
+loss and shadow-fading standard deviation (not yet selectable as a scene's propagation).
+``GudmundsonShadowing`` draws log-normal shadowing (dB) that is
 correlated along each link's motion, ``exp(-Delta d / d_corr)`` (Gudmundson 1991).
 
 Distances in m, frequencies in Hz (the 3GPP formulas take GHz inside), losses in dB.

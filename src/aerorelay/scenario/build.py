@@ -144,8 +144,9 @@ def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: 
 def sim_settings(sc: Scenario) -> SimSettings:
     p = sc.perturbations
     ch = sc.channel
-    noise = PerturbationSettings(p.fading_k_db, ch.fading.model, ch.propagation.shadowing_std_db, ch.propagation.decorrelation_m,
-                                 ch.carrier_hz)
+    # the Rician K is SimSettings.fading_k_db (the closed loop puts it in)
+    noise = PerturbationSettings(fading_model=ch.fading.model, shadow_std_db=ch.propagation.shadowing_std_db,
+                                 decorrelation_m=ch.propagation.decorrelation_m, carrier_hz=ch.carrier_hz)
     return SimSettings(sc.control_period_s, sc.duration_s, sc.sim.plant_rate_hz, np.array(sc.nodes.relay, float), sc.seed,
                        p.csi_noise_m, p.process_noise_v, p.process_noise_w, p.fading_k_db, sc.controller.senses_jammer_state,
                        noise)

@@ -133,6 +133,8 @@ class ClosedLoop:
         self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
                                                seed=settings.seed)
         self.columns = self.columns + self.perturbations.columns
+        self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
+        self._noise_values: dict[str, np.ndarray] = {}
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
         self.timings: list[StepTiming] = []
         self.bench_points: list[BenchPoint] = []
@@ -152,10 +154,11 @@ class ClosedLoop:
         p1, R1 = x1[0:3], rotation_zyx(x1[3:6])
         poses = {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
                  self.names["source"]: self.scene.pose(self.names["source"], p2, rotation_zyx(eta2))}
-        positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]:
-                     self.scene.fixed_pose(self.names["base_station"]).position}
-        velocities = {self.names["relay"]: x1[6:9], self.names["source"]: v2, self.names["base_station"]: np.zeros(3)}
-        fade, self._noise_values = self.perturbations.step(t, positions, velocities)
+        fade, self._noise_values = None, {}
+        if self.perturbations.active:  # the paper's channel has no random term: nothing to build per step
+            positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]: self._bs_position}
+            velocities = {self.names["relay"]: x1[6:9], self.names["source"]: v2, self.names["base_station"]: np.zeros(3)}
+            fade, self._noise_values = self.perturbations.step(t, positions, velocities)
         state = self.scene.evaluate(t, poses, fading=fade)
         p0 = self.scene.fixed_pose(self.names["base_station"]).position
         return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))

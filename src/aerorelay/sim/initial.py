@@ -51,8 +51,9 @@ def link_budget_lines(scene: RadioScene, relay_position, source_position, *, phy
         dist = float(np.linalg.norm(d))
         g_tx = scene.node(tx).antenna.pattern.gain_from_cos(float(d @ ptx.axis) / dist)
         g_rx = scene.node(rx).antenna.pattern.gain_from_cos(float(-d @ prx.axis) / dist)
-        loss = -_db(float(scene.path_gain.gain_from_d2(dist**2)))
-        rx_power = _db(b.tx_power * g_tx * g_rx * float(scene.path_gain.gain_from_d2(dist**2))) + off
+        path = float(scene.path_gain.gain_from_d2(dist**2))
+        loss = -_db(path)
+        rx_power = _db(b.tx_power * g_tx * g_rx * path) + off
         rows += [(f"{tx} -> {rx}: distance", f"{dist:.2f} m"), (f"{tx} -> {rx}: path loss", f"{loss:.1f} dB"),
                  (f"{tx} -> {rx}: antenna gains tx / rx", f"{_db(g_tx):.1f} / {_db(g_rx):.1f} dBi"),
                  (f"{tx} -> {rx}: received power", f"{rx_power:.1f} {unit}"),
