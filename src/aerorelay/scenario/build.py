@@ -8,7 +8,7 @@ it) and shared by the planner, the controller, the plant and the bound.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -17,16 +17,18 @@ from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
 from ..control.supervisor import SafetyEnvelope
+from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
 from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, free_space_loss_db
-from ..models.radio import Antenna, LinkBudget, Node, RadioScene
+from ..models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene, link_gain
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import Planner, PlannerContext, planner_factory
 from ..planning.bound import BoundProblem, CapacityBound, bound_key, cached_bound, compute_bound
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
+from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings
 from .schema import JammerConfig, Scenario
 
@@ -57,7 +59,30 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
              Node("relay", "relay", Antenna(pat.relay)))
     ch = sc.channel
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
-    return RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), ("source", "relay", "bs"), path_gain(ch))
+    scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), ("source", "relay", "bs"), path_gain(ch))
+    if jammers is None and any(j.inr_db_at_relay_start is not None for j in sc.jammer_configs):
+        scene = replace(scene, jammers=tuple(_power_for_inr(scene, j, cfg, np.array(sc.nodes.relay, float))
+                                             for j, cfg in zip(jams, sc.jammer_configs, strict=True)))
+    return scene
+
+
+def _power_for_inr(scene: RadioScene, jammer: Jammer, cfg: JammerConfig, relay_start: np.ndarray) -> Jammer:
+    """The jammer with the peak power giving ``inr_db_at_relay_start`` at the relay's start (hovering
+    level: antenna along world z; a directional jammer pointed as at t = 0), or unchanged."""
+    if cfg.inr_db_at_relay_start is None:
+        return jammer
+    relay = scene.node(scene.name_of("relay"))
+    target = relay_start if jammer.point_at == "relay" else None
+    if jammer.point_at is not None and jammer.point_at != "relay":
+        target = scene.fixed_pose(jammer.point_at).position if scene.node(jammer.point_at).position is not None else None
+    axis = jammer.axis(jammer.position_at(0.0), target)
+    rx = NodePose(relay_start, relay.antenna.world_axis(np.eye(3)))
+    g = float(link_gain(jammer.position_at(0.0), axis, jammer.pattern, rx.position, rx.axis, relay.antenna.pattern,
+                        scene.path_gain))
+    if not g > 0:
+        raise ValueError(f"jammer {jammer.name!r}: inr_db_at_relay_start: the relay's start is in a null of the "
+                         "jammer-relay link (zero gain); give power_w instead")
+    return replace(jammer, power=10.0 ** (cfg.inr_db_at_relay_start / 10.0) * scene.budget.noise_power / g)
 
 
 def path_gain(ch) -> PathGain:
@@ -164,10 +189,11 @@ class Parts:
     controller: RelayController
     plant: ca.Function
     settings: SimSettings
+    sensing: JammerSensing | None = None
 
     def closed_loop(self) -> ClosedLoop:
         return ClosedLoop(vehicle=self.vehicle, scene=self.scene, source=self.source, planner=self.planner,
-                          controller=self.controller, plant=self.plant, settings=self.settings)
+                          controller=self.controller, plant=self.plant, settings=self.settings, sensing=self.sensing)
 
 
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
@@ -180,7 +206,37 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     planner = planner or build_planner(sc, vehicle, scene, source)
     controller = build_controller(sc, vehicle, nmpc_settings)
     plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
-    return Parts(sc, vehicle, scene, source, planner, controller, plant, sim_settings(sc))
+    sensing = build_sensing(sc, scene, source) if sc.estimates_jammers and scene.jammers else None
+    return Parts(sc, vehicle, scene, source, planner, controller, plant, sim_settings(sc), sensing)
+
+
+SEARCH_MARGIN_M = 10.0  # the default search box: the nodes' box widened by this horizontally, 5 m up, from the ground
+
+
+def search_box(sc: Scenario, source: SourceTrajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Where the estimator looks for jammers (m, world): ``[estimation] search_min_m/max_m``, or the
+    box around the base station, the relay's start and MRAV-2's path widened by 10 m (5 m up, z >= 0)."""
+    est = sc.estimation
+    if est.search_min_m is not None:
+        return np.array(est.search_min_m, float), np.array(est.search_max_m, float)
+    pts = np.vstack([sc.nodes.bs, sc.nodes.relay] + [source.state(t).p for t in np.linspace(0.0, sc.duration_s, 50)])
+    lo, hi = pts.min(axis=0) - SEARCH_MARGIN_M, pts.max(axis=0) + SEARCH_MARGIN_M
+    lo[2], hi[2] = max(0.0, pts[:, 2].min() - SEARCH_MARGIN_M), pts[:, 2].max() + 0.5 * SEARCH_MARGIN_M
+    return lo, hi
+
+
+def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> JammerSensing:
+    """The relay's (and the base station's, with ``use_bs``) energy detectors and the jammer estimator."""
+    est = sc.estimation
+    names = ["relay"] + (["bs"] if est.use_bs else [])
+    receivers = [Receiver(n, scene.node(n).antenna.pattern, scene.budget.noise_power, scene.node(n).position is not None)
+                 for n in names]
+    lo, hi = search_box(sc, source)
+    settings = EstimatorSettings(lo, hi, n_samples=est.n_samples, aggregate_steps=est.aggregate_steps,
+                                 grid_m=est.grid_m, forget_s=est.forget_s, model_error_db=est.model_error_db,
+                                 confident_std_m=est.confident_std_m)
+    estimator = JammerEstimator(len(scene.jammers), receivers, scene.path_gain, settings, sc.control_period_s)
+    return JammerSensing(scene, estimator, names, n_samples=est.n_samples, bias_db=est.bias_db, seed=sc.seed)
 
 
 def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> BoundProblem:

@@ -98,5 +98,6 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     mission = parts.closed_loop().run(progress)
     injected = parts.scene if (scene is not None or jammers is not None) else None
     bound = scenario_bound(sc, bound_progress, parts.vehicle, injected) if with_bound else None
-    df = log_frame(mission.log, log_columns(parts.vehicle.n_rotors))
+    base = log_columns(parts.vehicle.n_rotors)  # then the random channel terms and the jammer estimate, when any
+    df = log_frame(mission.log, base + [c for c in mission.log if c not in base])
     return RunResult(sc, mission, df, run_metrics(sc, mission, parts.vehicle, bound), bound)

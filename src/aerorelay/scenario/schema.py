@@ -255,6 +255,12 @@ class JammerConfig(_Strict):
     on_s: float = Field(5.0, gt=0.0)
     off_s: float = Field(5.0, gt=0.0)
     localization_delay_s: float = Field(2.0, ge=0.0, description="tau_E")
+    localization: Literal["oracle", "estimated"] = Field(
+        "oracle", description="oracle: the true position after tau_E (the paper's); estimated: the relay estimates it "
+        "from its received interference power ([estimation], estimation/jammer_estimator.py)")
+    inr_db_at_relay_start: float | None = Field(
+        None, ge=-40.0, le=40.0, description="set the peak power so that this jammer's interference-to-noise ratio at "
+        "the relay's start (hovering, its antenna gain included) is this many dB (replaces power_w / power_dbm)")
     pattern: Literal["isotropic", "cosine"] = "isotropic"
     g_max: float = Field(1.0, gt=0.0, le=1e4, description="cosine pattern: peak gain (linear)")
     exponent: float = Field(0.0, ge=0.0, le=100.0, description="cosine pattern: n of max(cos psi, 0)^n")
@@ -269,6 +275,8 @@ class JammerConfig(_Strict):
 
     @model_validator(mode="after")
     def _path_and_pointing(self):
+        if self.power_dbm is not None and self.inr_db_at_relay_start is not None:
+            raise ValueError("give power_dbm or inr_db_at_relay_start, not both")
         if self.waypoints is not None:
             _check_waypoint_times(self.waypoints, first_zero=False)
             start = list(self.waypoints[0][1:])
@@ -521,6 +529,35 @@ class BoundConfig(_Strict):
     axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the relay antenna axes searched, deg")
 
 
+class EstimationConfig(_Strict):
+    """Online jammer estimation (``jammer.localization = "estimated"``): every control step the
+    relay's receiver (and the base station's with ``use_bs``) reads its interference-plus-noise
+    power with an energy detector; a grid filter plus sliding-window Gauss-Newton per jammer
+    (``estimation/jammer_estimator.py``) estimates its position and power from the readings and the known poses."""
+
+    use_bs: bool = Field(False, description="the base station's receiver measures too (its reports reach the relay)")
+    n_samples: int = Field(100, ge=1, le=10_000_000, description="complex samples per energy reading (chi-square, 2n dof)")
+    bias_db: float = Field(0.0, ge=-10.0, le=10.0, description="detector calibration bias, dB (unknown to the estimator)")
+    aggregate_steps: int = Field(8, ge=1, le=1000, description="control steps' readings averaged into one measurement")
+    grid_m: float = Field(2.5, ge=0.2, le=50.0, description="cell size of the grid filter over the search box, m")
+    forget_s: float = Field(20.0, gt=0.0, le=1000.0, description="time constant of a measurement's weight exp(-age / forget_s), s "
+                            "(shorter follows a moving jammer, longer averages more)")
+    model_error_db: float = Field(0.2, ge=0.0, le=20.0, description="unmodelled error per measurement, dB std: a floor (the "
+                                  "estimator scales it up by the residuals' reduced chi-square: fading, shadowing)")
+    search_min_m: Vec3 | None = Field(None, description="search box corner, m world (default: the nodes' box +- 10 m, z >= 0)")
+    search_max_m: Vec3 | None = Field(None, description="search box corner, m world")
+    confident_std_m: float = Field(1.5, gt=0.0, le=100.0, description="the planner uses an estimate once its largest "
+                                   "position std (m) is below this (before: plans without that jammer, as before tau_E)")
+
+    @model_validator(mode="after")
+    def _box(self):
+        if (self.search_min_m is None) != (self.search_max_m is None):
+            raise ValueError("give both search_min_m and search_max_m, or neither")
+        if self.search_min_m is not None and any(a >= b for a, b in zip(self.search_min_m, self.search_max_m, strict=True)):
+            raise ValueError(f"search_min_m {self.search_min_m} must be below search_max_m {self.search_max_m} on every axis")
+        return self
+
+
 class Scenario(_Strict):
     """A complete, validated relay scenario."""
 
@@ -538,6 +575,7 @@ class Scenario(_Strict):
     sim: SimConfig = Field(default_factory=SimConfig)
     perturbations: PerturbationConfig = Field(default_factory=PerturbationConfig)
     bound: BoundConfig = Field(default_factory=BoundConfig)
+    estimation: EstimationConfig = Field(default_factory=EstimationConfig)
 
     @model_validator(mode="before")
     @classmethod
@@ -581,6 +619,9 @@ class Scenario(_Strict):
                     raise ValueError(
                         f"{a} and {b} coincide ({d:.3g} m apart); nodes must be >= {MIN_NODE_SEPARATION_M} m apart"
                     )
+        modes = {j.localization for j in self.jammer_configs}
+        if len(modes) > 1:
+            raise ValueError("jammer.localization: every jammer must use the same mode (oracle or estimated)")
         ws = self.controller.workspace
         if not ws.contains(self.nodes.relay):
             raise ValueError(f"nodes.relay {self.nodes.relay} must lie inside controller.workspace [{ws.min}, {ws.max}]")
@@ -596,6 +637,11 @@ class Scenario(_Strict):
     def stochastic(self) -> bool:
         """Whether the seed changes anything: the perturbations' or log-normal shadowing."""
         return self.perturbations.stochastic or self.channel.propagation.shadowing_std_db > 0
+
+    @property
+    def estimates_jammers(self) -> bool:
+        """Whether the relay estimates the jammers online instead of being told (``localization``)."""
+        return any(j.localization == "estimated" for j in self.jammer_configs)
 
     @property
     def control_period_s(self) -> float:

@@ -24,6 +24,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput
+from .jammer_sensing import JammerSensing
 from .perturbations import LinkPerturbations, PerturbationSettings
 
 
@@ -104,6 +105,7 @@ class StepTiming:
     feedback_ms: float
     qp_iters: int
     planner_ms: float
+    estimator_ms: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -121,8 +123,10 @@ class ClosedLoop:
     ``run(progress)`` returns a MissionResult."""
 
     def __init__(self, *, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory, planner: Planner,
-                 controller: RelayController, plant: ca.Function, settings: SimSettings):
+                 controller: RelayController, plant: ca.Function, settings: SimSettings,
+                 sensing: JammerSensing | None = None):
         self.veh, self.scene, self.source, self.planner = vehicle, scene, source, planner
+        self.sensing = sensing
         self.controller, self.plant, self.settings = controller, plant, settings
         self.spec = controller.spec
         self.columns = log_columns(self.veh.n_rotors)
@@ -132,7 +136,7 @@ class ClosedLoop:
         noise = settings.channel_noise or PerturbationSettings()
         self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
                                                seed=settings.seed)
-        self.columns = self.columns + self.perturbations.columns
+        self.columns = self.columns + self.perturbations.columns + (sensing.columns if sensing else [])
         self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
         self._noise_values: dict[str, np.ndarray] = {}
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
@@ -150,7 +154,8 @@ class ClosedLoop:
                          else j.power for j in self.scene.jammers])
 
     def _channel(self, t, x1, p2, eta2, v2) -> tuple[ChannelState, float, float]:
-        """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments."""
+        """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments;
+        the relay's jammer readings and estimate when it estimates them."""
         p1, R1 = x1[0:3], rotation_zyx(x1[3:6])
         poses = {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
                  self.names["source"]: self.scene.pose(self.names["source"], p2, rotation_zyx(eta2))}
@@ -160,6 +165,9 @@ class ClosedLoop:
             velocities = {self.names["relay"]: x1[6:9], self.names["source"]: v2, self.names["base_station"]: np.zeros(3)}
             fade, self._noise_values = self.perturbations.step(t, positions, velocities)
         state = self.scene.evaluate(t, poses, fading=fade)
+        if self.sensing is not None:
+            bs = self.names["base_station"]
+            self._noise_values.update(self.sensing.step(t, state, {**poses, bs: self.scene.fixed_pose(bs)}))
         p0 = self.scene.fixed_pose(self.names["base_station"]).position
         return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
 
@@ -188,18 +196,21 @@ class ClosedLoop:
             eta2 = src.attitude(veh.gravity)
             # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
             p2_meas = src.p + self.rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
-            pj_meas = self._measured_jammers(t)
+            if self.sensing is not None:  # what the relay estimated from its readings up to the last step
+                pj_meas, pj_powers = self.sensing.planner_view(st.senses_jammer_state)
+            else:
+                pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
             t_plan = time.perf_counter()
-            ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas,
-                                                   self._planned_jammer_powers(t)))
+            ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers))
             planner_ms = (time.perf_counter() - t_plan) * 1e3
             P = self.controller.parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # samples for benchmarking a full solve at the same points
                 self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
             info = self.controller.step(x, u, P, shift=shift)
-            self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms))
             u = info.u
             channel, v12, v10 = self._channel(t, x, src.p, eta2, src.v)
+            self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,
+                                           self.sensing.last_ms if self.sensing else 0.0))
             self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
             d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
             x = np.asarray(self.plant(x, u, d)).ravel()

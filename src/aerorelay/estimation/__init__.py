@@ -1,0 +1,1 @@
+"""Online estimation of what the relay is not told (the jammers: ``jammer_estimator``)."""

@@ -1,0 +1,413 @@
+"""Online jammer estimation: each jammer's position and power from measured interference-plus-noise power.
+
+The paper hands the controller the jammer's true position ``tau_E`` after take-off (an oracle).
+Here every receiver that measures (the relay; the base station when it reports) gives one
+energy-detector reading per control step (``models/sensing.py``); ``aggregate_steps`` readings
+are averaged into one measurement (the pose moves little in that time; the sample counts add).
+The estimator knows each receiver's pose and antenna pattern, the noise power and the
+deterministic path gain, and models each jammer as isotropic with unknown position ``p_j`` (m,
+world) and EIRP ``P_j`` (W):
+
+    y = N + sum_j s_j P_j g(p_j; receiver),   z = 10 log10 y + E[10 log10 X] + e
+
+``g`` is the one channel implementation's ``link_gain`` (``models/radio.py``), ``s_j`` whether
+jammer j radiates (a two-state Markov chain per jammer), ``e`` the detector's log noise plus
+``model_error_db`` for what the model leaves out (fading, shadowing, a directional pattern): a
+floor, scaled up by the window's reduced chi-square when the residuals are larger.
+
+Two layers per jammer:
+
+1. **A point-mass (grid) Bayes filter with the power profiled out**: for every cell of a grid over
+   the search box, the weighted least-squares sums of the excess power ``e = y - N - others``
+   against the cell's gain (relative errors, forgotten with ``forget_s``) give the best power
+   ``P* = S_ge / S_gg`` and the log-likelihood ``S_ge^2 / (2 S_gg)``, updated recursively per
+   measurement. Its posterior is the global picture: flat when the jammer is off or too weak, two
+   modes when the relay's path leaves a mirror ambiguity.
+2. **Gauss-Newton (Levenberg-Marquardt) on a sliding window** of the measurements (log domain,
+   the same weights) over ``(p_j, ln P_j)`` of every jammer jointly, started from the grid's best
+   cell whenever the current estimate sits outside the grid posterior's mass: the precise local
+   estimate.
+
+The reported covariance is the Gauss-Newton one plus the grid posterior's spread about the
+estimate (less the grid's own quantization): an estimate the data do not pin down, or one with a
+rival mode, keeps a wide covariance instead of collapsing onto a wrong point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.antenna import AntennaPattern, IsotropicPattern
+from ..models.geometry import E3
+from ..models.propagation import PathGain
+from ..models.radio import link_gain
+from ..models.sensing import KAPPA_DB, detector_log_mean_db, detector_log_std_db
+
+_ISOTROPIC = IsotropicPattern(1.0)
+_MIN_DISTANCE_M = 0.3  # a candidate nearer a receiver than this has its gain capped (the gain's pole)
+_FD_STEP_M = 1e-4  # forward-difference step of the gain's position derivative
+_WINDOW_FORGET_SPANS = 2.0  # the window holds this many forget_s (weights down to exp(-2))
+_ON_PRIOR_LOGODDS = 2.0  # prior log-odds that a jammer radiates at a measurement
+_RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
+_FLAG_NEIGHBOURS = 2  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
+
+
+@dataclass(frozen=True)
+class Receiver:
+    """A measuring receiver: its antenna pattern (the axis comes with each reading), noise power (W),
+    and whether it is fixed (a base station: one pose for every reading, its gains computed once)."""
+
+    name: str
+    pattern: AntennaPattern
+    noise_w: float
+    fixed: bool = False
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """See ``[estimation]`` (``scenario/schema.py``): times s, distances m, powers dB."""
+
+    search_min: np.ndarray
+    search_max: np.ndarray
+    n_samples: int = 100
+    aggregate_steps: int = 8
+    grid_m: float = 2.5
+    forget_s: float = 20.0
+    model_error_db: float = 0.2
+    switch_prob: float = 0.02
+    confident_std_m: float = 1.5
+    window_rows: int = 60  # measurements Gauss-Newton fits (evenly thinned, each weighted for those it stands for)
+    min_rows: int = 8  # Gauss-Newton starts after this many measurements
+    refine_every: int = 2  # one Gauss-Newton iteration per this many measurement rounds
+
+
+@dataclass(frozen=True)
+class JammerEstimate:
+    """The estimate at one instant, per jammer: ``positions`` ``(nJ, 3)`` m, ``powers`` ``(nJ,)`` W
+    (EIRP), ``covariances`` ``(nJ, 3, 3)`` m^2 of the position, ``on_prob`` (that it radiates now),
+    ``confident`` (largest position std below ``confident_std_m``)."""
+
+    positions: np.ndarray
+    powers: np.ndarray
+    covariances: np.ndarray
+    on_prob: np.ndarray
+    confident: np.ndarray
+
+    def position_std_max(self) -> np.ndarray:
+        """Largest position standard deviation per jammer (m): sqrt of the covariance's top eigenvalue."""
+        return np.sqrt(np.maximum(np.linalg.eigvalsh(self.covariances)[:, -1], 0.0))
+
+
+@dataclass
+class _Pending:
+    """Readings of one receiver being averaged: count, sums of power (W), position and axis."""
+
+    count: int = 0
+    power: float = 0.0
+    position: np.ndarray | None = None
+    axis: np.ndarray | None = None
+
+    def add(self, position, axis, reading_w: float) -> None:
+        p, a = np.asarray(position, float), np.asarray(axis, float)
+        self.position = p.copy() if self.count == 0 else self.position + p
+        self.axis = a.copy() if self.count == 0 else self.axis + a
+        self.power += reading_w
+        self.count += 1
+
+
+class _Window:
+    """Time-ordered measurements: time (s), receiver, position and axis (world), reading (W and dB)."""
+
+    def __init__(self, capacity: int):
+        c = 2 * capacity
+        self.capacity = capacity
+        self.t, self.y, self.z = np.zeros(c), np.zeros(c), np.zeros(c)
+        self.rx, self.ax, self.ri = np.zeros((c, 3)), np.zeros((c, 3)), np.zeros(c, dtype=np.intp)
+        self.lo = self.hi = 0
+
+    def append(self, t: float, ri: int, rx, ax, y: float) -> None:
+        if self.hi == self.t.size:  # compact: move the live rows to the front
+            n = self.hi - self.lo
+            for a in (self.t, self.y, self.z, self.rx, self.ax, self.ri):
+                a[:n] = a[self.lo:self.hi]
+            self.lo, self.hi = 0, n
+        k = self.hi
+        self.t[k], self.ri[k], self.rx[k], self.ax[k], self.y[k] = t, ri, rx, ax, y
+        self.z[k] = KAPPA_DB * math.log(y)
+        self.hi += 1
+        if self.hi - self.lo > self.capacity:
+            self.lo = self.hi - self.capacity
+
+    def rows(self, most: int) -> np.ndarray:
+        """Indices of at most ``most`` rows: all when fewer, else evenly thinned (the newest kept)."""
+        n = self.hi - self.lo
+        if n <= most:
+            return np.arange(self.lo, self.hi)
+        return np.unique(np.linspace(self.hi - 1, self.lo, most).round().astype(np.intp))
+
+    def __len__(self) -> int:
+        return self.hi - self.lo
+
+
+class JammerEstimator:
+    """Estimates ``n_jammers`` jammers from the readings of ``receivers`` (see the module docstring).
+
+    Per control step: ``add(t, receiver, position, axis, reading_w)`` for each reading, then
+    ``update(t) -> JammerEstimate``."""
+
+    def __init__(self, n_jammers: int, receivers: list[Receiver], path_gain: PathGain, settings: EstimatorSettings,
+                 period_s: float):
+        if n_jammers < 1:
+            raise ValueError("the estimator needs >= 1 jammer to estimate")
+        self.nj, self.receivers, self.path, self.s = n_jammers, receivers, path_gain, settings
+        self._noise = np.array([r.noise_w for r in receivers], float)
+        self.lo, self.hi = np.asarray(settings.search_min, float), np.asarray(settings.search_max, float)
+        self.cells, sides = _grid(self.lo, self.hi, settings.grid_m)
+        self.spacing = float(sides.max())
+        row_s = settings.aggregate_steps * period_s
+        self.forget = math.exp(-row_s / settings.forget_s)
+        n_eff = settings.n_samples * settings.aggregate_steps
+        self.log_mean = detector_log_mean_db(n_eff)
+        self.sigma2 = detector_log_std_db(n_eff) ** 2 + settings.model_error_db**2  # dB^2
+        self.rel2 = self.sigma2 / KAPPA_DB**2  # the same as a relative power error
+        self.gain_cap = float(path_gain.gain_from_d2(_MIN_DISTANCE_M**2)) * max(r.pattern.g_bar for r in receivers)
+        span = _WINDOW_FORGET_SPANS * settings.forget_s / row_s
+        self.window = _Window(int(math.ceil(span * len(receivers))) + 2)
+        self.s_ge = np.zeros((n_jammers, len(self.cells)))
+        self.s_gg = np.zeros((n_jammers, len(self.cells)))
+        self.theta = np.tile(np.r_[0.5 * (self.lo + self.hi), -np.inf], (n_jammers, 1))
+        self.started = np.zeros(n_jammers, bool)
+        self.on_prob = np.full(n_jammers, 0.5)
+        self.local_cov = np.tile(np.diag((self.hi - self.lo) ** 2 / 12.0), (n_jammers, 1, 1))
+        self.lam = 1e-2
+        self.chi2_scale = 1.0
+        self._fixed_cell_gains: dict[int, np.ndarray] = {}
+        self._rounds = 0
+        self._rival = np.ones(n_jammers)  # likelihood ratio of the grid's rival mode to the estimate (<= 1)
+        self._posterior: np.ndarray | None = None
+        self.pending = [_Pending() for _ in receivers]
+        self._estimate = self._summarize()
+
+    # --- the measurement model ------------------------------------------------------------
+    def _gain(self, x: np.ndarray, receiver: int, position, axis) -> np.ndarray:
+        """Power gain from jammer positions ``x`` ``(..., 3)`` (isotropic) to one receiver pose."""
+        with np.errstate(divide="ignore", invalid="ignore"):  # a candidate on the receiver: capped below
+            g = link_gain(x, E3, _ISOTROPIC, position, axis, self.receivers[receiver].pattern, self.path)
+        return np.fmin(np.where(np.isnan(g), self.gain_cap, g), self.gain_cap)
+
+    def _cell_gains(self, receiver: int, position, axis) -> np.ndarray:
+        """Gains from every grid cell to a receiver pose (once for a fixed receiver)."""
+        if not self.receivers[receiver].fixed:
+            return self._gain(self.cells, receiver, position, axis)
+        if receiver not in self._fixed_cell_gains:
+            self._fixed_cell_gains[receiver] = self._gain(self.cells, receiver, position, axis)
+        return self._fixed_cell_gains[receiver]
+
+    def _row_gains(self, x: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """``(K, M)`` gains from positions ``x`` ``(K, 3)`` to the window rows ``idx``."""
+        w = self.window
+        if len(self.receivers) == 1:
+            return self._gain(x[:, None, :], 0, w.rx[idx], w.ax[idx])
+        out = np.empty((x.shape[0], idx.size))
+        for i, r in enumerate(self.receivers):
+            m = w.ri[idx] == i
+            rows = idx[m]
+            if rows.size == 0:
+                continue
+            if r.fixed:  # one pose for every reading
+                out[:, m] = self._gain(x, i, w.rx[rows[0]], w.ax[rows[0]])[:, None]
+            else:
+                out[:, m] = self._gain(x[:, None, :], i, w.rx[rows], w.ax[rows])
+        return out
+
+    def _powers(self, theta: np.ndarray) -> np.ndarray:
+        return np.where(self.started, np.exp(np.where(self.started, theta[:, 3], 0.0)), 0.0)
+
+    # --- per measurement --------------------------------------------------------------------
+    def add(self, t: float, receiver: int, position, axis, reading_w: float) -> None:
+        """One reading (W) of receiver ``receiver`` at ``position`` (m) with antenna ``axis`` (unit, world)."""
+        if not (math.isfinite(reading_w) and reading_w > 0):
+            raise ValueError(f"estimator: a reading must be a positive finite power (W), got {reading_w!r}")
+        self.pending[receiver].add(position, axis, reading_w)
+
+    def update(self, t: float) -> JammerEstimate:
+        """Fold in every receiver's averaged measurement once ``aggregate_steps`` readings are in."""
+        changed = False
+        for i, r in enumerate(self.pending):
+            if r.count >= self.s.aggregate_steps:
+                axis = r.axis / max(float(np.linalg.norm(r.axis)), 1e-12)
+                self._assimilate(t, i, r.position / r.count, axis, r.power / r.count)
+                self.pending[i] = _Pending()
+                changed = True
+        if changed:
+            self._rounds += 1
+            if len(self.window) >= self.s.min_rows and self._rounds % self.s.refine_every == 0:
+                self._refine(t)
+            self._estimate = self._summarize()
+        return self._estimate
+
+    def _assimilate(self, t: float, receiver: int, position: np.ndarray, axis: np.ndarray, y: float) -> None:
+        """One measurement ``y`` (W, averaged): each jammer's ON/OFF chain, then its grid sums."""
+        noise = self.receivers[receiver].noise_w
+        P = self._powers(self.theta)
+        g_est = np.array([float(self._gain(self.theta[j, :3], receiver, position, axis)) for j in range(self.nj)])
+        on_now = self.on_prob > 0.5
+        z = KAPPA_DB * math.log(y)
+        for j in range(self.nj):
+            others = noise + float(np.sum(np.where(on_now, P * g_est, 0.0))) - (P[j] * g_est[j] if on_now[j] else 0.0)
+            prior = self.on_prob[j] * (1.0 - self.s.switch_prob) + (1.0 - self.on_prob[j]) * self.s.switch_prob
+            if self.started[j]:
+                r_on = z - KAPPA_DB * math.log(others + P[j] * g_est[j]) - self.log_mean
+                r_off = z - KAPPA_DB * math.log(others) - self.log_mean
+                l_on, l_off = math.exp(-0.5 * r_on**2 / self.sigma2), math.exp(-0.5 * r_off**2 / self.sigma2)
+                self.on_prob[j] = prior * l_on / max(prior * l_on + (1.0 - prior) * l_off, 1e-300)
+            else:
+                self.on_prob[j] = prior
+            g = self._cell_gains(receiver, position, axis)
+            wgt = (1.0 if not self.started[j] else self.on_prob[j]) / (y * y * self.rel2)
+            self.s_ge[j] = self.forget * self.s_ge[j] + wgt * g * (y - others)
+            self.s_gg[j] = self.forget * self.s_gg[j] + wgt * g * g
+        self.window.append(t, receiver, position, axis, y)
+        self._posterior = None
+
+    def _grid_posterior(self, j: int) -> np.ndarray:
+        """Posterior over the grid cells of jammer ``j`` (power profiled out), tempered by the window's
+        reduced chi-square (residuals larger than the model say the model is optimistic)."""
+        if self._posterior is None:
+            ge, gg = self.s_ge, self.s_gg
+            loglik = np.where((ge > 0) & (gg > 0), 0.5 * ge * ge / np.where(gg > 0, gg, 1.0), 0.0) / self.chi2_scale
+            p = np.exp(loglik - loglik.max(axis=1, keepdims=True))
+            self._posterior = p / p.sum(axis=1, keepdims=True)
+        return self._posterior[j]
+
+    # --- Gauss-Newton on the window ----------------------------------------------------------
+    def _window_gains(self, theta: np.ndarray, idx: np.ndarray, jacobian: bool):
+        """``g`` ``(nJ, M)`` at ``theta``'s positions and, with ``jacobian``, ``dg/dp`` ``(nJ, 3, M)``."""
+        if not jacobian:
+            return self._row_gains(theta[:, :3], idx), None
+        offsets = np.vstack([np.zeros(3), _FD_STEP_M * np.eye(3)])
+        g4 = self._row_gains((theta[:, None, :3] + offsets[None]).reshape(-1, 3), idx).reshape(self.nj, 4, -1)
+        return g4[:, 0], (g4[:, 1:] - g4[:, :1]) / _FD_STEP_M
+
+    def _on_flags(self, theta: np.ndarray, g: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Whether each jammer radiated at each fitted row ``(nJ, M)``: the likelihood ratio of ON vs OFF
+        under ``theta`` (gains ``g``), summed over neighbouring rows, plus the prior log-odds for ON.
+        Recomputed from the current estimate: a flag decided under an early, wrong estimate does not stick."""
+        w = self.window
+        contrib = np.exp(theta[:, 3])[:, None] * g
+        noise = self._noise[w.ri[idx]]
+        on = np.ones(contrib.shape, bool)
+        kernel = np.ones(2 * _FLAG_NEIGHBOURS + 1)
+        for j in range(self.nj):
+            others = noise + (on * contrib).sum(axis=0) - contrib[j]
+            r_on = w.z[idx] - KAPPA_DB * np.log(others + contrib[j]) - self.log_mean
+            r_off = w.z[idx] - KAPPA_DB * np.log(others) - self.log_mean
+            llr = np.convolve((r_off**2 - r_on**2) / (2.0 * self.sigma2 * self.chi2_scale), kernel, mode="same")
+            on[j] = llr + _ON_PRIOR_LOGODDS > 0
+        return on
+
+    def _model(self, theta: np.ndarray, g: np.ndarray, dg, on: np.ndarray, idx: np.ndarray):
+        """``(z_hat (M,), J (M, 4 nJ) or None)``: the log readings ``theta`` predicts with gains ``g``
+        (and ``dg``) and ON flags ``on`` on the rows ``idx``."""
+        contrib = on * np.exp(theta[:, 3])[:, None] * g
+        S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
+        z_hat = KAPPA_DB * np.log(S) + self.log_mean
+        if dg is None:
+            return z_hat, None
+        J = np.empty((S.size, 4 * self.nj))
+        for j in range(self.nj):
+            J[:, 4 * j:4 * j + 3] = (KAPPA_DB * on[j] * math.exp(theta[j, 3]) / S * dg[j]).T
+            J[:, 4 * j + 3] = KAPPA_DB * contrib[j] / S
+        return z_hat, J
+
+    def _window_cost(self, theta: np.ndarray, idx: np.ndarray, wt: np.ndarray) -> float:
+        g, _ = self._window_gains(theta, idx, jacobian=False)
+        z_hat, _ = self._model(theta, g, None, self._on_flags(theta, g, idx), idx)
+        return float(np.sum(wt * (self.window.z[idx] - z_hat) ** 2))
+
+    def _reseed(self, idx: np.ndarray, wt: np.ndarray) -> None:
+        """Start Gauss-Newton at the grid's best cell at the first fit; afterwards, when the grid puts
+        mass away from the estimate, compare the best such cell's window fit with the estimate's:
+        restart there when it fits better, else keep it as a rival mode weighted by its likelihood
+        ratio (``_rival``), which the reported covariance includes."""
+        for j in range(self.nj):
+            post = self._grid_posterior(j)
+            far = np.linalg.norm(self.cells - self.theta[j, :3], axis=1) > 2.0 * self.spacing
+            if self.started[j] and post[far].sum() < _RIVAL_MASS:
+                self._rival[j] = 1.0
+                continue
+            best = int(np.argmax(np.where(far, post, -1.0))) if self.started[j] else int(np.argmax(post))
+            ge, gg = self.s_ge[j, best], self.s_gg[j, best]
+            power = ge / gg if ge > 0 and gg > 0 else 1e-6 * float(self._noise.min())
+            seed = self.theta.copy()
+            seed[j] = np.r_[self.cells[best], math.log(power)]
+            if self.started[j]:
+                drop = self._window_cost(seed, idx, wt) - self._window_cost(self.theta, idx, wt)
+                if drop >= 0.0:
+                    self._rival[j] = math.exp(-0.5 * min(drop, 1400.0))
+                    continue
+            self.theta, self.lam = seed, 1e-2
+            self.started[j] = True
+            self._rival[j] = 1.0
+
+    def _refine(self, t: float) -> None:
+        """One Levenberg-Marquardt iteration on the window (log domain, weights exp(-age / forget_s))."""
+        idx = self.window.rows(self.s.window_rows)
+        z = self.window.z[idx]
+        thin = len(self.window) / idx.size  # each fitted row stands for this many
+        wt = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s) / self.sigma2
+        self._reseed(idx, wt)
+        g, dg = self._window_gains(self.theta, idx, jacobian=True)
+        on = self._on_flags(self.theta, g, idx)
+        z_hat, J = self._model(self.theta, g, dg, on, idx)
+        r = z - z_hat
+        H = J.T @ (J * wt[:, None])
+        step = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9), J.T @ (wt * r))
+        trial = self.theta + step.reshape(self.nj, 4)
+        trial[:, :3] = np.clip(trial[:, :3], self.lo, self.hi)
+        trial[:, 3] = np.clip(trial[:, 3], -60.0, 60.0)
+        g_try, _ = self._window_gains(trial, idx, jacobian=False)
+        z_try, _ = self._model(trial, g_try, None, on, idx)
+        if np.sum(wt * (z - z_try) ** 2) < np.sum(wt * r * r):
+            self.theta, self.lam = trial, max(self.lam / 3.0, 1e-6)
+        else:
+            self.lam = min(self.lam * 5.0, 1e6)
+        chi2 = max(1.0, float(np.sum(wt * r * r) / max(np.sum(wt * self.sigma2), 1e-12)))
+        if chi2 != self.chi2_scale:
+            self._posterior = None
+        self.chi2_scale = chi2
+        cov = np.linalg.pinv(H) * chi2
+        self.local_cov = np.array([cov[4 * j:4 * j + 3, 4 * j:4 * j + 3] for j in range(self.nj)])
+
+    # --- the estimate --------------------------------------------------------------------------
+    def _summarize(self) -> JammerEstimate:
+        covs = []
+        for j in range(self.nj):
+            post = self._grid_posterior(j)
+            d = self.cells - self.theta[j, :3]
+            if self.started[j]:  # the local mode is the Gauss-Newton covariance; rival modes add their spread
+                far = np.linalg.norm(d, axis=1) > 2.0 * self.spacing
+                covs.append(self.local_cov[j] + self._rival[j] * (d[far].T @ (d[far] * post[far, None])))
+            else:
+                covs.append(d.T @ (d * post[:, None]))
+        covs_a = np.array(covs)
+        std = np.sqrt(np.maximum(np.linalg.eigvalsh(covs_a)[:, -1], 0.0))
+        return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta), covs_a, self.on_prob.copy(),
+                              self.started & (std < self.s.confident_std_m))
+
+    @property
+    def estimate(self) -> JammerEstimate:
+        return self._estimate
+
+
+def _grid(lo: np.ndarray, hi: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cell centres ``(C, 3)`` of a regular grid of cells about ``spacing`` (m) over the box, and the cells' sides."""
+    axes, sides = [], []
+    for a, b in zip(lo, hi, strict=True):
+        n = max(1, round((b - a) / spacing))
+        axes.append(a + (np.arange(n) + 0.5) * (b - a) / n)
+        sides.append((b - a) / n)
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3), np.array(sides)

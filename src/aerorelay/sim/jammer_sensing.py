@@ -1,0 +1,81 @@
+"""The relay's view of the jammers when it is not told (``jammer.localization = "estimated"``).
+
+Each control step the relay's receiver (and the base station's, when it reports) reads its true
+interference plus noise (``ChannelState.interference`` of the hop it receives, with every fading
+and shadowing term of the plant) through an energy detector (``models/sensing.py``); the
+estimator (``estimation/jammer_estimator.py``) folds the readings in; the planner gets the
+estimate: a jammer enters the plan once its estimate is confident (before that the planner plans
+without it, as before ``tau_E`` with the oracle), with its estimated power (0 while it is
+estimated OFF, when the controller senses the schedule). Log columns: ``meas_<receiver>_w``,
+``estimator_ms`` and per jammer ``est_<name>_x/_y/_z`` (m), ``_power_w``, ``_on_prob``,
+``_std_m`` (largest position std), ``_err_m`` (distance to the true position) and the position
+covariance ``_cov_xx ... _cov_yz`` (m^2).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..estimation.jammer_estimator import JammerEstimate, JammerEstimator
+from ..models.radio import ChannelState, NodePose, RadioScene
+from ..models.sensing import EnergyDetector
+
+_COV = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
+
+
+class JammerSensing:
+    """Readings, estimator and log values; ``receivers``: node names that measure (the relay first)."""
+
+    def __init__(self, scene: RadioScene, estimator: JammerEstimator, receivers: list[str], *, n_samples: int,
+                 bias_db: float, seed: int):
+        self.scene, self.estimator, self.receivers = scene, estimator, receivers
+        rx_of_hop = {rx: k for k, (_, rx) in enumerate(scene.hops)}
+        missing = [r for r in receivers if r not in rx_of_hop]
+        if missing:
+            raise ValueError(f"estimation: {missing} receive no hop of the route {list(scene.route)}: nothing to measure")
+        self.hop_of = [rx_of_hop[r] for r in receivers]
+        self.detector = EnergyDetector(n_samples, bias_db, seed=seed + 3)
+        self.noise = scene.budget.noise_power
+        self.names = [j.name for j in scene.jammers]
+        self.columns = [f"meas_{r}_w" for r in receivers] + ["estimator_ms"] + [
+            f"est_{n}_{q}" for n in self.names
+            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "err_m", *(f"cov_{c}" for c, _, _ in _COV))]
+        self.last_ms = 0.0
+
+    @property
+    def estimate(self) -> JammerEstimate:
+        return self.estimator.estimate
+
+    def planner_view(self, senses_state: bool) -> tuple[np.ndarray, np.ndarray]:
+        """``(positions (nJ, 3), powers (nJ,))`` for the planner: confident estimates only."""
+        e = self.estimate
+        powers = np.where(e.confident, e.powers, 0.0)
+        if senses_state:
+            powers = np.where(e.on_prob > 0.5, powers, 0.0)
+        return e.positions.copy(), powers
+
+    def step(self, t: float, channel: ChannelState, poses: dict[str, NodePose]) -> dict[str, float]:
+        """Read every receiver, update the estimator (timed), and the row's log values."""
+        values: dict[str, float] = {}
+        readings = []
+        for r, hop in zip(self.receivers, self.hop_of, strict=True):
+            y = float(self.detector.measure(float(channel.interference[hop]) + self.noise))
+            readings.append(y)
+            values[f"meas_{r}_w"] = y
+        t0 = time.perf_counter()
+        for i, (r, y) in enumerate(zip(self.receivers, readings, strict=True)):
+            self.estimator.add(t, i, poses[r].position, poses[r].axis, y)
+        e = self.estimator.update(t)
+        self.last_ms = (time.perf_counter() - t0) * 1e3
+        values["estimator_ms"] = self.last_ms
+        std = e.position_std_max()
+        for i, (n, j) in enumerate(zip(self.names, self.scene.jammers, strict=True)):
+            p = e.positions[i]
+            values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[i],
+                           f"est_{n}_on_prob": e.on_prob[i], f"est_{n}_std_m": std[i],
+                           f"est_{n}_err_m": float(np.linalg.norm(p - j.position_at(t)))})
+            for c, a, b in _COV:
+                values[f"est_{n}_cov_{c}"] = e.covariances[i, a, b]
+        return values
