@@ -316,7 +316,8 @@ def bench(
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
         t.add_column(c, justify="right")
-    for key in ("preparation_ms", "feedback_ms", "step_ms", "planner_ms", "step_with_planner_ms", "ipopt_ms"):
+    for key in ("preparation_ms", "feedback_ms", "step_ms", "planner_ms", "step_with_planner_ms", "estimator_ms",
+                "step_with_planner_and_estimator_ms", "ipopt_ms"):
         if key in res:
             t.add_row(key.removesuffix("_ms"), *[f"{res[key][c]:.3f}" for c in ("mean", "p50", "p95", "p99", "max")])
     console.print(t)

@@ -112,3 +112,24 @@ def test_preflight_route_moves_at_every_speed_limit(speed):
     assert np.ptp(planner.route_p, axis=0).max() > 1.0
     grid = SC.controller.capacity.route_grid_m
     assert steps.max() <= max(speed, grid / np.diff(planner.route_t).min()) * np.sqrt(3) + 1e-9
+
+
+def test_observability_excursion_circles_only_while_the_estimate_is_poor():
+    """With excursion_m the goal circles the target at that radius (a vertical component too) while
+    an estimated jammer's std is above excursion_std_m; with a good estimate or the oracle it is the target."""
+    planner = SimpleNamespace(excursion=2.0, excursion_std=1.0, speed=1.0, target=np.array([-3.0, 3.0, 5.0]),
+                              lo=np.full(3, -50.0), hi=np.full(3, 50.0), excursion_active=False)
+
+    def goal(t, std):
+        inp = SimpleNamespace(t=t, jammer_std_m=None if std is None else np.array([std]))
+        return CapacityPlanner._goal(planner, inp)
+
+    ts = np.linspace(0.0, 4 * np.pi, 200)  # one turn at 1 m/s on a 2 m radius
+    pts = np.array([goal(t, 5.0) for t in ts])
+    horizontal = np.linalg.norm(pts[:, :2] - planner.target[:2], axis=1)
+    np.testing.assert_allclose(horizontal, 2.0, atol=1e-12)
+    assert np.ptp(pts[:, 2]) > 0.99  # +- half the radius over the turn
+    speed = np.linalg.norm(np.diff(pts[:, :2], axis=0), axis=1) / np.diff(ts)
+    np.testing.assert_allclose(speed, 1.0, rtol=1e-3)
+    np.testing.assert_array_equal(goal(3.0, 0.5), planner.target)
+    np.testing.assert_array_equal(goal(3.0, None), planner.target)

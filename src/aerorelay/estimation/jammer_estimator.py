@@ -48,11 +48,12 @@ from ..models.sensing import KAPPA_DB, detector_log_mean_db, detector_log_std_db
 
 _ISOTROPIC = IsotropicPattern(1.0)
 _MIN_DISTANCE_M = 0.3  # a candidate nearer a receiver than this has its gain capped (the gain's pole)
-_FD_STEP_M = 1e-4  # forward-difference step of the gain's position derivative
+_FD_STEP_M = 1e-6  # forward-difference step of the gain's position derivative
 _WINDOW_FORGET_SPANS = 2.0  # the window holds this many forget_s (weights down to exp(-2))
 _ON_PRIOR_LOGODDS = 2.0  # prior log-odds that a jammer radiates at a measurement
 _RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
-_FLAG_NEIGHBOURS = 2  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
+_HUBER_SIGMAS = 3.0  # residuals beyond this many sigma count linearly (robust to readings across a switch)
+_FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
 
 
 @dataclass(frozen=True)
@@ -165,6 +166,7 @@ class JammerEstimator:
         self.nj, self.receivers, self.path, self.s = n_jammers, receivers, path_gain, settings
         self._noise = np.array([r.noise_w for r in receivers], float)
         self.lo, self.hi = np.asarray(settings.search_min, float), np.asarray(settings.search_max, float)
+        self._max_var = float(np.max(self.hi - self.lo)) ** 2  # no position is less known than "somewhere in the box"
         self.cells, sides = _grid(self.lo, self.hi, settings.grid_m)
         self.spacing = float(sides.max())
         row_s = settings.aggregate_steps * period_s
@@ -186,6 +188,7 @@ class JammerEstimator:
         self.chi2_scale = 1.0
         self._fixed_cell_gains: dict[int, np.ndarray] = {}
         self._rounds = 0
+        self._grid_rows = np.zeros(n_jammers, int)  # measurements each jammer's grid has taken in
         self._rival = np.ones(n_jammers)  # likelihood ratio of the grid's rival mode to the estimate (<= 1)
         self._posterior: np.ndarray | None = None
         self.pending = [_Pending() for _ in receivers]
@@ -266,10 +269,13 @@ class JammerEstimator:
                 self.on_prob[j] = prior * l_on / max(prior * l_on + (1.0 - prior) * l_off, 1e-300)
             else:
                 self.on_prob[j] = prior
+            if j > 0 and not self.started[j - 1]:
+                continue  # jammers are found one after the other: each explains what the earlier ones leave
             g = self._cell_gains(receiver, position, axis)
             wgt = (1.0 if not self.started[j] else self.on_prob[j]) / (y * y * self.rel2)
             self.s_ge[j] = self.forget * self.s_ge[j] + wgt * g * (y - others)
             self.s_gg[j] = self.forget * self.s_gg[j] + wgt * g * g
+            self._grid_rows[j] += 1
         self.window.append(t, receiver, position, axis, y)
         self._posterior = None
 
@@ -323,10 +329,18 @@ class JammerEstimator:
             J[:, 4 * j + 3] = KAPPA_DB * contrib[j] / S
         return z_hat, J
 
+    def _huber(self, r: np.ndarray, wt: np.ndarray) -> tuple[float, np.ndarray]:
+        """Robust window cost ``sum wt rho(r)`` (Huber at 3 sigma: a reading averaged across a
+        jammer's switch fits neither state) and the iteratively reweighted least-squares factors."""
+        c = _HUBER_SIGMAS * math.sqrt(self.sigma2)
+        a = np.abs(r)
+        rho = np.where(a <= c, r * r, 2.0 * c * a - c * c)
+        return float(np.sum(wt * rho)), np.minimum(1.0, c / np.maximum(a, 1e-300))
+
     def _window_cost(self, theta: np.ndarray, idx: np.ndarray, wt: np.ndarray) -> float:
         g, _ = self._window_gains(theta, idx, jacobian=False)
         z_hat, _ = self._model(theta, g, None, self._on_flags(theta, g, idx), idx)
-        return float(np.sum(wt * (self.window.z[idx] - z_hat) ** 2))
+        return self._huber(self.window.z[idx] - z_hat, wt)[0]
 
     def _reseed(self, idx: np.ndarray, wt: np.ndarray) -> None:
         """Start Gauss-Newton at the grid's best cell at the first fit; afterwards, when the grid puts
@@ -334,12 +348,21 @@ class JammerEstimator:
         restart there when it fits better, else keep it as a rival mode weighted by its likelihood
         ratio (``_rival``), which the reported covariance includes."""
         for j in range(self.nj):
+            if not self.started[j] and self._grid_rows[j] < self.s.min_rows:
+                continue
             post = self._grid_posterior(j)
             far = np.linalg.norm(self.cells - self.theta[j, :3], axis=1) > 2.0 * self.spacing
-            if self.started[j] and post[far].sum() < _RIVAL_MASS:
+            taken = np.zeros(len(self.cells), bool)  # cells another jammer's estimate already explains
+            for k in range(self.nj):
+                if k != j and self.started[k]:
+                    taken |= np.linalg.norm(self.cells - self.theta[k, :3], axis=1) <= 2.0 * self.spacing
+            if self.started[j] and post[far & ~taken].sum() < _RIVAL_MASS:
                 self._rival[j] = 1.0
                 continue
-            best = int(np.argmax(np.where(far, post, -1.0))) if self.started[j] else int(np.argmax(post))
+            allowed = (far if self.started[j] else np.ones(len(self.cells), bool)) & ~taken
+            if not allowed.any():
+                continue
+            best = int(np.argmax(np.where(allowed, post, -1.0)))
             ge, gg = self.s_ge[j, best], self.s_gg[j, best]
             power = ge / gg if ge > 0 and gg > 0 else 1e-6 * float(self._noise.min())
             seed = self.theta.copy()
@@ -360,27 +383,36 @@ class JammerEstimator:
         thin = len(self.window) / idx.size  # each fitted row stands for this many
         wt = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s) / self.sigma2
         self._reseed(idx, wt)
+        if not self.started.any():
+            return
         g, dg = self._window_gains(self.theta, idx, jacobian=True)
         on = self._on_flags(self.theta, g, idx)
         z_hat, J = self._model(self.theta, g, dg, on, idx)
+        cols = np.flatnonzero(np.repeat(self.started, 4))  # only the jammers found so far
+        J = J[:, cols]
         r = z - z_hat
-        H = J.T @ (J * wt[:, None])
-        step = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9), J.T @ (wt * r))
-        trial = self.theta + step.reshape(self.nj, 4)
+        cost0, robust = self._huber(r, wt)
+        wr = wt * robust
+        H = J.T @ (J * wr[:, None])
+        full = np.zeros(4 * self.nj)
+        full[cols] = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9), J.T @ (wr * r))
+        trial = self.theta + full.reshape(self.nj, 4)
         trial[:, :3] = np.clip(trial[:, :3], self.lo, self.hi)
-        trial[:, 3] = np.clip(trial[:, 3], -60.0, 60.0)
+        trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
         g_try, _ = self._window_gains(trial, idx, jacobian=False)
         z_try, _ = self._model(trial, g_try, None, on, idx)
-        if np.sum(wt * (z - z_try) ** 2) < np.sum(wt * r * r):
+        if self._huber(z - z_try, wt)[0] < cost0:
             self.theta, self.lam = trial, max(self.lam / 3.0, 1e-6)
         else:
             self.lam = min(self.lam * 5.0, 1e6)
-        chi2 = max(1.0, float(np.sum(wt * r * r) / max(np.sum(wt * self.sigma2), 1e-12)))
+        chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * self.sigma2), 1e-12)))
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
-        cov = np.linalg.pinv(H) * chi2
-        self.local_cov = np.array([cov[4 * j:4 * j + 3, 4 * j:4 * j + 3] for j in range(self.nj)])
+        cov = np.full((4 * self.nj, 4 * self.nj), 0.0)
+        cov[np.ix_(cols, cols)] = np.linalg.pinv(H) * chi2
+        self.local_cov = np.array([_clip_eigenvalues(cov[4 * j:4 * j + 3, 4 * j:4 * j + 3], self._max_var)
+                                   for j in range(self.nj)])
 
     # --- the estimate --------------------------------------------------------------------------
     def _summarize(self) -> JammerEstimate:
@@ -401,6 +433,12 @@ class JammerEstimator:
     @property
     def estimate(self) -> JammerEstimate:
         return self._estimate
+
+
+def _clip_eigenvalues(cov: np.ndarray, most: float) -> np.ndarray:
+    """The symmetric ``cov`` with its eigenvalues clipped to ``[0, most]``."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    return (vecs * np.clip(vals, 0.0, most)) @ vecs.T
 
 
 def _grid(lo: np.ndarray, hi: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:

@@ -164,6 +164,9 @@ class Study(BaseModel):
     bound: bool = False
     # groups drawn together with the bound of the first one's scenario, one figure each
     bound_figures: list[list[str]] = Field(default_factory=list)
+    # [estimated group, oracle group] pairs: the estimate's error over time with its 2-sigma band, and
+    # both runs' capacity (jammer estimation, ``jammer.localization``)
+    estimation_figures: list[tuple[str, str]] = Field(default_factory=list)
     ranking: Ranking | None = None
     tradeoffs: list[Tradeoff] = Field(default_factory=list)
     # measured causes of the study's differences from the paper (beside the claims' own)
@@ -178,6 +181,7 @@ class Study(BaseModel):
         named |= {(f"paper value {p.metric}", p.run) for p in self.paper}
         named |= {("compare_trajectories", g) for pair in self.compare_trajectories for g in pair}
         named |= {("bound_figures", g) for fig in self.bound_figures for g in fig}
+        named |= {("estimation_figures", g) for pair in self.estimation_figures for g in pair}
         named |= {(f"why ({e.kind})", e.run) for e in [*self.why, *(w for c in self.claims for w in c.why)]}
         if self.ranking is not None and self.ranking.pair_key not in self.grid:
             raise ValueError(f"ranking.pair_key {self.ranking.pair_key!r} is not a grid key ({sorted(self.grid)})")

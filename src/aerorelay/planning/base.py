@@ -31,7 +31,8 @@ class PlannerInput:
 
     ``jammer_positions`` ``(nJ, 3)`` m: the (possibly noisy) localized positions;
     ``jammer_powers`` ``(nJ,)`` W: the powers the planner should assume (0 before a jammer is
-    localized, see ``sim.closed_loop``).
+    localized, see ``sim.closed_loop``); ``jammer_std_m`` ``(nJ,)``: the largest position std of
+    an estimated jammer (m; None when the positions are the oracle's).
     """
 
     t: float
@@ -42,6 +43,7 @@ class PlannerInput:
     a2: np.ndarray
     jammer_positions: np.ndarray
     jammer_powers: np.ndarray
+    jammer_std_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

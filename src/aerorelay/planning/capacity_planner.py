@@ -17,6 +17,12 @@ route (at the look-ahead time), and the position reference moves toward it at <=
 capacity.speed_m_s``, speeding up and braking at <= ``max_accel_m_s2`` so it stops on the target.
 The antenna axis reference turns toward the best axis at <= ``axis_rate``; turned with the
 thrust direction the reference's acceleration needs, it is the NMPC's body z reference.
+
+**Observability excursion** (``excursion_m`` > 0, for estimated jammers): a relay that holds
+still cannot triangulate a jammer from received power. While an estimated jammer's largest
+position std is above ``excursion_std_m``, the reference chases a point circling the target at
+``excursion_m`` (at the speed limit, with a vertical component), so the relay's bearing and range
+to the jammer change; once every estimate is that good the excursion stops.
 """
 
 from __future__ import annotations
@@ -39,7 +45,8 @@ class CapacityPlanner:
 
     def __init__(self, ctx: PlannerContext, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
-                 route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0):
+                 route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
+                 excursion_m: float = 0.0, excursion_std_m: float = 1.0):
         veh = ctx.vehicle
         # the NMPC holds zero yaw: only the tilts the platform can hold toward each azimuth at zero
         # yaw (with a 10% margin) are axes it can actually fly
@@ -65,6 +72,8 @@ class CapacityPlanner:
         self.best_capacity = 0.0
         self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
         self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
+        self.excursion, self.excursion_std = excursion_m, excursion_std_m
+        self.excursion_active = False
         self._k = 0
 
     def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -148,13 +157,25 @@ class CapacityPlanner:
             return d_vec / dt
         return v
 
+    def _goal(self, inp: PlannerInput) -> np.ndarray:
+        """Where the reference heads: the target, or a point circling it while a jammer estimate is poor."""
+        assert self.target is not None
+        self.excursion_active = bool(self.excursion > 0 and inp.jammer_std_m is not None
+                                     and np.any(np.asarray(inp.jammer_std_m) > self.excursion_std))
+        if not self.excursion_active:
+            return self.target
+        w = self.speed / self.excursion
+        phase = w * inp.t
+        offset = self.excursion * np.array([np.cos(phase), np.sin(phase), 0.5 * np.sin(0.5 * phase)])
+        return np.clip(self.target + offset, self.lo, self.hi)
+
     def update(self, inp: PlannerInput) -> Reference:
         if self.p_ref is None or self.target is None:
             self.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
             self.target = self.p_ref.copy()
         self._replan_part(inp, self._k % self.replan_every)
         self._k += 1
-        v_ref = self._velocity_toward(self.target - self.p_ref, inp.dt)
+        v_ref = self._velocity_toward(self._goal(inp) - self.p_ref, inp.dt)
         self.p_ref = self.p_ref + v_ref * inp.dt
         # acceleration of the reference, low-passed (time constant accel_tau_s) and bounded: the
         # thrust-direction reference of a relay that can only tilt by accelerating

@@ -36,7 +36,9 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "solve_ms.p99": "step p99 (ms)", "max_deviation_m": "max deviation (m)",
            "capacity_efficiency_mean": "efficiency, mean C", "capacity_efficiency_min": "efficiency, C_min",
            "fallback_fraction": "fail-safe steps", "motor_saturation_fraction": "a motor at a speed bound",
-           "rate_saturation_fraction": "a motor at a rate bound"}
+           "rate_saturation_fraction": "a motor at a rate bound",
+           "estimation_first_within_1m_s": "jammer estimate first within 1 m (s)",
+           "estimation_within_1m_after_10s": "estimate within 1 m after 10 s", "estimator_ms.mean": "estimator (ms/step)"}
 MAX_CURVES = 8
 
 CSS = """
@@ -109,6 +111,41 @@ def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7)
         figs.append(_png(fig, alt=title))
+    return figs
+
+
+def _estimation_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
+    """Per ``estimation_figures`` pair: the estimated run's position error per jammer over time with
+    the estimate's 2-sigma band (twice its largest position std), and both runs' capacity."""
+    firsts = first_run_per_group(specs, out)
+    figs = []
+    for est, oracle in study.estimation_figures:
+        if est not in firsts:
+            continue
+        df = pd.read_parquet(run_dir(out, firsts[est]) / TIMESERIES_FILE)
+        names = [c[4:-6] for c in df.columns if c.startswith("est_") and c.endswith("_err_m")]
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.4))
+        for i, n in enumerate(names):
+            ax1.fill_between(df["t"], 0.0, 2.0 * df[f"est_{n}_std_m"], color=f"C{i}", alpha=0.2, lw=0,
+                             label=f"{n}: 2 sigma")
+            ax1.plot(df["t"], df[f"est_{n}_err_m"], color=f"C{i}", lw=1.2, label=f"{n}: error")
+        ax1.axhline(1.0, color="k", ls=":", lw=0.8, label="1 m")
+        ax1.set_yscale("log")
+        ax1.set_ylim(0.01, 100.0)
+        ax1.set_xlabel("t (s)")
+        ax1.set_ylabel("jammer position error (m)")
+        ax1.set_title(f"{est}: estimate vs truth", fontsize=9)
+        ax1.legend(fontsize=7)
+        for g in (est, oracle):
+            if g in firsts:
+                c = pd.read_parquet(run_dir(out, firsts[g]) / TIMESERIES_FILE, columns=["t", "capacity"])
+                ax2.semilogy(c["t"], np.maximum(c["capacity"], 1e-9), lw=1.1, label=g)
+        ax2.set_xlabel("t (s)")
+        ax2.set_ylabel("end-to-end C (bit/s/Hz)")
+        ax2.set_title("capacity: estimated vs oracle jammer", fontsize=9)
+        ax2.legend(fontsize=7)
+        fig.tight_layout()
+        figs.append(_png(fig, alt=f"{est} estimation error and capacity vs {oracle}"))
     return figs
 
 
@@ -235,7 +272,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
         parts.append("<h3>Ours beside the paper</h3>" + _table(["metric", "run", "ours", "paper", "ours / paper", "note"], rows))
     groups = study_sum["groups"]
     if groups:
-        extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min")
+        extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min",
+                             "estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimator_ms.mean")
                  if any(k in g for g in groups.values())]
         main = list(MAIN_METRICS) + extra
         more = [c for c in (*TABLE_METRICS, "fallback_fraction") if c not in main]
@@ -246,7 +284,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                                                       f"</summary>{table}</details>")
     if study_sum.get("ranking"):
         parts.append(_ranking_table(study_sum["ranking"]))
-    for fig in (*_tradeoff_figures(study, study_sum), *_bound_figures(study, specs, out), _capacity_figure(study, specs, out),
+    for fig in (*_tradeoff_figures(study, study_sum), *_bound_figures(study, specs, out),
+                *_estimation_figures(study, specs, out), _capacity_figure(study, specs, out),
                 _bars_figure(study_sum),
                 _trajectory_3d(study, specs, out)):
         if fig:

@@ -355,6 +355,10 @@ class CapacityPlannerConfig(_Strict):
     lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
                                       "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
+    excursion_m: float = Field(0.0, ge=0.0, le=10.0, description="while an estimated jammer's position std is above "
+                               "excursion_std_m, the target circles at this radius (m) to make the jammer observable (0: off)")
+    excursion_std_m: float = Field(1.0, gt=0.0, le=100.0, description="the excursion stops once every estimated jammer's "
+                                   "largest position std is below this, m")
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
 

@@ -196,12 +196,15 @@ class ClosedLoop:
             eta2 = src.attitude(veh.gravity)
             # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
             p2_meas = src.p + self.rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
+            pj_std = None
             if self.sensing is not None:  # what the relay estimated from its readings up to the last step
                 pj_meas, pj_powers = self.sensing.planner_view(st.senses_jammer_state)
+                pj_std = self.sensing.estimate.position_std_max()
             else:
                 pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
             t_plan = time.perf_counter()
-            ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers))
+            ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers,
+                                                   pj_std))
             planner_ms = (time.perf_counter() - t_plan) * 1e3
             P = self.controller.parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # samples for benchmarking a full solve at the same points

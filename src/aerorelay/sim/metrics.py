@@ -67,6 +67,35 @@ def outage_durations(outage: np.ndarray, period_s: float) -> dict[str, float | i
             "outage_duration_max_s": float(lengths.max()) if lengths.size else 0.0}
 
 
+ESTIMATION_ERROR_M = 1.0  # the estimate is "within" when closer than this to the true jammer
+ESTIMATION_SETTLE_S = 10.0  # ... and counted from this long after take-off
+
+
+def estimation_metrics(log, period_s: float) -> dict:
+    """For a run that estimated its jammers (``est_<name>_err_m`` columns), the worst jammer's:
+    ``estimation_first_within_1m_s`` (first time the error is <= 1 m; the mission's length when
+    never), ``estimation_within_1m_after_10s`` (fraction of steps from 10 s on with the error <=
+    1 m), ``estimation_err_mean_m``/``_final_m``, ``estimation_std_final_m`` (largest position
+    std at the end) and ``estimator_ms`` (per control step). Empty for an oracle run."""
+    names = [c[4:-6] for c in log if c.startswith("est_") and c.endswith("_err_m")]
+    if not names:
+        return {}
+    t = np.asarray(log["t"], float)
+    first, within, mean, final, std = [], [], [], [], []
+    for n in names:
+        err = np.asarray(log[f"est_{n}_err_m"], float)
+        ok = err <= ESTIMATION_ERROR_M
+        first.append(float(t[np.argmax(ok)]) if ok.any() else float(t[-1] + period_s))
+        late = t >= ESTIMATION_SETTLE_S
+        within.append(float(np.mean(ok[late])) if late.any() else 0.0)
+        mean.append(float(err.mean()))
+        final.append(float(err[-1]))
+        std.append(float(np.asarray(log[f"est_{n}_std_m"], float)[-1]))
+    return {"estimation_first_within_1m_s": max(first), "estimation_within_1m_after_10s": min(within),
+            "estimation_err_mean_m": max(mean), "estimation_err_final_m": max(final), "estimation_std_final_m": max(std),
+            "estimator_ms": stats_ms(np.asarray(log["estimator_ms"], float))}
+
+
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
                     box_tolerance_m: float = 0.05) -> dict:
@@ -111,6 +140,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
         **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
+        **estimation_metrics(log, period),
         "steps": int(cap.size),
         "wall_s": float(wall_s),
         "sim_s": float(sim_s),

@@ -1,0 +1,137 @@
+"""The jammer estimator on synthetic readings: a relay circling near a jammer, the base station reporting."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aerorelay.estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver, _grid
+from aerorelay.models.antenna import DipolePattern, IsotropicPattern
+from aerorelay.models.geometry import E3
+from aerorelay.models.propagation import PathGain
+from aerorelay.models.radio import link_gain
+from aerorelay.models.sensing import EnergyDetector
+
+DT = 0.015
+JAMMER = np.array([-6.95, -5.79, 1.72])
+START = np.array([-6.95, 5.79, 1.72])
+BOX = (np.array([-17.0, -10.0, 0.0]), np.array([10.0, 15.8, 22.5]))
+DIPOLE = DipolePattern(1.0)
+
+
+def relay_pose(t):
+    """A circle of 3 m radius at 2 m/s around the start (climbing and sinking), a wobbling antenna."""
+    w = 2.0 / 3.0
+    p = START + np.array([3 * np.cos(w * t) - 3, 3 * np.sin(w * t), 1.5 * np.sin(0.5 * w * t)])
+    a = np.array([0.2 * np.sin(t), 0.1 * np.cos(0.7 * t), 1.0])
+    return p, a / np.linalg.norm(a)
+
+
+def fly(power_w, duration_s, *, schedule=lambda t: True, bs=True, seed=1):
+    """Feed ``duration_s`` of readings; return the estimator and per-step (t, estimate)."""
+    receivers = [Receiver("relay", DIPOLE, 1.0)] + ([Receiver("bs", DIPOLE, 1.0, fixed=True)] if bs else [])
+    est = JammerEstimator(1, receivers, PathGain(), EstimatorSettings(*BOX), DT)
+    det = EnergyDetector(100, seed=seed)
+    out = []
+    for k in range(int(duration_s / DT)):
+        t = k * DT
+        p = power_w if schedule(t) else 0.0
+        rx, ax = relay_pose(t)
+        est.add(t, 0, rx, ax, float(det.measure(1.0 + p * link_gain(JAMMER, E3, IsotropicPattern(), rx, ax, DIPOLE))))
+        if bs:
+            g_bs = link_gain(JAMMER, E3, IsotropicPattern(), np.zeros(3), E3, DIPOLE)
+            est.add(t, 1, np.zeros(3), E3, float(det.measure(1.0 + p * g_bs)))
+        out.append((t, est.update(t)))
+    return est, out
+
+
+def inr_10db_power():
+    return 10.0 * float(np.sum((START - JAMMER) ** 2))  # broadside dipole, unit gain: INR = P / d^2
+
+
+def test_converges_onto_the_jammer_with_an_honest_covariance():
+    est, out = fly(inr_10db_power(), 25.0)
+    late = [(t, e) for t, e in out if t >= 15.0]
+    errors = np.array([np.linalg.norm(e.positions[0] - JAMMER) for _, e in late])
+    stds = np.array([e.position_std_max()[0] for _, e in late])
+    assert errors.max() < 1.0 and errors[-1] < 0.5
+    assert np.mean(errors <= 3.0 * stds) > 0.9  # the covariance covers the error (3 sigma, largest axis)
+    assert late[-1][1].confident[0]
+    assert late[-1][1].powers[0] == pytest.approx(inr_10db_power(), rel=0.2)
+
+
+def test_jammer_off_keeps_a_wide_covariance():
+    """No jammer: the estimate never becomes confident; its spread stays metres wide (no collapse)."""
+    _, out = fly(0.0, 20.0)
+    stds = np.array([e.position_std_max()[0] for t, e in out if t >= 1.0])
+    assert stds.min() > 3.0
+    assert not any(e.confident[0] for _, e in out)
+    assert out[-1][1].powers[0] < 0.1 * inr_10db_power() * 1e-3
+
+
+def test_on_off_schedule_is_tracked():
+    """A 5 s ON / 5 s OFF jammer: after the estimate settles, its ON probability follows the schedule."""
+    on = lambda t: (t % 10.0) < 5.0  # noqa: E731
+    _, out = fly(inr_10db_power(), 30.0, schedule=on)
+    late = [(t, e) for t, e in out if t >= 10.0 and (t % 5.0) > 0.5]  # half a second to notice each switch
+    agree = np.mean([(e.on_prob[0] > 0.5) == on(t) for t, e in late])
+    assert agree > 0.9
+    assert np.linalg.norm(out[-1][1].positions[0] - JAMMER) < 2.5  # half the readings carry no jammer
+
+
+def test_fixed_receiver_gains_are_the_channels():
+    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0), Receiver("bs", DIPOLE, 1.0, fixed=True)], PathGain(),
+                          EstimatorSettings(*BOX), DT)
+    ref = link_gain(est.cells, E3, IsotropicPattern(), np.zeros(3), E3, DIPOLE)
+    np.testing.assert_allclose(est._cell_gains(1, np.zeros(3), E3), ref, rtol=1e-12)
+    with pytest.raises(ValueError, match="positive finite"):
+        est.add(0.0, 0, START, E3, float("nan"))
+
+
+def test_jacobian_matches_central_differences():
+    est, _ = fly(inr_10db_power(), 3.0)
+    idx = est.window.rows(60)
+    theta = np.array([[-5.0, -4.0, 2.5, np.log(800.0)]])
+    g, dg = est._window_gains(theta, idx, jacobian=True)
+    on = est._on_flags(theta, g, idx)
+    _, J = est._model(theta, g, dg, on, idx)
+    for i in range(4):
+        h = np.zeros((1, 4))
+        h[0, i] = 1e-5
+        zp, _ = est._model(theta + h, est._window_gains(theta + h, idx, False)[0], None, on, idx)
+        zm, _ = est._model(theta - h, est._window_gains(theta - h, idx, False)[0], None, on, idx)
+        np.testing.assert_allclose(J[:, i], (zp - zm) / 2e-5, rtol=2e-3, atol=1e-6)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.tuples(*[st.floats(-20, 20)] * 3), st.tuples(*[st.floats(0.5, 30)] * 3), st.floats(0.3, 5.0))
+def test_grid_cells_tile_the_box(lo, extent, spacing):
+    lo = np.array(lo)
+    hi = lo + np.array(extent)
+    cells, sides = _grid(lo, hi, spacing)
+    assert np.all(cells >= lo) and np.all(cells <= hi)
+    np.testing.assert_allclose(cells.min(axis=0) - lo, 0.5 * sides)
+    np.testing.assert_allclose(hi - cells.max(axis=0), 0.5 * sides)
+    assert len(cells) == np.prod(np.round((hi - lo) / sides))
+
+
+def test_two_jammers_are_found_one_after_the_other():
+    """Two jammers at 10 dB each: the second is fitted to what the first leaves; each estimate ends
+    near a different jammer."""
+    second = np.array([4.0, 5.0, 1.5])
+    powers = (inr_10db_power(), 10.0 * float(np.sum((START - second) ** 2)))
+    receivers = [Receiver("relay", DIPOLE, 1.0), Receiver("bs", DIPOLE, 1.0, fixed=True)]
+    est = JammerEstimator(2, receivers, PathGain(), EstimatorSettings(*BOX), DT)
+    det = EnergyDetector(100, seed=1)
+    iso = IsotropicPattern()
+    for k in range(int(35.0 / DT)):
+        t = k * DT
+        rx, ax = relay_pose(t)
+        for i, (p, a) in enumerate(((rx, ax), (np.zeros(3), E3))):
+            i_w = sum(P * link_gain(j, E3, iso, p, a, DIPOLE) for j, P in zip((JAMMER, second), powers, strict=True))
+            est.add(t, i, p, a, float(det.measure(1.0 + i_w)))
+        e = est.update(t)
+    d = np.linalg.norm(e.positions[:, None, :] - np.array([JAMMER, second])[None], axis=2)  # estimate x truth
+    nearest = d.argmin(axis=1)
+    assert sorted(nearest.tolist()) == [0, 1]
+    assert d.min(axis=1).max() < 2.5

@@ -1,0 +1,79 @@
+"""A short flight estimating the jammer: the readings are the true interference plus noise through
+the detector (recomputed independently from the logged poses), the estimate and its covariance are
+logged, the planner is not handed a jammer before the estimate is confident, and the scenario
+settings are checked before any work."""
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.models.geometry import rotation_batch
+from aerorelay.scenario import ScenarioError
+from aerorelay.scenario.build import build
+from tests.reference_channel import DIPOLE
+
+UPDATES = {"jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0, "estimation.use_bs": True,
+           "sim.duration_s": 4.0}
+
+
+@pytest.fixture(scope="module")
+def flown():
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(UPDATES)
+    return sc, ar.simulate(sc)
+
+
+def test_inr_sets_the_power_at_the_relays_start(flown):
+    """Jammer and relay start at the same height: a broadside dipole (gain 1) at d, so P = INR N d^2."""
+    sc, _ = flown
+    d2 = float(np.sum((np.array(sc.nodes.relay) - np.array(sc.jammer.position)) ** 2))
+    assert build(sc).scene.jammers[0].power == pytest.approx(10.0 * 1.0 * d2, rel=1e-9)
+
+
+def test_readings_are_the_true_interference_through_the_detector(flown):
+    sc, res = flown
+    df = res.timeseries
+    power = 10.0 * float(np.sum((np.array(sc.nodes.relay) - np.array(sc.jammer.position)) ** 2))
+    p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
+    axis = rotation_batch(df[["phi1", "theta1", "psi1"]].to_numpy())[:, :, 2]
+    d = np.array(sc.jammer.position) - p1
+    n2 = np.sum(d * d, axis=1)
+    expected = 1.0 + power * DIPOLE.gain_from_cos(np.sum(d * axis, axis=1) / np.sqrt(n2)) / n2
+    ratio = df["meas_relay_w"].to_numpy() / expected
+    assert ratio.mean() == pytest.approx(1.0, abs=4 * 0.1 / np.sqrt(len(ratio)))  # n = 100: std 0.1 per reading
+    assert ratio.std() == pytest.approx(0.1, rel=0.15)
+    c = sc.jammer.position[2]  # the BS dipole stands vertical at the origin / np.linalg.norm(sc.jammer.position)
+    bs = 1.0 + power * DIPOLE.gain_from_cos(c) / float(np.sum(np.array(sc.jammer.position) ** 2))
+    assert df["meas_bs_w"].mean() == pytest.approx(bs, rel=4 * 0.1 / np.sqrt(len(df)))
+
+
+def test_estimate_and_covariance_are_logged(flown):
+    _, res = flown
+    df, m = res.timeseries, res.metrics
+    for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "err_m", "cov_xx", "cov_yy", "cov_zz", "cov_xy", "cov_xz", "cov_yz"):
+        assert np.all(np.isfinite(df[f"est_jammer_{q}"])), q
+    cov = df[["est_jammer_cov_xx", "est_jammer_cov_yy", "est_jammer_cov_zz"]].to_numpy()
+    assert np.all(df["est_jammer_std_m"] ** 2 >= cov.max(axis=1) * (1 - 1e-9))  # largest eigenvalue >= each diagonal entry
+    truth = np.array(ar.load_scenario("scenarios/nominal_tilted.toml").jammer.position)
+    err = np.linalg.norm(df[["est_jammer_x", "est_jammer_y", "est_jammer_z"]].to_numpy() - truth, axis=1)
+    np.testing.assert_allclose(df["est_jammer_err_m"], err, atol=1e-9)
+    assert {"estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimator_ms"} <= set(m)
+
+
+def test_planner_gets_no_jammer_before_a_confident_estimate():
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(UPDATES)
+    parts = build(sc)
+    positions, powers = parts.sensing.planner_view(senses_state=False)
+    assert powers.tolist() == [0.0] and positions.shape == (1, 3)  # nothing measured yet: the prior, no power
+
+
+@pytest.mark.parametrize("updates, fragment", [
+    ({"jammers": [{"localization": "estimated"}, {"position": [1.0, -4.0, 1.0]}], "jammer": None},
+     "every jammer must use the same mode"),
+    ({"jammer.power_dbm": 30.0, "jammer.inr_db_at_relay_start": 10.0}, "not both"),
+    ({"estimation.search_min_m": [0.0, 0.0, 0.0]}, "both search_min_m and search_max_m"),
+    ({"estimation.search_min_m": [0.0, 0.0, 0.0], "estimation.search_max_m": [1.0, -1.0, 1.0]}, "below search_max_m"),
+    ({"jammer.inr_db_at_relay_start": 60.0}, "jammer.inr_db_at_relay_start: must be in [-40, 40]"),
+])
+def test_bad_estimation_settings_are_named(updates, fragment):
+    with pytest.raises(ScenarioError, match=fragment.replace("[", r"\[").replace("]", r"\]")):
+        ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(updates)
