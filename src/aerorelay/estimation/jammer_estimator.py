@@ -36,7 +36,7 @@ rival mode, keeps a wide covariance instead of collapsing onto a wrong point.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -51,6 +51,7 @@ _MIN_DISTANCE_M = 0.3  # a candidate nearer a receiver than this has its gain ca
 _FD_STEP_M = 1e-6  # forward-difference step of the gain's position derivative
 _WINDOW_FORGET_SPANS = 2.0  # the window holds this many forget_s (weights down to exp(-2))
 _ON_PRIOR_LOGODDS = 2.0  # prior log-odds that a jammer radiates at a measurement
+_RESEED_EVERY = 4  # refinements between two checks of a found jammer against the grid's best rival
 _RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
 _HUBER_SIGMAS = 3.0  # residuals beyond this many sigma count linearly (robust to readings across a switch)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
@@ -188,6 +189,7 @@ class JammerEstimator:
         self.chi2_scale = 1.0
         self._fixed_cell_gains: dict[int, np.ndarray] = {}
         self._rounds = 0
+        self._refines = 0
         self._grid_rows = np.zeros(n_jammers, int)  # measurements each jammer's grid has taken in
         self._rival = np.ones(n_jammers)  # likelihood ratio of the grid's rival mode to the estimate (<= 1)
         self._posterior: np.ndarray | None = None
@@ -249,7 +251,9 @@ class JammerEstimator:
             self._rounds += 1
             if len(self.window) >= self.s.min_rows and self._rounds % self.s.refine_every == 0:
                 self._refine(t)
-            self._estimate = self._summarize()
+                self._estimate = self._summarize()
+            else:  # the position and its covariance change only when refined; the ON/OFF chain every round
+                self._estimate = replace(self._estimate, on_prob=self.on_prob.copy())
         return self._estimate
 
     def _assimilate(self, t: float, receiver: int, position: np.ndarray, axis: np.ndarray, y: float) -> None:
@@ -346,9 +350,13 @@ class JammerEstimator:
         """Start Gauss-Newton at the grid's best cell at the first fit; afterwards, when the grid puts
         mass away from the estimate, compare the best such cell's window fit with the estimate's:
         restart there when it fits better, else keep it as a rival mode weighted by its likelihood
-        ratio (``_rival``), which the reported covariance includes."""
+        ratio (``_rival``), which the reported covariance includes. A confident estimate is checked
+        every ``_RESEED_EVERY`` refinements only (the grid moves slowly; the check costs two window fits)."""
+        self._refines += 1
         for j in range(self.nj):
             if not self.started[j] and self._grid_rows[j] < self.s.min_rows:
+                continue
+            if self.started[j] and self._estimate.confident[j] and self._refines % _RESEED_EVERY:
                 continue
             post = self._grid_posterior(j)
             far = np.linalg.norm(self.cells - self.theta[j, :3], axis=1) > 2.0 * self.spacing
