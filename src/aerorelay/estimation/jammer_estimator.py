@@ -75,7 +75,7 @@ class EstimatorSettings:
     search_min: np.ndarray
     search_max: np.ndarray
     n_samples: int = 100
-    aggregate_steps: int = 8
+    aggregate_steps: int = 10
     grid_m: float = 2.5
     forget_s: float = 20.0
     model_error_db: float = 0.2

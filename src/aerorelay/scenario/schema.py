@@ -542,7 +542,7 @@ class EstimationConfig(_Strict):
     use_bs: bool = Field(False, description="the base station's receiver measures too (its reports reach the relay)")
     n_samples: int = Field(100, ge=1, le=10_000_000, description="complex samples per energy reading (chi-square, 2n dof)")
     bias_db: float = Field(0.0, ge=-10.0, le=10.0, description="detector calibration bias, dB (unknown to the estimator)")
-    aggregate_steps: int = Field(8, ge=1, le=1000, description="control steps' readings averaged into one measurement")
+    aggregate_steps: int = Field(10, ge=1, le=1000, description="control steps' readings averaged into one measurement")
     grid_m: float = Field(2.5, ge=0.2, le=50.0, description="cell size of the grid filter over the search box, m")
     forget_s: float = Field(20.0, gt=0.0, le=1000.0, description="time constant of a measurement's weight exp(-age / forget_s), s "
                             "(shorter follows a moving jammer, longer averages more)")
@@ -639,8 +639,9 @@ class Scenario(_Strict):
 
     @property
     def stochastic(self) -> bool:
-        """Whether the seed changes anything: the perturbations' or log-normal shadowing."""
-        return self.perturbations.stochastic or self.channel.propagation.shadowing_std_db > 0
+        """Whether the seed changes anything: the perturbations', log-normal shadowing, or the
+        energy detector's noise when the relay estimates its jammers."""
+        return self.perturbations.stochastic or self.channel.propagation.shadowing_std_db > 0 or self.estimates_jammers
 
     @property
     def estimates_jammers(self) -> bool:
