@@ -41,7 +41,7 @@ def test_readings_are_the_true_interference_through_the_detector(flown):
     ratio = df["meas_relay_w"].to_numpy() / expected
     assert ratio.mean() == pytest.approx(1.0, abs=4 * 0.1 / np.sqrt(len(ratio)))  # n = 100: std 0.1 per reading
     assert ratio.std() == pytest.approx(0.1, rel=0.15)
-    c = sc.jammer.position[2]  # the BS dipole stands vertical at the origin / np.linalg.norm(sc.jammer.position)
+    c = sc.jammer.position[2] / np.linalg.norm(sc.jammer.position)  # the BS dipole stands vertical at the origin
     bs = 1.0 + power * DIPOLE.gain_from_cos(c) / float(np.sum(np.array(sc.jammer.position) ** 2))
     assert df["meas_bs_w"].mean() == pytest.approx(bs, rel=4 * 0.1 / np.sqrt(len(df)))
 

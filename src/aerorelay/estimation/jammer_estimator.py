@@ -103,19 +103,16 @@ class JammerEstimate:
         return np.sqrt(np.maximum(np.linalg.eigvalsh(self.covariances)[:, -1], 0.0))
 
 
-@dataclass
 class _Pending:
     """Readings of one receiver being averaged: count, sums of power (W), position and axis."""
 
-    count: int = 0
-    power: float = 0.0
-    position: np.ndarray | None = None
-    axis: np.ndarray | None = None
+    def __init__(self):
+        self.count, self.power = 0, 0.0
+        self.position, self.axis = np.zeros(3), np.zeros(3)
 
     def add(self, position, axis, reading_w: float) -> None:
-        p, a = np.asarray(position, float), np.asarray(axis, float)
-        self.position = p.copy() if self.count == 0 else self.position + p
-        self.axis = a.copy() if self.count == 0 else self.axis + a
+        self.position = self.position + np.asarray(position, float)
+        self.axis = self.axis + np.asarray(axis, float)
         self.power += reading_w
         self.count += 1
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -138,7 +139,7 @@ class ClosedLoop:
                                                seed=settings.seed)
         self.columns = self.columns + self.perturbations.columns + (sensing.columns if sensing else [])
         self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
-        self._noise_values: dict[str, np.ndarray] = {}
+        self._noise_values: dict[str, Any] = {}  # log values of the random terms and the jammer estimate
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
         self.timings: list[StepTiming] = []
         self.bench_points: list[BenchPoint] = []
@@ -167,7 +168,7 @@ class ClosedLoop:
         state = self.scene.evaluate(t, poses, fading=fade)
         if self.sensing is not None:
             bs = self.names["base_station"]
-            self._noise_values.update(self.sensing.step(t, state, {**poses, bs: self.scene.fixed_pose(bs)}))
+            self._noise_values = {**self._noise_values, **self.sensing.step(t, state, {**poses, bs: self.scene.fixed_pose(bs)})}
         p0 = self.scene.fixed_pose(self.names["base_station"]).position
         return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
 
