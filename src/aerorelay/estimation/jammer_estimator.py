@@ -90,17 +90,19 @@ class EstimatorSettings:
 class JammerEstimate:
     """The estimate at one instant, per jammer: ``positions`` ``(nJ, 3)`` m, ``powers`` ``(nJ,)`` W
     (EIRP), ``covariances`` ``(nJ, 3, 3)`` m^2 of the position, ``on_prob`` (that it radiates now),
-    ``confident`` (largest position std below ``confident_std_m``)."""
+    ``position_std`` (m: sqrt of each covariance's top eigenvalue), ``confident`` (``position_std``
+    below ``confident_std_m``)."""
 
     positions: np.ndarray
     powers: np.ndarray
     covariances: np.ndarray
     on_prob: np.ndarray
+    position_std: np.ndarray
     confident: np.ndarray
 
     def position_std_max(self) -> np.ndarray:
-        """Largest position standard deviation per jammer (m): sqrt of the covariance's top eigenvalue."""
-        return np.sqrt(np.maximum(np.linalg.eigvalsh(self.covariances)[:, -1], 0.0))
+        """Largest position standard deviation per jammer (m), computed once with the covariance."""
+        return self.position_std
 
 
 class _Pending:
@@ -432,7 +434,7 @@ class JammerEstimator:
                 covs.append(d.T @ (d * post[:, None]))
         covs_a = np.array(covs)
         std = np.sqrt(np.maximum(np.linalg.eigvalsh(covs_a)[:, -1], 0.0))
-        return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta), covs_a, self.on_prob.copy(),
+        return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta), covs_a, self.on_prob.copy(), std,
                               self.started & (std < self.s.confident_std_m))
 
     @property
