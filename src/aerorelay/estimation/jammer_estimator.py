@@ -262,6 +262,7 @@ class JammerEstimator:
         g_est = np.array([float(self._gain(self.theta[j, :3], receiver, position, axis)) for j in range(self.nj)])
         on_now = self.on_prob > 0.5
         z = KAPPA_DB * math.log(y)
+        g = self._cell_gains(receiver, position, axis)  # every cell's gain to this pose, shared by every jammer
         for j in range(self.nj):
             others = noise + float(np.sum(np.where(on_now, P * g_est, 0.0))) - (P[j] * g_est[j] if on_now[j] else 0.0)
             prior = self.on_prob[j] * (1.0 - self.s.switch_prob) + (1.0 - self.on_prob[j]) * self.s.switch_prob
@@ -274,7 +275,6 @@ class JammerEstimator:
                 self.on_prob[j] = prior
             if j > 0 and not self.started[j - 1]:
                 continue  # jammers are found one after the other: each explains what the earlier ones leave
-            g = self._cell_gains(receiver, position, axis)
             wgt = (1.0 if not self.started[j] else self.on_prob[j]) / (y * y * self.rel2)
             self.s_ge[j] = self.forget * self.s_ge[j] + wgt * g * (y - others)
             self.s_gg[j] = self.forget * self.s_gg[j] + wgt * g * g
