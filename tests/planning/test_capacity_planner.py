@@ -118,7 +118,7 @@ def test_observability_excursion_circles_only_while_the_estimate_is_poor():
     """With excursion_m the goal circles the target at that radius (a vertical component too) while
     an estimated jammer's std is above excursion_std_m; with a good estimate or the oracle it is the target."""
     planner = SimpleNamespace(excursion=2.0, excursion_std=1.0, speed=1.0, target=np.array([-3.0, 3.0, 5.0]),
-                              lo=np.full(3, -50.0), hi=np.full(3, 50.0), excursion_active=False)
+                              lo=np.full(3, -50.0), hi=np.full(3, 50.0))
 
     def goal(t, std):
         inp = SimpleNamespace(t=t, jammer_std_m=None if std is None else np.array([std]))

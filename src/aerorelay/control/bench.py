@@ -47,8 +47,8 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "c_min": float(np.min(result.log["capacity"])),
         "route": loop.nmpc.route(),
     }
-    estimator = np.array([getattr(s, "estimator_ms", 0.0) for s in loop.timings], float)
     if getattr(loop, "sensing", None) is not None:  # jammer.localization = "estimated": the estimator's update per step
+        estimator = np.array([s.estimator_ms for s in loop.timings], float)
         out["estimator_ms"] = stats_ms(estimator)
         out["step_with_planner_and_estimator_ms"] = stats_ms(whole + planner + estimator)
     points = [(p.x, p.u_prev, p.P, p.guess) for p in loop.bench_points if p.guess is not None][:ipopt_points]

@@ -120,23 +120,23 @@ class _Pending:
 
 
 class _Window:
-    """Time-ordered measurements: time (s), receiver, position and axis (world), reading (W and dB)."""
+    """Time-ordered measurements: time (s), receiver, position and axis (world), reading (dB)."""
 
     def __init__(self, capacity: int):
         c = 2 * capacity
         self.capacity = capacity
-        self.t, self.y, self.z = np.zeros(c), np.zeros(c), np.zeros(c)
+        self.t, self.z = np.zeros(c), np.zeros(c)
         self.rx, self.ax, self.ri = np.zeros((c, 3)), np.zeros((c, 3)), np.zeros(c, dtype=np.intp)
         self.lo = self.hi = 0
 
     def append(self, t: float, ri: int, rx, ax, y: float) -> None:
         if self.hi == self.t.size:  # compact: move the live rows to the front
             n = self.hi - self.lo
-            for a in (self.t, self.y, self.z, self.rx, self.ax, self.ri):
+            for a in (self.t, self.z, self.rx, self.ax, self.ri):
                 a[:n] = a[self.lo:self.hi]
             self.lo, self.hi = 0, n
         k = self.hi
-        self.t[k], self.ri[k], self.rx[k], self.ax[k], self.y[k] = t, ri, rx, ax, y
+        self.t[k], self.ri[k], self.rx[k], self.ax[k] = t, ri, rx, ax
         self.z[k] = KAPPA_DB * math.log(y)
         self.hi += 1
         if self.hi - self.lo > self.capacity:

@@ -73,7 +73,6 @@ class CapacityPlanner:
         self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
         self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
         self.excursion, self.excursion_std = excursion_m, excursion_std_m
-        self.excursion_active = False
         self._k = 0
 
     def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -160,9 +159,8 @@ class CapacityPlanner:
     def _goal(self, inp: PlannerInput) -> np.ndarray:
         """Where the reference heads: the target, or a point circling it while a jammer estimate is poor."""
         assert self.target is not None
-        self.excursion_active = bool(self.excursion > 0 and inp.jammer_std_m is not None
-                                     and np.any(np.asarray(inp.jammer_std_m) > self.excursion_std))
-        if not self.excursion_active:
+        poor = inp.jammer_std_m is not None and np.any(np.asarray(inp.jammer_std_m) > self.excursion_std)
+        if self.excursion <= 0 or not poor:
             return self.target
         w = self.speed / self.excursion
         phase = w * inp.t

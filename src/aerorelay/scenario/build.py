@@ -22,7 +22,7 @@ from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, free_space_loss_db
-from ..models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene, link_gain
+from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import Planner, PlannerContext, planner_factory
@@ -61,28 +61,32 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
     scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), ("source", "relay", "bs"), path_gain(ch))
     if jammers is None and any(j.inr_db_at_relay_start is not None for j in sc.jammer_configs):
-        scene = replace(scene, jammers=tuple(_power_for_inr(scene, j, cfg, np.array(sc.nodes.relay, float))
-                                             for j, cfg in zip(jams, sc.jammer_configs, strict=True)))
+        scene = _powers_for_inr(scene, sc)
     return scene
 
 
-def _power_for_inr(scene: RadioScene, jammer: Jammer, cfg: JammerConfig, relay_start: np.ndarray) -> Jammer:
-    """The jammer with the peak power giving ``inr_db_at_relay_start`` at the relay's start (hovering
-    level: antenna along world z; a directional jammer pointed as at t = 0), or unchanged."""
-    if cfg.inr_db_at_relay_start is None:
-        return jammer
-    relay = scene.node(scene.name_of("relay"))
-    target = relay_start if jammer.point_at == "relay" else None
-    if jammer.point_at is not None and jammer.point_at != "relay":
-        target = scene.fixed_pose(jammer.point_at).position if scene.node(jammer.point_at).position is not None else None
-    axis = jammer.axis(jammer.position_at(0.0), target)
-    rx = NodePose(relay_start, relay.antenna.world_axis(np.eye(3)))
-    g = float(link_gain(jammer.position_at(0.0), axis, jammer.pattern, rx.position, rx.axis, relay.antenna.pattern,
-                        scene.path_gain))
-    if not g > 0:
-        raise ValueError(f"jammer {jammer.name!r}: inr_db_at_relay_start: the relay's start is in a null of the "
-                         "jammer-relay link (zero gain); give power_w instead")
-    return replace(jammer, power=10.0 ** (cfg.inr_db_at_relay_start / 10.0) * scene.budget.noise_power / g)
+def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
+    """The scene with each ``inr_db_at_relay_start`` jammer's peak power set so that its
+    interference-to-noise ratio at the relay's start is that (level attitudes at t = 0, as
+    ``aerorelay info`` evaluates it: the channel's interference per unit power, one jammer at a time)."""
+    I = np.eye(3)
+    relay, source = scene.name_of("relay"), scene.name_of("source")
+    poses = {relay: scene.pose(relay, np.array(sc.nodes.relay, float), I),
+             source: scene.pose(source, np.array(sc.mission.start, float), I)}
+    hop = next(k for k, (_, rx) in enumerate(scene.hops) if rx == relay)
+    out = []
+    for i, (j, cfg) in enumerate(zip(scene.jammers, sc.jammer_configs, strict=True)):
+        if cfg.inr_db_at_relay_start is None:
+            out.append(j)
+            continue
+        unit = np.zeros(len(scene.jammers))
+        unit[i] = 1.0
+        g = float(scene.evaluate(0.0, poses, jammer_powers=unit).interference[hop])
+        if not g > 0:
+            raise ValueError(f"jammer {j.name!r}: inr_db_at_relay_start: the relay's start is in a null of the "
+                             "jammer-relay link (zero gain); give power_w instead")
+        out.append(replace(j, power=10.0 ** (cfg.inr_db_at_relay_start / 10.0) * scene.budget.noise_power / g))
+    return replace(scene, jammers=tuple(out))
 
 
 def path_gain(ch) -> PathGain:
