@@ -9,6 +9,7 @@ from aerorelay.models.channel import (
     inverse_capacity,
     misalignment,
     mutual_alignment,
+    reachable_mutual_alignment,
     spectral_efficiency,
     surrogate_sinr,
 )
@@ -159,3 +160,35 @@ def test_isotropic_receiver_ignores_its_attitude():
     a = link_sinr(P2, I3, P1, I3, PJ, pattern_rx=iso, **KW)
     b = link_sinr(P2, I3, P1, rotation_zyx(np.array([0.4, -0.3, 1.0])), PJ, pattern_rx=iso, **KW)
     assert a == pytest.approx(b, rel=1e-12)
+
+
+def test_reachable_alignment_hand_values():
+    """Relay at the origin, vertical axis: BS level with it (v_10 = 0); MRAV-2 straight above (v_12 = 1,
+    alignment 0) or at 45 deg elevation (v_12 = 1/2, alignment 1/2); a horizontal axis along y is
+    broadside to both links in the x-z plane (alignment 1)."""
+    up, side = np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 1.0, 0.0]])
+    path = np.array([[0.0, 0.0, 3.0], [2.0, 0.0, 2.0]])
+    np.testing.assert_allclose(reachable_mutual_alignment([[0.0, 0.0, 0.0]], up, [5.0, 0.0, 0.0], path), [0.0, 0.5],
+                               atol=1e-12)
+    np.testing.assert_allclose(reachable_mutual_alignment([[0.0, 0.0, 0.0]], side, [5.0, 0.0, 0.0], path), [1.0, 1.0])
+    both = np.vstack([up, side])  # the max over axes and positions
+    pos = [[0.0, 0.0, 0.0], [0.0, 0.0, 10.0]]
+    np.testing.assert_allclose(reachable_mutual_alignment(pos, both, [5.0, 0.0, 0.0], path), [1.0, 1.0])
+
+
+@given(points, points, points)
+def test_reachable_alignment_is_the_eq_11_alignment_maximized(p1, p0, p2):
+    """Between 0 and 1; equal to eq. 11 at one axis; 1 with the axis normal to both links."""
+    assume(min(np.linalg.norm(p0 - p1), np.linalg.norm(p2 - p1)) > 0.1)
+    axis = np.array([[0.3, -0.2, 0.9]]) / np.linalg.norm([0.3, -0.2, 0.9])
+    got = reachable_mutual_alignment([p1], axis, p0, [p2])[0]
+    R = np.eye(3)  # eq. 10 through the body z axis: rotate e3 onto the axis
+    z = axis[0]
+    R[:, 2] = z
+    R[:, 0] = np.cross([0.0, 1.0, 0.0], z) / np.linalg.norm(np.cross([0.0, 1.0, 0.0], z))
+    R[:, 1] = np.cross(z, R[:, 0])
+    want = float(mutual_alignment(misalignment(p1, R, p2), misalignment(p1, R, p0)))
+    assert 0.0 <= got <= 1.0 + 1e-12 and got == pytest.approx(want, abs=1e-9)
+    n = np.cross(p0 - p1, p2 - p1)
+    assume(np.linalg.norm(n) > 1e-3 * np.linalg.norm(p0 - p1) * np.linalg.norm(p2 - p1))
+    assert reachable_mutual_alignment([p1], [n / np.linalg.norm(n)], p0, [p2])[0] == pytest.approx(1.0, abs=1e-9)

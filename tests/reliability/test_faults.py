@@ -17,6 +17,7 @@ from aerorelay.control.codegen import shared_library
 from aerorelay.experiments.campaign import LOCK_FILE, CampaignBusyError, is_finished, load_manifest, run_campaign, run_dir
 from aerorelay.experiments.study import RunSpec
 from aerorelay.scenario import ScenarioError, load_scenario
+from aerorelay.scenario.schema import Scenario
 from aerorelay.store.cache import entry_is_intact
 from aerorelay.store.outputs import MARKER, OutputError, check_output_folder, mark
 
@@ -248,9 +249,32 @@ def test_an_unreachable_scheduler_is_a_named_error(tmp_path):
 
 
 # ---------------------------------------------------------------- flight safety
-def test_a_relay_that_leaves_its_world_is_reported_unsafe_with_its_exit_code(tmp_path):
-    """Without the supervisor the weights that flip the relay (mu = 0.99) send it out of the box; the run
-    is marked unsafe (metrics, exit code) whatever the QPs said."""
+@pytest.mark.parametrize("preset, mu", [("nominal_tilted", 0.99), ("nominal_tilted", 0.61), ("nominal_coplanar", 0.42)])
+def test_an_alignment_threshold_beyond_the_platforms_reach_is_rejected_before_flying(tmp_path, preset, mu):
+    """mu above the mutual alignment the relay can reach in hover anywhere in its workspace (0.606 tilted,
+    0.416 coplanar on the nominal mission) drove the relay out of the box: exit 2, the field and the
+    allowed range named, nothing written."""
+    out = tmp_path / "r"
+    res = run_cli("run", ROOT / "scenarios" / f"{preset}.toml", "--out", out, "--set", f"controller.mu={mu}")
+    assert res.exit_code == EXIT_BAD_INPUT and not out.exists(), res.output
+    assert "controller.mu" in res.output and "use mu in (0, " in res.output
+
+
+def test_the_capacity_planner_and_the_unconstrained_variant_do_not_need_a_reachable_mu():
+    """Only the paper's comms-aware NMPC carries the alignment constraint."""
+    load_scenario(NOMINAL, set={"controller.mu": 0.99, "controller.planner": "capacity"})
+    load_scenario(NOMINAL, set={"controller.mu": 0.99, "controller.variant": "unconstrained"})
+
+
+@pytest.fixture
+def unchecked_mu(monkeypatch):
+    """The reach check off: the layers behind validation must hold on their own."""
+    monkeypatch.setattr(Scenario, "_mu_reachable", lambda self: None)
+
+
+def test_a_relay_that_leaves_its_world_is_reported_unsafe_with_its_exit_code(tmp_path, unchecked_mu):
+    """Without the supervisor (and past validation) the weights that flip the relay (mu = 0.99) send it out
+    of the box; the run is marked unsafe (metrics, exit code) whatever the QPs said."""
     out = tmp_path / "r"
     res = run_cli("run", NOMINAL, "--out", out, "--duration", "20", "--no-figures", "--no-bound",
                   "--set", "controller.mu=0.99", "--set", "controller.failsafe.supervisor=false")
@@ -258,7 +282,7 @@ def test_a_relay_that_leaves_its_world_is_reported_unsafe_with_its_exit_code(tmp
     assert m["unsafe"] and m["box_violation_max_m"] > 0.05 and res.exit_code == EXIT_UNSAFE, res.output
 
 
-def test_the_supervisor_hands_over_at_once_and_the_brake_law_recovers_the_attitude(tmp_path):
+def test_the_supervisor_hands_over_at_once_and_the_brake_law_recovers_the_attitude(tmp_path, unchecked_mu):
     sc = load_scenario(NOMINAL, set={"controller.mu": 0.99, "sim.duration_s": 20.0})
     r = ar.simulate(sc)
     df, m = r.timeseries, r.metrics

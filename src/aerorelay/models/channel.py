@@ -9,6 +9,8 @@ Functions marked *dual* also take CasADi symbols.
 
 from __future__ import annotations
 
+import numpy as np
+
 from .antenna import link_direction_cos
 from .backend import ops
 from .radio import route_capacity
@@ -26,6 +28,20 @@ def misalignment(p_i, R_i, p_j):
 def mutual_alignment(v_12, v_10):
     """Joint alignment ``(1 - v_12)(1 - v_10)`` of the relay toward MRAV-2 and BS (eq. 11)."""
     return (1.0 - v_12) * (1.0 - v_10)
+
+
+def reachable_mutual_alignment(relay_positions, axes, p0, p2_path):
+    """Largest mutual alignment (eq. 11) over relay ``positions`` ``(P, 3)`` and antenna ``axes``
+    ``(K, 3)`` (unit, world), at each MRAV-2 position of ``p2_path`` ``(T, 3)``; BS at ``p0``. ``(T,)``."""
+    g = np.asarray(relay_positions, float)
+    axes = np.asarray(axes, float)
+
+    def cos_to(p):  # directional cosines (P, K) of the links from each relay position toward p
+        d = np.asarray(p, float) - g
+        return (d / np.linalg.norm(d, axis=1, keepdims=True)) @ axes.T
+
+    s10 = 1.0 - cos_to(p0) ** 2
+    return np.array([float(np.max(s10 * (1.0 - cos_to(p2) ** 2))) for p2 in np.asarray(p2_path, float)])
 
 
 def spectral_efficiency(gamma):

@@ -7,6 +7,7 @@ the paper's Table I values and SPEC.md's resolved choices, so an empty ``[sectio
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -16,7 +17,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from ..control.terms import COST_TERMS
 from ..models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
-from ..models.mission import CsvPath, MinimumJerkPath, UlogPath
+from ..models.axes import axis_cone
+from ..models.channel import reachable_mutual_alignment
+from ..models.mission import CsvPath, MinimumJerkPath, UlogPath, source_trajectory
 from ..models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
 from .tomltext import compact_toml
 
@@ -562,6 +565,23 @@ class EstimationConfig(_Strict):
         return self
 
 
+@functools.lru_cache(maxsize=64)
+def _reachable_alignment(platform_json: str, mission_json: str, ws_min: tuple, ws_max: tuple, bs: tuple,
+                         duration_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per second of the mission: the largest mutual alignment the relay reaches in hover anywhere in
+    the workspace (1 m grid, hover-holdable axes every 3 deg); the times (s); the hover tilt limit
+    (deg). Cached: every load of the same scenario asks the same."""
+    veh = PlatformConfig.model_validate_json(platform_json).vehicle()
+    lo, hi = np.array(ws_min, float), np.array(ws_max, float)
+    grid = np.stack(np.meshgrid(*[np.linspace(lo[i], hi[i], int(np.ceil(hi[i] - lo[i])) + 1) for i in range(3)],
+                                indexing="ij"), -1).reshape(-1, 3)  # <= 1 m apart
+    path = source_trajectory(MissionConfig.model_validate_json(mission_json))
+    times = np.linspace(0.0, duration_s, int(np.ceil(duration_s)) + 1)
+    p2 = np.array([path.state(min(t, path.duration)).p for t in times])
+    axes = axis_cone(veh.hover_tilt_limit, np.radians(3.0))
+    return reachable_mutual_alignment(grid, axes, bs, p2), times, math.degrees(veh.hover_tilt_limit)
+
+
 class Scenario(_Strict):
     """A complete, validated relay scenario."""
 
@@ -635,7 +655,30 @@ class Scenario(_Strict):
                 f"the control period ({self.control_period_s} s) must be a whole number of plant steps "
                 f"(sim.plant_rate_hz = {self.sim.plant_rate_hz})"
             )
+        self._mu_reachable()
         return self
+
+    def _mu_reachable(self):
+        """``controller.mu`` no higher than the mutual alignment the relay can reach while holding a
+        hover, somewhere in its workspace, at every second of the mission. Above it the alignment
+        slack dominates the NMPC's cost all mission long and the NMPC trades the vehicle's stability
+        for alignment (measured on the nominal missions, supervisor on: mu = 0.9 flips the tilted
+        hexarotor (109 deg) and sends it 3.8 m out of the box, mu = 0.7 the coplanar one 12.5 m;
+        mu = 0.7 tilted and 0.5 coplanar, just above their reach, fly inside it)."""
+        c = self.controller
+        if not c.comms_aware or c.mu <= 0.0:
+            return
+        reach, times, tilt = _reachable_alignment(self.platform.model_dump_json(), self.mission.model_dump_json(),
+                                                  tuple(c.workspace.min), tuple(c.workspace.max), tuple(self.nodes.bs),
+                                                  self.duration_s)
+        k = int(np.argmin(reach))
+        limit = math.floor(reach[k] * 100.0) / 100.0
+        if c.mu > limit:
+            raise ValueError(
+                f"controller.mu = {c.mu:g} is above {reach[k]:.3f}, the largest mutual alignment the relay can reach "
+                f"while holding a hover (tilt <= {tilt:.1f} deg) anywhere in "
+                f"controller.workspace at t = {times[k]:.0f} s of the mission: the alignment slack would dominate the "
+                f"NMPC's cost and trade the vehicle's stability for alignment; use mu in (0, {limit:.2f}]")
 
     @property
     def stochastic(self) -> bool:
