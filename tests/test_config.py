@@ -130,3 +130,19 @@ def tomllib_loads(text):
     import tomllib
 
     return tomllib.loads(text)
+
+
+def test_antenna_gain_in_dbi():
+    """A half-wave dipole's 2.15 dBi is a linear peak gain of 10^0.215 = 1.6406; both fields given must agree;
+    the resolved scenario (which writes both) loads again."""
+    import tomllib
+
+    sc = parse_scenario({"antenna": {"g_bar_dbi": 2.15}})
+    assert sc.antenna.g_bar == pytest.approx(1.640590, rel=1e-6)
+    assert sc.antenna.build().g_bar == pytest.approx(1.640590, rel=1e-6)
+    assert parse_scenario(tomllib.loads(sc.to_toml())) == sc
+    assert parse_scenario({"antenna": {"g_bar_dbi": 0.0, "g_bar": 1.0}}).antenna.g_bar == 1.0
+    with pytest.raises(ScenarioError, match="g_bar_dbi"):
+        parse_scenario({"antenna": {"g_bar_dbi": 3.0, "g_bar": 1.0}})
+    with pytest.raises(ScenarioError, match="antenna.g_bar_dbi"):
+        parse_scenario({"antenna": {"g_bar_dbi": 45.0}})

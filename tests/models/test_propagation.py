@@ -4,6 +4,7 @@ fading's power, K factor and autocorrelation."""
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -14,8 +15,10 @@ from aerorelay.models.fading import ClarkeRicianFading
 from aerorelay.models.propagation import (
     GudmundsonShadowing,
     PathGain,
+    RmaAvPathGain,
     check_rma_av_range,
     free_space_loss_db,
+    link_heights,
     rma_av_expected_gain,
     rma_av_los_probability,
     rma_av_path_loss_db,
@@ -113,3 +116,35 @@ def test_clarke_fading_has_unit_power_its_k_factor_and_a_j0_autocorrelation():
     for lag in (1, 2, 3, 5):
         r = np.mean(z[lag] * np.conj(z[0])).real
         assert r == pytest.approx(j0(2 * np.pi * f_d * lag * dt), abs=0.05)
+
+
+def test_rma_av_as_a_scene_path_gain_takes_the_links_heights():
+    """A link from the ground (0, 0, 0) to (300, 400, 30): d2D = 500 m, d3D = 500.9 m, h_UT = 30 m, in
+    either direction; the expected gain is rma_av_expected_gain there."""
+    a, b = np.array([0.0, 0.0, 0.0]), np.array([300.0, 400.0, 30.0])
+    d2 = float(b @ b)
+    d3, d2d, h = link_heights(a, b, d2)
+    assert (d3, d2d, h) == pytest.approx((math.sqrt(500.0**2 + 30.0**2), 500.0, 30.0))
+    path = RmaAvPathGain(carrier_hz=2e9)
+    g = rma_av_expected_gain(math.sqrt(d2), 500.0, 30.0, 2e9)
+    assert path.gain_between(a, b, d2) == pytest.approx(g, rel=1e-12)
+    assert path.gain_between(b, a, d2) == pytest.approx(g, rel=1e-12)
+    # LoS / NLoS state gains are the standard's losses at this link (95.8 / 99.8 dB at d3D ~ 500 m, h = 30 m)
+    los = path.state_gain([a, a], [b, b], [True, False])
+    np.testing.assert_allclose(-10 * np.log10(los), [rma_av_path_loss_db(d3, 30.0, 2e9, True),
+                                                      rma_av_path_loss_db(d3, 30.0, 2e9, False)])
+    assert path.los_probability([a], [b])[0] == pytest.approx(float(rma_av_los_probability(500.0, 30.0)))
+
+
+@given(st.floats(-500, 500), st.floats(-500, 500), st.floats(10.5, 300.0), st.floats(0.0, 10.0))
+@settings(max_examples=60, deadline=None)
+def test_rma_av_path_gain_is_dual_and_bounded_by_its_los_ceiling(x, y, h, z0):
+    """numpy and CasADi give the same expected gain; ``gain_from_d2`` (the estimator's cap) bounds it."""
+    a, b = np.array([0.0, 0.0, z0]), np.array([x, y, h])
+    d2 = float((b - a) @ (b - a))
+    path = RmaAvPathGain(carrier_hz=2.4e9)
+    g = float(path.gain_between(a, b, d2))
+    pa, pb = ca.SX.sym("pa", 3), ca.SX.sym("pb", 3)
+    f = ca.Function("g", [pa, pb], [path.gain_between(pa, pb, ca.dot(pb - pa, pb - pa))])
+    assert float(f(a, b)) == pytest.approx(g, rel=1e-9)
+    assert 0.0 < g <= float(path.gain_from_d2(d2)) * (1 + 1e-12)

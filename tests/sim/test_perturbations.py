@@ -3,13 +3,15 @@ with log-normal shadowing, Doppler fading; every random term logged, capacity re
 log alone with an independent per-link reference."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from aerorelay.models.geometry import rotation_batch
-from aerorelay.scenario import parse_scenario
+from aerorelay.scenario import ScenarioError, load_scenario, parse_scenario
 from aerorelay.scenario.build import build, build_scene
+from aerorelay.sim.perturbations import LinkPerturbations, PerturbationSettings
 from tests.reference_channel import end_to_end_capacity, jammer_gain_sq, legitimate_gain_sq
 
 BASE = parse_scenario({}).with_updates({"sim.duration_s": 2.0})
@@ -108,3 +110,73 @@ def test_info_prints_the_link_budget_in_the_chosen_units():
     # received power - (interference + noise) = SINR, line by line
     rx = float(paper["relay -> bs: received power"].split()[0])
     assert rx - 0.0 == pytest.approx(10 * math.log10(ar.link_budget(BASE)["gamma_10"]), abs=0.3)
+
+
+# ---------------------------------------------------------------- 3GPP TR 36.777 RMa-AV as the scene's channel
+ROOT = Path(__file__).resolve().parents[2]
+RMA = load_scenario(ROOT / "scenarios" / "rma_av.toml", set={"sim.duration_s": 2.0, "controller.planner": "capacity"})
+
+
+def _tr36777_loss_db(d3, h, fc_ghz, los):
+    """TR 36.777 Table B-2 RMa-AV, written out again here (independent of models/propagation.py)."""
+    tail = 20 * np.log10(40 * np.pi * fc_ghz / 3)
+    pl_los = np.maximum(23.9 - 1.8 * np.log10(h), 20.0) * np.log10(d3) + tail
+    pl_nlos = np.maximum(pl_los, -12 + (35 - 5.3 * np.log10(h)) * np.log10(d3) + tail)
+    return np.where(los, pl_los, pl_nlos)
+
+
+def test_rma_av_logged_capacity_is_recomputed_from_the_logged_poses_los_states_and_shadowing():
+    log = build(RMA).closed_loop().run().log
+    scene = build_scene(RMA)
+    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
+    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
+    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    pj, p0 = np.array(RMA.jammer_configs[0].position), np.zeros(3)
+
+    def path(a, b, link):  # the logged state's loss and shadowing, times d^2 (the reference divides by it)
+        a, b = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
+        d3 = np.linalg.norm(b - a, axis=-1)
+        h = np.maximum(a[..., 2], b[..., 2])
+        loss = _tr36777_loss_db(d3, h, 2.4, log[f"los_{link}"] > 0.5)
+        return d3**2 * 10 ** ((log[f"shadow_db_{link}"] - loss) / 10)
+
+    P_U, P_J = 0.1, scene.jammers[0].power
+    N = 1.380649e-23 * 290 * 20e6 * 10 ** 0.7
+    h21 = legitimate_gain_sq(p2, R2, p1, R1) * path(p2, p1, "source_relay")
+    f1 = jammer_gain_sq(pj, p1, R1) * path(pj, p1, "jammer_relay")
+    h10 = legitimate_gain_sq(p1, R1, p0, np.eye(3)) * path(p1, p0, "relay_bs")
+    f0 = jammer_gain_sq(pj, p0, np.eye(3)) * path(pj, p0, "jammer_bs")
+    g21, g10 = h21 * P_U / (f1 * P_J + N), h10 * P_U / (f0 * P_J + N)
+    np.testing.assert_allclose(log["gamma_21"], g21, rtol=1e-9)
+    np.testing.assert_allclose(log["gamma_10"], g10, rtol=1e-9)
+    np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10, 20e6), rtol=1e-9)
+    # LoS within d1 = 18 m (h <= ~23 m): every link of this geometry; the LoS shadowing std 4.2 exp(-0.0046 h)
+    assert all(np.all(log[f"los_{lk}"] == 1.0) for lk in ("source_relay", "relay_bs", "jammer_relay", "jammer_bs"))
+    again = build(RMA).closed_loop().run().log
+    np.testing.assert_array_equal(log["shadow_db_relay_bs"], again["shadow_db_relay_bs"])
+
+
+def test_rma_av_los_states_are_drawn_with_the_los_probability():
+    """Over 2000 seeds a 500 m link from the ground to 30 m is LoS with the standard's P_LoS there."""
+    far = load_scenario(ROOT / "scenarios" / "rma_av.toml", set={"nodes.bs": [400.0, 300.0, 0.0]})
+    scene = build_scene(far)
+    p_los = float(scene.path_gain.los_probability([[400.0, 300.0, 0.0]], [[0.0, 0.0, 30.0]])[0])
+    assert 0.5 < p_los < 1.0
+    pos = {"source": np.array([1.0, 1.0, 30.0]), "relay": np.array([0.0, 0.0, 30.0]), "bs": np.array([400.0, 300.0, 0.0])}
+    vel = {k: np.zeros(3) for k in pos}
+    los = [LinkPerturbations(scene, PerturbationSettings(decorrelation_m=37.0), period_s=0.015, seed=s).step(0.0, pos, vel)[1]
+           ["los_relay_bs"] for s in range(2000)]
+    assert np.mean(los) == pytest.approx(p_los, abs=3 * math.sqrt(p_los * (1 - p_los) / 2000))
+
+
+@pytest.mark.parametrize("change, fragment", [
+    ({"channel.units": "normalized"}, "channel.units = 'physical'"),
+    ({"controller.workspace.min": [-7.0, -6.0, 0.5]}, "controller.workspace z spans 0.50"),
+    ({"jammer.position": [-6.95, -5.79, 1.72]}, "jammer z spans 1.72"),
+    ({"channel.propagation.shadowing_std_db": 4.0}, "rma_av draws the standard's shadowing"),
+])
+def test_rma_av_outside_its_validity_is_a_named_error(change, fragment):
+    with pytest.raises(ScenarioError, match="rma_av|RMa-AV|physical") as err:
+        RMA.with_updates(change)
+    assert fragment in str(err.value)

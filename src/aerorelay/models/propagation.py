@@ -5,7 +5,8 @@ its normalized units. A ``PathGain`` generalizes that to ``K d^-n`` (``K`` = ``1
 d0^n``): free space in physical units (Friis, ``K = (lambda / 4 pi)^2``, ``n = 2``) and the
 log-distance model (``PL(d) = PL(d0) + 10 n log10(d / d0)``). The ``rma_av_*`` functions are the
 RMa-AV model of 3GPP TR 36.777 Annex B (aerial UEs 10-300 m): LoS probability, LoS / NLoS path
-loss and shadow-fading standard deviation (not yet selectable as a scene's propagation).
+loss and shadow-fading standard deviation; ``RmaAvPathGain`` makes it a scene's propagation (the
+expected gain over the LoS state, which controllers plan with; the plant draws the state).
 ``GudmundsonShadowing`` draws log-normal shadowing (dB) that is
 correlated along each link's motion, ``exp(-Delta d / d_corr)`` (Gudmundson 1991).
 
@@ -18,6 +19,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from .backend import is_symbolic, ops
 
 SPEED_OF_LIGHT_M_S = 299_792_458.0
 
@@ -61,6 +64,14 @@ class PathGain:
             return self.scale / d2
         return self.scale * d2 ** (-0.5 * self.exponent)
 
+    def gain_between(self, p_tx, p_rx, d2):
+        """The gain of the link ``p_tx -> p_rx`` whose squared length is ``d2``: ``gain_from_d2(d2)``
+        here; models that need the ends' heights override it (numpy or CasADi)."""
+        return self.gain_from_d2(d2)
+
+    def describe(self) -> str:
+        return f"path gain {self.scale:.4g} d^-{self.exponent:g}"
+
     def loss_db(self, distance_m):
         """``-10 log10 g(d)`` (dB)."""
         d = np.asarray(distance_m, float)
@@ -86,25 +97,31 @@ def rma_av_los_probability(d2d, h_ut):
     """TR 36.777 Table B-1, RMa-AV: 1 for ``d2D <= d1``, else ``d1/d2D + exp(-d2D/p1)(1 - d1/d2D)``
     with ``p1 = max(15021 log10 h - 16053, 1000)``, ``d1 = max(1350.8 log10 h - 1602, 18)`` for
     10 < h <= 40 m; 1 above 40 m."""
-    d, h = np.asarray(d2d, float), np.asarray(h_ut, float)
-    lh = np.log10(h)
-    p1 = np.maximum(15021.0 * lh - 16053.0, 1000.0)
-    d1 = np.maximum(1350.8 * lh - 1602.0, 18.0)
+    d, h = _dual(d2d, h_ut)
+    o = ops(d, h)
+    lh = o.log10(h)
+    p1 = o.fmax(15021.0 * lh - 16053.0, 1000.0)
+    d1 = o.fmax(1350.8 * lh - 1602.0, 18.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        far = d1 / d + np.exp(-d / p1) * (1.0 - d1 / d)
-    p = np.where(d <= d1, 1.0, far)
-    return np.where(h > 40.0, 1.0, p)
+        far = d1 / d + o.exp(-d / p1) * (1.0 - d1 / d)
+    p = o.where(d <= d1, 1.0, far)
+    return o.where(h > 40.0, 1.0, p)
 
 
 def rma_av_path_loss_db(d3d, h_ut, carrier_hz: float, los):
     """TR 36.777 Table B-2, RMa-AV (dB; ``f_c`` in GHz inside):
     LoS ``max(23.9 - 1.8 log10 h, 20) log10 d3D + 20 log10(40 pi f_c / 3)``;
     NLoS ``max(PL_LoS, -12 + (35 - 5.3 log10 h) log10 d3D + 20 log10(40 pi f_c / 3))``."""
-    d, h = np.asarray(d3d, float), np.asarray(h_ut, float)
+    d, h = _dual(d3d, h_ut)
+    o = ops(d, h)
     fc = carrier_hz / 1e9
     tail = 20.0 * np.log10(40.0 * np.pi * fc / 3.0)
-    pl_los = np.maximum(23.9 - 1.8 * np.log10(h), 20.0) * np.log10(d) + tail
-    pl_nlos = np.maximum(pl_los, -12.0 + (35.0 - 5.3 * np.log10(h)) * np.log10(d) + tail)
+    pl_los = o.fmax(23.9 - 1.8 * o.log10(h), 20.0) * o.log10(d) + tail
+    if los is True:
+        return pl_los
+    pl_nlos = o.fmax(pl_los, -12.0 + (35.0 - 5.3 * o.log10(h)) * o.log10(d) + tail)
+    if los is False:
+        return pl_nlos
     return np.where(np.asarray(los, bool), pl_los, pl_nlos)
 
 
@@ -116,11 +133,68 @@ def rma_av_shadow_std_db(h_ut, los):
 
 def rma_av_expected_gain(d3d, d2d, h_ut, carrier_hz: float):
     """The deterministic part a controller plans with: ``P_LoS g_LoS + (1 - P_LoS) g_NLoS``
-    (linear power gain, no shadowing realization)."""
+    (linear power gain, no shadowing realization). *Dual*."""
     p = rma_av_los_probability(d2d, h_ut)
     g_los = 10.0 ** (-rma_av_path_loss_db(d3d, h_ut, carrier_hz, True) / 10.0)
     g_nlos = 10.0 ** (-rma_av_path_loss_db(d3d, h_ut, carrier_hz, False) / 10.0)
     return p * g_los + (1.0 - p) * g_nlos
+
+
+def _dual(*args):
+    """CasADi expressions as they are, anything else as float arrays."""
+    return tuple(a if is_symbolic(a) else np.asarray(a, float) for a in args)
+
+
+def link_heights(p_tx, p_rx, d2):
+    """``(d3D, d2D, h_UT)`` of a link: its length, horizontal length and aerial height (the higher
+    end's z; TR 36.777 models ground-to-air links, an air-to-air link takes its higher end). numpy
+    ``(..., 3)`` ends or CasADi 3-vectors; ``d2`` the squared length."""
+    o = ops(p_tx, p_rx, d2)
+    z_tx, z_rx = o.component(p_tx, 2), o.component(p_rx, 2)
+    dz = z_rx - z_tx
+    return o.sqrt(d2), o.sqrt(o.fmax(d2 - dz * dz, 1e-12)), o.fmax(z_tx, z_rx)
+
+
+@dataclass(frozen=True)
+class RmaAvPathGain(PathGain):
+    """3GPP TR 36.777 RMa-AV as every link's deterministic path gain: the expected gain over the
+    LoS state, ``P_LoS g_LoS + (1 - P_LoS) g_NLoS`` at the link's ``d3D``, ``d2D`` and aerial
+    height (``link_heights``); valid for aerial heights in (10, 300] m (checked at validation).
+    ``gain_from_d2`` (no heights) bounds it from above (LoS at the floor of 20 dB per decade)."""
+
+    carrier_hz: float = 2.4e9
+
+    @property
+    def is_paper(self) -> bool:
+        return False
+
+    def gain_between(self, p_tx, p_rx, d2):
+        d3, d2d, h = link_heights(p_tx, p_rx, d2)
+        return rma_av_expected_gain(d3, d2d, h, self.carrier_hz)
+
+    def state_gain(self, p_tx, p_rx, los) -> np.ndarray:
+        """The gain in LoS state ``los`` (bool per link; numpy ends ``(n, 3)``)."""
+        p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
+        d = p_rx - p_tx
+        d3, _, h = link_heights(p_tx, p_rx, np.sum(d * d, axis=-1))
+        return 10.0 ** (-rma_av_path_loss_db(d3, h, self.carrier_hz, np.asarray(los, bool)) / 10.0)
+
+    def los_probability(self, p_tx, p_rx) -> np.ndarray:
+        p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
+        d = p_rx - p_tx
+        _, d2d, h = link_heights(p_tx, p_rx, np.sum(d * d, axis=-1))
+        return rma_av_los_probability(d2d, h)
+
+    def gain_from_d2(self, d2):
+        """Upper bound of the gain at squared length ``d2`` for any height: LoS with the exponent
+        floor 20 dB/decade, ``d^-2 10^(-20 log10(40 pi f_c / 3) / 10)`` (f_c in GHz)."""
+        return (3.0 / (40.0 * np.pi * self.carrier_hz / 1e9)) ** 2 / d2
+
+    def describe(self) -> str:
+        return f"3GPP TR 36.777 RMa-AV at {self.carrier_hz / 1e9:g} GHz (expected over the LoS state)"
+
+    def loss_db(self, distance_m):
+        raise TypeError("RMa-AV's loss depends on the link's heights: use gain_between")
 
 
 class GudmundsonShadowing:

@@ -133,7 +133,7 @@ def link_gain(p_tx, b_tx, pat_tx: AntennaPattern, p_rx, b_rx, pat_rx: AntennaPat
     n2 = _dot(d, d)
     n = ops(n2).sqrt(n2)
     g = _gain(pat_tx, _dot(d, b_tx) / n) * _gain(pat_rx, -_dot(d, b_rx) / n)
-    return g / n2 if path is None or path.is_paper else g * path.gain_from_d2(n2)
+    return g / n2 if path is None or path.is_paper else g * path.gain_between(p_tx, p_rx, n2)
 
 
 def spectral_efficiency(gamma):
@@ -287,5 +287,5 @@ class RadioScene:
         b = self.budget
         parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; route {' -> '.join(self.route)}")
         if not self.path_gain.is_paper:
-            parts.append(f"path gain {self.path_gain.scale:.4g} d^-{self.path_gain.exponent:g}")
+            parts.append(self.path_gain.describe())
         return "; ".join(parts)

@@ -21,7 +21,7 @@ from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Re
 from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
-from ..models.propagation import PathGain, free_space_loss_db
+from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
@@ -92,6 +92,8 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
 def path_gain(ch) -> PathGain:
     """The deterministic large-scale path gain of ``[channel]`` / ``[channel.propagation]``."""
     prop = ch.propagation
+    if prop.model == "rma_av":
+        return RmaAvPathGain(carrier_hz=ch.carrier_hz)
     if prop.model == "free_space":
         return PathGain.free_space(ch.carrier_hz) if ch.physical else PathGain()
     loss = prop.reference_loss_db

@@ -20,6 +20,7 @@ from ..models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinP
 from ..models.axes import axis_cone
 from ..models.channel import reachable_mutual_alignment
 from ..models.mission import CsvPath, MinimumJerkPath, UlogPath, source_trajectory
+from ..models.propagation import RMA_AV_MAX_D2D_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MIN_HEIGHT_M
 from ..models.vehicle import HEXAROTOR_ARM_LENGTH_M, HoverInfeasibleError, Multirotor, star_multirotor
 from .tomltext import compact_toml
 
@@ -136,6 +137,8 @@ class AntennaConfig(_Strict):
     pattern: Literal["dipole", "sin_power"] = "dipole"
     exponent: float = Field(2.0, gt=0.0, description="n of the sin^n pattern")
     g_bar: float = Field(1.0, gt=0.0, description="peak (broadside) gain")
+    g_bar_dbi: float | None = Field(None, ge=-30.0, le=30.0, description="the peak gain in dBi (link budgets): sets "
+                                    "g_bar = 10^(g_bar_dbi / 10); given with g_bar, the two must agree")
     bs_pattern: Literal["dipole", "isotropic"] = Field(
         "dipole", description="the base station's antenna: a vertical dipole (of `pattern`) or isotropic (gain g_bar)")
     source_pattern: Literal["dipole", "isotropic"] = Field(
@@ -145,6 +148,17 @@ class AntennaConfig(_Strict):
     bs_axis: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 1.0], description="the base station's antenna axis, world")
 
     _nonzero_axis = field_validator("bs_axis")(lambda v: _nonzero_direction(v, "the base station's antenna axis"))
+
+    @model_validator(mode="after")
+    def _gain_in_dbi(self):
+        if self.g_bar_dbi is None:
+            return self
+        linear = 10.0 ** (self.g_bar_dbi / 10.0)
+        if "g_bar" in self.model_fields_set and not math.isclose(self.g_bar, linear, rel_tol=1e-9):
+            raise ValueError(f"antenna.g_bar ({self.g_bar:g}) and antenna.g_bar_dbi ({self.g_bar_dbi:g} dBi = "
+                             f"{linear:.6g}) disagree: give one of them")
+        object.__setattr__(self, "g_bar", linear)
+        return self
 
     def build(self):
         """The relay's pattern (a dipole scaled by the directivity)."""
@@ -165,17 +179,26 @@ BOLTZMANN_J_K = 1.380649e-23
 
 class PropagationConfig(_Strict):
     """Large-scale propagation (``models/propagation.py``). ``free_space``: the paper's ``1/d^2``
-    (Friis with the wavelength in physical units); ``log_distance``: ``PL(d0) + 10 n log10(d/d0)``.
-    Log-normal shadowing (dB, zero mean, correlated ``exp(-Delta d / decorrelation_m)`` along each
-    link's motion) perturbs the plant's channel only: controllers plan with the deterministic part."""
+    (Friis with the wavelength in physical units); ``log_distance``: ``PL(d0) + 10 n log10(d/d0)``;
+    ``rma_av``: 3GPP TR 36.777 RMa-AV (physical units, every aerial end above 10 m: controllers plan
+    with the gain expected over the LoS state, the plant draws the state and the standard's
+    shadowing). Log-normal shadowing (dB, zero mean, correlated ``exp(-Delta d / decorrelation_m)``
+    along each link's motion) perturbs the plant's channel only."""
 
-    model: Literal["free_space", "log_distance"] = "free_space"
+    model: Literal["free_space", "log_distance", "rma_av"] = "free_space"
     exponent: float = Field(2.0, ge=1.0, le=6.0, description="log_distance: path-loss exponent n")
     reference_distance_m: float = Field(1.0, gt=0.0, le=1000.0, description="log_distance: d0, m")
     reference_loss_db: float | None = Field(None, ge=-100.0, le=200.0, description="log_distance: PL(d0), dB "
                                             "(default: free space at d0: Friis in physical units, 0 dB normalized)")
     shadowing_std_db: float = Field(0.0, ge=0.0, le=20.0, description="log-normal shadowing std, dB (0: none)")
     decorrelation_m: float = Field(10.0, gt=0.0, le=1000.0, description="shadowing decorrelation distance, m")
+
+    @model_validator(mode="after")
+    def _rma_av_shadowing_is_the_standards(self):
+        if self.model == "rma_av" and self.shadowing_std_db > 0:
+            raise ValueError("channel.propagation.shadowing_std_db: rma_av draws the standard's shadowing "
+                             "(TR 36.777 Table B-3: LoS 4.2 exp(-0.0046 h) dB, NLoS 6 dB); leave it at 0")
+        return self
 
 
 class ChannelFadingConfig(_Strict):
@@ -576,8 +599,9 @@ def _reachable_alignment(platform_json: str, mission_json: str, ws_min: tuple, w
     grid = np.stack(np.meshgrid(*[np.linspace(lo[i], hi[i], int(np.ceil(hi[i] - lo[i])) + 1) for i in range(3)],
                                 indexing="ij"), -1).reshape(-1, 3)  # <= 1 m apart
     path = source_trajectory(MissionConfig.model_validate_json(mission_json))
-    times = np.linspace(0.0, duration_s, int(np.ceil(duration_s)) + 1)
-    p2 = np.array([path.state(min(t, path.duration)).p for t in times])
+    end = min(duration_s, path.duration)  # MRAV-2 holds its last state after its path
+    times = np.linspace(0.0, end, int(np.ceil(end)) + 1)
+    p2 = np.array([path.state(t).p for t in times])
     axes = axis_cone(veh.hover_tilt_limit, np.radians(3.0))
     return reachable_mutual_alignment(grid, axes, bs, p2), times, math.degrees(veh.hover_tilt_limit)
 
@@ -656,7 +680,33 @@ class Scenario(_Strict):
                 f"(sim.plant_rate_hz = {self.sim.plant_rate_hz})"
             )
         self._mu_reachable()
+        self._rma_av_geometry()
         return self
+
+    def _rma_av_geometry(self):
+        """RMa-AV (TR 36.777 Annex B) holds for aerial heights in (10, 300] m and physical units:
+        every link's higher end (the relay's workspace, MRAV-2's path, every jammer) must be there."""
+        if self.channel.propagation.model != "rma_av":
+            return
+        if not self.channel.physical:
+            raise ValueError("channel.propagation.model = 'rma_av' gives losses in dB at a carrier in Hz: "
+                             "set channel.units = 'physical'")
+        lo, hi = RMA_AV_MIN_HEIGHT_M, RMA_AV_MAX_HEIGHT_M
+        ws = self.controller.workspace
+        heights = {"controller.workspace z": (ws.min[2], ws.max[2])}
+        path = source_trajectory(self.mission)
+        z2 = [path.state(t).p[2] for t in np.linspace(0.0, path.duration, 200)]
+        heights["MRAV-2's path z"] = (min(z2), max(z2))
+        for i, j in enumerate(self.jammer_configs):
+            zj = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
+            heights[f"{self._jammer_field(i)} z"] = (min(zj), max(zj))
+        for what, (zmin, zmax) in heights.items():
+            if zmin <= lo or zmax > hi:
+                raise ValueError(f"channel.propagation.model = 'rma_av' holds for aerial heights in ({lo:g}, {hi:g}] m "
+                                 f"(TR 36.777 Table B-2): {what} spans {zmin:.2f}-{zmax:.2f} m")
+        span = math.dist(ws.min[:2], ws.max[:2]) + max(math.dist(self.nodes.bs[:2], p[:2]) for p in (ws.min, ws.max))
+        if span > RMA_AV_MAX_D2D_M:
+            raise ValueError(f"channel.propagation.model = 'rma_av' holds for 2D distances <= {RMA_AV_MAX_D2D_M:g} m")
 
     def _mu_reachable(self):
         """``controller.mu`` no higher than the mutual alignment the relay can reach while holding a
@@ -684,7 +734,9 @@ class Scenario(_Strict):
     def stochastic(self) -> bool:
         """Whether the seed changes anything: the perturbations', log-normal shadowing, or the
         energy detector's noise when the relay estimates its jammers."""
-        return self.perturbations.stochastic or self.channel.propagation.shadowing_std_db > 0 or self.estimates_jammers
+        prop = self.channel.propagation
+        return (self.perturbations.stochastic or prop.shadowing_std_db > 0 or prop.model == "rma_av"
+                or self.estimates_jammers)
 
     @property
     def estimates_jammers(self) -> bool:

@@ -51,7 +51,7 @@ def link_budget_lines(scene: RadioScene, relay_position, source_position, *, phy
         dist = float(np.linalg.norm(d))
         g_tx = scene.node(tx).antenna.pattern.gain_from_cos(float(d @ ptx.axis) / dist)
         g_rx = scene.node(rx).antenna.pattern.gain_from_cos(float(-d @ prx.axis) / dist)
-        path = float(scene.path_gain.gain_from_d2(dist**2))
+        path = float(scene.path_gain.gain_between(ptx.position, prx.position, dist**2))
         loss = -_db(path)
         rx_power = _db(b.tx_power * g_tx * g_rx * path) + off
         rows += [(f"{tx} -> {rx}: distance", f"{dist:.2f} m"), (f"{tx} -> {rx}: path loss", f"{loss:.1f} dB"),

@@ -2,11 +2,16 @@
 ``models/propagation.py``: small-scale fading (the paper's i.i.d. Rician draw per control step,
 or Doppler fading that evolves in time) and log-normal shadowing correlated along each link's
 motion. The controller never sees them (it plans with the deterministic channel); every value is
-logged, so a run's capacity can be recomputed from its log alone.
+logged, so a run's capacity can be recomputed from its log alone. With the 3GPP RMa-AV
+propagation (``models/propagation.RmaAvPathGain``) the plant also draws each link's LoS state:
+one uniform ``u`` per link and run, LoS while ``P_LoS(d2D, h) > u`` (a state that changes only as
+the geometry does), the link's gain that of its state instead of the expected one, and the
+standard's shadowing std for that state (a unit Gudmundson process scaled per step).
 
 Links are in ``RadioScene.fading_links`` order: every hop of the route, then every (hop
 receiver, jammer) pair. Log columns: ``fade_amp_<tx>_<rx>`` (amplitude |h|) and
-``shadow_db_<tx>_<rx>`` (dB); the power gain of a link is ``fade_amp^2 10^(shadow_db / 10)``.
+``shadow_db_<tx>_<rx>`` (dB), ``los_<tx>_<rx>`` (1 LoS, 0 NLoS; RMa-AV); the power gain of a link
+is ``fade_amp^2 10^(shadow_db / 10)`` times, with RMa-AV, its state's gain over the expected one.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.fading import ClarkeRicianFading, RicianFading
-from ..models.propagation import SPEED_OF_LIGHT_M_S, GudmundsonShadowing
+from ..models.propagation import SPEED_OF_LIGHT_M_S, GudmundsonShadowing, RmaAvPathGain, link_heights, rma_av_shadow_std_db
 from ..models.radio import RadioScene
 
 
@@ -55,25 +60,28 @@ class LinkPerturbations:
         self.doppler = fading_on and settings.fading_model == "doppler"
         self.iid = RicianFading(k, seed=seed + 1) if fading_on and not self.doppler else None
         self.clarke = ClarkeRicianFading(k, n, seed=seed + 1) if self.doppler else None
-        self.shadowing = (GudmundsonShadowing(n, settings.shadow_std_db, settings.decorrelation_m, seed=seed + 2)
-                          if settings.shadow_std_db > 0 else None)
+        self.rma = scene.path_gain if isinstance(scene.path_gain, RmaAvPathGain) else None
+        std = 1.0 if self.rma is not None else settings.shadow_std_db  # RMa-AV: unit, scaled by the state's std
+        self.shadowing = (GudmundsonShadowing(n, std, settings.decorrelation_m, seed=seed + 2) if std > 0 else None)
+        self._los_u = np.random.default_rng(seed + 3).uniform(size=n) if self.rma is not None else None
         self.carrier = settings.carrier_hz
         labels = [f"{tx}_{rx}" for tx, rx, _ in self.links]
         self.fade_columns = [f"fade_amp_{lb}" for lb in labels] if fading_on else []
         self.shadow_columns = [f"shadow_db_{lb}" for lb in labels] if self.shadowing is not None else []
+        self.los_columns = [f"los_{lb}" for lb in labels] if self.rma is not None else []
         self._prev_offsets: np.ndarray | None = None
 
     @property
     def columns(self) -> list[str]:
-        return self.fade_columns + self.shadow_columns
+        return self.fade_columns + self.shadow_columns + self.los_columns
 
     @property
     def active(self) -> bool:
         return bool(self.columns)
 
-    def _ends(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray, np.ndarray]:
-        """Per link the relative position ``p_rx - p_tx`` (m) and relative velocity (m/s)."""
-        dp, dv = [], []
+    def _ends(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per link the transmitter's and receiver's positions (m, world) and the relative velocity (m/s)."""
+        tx_p, rx_p, dv = [], [], []
         for tx, rx, j in self.links:
             if j is None:
                 p_tx, v_tx = positions[tx], velocities[tx]
@@ -81,9 +89,10 @@ class LinkPerturbations:
                 jam = self.scene.jammers[j]
                 p_tx = jam.position_at(t)
                 v_tx = (p_tx - jam.position_at(max(t - self.period, 0.0))) / self.period
-            dp.append(np.asarray(positions[rx], float) - p_tx)
+            tx_p.append(np.asarray(p_tx, float))
+            rx_p.append(np.asarray(positions[rx], float))
             dv.append(np.asarray(velocities[rx], float) - v_tx)
-        return np.array(dp), np.array(dv)
+        return np.array(tx_p), np.array(rx_p), np.array(dv)
 
     def step(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray | None, dict[str, np.ndarray]]:
         if not self.active:
@@ -91,8 +100,16 @@ class LinkPerturbations:
         n = len(self.links)
         gains = np.ones(n)
         values: dict[str, np.ndarray] = {}
-        if self.clarke is not None or self.shadowing is not None:  # i.i.d. fading needs no geometry
-            offsets, rel_v = self._ends(t, positions, velocities)
+        if self.clarke is not None or self.shadowing is not None or self.rma is not None:  # i.i.d. fading needs no geometry
+            p_tx, p_rx, rel_v = self._ends(t, positions, velocities)
+            offsets = p_rx - p_tx
+        std_scale = 1.0
+        if self.rma is not None:
+            los = self._los_u < self.rma.los_probability(p_tx, p_rx)
+            d2 = np.sum(offsets * offsets, axis=1)
+            gains = gains * self.rma.state_gain(p_tx, p_rx, los) / self.rma.gain_between(p_tx, p_rx, d2)
+            std_scale = rma_av_shadow_std_db(link_heights(p_tx, p_rx, d2)[2], los)
+            values.update(zip(self.los_columns, los.astype(float), strict=True))
         if self.iid is not None:
             amp = np.asarray(self.iid.amplitude(n), float)
             gains = gains * amp**2
@@ -107,6 +124,7 @@ class LinkPerturbations:
             x_db = self.shadowing.x_db.copy() if first else self.shadowing.step(
                 np.linalg.norm(offsets - self._prev_offsets, axis=1))
             self._prev_offsets = offsets
+            x_db = x_db * std_scale
             gains = gains * GudmundsonShadowing.power_gain(x_db)
             values.update(zip(self.shadow_columns, x_db, strict=True))
         return gains, values
