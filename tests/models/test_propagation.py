@@ -13,9 +13,10 @@ from scipy.special import j0
 
 from aerorelay.models.fading import ClarkeRicianFading
 from aerorelay.models.propagation import (
-    GudmundsonShadowing,
+    LargeScaleRealization,
     PathGain,
     RmaAvPathGain,
+    ShadowingField,
     check_rma_av_range,
     free_space_loss_db,
     link_heights,
@@ -85,16 +86,44 @@ def test_rma_av_constants_are_the_ones_tr3gpp_prints():
     assert all(c in pl for c in ("23.9 - 1.8", "-12 + (35 - 5.3", "40\\pi f_c}{3}"))
 
 
-def test_shadowing_has_its_std_and_autocorrelation_exp_minus_one_at_the_decorrelation_distance():
-    n, sigma, dc = 4000, 6.0, 10.0
-    sh = GudmundsonShadowing(n, sigma, dc, seed=3)
-    x0 = sh.x_db.copy()
-    steps = 20  # 20 steps of 0.5 m: 10 m = d_corr
-    for _ in range(steps):
-        x = sh.step(np.full(n, dc / steps))
-    assert np.std(x0) == pytest.approx(sigma, rel=0.05) and np.std(x) == pytest.approx(sigma, rel=0.05)
-    rho = np.corrcoef(x0, x)[0, 1]
-    assert rho == pytest.approx(math.exp(-1.0), abs=4.0 / math.sqrt(n))  # sampling error ~1/sqrt(n)
+def test_shadowing_field_has_unit_std_and_autocorrelation_exp_minus_one_at_the_decorrelation_distance():
+    """Across 4000 independent links (fields): std 1 at any point, correlation exp(-|Delta| / d_corr)
+    between two points (exp(-1) at d_corr, exp(-1/2) at half of it, in any direction)."""
+    n, dc = 4000, 10.0
+    field = ShadowingField(n, dc, seed=3)
+    a = np.array([1.0, -2.0, 3.0])
+    x0 = np.array([field.value(k, a) for k in range(n)])
+    assert np.std(x0) == pytest.approx(1.0, rel=0.05) and abs(np.mean(x0)) < 4.0 / math.sqrt(n)
+    for delta in (np.array([dc, 0.0, 0.0]), np.array([0.0, 0.6, 0.8]) * dc, np.array([0.0, 0.0, dc / 2])):
+        x = np.array([field.value(k, a + delta) for k in range(n)])
+        rho = np.corrcoef(x0, x)[0, 1]
+        assert rho == pytest.approx(math.exp(-np.linalg.norm(delta) / dc), abs=4.0 / math.sqrt(n))
+    # one field is one function of the geometry: the same point reads the same value
+    np.testing.assert_allclose(field.value(7, np.tile(a, (5, 1))), np.full(5, field.value(7, a)), rtol=1e-12)
+
+
+def test_large_scale_realization_scales_the_field_and_draws_los_states():
+    """Log-distance: the shadowing is std_db times the unit field; RMa-AV: the gain is the state's over
+    the expected one and the std the standard's for that state; the same seed, the same realization."""
+    ld = LargeScaleRealization(PathGain(), 2, std_db=6.0, decorrelation_m=5.0, seed=11)
+    a, b = np.zeros(3), np.array([3.0, 4.0, 5.0])
+    r = ld.link(1, a, b)
+    assert float(r.shadow_db) == pytest.approx(6.0 * float(ld.field.value(1, b - a)))
+    assert float(r.gain) == pytest.approx(10 ** (float(r.shadow_db) / 10)) and r.los is None
+    assert float(LargeScaleRealization(PathGain(), 2, std_db=6.0, decorrelation_m=5.0, seed=11).link(1, a, b).shadow_db) \
+        == float(r.shadow_db)
+    rma = RmaAvPathGain(carrier_hz=2e9)
+    real = LargeScaleRealization(rma, 1, std_db=0.0, decorrelation_m=37.0, seed=5)
+    far = np.array([300.0, 400.0, 30.0])
+    rr = real.link(0, a, far)
+    los = bool(real.u[0] < float(rma.los_probability(a, far)))
+    assert bool(rr.los) == los
+    d2 = float(far @ far)
+    expected = float(rma.gain_between(a, far, d2))
+    state = float(rma.state_gain(a[None], far[None], [los])[0])
+    std = float(rma_av_shadow_std_db(30.0, los))
+    assert float(rr.gain) == pytest.approx(state / expected * 10 ** (std * float(real.field.value(0, far - a)) / 10))
+    assert not LargeScaleRealization(PathGain(), 3, std_db=0.0, decorrelation_m=5.0, seed=0).active
 
 
 def test_clarke_fading_has_unit_power_its_k_factor_and_a_j0_autocorrelation():

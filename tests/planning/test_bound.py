@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from aerorelay.models.axes import axis_cone
+from aerorelay.models.radio import NodePose
 from aerorelay.planning.bound import CapacityLandscape, _dp, _footprint, compute_bound
 from aerorelay.scenario import load_scenario, parse_scenario
 from aerorelay.scenario.build import bound_problem, build_scene, build_source
@@ -77,3 +78,27 @@ def test_hover_tilt_limit_is_zero_for_a_coplanar_platform_and_widens_with_the_ro
     assert limits[0] == 0.0 and 0.0 < limits[1] < limits[2] < np.radians(30.0)
     assert np.degrees(limits[1]) == pytest.approx(17.9, abs=0.3)
     assert axis_cone(0.0, np.radians(5)).shape == (1, 3)
+
+
+def test_the_bound_searches_the_runs_own_shadowing_realization():
+    """With log-normal shadowing the bound differs per seed (each run's field), its static optimum is the
+    scene's capacity there with that seed's realized link gains (recomputed independently), and the plant
+    flying through a pose sees the same realized gains as the bound at that pose."""
+    sc = SHORT.with_updates({"channel.propagation.model": "log_distance", "channel.propagation.exponent": 2.5,
+                             "channel.propagation.reference_loss_db": 0.0, "channel.propagation.shadowing_std_db": 6.0,
+                             "channel.propagation.decorrelation_m": 5.0, "bound.grid_m": 1.0})
+    b0 = compute_bound(bound_problem(sc))
+    b1 = compute_bound(bound_problem(sc.with_updates({"seed": 1})))
+    assert not np.allclose(b0.static, b1.static)
+    pb = bound_problem(sc)
+    scene, real = pb.scene, pb.realization
+    k = 2
+    t, p, axis = b0.t[k], b0.static_position[k], b0.static_axis[k]
+    src = CapacityLandscape(scene, pb.source, sc.platform.gravity_m_s2).source_pose(t)
+    where = {"relay": p, "source": src.position, "bs": np.zeros(3)}
+    gains = [float(real.link(i, scene.jammers[j].position_at(t) if j is not None else where[tx], where[rx]).gain)
+             for i, (tx, rx, j) in enumerate(scene.link_ends())]
+    c = scene.evaluate(t, {"relay": NodePose(p, axis), "source": src}, fading=np.array(gains)).capacity
+    assert float(c) == pytest.approx(b0.static[k], rel=1e-9)
+    # without the realization the same pose has another capacity (the shadowing is there)
+    assert float(scene.evaluate(t, {"relay": NodePose(p, axis), "source": src}).capacity) != pytest.approx(b0.static[k], rel=1e-3)

@@ -7,8 +7,9 @@ log-distance model (``PL(d) = PL(d0) + 10 n log10(d / d0)``). The ``rma_av_*`` f
 RMa-AV model of 3GPP TR 36.777 Annex B (aerial UEs 10-300 m): LoS probability, LoS / NLoS path
 loss and shadow-fading standard deviation; ``RmaAvPathGain`` makes it a scene's propagation (the
 expected gain over the LoS state, which controllers plan with; the plant draws the state).
-``GudmundsonShadowing`` draws log-normal shadowing (dB) that is
-correlated along each link's motion, ``exp(-Delta d / d_corr)`` (Gudmundson 1991).
+``ShadowingField`` is log-normal shadowing as a random field per link over the link's geometry,
+correlated ``exp(-Delta d / d_corr)`` (Gudmundson 1991); ``LargeScaleRealization`` is a run's
+realized large-scale channel (that field, and RMa-AV's LoS states), shared by plant and bound.
 
 Distances in m, frequencies in Hz (the 3GPP formulas take GHz inside), losses in dB.
 """
@@ -197,28 +198,76 @@ class RmaAvPathGain(PathGain):
         raise TypeError("RMa-AV's loss depends on the link's heights: use gain_between")
 
 
-class GudmundsonShadowing:
-    """Log-normal shadowing per link, ``X`` (dB) with standard deviation ``std_db`` and
-    autocorrelation ``exp(-Delta d / d_corr)`` along the distance the link's ends moved
-    (Gudmundson's first-order model): ``X_k = rho X_(k-1) + sqrt(1 - rho^2) sigma w``,
-    ``rho = exp(-Delta d_k / d_corr)``, ``X_0 ~ N(0, sigma^2)``. Seeded per run."""
+class ShadowingField:
+    """Log-normal shadowing as a Gaussian random field per link over the link's offset ``p_rx -
+    p_tx`` (m, world): zero mean, unit std (the caller scales it), covariance ``exp(-|Delta| /
+    d_corr)``: Gudmundson's exponential correlation, over the link's geometry in 3D. Being a
+    field, the shadowing of any geometry is fixed before anyone flies, so the plant and the bound
+    read the same realization. Random Fourier features: ``X(x) = sqrt(2/M) sum_m cos(w_m . x +
+    phi_m)``, ``w_m`` multivariate Cauchy with scale ``1/d_corr`` (the spectral density of
+    ``exp(-r/d)`` in 3D, a Student t with one degree of freedom), ``phi_m`` uniform. Seeded."""
 
-    def __init__(self, n_links: int, std_db, decorrelation_m: float, seed: int | None = None):
+    def __init__(self, n_links: int, decorrelation_m: float, seed: int | None = None, n_features: int = 256):
         if decorrelation_m <= 0:
             raise ValueError(f"shadowing decorrelation distance must be > 0 m, got {decorrelation_m}")
-        self.std = np.broadcast_to(np.asarray(std_db, float), (n_links,)).copy()
-        self.d_corr = decorrelation_m
-        self._rng = np.random.default_rng(seed)
-        self.x_db = self.std * self._rng.standard_normal(n_links)
+        rng = np.random.default_rng(seed)
+        z = rng.standard_normal((n_links, 3, n_features))
+        self.omega = z / (decorrelation_m * np.sqrt(rng.chisquare(1.0, size=(n_links, 1, n_features))))
+        self.phase = rng.uniform(0.0, 2.0 * np.pi, size=(n_links, n_features))
+        self.scale = math.sqrt(2.0 / n_features)
 
-    def step(self, moved_m) -> np.ndarray:
-        """Advance by the distances ``moved_m`` (per link, m) and return the shadowing in dB."""
-        rho = np.exp(-np.asarray(moved_m, float) / self.d_corr)
-        w = self._rng.standard_normal(self.x_db.shape)
-        self.x_db = rho * self.x_db + np.sqrt(1.0 - rho**2) * self.std * w
-        return self.x_db.copy()
+    def value(self, link: int, offsets) -> np.ndarray:
+        """The unit field of ``link`` at ``offsets`` ``(..., 3)`` (m): ``(...)``."""
+        x = np.asarray(offsets, float)
+        return self.scale * np.cos(x @ self.omega[link] + self.phase[link]).sum(axis=-1)
 
-    @staticmethod
-    def power_gain(x_db) -> np.ndarray:
-        """``10^(X/10)``."""
-        return 10.0 ** (np.asarray(x_db, float) / 10.0)
+
+@dataclass(frozen=True)
+class LinkRealization:
+    """One link's realized large-scale terms: power multiplier over the scene's deterministic gain,
+    shadowing (dB), LoS state (None unless RMa-AV)."""
+
+    gain: np.ndarray
+    shadow_db: np.ndarray | None
+    los: np.ndarray | None
+
+
+class LargeScaleRealization:
+    """A run's realized large-scale channel per link (``RadioScene.link_ends`` order): log-normal
+    shadowing from a ``ShadowingField`` times ``std_db``, and with ``RmaAvPathGain`` the LoS state
+    (LoS while ``P_LoS(d2D, h) > u``, one uniform ``u`` per link and run, so the state changes only
+    as the geometry does), whose gain replaces the expected one, and the standard's shadowing std
+    for that state. The plant multiplies its links by it, the bound searches the same realization.
+    ``seed``: the run's seed (the field and the states draw from streams derived from it)."""
+
+    def __init__(self, path_gain: PathGain, n_links: int, *, std_db: float, decorrelation_m: float, seed: int):
+        self.rma = path_gain if isinstance(path_gain, RmaAvPathGain) else None
+        self.std_db = std_db
+        random = self.rma is not None or std_db > 0
+        self.field = ShadowingField(n_links, decorrelation_m, seed=seed + 2) if random else None
+        self.u = np.random.default_rng(seed + 3).uniform(size=n_links) if self.rma is not None else None
+
+    @property
+    def active(self) -> bool:
+        return self.field is not None
+
+    @property
+    def has_los(self) -> bool:
+        return self.rma is not None
+
+    def link(self, k: int, p_tx, p_rx) -> LinkRealization:
+        """Link ``k`` between ``p_tx`` and ``p_rx`` (numpy ``(..., 3)``, broadcasting)."""
+        p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
+        off = p_rx - p_tx
+        gain: np.ndarray = np.ones(off.shape[:-1])
+        std: np.ndarray | float = self.std_db
+        los = None
+        if self.rma is not None and self.u is not None:
+            d2 = np.sum(off * off, axis=-1)
+            los = self.u[k] < self.rma.los_probability(p_tx, p_rx)
+            gain = self.rma.state_gain(p_tx, p_rx, los) / self.rma.gain_between(p_tx, p_rx, d2)
+            std = rma_av_shadow_std_db(link_heights(p_tx, p_rx, d2)[2], los)
+        if self.field is None:
+            return LinkRealization(gain, None, los)
+        x_db = std * self.field.value(k, off)
+        return LinkRealization(gain * 10.0 ** (x_db / 10.0), x_db, los)

@@ -200,6 +200,13 @@ class RadioScene:
         """Links a fading draw multiplies: every hop, then every (hop receiver, jammer) pair."""
         return len(self.hops) * (1 + len(self.jammers))
 
+    def link_ends(self) -> list[tuple[str, str, int | None]]:
+        """``(tx, rx, jammer index or None)`` per link, in ``fading_links`` order."""
+        out: list[tuple[str, str, int | None]] = [(tx, rx, None) for tx, rx in self.hops]
+        for _, rx in self.hops:
+            out += [(j.name, rx, i) for i, j in enumerate(self.jammers)]
+        return out
+
     def fixed_pose(self, name: str) -> NodePose:
         """Pose of a fixed node (identity attitude)."""
         n = self.node(name)
@@ -259,12 +266,14 @@ class RadioScene:
         return ChannelState(self.hops, tuple(sinrs), tuple(interference), route_capacity(sinrs, b.bandwidth))
 
     def relay_grid(self, t: float, positions, axes, poses: Mapping[str, NodePose], *, jammer_positions=None,
-                   jammer_powers=None, relay: str = "relay") -> np.ndarray:
+                   jammer_powers=None, relay: str = "relay", fading=None) -> np.ndarray:
         """End-to-end capacity ``(M, K)`` for relay positions ``(M, 3)`` x relay antenna axes ``(K, 3)``
-        (world), the other moving nodes at ``poses``, the jammers as in ``evaluate``."""
+        (world), the other moving nodes at ``poses``, the jammers as in ``evaluate``; ``fading`` as
+        there, each link's gain a scalar or ``(M, 1)`` (per relay position)."""
         P = np.atleast_2d(np.asarray(positions, float))[:, None, :]
         B = np.atleast_2d(np.asarray(axes, float))[None, :, :]
-        state = self.evaluate(t, {**poses, relay: NodePose(P, B)}, jammer_positions=jammer_positions, jammer_powers=jammer_powers)
+        state = self.evaluate(t, {**poses, relay: NodePose(P, B)}, jammer_positions=jammer_positions, jammer_powers=jammer_powers,
+                              fading=fading)
         return np.broadcast_to(state.capacity, (P.shape[0], B.shape[1]))
 
     def describe(self) -> str:

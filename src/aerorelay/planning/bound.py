@@ -42,12 +42,13 @@ from scipy.optimize import minimize
 from ..models.axes import axis_cone
 from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.mission import SourceTrajectory
+from ..models.propagation import LargeScaleRealization
 from ..models.radio import NodePose, RadioScene
 from ..models.vehicle import Multirotor
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 
 log = logging.getLogger(__name__)
-BOUND_VERSION = "3"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "4"  # bump when the computation changes: cached bounds are recomputed
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,7 @@ class BoundProblem:
     duration_s: float
     resolution: Any
     outage_threshold: float = 1e-3
+    realization: LargeScaleRealization | None = None  # the run's shadowing field / LoS states (None: deterministic)
 
 
 @dataclass
@@ -105,7 +107,8 @@ class CapacityBound:
         return pd.DataFrame(cols)
 
 
-ASSUMPTIONS = ("fading ignored; relay anywhere in the workspace box with any antenna axis the platform can hold in hover "
+ASSUMPTIONS = ("small-scale fading ignored; the run's large-scale realization (shadowing field, LoS states) "
+               "included where the channel has one; relay anywhere in the workspace box with any antenna axis the platform can hold in hover "
                "(yaw free); attitude changes free; path bounds on the position grid, one move per time step to a cell "
                "within max_speed * dt + grid / 2 (the grid allowance: resolution.max_path_speed_m_s is the fastest such "
                "move, so the path bounds stay upper bounds at max_speed)")
@@ -115,10 +118,13 @@ class CapacityLandscape:
     """The true end-to-end capacity over relay poses at time t (``jammer_known=False``: as planned
     before take-off, with every jammer silent)."""
 
-    def __init__(self, scene: RadioScene, source: SourceTrajectory, gravity: float, jammer_known: bool = True):
+    def __init__(self, scene: RadioScene, source: SourceTrajectory, gravity: float, jammer_known: bool = True,
+                 realization: LargeScaleRealization | None = None):
         self.scene, self.source, self.gravity = scene, source, gravity
         self.silent = None if jammer_known else np.zeros(len(scene.jammers))
         self.source_name = scene.name_of("source")
+        self.relay_name = scene.name_of("relay")
+        self.realization = realization if realization is not None and realization.active else None
 
     def source_pose(self, t: float) -> NodePose:
         s = self.source.state(t)
@@ -126,7 +132,26 @@ class CapacityLandscape:
 
     def capacity(self, t: float, positions, axes) -> np.ndarray:
         """``(M, K)`` for relay positions ``(M, 3)`` x antenna axes ``(K, 3)``."""
-        return self.scene.relay_grid(t, positions, axes, {self.source_name: self.source_pose(t)}, jammer_powers=self.silent)
+        source = self.source_pose(t)
+        fading = None if self.realization is None else self._large_scale(t, np.atleast_2d(np.asarray(positions, float)), source)
+        return self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
+
+    def _large_scale(self, t: float, relay: np.ndarray, source: NodePose) -> list:
+        """Each link's realized power multiplier at these relay positions: ``(M, 1)`` or a scalar."""
+        assert self.realization is not None
+
+        def where(name: str, j: int | None):
+            if j is not None:
+                return self.scene.jammers[j].position_at(t)
+            if name == self.relay_name:
+                return relay
+            return source.position if name == self.source_name else self.scene.fixed_pose(name).position
+
+        out = []
+        for k, (tx, rx, j) in enumerate(self.scene.link_ends()):
+            g = np.asarray(self.realization.link(k, where(tx, j), where(rx, None)).gain, float)
+            out.append(g[:, None] if g.ndim == 1 else g)
+        return out
 
 
 def _axis(tilt: float, az: float) -> np.ndarray:
@@ -201,7 +226,7 @@ def best_path(scene: CapacityLandscape, cells: np.ndarray, shape: tuple[int, ...
 def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
     """The static and path bounds of a problem (see the module docstring)."""
     b = pb.resolution
-    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity)
+    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity, realization=pb.realization)
     max_tilt = pb.vehicle.hover_tilt_limit
     axes = axis_cone(max_tilt, np.radians(b.axis_step_deg))
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)

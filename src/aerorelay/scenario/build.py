@@ -29,7 +29,7 @@ from ..planning.base import Planner, PlannerContext, planner_factory
 from ..planning.bound import BoundProblem, CapacityBound, bound_key, cached_bound, compute_bound
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
-from ..sim.perturbations import PerturbationSettings
+from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from .schema import JammerConfig, Scenario
 
 ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
@@ -246,9 +246,14 @@ def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> 
 
 
 def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> BoundProblem:
+    """The bound of the run: its scene, and the run's own large-scale realization (shadowing field,
+    LoS states) where the channel has one, the same the plant flies through (same seed)."""
     lo, hi = _workspace(sc)
-    return BoundProblem(scene or build_scene(sc), build_source(sc), vehicle or sc.platform.vehicle(), lo, hi,
-                        np.array(sc.nodes.relay, float), sc.duration_s, sc.bound, sc.channel.outage_threshold)
+    scene = scene or build_scene(sc)
+    noise = sim_settings(sc).channel_noise or PerturbationSettings()
+    realization = large_scale_realization(scene, noise, sc.seed)
+    return BoundProblem(scene, build_source(sc), vehicle or sc.platform.vehicle(), lo, hi, np.array(sc.nodes.relay, float),
+                        sc.duration_s, sc.bound, sc.channel.outage_threshold, realization if realization.active else None)
 
 
 def scenario_bound_key(sc: Scenario) -> str:
@@ -256,7 +261,14 @@ def scenario_bound_key(sc: Scenario) -> str:
     data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers", "mission", "bound"})
     data["workspace"] = sc.controller.workspace.model_dump()
     data["duration_s"] = sc.duration_s
+    if _random_large_scale(sc):  # the bound searches the run's own realization
+        data["seed"] = sc.seed
     return bound_key(data)
+
+
+def _random_large_scale(sc: Scenario) -> bool:
+    prop = sc.channel.propagation
+    return prop.shadowing_std_db > 0 or prop.model == "rma_av"
 
 
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:

@@ -2,11 +2,9 @@
 ``models/propagation.py``: small-scale fading (the paper's i.i.d. Rician draw per control step,
 or Doppler fading that evolves in time) and log-normal shadowing correlated along each link's
 motion. The controller never sees them (it plans with the deterministic channel); every value is
-logged, so a run's capacity can be recomputed from its log alone. With the 3GPP RMa-AV
-propagation (``models/propagation.RmaAvPathGain``) the plant also draws each link's LoS state:
-one uniform ``u`` per link and run, LoS while ``P_LoS(d2D, h) > u`` (a state that changes only as
-the geometry does), the link's gain that of its state instead of the expected one, and the
-standard's shadowing std for that state (a unit Gudmundson process scaled per step).
+logged, so a run's capacity can be recomputed from its log alone. The large-scale terms (the
+shadowing field, and with 3GPP RMa-AV each link's LoS state) are a ``LargeScaleRealization``
+fixed by the run's seed over every geometry: the bound searches the same one.
 
 Links are in ``RadioScene.fading_links`` order: every hop of the route, then every (hop
 receiver, jammer) pair. Log columns: ``fade_amp_<tx>_<rx>`` (amplitude |h|) and
@@ -22,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.fading import ClarkeRicianFading, RicianFading
-from ..models.propagation import SPEED_OF_LIGHT_M_S, GudmundsonShadowing, RmaAvPathGain, link_heights, rma_av_shadow_std_db
+from ..models.propagation import SPEED_OF_LIGHT_M_S, LargeScaleRealization
 from ..models.radio import RadioScene
 
 
@@ -39,12 +37,10 @@ class PerturbationSettings:
     carrier_hz: float = 2.4e9
 
 
-def link_endpoints(scene: RadioScene) -> list[tuple[str, str, int | None]]:
-    """``(tx, rx, jammer index or None)`` per link, in ``fading_links`` order."""
-    out: list[tuple[str, str, int | None]] = [(tx, rx, None) for tx, rx in scene.hops]
-    for _, rx in scene.hops:
-        out += [(j.name, rx, i) for i, j in enumerate(scene.jammers)]
-    return out
+def large_scale_realization(scene: RadioScene, settings: PerturbationSettings, seed: int) -> LargeScaleRealization:
+    """The run's shadowing field and LoS states: the plant's, and the bound's for the same seed."""
+    return LargeScaleRealization(scene.path_gain, scene.fading_links, std_db=settings.shadow_std_db,
+                                 decorrelation_m=settings.decorrelation_m, seed=seed)
 
 
 class LinkPerturbations:
@@ -53,23 +49,19 @@ class LinkPerturbations:
 
     def __init__(self, scene: RadioScene, settings: PerturbationSettings, *, period_s: float, seed: int):
         self.scene, self.period = scene, period_s
-        self.links = link_endpoints(scene)
+        self.links = scene.link_ends()
         n = len(self.links)
         fading_on = settings.k_db is not None and not math.isinf(settings.k_db)
         k = float(settings.k_db) if settings.k_db is not None else math.inf
         self.doppler = fading_on and settings.fading_model == "doppler"
         self.iid = RicianFading(k, seed=seed + 1) if fading_on and not self.doppler else None
         self.clarke = ClarkeRicianFading(k, n, seed=seed + 1) if self.doppler else None
-        self.rma = scene.path_gain if isinstance(scene.path_gain, RmaAvPathGain) else None
-        std = 1.0 if self.rma is not None else settings.shadow_std_db  # RMa-AV: unit, scaled by the state's std
-        self.shadowing = (GudmundsonShadowing(n, std, settings.decorrelation_m, seed=seed + 2) if std > 0 else None)
-        self._los_u = np.random.default_rng(seed + 3).uniform(size=n) if self.rma is not None else None
+        self.large_scale = large_scale_realization(scene, settings, seed)
         self.carrier = settings.carrier_hz
         labels = [f"{tx}_{rx}" for tx, rx, _ in self.links]
         self.fade_columns = [f"fade_amp_{lb}" for lb in labels] if fading_on else []
-        self.shadow_columns = [f"shadow_db_{lb}" for lb in labels] if self.shadowing is not None else []
-        self.los_columns = [f"los_{lb}" for lb in labels] if self.rma is not None else []
-        self._prev_offsets: np.ndarray | None = None
+        self.shadow_columns = [f"shadow_db_{lb}" for lb in labels] if self.large_scale.active else []
+        self.los_columns = [f"los_{lb}" for lb in labels] if self.large_scale.has_los else []
 
     @property
     def columns(self) -> list[str]:
@@ -94,22 +86,14 @@ class LinkPerturbations:
             dv.append(np.asarray(velocities[rx], float) - v_tx)
         return np.array(tx_p), np.array(rx_p), np.array(dv)
 
-    def step(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray | None, dict[str, np.ndarray]]:
+    def step(self, t: float, positions: dict, velocities: dict) -> tuple[np.ndarray | None, dict[str, float]]:
         if not self.active:
             return None, {}
         n = len(self.links)
         gains = np.ones(n)
-        values: dict[str, np.ndarray] = {}
-        if self.clarke is not None or self.shadowing is not None or self.rma is not None:  # i.i.d. fading needs no geometry
+        values: dict[str, float] = {}
+        if self.clarke is not None or self.large_scale.active:  # i.i.d. fading needs no geometry
             p_tx, p_rx, rel_v = self._ends(t, positions, velocities)
-            offsets = p_rx - p_tx
-        std_scale = 1.0
-        if self.rma is not None:
-            los = self._los_u < self.rma.los_probability(p_tx, p_rx)
-            d2 = np.sum(offsets * offsets, axis=1)
-            gains = gains * self.rma.state_gain(p_tx, p_rx, los) / self.rma.gain_between(p_tx, p_rx, d2)
-            std_scale = rma_av_shadow_std_db(link_heights(p_tx, p_rx, d2)[2], los)
-            values.update(zip(self.los_columns, los.astype(float), strict=True))
         if self.iid is not None:
             amp = np.asarray(self.iid.amplitude(n), float)
             gains = gains * amp**2
@@ -119,13 +103,11 @@ class LinkPerturbations:
             amp = self.clarke.amplitude(f_d, self.period)
             gains = gains * amp**2
             values.update(zip(self.fade_columns, amp, strict=True))
-        if self.shadowing is not None:
-            first = self._prev_offsets is None
-            x_db = self.shadowing.x_db.copy() if first else self.shadowing.step(
-                np.linalg.norm(offsets - self._prev_offsets, axis=1))
-            self._prev_offsets = offsets
-            x_db = x_db * std_scale
-            gains = gains * GudmundsonShadowing.power_gain(x_db)
-            values.update(zip(self.shadow_columns, x_db, strict=True))
+        if self.large_scale.active:
+            links = [self.large_scale.link(k, p_tx[k], p_rx[k]) for k in range(n)]
+            gains = gains * np.array([float(lk.gain) for lk in links])
+            values.update(zip(self.shadow_columns, [float(np.asarray(lk.shadow_db)) for lk in links], strict=True))
+            if self.los_columns:
+                values.update(zip(self.los_columns, [float(np.asarray(lk.los)) for lk in links], strict=True))
         return gains, values
 
