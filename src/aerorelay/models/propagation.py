@@ -156,12 +156,18 @@ def link_heights(p_tx, p_rx, d2):
     return o.sqrt(d2), o.sqrt(o.fmax(d2 - dz * dz, 1e-12)), o.fmax(z_tx, z_rx)
 
 
+def _numeric_heights(p_tx, p_rx):
+    p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
+    d = p_rx - p_tx
+    return link_heights(p_tx, p_rx, np.sum(d * d, axis=-1))
+
+
 @dataclass(frozen=True)
 class RmaAvPathGain(PathGain):
     """3GPP TR 36.777 RMa-AV as every link's deterministic path gain: the expected gain over the
     LoS state, ``P_LoS g_LoS + (1 - P_LoS) g_NLoS`` at the link's ``d3D``, ``d2D`` and aerial
     height (``link_heights``); valid for aerial heights in (10, 300] m (checked at validation).
-    ``gain_from_d2`` (no heights) bounds it from above (LoS at the floor of 20 dB per decade)."""
+    ``gain_from_d2`` (no heights) bounds it from above beyond 1 m (LoS at the floor of 20 dB per decade)."""
 
     carrier_hz: float = 2.4e9
 
@@ -174,21 +180,18 @@ class RmaAvPathGain(PathGain):
         return rma_av_expected_gain(d3, d2d, h, self.carrier_hz)
 
     def state_gain(self, p_tx, p_rx, los) -> np.ndarray:
-        """The gain in LoS state ``los`` (bool per link; numpy ends ``(n, 3)``)."""
-        p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
-        d = p_rx - p_tx
-        d3, _, h = link_heights(p_tx, p_rx, np.sum(d * d, axis=-1))
+        """The gain in LoS state ``los`` (bool per link; numpy ends ``(..., 3)``)."""
+        d3, _, h = _numeric_heights(p_tx, p_rx)
         return 10.0 ** (-rma_av_path_loss_db(d3, h, self.carrier_hz, np.asarray(los, bool)) / 10.0)
 
     def los_probability(self, p_tx, p_rx) -> np.ndarray:
-        p_tx, p_rx = np.asarray(p_tx, float), np.asarray(p_rx, float)
-        d = p_rx - p_tx
-        _, d2d, h = link_heights(p_tx, p_rx, np.sum(d * d, axis=-1))
+        """``P_LoS`` of each link (numpy ends ``(..., 3)``)."""
+        _, d2d, h = _numeric_heights(p_tx, p_rx)
         return rma_av_los_probability(d2d, h)
 
     def gain_from_d2(self, d2):
-        """Upper bound of the gain at squared length ``d2`` for any height: LoS with the exponent
-        floor 20 dB/decade, ``d^-2 10^(-20 log10(40 pi f_c / 3) / 10)`` (f_c in GHz)."""
+        """Upper bound of the gain at squared length ``d2`` >= 1 m^2 for any height: LoS with the
+        exponent floor 20 dB/decade, ``d^-2 10^(-20 log10(40 pi f_c / 3) / 10)`` (f_c in GHz)."""
         return (3.0 / (40.0 * np.pi * self.carrier_hz / 1e9)) ** 2 / d2
 
     def describe(self) -> str:
