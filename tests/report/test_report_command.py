@@ -6,6 +6,9 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from aerorelay.cli import app
+from aerorelay.experiments.study import RunSpec
+from aerorelay.report.html import _headers, capacity_unit
+from aerorelay.scenario import parse_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 CUSTOM = f"""
@@ -42,3 +45,15 @@ def test_report_of_a_partial_custom_campaign(tmp_path):
 def test_report_on_a_folder_that_is_no_campaign(tmp_path):
     res = CliRunner().invoke(app, ["report", str(tmp_path)])
     assert res.exit_code == 2 and "no campaign here" in res.output
+
+
+def test_capacity_units_follow_the_runs_link_budget():
+    """Capacities are bit/s/Hz in the paper's normalized units and bit/s in physical ones; a study table
+    that mixes both names both."""
+    norm = parse_scenario({})
+    phys = norm.with_updates({"channel.units": "physical"})
+    assert (norm.channel.capacity_unit, phys.channel.capacity_unit) == ("bit/s/Hz", "bit/s")
+    spec = lambda sc: RunSpec("s", "g", 0, sc.to_toml(), False)  # noqa: E731
+    assert capacity_unit([spec(phys), spec(phys)]) == "bit/s"
+    assert capacity_unit([spec(norm), spec(phys)]) == "bit/s/Hz; physical-unit runs bit/s"
+    assert _headers(["c_min", "outage_fraction"], "bit/s") == ["C_min (bit/s)", "outage fraction"]

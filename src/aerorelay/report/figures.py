@@ -78,7 +78,7 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
     ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
     ax.axhline(sc.channel.outage_threshold, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
-    ax.set_ylabel("C (bit/s/Hz)")
+    ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
     ax.legend(fontsize=7)
     ax = axes[1]
     ax.semilogy(df["t"], np.maximum(df["se_21"], 1e-12), label=r"$\log_2(1+\Gamma_{21})$")
@@ -139,7 +139,7 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
     fig = go.Figure([
         go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name="MRAV-1 (relay)",
                      line=dict(color=df["capacity"], colorscale="Viridis", width=6,
-                               colorbar=dict(title=dict(text="C (bit/s/Hz)", side="right"), x=1.0, len=0.6, y=0.35)),
+                               colorbar=dict(title=dict(text=f"C ({sc.channel.capacity_unit})", side="right"), x=1.0, len=0.6, y=0.35)),
                      text=hover),
         go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2 (source)",
                      line=dict(color=SOURCE, width=4)),
@@ -165,7 +165,7 @@ def fig_bound(bound: pd.DataFrame, sc: Scenario):
     ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound, best mean")
     ax.axhline(sc.channel.outage_threshold, color="r", ls=":", lw=1, label="outage threshold")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("C (bit/s/Hz)")
+    ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
     ax.set_title(f"{sc.name}: capacity bounds", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()

@@ -82,7 +82,7 @@ def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | Non
         ax.semilogy(df["t"], smooth, lw=1.4, label=g)
     ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("end-to-end C, 1 s mean (bit/s/Hz)")
+    ax.set_ylabel(f"end-to-end C, 1 s mean ({capacity_unit(specs)})")
     ax.set_title(f"{study.title} (seed 0 of each run)", fontsize=9)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     fig.tight_layout()
@@ -106,7 +106,7 @@ def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
             ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1.2, label=s.group)
         ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
         ax.set_xlabel("t (s)")
-        ax.set_ylabel("end-to-end C (bit/s/Hz, log scale)")
+        ax.set_ylabel(f"end-to-end C ({capacity_unit(runs)}, log scale)")
         title = " vs ".join(groups) + " vs the bound"
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7)
@@ -141,7 +141,7 @@ def _estimation_figures(study: Study, specs: list[RunSpec], out: Path) -> list[s
                 c = pd.read_parquet(run_dir(out, firsts[g]) / TIMESERIES_FILE, columns=["t", "capacity"])
                 ax2.semilogy(c["t"], np.maximum(c["capacity"], 1e-9), lw=1.1, label=g)
         ax2.set_xlabel("t (s)")
-        ax2.set_ylabel("end-to-end C (bit/s/Hz)")
+        ax2.set_ylabel(f"end-to-end C ({capacity_unit(specs)})")
         ax2.set_title("capacity: estimated vs oracle jammer", fontsize=9)
         ax2.legend(fontsize=7)
         fig.tight_layout()
@@ -264,6 +264,17 @@ def _table(headers, rows) -> str:
     return f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>"
 
 
+def capacity_unit(specs: list[RunSpec]) -> str:
+    """The unit of the runs' capacities: bit/s/Hz, bit/s, or both named when a study mixes them."""
+    units = sorted({scenario_of(s).channel.capacity_unit for s in specs}, reverse=True)
+    return units[0] if len(units) == 1 else "bit/s/Hz; physical-unit runs bit/s"
+
+
+def _headers(cols, unit: str) -> list[str]:
+    """Column headers, capacities in ``unit``."""
+    return [HEADERS.get(c, c).replace("(bit/s/Hz)", f"({unit})") for c in cols]
+
+
 def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Path, manifest: dict) -> str:
     parts = [f'<h2 id="{study.name}">{html.escape(study.title)}</h2>', f"<p>{html.escape(study.description)}</p>"]
     if study_sum["paper"]:
@@ -277,9 +288,10 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                  if any(k in g for g in groups.values())]
         main = list(MAIN_METRICS) + extra
         more = [c for c in (*TABLE_METRICS, "fallback_fraction") if c not in main]
+        unit = capacity_unit(specs)
         for cols, title in ((main, "<h3>Runs (means over seeds)</h3>"), (more, None)):
             rows = [[_breakable(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
-            table = _table(["run", "n"] + [HEADERS.get(c, c) for c in cols], rows)
+            table = _table(["run", "n"] + _headers(cols, unit), rows)
             parts.append(title + table if title else f"<details><summary>more columns: {', '.join(HEADERS.get(c, c) for c in cols)}"
                                                       f"</summary>{table}</details>")
     if study_sum.get("ranking"):

@@ -232,6 +232,11 @@ class ChannelConfig(_Strict):
     def physical(self) -> bool:
         return self.units == "physical"
 
+    @property
+    def capacity_unit(self) -> str:
+        """What capacities are in: bit/s/Hz (the paper's normalized B = 1) or bit/s (physical)."""
+        return "bit/s" if self.physical else "bit/s/Hz"
+
     def link_budget_values(self) -> tuple[float, float, float]:
         """``(P_U W, noise W, B)``: the normalized fields, or ``10^((dBm - 30)/10)``, ``k T B
         10^(NF/10)`` and ``B`` in Hz."""
