@@ -70,21 +70,26 @@ def _fmt(v) -> str:
 
 
 def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | None:
+    """Seed 0 of each run, 1 s means; one panel per capacity unit (bit/s/Hz, bit/s) the study uses."""
     firsts = first_run_per_group(specs, out)
     if not firsts:
         return None
-    fig, ax = plt.subplots(figsize=(9, 3.8))
-    for g, s in list(firsts.items())[:MAX_CURVES]:
-        df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["t", "capacity"])
-        c = np.maximum(df["capacity"].to_numpy(), 1e-9)
-        window = max(1, int(round(1.0 / max(float(np.median(np.diff(df["t"]))), 1e-9))))  # 1 s moving mean: fading noise off
-        smooth = pd.Series(c).rolling(window, center=True, min_periods=1).mean().to_numpy()
-        ax.semilogy(df["t"], smooth, lw=1.4, label=g)
-    ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel(f"end-to-end C, 1 s mean ({capacity_unit(specs)})")
-    ax.set_title(f"{study.title} (seed 0 of each run)", fontsize=9)
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    by_unit: dict[str, list[tuple[str, RunSpec]]] = {}
+    for g, s in firsts.items():
+        by_unit.setdefault(scenario_of(s).channel.capacity_unit, []).append((g, s))
+    fig, axes = plt.subplots(len(by_unit), 1, figsize=(9, 3.8 * len(by_unit)), squeeze=False)
+    for ax, (unit, runs) in zip(axes[:, 0], sorted(by_unit.items(), reverse=True), strict=True):
+        for g, s in runs[:MAX_CURVES]:
+            df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["t", "capacity"])
+            c = np.maximum(df["capacity"].to_numpy(), 1e-9)
+            window = max(1, int(round(1.0 / max(float(np.median(np.diff(df["t"]))), 1e-9))))  # 1 s moving mean: fading noise off
+            smooth = pd.Series(c).rolling(window, center=True, min_periods=1).mean().to_numpy()
+            ax.semilogy(df["t"], smooth, lw=1.4, label=g)
+        _outage_lines(ax, [s for _, s in runs])
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel(f"end-to-end C, 1 s mean ({unit})")
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    axes[0, 0].set_title(f"{study.title} (seed 0 of each run)", fontsize=9, wrap=True)
     fig.tight_layout()
     return _png(fig)
 
@@ -104,7 +109,7 @@ def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
         for s in runs:
             df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["t", "capacity"])
             ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-9), lw=1.2, label=s.group)
-        ax.axhline(1e-3, color="r", ls="--", lw=0.8, label="outage threshold")
+        _outage_lines(ax, runs)
         ax.set_xlabel("t (s)")
         ax.set_ylabel(f"end-to-end C ({capacity_unit(runs)}, log scale)")
         title = " vs ".join(groups) + " vs the bound"
@@ -262,6 +267,12 @@ def _table(headers, rows) -> str:
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" if _is_number(c) else f"<td class='text'>{c}</td>" for c in r) + "</tr>"
                    for r in rows)
     return f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>"
+
+
+def _outage_lines(ax, specs: list[RunSpec]) -> None:
+    """The runs' outage thresholds (each scenario's ``channel.outage_threshold``, in its unit)."""
+    for thr, unit in sorted({(sc.channel.outage_threshold, sc.channel.capacity_unit) for sc in map(scenario_of, specs)}):
+        ax.axhline(thr, color="r", ls="--", lw=0.8, label=f"outage threshold ({thr:g} {unit})")
 
 
 def capacity_unit(specs: list[RunSpec]) -> str:
