@@ -182,8 +182,9 @@ class PropagationConfig(_Strict):
     (Friis with the wavelength in physical units); ``log_distance``: ``PL(d0) + 10 n log10(d/d0)``;
     ``rma_av``: 3GPP TR 36.777 RMa-AV (physical units, every aerial end above 10 m: controllers plan
     with the gain expected over the LoS state, the plant draws the state and the standard's
-    shadowing). Log-normal shadowing (dB, zero mean, correlated ``exp(-Delta d / decorrelation_m)``
-    along each link's motion) perturbs the plant's channel only."""
+    shadowing). Log-normal shadowing (dB, zero mean, a random field over each link's geometry
+    correlated ``exp(-Delta d / decorrelation_m)``) perturbs the plant's channel and the bound, not
+    what the controllers plan with."""
 
     model: Literal["free_space", "log_distance", "rma_av"] = "free_space"
     exponent: float = Field(2.0, ge=1.0, le=6.0, description="log_distance: path-loss exponent n")

@@ -1,7 +1,7 @@
 """The plant's random channel terms per link, composed from ``models/fading.py`` and
 ``models/propagation.py``: small-scale fading (the paper's i.i.d. Rician draw per control step,
-or Doppler fading that evolves in time) and log-normal shadowing correlated along each link's
-motion. The controller never sees them (it plans with the deterministic channel); every value is
+or Doppler fading that evolves in time) and log-normal shadowing, a field over each link's
+geometry. The controller never sees them (it plans with the deterministic channel); every value is
 logged, so a run's capacity can be recomputed from its log alone. The large-scale terms (the
 shadowing field, and with 3GPP RMa-AV each link's LoS state) are a ``LargeScaleRealization``
 fixed by the run's seed over every geometry: the bound searches the same one.
