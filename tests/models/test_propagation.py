@@ -116,11 +116,12 @@ def test_large_scale_realization_scales_the_field_and_draws_los_states():
     real = LargeScaleRealization(rma, 1, std_db=0.0, decorrelation_m=37.0, seed=5)
     far = np.array([300.0, 400.0, 30.0])
     rr = real.link(0, a, far)
-    los = bool(real.u[0] < float(rma.los_probability(a, far)))
-    assert bool(rr.los) == los
     d2 = float(far @ far)
+    d3 = math.sqrt(d2)
+    los = bool(real.u[0] < float(rma_av_los_probability(500.0, 30.0)))
+    assert bool(rr.los) == los
     expected = float(rma.gain_between(a, far, d2))
-    state = float(rma.state_gain(a[None], far[None], [los])[0])
+    state = 10 ** (-float(rma_av_path_loss_db(d3, 30.0, 2e9, los)) / 10)
     std = float(rma_av_shadow_std_db(30.0, los))
     assert float(rr.gain) == pytest.approx(state / expected * 10 ** (std * float(real.field.value(0, far - a)) / 10))
     assert not LargeScaleRealization(PathGain(), 3, std_db=0.0, decorrelation_m=5.0, seed=0).active
@@ -158,11 +159,12 @@ def test_rma_av_as_a_scene_path_gain_takes_the_links_heights():
     g = rma_av_expected_gain(math.sqrt(d2), 500.0, 30.0, 2e9)
     assert path.gain_between(a, b, d2) == pytest.approx(g, rel=1e-12)
     assert path.gain_between(b, a, d2) == pytest.approx(g, rel=1e-12)
-    # LoS / NLoS state gains are the standard's losses at this link (95.8 / 99.8 dB at d3D ~ 500 m, h = 30 m)
-    los = path.state_gain([a, a], [b, b], [True, False])
-    np.testing.assert_allclose(-10 * np.log10(los), [rma_av_path_loss_db(d3, 30.0, 2e9, True),
-                                                      rma_av_path_loss_db(d3, 30.0, 2e9, False)])
-    assert path.los_probability([a], [b])[0] == pytest.approx(float(rma_av_los_probability(500.0, 30.0)))
+    # the state drawn by u: LoS below P_LoS, NLoS above; its gain over the expected one; its shadowing std
+    p_los = float(rma_av_los_probability(500.0, 30.0))
+    for u, los in ((0.5 * p_los, True), (0.5 * (1 + p_los), False)):
+        state, ratio, std = path.realize(a, b, u)
+        assert bool(state) == los and float(std) == pytest.approx(float(rma_av_shadow_std_db(30.0, los)))
+        assert float(ratio) * g == pytest.approx(10 ** (-float(rma_av_path_loss_db(d3, 30.0, 2e9, los)) / 10), rel=1e-12)
 
 
 @given(st.floats(-500, 500), st.floats(-500, 500), st.floats(10.5, 300.0), st.floats(0.0, 10.0))

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from aerorelay.models.geometry import rotation_batch
+from aerorelay.models.propagation import rma_av_los_probability
 from aerorelay.scenario import ScenarioError, load_scenario, parse_scenario
 from aerorelay.scenario.build import build, build_scene
 from aerorelay.sim.perturbations import LinkPerturbations, PerturbationSettings
@@ -161,7 +162,7 @@ def test_rma_av_los_states_are_drawn_with_the_los_probability():
     """Over 2000 seeds a 500 m link from the ground to 30 m is LoS with the standard's P_LoS there."""
     far = load_scenario(ROOT / "scenarios" / "rma_av.toml", set={"nodes.bs": [400.0, 300.0, 0.0]})
     scene = build_scene(far)
-    p_los = float(scene.path_gain.los_probability([[400.0, 300.0, 0.0]], [[0.0, 0.0, 30.0]])[0])
+    p_los = float(rma_av_los_probability(500.0, 30.0))  # d2D 500 m, h 30 m
     assert 0.5 < p_los < 1.0
     pos = {"source": np.array([1.0, 1.0, 30.0]), "relay": np.array([0.0, 0.0, 30.0]), "bs": np.array([400.0, 300.0, 0.0])}
     vel = {k: np.zeros(3) for k in pos}

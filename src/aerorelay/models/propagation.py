@@ -179,15 +179,13 @@ class RmaAvPathGain(PathGain):
         d3, d2d, h = link_heights(p_tx, p_rx, d2)
         return rma_av_expected_gain(d3, d2d, h, self.carrier_hz)
 
-    def state_gain(self, p_tx, p_rx, los) -> np.ndarray:
-        """The gain in LoS state ``los`` (bool per link; numpy ends ``(..., 3)``)."""
-        d3, _, h = _numeric_heights(p_tx, p_rx)
-        return 10.0 ** (-rma_av_path_loss_db(d3, h, self.carrier_hz, np.asarray(los, bool)) / 10.0)
-
-    def los_probability(self, p_tx, p_rx) -> np.ndarray:
-        """``P_LoS`` of each link (numpy ends ``(..., 3)``)."""
-        _, d2d, h = _numeric_heights(p_tx, p_rx)
-        return rma_av_los_probability(d2d, h)
+    def realize(self, p_tx, p_rx, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The LoS state drawn by ``u`` (uniform; LoS while ``P_LoS > u``), that state's gain over the
+        expected one, and the state's shadowing std (dB), from the links' geometry computed once."""
+        d3, d2d, h = _numeric_heights(p_tx, p_rx)
+        los = u < rma_av_los_probability(d2d, h)
+        state = 10.0 ** (-rma_av_path_loss_db(d3, h, self.carrier_hz, los) / 10.0)
+        return los, state / rma_av_expected_gain(d3, d2d, h, self.carrier_hz), rma_av_shadow_std_db(h, los)
 
     def gain_from_d2(self, d2):
         """Upper bound of the gain at squared length ``d2`` >= 1 m^2 for any height: LoS with the
@@ -266,10 +264,7 @@ class LargeScaleRealization:
         std: np.ndarray | float = self.std_db
         los = None
         if self.rma is not None and self.u is not None:
-            d2 = np.sum(off * off, axis=-1)
-            los = self.u[k] < self.rma.los_probability(p_tx, p_rx)
-            gain = self.rma.state_gain(p_tx, p_rx, los) / self.rma.gain_between(p_tx, p_rx, d2)
-            std = rma_av_shadow_std_db(link_heights(p_tx, p_rx, d2)[2], los)
+            los, gain, std = self.rma.realize(p_tx, p_rx, self.u[k])
         if self.field is None:
             return LinkRealization(gain, None, los)
         x_db = std * self.field.value(k, off)
