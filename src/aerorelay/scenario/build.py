@@ -261,14 +261,9 @@ def scenario_bound_key(sc: Scenario) -> str:
     data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers", "mission", "bound"})
     data["workspace"] = sc.controller.workspace.model_dump()
     data["duration_s"] = sc.duration_s
-    if _random_large_scale(sc):  # the bound searches the run's own realization
+    if sc.channel.propagation.random:  # the bound searches the run's own realization
         data["seed"] = sc.seed
     return bound_key(data)
-
-
-def _random_large_scale(sc: Scenario) -> bool:
-    prop = sc.channel.propagation
-    return prop.shadowing_std_db > 0 or prop.model == "rma_av"
 
 
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:

@@ -194,6 +194,11 @@ class PropagationConfig(_Strict):
     shadowing_std_db: float = Field(0.0, ge=0.0, le=20.0, description="log-normal shadowing std, dB (0: none)")
     decorrelation_m: float = Field(10.0, gt=0.0, le=1000.0, description="shadowing decorrelation distance, m")
 
+    @property
+    def random(self) -> bool:
+        """Whether the large-scale channel has a realization drawn per seed (shadowing, LoS states)."""
+        return self.shadowing_std_db > 0 or self.model == "rma_av"
+
     @model_validator(mode="after")
     def _rma_av_shadowing_is_the_standards(self):
         if self.model == "rma_av" and self.shadowing_std_db > 0:
@@ -740,9 +745,7 @@ class Scenario(_Strict):
     def stochastic(self) -> bool:
         """Whether the seed changes anything: the perturbations', log-normal shadowing, or the
         energy detector's noise when the relay estimates its jammers."""
-        prop = self.channel.propagation
-        return (self.perturbations.stochastic or prop.shadowing_std_db > 0 or prop.model == "rma_av"
-                or self.estimates_jammers)
+        return self.perturbations.stochastic or self.channel.propagation.random or self.estimates_jammers
 
     @property
     def estimates_jammers(self) -> bool:
