@@ -135,3 +135,62 @@ def test_two_jammers_are_found_one_after_the_other():
     nearest = d.argmin(axis=1)
     assert sorted(nearest.tolist()) == [0, 1]
     assert d.min(axis=1).max() < 2.5
+
+
+
+def null_holding_pose(t, wobble_deg, off_null_deg):
+    """The circle until 12 s, then a hold 4.8 m above the jammer with the dipole's null
+    ``off_null_deg`` off it and a wobbling attitude (``wobble_deg`` at 3 Hz): what the
+    capacity-seeking relay does at 20 dB."""
+    if t < 12.0:
+        return relay_pose(t)
+    tilt = np.radians(off_null_deg) + np.radians(wobble_deg) * np.sin(2 * np.pi * 3.0 * t)
+    return JAMMER + np.array([0.0, -0.15, 4.8]), np.array([0.0, np.sin(tilt), np.cos(tilt)])
+
+
+@pytest.mark.parametrize(("wobble_deg", "off_null_deg"), [(5.0, 3.0), (2.0, 5.0)])
+def test_a_jammer_held_in_the_antenna_null_does_not_pull_the_estimate_away(wobble_deg, off_null_deg):
+    """Readings near the relay antenna's null change fastest with the axis: weighted by what the axis
+    uncertainty makes of them, they keep the estimate on the jammer. Measured: the same readings
+    with every row at the detector's variance (the model before) give a largest error of 1.31 / 1.13 m
+    after 15 s in these two cases; weighted, 0.57 / 0.33 m (the 20 dB study run drifted 1.3-1.5 m at a
+    reported std of 0.1 m)."""
+    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), EstimatorSettings(*BOX), DT)
+    det = EnergyDetector(100, seed=4)
+    power = 100.0 * float(np.sum((START - JAMMER) ** 2))  # 20 dB
+    errors, stds = [], []
+    for k in range(int(40.0 / DT)):
+        t = k * DT
+        rx, ax = null_holding_pose(t, wobble_deg, off_null_deg)
+        est.add(t, 0, rx, ax, float(det.measure(1.0 + power * link_gain(JAMMER, E3, IsotropicPattern(), rx, ax, DIPOLE))))
+        e = est.update(t)
+        if t >= 15.0:
+            errors.append(np.linalg.norm(e.positions[0] - JAMMER))
+            stds.append(e.position_std_max()[0])
+    errors_a, stds_a = np.array(errors), np.array(stds)
+    assert errors_a.max() < 0.8
+    assert np.mean(errors_a <= 3.0 * stds_a) > 0.9
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(3.0, 87.0), st.floats(0.0, 2 * np.pi))
+def test_axis_log_slope_is_the_gain_change_as_the_axis_turns(angle_deg, roll):
+    """``|d ln G / d angle|`` against a central difference of the link gain with the axis turned
+    toward the link, for a dipole at ``angle_deg`` off its axis."""
+    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), EstimatorSettings(*BOX), DT)
+    rx = np.array([1.0, 2.0, 3.0])
+    link = np.array([np.cos(roll), np.sin(roll), 0.0])  # from the receiver toward the jammer
+    jammer = rx + 5.0 * link
+
+    def axis(a):
+        return np.cos(np.radians(a)) * E3 + np.sin(np.radians(a)) * link
+
+    est.window.append(0.0, 0, rx, axis(90.0 - angle_deg), 2.0)
+    slope = est._axis_log_slopes(jammer[None], np.arange(1))[0, 0]
+    h = 1e-4
+
+    def log_gain(a):
+        return np.log(link_gain(jammer, E3, IsotropicPattern(), rx, axis(90.0 - a), DIPOLE))
+
+    expected = abs(log_gain(angle_deg + np.degrees(h)) - log_gain(angle_deg - np.degrees(h))) / (2 * h)
+    assert slope == pytest.approx(expected, rel=1e-2)  # the module differences the cosine in 1e-4 steps

@@ -13,7 +13,10 @@ world) and EIRP ``P_j`` (W):
 ``g`` is the one channel implementation's ``link_gain`` (``models/radio.py``), ``s_j`` whether
 jammer j radiates (a two-state Markov chain per jammer), ``e`` the detector's log noise plus
 ``model_error_db`` for what the model leaves out (fading, shadowing, a directional pattern): a
-floor, scaled up by the window's reduced chi-square when the residuals are larger.
+floor, scaled up by the window's reduced chi-square when the residuals are larger; plus, per
+measurement, what the receiver's axis uncertainty (``axis_error_deg`` and the spread of the axes
+averaged into it) makes of the jammers' share of the reading: near an antenna null a reading says
+little about where the jammer is (the Gauss-Newton cost is that heteroscedastic likelihood).
 
 Two layers per jammer:
 
@@ -55,6 +58,8 @@ _RESEED_EVERY = 4  # refinements between two checks of a found jammer against th
 _RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
 _HUBER_SIGMAS = 3.0  # residuals beyond this many sigma count linearly (robust to readings across a switch)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
+_SLOPE_STEP = 1e-4  # central-difference step in the cosine of the pattern's log-gain slope
+_MAX_LOG_SLOPE = 1e3  # 1/rad: a slope cap (a pattern's exact null has an infinite log slope)
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,7 @@ class EstimatorSettings:
     grid_m: float = 2.5
     forget_s: float = 20.0
     model_error_db: float = 0.2
+    axis_error_deg: float = 1.0
     switch_prob: float = 0.02
     confident_std_m: float = 1.5
     window_rows: int = 60  # measurements Gauss-Newton fits (evenly thinned, each weighted for those it stands for)
@@ -127,16 +133,17 @@ class _Window:
         self.capacity = capacity
         self.t, self.z = np.zeros(c), np.zeros(c)
         self.rx, self.ax, self.ri = np.zeros((c, 3)), np.zeros((c, 3)), np.zeros(c, dtype=np.intp)
+        self.jitter2 = np.zeros(c)  # rad^2: mean squared angle of the averaged axes about their mean
         self.lo = self.hi = 0
 
-    def append(self, t: float, ri: int, rx, ax, y: float) -> None:
+    def append(self, t: float, ri: int, rx, ax, y: float, jitter2: float = 0.0) -> None:
         if self.hi == self.t.size:  # compact: move the live rows to the front
             n = self.hi - self.lo
-            for a in (self.t, self.z, self.rx, self.ax, self.ri):
+            for a in (self.t, self.z, self.rx, self.ax, self.ri, self.jitter2):
                 a[:n] = a[self.lo:self.hi]
             self.lo, self.hi = 0, n
         k = self.hi
-        self.t[k], self.ri[k], self.rx[k], self.ax[k] = t, ri, rx, ax
+        self.t[k], self.ri[k], self.rx[k], self.ax[k], self.jitter2[k] = t, ri, rx, ax, jitter2
         self.z[k] = KAPPA_DB * math.log(y)
         self.hi += 1
         if self.hi - self.lo > self.capacity:
@@ -175,6 +182,7 @@ class JammerEstimator:
         self.log_mean = detector_log_mean_db(n_eff)
         self.sigma2 = detector_log_std_db(n_eff) ** 2 + settings.model_error_db**2  # dB^2
         self.rel2 = self.sigma2 / KAPPA_DB**2  # the same as a relative power error
+        self.axis_var = math.radians(settings.axis_error_deg) ** 2
         self.gain_cap = float(path_gain.gain_from_d2(_MIN_DISTANCE_M**2)) * max(r.pattern.g_bar for r in receivers)
         span = _WINDOW_FORGET_SPANS * settings.forget_s / row_s
         self.window = _Window(int(math.ceil(span * len(receivers))) + 2)
@@ -242,8 +250,9 @@ class JammerEstimator:
         changed = False
         for i, r in enumerate(self.pending):
             if r.count >= self.s.aggregate_steps:
-                axis = r.axis / max(float(np.linalg.norm(r.axis)), 1e-12)
-                self._assimilate(t, i, r.position / r.count, axis, r.power / r.count)
+                norm = max(float(np.linalg.norm(r.axis)), 1e-12)
+                jitter2 = max(0.0, 2.0 * (1.0 - norm / r.count))  # E[angle^2] of unit axes about their mean
+                self._assimilate(t, i, r.position / r.count, r.axis / norm, r.power / r.count, jitter2)
                 self.pending[i] = _Pending()
                 changed = True
         if changed:
@@ -255,7 +264,8 @@ class JammerEstimator:
                 self._estimate = replace(self._estimate, on_prob=self.on_prob.copy())
         return self._estimate
 
-    def _assimilate(self, t: float, receiver: int, position: np.ndarray, axis: np.ndarray, y: float) -> None:
+    def _assimilate(self, t: float, receiver: int, position: np.ndarray, axis: np.ndarray, y: float,
+                    jitter2: float = 0.0) -> None:
         """One measurement ``y`` (W, averaged): each jammer's ON/OFF chain, then its grid sums."""
         noise = self.receivers[receiver].noise_w
         P = self._powers(self.theta)
@@ -279,7 +289,7 @@ class JammerEstimator:
             self.s_ge[j] = self.forget * self.s_ge[j] + wgt * g * (y - others)
             self.s_gg[j] = self.forget * self.s_gg[j] + wgt * g * g
             self._grid_rows[j] += 1
-        self.window.append(t, receiver, position, axis, y)
+        self.window.append(t, receiver, position, axis, y, jitter2)
         self._posterior = None
 
     def _grid_posterior(self, j: int) -> np.ndarray:
@@ -332,20 +342,49 @@ class JammerEstimator:
             J[:, 4 * j + 3] = KAPPA_DB * contrib[j] / S
         return z_hat, J
 
-    def _huber(self, r: np.ndarray, wt: np.ndarray) -> tuple[float, np.ndarray]:
-        """Robust window cost ``sum wt rho(r)`` (Huber at 3 sigma: a reading averaged across a
-        jammer's switch fits neither state) and the iteratively reweighted least-squares factors."""
-        c = _HUBER_SIGMAS * math.sqrt(self.sigma2)
-        a = np.abs(r)
-        rho = np.where(a <= c, r * r, 2.0 * c * a - c * c)
-        return float(np.sum(wt * rho)), np.minimum(1.0, c / np.maximum(a, 1e-300))
+    def _axis_log_slopes(self, x: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """``|d ln G_rx / d angle|`` ``(nJ, M)`` (1/rad): how fast each receiver's antenna gain toward
+        the positions ``x`` ``(nJ, 3)`` changes as its axis turns, at the window rows ``idx``."""
+        w = self.window
+        d = w.rx[idx][None] - x[:, None, :]
+        c = np.clip(-np.einsum("jmk,mk->jm", d, w.ax[idx]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-9),
+                    -1.0 + _SLOPE_STEP, 1.0 - _SLOPE_STEP)
+        out = np.zeros(c.shape)
+        for i, r in enumerate(self.receivers):
+            m = w.ri[idx] == i
+            cm = c[:, m]
+            with np.errstate(divide="ignore"):
+                lo, hi = np.log(r.pattern.gain_from_cos(cm - _SLOPE_STEP)), np.log(r.pattern.gain_from_cos(cm + _SLOPE_STEP))
+            slope = np.where(np.isfinite(lo) & np.isfinite(hi), (hi - lo) / (2.0 * _SLOPE_STEP), _MAX_LOG_SLOPE)
+            out[:, m] = np.minimum(np.abs(slope) * np.sqrt(1.0 - cm * cm), _MAX_LOG_SLOPE)
+        return out
 
-    def _window_cost(self, theta: np.ndarray, idx: np.ndarray, wt: np.ndarray) -> float:
+    def _row_variance(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Each row's log-reading variance (dB^2) under ``theta``: the detector's and the model error's,
+        plus what the receiver's axis uncertainty (``axis_error_deg`` and the averaged axes' own spread)
+        makes of the jammers' share of the reading. Near an antenna null the gain changes fastest with
+        the axis: a reading there says little about where the jammer is, and is weighted so (without
+        this, a relay that holds the jammer in its null pulled the estimate into a narrow wrong valley)."""
+        contrib = on * np.exp(np.where(self.started, theta[:, 3], -np.inf))[:, None] * g
+        S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
+        slope = (contrib * self._axis_log_slopes(theta[:, :3], idx)).sum(axis=0) / S  # d ln S / d angle
+        return self.sigma2 + (KAPPA_DB * slope) ** 2 * (self.axis_var + self.window.jitter2[idx])
+
+    def _huber(self, r: np.ndarray, base: np.ndarray, var: np.ndarray) -> tuple[float, np.ndarray]:
+        """Robust negative log-likelihood of the window ``sum base (rho(r / sd) + ln var)`` (Huber at 3
+        sigma: a reading averaged across a jammer's switch fits neither state) and the iteratively
+        reweighted least-squares factors."""
+        u = np.abs(r) / np.sqrt(var)
+        rho = np.where(u <= _HUBER_SIGMAS, u * u, 2.0 * _HUBER_SIGMAS * u - _HUBER_SIGMAS**2)
+        return float(np.sum(base * (rho + np.log(var)))), np.minimum(1.0, _HUBER_SIGMAS / np.maximum(u, 1e-300))
+
+    def _window_cost(self, theta: np.ndarray, idx: np.ndarray, base: np.ndarray) -> float:
         g, _ = self._window_gains(theta, idx, jacobian=False)
-        z_hat, _ = self._model(theta, g, None, self._on_flags(theta, g, idx), idx)
-        return self._huber(self.window.z[idx] - z_hat, wt)[0]
+        on = self._on_flags(theta, g, idx)
+        z_hat, _ = self._model(theta, g, None, on, idx)
+        return self._huber(self.window.z[idx] - z_hat, base, self._row_variance(theta, g, on, idx))[0]
 
-    def _reseed(self, idx: np.ndarray, wt: np.ndarray) -> None:
+    def _reseed(self, idx: np.ndarray, base: np.ndarray) -> None:
         """Start Gauss-Newton at the grid's best cell at the first fit; afterwards, when the grid puts
         mass away from the estimate, compare the best such cell's window fit with the estimate's:
         restart there when it fits better, else keep it as a rival mode weighted by its likelihood
@@ -375,7 +414,7 @@ class JammerEstimator:
             seed = self.theta.copy()
             seed[j] = np.r_[self.cells[best], math.log(power)]
             if self.started[j]:
-                drop = self._window_cost(seed, idx, wt) - self._window_cost(self.theta, idx, wt)
+                drop = self._window_cost(seed, idx, base) - self._window_cost(self.theta, idx, base)
                 if drop >= 0.0:
                     self._rival[j] = math.exp(-0.5 * min(drop, 1400.0))
                     continue
@@ -388,8 +427,8 @@ class JammerEstimator:
         idx = self.window.rows(self.s.window_rows)
         z = self.window.z[idx]
         thin = len(self.window) / idx.size  # each fitted row stands for this many
-        wt = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s) / self.sigma2
-        self._reseed(idx, wt)
+        base = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
+        self._reseed(idx, base)
         if not self.started.any():
             return
         g, dg = self._window_gains(self.theta, idx, jacobian=True)
@@ -398,8 +437,9 @@ class JammerEstimator:
         cols = np.flatnonzero(np.repeat(self.started, 4))  # only the jammers found so far
         J = J[:, cols]
         r = z - z_hat
-        cost0, robust = self._huber(r, wt)
-        wr = wt * robust
+        var = self._row_variance(self.theta, g, on, idx)
+        cost0, robust = self._huber(r, base, var)
+        wr = base / var * robust
         H = J.T @ (J * wr[:, None])
         full = np.zeros(4 * self.nj)
         full[cols] = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9), J.T @ (wr * r))
@@ -408,11 +448,11 @@ class JammerEstimator:
         trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
         g_try, _ = self._window_gains(trial, idx, jacobian=False)
         z_try, _ = self._model(trial, g_try, None, on, idx)
-        if self._huber(z - z_try, wt)[0] < cost0:
+        if self._huber(z - z_try, base, self._row_variance(trial, g_try, on, idx))[0] < cost0:
             self.theta, self.lam = trial, max(self.lam / 3.0, 1e-6)
         else:
             self.lam = min(self.lam * 5.0, 1e6)
-        chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * self.sigma2), 1e-12)))
+        chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
