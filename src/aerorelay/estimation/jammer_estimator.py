@@ -279,8 +279,9 @@ class JammerEstimator:
             if self.started[j]:
                 r_on = z - KAPPA_DB * math.log(others + P[j] * g_est[j]) - self.log_mean
                 r_off = z - KAPPA_DB * math.log(others) - self.log_mean
-                l_on, l_off = math.exp(-0.5 * r_on**2 / self.sigma2), math.exp(-0.5 * r_off**2 / self.sigma2)
-                self.on_prob[j] = prior * l_on / max(prior * l_on + (1.0 - prior) * l_off, 1e-300)
+                # log odds: both likelihoods underflow when the estimate explains neither state
+                logit = math.log(prior / (1.0 - prior)) + 0.5 * (r_off**2 - r_on**2) / self.sigma2
+                self.on_prob[j] = 1.0 / (1.0 + math.exp(-min(max(logit, -700.0), 700.0)))
             else:
                 self.on_prob[j] = prior
             if j > 0 and not self.started[j - 1]:
