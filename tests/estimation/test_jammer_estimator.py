@@ -194,3 +194,24 @@ def test_axis_log_slope_is_the_gain_change_as_the_axis_turns(angle_deg, roll):
 
     expected = abs(log_gain(angle_deg + np.degrees(h)) - log_gain(angle_deg - np.degrees(h))) / (2 * h)
     assert slope == pytest.approx(expected, rel=1e-2)  # the module differences the cosine in 1e-4 steps
+
+
+def test_information_is_jt_j_over_the_variance_of_the_measurement_model():
+    """``information`` against a central-difference Jacobian of the log reading written out here
+    (``10 log10(N + P g(p)) + E[10 log10 X]`` over position and log power), with the axis known
+    exactly (every row at the detector's and model error's variance)."""
+    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), EstimatorSettings(*BOX, axis_error_deg=0.0), DT)
+    rows = [relay_pose(t) for t in np.arange(0.0, 6.0, 0.5)]
+    for k, (rx, ax) in enumerate(rows):
+        est.window.append(0.5 * k, 0, rx, ax, 2.0)
+    theta = np.r_[JAMMER, np.log(500.0)]
+
+    def z(th):
+        return np.array([10 * np.log10(1.0 + np.exp(th[3]) * link_gain(th[:3], E3, IsotropicPattern(), rx, ax, DIPOLE))
+                         for rx, ax in rows]) + est.log_mean
+
+    h = 1e-5
+    J = np.column_stack([(z(theta + h * e) - z(theta - h * e)) / (2 * h) for e in np.eye(4)])
+    expected = J.T @ J / est.sigma2
+    got = est.information(theta[None], np.ones((1, len(rows)), bool), np.arange(len(rows)))
+    np.testing.assert_allclose(got, expected, rtol=2e-4, atol=1e-9 * np.abs(expected).max())

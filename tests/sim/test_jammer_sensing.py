@@ -59,6 +59,19 @@ def test_estimate_and_covariance_are_logged(flown):
     assert {"estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimator_ms"} <= set(m)
 
 
+def test_cramer_rao_bound_only_tightens_and_starts_at_the_box_prior(flown):
+    """Each measurement adds information: the logged bound never grows; before the first one it is
+    the search box's own spread (side / sqrt 12 on the widest axis); the bound at the end equals
+    the metric's (worst jammer, one jammer here)."""
+    sc, res = flown
+    bound = res.timeseries["est_jammer_crlb_m"].to_numpy()
+    assert np.all(np.isfinite(bound)) and np.all(np.diff(bound) <= 1e-12)
+    sens = build(sc).sensing
+    assert bound[0] <= np.max(sens.estimator.hi - sens.estimator.lo) / np.sqrt(12.0) + 1e-9
+    assert bound[-1] < bound[0]
+    assert res.metrics["estimation_crlb_10s_m"] == pytest.approx(bound[-1])  # a 4 s flight: its last value
+
+
 def test_planner_gets_no_jammer_before_a_confident_estimate():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(UPDATES)
     parts = build(sc)

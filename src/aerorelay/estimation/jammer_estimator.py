@@ -134,6 +134,7 @@ class _Window:
         self.t, self.z = np.zeros(c), np.zeros(c)
         self.rx, self.ax, self.ri = np.zeros((c, 3)), np.zeros((c, 3)), np.zeros(c, dtype=np.intp)
         self.jitter2 = np.zeros(c)  # rad^2: mean squared angle of the averaged axes about their mean
+        self.appended = 0  # rows appended since the start
         self.lo = self.hi = 0
 
     def append(self, t: float, ri: int, rx, ax, y: float, jitter2: float = 0.0) -> None:
@@ -146,6 +147,7 @@ class _Window:
         self.t[k], self.ri[k], self.rx[k], self.ax[k], self.jitter2[k] = t, ri, rx, ax, jitter2
         self.z[k] = KAPPA_DB * math.log(y)
         self.hi += 1
+        self.appended += 1
         if self.hi - self.lo > self.capacity:
             self.lo = self.hi - self.capacity
 
@@ -360,16 +362,28 @@ class JammerEstimator:
             out[:, m] = np.minimum(np.abs(slope) * np.sqrt(1.0 - cm * cm), _MAX_LOG_SLOPE)
         return out
 
-    def _row_variance(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    def _row_variance(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray,
+                      found: np.ndarray | None = None) -> np.ndarray:
         """Each row's log-reading variance (dB^2) under ``theta``: the detector's and the model error's,
         plus what the receiver's axis uncertainty (``axis_error_deg`` and the averaged axes' own spread)
         makes of the jammers' share of the reading. Near an antenna null the gain changes fastest with
         the axis: a reading there says little about where the jammer is, and is weighted so (without
         this, a relay that holds the jammer in its null pulled the estimate into a narrow wrong valley)."""
-        contrib = on * np.exp(np.where(self.started, theta[:, 3], -np.inf))[:, None] * g
+        found = self.started if found is None else found
+        contrib = on * np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
         S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
         slope = (contrib * self._axis_log_slopes(theta[:, :3], idx)).sum(axis=0) / S  # d ln S / d angle
         return self.sigma2 + (KAPPA_DB * slope) ** 2 * (self.axis_var + self.window.jitter2[idx])
+
+    def information(self, theta: np.ndarray, on: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Fisher information ``(4 nJ, 4 nJ)`` the window rows ``idx`` carry about ``theta`` (each
+        jammer's position, m, and log EIRP) with ON flags ``on`` ``(nJ, M)``, under the estimator's own
+        measurement model (log readings, the rows' variances): ``J^T J / var``. For measuring a run
+        against the Cramer-Rao bound (``sim/jammer_sensing.py``); the estimate does not use it."""
+        g, dg = self._window_gains(theta, idx, jacobian=True)
+        _, J = self._model(theta, g, dg, on, idx)
+        var = self._row_variance(theta, g, on, idx, np.ones(self.nj, bool))
+        return J.T @ (J / var[:, None])
 
     def _huber(self, r: np.ndarray, base: np.ndarray, var: np.ndarray) -> tuple[float, np.ndarray]:
         """Robust negative log-likelihood of the window ``sum base (rho(r / sd) + ln var)`` (Huber at 3

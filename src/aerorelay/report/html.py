@@ -38,6 +38,7 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "fallback_fraction": "fail-safe steps", "motor_saturation_fraction": "a motor at a speed bound",
            "rate_saturation_fraction": "a motor at a rate bound",
            "estimation_first_within_1m_s": "jammer estimate first within 1 m (s)",
+           "estimation_crlb_first_1m_s": "Cramer-Rao bound first <= 1 m (s)", "estimation_crlb_10s_m": "Cramer-Rao bound at 10 s (m)",
            "estimation_within_1m_after_10s": "estimate within 1 m after 10 s", "estimator_ms.mean": "estimator (ms/step)"}
 MAX_CURVES = 8
 
@@ -121,7 +122,8 @@ def _bound_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
 
 def _estimation_figures(study: Study, specs: list[RunSpec], out: Path) -> list[str]:
     """Per ``estimation_figures`` pair: the estimated run's position error per jammer over time with
-    the estimate's 2-sigma band (twice its largest position std), and both runs' capacity."""
+    the estimate's 2-sigma band (twice its largest position std) and the Cramer-Rao bound of its
+    path (dashed, where defined), and both runs' capacity."""
     firsts = first_run_per_group(specs, out)
     figs = []
     for est, oracle in study.estimation_figures:
@@ -134,6 +136,8 @@ def _estimation_figures(study: Study, specs: list[RunSpec], out: Path) -> list[s
             ax1.fill_between(df["t"], 0.0, 2.0 * df[f"est_{n}_std_m"], color=f"C{i}", alpha=0.2, lw=0,
                              label=f"{n}: 2 sigma")
             ax1.plot(df["t"], df[f"est_{n}_err_m"], color=f"C{i}", lw=1.2, label=f"{n}: error")
+            if f"est_{n}_crlb_m" in df and np.isfinite(df[f"est_{n}_crlb_m"].iloc[-1]):
+                ax1.plot(df["t"], df[f"est_{n}_crlb_m"], color=f"C{i}", ls="--", lw=0.9, label=f"{n}: Cramer-Rao bound")
         ax1.axhline(1.0, color="k", ls=":", lw=0.8, label="1 m")
         ax1.set_yscale("log")
         ax1.set_ylim(0.01, 100.0)
@@ -295,7 +299,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
     groups = study_sum["groups"]
     if groups:
         extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min",
-                             "estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimator_ms.mean")
+                             "estimation_first_within_1m_s", "estimation_crlb_first_1m_s", "estimation_within_1m_after_10s",
+                             "estimator_ms.mean")
                  if any(k in g for g in groups.values())]
         main = list(MAIN_METRICS) + extra
         more = [c for c in (*TABLE_METRICS, "fallback_fraction") if c not in main]

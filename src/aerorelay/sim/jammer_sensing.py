@@ -8,8 +8,11 @@ estimate: a jammer enters the plan once its estimate is confident (before that t
 without it, as before ``tau_E`` with the oracle), with its estimated power (0 while it is
 estimated OFF, when the controller senses the schedule). Log columns: ``meas_<receiver>_w``,
 ``estimator_ms`` and per jammer ``est_<name>_x/_y/_z`` (m), ``_power_w``, ``_on_prob``,
-``_std_m`` (largest position std), ``_err_m`` (distance to the true position) and the position
-covariance ``_cov_xx ... _cov_yz`` (m^2).
+``_std_m`` (largest position std), ``_err_m`` (distance to the true position), the position
+covariance ``_cov_xx ... _cov_yz`` (m^2) and ``_crlb_m``: the Cramer-Rao bound of the position
+(largest std, m) from every measurement so far, at the true jammers, under the estimator's
+measurement model with the search box as a prior: what the relay's path made knowable, which no
+estimator beats on average (NaN for a moving or directional jammer, which that model does not hold).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import time
 import numpy as np
 
 from ..estimation.jammer_estimator import JammerEstimate, JammerEstimator
+from ..models.antenna import IsotropicPattern
 from ..models.radio import ChannelState, NodePose, RadioScene
 from ..models.sensing import EnergyDetector
 
@@ -41,8 +45,9 @@ class JammerSensing:
         self.names = [j.name for j in scene.jammers]
         self.columns = [f"meas_{r}_w" for r in receivers] + ["estimator_ms"] + [
             f"est_{n}_{q}" for n in self.names
-            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "err_m", *(f"cov_{c}" for c, _, _ in _COV))]
+            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "err_m", "crlb_m", *(f"cov_{c}" for c, _, _ in _COV))]
         self.last_ms = 0.0
+        self.crlb = InformationMeter(estimator, scene)
 
     @property
     def estimate(self) -> JammerEstimate:
@@ -70,12 +75,49 @@ class JammerSensing:
         e = self.estimator.update(t)
         self.last_ms = (time.perf_counter() - t0) * 1e3
         values["estimator_ms"] = self.last_ms
+        crlb = self.crlb.update()
         std = e.position_std_max()
         for i, (n, j) in enumerate(zip(self.names, self.scene.jammers, strict=True)):
             p = e.positions[i]
             values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[i],
                            f"est_{n}_on_prob": e.on_prob[i], f"est_{n}_std_m": std[i],
-                           f"est_{n}_err_m": float(np.linalg.norm(p - j.position_at(t)))})
+                           f"est_{n}_err_m": float(np.linalg.norm(p - j.position_at(t))), f"est_{n}_crlb_m": crlb[i]})
             for c, a, b in _COV:
                 values[f"est_{n}_cov_{c}"] = e.covariances[i, a, b]
         return values
+
+
+class InformationMeter:
+    """The Cramer-Rao bound of the jammers' positions from the estimator's measurements so far: their
+    Fisher information at the true jammers (``JammerEstimator.information``, each measurement once,
+    nothing forgotten) plus the search box as a prior (uniform: variance side^2 / 12 per axis; log
+    EIRP std 10). Defined for static isotropic jammers with power; NaN otherwise."""
+
+    def __init__(self, estimator: JammerEstimator, scene):
+        self.estimator, self.jammers = estimator, scene.jammers
+        nj = len(self.jammers)
+        self.defined = all(j.path is None and isinstance(j.pattern, IsotropicPattern) and j.power > 0 for j in self.jammers)
+        prior = np.tile(np.r_[12.0 / (estimator.hi - estimator.lo) ** 2, 1e-2], nj)
+        self.info = np.diag(prior)
+        self.seen = 0
+        if self.defined:
+            self.theta = np.array([np.r_[j.position_at(0.0), np.log(j.power * j.pattern.g_bar)] for j in self.jammers])
+        self.bound = self._position_bound() if self.defined else np.full(nj, np.nan)
+
+    def _position_bound(self) -> np.ndarray:
+        cov = np.linalg.inv(self.info)
+        return np.array([np.sqrt(np.linalg.eigvalsh(cov[4 * k:4 * k + 3, 4 * k:4 * k + 3])[-1])
+                         for k in range(len(self.jammers))])
+
+    def update(self) -> np.ndarray:
+        """Fold in the measurements assimilated since the last call; the bound per jammer (m)."""
+        w = self.estimator.window
+        new = min(w.appended - self.seen, len(w))
+        self.seen = w.appended
+        if not self.defined or new <= 0:
+            return self.bound
+        idx = np.arange(w.hi - new, w.hi)
+        on = np.array([[bool(j.schedule.is_on(t)) for t in w.t[idx]] for j in self.jammers])
+        self.info = self.info + self.estimator.information(self.theta, on, idx)
+        self.bound = self._position_bound()
+        return self.bound

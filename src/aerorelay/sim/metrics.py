@@ -76,7 +76,10 @@ def estimation_metrics(log, period_s: float) -> dict:
     ``estimation_first_within_1m_s`` (first time the error is <= 1 m; the mission's length when
     never), ``estimation_within_1m_after_10s`` (fraction of steps from 10 s on with the error <=
     1 m), ``estimation_err_mean_m``/``_final_m``, ``estimation_std_final_m`` (largest position
-    std at the end) and ``estimator_ms`` (per control step). Empty for an oracle run."""
+    std at the end) and ``estimator_ms`` (per control step); where the Cramer-Rao bound is logged
+    (``est_<name>_crlb_m``): ``estimation_crlb_first_1m_s`` (first time the bound is <= 1 m: no
+    estimator is within 1 m on average before) and ``estimation_crlb_10s_m`` (the bound at 10 s).
+    Empty for an oracle run."""
     names = [c[4:-6] for c in log if c.startswith("est_") and c.endswith("_err_m")]
     if not names:
         return {}
@@ -91,9 +94,16 @@ def estimation_metrics(log, period_s: float) -> dict:
         mean.append(float(err.mean()))
         final.append(float(err[-1]))
         std.append(float(np.asarray(log[f"est_{n}_std_m"], float)[-1]))
-    return {"estimation_first_within_1m_s": max(first), "estimation_within_1m_after_10s": min(within),
-            "estimation_err_mean_m": max(mean), "estimation_err_final_m": max(final), "estimation_std_final_m": max(std),
-            "estimator_ms": stats_ms(np.asarray(log["estimator_ms"], float))}
+    out = {"estimation_first_within_1m_s": max(first), "estimation_within_1m_after_10s": min(within),
+           "estimation_err_mean_m": max(mean), "estimation_err_final_m": max(final), "estimation_std_final_m": max(std),
+           "estimator_ms": stats_ms(np.asarray(log["estimator_ms"], float))}
+    bounds = [np.asarray(log[f"est_{n}_crlb_m"], float) for n in names if f"est_{n}_crlb_m" in log]
+    if bounds and all(np.isfinite(b[-1]) for b in bounds):
+        worst = np.max(bounds, axis=0)
+        ok = worst <= ESTIMATION_ERROR_M
+        out["estimation_crlb_first_1m_s"] = float(t[np.argmax(ok)]) if ok.any() else float(t[-1] + period_s)
+        out["estimation_crlb_10s_m"] = float(worst[min(np.searchsorted(t, ESTIMATION_SETTLE_S), t.size - 1)])
+    return out
 
 
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
