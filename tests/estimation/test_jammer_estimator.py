@@ -91,12 +91,13 @@ def test_fixed_receiver_gains_are_the_channels():
 def test_jacobian_matches_central_differences():
     est, _ = fly(inr_10db_power(), 3.0)
     idx = est.window.rows(60)
-    theta = np.array([[-5.0, -4.0, 2.5, np.log(800.0)]])
+    est.t_ref = 3.0  # rows 0-3 s old: the velocity columns are the position's times the age
+    theta = np.array([[-5.0, -4.0, 2.5, np.log(800.0), 0.3, -0.2, 0.1]])  # position, log EIRP, velocity
     g, dg = est._window_gains(theta, idx, jacobian=True)
     on = est._on_flags(theta, g, idx)
     _, J = est._model(theta, g, dg, on, idx)
-    for i in range(4):
-        h = np.zeros((1, 4))
+    for i in range(7):
+        h = np.zeros((1, 7))
         h[0, i] = 1e-5
         zp, _ = est._model(theta + h, est._window_gains(theta + h, idx, False)[0], None, on, idx)
         zm, _ = est._model(theta - h, est._window_gains(theta - h, idx, False)[0], None, on, idx)

@@ -57,6 +57,7 @@ _ON_PRIOR_LOGODDS = 2.0  # prior log-odds that a jammer radiates at a measuremen
 _RESEED_EVERY = 4  # refinements between two checks of a found jammer against the grid's best rival
 _RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
 _HUBER_SIGMAS = 3.0  # residuals beyond this many sigma count linearly (robust to readings across a switch)
+_NP = 7  # parameters per jammer: position (3), log EIRP, velocity (3)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
 _SLOPE_STEP = 1e-4  # central-difference step in the cosine of the pattern's log-gain slope
 _MAX_LOG_SLOPE = 1e3  # 1/rad: a slope cap (a pattern's exact null has an infinite log slope)
@@ -85,6 +86,7 @@ class EstimatorSettings:
     forget_s: float = 20.0
     model_error_db: float = 0.2
     axis_error_deg: float = 1.0
+    jammer_speed_m_s: float = 0.0  # > 0: each jammer moves at a constant velocity, this the prior std per axis (m/s)
     switch_prob: float = 0.02
     confident_std_m: float = 1.5
     window_rows: int = 60  # measurements Gauss-Newton fits (evenly thinned, each weighted for those it stands for)
@@ -190,7 +192,12 @@ class JammerEstimator:
         self.window = _Window(int(math.ceil(span * len(receivers))) + 2)
         self.s_ge = np.zeros((n_jammers, len(self.cells)))
         self.s_gg = np.zeros((n_jammers, len(self.cells)))
-        self.theta = np.tile(np.r_[0.5 * (self.lo + self.hi), -np.inf], (n_jammers, 1))
+        # per jammer [position at t_ref (m), log EIRP, velocity (m/s)]; the velocity stays 0 for static jammers
+        self.theta = np.tile(np.r_[0.5 * (self.lo + self.hi), -np.inf, np.zeros(3)], (n_jammers, 1))
+        self.t_ref = 0.0
+        self.moving = settings.jammer_speed_m_s > 0.0
+        self._free = np.r_[np.ones(4, bool), np.full(3, self.moving)]  # the parameters Gauss-Newton fits
+        self._vel_info = 1.0 / settings.jammer_speed_m_s**2 if self.moving else 0.0
         self.started = np.zeros(n_jammers, bool)
         self.on_prob = np.full(n_jammers, 0.5)
         self.local_cov = np.tile(np.diag((self.hi - self.lo) ** 2 / 12.0), (n_jammers, 1, 1))
@@ -221,21 +228,21 @@ class JammerEstimator:
         return self._fixed_cell_gains[receiver]
 
     def _row_gains(self, x: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        """``(K, M)`` gains from positions ``x`` ``(K, 3)`` to the window rows ``idx``."""
+        """``(K, M)`` gains from positions ``x`` (``(K, 3)``, or ``(K, M, 3)``: one per row) to the window rows ``idx``."""
         w = self.window
+        x = x[:, None, :] if x.ndim == 2 else x
         if len(self.receivers) == 1:
-            return self._gain(x[:, None, :], 0, w.rx[idx], w.ax[idx])
+            return self._gain(x, 0, w.rx[idx], w.ax[idx])
         out = np.empty((x.shape[0], idx.size))
-        for i, r in enumerate(self.receivers):
+        for i in range(len(self.receivers)):
             m = w.ri[idx] == i
-            rows = idx[m]
-            if rows.size == 0:
-                continue
-            if r.fixed:  # one pose for every reading
-                out[:, m] = self._gain(x, i, w.rx[rows[0]], w.ax[rows[0]])[:, None]
-            else:
-                out[:, m] = self._gain(x[:, None, :], i, w.rx[rows], w.ax[rows])
+            if m.any():
+                out[:, m] = self._gain(x if x.shape[1] == 1 else x[:, m], i, w.rx[idx[m]], w.ax[idx[m]])
         return out
+
+    def _row_positions(self, theta: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Each jammer's position at each window row's time ``(nJ, M, 3)`` (m): constant velocity from ``t_ref``."""
+        return theta[:, None, :3] + theta[:, None, 4:7] * (self.window.t[idx] - self.t_ref)[None, :, None]
 
     def _powers(self, theta: np.ndarray) -> np.ndarray:
         return np.where(self.started, np.exp(np.where(self.started, theta[:, 3], 0.0)), 0.0)
@@ -264,6 +271,8 @@ class JammerEstimator:
                 self._estimate = self._summarize()
             else:  # the position and its covariance change only when refined; the ON/OFF chain every round
                 self._estimate = replace(self._estimate, on_prob=self.on_prob.copy())
+        if self.moving:  # a moving jammer's estimate goes on along its velocity between two fits
+            self._estimate = replace(self._estimate, positions=self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref))
         return self._estimate
 
     def _assimilate(self, t: float, receiver: int, position: np.ndarray, axis: np.ndarray, y: float,
@@ -271,7 +280,8 @@ class JammerEstimator:
         """One measurement ``y`` (W, averaged): each jammer's ON/OFF chain, then its grid sums."""
         noise = self.receivers[receiver].noise_w
         P = self._powers(self.theta)
-        g_est = np.array([float(self._gain(self.theta[j, :3], receiver, position, axis)) for j in range(self.nj)])
+        now = self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref)
+        g_est = np.array([float(self._gain(now[j], receiver, position, axis)) for j in range(self.nj)])
         on_now = self.on_prob > 0.5
         z = KAPPA_DB * math.log(y)
         g = self._cell_gains(receiver, position, axis)  # every cell's gain to this pose, shared by every jammer
@@ -308,10 +318,12 @@ class JammerEstimator:
     # --- Gauss-Newton on the window ----------------------------------------------------------
     def _window_gains(self, theta: np.ndarray, idx: np.ndarray, jacobian: bool):
         """``g`` ``(nJ, M)`` at ``theta``'s positions and, with ``jacobian``, ``dg/dp`` ``(nJ, 3, M)``."""
+        x = self._row_positions(theta, idx)
         if not jacobian:
-            return self._row_gains(theta[:, :3], idx), None
+            return self._row_gains(x, idx), None
         offsets = np.vstack([np.zeros(3), _FD_STEP_M * np.eye(3)])
-        g4 = self._row_gains((theta[:, None, :3] + offsets[None]).reshape(-1, 3), idx).reshape(self.nj, 4, -1)
+        x4 = (x[:, None] + offsets[None, :, None, :]).reshape(-1, idx.size, 3)
+        g4 = self._row_gains(x4, idx).reshape(self.nj, 4, -1)
         return g4[:, 0], (g4[:, 1:] - g4[:, :1]) / _FD_STEP_M
 
     def _on_flags(self, theta: np.ndarray, g: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -332,24 +344,26 @@ class JammerEstimator:
         return on
 
     def _model(self, theta: np.ndarray, g: np.ndarray, dg, on: np.ndarray, idx: np.ndarray):
-        """``(z_hat (M,), J (M, 4 nJ) or None)``: the log readings ``theta`` predicts with gains ``g``
+        """``(z_hat (M,), J (M, 7 nJ) or None)``: the log readings ``theta`` predicts with gains ``g``
         (and ``dg``) and ON flags ``on`` on the rows ``idx``."""
         contrib = on * np.exp(theta[:, 3])[:, None] * g
         S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
         z_hat = KAPPA_DB * np.log(S) + self.log_mean
         if dg is None:
             return z_hat, None
-        J = np.empty((S.size, 4 * self.nj))
+        J = np.empty((S.size, _NP * self.nj))
+        dt = (self.window.t[idx] - self.t_ref)[:, None]
         for j in range(self.nj):
-            J[:, 4 * j:4 * j + 3] = (KAPPA_DB * on[j] * math.exp(theta[j, 3]) / S * dg[j]).T
-            J[:, 4 * j + 3] = KAPPA_DB * contrib[j] / S
+            J[:, _NP * j:_NP * j + 3] = (KAPPA_DB * on[j] * math.exp(theta[j, 3]) / S * dg[j]).T
+            J[:, _NP * j + 3] = KAPPA_DB * contrib[j] / S
+            J[:, _NP * j + 4:_NP * j + 7] = J[:, _NP * j:_NP * j + 3] * dt  # the position at a row moves with the velocity
         return z_hat, J
 
     def _axis_log_slopes(self, x: np.ndarray, idx: np.ndarray) -> np.ndarray:
         """``|d ln G_rx / d angle|`` ``(nJ, M)`` (1/rad): how fast each receiver's antenna gain toward
-        the positions ``x`` ``(nJ, 3)`` changes as its axis turns, at the window rows ``idx``."""
+        the positions ``x`` (``(nJ, 3)`` or ``(nJ, M, 3)``) changes as its axis turns, at the window rows ``idx``."""
         w = self.window
-        d = w.rx[idx][None] - x[:, None, :]
+        d = w.rx[idx][None] - (x[:, None, :] if x.ndim == 2 else x)
         c = np.clip(-np.einsum("jmk,mk->jm", d, w.ax[idx]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-9),
                     -1.0 + _SLOPE_STEP, 1.0 - _SLOPE_STEP)
         out = np.zeros(c.shape)
@@ -372,16 +386,19 @@ class JammerEstimator:
         found = self.started if found is None else found
         contrib = on * np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
         S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
-        slope = (contrib * self._axis_log_slopes(theta[:, :3], idx)).sum(axis=0) / S  # d ln S / d angle
+        slope = (contrib * self._axis_log_slopes(self._row_positions(theta, idx), idx)).sum(axis=0) / S  # d ln S / d angle
         return self.sigma2 + (KAPPA_DB * slope) ** 2 * (self.axis_var + self.window.jitter2[idx])
 
     def information(self, theta: np.ndarray, on: np.ndarray, idx: np.ndarray) -> np.ndarray:
         """Fisher information ``(4 nJ, 4 nJ)`` the window rows ``idx`` carry about ``theta`` (each
         jammer's position, m, and log EIRP) with ON flags ``on`` ``(nJ, M)``, under the estimator's own
         measurement model (log readings, the rows' variances): ``J^T J / var``. For measuring a run
-        against the Cramer-Rao bound (``sim/jammer_sensing.py``); the estimate does not use it."""
+        against the Cramer-Rao bound (``sim/jammer_sensing.py``); the estimate does not use it. ``theta``
+        ``(nJ, 4)``: static jammers."""
+        theta = np.hstack([theta, np.zeros((self.nj, 3))])  # static jammers
         g, dg = self._window_gains(theta, idx, jacobian=True)
         _, J = self._model(theta, g, dg, on, idx)
+        J = J[:, np.tile(np.arange(_NP) < 4, self.nj)]
         var = self._row_variance(theta, g, on, idx, np.ones(self.nj, bool))
         return J.T @ (J / var[:, None])
 
@@ -427,7 +444,7 @@ class JammerEstimator:
             ge, gg = self.s_ge[j, best], self.s_gg[j, best]
             power = ge / gg if ge > 0 and gg > 0 else 1e-6 * float(self._noise.min())
             seed = self.theta.copy()
-            seed[j] = np.r_[self.cells[best], math.log(power)]
+            seed[j] = np.r_[self.cells[best], math.log(power), np.zeros(3)]
             if self.started[j]:
                 drop = self._window_cost(seed, idx, base) - self._window_cost(self.theta, idx, base)
                 if drop >= 0.0:
@@ -443,27 +460,33 @@ class JammerEstimator:
         z = self.window.z[idx]
         thin = len(self.window) / idx.size  # each fitted row stands for this many
         base = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
+        self.theta[:, :3] = np.clip(self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref), self.lo, self.hi)
+        self.t_ref = t  # positions are now's; a row's is now's plus the velocity times its age
         self._reseed(idx, base)
         if not self.started.any():
             return
         g, dg = self._window_gains(self.theta, idx, jacobian=True)
         on = self._on_flags(self.theta, g, idx)
         z_hat, J = self._model(self.theta, g, dg, on, idx)
-        cols = np.flatnonzero(np.repeat(self.started, 4))  # only the jammers found so far
+        free = np.outer(self.started, self._free).ravel()  # the found jammers' fitted parameters
+        cols = np.flatnonzero(free)
         J = J[:, cols]
         r = z - z_hat
         var = self._row_variance(self.theta, g, on, idx)
         cost0, robust = self._huber(r, base, var)
+        cost0 += self._velocity_cost(self.theta)
         wr = base / var * robust
-        H = J.T @ (J * wr[:, None])
-        full = np.zeros(4 * self.nj)
-        full[cols] = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9), J.T @ (wr * r))
-        trial = self.theta + full.reshape(self.nj, 4)
+        prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
+        H = J.T @ (J * wr[:, None]) + np.diag(prior)
+        full = np.zeros(_NP * self.nj)
+        full[cols] = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9),
+                                     J.T @ (wr * r) - prior * self.theta.ravel()[cols])
+        trial = self.theta + full.reshape(self.nj, _NP)
         trial[:, :3] = np.clip(trial[:, :3], self.lo, self.hi)
         trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
         g_try, _ = self._window_gains(trial, idx, jacobian=False)
         z_try, _ = self._model(trial, g_try, None, on, idx)
-        if self._huber(z - z_try, base, self._row_variance(trial, g_try, on, idx))[0] < cost0:
+        if self._huber(z - z_try, base, self._row_variance(trial, g_try, on, idx))[0] + self._velocity_cost(trial) < cost0:
             self.theta, self.lam = trial, max(self.lam / 3.0, 1e-6)
         else:
             self.lam = min(self.lam * 5.0, 1e6)
@@ -471,10 +494,14 @@ class JammerEstimator:
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
-        cov = np.full((4 * self.nj, 4 * self.nj), 0.0)
+        cov = np.full((_NP * self.nj, _NP * self.nj), 0.0)
         cov[np.ix_(cols, cols)] = np.linalg.pinv(H) * chi2
-        self.local_cov = np.array([_clip_eigenvalues(cov[4 * j:4 * j + 3, 4 * j:4 * j + 3], self._max_var)
+        self.local_cov = np.array([_clip_eigenvalues(cov[_NP * j:_NP * j + 3, _NP * j:_NP * j + 3], self._max_var)
                                    for j in range(self.nj)])
+
+    def _velocity_cost(self, theta: np.ndarray) -> float:
+        """The velocities' prior, in the window cost's units: ``sum |v|^2 / jammer_speed^2``."""
+        return float(self._vel_info * np.sum(theta[:, 4:7] ** 2))
 
     # --- the estimate --------------------------------------------------------------------------
     def _summarize(self) -> JammerEstimate:

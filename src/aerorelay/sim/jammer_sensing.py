@@ -7,7 +7,8 @@ estimator (``estimation/jammer_estimator.py``) folds the readings in; the planne
 estimate: a jammer enters the plan once its estimate is confident (before that the planner plans
 without it, as before ``tau_E`` with the oracle), with its estimated power (0 while it is
 estimated OFF, when the controller senses the schedule). Log columns: ``meas_<receiver>_w``,
-``estimator_ms`` and per jammer ``est_<name>_x/_y/_z`` (m), ``_power_w``, ``_on_prob``,
+``estimator_ms`` and per jammer (the estimate matched to it: estimates carry no names, so each step
+they are assigned to the true jammers by least total distance) ``est_<name>_x/_y/_z`` (m), ``_power_w``, ``_on_prob``,
 ``_std_m`` (largest position std), ``_err_m`` (distance to the true position), the position
 covariance ``_cov_xx ... _cov_yz`` (m^2) and ``_crlb_m``: the Cramer-Rao bound of the position
 (largest std, m) from every measurement so far, at the true jammers, under the estimator's
@@ -20,6 +21,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from ..estimation.jammer_estimator import JammerEstimate, JammerEstimator
 from ..models.antenna import IsotropicPattern
@@ -77,13 +79,16 @@ class JammerSensing:
         values["estimator_ms"] = self.last_ms
         crlb = self.crlb.update()
         std = e.position_std_max()
-        for i, (n, j) in enumerate(zip(self.names, self.scene.jammers, strict=True)):
-            p = e.positions[i]
-            values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[i],
-                           f"est_{n}_on_prob": e.on_prob[i], f"est_{n}_std_m": std[i],
-                           f"est_{n}_err_m": float(np.linalg.norm(p - j.position_at(t))), f"est_{n}_crlb_m": crlb[i]})
+        truth = np.array([j.position_at(t) for j in self.scene.jammers])
+        dist = np.linalg.norm(e.positions[None, :, :] - truth[:, None, :], axis=-1)  # (true, estimate)
+        _, match = linear_sum_assignment(dist)  # the estimator does not know which jammer is which
+        for i, (n, k) in enumerate(zip(self.names, match, strict=True)):
+            p = e.positions[k]
+            values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[k],
+                           f"est_{n}_on_prob": e.on_prob[k], f"est_{n}_std_m": std[k],
+                           f"est_{n}_err_m": float(dist[i, k]), f"est_{n}_crlb_m": crlb[i]})
             for c, a, b in _COV:
-                values[f"est_{n}_cov_{c}"] = e.covariances[i, a, b]
+                values[f"est_{n}_cov_{c}"] = e.covariances[k, a, b]
         return values
 
 
