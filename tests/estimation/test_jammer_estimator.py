@@ -216,3 +216,30 @@ def test_information_is_jt_j_over_the_variance_of_the_measurement_model():
     expected = J.T @ J / est.sigma2
     got = est.information(theta[None], np.ones((1, len(rows)), bool), np.arange(len(rows)))
     np.testing.assert_allclose(got, expected, rtol=2e-4, atol=1e-9 * np.abs(expected).max())
+
+
+def fly_moving(jammer_speed_m_s: float, seed: int = 1) -> np.ndarray:
+    """A jammer driving 0.3 m/s east past the circling relay (10 dB at the start, relay only): the
+    estimate's error (m) each step from 15 s on."""
+    receivers = [Receiver("relay", DIPOLE, 1.0)]
+    est = JammerEstimator(1, receivers, PathGain(), EstimatorSettings(*BOX, jammer_speed_m_s=jammer_speed_m_s), DT)
+    det = EnergyDetector(100, seed=seed)
+    velocity = np.array([0.3, 0.0, 0.0])
+    errors = []
+    for k in range(int(40.0 / DT)):
+        t = k * DT
+        rx, ax = relay_pose(t)
+        jammer = JAMMER + velocity * t
+        est.add(t, 0, rx, ax, float(det.measure(1.0 + inr_10db_power() * link_gain(jammer, E3, IsotropicPattern(), rx, ax, DIPOLE))))
+        e = est.update(t)
+        if t >= 15.0:
+            errors.append(np.linalg.norm(e.positions[0] - jammer))
+    return np.array(errors)
+
+
+def test_a_moving_jammer_is_followed_with_the_constant_velocity_model():
+    """With ``jammer_speed_m_s`` the estimator fits the velocity and extrapolates between fits; the
+    static model (the default) lags behind the same jammer."""
+    moving, static = fly_moving(0.5), fly_moving(0.0)  # measured: median 0.64 m (0.85 within 1 m) vs 4.6 m (none)
+    assert np.median(moving) < 1.0 and np.mean(moving <= 1.0) > 0.75
+    assert np.median(static) > 3.0 * np.median(moving)
