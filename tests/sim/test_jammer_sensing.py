@@ -10,6 +10,7 @@ import aerorelay as ar
 from aerorelay.models.geometry import rotation_batch
 from aerorelay.scenario import ScenarioError
 from aerorelay.scenario.build import build
+from aerorelay.sim.jammer_sensing import match_estimates
 from tests.reference_channel import DIPOLE
 
 UPDATES = {"jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0, "estimation.use_bs": True,
@@ -90,3 +91,15 @@ def test_planner_gets_no_jammer_before_a_confident_estimate():
 def test_bad_estimation_settings_are_named(updates, fragment):
     with pytest.raises(ScenarioError, match=fragment.replace("[", r"\[").replace("]", r"\]")):
         ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(updates)
+
+
+def test_estimates_are_matched_to_jammers_by_least_total_distance():
+    """The estimator's order is not the scene's: swapped estimates are scored against their own jammers;
+    a greedy nearest match would give both estimates to the first jammer here."""
+    truth = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    match, err = match_estimates(truth, np.array([[9.0, 0.0, 0.0], [0.5, 0.0, 0.0]]))
+    assert match.tolist() == [1, 0]
+    np.testing.assert_allclose(err, [0.5, 1.0])
+    match, err = match_estimates(truth, np.array([[4.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))  # greedy: both near jammer 0
+    assert match.tolist() == [1, 0]
+    np.testing.assert_allclose(err, [1.0, 6.0])

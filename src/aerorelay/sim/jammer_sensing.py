@@ -79,17 +79,24 @@ class JammerSensing:
         values["estimator_ms"] = self.last_ms
         crlb = self.crlb.update()
         std = e.position_std_max()
-        truth = np.array([j.position_at(t) for j in self.scene.jammers])
-        dist = np.linalg.norm(e.positions[None, :, :] - truth[:, None, :], axis=-1)  # (true, estimate)
-        _, match = linear_sum_assignment(dist)  # the estimator does not know which jammer is which
+        match, err = match_estimates(np.array([j.position_at(t) for j in self.scene.jammers]), e.positions)
         for i, (n, k) in enumerate(zip(self.names, match, strict=True)):
             p = e.positions[k]
             values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[k],
                            f"est_{n}_on_prob": e.on_prob[k], f"est_{n}_std_m": std[k],
-                           f"est_{n}_err_m": float(dist[i, k]), f"est_{n}_crlb_m": crlb[i]})
+                           f"est_{n}_err_m": err[i], f"est_{n}_crlb_m": crlb[i]})
             for c, a, b in _COV:
                 values[f"est_{n}_cov_{c}"] = e.covariances[k, a, b]
         return values
+
+
+def match_estimates(truth: np.ndarray, estimates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which estimate ``(nJ, 3)`` belongs to which true jammer ``(nJ, 3)`` (m): the assignment of least
+    total distance (the estimator does not know which jammer is which). ``(match, error)``: true jammer
+    ``i`` gets estimate ``match[i]`` at distance ``error[i]`` (m)."""
+    dist = np.linalg.norm(estimates[None, :, :] - truth[:, None, :], axis=-1)
+    rows, match = linear_sum_assignment(dist)
+    return match, dist[rows, match]
 
 
 class InformationMeter:
