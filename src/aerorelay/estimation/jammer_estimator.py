@@ -410,11 +410,35 @@ class JammerEstimator:
         rho = np.where(u <= _HUBER_SIGMAS, u * u, 2.0 * _HUBER_SIGMAS * u - _HUBER_SIGMAS**2)
         return float(np.sum(base * (rho + np.log(var)))), np.minimum(1.0, _HUBER_SIGMAS / np.maximum(u, 1e-300))
 
+    def _mixed_rows(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray, z_hat: np.ndarray,
+                    var: np.ndarray) -> np.ndarray:
+        """Rows whose reading lies between what ``theta`` predicts and what it predicts with one found
+        jammer's ON flag flipped, more than 3 sigma from both: that jammer switched within the row's
+        average. Neither state fits such a row and it says nothing about where the jammer is: it is
+        left out of the fit at a fixed cost (``_mixed_cost``), where Huber charged it linearly and
+        made the true point look worse than a far, strong one at every switch."""
+        contrib = np.exp(np.where(self.started, theta[:, 3], -np.inf))[:, None] * g
+        S = np.exp((z_hat - self.log_mean) / KAPPA_DB)
+        c = _HUBER_SIGMAS * np.sqrt(var)
+        z = self.window.z[idx]
+        mixed = np.zeros(idx.size, bool)
+        for j in np.flatnonzero(self.started):
+            z_flip = KAPPA_DB * np.log(np.maximum(S + np.where(on[j], -contrib[j], contrib[j]), 1e-300)) + self.log_mean
+            mixed |= (z > np.minimum(z_hat, z_flip) + c) & (z < np.maximum(z_hat, z_flip) - c)
+        return mixed
+
+    def _mixed_cost(self, base: np.ndarray, var: np.ndarray, mixed: np.ndarray) -> float:
+        """What a mixed row costs: as much as a reading 3 sigma off."""
+        return float(np.sum(base[mixed] * (_HUBER_SIGMAS**2 + np.log(var[mixed]))))
+
     def _window_cost(self, theta: np.ndarray, idx: np.ndarray, base: np.ndarray) -> float:
         g, _ = self._window_gains(theta, idx, jacobian=False)
         on = self._on_flags(theta, g, idx)
         z_hat, _ = self._model(theta, g, None, on, idx)
-        return self._huber(self.window.z[idx] - z_hat, base, self._row_variance(theta, g, on, idx))[0]
+        var = self._row_variance(theta, g, on, idx)
+        mixed = self._mixed_rows(theta, g, on, idx, z_hat, var)
+        return (self._huber(self.window.z[idx] - z_hat, base * ~mixed, var)[0] + self._mixed_cost(base, var, mixed)
+                + self._velocity_cost(theta))
 
     def _reseed(self, idx: np.ndarray, base: np.ndarray) -> None:
         """Start Gauss-Newton at the grid's best cell at the first fit; afterwards, when the grid puts
@@ -473,9 +497,12 @@ class JammerEstimator:
         J = J[:, cols]
         r = z - z_hat
         var = self._row_variance(self.theta, g, on, idx)
-        cost0, robust = self._huber(r, base, var)
-        cost0 += self._velocity_cost(self.theta)
-        wr = base / var * robust
+        mixed = self._mixed_rows(self.theta, g, on, idx, z_hat, var)
+        fit = base * ~mixed
+        fixed_cost = self._mixed_cost(base, var, mixed)
+        cost0, robust = self._huber(r, fit, var)
+        cost0 += self._velocity_cost(self.theta) + fixed_cost
+        wr = fit / var * robust
         prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
         H = J.T @ (J * wr[:, None]) + np.diag(prior)
         full = np.zeros(_NP * self.nj)
@@ -486,7 +513,7 @@ class JammerEstimator:
         trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
         g_try, _ = self._window_gains(trial, idx, jacobian=False)
         z_try, _ = self._model(trial, g_try, None, on, idx)
-        if self._huber(z - z_try, base, self._row_variance(trial, g_try, on, idx))[0] + self._velocity_cost(trial) < cost0:
+        if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
             self.theta, self.lam = trial, max(self.lam / 3.0, 1e-6)
         else:
             self.lam = min(self.lam * 5.0, 1e6)
