@@ -11,6 +11,7 @@ from aerorelay.models.geometry import rotation_batch
 from aerorelay.scenario import ScenarioError
 from aerorelay.scenario.build import build
 from aerorelay.sim.jammer_sensing import match_estimates
+from aerorelay.sim.metrics import estimation_metrics
 from tests.reference_channel import DIPOLE
 
 UPDATES = {"jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0, "estimation.use_bs": True,
@@ -103,3 +104,19 @@ def test_estimates_are_matched_to_jammers_by_least_total_distance():
     match, err = match_estimates(truth, np.array([[4.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))  # greedy: both near jammer 0
     assert match.tolist() == [1, 0]
     np.testing.assert_allclose(err, [1.0, 6.0])
+
+
+def test_estimation_metrics_against_a_hand_made_log():
+    """Two jammers over 0-20 s at 1 s steps: errors and bounds chosen so each metric is read off by hand."""
+    t = np.arange(21.0)
+    log = {"t": t, "estimator_ms": np.full(t.size, 0.1),
+           "est_a_err_m": np.where(t >= 4, 0.5, 3.0), "est_a_std_m": np.ones(t.size), "est_a_crlb_m": np.where(t >= 8, 0.9, 2.0),
+           "est_b_err_m": np.where((t >= 12) & (t != 15), 0.5, 3.0), "est_b_std_m": np.ones(t.size),
+           "est_b_crlb_m": np.where(t >= 11, 0.8, 4.0)}
+    m = estimation_metrics(log, 1.0)
+    assert m["estimation_first_within_1m_s"] == 12.0  # the worst jammer's first
+    assert m["estimation_within_1m_after_10s"] == pytest.approx(8 / 11)  # b over 10-20: 12-14, 16-20
+    assert m["estimation_crlb_first_1m_s"] == 11.0 and m["estimation_crlb_10s_m"] == 4.0
+    assert m["estimation_within_1m_after_bound"] == pytest.approx(8 / 10)  # b over 11-20: 12-14, 16-20
+    log["est_b_crlb_m"] = np.full(t.size, np.nan)  # a jammer the bound is not defined for: no bound metrics
+    assert "estimation_crlb_first_1m_s" not in estimation_metrics(log, 1.0)

@@ -39,6 +39,7 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "rate_saturation_fraction": "a motor at a rate bound",
            "estimation_first_within_1m_s": "jammer estimate first within 1 m (s)",
            "estimation_crlb_first_1m_s": "Cramer-Rao bound first <= 1 m (s)", "estimation_crlb_10s_m": "Cramer-Rao bound at 10 s (m)",
+           "estimation_within_1m_after_bound": "estimate within 1 m once the bound is",
            "estimation_within_1m_after_10s": "estimate within 1 m after 10 s", "estimator_ms.mean": "estimator (ms/step)"}
 MAX_CURVES = 8
 
@@ -300,6 +301,7 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
     if groups:
         extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min",
                              "estimation_first_within_1m_s", "estimation_crlb_first_1m_s", "estimation_within_1m_after_10s",
+                             "estimation_within_1m_after_bound",
                              "estimator_ms.mean")
                  if any(k in g for g in groups.values())]
         main = list(MAIN_METRICS) + extra

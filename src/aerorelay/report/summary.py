@@ -28,6 +28,7 @@ SCALAR_METRICS = (
     "bound.path_maxmin.outage_fraction",
     "estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimation_err_mean_m", "estimation_err_final_m",
     "estimation_std_final_m", "estimator_ms.mean", "estimator_ms.p99", "estimation_crlb_first_1m_s", "estimation_crlb_10s_m",
+    "estimation_within_1m_after_bound",
 )
 
 

@@ -77,8 +77,10 @@ def estimation_metrics(log, period_s: float) -> dict:
     never), ``estimation_within_1m_after_10s`` (fraction of steps from 10 s on with the error <=
     1 m), ``estimation_err_mean_m``/``_final_m``, ``estimation_std_final_m`` (largest position
     std at the end) and ``estimator_ms`` (per control step); where the Cramer-Rao bound is logged
-    (``est_<name>_crlb_m``): ``estimation_crlb_first_1m_s`` (first time the bound is <= 1 m: no
-    estimator is within 1 m on average before) and ``estimation_crlb_10s_m`` (the bound at 10 s).
+    (``est_<name>_crlb_m``): ``estimation_crlb_first_1m_s`` (first time the bound is <= 1 m: before,
+    no unbiased estimator has a position std below 1 m), ``estimation_crlb_10s_m`` (the bound at 10 s) and
+    ``estimation_within_1m_after_bound`` (fraction of steps from that time on with every error <= 1 m:
+    does the estimator deliver what the path made knowable).
     Empty for an oracle run."""
     names = [c[4:-6] for c in log if c.startswith("est_") and c.endswith("_err_m")]
     if not names:
@@ -100,9 +102,13 @@ def estimation_metrics(log, period_s: float) -> dict:
     bounds = [np.asarray(log[f"est_{n}_crlb_m"], float) for n in names if f"est_{n}_crlb_m" in log]
     if bounds and all(np.isfinite(b[-1]) for b in bounds):
         worst = np.max(bounds, axis=0)
-        ok = worst <= ESTIMATION_ERROR_M
-        out["estimation_crlb_first_1m_s"] = float(t[np.argmax(ok)]) if ok.any() else float(t[-1] + period_s)
+        knowable = worst <= ESTIMATION_ERROR_M
+        out["estimation_crlb_first_1m_s"] = float(t[np.argmax(knowable)]) if knowable.any() else float(t[-1] + period_s)
         out["estimation_crlb_10s_m"] = float(worst[min(np.searchsorted(t, ESTIMATION_SETTLE_S), t.size - 1)])
+        if knowable.any():  # from the first time the path made every jammer knowable to 1 m
+            after = t >= out["estimation_crlb_first_1m_s"]
+            out["estimation_within_1m_after_bound"] = min(
+                float(np.mean(np.asarray(log[f"est_{n}_err_m"], float)[after] <= ESTIMATION_ERROR_M)) for n in names)
     return out
 
 
