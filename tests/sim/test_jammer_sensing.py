@@ -120,3 +120,18 @@ def test_estimation_metrics_against_a_hand_made_log():
     assert m["estimation_within_1m_after_bound"] == pytest.approx(8 / 10)  # b over 11-20: 12-14, 16-20
     log["est_b_crlb_m"] = np.full(t.size, np.nan)  # a jammer the bound is not defined for: no bound metrics
     assert "estimation_crlb_first_1m_s" not in estimation_metrics(log, 1.0)
+
+
+def test_cramer_rao_bound_of_a_jammer_on_a_linear_path():
+    """A jammer driving a straight road: its bound (velocity unknown, so it first grows with the time
+    the position is asked at) is logged and tightens once the path has shown the motion (measured:
+    7.8 m at take-off, 2.1 m at 10 s, 0.8 m at 15 s in the full study run); on a curved path (minimum
+    jerk between the same waypoints) the constant-velocity model does not hold and no bound is logged."""
+    updates = {"jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0, "sim.duration_s": 15.0,
+               "estimation.jammer_speed_m_s": 0.5, "controller.planner": "capacity"}
+    res = ar.simulate(ar.load_scenario("scenarios/moving_jammer.toml").with_updates(updates))
+    bound = res.timeseries["est_truck_crlb_m"].to_numpy()
+    assert np.all(np.isfinite(bound)) and bound[-1] < 0.5 * bound[0] and bound[-1] < 2.0
+    curved = ar.simulate(ar.load_scenario("scenarios/moving_jammer.toml").with_updates({**updates, "jammer.path": "minimum_jerk",
+                                                                                        "sim.duration_s": 1.0}))
+    assert np.all(np.isnan(curved.timeseries["est_truck_crlb_m"]))

@@ -240,9 +240,11 @@ class JammerEstimator:
                 out[:, m] = self._gain(x if x.shape[1] == 1 else x[:, m], i, w.rx[idx[m]], w.ax[idx[m]])
         return out
 
-    def _row_positions(self, theta: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        """Each jammer's position at each window row's time ``(nJ, M, 3)`` (m): constant velocity from ``t_ref``."""
-        return theta[:, None, :3] + theta[:, None, 4:7] * (self.window.t[idx] - self.t_ref)[None, :, None]
+    def _row_positions(self, theta: np.ndarray, idx: np.ndarray, t_ref: float | None = None) -> np.ndarray:
+        """Each jammer's position at each window row's time ``(nJ, M, 3)`` (m): ``theta``'s positions are
+        at ``t_ref`` (default the estimate's), and move on at its constant velocity."""
+        dt = self.window.t[idx] - (self.t_ref if t_ref is None else t_ref)
+        return theta[:, None, :3] + theta[:, None, 4:7] * dt[None, :, None]
 
     def _powers(self, theta: np.ndarray) -> np.ndarray:
         return np.where(self.started, np.exp(np.where(self.started, theta[:, 3], 0.0)), 0.0)
@@ -316,9 +318,9 @@ class JammerEstimator:
         return self._posterior[j]
 
     # --- Gauss-Newton on the window ----------------------------------------------------------
-    def _window_gains(self, theta: np.ndarray, idx: np.ndarray, jacobian: bool):
+    def _window_gains(self, theta: np.ndarray, idx: np.ndarray, jacobian: bool, t_ref: float | None = None):
         """``g`` ``(nJ, M)`` at ``theta``'s positions and, with ``jacobian``, ``dg/dp`` ``(nJ, 3, M)``."""
-        x = self._row_positions(theta, idx)
+        x = self._row_positions(theta, idx, t_ref)
         if not jacobian:
             return self._row_gains(x, idx), None
         offsets = np.vstack([np.zeros(3), _FD_STEP_M * np.eye(3)])
@@ -343,7 +345,7 @@ class JammerEstimator:
             on[j] = llr + _ON_PRIOR_LOGODDS > 0
         return on
 
-    def _model(self, theta: np.ndarray, g: np.ndarray, dg, on: np.ndarray, idx: np.ndarray):
+    def _model(self, theta: np.ndarray, g: np.ndarray, dg, on: np.ndarray, idx: np.ndarray, t_ref: float | None = None):
         """``(z_hat (M,), J (M, 7 nJ) or None)``: the log readings ``theta`` predicts with gains ``g``
         (and ``dg``) and ON flags ``on`` on the rows ``idx``."""
         contrib = on * np.exp(theta[:, 3])[:, None] * g
@@ -352,7 +354,7 @@ class JammerEstimator:
         if dg is None:
             return z_hat, None
         J = np.empty((S.size, _NP * self.nj))
-        dt = (self.window.t[idx] - self.t_ref)[:, None]
+        dt = (self.window.t[idx] - (self.t_ref if t_ref is None else t_ref))[:, None]
         for j in range(self.nj):
             J[:, _NP * j:_NP * j + 3] = (KAPPA_DB * on[j] * math.exp(theta[j, 3]) / S * dg[j]).T
             J[:, _NP * j + 3] = KAPPA_DB * contrib[j] / S
@@ -377,7 +379,7 @@ class JammerEstimator:
         return out
 
     def _row_variance(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray,
-                      found: np.ndarray | None = None) -> np.ndarray:
+                      found: np.ndarray | None = None, t_ref: float | None = None) -> np.ndarray:
         """Each row's log-reading variance (dB^2) under ``theta``: the detector's and the model error's,
         plus what the receiver's axis uncertainty (``axis_error_deg`` and the averaged axes' own spread)
         makes of the jammers' share of the reading. Near an antenna null the gain changes fastest with
@@ -386,20 +388,23 @@ class JammerEstimator:
         found = self.started if found is None else found
         contrib = on * np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
         S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
-        slope = (contrib * self._axis_log_slopes(self._row_positions(theta, idx), idx)).sum(axis=0) / S  # d ln S / d angle
+        slope = (contrib * self._axis_log_slopes(self._row_positions(theta, idx, t_ref), idx)).sum(axis=0) / S  # d ln S / d angle
         return self.sigma2 + (KAPPA_DB * slope) ** 2 * (self.axis_var + self.window.jitter2[idx])
 
-    def information(self, theta: np.ndarray, on: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    def information(self, theta: np.ndarray, on: np.ndarray, idx: np.ndarray, t_ref: float = 0.0) -> np.ndarray:
         """Fisher information ``(4 nJ, 4 nJ)`` the window rows ``idx`` carry about ``theta`` (each
         jammer's position, m, and log EIRP) with ON flags ``on`` ``(nJ, M)``, under the estimator's own
         measurement model (log readings, the rows' variances): ``J^T J / var``. For measuring a run
         against the Cramer-Rao bound (``sim/jammer_sensing.py``); the estimate does not use it. ``theta``
-        ``(nJ, 4)``: static jammers."""
-        theta = np.hstack([theta, np.zeros((self.nj, 3))])  # static jammers
-        g, dg = self._window_gains(theta, idx, jacobian=True)
-        _, J = self._model(theta, g, dg, on, idx)
-        J = J[:, np.tile(np.arange(_NP) < 4, self.nj)]
-        var = self._row_variance(theta, g, on, idx, np.ones(self.nj, bool))
+        ``(nJ, 4)``: static jammers; ``(nJ, 7)``: each also with a constant velocity (m/s), positions at
+        ``t_ref`` (s): the information is then ``(7 nJ, 7 nJ)``."""
+        static = theta.shape[1] == 4
+        theta = np.hstack([theta, np.zeros((self.nj, 3))]) if static else theta
+        g, dg = self._window_gains(theta, idx, True, t_ref)
+        _, J = self._model(theta, g, dg, on, idx, t_ref)
+        if static:
+            J = J[:, np.tile(np.arange(_NP) < 4, self.nj)]
+        var = self._row_variance(theta, g, on, idx, np.ones(self.nj, bool), t_ref)
         return J.T @ (J / var[:, None])
 
     def _huber(self, r: np.ndarray, base: np.ndarray, var: np.ndarray) -> tuple[float, np.ndarray]:

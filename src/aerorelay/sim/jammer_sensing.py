@@ -13,7 +13,8 @@ they are assigned to the true jammers by least total distance) ``est_<name>_x/_y
 covariance ``_cov_xx ... _cov_yz`` (m^2) and ``_crlb_m``: the Cramer-Rao bound of the position
 (largest std, m) from every measurement so far, at the true jammers, under the estimator's
 measurement model with the search box as a prior: what the relay's path made knowable, which no
-estimator beats on average (NaN for a moving or directional jammer, which that model does not hold).
+unbiased estimator beats (static jammers, or jammers on linear paths with their velocity unknown;
+NaN for a directional jammer or a curved path, which that model does not hold).
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ class JammerSensing:
         e = self.estimator.update(t)
         self.last_ms = (time.perf_counter() - t0) * 1e3
         values["estimator_ms"] = self.last_ms
-        crlb = self.crlb.update()
+        crlb = self.crlb.update(t)
         std = e.position_std_max()
         match, err = match_estimates(np.array([j.position_at(t) for j in self.scene.jammers]), e.positions)
         for i, (n, k) in enumerate(zip(self.names, match, strict=True)):
@@ -103,33 +104,53 @@ class InformationMeter:
     """The Cramer-Rao bound of the jammers' positions from the estimator's measurements so far: their
     Fisher information at the true jammers (``JammerEstimator.information``, each measurement once,
     nothing forgotten) plus the search box as a prior (uniform: variance side^2 / 12 per axis; log
-    EIRP std 10). Defined for static isotropic jammers with power; NaN otherwise."""
+    EIRP std 10; velocity std 10 m/s). Defined for isotropic jammers with power that are static, or
+    all move at a constant velocity (a linear path: then position at t = 0, log EIRP and velocity
+    are the unknowns, and the bound is the position's at the time asked); NaN otherwise."""
 
     def __init__(self, estimator: JammerEstimator, scene):
         self.estimator, self.jammers = estimator, scene.jammers
         nj = len(self.jammers)
-        self.defined = all(j.path is None and isinstance(j.pattern, IsotropicPattern) and j.power > 0 for j in self.jammers)
-        prior = np.tile(np.r_[12.0 / (estimator.hi - estimator.lo) ** 2, 1e-2], nj)
-        self.info = np.diag(prior)
+        velocities = [_constant_velocity(j) for j in self.jammers]
+        self.moving = any(j.path is not None for j in self.jammers)
+        self.defined = all(isinstance(j.pattern, IsotropicPattern) and j.power > 0 for j in self.jammers) and all(
+            v is not None for v in velocities)
+        self.n = 7 if self.moving else 4  # parameters per jammer
+        box = 12.0 / (estimator.hi - estimator.lo) ** 2
+        self.info = np.diag(np.tile(np.r_[box, 1e-2, np.full(3, 1e-2)][:self.n], nj))
         self.seen = 0
         if self.defined:
-            self.theta = np.array([np.r_[j.position_at(0.0), np.log(j.power * j.pattern.g_bar)] for j in self.jammers])
-        self.bound = self._position_bound() if self.defined else np.full(nj, np.nan)
+            self.theta = np.array([np.r_[j.position_at(0.0), np.log(j.power * j.pattern.g_bar), v][:self.n]
+                                   for j, v in zip(self.jammers, velocities, strict=True)])
+        self.bound = self._position_bound(0.0) if self.defined else np.full(nj, np.nan)
 
-    def _position_bound(self) -> np.ndarray:
+    def _position_bound(self, t: float) -> np.ndarray:
         cov = np.linalg.inv(self.info)
-        return np.array([np.sqrt(np.linalg.eigvalsh(cov[4 * k:4 * k + 3, 4 * k:4 * k + 3])[-1])
+        at_t = np.hstack([np.eye(3), np.zeros((3, 1)), t * np.eye(3)])[:, :self.n]  # position at t from the unknowns
+        n = self.n
+        return np.array([np.sqrt(np.linalg.eigvalsh(at_t @ cov[n * k:n * k + n, n * k:n * k + n] @ at_t.T)[-1])
                          for k in range(len(self.jammers))])
 
-    def update(self) -> np.ndarray:
-        """Fold in the measurements assimilated since the last call; the bound per jammer (m)."""
+    def update(self, t: float) -> np.ndarray:
+        """Fold in the measurements assimilated since the last call; the bound per jammer (m) at ``t`` (s)."""
         w = self.estimator.window
         new = min(w.appended - self.seen, len(w))
         self.seen = w.appended
-        if not self.defined or new <= 0:
+        if not self.defined:
             return self.bound
-        idx = np.arange(w.hi - new, w.hi)
-        on = np.array([[bool(j.schedule.is_on(t)) for t in w.t[idx]] for j in self.jammers])
-        self.info = self.info + self.estimator.information(self.theta, on, idx)
-        self.bound = self._position_bound()
+        if new > 0:
+            idx = np.arange(w.hi - new, w.hi)
+            on = np.array([[bool(j.schedule.is_on(ti)) for ti in w.t[idx]] for j in self.jammers])
+            self.info = self.info + self.estimator.information(self.theta, on, idx, 0.0)
+        if new > 0 or self.moving:
+            self.bound = self._position_bound(t)
         return self.bound
+
+
+def _constant_velocity(jammer) -> np.ndarray | None:
+    """A jammer's velocity (m/s): zero when static, its constant velocity on a linear path, None when it varies."""
+    if jammer.path is None:
+        return np.zeros(3)
+    times = np.linspace(0.0, jammer.path.duration, 7)[1:-1]
+    v = np.array([jammer.path.state(t).v for t in times])
+    return v[0] if np.allclose(v, v[0], atol=1e-9) else None
