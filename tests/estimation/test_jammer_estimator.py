@@ -5,7 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aerorelay.estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver, _grid
+from aerorelay.estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
+from aerorelay.estimation.window import cell_grid
 from aerorelay.models.antenna import DipolePattern, IsotropicPattern
 from aerorelay.models.geometry import E3
 from aerorelay.models.propagation import PathGain
@@ -109,7 +110,7 @@ def test_jacobian_matches_central_differences():
 def test_grid_cells_tile_the_box(lo, extent, spacing):
     lo = np.array(lo)
     hi = lo + np.array(extent)
-    cells, sides = _grid(lo, hi, spacing)
+    cells, sides = cell_grid(lo, hi, spacing)
     assert np.all(cells >= lo) and np.all(cells <= hi)
     np.testing.assert_allclose(cells.min(axis=0) - lo, 0.5 * sides)
     np.testing.assert_allclose(hi - cells.max(axis=0), 0.5 * sides)

@@ -48,6 +48,7 @@ from ..models.geometry import E3
 from ..models.propagation import PathGain
 from ..models.radio import link_gain
 from ..models.sensing import KAPPA_DB, detector_log_mean_db, detector_log_std_db
+from .window import MeasurementWindow, PendingReadings, cell_grid
 
 _ISOTROPIC = IsotropicPattern(1.0)
 _MIN_DISTANCE_M = 0.3  # a candidate nearer a receiver than this has its gain capped (the gain's pole)
@@ -113,57 +114,6 @@ class JammerEstimate:
         return self.position_std
 
 
-class _Pending:
-    """Readings of one receiver being averaged: count, sums of power (W), position and axis."""
-
-    def __init__(self):
-        self.count, self.power = 0, 0.0
-        self.position, self.axis = np.zeros(3), np.zeros(3)
-
-    def add(self, position, axis, reading_w: float) -> None:
-        self.position = self.position + np.asarray(position, float)
-        self.axis = self.axis + np.asarray(axis, float)
-        self.power += reading_w
-        self.count += 1
-
-
-class _Window:
-    """Time-ordered measurements: time (s), receiver, position and axis (world), reading (dB)."""
-
-    def __init__(self, capacity: int):
-        c = 2 * capacity
-        self.capacity = capacity
-        self.t, self.z = np.zeros(c), np.zeros(c)
-        self.rx, self.ax, self.ri = np.zeros((c, 3)), np.zeros((c, 3)), np.zeros(c, dtype=np.intp)
-        self.jitter2 = np.zeros(c)  # rad^2: mean squared angle of the averaged axes about their mean
-        self.appended = 0  # rows appended since the start
-        self.lo = self.hi = 0
-
-    def append(self, t: float, ri: int, rx, ax, y: float, jitter2: float = 0.0) -> None:
-        if self.hi == self.t.size:  # compact: move the live rows to the front
-            n = self.hi - self.lo
-            for a in (self.t, self.z, self.rx, self.ax, self.ri, self.jitter2):
-                a[:n] = a[self.lo:self.hi]
-            self.lo, self.hi = 0, n
-        k = self.hi
-        self.t[k], self.ri[k], self.rx[k], self.ax[k], self.jitter2[k] = t, ri, rx, ax, jitter2
-        self.z[k] = KAPPA_DB * math.log(y)
-        self.hi += 1
-        self.appended += 1
-        if self.hi - self.lo > self.capacity:
-            self.lo = self.hi - self.capacity
-
-    def rows(self, most: int) -> np.ndarray:
-        """Indices of at most ``most`` rows: all when fewer, else evenly thinned (the newest kept)."""
-        n = self.hi - self.lo
-        if n <= most:
-            return np.arange(self.lo, self.hi)
-        return np.unique(np.linspace(self.hi - 1, self.lo, most).round().astype(np.intp))
-
-    def __len__(self) -> int:
-        return self.hi - self.lo
-
-
 class JammerEstimator:
     """Estimates ``n_jammers`` jammers from the readings of ``receivers`` (see the module docstring).
 
@@ -178,7 +128,7 @@ class JammerEstimator:
         self._noise = np.array([r.noise_w for r in receivers], float)
         self.lo, self.hi = np.asarray(settings.search_min, float), np.asarray(settings.search_max, float)
         self._max_var = float(np.max(self.hi - self.lo)) ** 2  # no position is less known than "somewhere in the box"
-        self.cells, sides = _grid(self.lo, self.hi, settings.grid_m)
+        self.cells, sides = cell_grid(self.lo, self.hi, settings.grid_m)
         self.spacing = float(sides.max())
         row_s = settings.aggregate_steps * period_s
         self.forget = math.exp(-row_s / settings.forget_s)
@@ -189,7 +139,7 @@ class JammerEstimator:
         self.axis_var = math.radians(settings.axis_error_deg) ** 2
         self.gain_cap = float(path_gain.gain_from_d2(_MIN_DISTANCE_M**2)) * max(r.pattern.g_bar for r in receivers)
         span = _WINDOW_FORGET_SPANS * settings.forget_s / row_s
-        self.window = _Window(int(math.ceil(span * len(receivers))) + 2)
+        self.window = MeasurementWindow(int(math.ceil(span * len(receivers))) + 2)
         self.s_ge = np.zeros((n_jammers, len(self.cells)))
         self.s_gg = np.zeros((n_jammers, len(self.cells)))
         # per jammer [position at t_ref (m), log EIRP, velocity (m/s)]; the velocity stays 0 for static jammers
@@ -209,7 +159,7 @@ class JammerEstimator:
         self._grid_rows = np.zeros(n_jammers, int)  # measurements each jammer's grid has taken in
         self._rival = np.ones(n_jammers)  # likelihood ratio of the grid's rival mode to the estimate (<= 1)
         self._posterior: np.ndarray | None = None
-        self.pending = [_Pending() for _ in receivers]
+        self.pending = [PendingReadings() for _ in receivers]
         self._estimate = self._summarize()
 
     # --- the measurement model ------------------------------------------------------------
@@ -264,7 +214,7 @@ class JammerEstimator:
                 norm = max(float(np.linalg.norm(r.axis)), 1e-12)
                 jitter2 = max(0.0, 2.0 * (1.0 - norm / r.count))  # E[angle^2] of unit axes about their mean
                 self._assimilate(t, i, r.position / r.count, r.axis / norm, r.power / r.count, jitter2)
-                self.pending[i] = _Pending()
+                self.pending[i] = PendingReadings()
                 changed = True
         if changed:
             self._rounds += 1
@@ -560,13 +510,3 @@ def _clip_eigenvalues(cov: np.ndarray, most: float) -> np.ndarray:
     """The symmetric ``cov`` with its eigenvalues clipped to ``[0, most]``."""
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     return (vecs * np.clip(vals, 0.0, most)) @ vecs.T
-
-
-def _grid(lo: np.ndarray, hi: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """Cell centres ``(C, 3)`` of a regular grid of cells about ``spacing`` (m) over the box, and the cells' sides."""
-    axes, sides = [], []
-    for a, b in zip(lo, hi, strict=True):
-        n = max(1, round((b - a) / spacing))
-        axes.append(a + (np.arange(n) + 0.5) * (b - a) / n)
-        sides.append((b - a) / n)
-    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3), np.array(sides)
