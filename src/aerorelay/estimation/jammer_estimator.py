@@ -186,13 +186,20 @@ class JammerEstimator:
         out = np.empty((x.shape[0], idx.size))
         for i in range(len(self.receivers)):
             m = w.ri[idx] == i
-            if m.any():
+            if not m.any():
+                continue
+            if self.receivers[i].fixed and x.shape[1] == 1:  # one pose, static jammers: one gain per position
+                first = idx[m][0]
+                out[:, m] = self._gain(x[:, 0, :], i, w.rx[first], w.ax[first])[:, None]
+            else:
                 out[:, m] = self._gain(x if x.shape[1] == 1 else x[:, m], i, w.rx[idx[m]], w.ax[idx[m]])
         return out
 
     def _row_positions(self, theta: np.ndarray, idx: np.ndarray, t_ref: float | None = None) -> np.ndarray:
         """Each jammer's position at each window row's time ``(nJ, M, 3)`` (m): ``theta``'s positions are
         at ``t_ref`` (default the estimate's), and move on at its constant velocity."""
+        if not np.any(theta[:, 4:7]):  # static: one position for every row ``(nJ, 1, 3)``
+            return theta[:, None, :3]
         dt = self.window.t[idx] - (self.t_ref if t_ref is None else t_ref)
         return theta[:, None, :3] + theta[:, None, 4:7] * dt[None, :, None]
 
@@ -274,7 +281,7 @@ class JammerEstimator:
         if not jacobian:
             return self._row_gains(x, idx), None
         offsets = np.vstack([np.zeros(3), _FD_STEP_M * np.eye(3)])
-        x4 = (x[:, None] + offsets[None, :, None, :]).reshape(-1, idx.size, 3)
+        x4 = (x[:, None] + offsets[None, :, None, :]).reshape(-1, x.shape[1], 3)
         g4 = self._row_gains(x4, idx).reshape(self.nj, 4, -1)
         return g4[:, 0], (g4[:, 1:] - g4[:, :1]) / _FD_STEP_M
 
