@@ -195,6 +195,10 @@ class JammerEstimator:
                 out[:, m] = self._gain(x if x.shape[1] == 1 else x[:, m], i, w.rx[idx[m]], w.ax[idx[m]])
         return out
 
+    def _positions_at(self, t: float) -> np.ndarray:
+        """The estimated jammers' positions ``(nJ, 3)`` (m) at time ``t`` (s): constant velocity from ``t_ref``."""
+        return self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref)
+
     def _row_positions(self, theta: np.ndarray, idx: np.ndarray, t_ref: float | None = None) -> np.ndarray:
         """Each jammer's position at each window row's time ``(nJ, M, 3)`` (m): ``theta``'s positions are
         at ``t_ref`` (default the estimate's), and move on at its constant velocity."""
@@ -231,7 +235,7 @@ class JammerEstimator:
             else:  # the position and its covariance change only when refined; the ON/OFF chain every round
                 self._estimate = replace(self._estimate, on_prob=self.on_prob.copy())
         if self.moving:  # a moving jammer's estimate goes on along its velocity between two fits
-            self._estimate = replace(self._estimate, positions=self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref))
+            self._estimate = replace(self._estimate, positions=self._positions_at(t))
         return self._estimate
 
     def _assimilate(self, t: float, receiver: int, position: np.ndarray, axis: np.ndarray, y: float,
@@ -239,7 +243,7 @@ class JammerEstimator:
         """One measurement ``y`` (W, averaged): each jammer's ON/OFF chain, then its grid sums."""
         noise = self.receivers[receiver].noise_w
         P = self._powers(self.theta)
-        now = self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref)
+        now = self._positions_at(t)
         g_est = np.array([float(self._gain(now[j], receiver, position, axis)) for j in range(self.nj)])
         on_now = self.on_prob > 0.5
         z = KAPPA_DB * math.log(y)
@@ -446,7 +450,7 @@ class JammerEstimator:
         z = self.window.z[idx]
         thin = len(self.window) / idx.size  # each fitted row stands for this many
         base = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
-        self.theta[:, :3] = np.clip(self.theta[:, :3] + self.theta[:, 4:7] * (t - self.t_ref), self.lo, self.hi)
+        self.theta[:, :3] = np.clip(self._positions_at(t), self.lo, self.hi)
         self.t_ref = t  # positions are now's; a row's is now's plus the velocity times its age
         self._reseed(idx, base)
         if not self.started.any():
