@@ -111,3 +111,21 @@ def test_a_degenerate_surrogate_holds_the_last_reference_instead_of_raising():
     ref = gen.update(0.015, P1, P2, np.zeros(3), np.zeros(3), PJ[None], np.ones(1))
     np.testing.assert_array_equal(ref.p_ref, P1)
     assert np.all(ref.v_ref == 0) and np.all(np.isfinite(ref.a_ref))
+
+
+def test_jammer_count_mismatch_raises_instead_of_shifting_the_packed_input():
+    tg = make()  # one jammer
+    with pytest.raises(ValueError, match="1 jammer"):
+        tg.expansion(P1, P2, np.array([PJ, PJ]), np.array([1.0, 1.0]))
+    with pytest.raises(ValueError, match="1 jammer"):
+        tg.expansion(P1, P2, PJ, np.array([1.0, 1.0]))
+
+
+def test_expansion_does_not_alias_its_buffer():
+    # the packed output buffer is overwritten by the next call: returned arrays must be copies
+    tg = make()
+    _, g1, _, H11, *_ = tg.expansion(P1, P2, PJ, 1.0)
+    g_first, H_first = g1.copy(), H11.copy()
+    tg.expansion(P1 + 1.0, P2, PJ, 1.0)
+    np.testing.assert_array_equal(g1, g_first)
+    np.testing.assert_array_equal(H11, H_first)

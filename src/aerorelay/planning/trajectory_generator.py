@@ -46,23 +46,19 @@ class Reference:
 
 
 def _build_expansion(sp: SurrogateParams) -> ca.Function:
-    """CasADi function (p1, p2, p0, pJ (3 x nJ), P_J (nJ)) -> (f, g1, g2, H11, H12, H22) by automatic differentiation."""
+    """CasADi function z -> (f, g, vec(H)) by automatic differentiation, ``z = (p1, p2, p0, vec(pJ),
+    P_J)`` (pJ 3 x nJ, column-major) and ``g``, ``H`` the gradient and Hessian in ``kappa = (p1, p2)``:
+    one packed input and output so that a call through CasADi's buffer interface costs < 1 us."""
     nj = len(sp.jam_gains)
-    p1, p2, p0 = (ca.SX.sym(n, 3) for n in ("p1", "p2", "p0"))
-    pj, PJ = ca.SX.sym("pj", 3, nj), ca.SX.sym("PJ", nj)
+    z = ca.SX.sym("z", 9 + 4 * nj)
+    p1, p2, p0 = z[0:3], z[3:6], z[6:9]
+    pj, PJ = ca.reshape(z[9:9 + 3 * nj], 3, nj), z[9 + 3 * nj:]
     f = inverse_capacity(
         p1, p2, p0, [pj[:, k] for k in range(nj)], [PJ[k] for k in range(nj)], mu=sp.mu, g_bar=sp.g_bar,
         tx_power=sp.tx_power, noise_power=sp.noise_power, bandwidth=sp.bandwidth, jam_gains=sp.jam_gains,
     )
-    kappa = ca.vertcat(p1, p2)
-    H, g = ca.hessian(f, kappa)
-    return ca.Function(
-        "surrogate_expansion",
-        [p1, p2, p0, pj, PJ],
-        [f, g[:3], g[3:], H[:3, :3], H[:3, 3:], H[3:, 3:]],
-        ["p1", "p2", "p0", "pj", "PJ"],
-        ["f", "g1", "g2", "H11", "H12", "H22"],
-    )
+    H, g = ca.hessian(f, ca.vertcat(p1, p2))
+    return ca.Function("surrogate_expansion", [z], [ca.vertcat(f, g, ca.vec(H))], ["z"], ["fgH"])
 
 
 class TrajectoryGenerator:
@@ -85,17 +81,33 @@ class TrajectoryGenerator:
         self.eig_floor = eig_floor
         self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
         self.max_ref_accel = max_ref_accel
-        self._expand = _build_expansion(surrogate)
+        nj = len(surrogate.jam_gains)
+        self._z, self._out = np.zeros(9 + 4 * nj), np.zeros(43)
+        self._z[6:9] = self.p0
+        self._buffer, self._eval = _build_expansion(surrogate).buffer()
+        # CasADi's typemap takes the memoryview as (pointer, size); its stub lists both arguments
+        self._buffer.set_arg(0, memoryview(self._z))  # type: ignore[call-arg, arg-type]
+        self._buffer.set_res(0, memoryview(self._out))  # type: ignore[call-arg, arg-type]
         self._prev: tuple | None = None  # (kappa_e, f, g, H) of the last expansion
         self.p_ref: np.ndarray | None = None
+
+    def _expand(self, p1, p2, p_jam, jam_power) -> tuple[float, np.ndarray, np.ndarray]:
+        """``(f, g (6,), H (6, 6))`` at ``kappa = (p1, p2)`` (one buffered CasADi call)."""
+        nj = (len(self._z) - 9) // 4
+        pj = np.asarray(p_jam, float).reshape(-1, 3)
+        PJ = np.atleast_1d(np.asarray(jam_power, float))
+        if pj.shape[0] != nj or PJ.shape != (nj,):
+            raise ValueError(f"trajectory generator: {nj} jammer(s) expected, got positions {pj.shape} and powers {PJ.shape}")
+        self._z[0:3], self._z[3:6] = p1, p2
+        self._z[9:9 + 3 * nj], self._z[9 + 3 * nj:] = pj.ravel(), PJ
+        self._eval()
+        return float(self._out[0]), self._out[1:7].copy(), self._out[7:].reshape(6, 6, order="F").copy()
 
     def expansion(self, p1, p2, p_jam, jam_power):
         """Value, gradient blocks and Hessian blocks of ``f`` at ``kappa = (p1, p2)``; jammers at
         ``p_jam`` ``(nJ, 3)`` (or one ``(3,)``) radiating ``jam_power`` ``(nJ,)`` W."""
-        pj = np.asarray(p_jam, float).reshape(-1, 3).T
-        out = self._expand(p1, p2, self.p0, pj, np.atleast_1d(np.asarray(jam_power, float)))
-        f, g1, g2, H11, H12, H22 = (np.array(o) for o in out)
-        return float(f.item()), g1.ravel(), g2.ravel(), H11, H12, H22
+        f, g, H = self._expand(p1, p2, p_jam, jam_power)
+        return f, g[:3], g[3:], H[:3, :3], H[:3, 3:], H[3:, 3:]
 
     def _regularize(self, H11: np.ndarray) -> tuple[np.ndarray, bool]:
         """Eigenvalue floor: H11 made safely positive definite (the paper perturbs kappa_e instead)."""
@@ -116,22 +128,21 @@ class TrajectoryGenerator:
             return 0.0
         kappa_e, f_e, g_e, H_e, pj_e, PJ_e = self._prev
         if not np.array_equal(PJ_e, jam_power) or not np.array_equal(pj_e, p_jam):
-            f_now = self.expansion(p1, p2, pj_e, PJ_e)[0]
+            f_now = self._expand(p1, p2, pj_e, PJ_e)[0]
         d = np.concatenate([p1, p2]) - kappa_e
         f2 = f_e + g_e @ d + 0.5 * d @ H_e @ d
         return abs(f_now - f2) / abs(f_now)
 
     def optimum(self, p1, p2, v2, a2, p_jam, jam_power):
         """Eq. 17-19 at the expansion point ``kappa_e = (p1, p2)`` (so ``delta_2 = 0``)."""
-        f, g1, g2, H11, H12, H22 = self.expansion(p1, p2, p_jam, jam_power)
-        if not (np.isfinite(f) and np.all(np.isfinite(g1)) and np.all(np.isfinite(H11)) and np.all(np.isfinite(H12))):
+        f, g, H = self._expand(p1, p2, p_jam, jam_power)
+        if not (np.isfinite(f) and np.all(np.isfinite(g[:3])) and np.all(np.isfinite(H[:3]))):
             raise _NonFinite
         err = self._taylor_error(p1, p2, f, p_jam, jam_power)
-        H = np.block([[H11, H12], [H12.T, H22]])
-        self._prev = (np.concatenate([p1, p2]), f, np.concatenate([g1, g2]), H, np.array(p_jam, float), np.array(jam_power, float))
-        H11r, reg = self._regularize(H11)
-        K = np.linalg.solve(H11r, H12)
-        p_opt = np.clip(p1 - np.linalg.solve(H11r, g1), self.lo, self.hi)
+        self._prev = (np.concatenate([p1, p2]), f, g, H, np.array(p_jam, float), np.array(jam_power, float))
+        H11r, reg = self._regularize(H[:3, :3])
+        K = np.linalg.solve(H11r, H[:3, 3:])
+        p_opt = np.clip(p1 - np.linalg.solve(H11r, g[:3]), self.lo, self.hi)
         return p_opt, -K @ v2, -K @ a2, err, reg
 
     def update(self, dt: float, p1, p2, v2, a2, p_jam, jam_power) -> Reference:
