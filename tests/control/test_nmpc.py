@@ -211,8 +211,8 @@ def test_alignment_constraint_acts_only_in_constrained_variant(plant):
 
 
 def test_without_a_c_compiler_the_controller_falls_back_to_casadi(monkeypatch, caplog):
-    import aerorelay.control.codegen as codegen
     import aerorelay.control.nmpc as nmpc_module
+    import aerorelay.store.codegen as codegen
 
     monkeypatch.setattr(codegen, "cache_dir", lambda: __import__("pathlib").Path("/nonexistent-cache"))
     monkeypatch.setattr(codegen.shutil, "which", lambda name: None)

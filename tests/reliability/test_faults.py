@@ -13,12 +13,12 @@ from typer.testing import CliRunner
 
 import aerorelay as ar
 from aerorelay.cli import EXIT_BAD_INPUT, EXIT_UNSAFE, app
-from aerorelay.control.codegen import shared_library
 from aerorelay.experiments.campaign import LOCK_FILE, CampaignBusyError, is_finished, load_manifest, run_campaign, run_dir
 from aerorelay.experiments.study import RunSpec
 from aerorelay.scenario import ScenarioError, load_scenario
 from aerorelay.scenario.schema import Scenario
 from aerorelay.store.cache import entry_is_intact
+from aerorelay.store.codegen import shared_library
 from aerorelay.store.outputs import MARKER, OutputError, check_output_folder, mark
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .codegen import compiled
+from ..store.codegen import compiled
 from .linearization import check_dimensions, stage_linearization, terminal_linearization
 from .ocp import HESSIAN_REG, INF, OcpSpec, QpResult, absolute_bounds
 

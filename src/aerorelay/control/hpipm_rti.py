@@ -27,7 +27,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .codegen import CASADI_VERSION, cache_dir, generated_c, shared_library
+from ..store.codegen import CASADI_VERSION, cache_dir, generated_c, shared_library
 from .linearization import check_dimensions, stage_linearization, terminal_linearization
 from .ocp import INF, OcpSpec, absolute_bounds
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .codegen import CompileError
+from ..store.codegen import CompileError
 from .conic_route import ConicEngine
 from .hpipm_rti import HpipmRti
 from .ocp import HESSIAN_REG, OcpSpec, QpResult, absolute_bounds, pack_plan

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import casadi as ca
 import numpy as np
 
 from .antenna import AntennaPattern, IsotropicPattern
+from .backend import is_symbolic
 from .geometry import E3
 from .mission import SourceTrajectory
 
@@ -70,6 +72,9 @@ class Jammer:
         node's position) or the fixed ``boresight``."""
         if self.point_at is None or target is None:
             return np.asarray(self.boresight, float)
+        if is_symbolic(target, position):  # CasADi 3-vectors
+            d = target - position
+            return d / ca.norm_2(d)
         d = np.asarray(target, float) - position
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 

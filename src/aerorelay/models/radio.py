@@ -100,6 +100,14 @@ class ChannelState:
         return tuple(np.log2(1.0 + g) for g in self.sinr)
 
 
+def _given(v):
+    """A given jammer position or power: CasADi expressions as they are, numbers as floats."""
+    if is_symbolic(v):
+        return v
+    v = np.asarray(v, float)
+    return float(v) if v.ndim == 0 else v
+
+
 def _dot(a, b):
     """``<a, b>`` over the last axis, broadcasting; an outer grid ``(M, 1, 3) x (1, K, 3)`` as one matmul."""
     if is_symbolic(a, b):
@@ -223,9 +231,10 @@ class RadioScene:
         and ``powers`` ``(nJ,)`` (what a controller knows); boresights track their target node."""
         out = []
         for i, j in enumerate(self.jammers):
-            p = np.asarray(positions[i], float) if positions is not None else j.position_at(t)
-            power = float(powers[i]) if powers is not None else float(j.power_at(t))
-            target = poses[j.point_at].position if j.point_at is not None and power != 0.0 else None
+            p = _given(positions[i]) if positions is not None else j.position_at(t)
+            power = _given(powers[i]) if powers is not None else float(j.power_at(t))
+            silent = not is_symbolic(power) and power == 0.0
+            target = poses[j.point_at].position if j.point_at is not None and not silent else None
             out.append(Emitter(p, j.axis(p, target), j.pattern, power))
         return out
 
@@ -233,7 +242,7 @@ class RadioScene:
         """``sum_j F_Jj^2 P_J`` at a receiver (eq. 7), W; ``fading`` one power gain per emitter."""
         total = 0.0
         for i, e in enumerate(emitters):
-            if e.power == 0.0:
+            if not is_symbolic(e.power) and e.power == 0.0:
                 continue
             f = link_gain(e.position, e.axis, e.pattern, rx.position, rx.axis, pat_rx, self.path_gain)
             if fading is not None:

@@ -6,7 +6,7 @@ import sys
 
 
 def test_concurrent_builders_publish_one_complete_library(tmp_path):
-    code = ("import sys; from aerorelay.control.codegen import shared_library\n"
+    code = ("import sys; from aerorelay.store.codegen import shared_library\n"
             "src = 'double twice(double x) { return 2 * x; }\\n' + '/* pad */\\n' * 20000\n"
             "print(shared_library('race', src, 'k'))\n")
     env = {"AERORELAY_CACHE": str(tmp_path), "PATH": "/usr/bin:/bin"}

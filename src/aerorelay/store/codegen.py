@@ -18,7 +18,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
+from .cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 
 log = logging.getLogger(__name__)
 CASADI_VERSION: str = getattr(ca, "__version__", "unknown")
