@@ -78,6 +78,7 @@ class RelayController:
             "rho_d": rho_d,
             "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2,
             "mu": self.mu,
+            "psi_ref": ref.yaw,
             **self.weights,
         }
         return spec.params.matrix(spec.horizon + 1, values)

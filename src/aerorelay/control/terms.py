@@ -32,6 +32,7 @@ REFERENCE_SIGNALS: tuple[tuple[str, int], ...] = (
     ("rho_d", 3),  # desired thrust direction (a_d + g e3)/|a_d + g e3| (eq. 20)
     ("p2", 3),  # MRAV-2's predicted position, world
     ("mu", 1),  # minimum mutual alignment (eq. 27e)
+    ("psi_ref", 1),  # yaw reference, rad (0 unless a planner turns the platform)
 )
 
 
@@ -119,7 +120,7 @@ COST_TERMS: tuple[CostTerm, ...] = (
     CostTerm("misalignment", lambda s: ca.vertcat(s.v12, s.v10), 10.0, "misalignment (v_12, v_10) (eq. 23)",
              terminal=10.0, comms_aware=True),
     CostTerm("body_rate", lambda s: s.omega, 1.0, "regularizer on omega, (rad/s)^-2"),
-    CostTerm("yaw", lambda s: s.eta[2], 1.0, "regularizer on psi (nothing else fixes the yaw), rad^-2"),
+    CostTerm("yaw", lambda s: s.eta[2] - s.p["psi_ref"], 1.0, "yaw psi vs its reference (0: a regularizer, nothing else fixes the yaw), rad^-2"),
     CostTerm("shaft_power", lambda s: s.shaft_power_residual, 0.0,
              "shaft power sum 2 pi c_tau Omega^3 (energy-aware term, the paper's 4th future work), W^-1", terminal=None),
     CostTerm("input_rate", lambda s: s.u - s.u_prev, 1e-5, "on u_k - u_(k-1) (eq. 22), (Hz/s)^-2",

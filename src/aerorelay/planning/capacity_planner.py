@@ -65,7 +65,7 @@ class CapacityPlanner:
         self.source_name = ctx.scene.name_of("source")
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(ctx, route_grid_m, route_dt_s)
-        self.grid = CompiledRelayGrid(ctx.scene, self.axes, len(self.offsets), source=self.source_name)
+        self.grid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes), source=self.source_name)
         self.preflight_s = time.perf_counter() - t0
         self.p_ref: np.ndarray | None = None
         self.target: np.ndarray | None = None
@@ -111,7 +111,7 @@ class CapacityPlanner:
         assert self.target is not None  # update() sets it before the first replan
         p2, b2 = self._predicted_source(inp)
         cand = self._candidates(inp, self.target)
-        C = self.grid(cand, NodePose(p2, b2), inp.jammer_positions, inp.jammer_powers)
+        C = self.grid(cand, self.axes, NodePose(p2, b2), inp.jammer_positions, inp.jammer_powers)
         i, j = np.unravel_index(int(np.argmax(C)), C.shape)
         self.target = cand[i]
         self.axis_goal = self.axes[j]

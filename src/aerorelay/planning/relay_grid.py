@@ -20,15 +20,14 @@ from ..store.codegen import compiled
 
 
 class CompiledRelayGrid:
-    """``grid(positions (M, 3), source_pose, jammer_positions (nJ, 3), jammer_powers (nJ,))`` ->
-    capacity ``(M, K)`` for the fixed antenna axes ``axes`` ``(K, 3)`` (unit, world); positions m,
+    """``grid(positions (M, 3), axes (K, 3), source_pose, jammer_positions (nJ, 3), jammer_powers
+    (nJ,))`` -> capacity ``(M, K)``: relay positions m (world) x relay antenna axes (unit, world),
     powers W. The scene's other moving node is the source (its pose given); fixed nodes as placed."""
 
-    def __init__(self, scene: RadioScene, axes: np.ndarray, n_positions: int, *, source: str, relay: str = "relay"):
-        self.axes = np.atleast_2d(np.asarray(axes, float))
-        self.m, self.k, self.nj = int(n_positions), len(self.axes), len(scene.jammers)
+    def __init__(self, scene: RadioScene, n_positions: int, n_axes: int, *, source: str, relay: str = "relay"):
+        self.m, self.k, self.nj = int(n_positions), int(n_axes), len(scene.jammers)
         fun = compiled(self._grid_function(scene, source, relay), "relay_grid")
-        self._z = np.zeros(3 * self.m + 6 + 4 * self.nj)
+        self._z = np.zeros(3 * self.m + 3 * self.k + 6 + 4 * self.nj)
         self._out = np.zeros(self.m * self.k)
         self._buffer, self._eval = fun.buffer()
         # CasADi's typemap takes the memoryview as (pointer, size); its stub lists both arguments
@@ -36,31 +35,31 @@ class CompiledRelayGrid:
         self._buffer.set_res(0, memoryview(self._out))  # type: ignore[call-arg, arg-type]
 
     def _grid_function(self, scene: RadioScene, source: str, relay: str) -> ca.Function:
-        """``z = (vec(P) (3M), p2, b2, vec(pJ) (3 nJ), P_J)`` -> capacities, index ``m K + k``."""
-        nj = self.nj
+        """``z = (vec(P) (3M), vec(B) (3K), p2, b2, vec(pJ) (3 nJ), P_J)`` -> capacities, index ``m K + k``."""
+        nj, m, k = self.nj, self.m, self.k
         p, b, rest = ca.SX.sym("p", 3), ca.SX.sym("b", 3), ca.SX.sym("rest", 6 + 4 * nj)
         pj = [rest[6 + 3 * i: 9 + 3 * i] for i in range(nj)]
         state = scene.evaluate(0.0, {relay: NodePose(p, b), source: NodePose(rest[0:3], rest[3:6])},
                                jammer_positions=pj, jammer_powers=[rest[6 + 3 * nj + i] for i in range(nj)])
         one = ca.Function("relay_capacity", [p, b, rest], [state.capacity])
-        z = ca.MX.sym("z", 3 * self.m + 6 + 4 * nj)
-        n = self.m * self.k
-        positions = ca.mtimes(ca.reshape(z[:3 * self.m], 3, self.m), ca.DM(np.kron(np.eye(self.m), np.ones((1, self.k)))))
-        axes = ca.DM(np.tile(self.axes.T, (1, self.m)))
-        grid = one.map(n, "serial")(positions, axes, ca.repmat(z[3 * self.m:], 1, n))
+        z = ca.MX.sym("z", 3 * m + 3 * k + 6 + 4 * nj)
+        n = m * k
+        positions = ca.mtimes(ca.reshape(z[:3 * m], 3, m), ca.DM(np.kron(np.eye(m), np.ones((1, k)))))
+        axes = ca.repmat(ca.reshape(z[3 * m:3 * (m + k)], 3, k), 1, m)
+        grid = one.map(n, "serial")(positions, axes, ca.repmat(z[3 * (m + k):], 1, n))
         return ca.Function("relay_grid", [z], [grid])
 
-    def __call__(self, positions, source_pose: NodePose, jammer_positions, jammer_powers) -> np.ndarray:
-        P = np.asarray(positions, float)
+    def __call__(self, positions, axes, source_pose: NodePose, jammer_positions, jammer_powers) -> np.ndarray:
+        P, B = np.asarray(positions, float), np.asarray(axes, float)
         pj = np.asarray(jammer_positions, float).reshape(-1, 3)
         PJ = np.asarray(jammer_powers, float).ravel()
-        if P.shape != (self.m, 3) or pj.shape[0] != self.nj or PJ.shape != (self.nj,):
-            raise ValueError(f"relay grid: built for {self.m} positions and {self.nj} jammer(s), got positions "
-                             f"{P.shape}, jammer positions {pj.shape}, powers {PJ.shape}")
-        m3 = 3 * self.m
-        self._z[:m3] = P.ravel()
-        self._z[m3:m3 + 3], self._z[m3 + 3:m3 + 6] = source_pose.position, source_pose.axis
-        self._z[m3 + 6:m3 + 6 + 3 * self.nj], self._z[m3 + 6 + 3 * self.nj:] = pj.ravel(), PJ
+        if P.shape != (self.m, 3) or B.shape != (self.k, 3) or pj.shape[0] != self.nj or PJ.shape != (self.nj,):
+            raise ValueError(f"relay grid: built for {self.m} positions, {self.k} axes and {self.nj} jammer(s), got "
+                             f"positions {P.shape}, axes {B.shape}, jammer positions {pj.shape}, powers {PJ.shape}")
+        o = 3 * (self.m + self.k)
+        self._z[:3 * self.m], self._z[3 * self.m:o] = P.ravel(), B.ravel()
+        self._z[o:o + 3], self._z[o + 3:o + 6] = source_pose.position, source_pose.axis
+        self._z[o + 6:o + 6 + 3 * self.nj], self._z[o + 6 + 3 * self.nj:] = pj.ravel(), PJ
         self._eval()
         C = self._out.reshape(self.m, self.k)
         # a jammer on a receiver: the numpy evaluation's infinite interference, capacity 0

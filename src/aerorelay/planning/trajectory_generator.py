@@ -43,6 +43,7 @@ class Reference:
     taylor_rel_err: float = 0.0  # |f - f2| / |f| of the previous step's expansion, at the current kappa
     regularized: bool = False  # H11 needed an eigenvalue floor
     axis: np.ndarray | None = None  # desired antenna (body z) axis, unit, world; None: from a_ref (eq. 20)
+    yaw: float = 0.0  # yaw reference psi, rad (the NMPC's yaw term)
 
 
 def _build_expansion(sp: SurrogateParams) -> ca.Function:
