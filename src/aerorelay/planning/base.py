@@ -44,6 +44,7 @@ class PlannerInput:
     jammer_positions: np.ndarray
     jammer_powers: np.ndarray
     jammer_std_m: np.ndarray | None = None
+    psi1: float = 0.0  # the relay's measured yaw, rad
 
 
 @dataclass(frozen=True)

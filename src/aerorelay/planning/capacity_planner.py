@@ -37,6 +37,7 @@ from ..models.geometry import E3, align_with_thrust, thrust_direction_from_accel
 from ..models.radio import NodePose
 from .base import PlannerContext, PlannerInput
 from .bound import CapacityLandscape, best_path, position_grid
+from .platform_yaw import PlatformYaw
 from .relay_grid import CompiledRelayGrid
 from .trajectory_generator import Reference
 
@@ -47,12 +48,13 @@ class CapacityPlanner:
     def __init__(self, ctx: PlannerContext, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
                  route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
-                 excursion_m: float = 0.0, excursion_std_m: float = 1.0):
+                 excursion_m: float = 0.0, excursion_std_m: float = 1.0, yaw_rate_deg_s: float = 0.0,
+                 tilt_fraction: float = 0.9):
         veh = ctx.vehicle
-        # the NMPC holds zero yaw: only the tilts the platform can hold toward each azimuth at zero
-        # yaw (with a 10% margin) are axes it can actually fly
+        # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
+        # a margin of control authority) are axes it can actually fly
         az = np.radians(np.arange(0.0, 360.0, 10.0))
-        limits = 0.9 * veh.hover_tilt_limits(az)
+        limits = tilt_fraction * veh.hover_tilt_limits(az)
         self.tilt_limit = float(limits.max())
         self.axes = axis_set(az, limits, np.radians(axis_step_deg))
         self.lo, self.hi = np.asarray(ctx.workspace_min, float) + margin_m, np.asarray(ctx.workspace_max, float) - margin_m
@@ -66,6 +68,11 @@ class CapacityPlanner:
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(ctx, route_grid_m, route_dt_s)
         self.grid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes), source=self.source_name)
+        # yawing the platform (yaw_rate_deg_s > 0, a tilted platform): rotated axis sets scored at the best position
+        self.yaw = (PlatformYaw(self.axes, az, limits, rate=np.radians(yaw_rate_deg_s))
+                    if yaw_rate_deg_s > 0 and self.tilt_limit > 0 else None)
+        self.yaw_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.yaw.all_axes()), source=self.source_name)
+                         if self.yaw is not None else None)
         self.preflight_s = time.perf_counter() - t0
         self.p_ref: np.ndarray | None = None
         self.target: np.ndarray | None = None
@@ -111,11 +118,19 @@ class CapacityPlanner:
         assert self.target is not None  # update() sets it before the first replan
         p2, b2 = self._predicted_source(inp)
         cand = self._candidates(inp, self.target)
-        C = self.grid(cand, self.axes, NodePose(p2, b2), inp.jammer_positions, inp.jammer_powers)
+        pose = NodePose(p2, b2)
+        axes = self.axes if self.yaw is None else self.yaw.axes()
+        C = self.grid(cand, axes, pose, inp.jammer_positions, inp.jammer_powers)
         i, j = np.unravel_index(int(np.argmax(C)), C.shape)
         self.target = cand[i]
-        self.axis_goal = self.axes[j]
+        self.axis_goal = axes[j]
         self.best_capacity = float(C[i, j])
+        if self.yaw is not None and self.yaw_grid is not None:  # every yaw's axes at the chosen position
+            every = self.yaw.all_axes()
+            c = self.yaw_grid(cand[i:i + 1], every, pose, inp.jammer_positions, inp.jammer_powers)[0]
+            k = self.yaw.choose(c, self.best_capacity)
+            if k is not None:
+                self.axis_goal, self.best_capacity = every[k], float(c[k])
 
     def _turn_axis(self, dt: float):
         """Rotate the axis reference toward the goal at <= axis_rate (great-circle step)."""
@@ -175,7 +190,13 @@ class CapacityPlanner:
             self.a_ref *= self.max_accel / n
         self.v_ref = v_ref
         self._turn_axis(inp.dt)
+        yaw = 0.0
+        axis_now = self.axis
+        if self.yaw is not None:  # the axis the platform holds at the yaw reference while it turns
+            yaw = self.yaw.advance(inp.dt)
+            axis_now = self.yaw.clip(self.axis, inp.psi1)
         # a coplanar relay tilts only by accelerating (rho_d from a_ref); a tilted one holds the
         # antenna axis relative to the thrust its acceleration needs
-        axis = align_with_thrust(self.axis, self.a_ref, self.gravity) if self.tilt_limit > 0 else None
-        return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=self.a_ref.copy(), axis=axis)
+        axis = align_with_thrust(axis_now, self.a_ref, self.gravity) if self.tilt_limit > 0 else None
+        return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=self.a_ref.copy(), axis=axis,
+                         yaw=yaw)

@@ -392,6 +392,12 @@ class CapacityPlannerConfig(_Strict):
     lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
                                       "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
+    tilt_fraction: float = Field(0.9, gt=0.0, le=1.0, description="the antenna axes the planner may ask for tilt at most "
+                                 "this fraction of the platform's hover tilt limit toward their azimuth (1: up to the limit, "
+                                 "where a motor saturates; the bound allows the full limit)")
+    yaw_rate_deg_s: float = Field(0.0, ge=0.0, le=90.0, description="the platform may yaw (its reference at most this "
+                                  "fast, deg/s, in 10 deg steps within +-60 deg) to bring its strongest tilt azimuth under "
+                                  "the antenna axis it wants (0: zero yaw)")
     excursion_m: float = Field(0.0, ge=0.0, le=10.0, description="while an estimated jammer's position std is above "
                                "excursion_std_m, the target circles at this radius (m) to make the jammer observable (0: off)")
     excursion_std_m: float = Field(1.0, gt=0.0, le=100.0, description="the excursion stops once every estimated jammer's "
