@@ -85,7 +85,7 @@ def test_hpipm_uses_them_when_loaded_first():
             "c = NMPC(spec)\n"
             "x = spec.vehicle.hover_state(np.array([0.0, 0.0, 3.0]))\n"
             "assert c.engine.rti.simd_kernels_ran() == 0\n"
-            "P = spec.params.matrix(spec.horizon + 1, {'p_ref': [0.5, 0.0, 3.0], 'v_ref': 0.0, 'rho_d': [0, 0, 1.0],\n"
+            "P = spec.params.matrix(spec.horizon + 1, {'p_ref': [0.5, 0.0, 3.0], 'v_ref': 0.0, 'rho_d': [0, 0, 1.0], 'psi_ref': 0.0,\n"
             "    'p2': [2.0, 1.0, 3.0], 'mu': 0.2, **weight_parameters(sc, spec)})\n"
             "assert c.step(x, np.zeros(6), P).ok\n"
             "print(c.engine.rti.simd_kernels_ran(), c.route())\n")

@@ -29,7 +29,7 @@ def params(p_ref, v_ref=np.zeros(3), p2=P2, sc=SC, spec=SPEC):
     """Stage parameters through the spec's named layout (MRAV-2 held at p2, level thrust reference)."""
     tk = spec.ts * np.arange(spec.horizon + 1)
     return spec.params.matrix(spec.horizon + 1, {
-        "p_ref": p_ref[:, None] + v_ref[:, None] * tk, "v_ref": v_ref, "rho_d": [0.0, 0.0, 1.0], "p2": p2,
+        "p_ref": p_ref[:, None] + v_ref[:, None] * tk, "v_ref": v_ref, "rho_d": [0.0, 0.0, 1.0], "psi_ref": 0.0, "p2": p2,
         "mu": sc.controller.mu, **weight_parameters(sc, spec)})
 
 

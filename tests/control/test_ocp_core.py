@@ -68,7 +68,7 @@ def test_engine_and_conic_route_agree_with_several_constraints():
     x[3:6] = np.radians([4.0, -3.0, 10.0])
     tk = spec.ts * np.arange(spec.horizon + 1)
     P = spec.params.matrix(spec.horizon + 1, {
-        "p_ref": np.array([7.0, 0.3, 0.5])[:, None] + 0 * tk, "v_ref": 0.0, "rho_d": [0, 0, 1.0], "p2": [3.0, 1.0, 8.0],
+        "p_ref": np.array([7.0, 0.3, 0.5])[:, None] + 0 * tk, "v_ref": 0.0, "rho_d": [0, 0, 1.0], "psi_ref": 0.0, "p2": [3.0, 1.0, 8.0],
         "mu": 0.5, **weight_parameters(SC, spec), "sw_slack_x_band": 100.0})  # reference beyond x = 6 and below z = 1
     infos, plans = [], []
     for backend in ("casadi", "hpipm"):
@@ -93,7 +93,7 @@ def test_size_mismatch_raises_instead_of_shifting_data():
     spec = ocp_spec(SC)
     ctrl = NMPC(spec)
     x = spec.vehicle.hover_state([0.0, 0.0, 3.0])
-    P = spec.params.matrix(spec.horizon + 1, {"p_ref": [0, 0, 3.0], "v_ref": 0.0, "rho_d": [0, 0, 1.0], "p2": [1, 1, 3.0],
+    P = spec.params.matrix(spec.horizon + 1, {"p_ref": [0, 0, 3.0], "v_ref": 0.0, "rho_d": [0, 0, 1.0], "psi_ref": 0.0, "p2": [1, 1, 3.0],
                                              "mu": 0.2, **weight_parameters(SC, spec)})
     with pytest.raises(ValueError, match="parameter matrix"):
         ctrl.step(x, np.zeros(6), P[:-1])
