@@ -7,6 +7,7 @@ read from these benchmarks and from ``aerorelay bench``, never asserted in unit 
 import numpy as np
 import pytest
 
+from aerorelay.models.radio import NodePose
 from aerorelay.planning.base import PlannerInput
 from aerorelay.scenario import parse_scenario
 from aerorelay.scenario.build import build
@@ -48,3 +49,26 @@ def test_bench_trajectory_generator(benchmark, loop_mid_mission):
     inp = PlannerInput(9.0, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.scene.jammers[0].position[None], np.ones(1))
     ref = benchmark(loop.planner.update, inp)
     assert np.all(np.isfinite(ref.p_ref))
+
+
+@pytest.fixture(scope="module")
+def capacity_planner():
+    sc = parse_scenario({}).with_updates({"controller.planner": "capacity"})
+    parts = build(sc)
+    return parts.planner, parts.scene
+
+
+@pytest.mark.parametrize("route", ["compiled", "numpy"])
+def test_bench_capacity_planner_scoring(benchmark, capacity_planner, route):
+    """One replan's scoring, 27 positions x every holdable axis: the compiled relay grid against
+    the numpy evaluation of the same scene."""
+    planner, scene = capacity_planner
+    cand = np.array([-4.0, 2.0, 5.0]) + planner.offsets
+    pose = NodePose(np.array([-1.0, 4.3, 9.0]), np.array([0.0, 0.0, 1.0]))
+    pj, PJ = scene.jammers[0].position[None], np.ones(1)
+    if route == "compiled":
+        C = benchmark(planner.grid, cand, planner.axes, pose, pj, PJ)
+    else:
+        C = benchmark(scene.relay_grid, 0.0, cand, planner.axes, {planner.source_name: pose}, jammer_positions=pj,
+                      jammer_powers=PJ)
+    assert C.shape == (27, len(planner.axes)) and np.all(np.isfinite(C))
