@@ -18,6 +18,10 @@ capacity.speed_m_s``, speeding up and braking at <= ``max_accel_m_s2`` so it sto
 The antenna axis reference turns toward the best axis at <= ``axis_rate``; turned with the
 thrust direction the reference's acceleration needs, it is the NMPC's body z reference.
 
+**Yaw** (``yaw_rate_deg_s`` > 0, tilted platforms; ``planning.platform_yaw``): at each replan
+every yaw's holdable axes are also scored at the chosen position and the platform turns toward a
+better yaw; the axis reference is clipped to what it holds at its measured yaw. Off by default.
+
 **Observability excursion** (``excursion_m`` > 0, for estimated jammers): a relay that holds
 still cannot triangulate a jammer from received power. While an estimated jammer's largest
 position std is above ``excursion_std_m``, the reference chases a point circling the target at
@@ -63,7 +67,6 @@ class CapacityPlanner:
         self.replan_every, self.leash, self.lookahead = replan_every, leash_m, lookahead_s
         self.axis_rate = np.radians(axis_rate_deg_s)
         self.gravity = veh.gravity
-        self.scene = ctx.scene
         self.source_name = ctx.scene.name_of("source")
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(ctx, route_grid_m, route_dt_s)
