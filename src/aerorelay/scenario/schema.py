@@ -392,6 +392,8 @@ class CapacityPlannerConfig(_Strict):
     lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
                                       "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
+    axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the antenna axes the planner scores "
+                                 "(tilt rings and azimuths), deg")
     tilt_fraction: float = Field(0.9, gt=0.0, le=1.0, description="the antenna axes the planner may ask for tilt at most "
                                  "this fraction of the platform's hover tilt limit toward their azimuth (1: up to the limit, "
                                  "where a motor saturates; the bound allows the full limit)")
