@@ -2,7 +2,9 @@ from pathlib import Path
 
 import pytest
 
+from aerorelay.control.nmpc import NmpcSettings
 from aerorelay.scenario import ScenarioError, load_scenario, parse_scenario
+from aerorelay.scenario.build import nmpc_settings
 
 ROOT = Path(__file__).resolve().parents[1]
 PRESETS = sorted((ROOT / "scenarios").glob("*.toml"))
@@ -146,3 +148,15 @@ def test_antenna_gain_in_dbi():
         parse_scenario({"antenna": {"g_bar_dbi": 3.0, "g_bar": 1.0}})
     with pytest.raises(ScenarioError, match="antenna.g_bar_dbi"):
         parse_scenario({"antenna": {"g_bar_dbi": 45.0}})
+
+
+def test_capacity_controller_caps_its_qp_iterations_and_the_papers_does_not():
+    paper = load_scenario(ROOT / "scenarios" / "nominal_tilted.toml")
+    s = nmpc_settings(paper)
+    assert (s.iter_max, s.accept_tol) == (NmpcSettings().iter_max, NmpcSettings().accept_tol) == (50, 0.0)
+    cap = paper.with_updates({"controller.planner": "capacity"})
+    assert (nmpc_settings(cap).iter_max, nmpc_settings(cap).accept_tol) == (5, 1e-6)
+    assert nmpc_settings(cap, iter_max=50, accept_tol=None).iter_max == 50  # an explicit value wins, None does not
+    assert nmpc_settings(cap.with_updates({"controller.capacity.qp_iter_max": 8})).iter_max == 8
+    with pytest.raises(ScenarioError, match="qp_iter_max"):
+        paper.with_updates({"controller.capacity.qp_iter_max": 0})

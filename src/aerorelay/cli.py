@@ -11,8 +11,8 @@ from rich.console import Console
 from rich.table import Table
 
 from . import api
-from .control.nmpc import NmpcSettings
 from .scenario import Scenario, ScenarioError, load_scenario
+from .scenario.build import nmpc_settings
 from .scenario.load import parse_sets as _parse_sets
 from .scenario.run import FIGURES_BYTES, check_run_size, log_bytes
 from .store.outputs import OutputError, check_output_folder
@@ -290,9 +290,11 @@ def bench(
     qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
     warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
-    iter_max: int = typer.Option(NmpcSettings.iter_max, "--iter-max", min=1, help="QP interior-point iteration cap"),
-    accept_tol: float = typer.Option(NmpcSettings.accept_tol, "--accept-tol", min=0.0,
-                                     help="hpipm backend: use a capped QP whose primal residuals are <= this (0: never)"),
+    iter_max: int = typer.Option(None, "--iter-max", min=1, show_default=False,
+                                 help="QP interior-point iteration cap (default: the scenario's: 50, the capacity controller's 5)"),
+    accept_tol: float = typer.Option(None, "--accept-tol", min=0.0, show_default=False,
+                                     help="hpipm backend: use a capped QP whose primal residuals are <= this (0: never; "
+                                          "default: the scenario's)"),
     simd: bool = typer.Option(True, "--simd/--no-simd", help="hpipm backend: AVX2 BLASFEO kernels where the CPU has them"),
     feedback: str = typer.Option(None, "--feedback", show_default=False,
                                  help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
@@ -302,15 +304,15 @@ def bench(
     import json
 
 
-    try:
-        settings = NmpcSettings(backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
-                                warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,
-                                accept_tol=accept_tol)
-    except ValueError as exc:
-        _fail(str(exc))
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
                                                    "controller.planner": planner,
                                                    "sim.control_rate_hz": control_rate_hz}, set_)
+    try:
+        settings = nmpc_settings(sc, backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
+                                 warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,
+                                 accept_tol=accept_tol)
+    except ValueError as exc:
+        _fail(str(exc))
     res = api.bench(sc, settings, ipopt_points=ipopt_points)
     t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")

@@ -143,13 +143,26 @@ def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
     return out
 
 
+def nmpc_settings(sc: Scenario, **overrides) -> NmpcSettings:
+    """The NMPC's solver settings for ``sc``: the defaults, with the capacity controller's QP
+    iteration cap (``[controller.capacity] qp_iter_max``, ``qp_accept_tol``), then ``overrides``
+    (``NmpcSettings`` fields; None values ignored)."""
+    base: dict = {}
+    if sc.controller.planner == "capacity":
+        cap = sc.controller.capacity
+        base = {"iter_max": cap.qp_iter_max, "accept_tol": cap.qp_accept_tol}
+    base.update({k: v for k, v in overrides.items() if v is not None})
+    return NmpcSettings(**base)
+
+
 def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings | None = None) -> RelayController:
-    """NMPC + fail-safe for the scenario's controller settings."""
+    """NMPC + fail-safe for the scenario's controller settings (``settings``: the solver's, else
+    ``nmpc_settings(sc)``)."""
     spec = ocp_spec(sc, vehicle)
     fs = sc.controller.failsafe
     return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
                            failsafe=FailsafeSettings(fs.failures_to_fallback, fs.successes_to_resume, fs.workspace_margin_m),
-                           settings=settings, envelope=safety_envelope(sc, vehicle) if fs.supervisor else None)
+                           settings=settings or nmpc_settings(sc), envelope=safety_envelope(sc, vehicle) if fs.supervisor else None)
 
 
 def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
