@@ -24,7 +24,7 @@ import pyarrow.parquet as pq
 from dask.distributed import Client, LocalCluster, as_completed
 
 from .._version import __version__
-from ..control.nmpc import NmpcSettings
+from ..scenario.build import nmpc_settings
 from ..scenario.run import simulate
 from ..store.outputs import check_output_folder, mark, write_atomic
 from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, MISSION_ULOG, SCENARIO_FILE, TIMESERIES_FILE
@@ -70,7 +70,7 @@ def _run_problem(d: Path, spec: RunSpec) -> str | None:
         return "no bound"
     if metrics.get("unsafe", False):
         return f"unsafe: {metrics.get('unsafe_reason', '')}"
-    if metrics.get("controller") != NmpcSettings().fingerprint():
+    if metrics.get("controller") != nmpc_settings(scenario_of(spec)).fingerprint():
         return "flown with other solver settings"
     return None
 

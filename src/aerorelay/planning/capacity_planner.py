@@ -195,7 +195,7 @@ class CapacityPlanner:
         self._turn_axis(inp.dt)
         yaw = 0.0
         axis_now = self.axis
-        if self.yaw is not None:  # the axis the platform holds at the yaw reference while it turns
+        if self.yaw is not None:  # the axis the platform holds at its measured yaw while it turns
             yaw = self.yaw.advance(inp.dt)
             axis_now = self.yaw.clip(self.axis, inp.psi1)
         # a coplanar relay tilts only by accelerating (rho_d from a_ref); a tilted one holds the
