@@ -150,13 +150,15 @@ def test_antenna_gain_in_dbi():
         parse_scenario({"antenna": {"g_bar_dbi": 45.0}})
 
 
-def test_capacity_controller_caps_its_qp_iterations_and_the_papers_does_not():
+def test_capacity_controllers_qp_iteration_cap_comes_from_its_settings_and_the_papers_does_not():
     paper = load_scenario(ROOT / "scenarios" / "nominal_tilted.toml")
     s = nmpc_settings(paper)
     assert (s.iter_max, s.accept_tol) == (NmpcSettings().iter_max, NmpcSettings().accept_tol) == (50, 0.0)
     cap = paper.with_updates({"controller.planner": "capacity"})
-    assert (nmpc_settings(cap).iter_max, nmpc_settings(cap).accept_tol) == (5, 1e-6)
-    assert nmpc_settings(cap, iter_max=50, accept_tol=None).iter_max == 50  # an explicit value wins, None does not
-    assert nmpc_settings(cap.with_updates({"controller.capacity.qp_iter_max": 8})).iter_max == 8
+    assert nmpc_settings(cap).fingerprint() == NmpcSettings().fingerprint()  # uncapped by default
+    capped = cap.with_updates({"controller.capacity.qp_iter_max": 5, "controller.capacity.qp_accept_tol": 1e-6})
+    assert (nmpc_settings(capped).iter_max, nmpc_settings(capped).accept_tol) == (5, 1e-6)
+    assert nmpc_settings(capped, iter_max=50, accept_tol=None).iter_max == 50  # an explicit value wins, None does not
+    assert nmpc_settings(paper.with_updates({"controller.capacity.qp_iter_max": 5})).iter_max == 50  # capacity only
     with pytest.raises(ScenarioError, match="qp_iter_max"):
         paper.with_updates({"controller.capacity.qp_iter_max": 0})

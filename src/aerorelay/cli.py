@@ -291,7 +291,7 @@ def bench(
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
     warm_start: str = typer.Option("primal_dual", "--warm-start", help="hpipm backend: none, primal or primal_dual"),
     iter_max: int = typer.Option(None, "--iter-max", min=1, show_default=False,
-                                 help="QP interior-point iteration cap (default: the scenario's: 50, the capacity controller's 5)"),
+                                 help="QP interior-point iteration cap (default: the scenario's, 50 unless [controller.capacity] qp_iter_max)"),
     accept_tol: float = typer.Option(None, "--accept-tol", min=0.0, show_default=False,
                                      help="hpipm backend: use a capped QP whose primal residuals are <= this (0: never; "
                                           "default: the scenario's)"),
