@@ -1,8 +1,14 @@
-"""The on-disk library cache: concurrent builders publish one complete library."""
+"""The on-disk library cache (concurrent builders publish one complete library) and buffered calls."""
 
 import ctypes
 import subprocess
 import sys
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from aerorelay.store.codegen import BufferedCall
 
 
 def test_concurrent_builders_publish_one_complete_library(tmp_path):
@@ -19,3 +25,16 @@ def test_concurrent_builders_publish_one_complete_library(tmp_path):
     assert lib.twice(21.0) == 42.0
     leftovers = [f.name for f in tmp_path.iterdir() if not f.name.endswith((".so", ".so.sha256", ".lock"))]
     assert leftovers == []  # the temporary build folders are gone
+
+
+def test_buffered_call_matches_the_function_and_refuses_a_sparse_output():
+    x = ca.SX.sym("x", 3)
+    dense = ca.Function("f", [x], [ca.densify(ca.vertcat(ca.sumsqr(x), 0 * x[0], 2 * x))])
+    call = BufferedCall(dense)
+    call.arg[:] = [1.0, -2.0, 0.5]
+    np.testing.assert_array_equal(call(), np.array(dense([1.0, -2.0, 0.5])).ravel())
+    sparse = ca.Function("g", [x], [ca.vertcat(ca.sumsqr(x), ca.SX(1, 1), 2 * x)])  # a structural zero
+    with pytest.raises(ValueError, match="dense"):
+        BufferedCall(sparse)
+    with pytest.raises(ValueError, match="one input and one output"):
+        BufferedCall(ca.Function("h", [x], [x, x]))

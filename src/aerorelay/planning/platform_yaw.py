@@ -5,8 +5,9 @@ azimuth in its body frame (``Multirotor.hover_tilt_limits``: 9.6-17.8 deg for th
 hexarotor, peaks 120 deg apart). At zero yaw the holdable antenna axes are the body set ``A0``;
 yawed by ``psi`` they are ``Rz(psi) A0``. ``PlatformYaw`` keeps a yaw goal (one of the yaws ``step``
 apart within +-``span``, moved when another scores better by ``gain``), a yaw reference that follows it at <= ``rate``, and
-clips an axis to what the platform holds at the reference's yaw (so the NMPC is never asked for a
-tilt the platform cannot hold while it turns). Angles in rad; axes unit, world.
+clips an axis to what the platform holds at its measured yaw (so the NMPC is never asked for a
+tilt the platform cannot hold while it turns; clipped at the reference's yaw instead, the relay
+swung 2-6 m off its position reference). Angles in rad; axes unit, world.
 """
 
 from __future__ import annotations

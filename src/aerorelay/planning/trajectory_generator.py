@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..models.channel import inverse_capacity
+from ..store.codegen import BufferedCall
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +60,7 @@ def _build_expansion(sp: SurrogateParams) -> ca.Function:
         tx_power=sp.tx_power, noise_power=sp.noise_power, bandwidth=sp.bandwidth, jam_gains=sp.jam_gains,
     )
     H, g = ca.hessian(f, ca.vertcat(p1, p2))
-    return ca.Function("surrogate_expansion", [z], [ca.vertcat(f, g, ca.vec(H))], ["z"], ["fgH"])
+    return ca.Function("surrogate_expansion", [z], [ca.densify(ca.vertcat(f, g, ca.vec(H)))], ["z"], ["fgH"])
 
 
 class TrajectoryGenerator:
@@ -82,13 +83,9 @@ class TrajectoryGenerator:
         self.eig_floor = eig_floor
         self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
         self.max_ref_accel = max_ref_accel
-        nj = len(surrogate.jam_gains)
-        self._z, self._out = np.zeros(9 + 4 * nj), np.zeros(43)
+        self._call = BufferedCall(_build_expansion(surrogate))
+        self._z = self._call.arg
         self._z[6:9] = self.p0
-        self._buffer, self._eval = _build_expansion(surrogate).buffer()
-        # CasADi's typemap takes the memoryview as (pointer, size); its stub lists both arguments
-        self._buffer.set_arg(0, memoryview(self._z))  # type: ignore[call-arg, arg-type]
-        self._buffer.set_res(0, memoryview(self._out))  # type: ignore[call-arg, arg-type]
         self._prev: tuple | None = None  # (kappa_e, f, g, H) of the last expansion
         self.p_ref: np.ndarray | None = None
 
@@ -101,8 +98,8 @@ class TrajectoryGenerator:
             raise ValueError(f"trajectory generator: {nj} jammer(s) expected, got positions {pj.shape} and powers {PJ.shape}")
         self._z[0:3], self._z[3:6] = p1, p2
         self._z[9:9 + 3 * nj], self._z[9 + 3 * nj:] = pj.ravel(), PJ
-        self._eval()
-        return float(self._out[0]), self._out[1:7].copy(), self._out[7:].reshape(6, 6, order="F").copy()
+        out = self._call()
+        return float(out[0]), out[1:7].copy(), out[7:].reshape(6, 6, order="F").copy()
 
     def expansion(self, p1, p2, p_jam, jam_power):
         """Value, gradient blocks and Hessian blocks of ``f`` at ``kappa = (p1, p2)``; jammers at
