@@ -204,8 +204,12 @@ class JammerEstimator:
         at ``t_ref`` (default the estimate's), and move on at its constant velocity."""
         if not np.any(theta[:, 4:7]):  # static: one position for every row ``(nJ, 1, 3)``
             return theta[:, None, :3]
-        dt = self.window.t[idx] - (self.t_ref if t_ref is None else t_ref)
-        return theta[:, None, :3] + theta[:, None, 4:7] * dt[None, :, None]
+        return theta[:, None, :3] + theta[:, None, 4:7] * self._row_ages(idx, t_ref)[None, :, None]
+
+    def _row_ages(self, idx: np.ndarray, t_ref: float | None = None) -> np.ndarray:
+        """Each window row's time after ``t_ref`` (s; default the estimate's): how far a jammer has
+        moved at its velocity between the estimate's positions and that row."""
+        return self.window.t[idx] - (self.t_ref if t_ref is None else t_ref)
 
     def _powers(self, theta: np.ndarray) -> np.ndarray:
         return np.where(self.started, np.exp(np.where(self.started, theta[:, 3], 0.0)), 0.0)
@@ -315,7 +319,7 @@ class JammerEstimator:
         if dg is None:
             return z_hat, None
         J = np.empty((S.size, _NP * self.nj))
-        dt = (self.window.t[idx] - (self.t_ref if t_ref is None else t_ref))[:, None]
+        dt = self._row_ages(idx, t_ref)[:, None]
         for j in range(self.nj):
             J[:, _NP * j:_NP * j + 3] = (KAPPA_DB * on[j] * math.exp(theta[j, 3]) / S * dg[j]).T
             J[:, _NP * j + 3] = KAPPA_DB * contrib[j] / S

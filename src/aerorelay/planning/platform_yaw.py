@@ -29,23 +29,20 @@ class PlatformYaw:
                  step: float = np.radians(10.0), span: float = np.radians(60.0), gain: float = 0.005):
         self.body_axes = np.asarray(body_axes, float)
         self.azimuths, self.limits = np.asarray(azimuths, float), np.asarray(limits, float)
-        self.rate, self.step, self.span, self.gain = rate, step, span, gain
+        self.rate, self.gain = rate, gain
         self.goal = 0.0  # rad; within +-span (the tilt limits repeat every 120 deg on the hexarotor)
         self.ref = 0.0
+        n = int(round(span / step))
+        self.yaws = step * np.arange(-n, n + 1)  # every yaw the goal may take
+        self._all_axes = np.concatenate([self.axes(psi) for psi in self.yaws])
 
     def axes(self, psi: float | None = None) -> np.ndarray:
         """The holdable axes at yaw ``psi`` (the goal by default), world."""
         return rotate_z(self.body_axes, self.goal if psi is None else psi)
 
-    @property
-    def yaws(self) -> np.ndarray:
-        """Every yaw the goal may take: ``step`` apart within +-``span``."""
-        n = int(round(self.span / self.step))
-        return self.step * np.arange(-n, n + 1)
-
     def all_axes(self) -> np.ndarray:
-        """``(len(yaws) * K, 3)``: the holdable axes at every yaw, yaw by yaw."""
-        return np.concatenate([self.axes(psi) for psi in self.yaws])
+        """``(len(yaws) * K, 3)``: the holdable axes at every yaw, yaw by yaw (computed once)."""
+        return self._all_axes
 
     def choose(self, capacities: np.ndarray, current: float) -> int | None:
         """Given the capacities of ``all_axes()`` at one position, move the goal to the best yaw when

@@ -79,8 +79,8 @@ def estimation_metrics(log, period_s: float) -> dict:
     std at the end) and ``estimator_ms`` (per control step); where the Cramer-Rao bound is logged
     (``est_<name>_crlb_m``): ``estimation_crlb_first_1m_s`` (first time the bound is <= 1 m: before,
     no unbiased estimator has a position std below 1 m), ``estimation_crlb_10s_m`` (the bound at 10 s) and
-    ``estimation_within_1m_after_bound`` (fraction of steps from that time on with every error <= 1 m:
-    does the estimator deliver what the path made knowable).
+    ``estimation_within_1m_after_bound`` (the worst jammer's fraction of steps from that time on with
+    its error <= 1 m: does the estimator deliver what the path made knowable).
     Empty for an oracle run."""
     names = [c[4:-6] for c in log if c.startswith("est_") and c.endswith("_err_m")]
     if not names:
