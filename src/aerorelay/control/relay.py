@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..models.geometry import thrust_direction_from_acceleration
-from .failsafe import BrakeLaw
+from .failsafe import BrakeLaw, Hold
 from .nmpc import NMPC, NmpcSettings, StepInfo
 from .ocp import OcpSpec
 from .supervisor import SafetyEnvelope
@@ -59,7 +59,7 @@ class RelayController:
         self.fallback_episodes = 0
         self._consecutive_failures = 0
         self._successes = 0
-        self._hold = np.zeros(3)
+        self._hold: Hold = self.brake.hold(np.zeros(3))
 
     @property
     def settings(self) -> NmpcSettings:
@@ -110,8 +110,8 @@ class RelayController:
         if not self.fallback_active:
             self.fallback_active = True
             self.fallback_episodes += 1
-            self._hold = self.brake.hold_point(x[0:3]) if np.all(np.isfinite(x[0:3])) else self.brake.hold_point(self._hold)
-            log.warning("fail-safe: %s; brake law holds the relay at %s", why, np.round(self._hold, 2))
+            self._hold = self.brake.hold(x[0:3], x[6:9], x[3:6]) if np.all(np.isfinite(x[0:3])) else self.brake.hold(self._hold.point)
+            log.warning("fail-safe: %s; brake law stops the relay at %s (%.1f rad/s)", why, np.round(self._hold.point, 2), self._hold.freq)
         self._successes = 0
         self._consecutive_failures = 0
 
@@ -119,8 +119,11 @@ class RelayController:
         """Brake law input; the NMPC is tried from a fresh plan and resumes after enough successes."""
         self.nmpc.initialized = False
         info = self.nmpc.step(x, u_prev, P, shift)
-        resting = self.envelope is None or (self.envelope.at_rest(x) and self.safety_handovers < self.envelope.max_handovers)
-        may_resume = not self.last_violations and (self.safety_handovers == 0 or resting)
+        slow = self.envelope is None or self.envelope.at_rest(x)
+        resting = slow and (self.envelope is None or self.safety_handovers < self.envelope.max_handovers)
+        # resume only once the brake law has slowed the relay: a hand-over back and forth at speed
+        # (a QP that fails again right after) ends each episode nearer a wall
+        may_resume = not self.last_violations and (slow if self.safety_handovers == 0 else resting)
         self._successes = self._successes + 1 if info.ok and may_resume else 0
         if self._successes >= self.successes_to_resume:
             self.fallback_active = False
