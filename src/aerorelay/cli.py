@@ -200,7 +200,7 @@ def bound(
     t = Table(title=f"capacity bounds: {sc.name}")
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
-    for name in ("static", "path_mean", "path_maxmin"):
+    for name in ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin"):
         s = summary[name]
         t.add_row(name, f"{s['mean']:.3e}", f"{s['min']:.3e}", f"{s['outage_fraction']:.1%}")
     console.print(t)
@@ -217,7 +217,8 @@ KEY_METRICS = (
     "min_altitude_m", "box_violation_max_m", "safety_violations",
     "taylor_rel_err_max", "wall_s", "sim_s",
     "capacity_efficiency_mean", "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min",
-    "bound.path_mean.outage_fraction", "bound.static.mean",
+    "bound.path_mean.outage_fraction", "bound.static.mean", "capacity_efficiency_mean_flyable",
+    "capacity_efficiency_min_flyable", "bound.flyable_mean.mean", "bound.flyable_maxmin.min",
 )
 
 

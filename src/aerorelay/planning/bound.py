@@ -15,7 +15,11 @@ the true channel of the radio scene (``models.radio``; fading ignored), on a tim
   one with the best mean). Per step the path may move to any cell
   whose centre lies within ``max_speed * dt + grid / 2`` (the half cell absorbs the grid's
   quantization); the attitude at each instant is the best holdable one (attitude changes are
-  taken as free).
+  taken as free). The grid allowance lets such a path fly faster than ``max_speed``, so beside
+  each path bound a **flyable path** (``planning/feasible_path.py``): the grid path refined by
+  IPOPT into one at exactly ``<= max_speed`` (Euclidean) from the relay's own start, continuous
+  positions and holdable axes: a path a relay could fly, so a lower estimate of the best one.
+  The best path at ``max_speed`` lies between the flyable path and the path bound.
 
 ``compute_bound(problem)`` returns a ``CapacityBound`` for a ``BoundProblem`` (the parts the
 composition root builds from a scenario); ``cached_bound`` keeps it on disk under a key of
@@ -46,9 +50,10 @@ from ..models.propagation import LargeScaleRealization
 from ..models.radio import NodePose, RadioScene
 from ..models.vehicle import Multirotor
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
+from .feasible_path import best_feasible_path, speed_limited
 
 log = logging.getLogger(__name__)
-BOUND_VERSION = "4"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "5"  # bump when the computation changes: cached bounds are recomputed
 
 
 @dataclass(frozen=True)
@@ -81,6 +86,10 @@ class CapacityBound:
     path_mean_position: np.ndarray
     path_maxmin: np.ndarray
     path_maxmin_position: np.ndarray
+    flyable_mean: np.ndarray
+    flyable_mean_position: np.ndarray
+    flyable_maxmin: np.ndarray
+    flyable_maxmin_position: np.ndarray
     resolution: dict = field(default_factory=dict)
     outage_threshold: float = 1e-3
     assumptions: str = ""
@@ -91,17 +100,21 @@ class CapacityBound:
             return {"mean": float(c.mean()), "min": float(c.min()), "outage_fraction": float(np.mean(c < self.outage_threshold))}
 
         return {"static": stats(self.static), "path_mean": stats(self.path_mean), "path_maxmin": stats(self.path_maxmin),
+                "flyable_mean": stats(self.flyable_mean), "flyable_maxmin": stats(self.flyable_maxmin),
                 "resolution": self.resolution, "assumptions": self.assumptions}
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: getattr(self, k) for k in ("t", "static", "static_position", "static_axis", "path_mean",
-                                              "path_mean_position", "path_maxmin", "path_maxmin_position")}
+                                              "path_mean_position", "path_maxmin", "path_maxmin_position", "flyable_mean",
+                                              "flyable_mean_position", "flyable_maxmin", "flyable_maxmin_position")}
 
     def frame(self) -> pd.DataFrame:
         """Time series as a DataFrame (one row per time of the bound's grid)."""
         cols: dict[str, np.ndarray] = {"t": self.t, "static": self.static, "path_mean": self.path_mean,
-                                       "path_maxmin": self.path_maxmin}
-        for name in ("static_position", "static_axis", "path_mean_position", "path_maxmin_position"):
+                                       "path_maxmin": self.path_maxmin, "flyable_mean": self.flyable_mean,
+                                       "flyable_maxmin": self.flyable_maxmin}
+        for name in ("static_position", "static_axis", "path_mean_position", "path_maxmin_position",
+                     "flyable_mean_position", "flyable_maxmin_position"):
             for i, ax in enumerate("xyz"):
                 cols[f"{name}_{ax}"] = getattr(self, name)[:, i]
         return pd.DataFrame(cols)
@@ -255,12 +268,33 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
             idx = _dp(np.where(values >= floor, values, -np.inf), start, fp, "mean")
         flat = np.array([np.ravel_multi_index(ix, shape) for ix in idx])
         paths[kind] = (best[np.arange(len(times)), flat], cells[flat])
+    flyable, statuses = {}, {}
+    for kind in ("mean", "maxmin"):
+        flyable[kind], statuses[kind] = _flyable(scene, times, paths[kind][1], pb, max_tilt, kind)
     resolution = {"grid_m": b.grid_m, "dt_s": b.dt_s, "axis_step_deg": b.axis_step_deg, "max_speed_m_s": b.max_speed_m_s,
                   "hover_tilt_limit_deg": float(np.degrees(max_tilt)), "axes": int(len(axes)), "cells": int(cells.shape[0]),
                   "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m),
-                  "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s)}
+                  "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s), "flyable_status": statuses}
     return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
-                         paths["maxmin"][1], resolution, pb.outage_threshold, f"{pb.scene.describe()}; {ASSUMPTIONS}")
+                         paths["maxmin"][1], *flyable["mean"], *flyable["maxmin"], resolution, pb.outage_threshold,
+                         f"{pb.scene.describe()}; {ASSUMPTIONS}")
+
+
+def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray, pb: BoundProblem, max_tilt: float,
+             kind: str) -> tuple[tuple[np.ndarray, np.ndarray], str]:
+    """The flyable path near a grid path: ``((capacity, position), status)``. With a large-scale
+    realization (a shadowing field is not symbolic) the grid path pulled back to the speed limit,
+    its best axis per sample, unrefined: still flyable, a weaker lower estimate."""
+    lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
+    v = pb.resolution.max_speed_m_s
+    if scene.realization is None:
+        fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind)
+        return (fp.capacity, fp.position), fp.status
+    dt = float(times[1] - times[0]) if len(times) > 1 else 1.0
+    pos = np.clip(speed_limited(grid_path, np.clip(pb.relay_start, lo, hi), v * dt), lo, hi)
+    axes = axis_cone(max_tilt, np.radians(pb.resolution.axis_step_deg))
+    cap = np.array([scene.capacity(float(t), pos[k][None], axes)[0].max() for k, t in enumerate(times)])
+    return (cap, pos), "not refined (large-scale realization)"
 
 
 def cached_bound(pb: BoundProblem, key: str, progress=None) -> CapacityBound:

@@ -75,6 +75,8 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
         ax.semilogy(bound["t"], bound["static"], color="0.6", lw=1, ls="--", label="static bound (best pose per instant)")
         ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound (best minimum)")
         ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound (best mean, <= v_max)")
+        if "flyable_mean" in bound:
+            ax.semilogy(bound["t"], bound["flyable_mean"], color="C4", lw=1.0, ls=":", label="flyable path (best mean found, exactly <= v_max)")
     ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
     ax.axhline(sc.channel.outage_threshold, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
@@ -158,11 +160,12 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
 
 
 def fig_bound(bound: pd.DataFrame, sc: Scenario):
-    """The three capacity bounds of a scenario over time (``aerorelay bound``)."""
+    """The capacity bounds of a scenario over time and the flyable path (``aerorelay bound``)."""
     fig, ax = plt.subplots(figsize=(7, 3.4))
     ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static bound (best pose per instant)")
     ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound, best minimum")
     ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound, best mean")
+    ax.semilogy(bound["t"], bound["flyable_mean"], color="C4", lw=1.0, ls=":", label="flyable path, best mean found (exactly <= v_max)")
     ax.axhline(sc.channel.outage_threshold, color="r", ls=":", lw=1, label="outage threshold")
     ax.set_xlabel("t (s)")
     ax.set_ylabel(f"C ({sc.channel.capacity_unit})")

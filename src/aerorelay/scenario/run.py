@@ -83,6 +83,9 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
     if bound is not None:  # how far from what the physics allows (planning/bound.py)
         m["capacity_efficiency_mean"] = m["c_mean"] / float(bound.path_mean.mean())
         m["capacity_efficiency_min"] = m["c_min"] / float(bound.path_maxmin.min())
+        # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
+        m["capacity_efficiency_mean_flyable"] = m["c_mean"] / float(bound.flyable_mean.mean())
+        m["capacity_efficiency_min_flyable"] = m["c_min"] / float(bound.flyable_maxmin.min())
         m["bound"] = bound.summary()
     return m
 

@@ -1,0 +1,151 @@
+"""The best relay path at exactly the speed limit: a continuous refinement of the grid bound's path.
+
+The grid bound (``planning/bound.py``) lets each step reach any cell within ``max_speed * dt +
+grid / 2``: its path may fly faster than ``max_speed`` (a diagonal step at 1 m/s on a 0.5 m /
+0.5 s grid is 1.41 m/s) and so overstates what a relay at ``max_speed`` can reach. Here the path
+is a flyable one: positions ``p_k`` (m, world) at the bound's times, from the relay's own start,
+with ``|p_(k+1) - p_k| <= max_speed * dt`` (Euclidean), inside the workspace box, each with an
+antenna axis the platform can hold in hover (tilt <= ``hover_tilt_limit``, any azimuth: yaw free;
+vertical only for a coplanar platform). The true capacity of the radio scene (eq. 5-9, on CasADi
+symbols) at each sample is maximized by IPOPT from the grid path pulled back to the speed limit:
+its mean (``kind="mean"``) or, through an epigraph variable, its minimum (``"maxmin"``). The
+result is a path a relay at ``max_speed`` could fly (attitude changes free, capacity evaluated at
+the samples), so its value is a *lower* estimate of the best path at that speed, where the grid
+bound is an upper one: the best path lies between the two.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..models.radio import NodePose
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FeasiblePath:
+    """Capacities ``(T,)`` (normalized, B = 1), positions ``(T, 3)`` (m, world), antenna axes
+    ``(T, 3)`` (unit, world) and IPOPT's return status."""
+
+    capacity: np.ndarray
+    position: np.ndarray
+    axis: np.ndarray
+    status: str
+
+
+def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float) -> np.ndarray:
+    """``path (T, 3)`` chased from ``start`` moving at most ``step_m`` per sample (a flyable first guess)."""
+    out = np.empty_like(np.asarray(path, float))
+    p = np.asarray(start, float).copy()
+    for k, target in enumerate(path):
+        if k > 0:
+            d = target - p
+            n = float(np.linalg.norm(d))
+            p = p + (d if n <= step_m else d * (step_m / n))
+        out[k] = p
+    return out
+
+
+def _axis_of(tilt, az):
+    return ca.vertcat(ca.sin(tilt) * ca.cos(az), ca.sin(tilt) * ca.sin(az), ca.cos(tilt))
+
+
+def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: np.ndarray, lo, hi,
+                       max_speed: float, max_tilt: float, kind: str = "mean", max_iter: int = 300) -> FeasiblePath:
+    """The best flyable relay path (see the module docstring) near ``guess (T, 3)`` (the grid path).
+
+    ``landscape``: a ``CapacityLandscape`` (its scene, source trajectory and jammers); ``times``
+    (s) evenly spaced; ``start`` the relay's start (m); ``lo``/``hi`` the workspace box (m);
+    ``max_speed`` m/s; ``max_tilt`` rad (0: a coplanar platform, axis vertical)."""
+    if kind not in ("mean", "maxmin"):
+        raise ValueError(f"kind must be 'mean' or 'maxmin', got {kind!r}")
+    T = len(times)
+    if guess.shape != (T, 3):
+        raise ValueError(f"guess: expected ({T}, 3) positions, got {guess.shape}")
+    dt = float(times[1] - times[0]) if T > 1 else 1.0
+    step = max_speed * dt
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    start = np.clip(np.asarray(start, float), lo, hi)
+    p0 = np.clip(speed_limited(guess, start, step), lo, hi)
+    tilted = max_tilt > 0.0
+    na = 2 if tilted else 0
+    P = ca.SX.sym("p", 3, T)
+    A = ca.SX.sym("a", na, T) if tilted else None
+    scene = landscape.scene
+    caps = []
+    for k, t in enumerate(times):
+        axis = _axis_of(A[0, k], A[1, k]) if A is not None else ca.DM([0.0, 0.0, 1.0])
+        poses = {landscape.relay_name: NodePose(P[:, k], axis), landscape.source_name: landscape.source_pose(float(t))}
+        caps.append(scene.evaluate(float(t), poses, jammer_powers=landscape.silent).capacity)
+    C = ca.vertcat(*caps)
+    f_cap = ca.Function("caps", [P] + ([A] if A is not None else []), [C])
+    a_guess = _best_axes(landscape, times, p0, max_tilt) if tilted else None
+    c_guess = np.asarray(f_cap(p0.T, *([a_guess.T] if a_guess is not None else []))).ravel()
+    scale = 1.0 / max(float(np.mean(c_guess)), 1e-12)
+    # decision vector: positions, axis angles, (maxmin) the floor s
+    x = [ca.vec(P)] + ([ca.vec(A)] if A is not None else [])
+    s = ca.SX.sym("s") if kind == "maxmin" else None
+    if s is not None:
+        x.append(s)
+    moves = ca.vertcat(*[ca.sumsqr(P[:, k + 1] - P[:, k]) for k in range(T - 1)])
+    g = [moves / step**2]
+    lbg, ubg = [np.full(T - 1, -np.inf)], [np.ones(T - 1)]
+    if s is not None:
+        g.append(C * scale - s)
+        lbg.append(np.zeros(T))
+        ubg.append(np.full(T, np.inf))
+        objective = -s
+    else:
+        objective = -ca.sum1(C) * scale / T
+    lbx_p, ubx_p = np.tile(lo, T), np.tile(hi, T)
+    lbx_p[:3], ubx_p[:3] = start, start  # the relay's own start
+    lbx = [lbx_p] + ([np.tile([0.0, -np.inf], T)] if tilted else [])
+    ubx = [ubx_p] + ([np.tile([max_tilt, np.inf], T)] if tilted else [])
+    x0 = [p0.ravel()] + ([a_guess.ravel()] if a_guess is not None else [])
+    if s is not None:
+        lbx.append(np.array([-np.inf]))
+        ubx.append(np.array([np.inf]))
+        x0.append(np.array([float(np.min(c_guess)) * scale]))
+    nlp = {"x": ca.vertcat(*x), "f": objective, "g": ca.vertcat(*g)}
+    solver = ca.nlpsol("feasible_path", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
+                                                        "ipopt.max_iter": max_iter, "ipopt.tol": 1e-8})
+    sol = solver(x0=np.concatenate([np.ravel(v) for v in x0]), lbx=np.concatenate([np.ravel(v) for v in lbx]),
+                 ubx=np.concatenate([np.ravel(v) for v in ubx]), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+    status = str(solver.stats()["return_status"])
+    xs = np.asarray(sol["x"]).ravel()
+    pos = xs[:3 * T].reshape(T, 3)
+    ang = xs[3 * T:3 * T + 2 * T].reshape(T, 2) if tilted else None
+    pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status)
+    cap = np.asarray(f_cap(pos.T, *([ang.T] if ang is not None else []))).ravel()
+    axes = (np.column_stack([np.sin(ang[:, 0]) * np.cos(ang[:, 1]), np.sin(ang[:, 0]) * np.sin(ang[:, 1]), np.cos(ang[:, 0])])
+            if ang is not None else np.tile([0.0, 0.0, 1.0], (T, 1)))
+    return FeasiblePath(cap, pos, axes, status)
+
+
+def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status):
+    """IPOPT's path if it is flyable (speed, box, tilt within 1e-6 relative), else the first guess
+    (always flyable): a failed solve never reports a path the relay could not fly."""
+    ok = (np.all(np.isfinite(pos)) and np.all(pos >= lo - 1e-6) and np.all(pos <= hi + 1e-6)
+          and np.all(np.linalg.norm(np.diff(pos, axis=0), axis=1) <= step * (1 + 1e-6))
+          and (ang is None or (np.all(np.isfinite(ang)) and np.all(ang[:, 0] <= max_tilt + 1e-9) and np.all(ang[:, 0] >= -1e-9))))
+    if ok:
+        return np.clip(pos, lo, hi), ang
+    log.warning("feasible path: IPOPT returned %s with a path outside the limits; the speed-limited grid path is reported", status)
+    return p0, a0
+
+
+def _best_axes(landscape, times, positions, max_tilt: float, n_tilt: int = 6, n_az: int = 24) -> np.ndarray:
+    """(tilt, azimuth) of the best holdable axis of a coarse cone at each sample position."""
+    grid = np.meshgrid(np.linspace(0.0, max_tilt, n_tilt), np.linspace(0.0, 2 * np.pi, n_az, endpoint=False), indexing="ij")
+    tilt, az = grid[0].ravel(), grid[1].ravel()
+    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    out = np.empty((len(times), 2))
+    for k, t in enumerate(times):
+        j = int(np.argmax(landscape.capacity(float(t), positions[k][None], axes)[0]))
+        out[k] = tilt[j], az[j]
+    return out
