@@ -21,13 +21,24 @@ def axis_cone(max_tilt: float, step: float) -> np.ndarray:
     return np.array(axes)
 
 
-def axis_set(azimuths: np.ndarray, limits: np.ndarray, step: float) -> np.ndarray:
+def axis_set(azimuths: np.ndarray, limits: np.ndarray, step: float, boundary: bool = False) -> np.ndarray:
     """Unit axes with tilt <= ``limits`` (rad) toward each of ``azimuths`` (rad, increasing over a
-    full turn), on tilt rings every ``step`` rad with azimuths about ``step`` apart. Vertical first."""
+    full turn), on tilt rings every ``step`` rad with azimuths about ``step`` apart. Vertical first.
+    ``boundary``: also the axes at the limit itself (azimuths about ``step`` apart along it, where
+    it lies beyond the last ring by more than a tenth of ``step``): the strongest holdable tilt
+    toward every azimuth, which the rings miss by up to ``step``."""
     axes = [np.array([0.0, 0.0, 1.0])]
-    for tilt in np.arange(step, max(float(np.max(limits)), 0.0) + 1e-9, step):
+    top = max(float(np.max(limits)), 0.0)
+    for tilt in np.arange(step, top + 1e-9, step):
         n = max(6, int(np.ceil(2 * np.pi * np.sin(tilt) / step)))
         az = 2 * np.pi * np.arange(n) / n
         ok = tilt <= np.interp(az, azimuths, limits, period=2 * np.pi) + 1e-9
         axes.extend(np.column_stack([np.sin(tilt) * np.cos(az[ok]), np.sin(tilt) * np.sin(az[ok]), np.full(ok.sum(), np.cos(tilt))]))
+    if boundary and top > 0.0:
+        n = max(6, int(np.ceil(2 * np.pi * np.sin(top) / step)))
+        az = 2 * np.pi * np.arange(n) / n
+        lim = np.interp(az, azimuths, limits, period=2 * np.pi)
+        ok = (lim > 0.0) & (lim - np.floor(lim / step + 1e-9) * step > 0.1 * step)
+        tilt = lim[ok]
+        axes.extend(np.column_stack([np.sin(tilt) * np.cos(az[ok]), np.sin(tilt) * np.sin(az[ok]), np.cos(tilt)]))
     return np.array(axes)

@@ -53,14 +53,14 @@ class CapacityPlanner:
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
                  route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
                  excursion_m: float = 0.0, excursion_std_m: float = 1.0, yaw_rate_deg_s: float = 0.0,
-                 tilt_fraction: float = 0.9):
+                 tilt_fraction: float = 0.85, boundary_axes: bool = True):
         veh = ctx.vehicle
         # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
         # a margin of control authority) are axes it can actually fly
         az = np.radians(np.arange(0.0, 360.0, 10.0))
         limits = tilt_fraction * veh.hover_tilt_limits(az)
         self.tilt_limit = float(limits.max())
-        self.axes = axis_set(az, limits, np.radians(axis_step_deg))
+        self.axes = axis_set(az, limits, np.radians(axis_step_deg), boundary=boundary_axes)
         self.lo, self.hi = np.asarray(ctx.workspace_min, float) + margin_m, np.asarray(ctx.workspace_max, float) - margin_m
         self.offsets = step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
         self.speed = ctx.settings.capacity.speed_m_s

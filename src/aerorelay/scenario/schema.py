@@ -394,9 +394,12 @@ class CapacityPlannerConfig(_Strict):
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
     axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the antenna axes the planner scores "
                                  "(tilt rings and azimuths), deg")
-    tilt_fraction: float = Field(0.9, gt=0.0, le=1.0, description="the antenna axes the planner may ask for tilt at most "
+    tilt_fraction: float = Field(0.85, gt=0.0, le=1.0, description="the antenna axes the planner may ask for tilt at most "
                                  "this fraction of the platform's hover tilt limit toward their azimuth (1: up to the limit, "
                                  "where a motor saturates; the bound allows the full limit)")
+    boundary_axes: bool = Field(True, description="besides the tilt rings every axis_step_deg, the axes at the tilt limit "
+                                "(times tilt_fraction) toward each azimuth: the strongest holdable tilts, which the rings miss "
+                                "by up to axis_step_deg")
     yaw_rate_deg_s: float = Field(0.0, ge=0.0, le=90.0, description="the platform may yaw (its reference at most this "
                                   "fast, deg/s, in 10 deg steps within +-60 deg) to bring its strongest tilt azimuth under "
                                   "the antenna axis it wants (0: zero yaw)")
