@@ -45,6 +45,7 @@ class PlannerInput:
     jammer_powers: np.ndarray
     jammer_std_m: np.ndarray | None = None
     psi1: float = 0.0  # the relay's measured yaw, rad
+    v1: np.ndarray | None = None  # the relay's measured velocity, m/s (None: not given)
 
 
 @dataclass(frozen=True)

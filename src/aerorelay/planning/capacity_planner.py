@@ -53,7 +53,7 @@ class CapacityPlanner:
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
                  route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
                  excursion_m: float = 0.0, excursion_std_m: float = 1.0, yaw_rate_deg_s: float = 0.0,
-                 tilt_fraction: float = 0.85, boundary_axes: bool = True):
+                 tilt_fraction: float = 0.85, boundary_axes: bool = True, tracking_freq: float = 1.0):
         veh = ctx.vehicle
         # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
         # a margin of control authority) are axes it can actually fly
@@ -85,6 +85,7 @@ class CapacityPlanner:
         self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
         self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
         self.excursion, self.excursion_std = excursion_m, excursion_std_m
+        self.tracking_freq = tracking_freq
         self._k = 0
 
     def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -201,5 +202,19 @@ class CapacityPlanner:
         # a coplanar relay tilts only by accelerating (rho_d from a_ref); a tilted one holds the
         # antenna axis relative to the thrust its acceleration needs
         axis = align_with_thrust(axis_now, self.a_ref, self.gravity) if self.tilt_limit > 0 else None
-        return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=self.a_ref.copy(), axis=axis,
-                         yaw=yaw)
+        a_ref = self.a_ref.copy() if axis is not None else self._with_tracking(inp, self.a_ref)
+        return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=a_ref, axis=axis, yaw=yaw)
+
+    def _with_tracking(self, inp: PlannerInput, a_ref: np.ndarray) -> np.ndarray:
+        """A level-only platform moves only by tilting, and its thrust-direction reference comes
+        from ``a_ref``: a reference at rest asks it to stay level, and the NMPC's thrust-direction
+        weight then holds the relay off a reference it has drifted from (0.66 m for 7 s at the
+        coplanar corner). The tracking acceleration a PD law would ask (critically damped,
+        ``tracking_freq`` rad/s) is added, bounded like the reference's own."""
+        if inp.v1 is None:
+            return a_ref.copy()
+        assert self.p_ref is not None
+        w = self.tracking_freq
+        a = a_ref + w**2 * (self.p_ref - np.asarray(inp.p1, float)) + 2.0 * w * (self.v_ref - np.asarray(inp.v1, float))
+        n = float(np.linalg.norm(a))
+        return a * (self.max_accel / n) if n > self.max_accel else a

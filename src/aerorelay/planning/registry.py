@@ -63,4 +63,4 @@ def _capacity_seeking(ctx: PlannerContext):
                            route_grid_m=cfg.route_grid_m, lookahead_s=cfg.lookahead, axis_rate_deg_s=cfg.axis_rate_deg_s,
                            excursion_m=cfg.excursion_m, excursion_std_m=cfg.excursion_std_m, yaw_rate_deg_s=cfg.yaw_rate_deg_s,
                            tilt_fraction=cfg.tilt_fraction, axis_step_deg=cfg.axis_step_deg,
-                           boundary_axes=cfg.boundary_axes)
+                           boundary_axes=cfg.boundary_axes, tracking_freq=cfg.tracking_freq_rad_s)

@@ -397,6 +397,9 @@ class CapacityPlannerConfig(_Strict):
     tilt_fraction: float = Field(0.85, gt=0.0, le=1.0, description="the antenna axes the planner may ask for tilt at most "
                                  "this fraction of the platform's hover tilt limit toward their azimuth (1: up to the limit, "
                                  "where a motor saturates; the bound allows the full limit)")
+    tracking_freq_rad_s: float = Field(1.0, gt=0.0, le=5.0, description="a level-only platform's thrust-direction reference "
+                                       "adds the acceleration a critically damped PD law of this frequency asks to close its "
+                                       "tracking error (1.5: the same link, a motor at a bound 5x as often)")
     boundary_axes: bool = Field(True, description="besides the tilt rings every axis_step_deg, the axes at the tilt limit "
                                 "(times tilt_fraction) toward each azimuth: the strongest holdable tilts, which the rings miss "
                                 "by up to axis_step_deg")

@@ -205,7 +205,7 @@ class ClosedLoop:
                 pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
             t_plan = time.perf_counter()
             ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers,
-                                                   pj_std, float(x[5])))
+                                                   pj_std, float(x[5]), x[6:9].copy()))
             planner_ms = (time.perf_counter() - t_plan) * 1e3
             P = self.controller.parameters(ref, p2_meas, src.v, src.a)
             if k % 500 == 250:  # samples for benchmarking a full solve at the same points
