@@ -112,7 +112,7 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
         ubx.append(np.array([np.inf]))
         x0.append(np.array([float(np.min(c_guess)) * scale]))
     nlp = {"x": ca.vertcat(*x), "f": objective, "g": ca.vertcat(*g)}
-    solver = ca.nlpsol("feasible_path", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
+    solver = ca.nlpsol("feasible_path", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
                                                         "ipopt.max_iter": max_iter, "ipopt.tol": 1e-8})
     sol = solver(x0=np.concatenate([np.ravel(v) for v in x0]), lbx=np.concatenate([np.ravel(v) for v in lbx]),
                  ubx=np.concatenate([np.ravel(v) for v in ubx]), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
