@@ -31,23 +31,36 @@ def test_flyable_path_is_flyable_and_its_capacity_is_the_scenes(problem, kind):
     pb, b, land = problem
     v, limit = SHORT.bound.max_speed_m_s, pb.vehicle.hover_tilt_limit
     grid_path = b.path_mean_position if kind == "mean" else b.path_maxmin_position
-    fp = best_feasible_path(land, b.t, grid_path, pb.relay_start, pb.workspace_min, pb.workspace_max, v, limit, kind)
+    fp = best_feasible_path(land, b.t, grid_path, pb.relay_start, pb.workspace_min, pb.workspace_max, v, limit, kind,
+                            max_accel=SHORT.bound.max_accel_m_s2)
     assert fp.status == "Solve_Succeeded"
     dt = b.t[1] - b.t[0]
     np.testing.assert_allclose(fp.position[0], pb.relay_start)  # its own start, not the nearest cell
-    assert np.linalg.norm(np.diff(fp.position, axis=0), axis=1).max() <= v * dt * (1 + 1e-6)  # Euclidean, no allowance
+    moves = np.diff(np.vstack([fp.position[:1], fp.position]), axis=0)  # from rest
+    assert np.linalg.norm(moves, axis=1).max() <= v * dt * (1 + 1e-6)  # Euclidean, no allowance
+    a = SHORT.bound.max_accel_m_s2
+    assert np.linalg.norm(np.diff(moves, axis=0), axis=1).max() <= a * dt**2 * (1 + 1e-6)  # and accelerating at <= a
     assert np.all(fp.position >= pb.workspace_min) and np.all(fp.position <= pb.workspace_max)
     assert np.degrees(np.arccos(fp.axis[:, 2])).max() <= np.degrees(limit) + 1e-6
     again = np.array([land.capacity(t, fp.position[k][None], fp.axis[k][None])[0, 0] for k, t in enumerate(b.t)])
     np.testing.assert_allclose(fp.capacity, again, rtol=2e-3)  # the symbolic dipole's regularization
     # at least as good as its first guess (the grid path pulled back to the speed limit, best axis of a fine cone)
-    guess = speed_limited(grid_path, pb.relay_start, v * dt)
+    guess = speed_limited(grid_path, pb.relay_start, v * dt, SHORT.bound.max_accel_m_s2 * dt**2)
     axes = axis_cone(limit, np.radians(2.0))
     g = np.array([land.capacity(t, guess[k][None], axes)[0].max() for k, t in enumerate(b.t)])
     if kind == "mean":
         assert fp.capacity.mean() >= g.mean() * (1 - 2e-3)
     else:
         assert fp.capacity.min() >= g.min() * (1 - 2e-3)
+
+
+def test_speed_and_acceleration_limited_chase_changes_its_move_by_at_most_dv():
+    path = np.array([[0.0, 0, 0], [3.0, 0, 0], [3.0, 4.0, 0], [3.0, 4.0, 0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    out = speed_limited(path, np.zeros(3), 1.0, 0.4)
+    moves = np.diff(np.vstack([out[:1], out]), axis=0)
+    assert np.linalg.norm(moves, axis=1).max() <= 1.0 + 1e-12
+    assert np.linalg.norm(np.diff(moves, axis=0), axis=1).max() <= 0.4 + 1e-12
+    np.testing.assert_allclose(out[1], [0.4, 0.0, 0.0])  # from rest: one change of dv
 
 
 def test_the_bound_carries_the_flyable_paths_below_its_grid_paths(problem):

@@ -17,7 +17,8 @@ the true channel of the radio scene (``models.radio``; fading ignored), on a tim
   quantization); the attitude at each instant is the best holdable one (attitude changes are
   taken as free). The grid allowance lets such a path fly faster than ``max_speed``, so beside
   each path bound a **flyable path** (``planning/feasible_path.py``): the grid path refined by
-  IPOPT into one at exactly ``<= max_speed`` (Euclidean) from the relay's own start, continuous
+  IPOPT into one at exactly ``<= max_speed`` (Euclidean; accelerating at ``<= max_accel_m_s2``
+  from rest) from the relay's own start, continuous
   positions and holdable axes: a path a relay could fly, so a lower estimate of the best one.
   The best path at ``max_speed`` lies between the flyable path and the path bound.
 
@@ -53,7 +54,7 @@ from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checke
 from .feasible_path import best_feasible_path, speed_limited
 
 log = logging.getLogger(__name__)
-BOUND_VERSION = "5"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "6"  # bump when the computation changes: cached bounds are recomputed
 
 
 @dataclass(frozen=True)
@@ -274,7 +275,8 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
     resolution = {"grid_m": b.grid_m, "dt_s": b.dt_s, "axis_step_deg": b.axis_step_deg, "max_speed_m_s": b.max_speed_m_s,
                   "hover_tilt_limit_deg": float(np.degrees(max_tilt)), "axes": int(len(axes)), "cells": int(cells.shape[0]),
                   "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m),
-                  "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s), "flyable_status": statuses}
+                  "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s), "flyable_status": statuses,
+                  "flyable_max_accel_m_s2": getattr(b, "max_accel_m_s2", None)}
     return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
                          paths["maxmin"][1], *flyable["mean"], *flyable["maxmin"], resolution, pb.outage_threshold,
                          f"{pb.scene.describe()}; {ASSUMPTIONS}")
@@ -288,10 +290,12 @@ def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray,
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
     v = pb.resolution.max_speed_m_s
     if scene.realization is None:
-        fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind)
+        fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind,
+                                max_accel=getattr(pb.resolution, "max_accel_m_s2", None))
         return (fp.capacity, fp.position), fp.status
     dt = float(times[1] - times[0]) if len(times) > 1 else 1.0
-    pos = np.clip(speed_limited(grid_path, np.clip(pb.relay_start, lo, hi), v * dt), lo, hi)
+    accel = getattr(pb.resolution, "max_accel_m_s2", None)
+    pos = np.clip(speed_limited(grid_path, np.clip(pb.relay_start, lo, hi), v * dt, None if accel is None else accel * dt**2), lo, hi)
     axes = axis_cone(max_tilt, np.radians(pb.resolution.axis_step_deg))
     cap = np.array([scene.capacity(float(t), pos[k][None], axes)[0].max() for k, t in enumerate(times)])
     return (cap, pos), "not refined (large-scale realization)"

@@ -4,7 +4,8 @@ The grid bound (``planning/bound.py``) lets each step reach any cell within ``ma
 grid / 2``: its path may fly faster than ``max_speed`` (a diagonal step at 1 m/s on a 0.5 m /
 0.5 s grid is 1.41 m/s) and so overstates what a relay at ``max_speed`` can reach. Here the path
 is a flyable one: positions ``p_k`` (m, world) at the bound's times, from the relay's own start,
-with ``|p_(k+1) - p_k| <= max_speed * dt`` (Euclidean), inside the workspace box, each with an
+with ``|p_(k+1) - p_k| <= max_speed * dt`` (Euclidean) and, with ``max_accel``, second
+differences ``<= max_accel * dt^2`` from rest, inside the workspace box, each with an
 antenna axis the platform can hold in hover (tilt <= ``hover_tilt_limit``, any azimuth: yaw free;
 vertical only for a coplanar platform). The true capacity of the radio scene (eq. 5-9, on CasADi
 symbols) at each sample is maximized by IPOPT from the grid path pulled back to the speed limit:
@@ -38,15 +39,22 @@ class FeasiblePath:
     status: str
 
 
-def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float) -> np.ndarray:
-    """``path (T, 3)`` chased from ``start`` moving at most ``step_m`` per sample (a flyable first guess)."""
+def _clip_norm(v: np.ndarray, most: float) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v if n <= most else v * (most / n)
+
+
+def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: float | None = None) -> np.ndarray:
+    """``path (T, 3)`` chased from ``start`` (at rest) moving at most ``step_m`` per sample and,
+    with ``dv_m``, changing the move by at most ``dv_m`` per sample (a flyable first guess)."""
     out = np.empty_like(np.asarray(path, float))
-    p = np.asarray(start, float).copy()
+    p, move = np.asarray(start, float).copy(), np.zeros(3)
     for k, target in enumerate(path):
         if k > 0:
-            d = target - p
-            n = float(np.linalg.norm(d))
-            p = p + (d if n <= step_m else d * (step_m / n))
+            want = _clip_norm(target - p, step_m)
+            # the ball |move| <= step_m is convex: projecting onto it never enlarges the change
+            move = want if dv_m is None else _clip_norm(move + _clip_norm(want - move, dv_m), step_m)
+            p = p + move
         out[k] = p
     return out
 
@@ -56,12 +64,14 @@ def _axis_of(tilt, az):
 
 
 def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: np.ndarray, lo, hi,
-                       max_speed: float, max_tilt: float, kind: str = "mean", max_iter: int = 300) -> FeasiblePath:
+                       max_speed: float, max_tilt: float, kind: str = "mean", max_iter: int = 300,
+                       max_accel: float | None = None) -> FeasiblePath:
     """The best flyable relay path (see the module docstring) near ``guess (T, 3)`` (the grid path).
 
     ``landscape``: a ``CapacityLandscape`` (its scene, source trajectory and jammers); ``times``
     (s) evenly spaced; ``start`` the relay's start (m); ``lo``/``hi`` the workspace box (m);
-    ``max_speed`` m/s; ``max_tilt`` rad (0: a coplanar platform, axis vertical)."""
+    ``max_speed`` m/s; ``max_tilt`` rad (0: a coplanar platform, axis vertical); ``max_accel``
+    m/s^2 (None: unbounded), on the second differences, from rest at the start."""
     if kind not in ("mean", "maxmin"):
         raise ValueError(f"kind must be 'mean' or 'maxmin', got {kind!r}")
     T = len(times)
@@ -71,7 +81,8 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     step = max_speed * dt
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     start = np.clip(np.asarray(start, float), lo, hi)
-    p0 = np.clip(speed_limited(guess, start, step), lo, hi)
+    dv = None if max_accel is None else max_accel * dt**2
+    p0 = np.clip(speed_limited(guess, start, step, dv), lo, hi)
     tilted = max_tilt > 0.0
     na = 2 if tilted else 0
     P = ca.SX.sym("p", 3, T)
@@ -95,6 +106,11 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     moves = ca.vertcat(*[ca.sumsqr(P[:, k + 1] - P[:, k]) for k in range(T - 1)])
     g = [moves / step**2]
     lbg, ubg = [np.full(T - 1, -np.inf)], [np.ones(T - 1)]
+    if dv is not None and T > 1:  # from rest: |p_1 - p_0| <= a dt^2, then |p_(k+1) - 2 p_k + p_(k-1)| <= a dt^2
+        changes = [P[:, 1] - P[:, 0]] + [P[:, k + 1] - 2 * P[:, k] + P[:, k - 1] for k in range(1, T - 1)]
+        g.append(ca.vertcat(*[ca.sumsqr(d) for d in changes]) / dv**2)
+        lbg.append(np.full(T - 1, -np.inf))
+        ubg.append(np.ones(T - 1))
     if s is not None:
         g.append(C * scale - s)
         lbg.append(np.zeros(T))
@@ -120,18 +136,20 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     xs = np.asarray(sol["x"]).ravel()
     pos = xs[:3 * T].reshape(T, 3)
     ang = xs[3 * T:3 * T + 2 * T].reshape(T, 2) if tilted else None
-    pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status)
+    pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status, dv)
     cap = np.asarray(f_cap(pos.T, *([ang.T] if ang is not None else []))).ravel()
     axes = (np.column_stack([np.sin(ang[:, 0]) * np.cos(ang[:, 1]), np.sin(ang[:, 0]) * np.sin(ang[:, 1]), np.cos(ang[:, 0])])
             if ang is not None else np.tile([0.0, 0.0, 1.0], (T, 1)))
     return FeasiblePath(cap, pos, axes, status)
 
 
-def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status):
-    """IPOPT's path if it is flyable (speed, box, tilt within 1e-6 relative), else the first guess
-    (always flyable): a failed solve never reports a path the relay could not fly."""
+def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status, dv=None):
+    """IPOPT's path if it is flyable (speed, acceleration, box, tilt within 1e-6 relative), else
+    the first guess (always flyable): a failed solve never reports a path the relay could not fly."""
+    moves = np.diff(np.vstack([pos[:1], pos]), axis=0)  # from rest
     ok = (np.all(np.isfinite(pos)) and np.all(pos >= lo - 1e-6) and np.all(pos <= hi + 1e-6)
-          and np.all(np.linalg.norm(np.diff(pos, axis=0), axis=1) <= step * (1 + 1e-6))
+          and np.all(np.linalg.norm(moves, axis=1) <= step * (1 + 1e-6))
+          and (dv is None or np.all(np.linalg.norm(np.diff(moves, axis=0), axis=1) <= dv * (1 + 1e-6)))
           and (ang is None or (np.all(np.isfinite(ang)) and np.all(ang[:, 0] <= max_tilt + 1e-9) and np.all(ang[:, 0] >= -1e-9))))
     if ok:
         return np.clip(pos, lo, hi), ang
