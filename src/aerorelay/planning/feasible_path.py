@@ -138,6 +138,9 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     ang = xs[3 * T:3 * T + 2 * T].reshape(T, 2) if tilted else None
     pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status, dv)
     cap = np.asarray(f_cap(pos.T, *([ang.T] if ang is not None else []))).ravel()
+    value = (lambda c: float(np.mean(c))) if kind == "mean" else (lambda c: float(np.min(c)))
+    if value(cap) < value(c_guess):  # a local solve may end below its start: never report worse
+        pos, ang, cap, status = p0, a_guess, c_guess, status + " (first guess kept: better)"
     axes = (np.column_stack([np.sin(ang[:, 0]) * np.cos(ang[:, 1]), np.sin(ang[:, 0]) * np.sin(ang[:, 1]), np.cos(ang[:, 0])])
             if ang is not None else np.tile([0.0, 0.0, 1.0], (T, 1)))
     return FeasiblePath(cap, pos, axes, status)
