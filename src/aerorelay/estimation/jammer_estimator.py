@@ -429,7 +429,11 @@ class JammerEstimator:
                 if k != j and self.started[k]:
                     taken |= np.linalg.norm(self.cells - self.theta[k, :3], axis=1) <= 2.0 * self.spacing
             if self.started[j] and post[far & ~taken].sum() < _RIVAL_MASS:
-                self._rival[j] = 1.0
+                # no rival mode: the reported covariance is the local one. (Weighing the little mass
+                # left at 1, as before, made the std jump 0.07 -> 12 m for single steps at 20 dB,
+                # whenever that mass dipped under the threshold below which it is not checked,
+                # while a larger, checked mass was weighted by its tiny likelihood ratio.)
+                self._rival[j] = 0.0
                 continue
             allowed = (far if self.started[j] else np.ones(len(self.cells), bool)) & ~taken
             if not allowed.any():
