@@ -32,8 +32,10 @@ from ..models.vehicle import Multirotor
 
 @dataclass(frozen=True)
 class BrakeGains:
-    """Gains of the brake law: position (1/s^2, 1/s), attitude natural frequency (rad/s) and
-    damping, acceleration limit (m/s^2), motor time constant (s)."""
+    """Gains of the brake law: the position PD's natural frequency from rest and its ceiling
+    (rad/s), attitude natural frequency (rad/s) and damping, acceleration limit (m/s^2), the same
+    for a steep hand-over, coasting time while the body turns (s), motor time constant (s) and the
+    allocation's weight of a moment row against a force row."""
 
     freq: float = 1.5  # position PD: kp = freq^2, kd = 2 freq (critically damped)
     attitude_freq: float = 8.0
@@ -109,9 +111,8 @@ class BrakeLaw:
             return np.zeros(veh.n_rotors)  # nothing to measure: hold the motor speeds
         p, eta, v, w, speeds = x[0:3], x[3:6], x[6:9], x[9:12], x[12:]
         R = rotation_zyx(eta)
-        upright = hold.upright
         a_cmd = -hold.freq**2 * (p - hold.point) - 2.0 * hold.freq * v
-        n, a_max = np.linalg.norm(a_cmd), self.g.max_accel if upright else self.g.recovery_max_accel
+        n, a_max = np.linalg.norm(a_cmd), self.g.max_accel if hold.upright else self.g.recovery_max_accel
         if n > a_max:
             a_cmd *= a_max / n
         f_d = veh.mass * (a_cmd + veh.gravity * E3)
@@ -130,7 +131,7 @@ class BrakeLaw:
             axis = axis / n_axis if n_axis > 1e-6 else R[:, 0]
             e_R = -np.arccos(np.clip(z @ b3, -1.0, 1.0)) * (R.T @ axis)
         J = np.asarray(veh.inertia, float)
-        kR, kw = self.gains[upright]
+        kR, kw = self.gains[hold.upright]
         M_d = -kR @ e_R - kw @ w + np.cross(w, J @ w)
         # prioritized allocation: far from the desired attitude (an inverted or steeply tilted
         # relay cannot push where f_d points) the moments come first and the collective thrust is

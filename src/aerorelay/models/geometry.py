@@ -109,3 +109,9 @@ def rotation_batch(eta: np.ndarray) -> np.ndarray:
     R[:, 1] = np.stack([sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf], axis=-1)
     R[:, 2] = np.stack([-st, ct * sf, ct * cf], axis=-1)
     return R
+
+
+def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    """``v`` scaled down to Euclidean norm ``limit`` where it is longer (numpy)."""
+    n = float(np.linalg.norm(v))
+    return v if n <= limit else v * (limit / n)

@@ -294,13 +294,11 @@ def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray,
     realization (a shadowing field is not symbolic) the grid path pulled back to the speed limit,
     its best axis per sample, unrefined: still flyable, a weaker lower estimate."""
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
-    v = pb.resolution.max_speed_m_s
+    v, accel = pb.resolution.max_speed_m_s, getattr(pb.resolution, "max_accel_m_s2", None)
     if scene.realization is None:
-        fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind,
-                                max_accel=getattr(pb.resolution, "max_accel_m_s2", None))
+        fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind, max_accel=accel)
         return (fp.capacity, fp.position), fp.status
     dt = float(times[1] - times[0]) if len(times) > 1 else 1.0
-    accel = getattr(pb.resolution, "max_accel_m_s2", None)
     pos = np.clip(speed_limited(grid_path, np.clip(pb.relay_start, lo, hi), v * dt, None if accel is None else accel * dt**2), lo, hi)
     axes = axis_cone(max_tilt, np.radians(pb.resolution.axis_step_deg))
     cap = np.array([scene.capacity(float(t), pos[k][None], axes)[0].max() for k, t in enumerate(times)])

@@ -37,7 +37,7 @@ import time
 import numpy as np
 
 from ..models.axes import axis_set
-from ..models.geometry import E3, align_with_thrust, thrust_direction_from_acceleration
+from ..models.geometry import E3, align_with_thrust, clip_norm, thrust_direction_from_acceleration
 from ..models.radio import NodePose
 from .base import PlannerContext, PlannerInput
 from .bound import CapacityLandscape, best_path, position_grid
@@ -215,6 +215,5 @@ class CapacityPlanner:
             return a_ref.copy()
         assert self.p_ref is not None
         w = self.tracking_freq
-        a = a_ref + w**2 * (self.p_ref - np.asarray(inp.p1, float)) + 2.0 * w * (self.v_ref - np.asarray(inp.v1, float))
-        n = float(np.linalg.norm(a))
-        return a * (self.max_accel / n) if n > self.max_accel else a
+        return clip_norm(a_ref + w**2 * (self.p_ref - np.asarray(inp.p1, float)) + 2.0 * w * (self.v_ref - np.asarray(inp.v1, float)),
+                         self.max_accel)

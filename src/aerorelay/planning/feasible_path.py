@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..models.geometry import clip_norm
 from ..models.radio import NodePose
 
 log = logging.getLogger(__name__)
@@ -39,11 +40,6 @@ class FeasiblePath:
     status: str
 
 
-def _clip_norm(v: np.ndarray, most: float) -> np.ndarray:
-    n = float(np.linalg.norm(v))
-    return v if n <= most else v * (most / n)
-
-
 def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: float | None = None) -> np.ndarray:
     """``path (T, 3)`` chased from ``start`` (at rest) moving at most ``step_m`` per sample and,
     with ``dv_m``, changing the move by at most ``dv_m`` per sample (a flyable first guess)."""
@@ -51,9 +47,9 @@ def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: floa
     p, move = np.asarray(start, float).copy(), np.zeros(3)
     for k, target in enumerate(path):
         if k > 0:
-            want = _clip_norm(target - p, step_m)
+            want = clip_norm(target - p, step_m)
             # the ball |move| <= step_m is convex: projecting onto it never enlarges the change
-            move = want if dv_m is None else _clip_norm(move + _clip_norm(want - move, dv_m), step_m)
+            move = want if dv_m is None else clip_norm(move + clip_norm(want - move, dv_m), step_m)
             p = p + move
         out[k] = p
     return out

@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..models.channel import inverse_capacity
+from ..models.geometry import clip_norm
 from ..store.codegen import BufferedCall
 
 log = logging.getLogger(__name__)
@@ -162,15 +163,10 @@ class TrajectoryGenerator:
         if n > max_step:
             step *= max_step / n
         self.p_ref = self.p_ref + step
-        v_ref = step / dt if n > max_step else _clip_norm(v_d, self.governor_speed)
-        a_ref = _clip_norm(a_d, self.max_ref_accel)
+        v_ref = step / dt if n > max_step else clip_norm(v_d, self.governor_speed)
+        a_ref = clip_norm(a_d, self.max_ref_accel)
         return Reference(p_opt=p_opt, p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=a_ref, taylor_rel_err=err, regularized=reg)
 
 
 class _NonFinite(ArithmeticError):
     """The surrogate's expansion is not finite at this geometry."""
-
-
-def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
-    n = np.linalg.norm(v)
-    return v if n <= limit else v * (limit / n)
