@@ -119,11 +119,13 @@ class RelayController:
         """Brake law input; the NMPC is tried from a fresh plan and resumes after enough successes."""
         self.nmpc.initialized = False
         info = self.nmpc.step(x, u_prev, P, shift)
-        slow = self.envelope is None or self.envelope.at_rest(x)
-        resting = slow and (self.envelope is None or self.safety_handovers < self.envelope.max_handovers)
-        # resume only once the brake law has slowed the relay: a hand-over back and forth at speed
-        # (a QP that fails again right after) ends each episode nearer a wall
-        may_resume = not self.last_violations and (slow if self.safety_handovers == 0 else resting)
+        # resume only once the brake law has slowed the relay (a hand-over back and forth at speed,
+        # a QP that fails again right after, ends each episode nearer a wall), and after a safety
+        # hand-over only while the envelope allows another one
+        env = self.envelope
+        slow = env is None or env.at_rest(x)
+        handovers_left = env is None or self.safety_handovers == 0 or self.safety_handovers < env.max_handovers
+        may_resume = not self.last_violations and slow and handovers_left
         self._successes = self._successes + 1 if info.ok and may_resume else 0
         if self._successes >= self.successes_to_resume:
             self.fallback_active = False

@@ -9,6 +9,13 @@ from __future__ import annotations
 import numpy as np
 
 
+def tilted_axes(tilt, azimuth) -> np.ndarray:
+    """Unit axes ``(..., 3)`` tilted ``tilt`` rad from vertical toward ``azimuth`` rad (world, numpy:
+    scalars or arrays that broadcast)."""
+    tilt, azimuth = np.broadcast_arrays(np.asarray(tilt, float), np.asarray(azimuth, float))
+    return np.stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)], axis=-1)
+
+
 def axis_cone(max_tilt: float, step: float) -> np.ndarray:
     """Unit axes within ``max_tilt`` rad of vertical: rings every ``step`` rad of tilt (and one at
     ``max_tilt``), azimuths spaced about ``step`` along each ring. ``(K, 3)``; vertical first."""

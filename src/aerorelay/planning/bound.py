@@ -44,7 +44,7 @@ import pandas as pd
 from scipy import ndimage
 from scipy.optimize import minimize
 
-from ..models.axes import axis_cone
+from ..models.axes import axis_cone, tilted_axes
 from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.mission import SourceTrajectory
 from ..models.propagation import LargeScaleRealization
@@ -168,23 +168,19 @@ class CapacityLandscape:
         return out
 
 
-def _axis(tilt: float, az: float) -> np.ndarray:
-    return np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
-
-
 def _refine(scene: CapacityLandscape, t: float, p: np.ndarray, b: np.ndarray, lo, hi, max_tilt: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Local continuous maximization of C over (position, axis) from a grid optimum."""
     tilt0, az0 = float(np.arccos(np.clip(b[2], -1, 1))), float(np.arctan2(b[1], b[0]))
     x0 = np.r_[p, tilt0, az0] if max_tilt > 0 else np.asarray(p, float)
 
     def neg_c(x):
-        axis = _axis(x[3], x[4]) if max_tilt > 0 else E3
+        axis = tilted_axes(x[3], x[4]) if max_tilt > 0 else E3
         return -float(scene.capacity(t, x[:3][None], axis[None])[0, 0])
 
     bounds = list(zip(lo, hi, strict=True)) + ([(0.0, max_tilt), (None, None)] if max_tilt > 0 else [])
     res = minimize(neg_c, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 60})
     x = res.x if -res.fun >= -neg_c(x0) else x0
-    axis = _axis(x[3], x[4]) if max_tilt > 0 else E3
+    axis = tilted_axes(x[3], x[4]) if max_tilt > 0 else E3
     return -neg_c(x), np.asarray(x[:3], float), axis
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..models.axes import tilted_axes
 from ..models.geometry import clip_norm
 from ..models.radio import NodePose
 
@@ -137,8 +138,7 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     value = (lambda c: float(np.mean(c))) if kind == "mean" else (lambda c: float(np.min(c)))
     if value(cap) < value(c_guess):  # a local solve may end below its start: never report worse
         pos, ang, cap, status = p0, a_guess, c_guess, status + " (first guess kept: better)"
-    axes = (np.column_stack([np.sin(ang[:, 0]) * np.cos(ang[:, 1]), np.sin(ang[:, 0]) * np.sin(ang[:, 1]), np.cos(ang[:, 0])])
-            if ang is not None else np.tile([0.0, 0.0, 1.0], (T, 1)))
+    axes = tilted_axes(ang[:, 0], ang[:, 1]) if ang is not None else np.tile([0.0, 0.0, 1.0], (T, 1))
     return FeasiblePath(cap, pos, axes, status)
 
 
@@ -160,7 +160,7 @@ def _best_axes(landscape, times, positions, max_tilt: float, n_tilt: int = 6, n_
     """(tilt, azimuth) of the best holdable axis of a coarse cone at each sample position."""
     grid = np.meshgrid(np.linspace(0.0, max_tilt, n_tilt), np.linspace(0.0, 2 * np.pi, n_az, endpoint=False), indexing="ij")
     tilt, az = grid[0].ravel(), grid[1].ravel()
-    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    axes = tilted_axes(tilt, az)
     out = np.empty((len(times), 2))
     for k, t in enumerate(times):
         j = int(np.argmax(landscape.capacity(float(t), positions[k][None], axes)[0]))
