@@ -6,7 +6,7 @@ import pytest
 
 from aerorelay.models.axes import axis_cone
 from aerorelay.planning.bound import CapacityLandscape, compute_bound
-from aerorelay.planning.feasible_path import _flyable_or_guess, best_feasible_path, speed_limited
+from aerorelay.planning.feasible_path import _flyable_or_guess, best_feasible_path, speed_limited, thrust_directions
 from aerorelay.scenario import load_scenario
 from aerorelay.scenario.build import bound_problem
 
@@ -40,14 +40,23 @@ def test_flyable_path_is_flyable_and_its_capacity_is_the_scenes(problem, kind):
     assert np.linalg.norm(moves, axis=1).max() <= v * dt * (1 + 1e-6)  # Euclidean, no allowance
     a = SHORT.bound.max_accel_m_s2
     assert np.linalg.norm(np.diff(moves, axis=0), axis=1).max() <= a * dt**2 * (1 + 1e-6)  # and accelerating at <= a
+    assert np.linalg.norm(moves[1]) <= 0.5 * a * dt**2 * (1 + 1e-6)  # from rest: at most a dt^2 / 2 in the first step
     assert np.all(fp.position >= pb.workspace_min) and np.all(fp.position <= pb.workspace_max)
-    assert np.degrees(np.arccos(fp.axis[:, 2])).max() <= np.degrees(limit) + 1e-6
+    assert np.degrees(np.arccos(fp.axis[:, 2])).max() <= np.degrees(limit) + 1e-6  # holdable in hover
+    # and within the tilt limit of the thrust direction the path's acceleration needs (from the moves, by hand)
+    acc = np.vstack([2 * moves[1], np.diff(moves[1:], axis=0)]) / dt**2  # from rest, then second differences
+    acc = np.vstack([acc, acc[-1:]])[: len(b.t)]
+    thrust = acc + pb.vehicle.gravity * np.array([0.0, 0.0, 1.0])
+    lean_deg = np.degrees(np.arccos(np.clip(np.sum(fp.axis * thrust, axis=1) / np.linalg.norm(thrust, axis=1), -1, 1)))
+    assert lean_deg.max() <= np.degrees(limit) + 1e-5
     again = np.array([land.capacity(t, fp.position[k][None], fp.axis[k][None])[0, 0] for k, t in enumerate(b.t)])
     np.testing.assert_allclose(fp.capacity, again, rtol=2e-3)  # the symbolic dipole's regularization
     # at least as good as its first guess (the grid path pulled back to the speed limit, best axis of a fine cone)
     guess = speed_limited(grid_path, pb.relay_start, v * dt, SHORT.bound.max_accel_m_s2 * dt**2)
     axes = axis_cone(limit, np.radians(2.0))
-    g = np.array([land.capacity(t, guess[k][None], axes)[0].max() for k, t in enumerate(b.t)])
+    dirs = np.asarray(thrust_directions(len(b.t), dt, pb.vehicle.gravity)(guess.T))
+    g = np.array([np.where(axes @ dirs[:, k] >= np.cos(limit), land.capacity(t, guess[k][None], axes)[0], 0.0).max()
+                  for k, t in enumerate(b.t)])
     if kind == "mean":
         assert fp.capacity.mean() >= g.mean() * (1 - 2e-3)
     else:
@@ -60,7 +69,7 @@ def test_speed_and_acceleration_limited_chase_changes_its_move_by_at_most_dv():
     moves = np.diff(np.vstack([out[:1], out]), axis=0)
     assert np.linalg.norm(moves, axis=1).max() <= 1.0 + 1e-12
     assert np.linalg.norm(np.diff(moves, axis=0), axis=1).max() <= 0.4 + 1e-12
-    np.testing.assert_allclose(out[1], [0.4, 0.0, 0.0])  # from rest: one change of dv
+    np.testing.assert_allclose(out[1], [0.2, 0.0, 0.0])  # from rest: dv / 2 (a dt^2 / 2 at constant a)
 
 
 def test_the_bound_carries_the_flyable_paths_below_its_grid_paths(problem):
@@ -81,9 +90,35 @@ def test_a_path_outside_the_limits_is_never_reported():
     np.testing.assert_array_equal(pos, p0)
 
 
+def test_an_axis_the_path_cannot_hold_while_accelerating_is_never_reported():
+    # braking at 4 m/s^2 toward -x (thrust 22 deg toward -x) with the antenna 17 deg toward +x: 39 deg apart
+    dt, limit = 0.5, np.radians(18.0)
+    pos = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.0, 0, 0]])
+    ang = np.array([[0.0, 0.0], [np.radians(17.0), 0.0], [0.0, 0.0]])
+    dirs = np.asarray(thrust_directions(3, dt, 9.81)(pos.T))
+    axes = np.column_stack([np.sin(ang[:, 0]) * np.cos(ang[:, 1]), np.sin(ang[:, 0]) * np.sin(ang[:, 1]), np.cos(ang[:, 0])])
+    cos = np.sum(axes * dirs.T, axis=1)
+    assert cos[1] < np.cos(limit)
+    p0, a0 = np.zeros((3, 3)), np.zeros((3, 2))
+    box = (-np.ones(3) * 5, np.ones(3) * 5)
+    got, _ = _flyable_or_guess(pos, ang, p0, a0, *box, 1.0, limit, "Solve_Succeeded", 8.0, lambda q, a: cos)
+    np.testing.assert_array_equal(got, p0)
+    got, _ = _flyable_or_guess(pos, ang, p0, a0, *box, 1.0, limit, "Solve_Succeeded", 8.0, lambda q, a: np.ones(3))
+    np.testing.assert_array_equal(got, pos)  # the same path with holdable axes is kept
+
+
 def test_bad_inputs_are_refused(problem):
     pb, b, land = problem
     with pytest.raises(ValueError, match="kind"):
         best_feasible_path(land, b.t, b.path_mean_position, pb.relay_start, pb.workspace_min, pb.workspace_max, 1.0, 0.1, "best")
     with pytest.raises(ValueError, match="guess"):
         best_feasible_path(land, b.t, b.path_mean_position[:-1], pb.relay_start, pb.workspace_min, pb.workspace_max, 1.0, 0.1)
+
+
+def test_thrust_directions_of_a_path_from_rest_by_hand():
+    # 0.5 s samples: moves 0.5, 1.0, 0.5 m along x -> 4 m/s^2 over the first interval (from rest:
+    # 2 * 0.5 / 0.25), then 2 and -2 m/s^2 (second differences), the last sample repeating
+    P = np.array([[0.0, 0.5, 1.5, 2.0], [0.0] * 4, [0.0] * 4])
+    got = np.asarray(thrust_directions(4, 0.5, 9.81)(P))
+    for k, ax in enumerate([4.0, 2.0, -2.0, -2.0]):
+        np.testing.assert_allclose(got[:, k], np.array([ax, 0.0, 9.81]) / np.hypot(ax, 9.81), atol=1e-12)

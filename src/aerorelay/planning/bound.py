@@ -54,7 +54,7 @@ from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checke
 from .feasible_path import best_feasible_path, speed_limited
 
 log = logging.getLogger(__name__)
-BOUND_VERSION = "7"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "10"  # bump when the computation changes: cached bounds are recomputed
 
 
 @dataclass(frozen=True)

@@ -5,12 +5,16 @@ grid / 2``: its path may fly faster than ``max_speed`` (a diagonal step at 1 m/s
 0.5 s grid is 1.41 m/s) and so overstates what a relay at ``max_speed`` can reach. Here the path
 is a flyable one: positions ``p_k`` (m, world) at the bound's times, from the relay's own start,
 with ``|p_(k+1) - p_k| <= max_speed * dt`` (Euclidean) and, with ``max_accel``, second
-differences ``<= max_accel * dt^2`` from rest, inside the workspace box, each with an
-antenna axis the platform can hold in hover (tilt <= ``hover_tilt_limit``, any azimuth: yaw free;
-vertical only for a coplanar platform). The true capacity of the radio scene (eq. 5-9, on CasADi
+differences ``<= max_accel * dt^2`` from rest (the first move ``<= max_accel * dt^2 / 2``),
+inside the workspace box, each with an antenna axis the platform can hold in hover (tilt <=
+``hover_tilt_limit``, any azimuth: yaw free; vertical only for a coplanar platform) and, on a
+tilted platform, hold while it flies the path: within the same limit of the thrust direction
+the path's acceleration needs (``thrust_directions``; a tilted multirotor's force leaves its
+body z by at most about its hover tilt limit, so a relay braking at 4 m/s^2 (22 deg) cannot
+hold its antenna tilted 18 deg the other way). The true capacity of the radio scene (eq. 5-9, on CasADi
 symbols) at each sample is maximized by IPOPT from the grid path pulled back to the speed limit:
 its mean (``kind="mean"``) or, through an epigraph variable, its minimum (``"maxmin"``). The
-result is a path a relay at ``max_speed`` could fly (attitude changes free, capacity evaluated at
+result is a path a relay at ``max_speed`` could fly (attitude changes within the samples free, capacity evaluated at
 the samples), so its value is a *lower* estimate of the best path at that speed, where the grid
 bound is an upper one: the best path lies between the two.
 """
@@ -49,8 +53,10 @@ def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: floa
     for k, target in enumerate(path):
         if k > 0:
             want = clip_norm(target - p, step_m)
-            # the ball |move| <= step_m is convex: projecting onto it never enlarges the change
-            move = want if dv_m is None else clip_norm(move + clip_norm(want - move, dv_m), step_m)
+            # the ball |move| <= step_m is convex: projecting onto it never enlarges the change;
+            # from rest the first move is at most dv_m / 2 (a dt^2 / 2)
+            dv = None if dv_m is None else (0.5 * dv_m if k == 1 else dv_m)
+            move = want if dv is None else clip_norm(move + clip_norm(want - move, dv), step_m)
             p = p + move
         out[k] = p
     return out
@@ -58,6 +64,20 @@ def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: floa
 
 def _axis_of(tilt, az):
     return ca.vertcat(ca.sin(tilt) * ca.cos(az), ca.sin(tilt) * ca.sin(az), ca.cos(tilt))
+
+
+def thrust_directions(T: int, dt: float, gravity: float) -> ca.Function:
+    """CasADi function positions ``(3, T)`` -> unit thrust directions ``(3, T)`` ``(a + g e3)/|.|``
+    of the path's accelerations (second differences / dt^2; at the start from rest, ``2 (p_1 -
+    p_0) / dt^2``; the last sample repeats the one before): where the platform's body z must lean
+    for the path to be flown (eq. 20's ``rho_d``)."""
+    P = ca.SX.sym("p", 3, T)
+    acc: list[ca.SX] = [ca.SX.zeros(3) if T < 2 else 2.0 * (P[:, 1] - P[:, 0]) / dt**2]
+    for k in range(1, T):
+        j = min(k, T - 2)
+        acc.append((P[:, j + 1] - 2 * P[:, j] + P[:, j - 1]) / dt**2 if j >= 1 else acc[0])
+    f = ca.horzcat(*acc) + ca.repmat(ca.DM([0.0, 0.0, gravity]), 1, T)
+    return ca.Function("thrust_dirs", [P], [f / ca.repmat(ca.sqrt(ca.sum1(f**2)), 3, 1)])
 
 
 def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: np.ndarray, lo, hi,
@@ -85,14 +105,19 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     P = ca.SX.sym("p", 3, T)
     A = ca.SX.sym("a", na, T) if tilted else None
     scene = landscape.scene
-    caps = []
+    dirs = thrust_directions(T, dt, landscape.gravity)
+    F = dirs(P)
+    caps, axes_sym = [], []
     for k, t in enumerate(times):
         axis = _axis_of(A[0, k], A[1, k]) if A is not None else ca.DM([0.0, 0.0, 1.0])
+        axes_sym.append(axis)
         poses = {landscape.relay_name: NodePose(P[:, k], axis), landscape.source_name: landscape.source_pose(float(t))}
         caps.append(scene.evaluate(float(t), poses, jammer_powers=landscape.silent).capacity)
     C = ca.vertcat(*caps)
     f_cap = ca.Function("caps", [P] + ([A] if A is not None else []), [C])
-    a_guess = _best_axes(landscape, times, p0, max_tilt) if tilted else None
+    AX = ca.horzcat(*axes_sym)
+    f_axes = ca.Function("axes", [P] + ([A] if A is not None else []), [AX])
+    a_guess = _best_axes(landscape, times, p0, max_tilt, np.asarray(dirs(p0.T))) if tilted else None
     c_guess = np.asarray(f_cap(p0.T, *([a_guess.T] if a_guess is not None else []))).ravel()
     scale = 1.0 / max(float(np.mean(c_guess)), 1e-12)
     # decision vector: positions, axis angles, (maxmin) the floor s
@@ -103,11 +128,15 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     moves = ca.vertcat(*[ca.sumsqr(P[:, k + 1] - P[:, k]) for k in range(T - 1)])
     g = [moves / step**2]
     lbg, ubg = [np.full(T - 1, -np.inf)], [np.ones(T - 1)]
-    if dv is not None and T > 1:  # from rest: |p_1 - p_0| <= a dt^2, then |p_(k+1) - 2 p_k + p_(k-1)| <= a dt^2
-        changes = [P[:, 1] - P[:, 0]] + [P[:, k + 1] - 2 * P[:, k] + P[:, k - 1] for k in range(1, T - 1)]
+    if dv is not None and T > 1:  # from rest: |p_1 - p_0| <= a dt^2 / 2, then |p_(k+1) - 2 p_k + p_(k-1)| <= a dt^2
+        changes = [2.0 * (P[:, 1] - P[:, 0])] + [P[:, k + 1] - 2 * P[:, k] + P[:, k - 1] for k in range(1, T - 1)]
         g.append(ca.vertcat(*[ca.sumsqr(d) for d in changes]) / dv**2)
         lbg.append(np.full(T - 1, -np.inf))
         ubg.append(np.ones(T - 1))
+    if tilted:  # each axis within the tilt limit of the thrust the path needs there
+        g.append(ca.sum1(AX * F).T)
+        lbg.append(np.full(T, np.cos(max_tilt)))
+        ubg.append(np.full(T, np.inf))
     if s is not None:
         g.append(C * scale - s)
         lbg.append(np.zeros(T))
@@ -133,36 +162,46 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     xs = np.asarray(sol["x"]).ravel()
     pos = xs[:3 * T].reshape(T, 3)
     ang = xs[3 * T:3 * T + 2 * T].reshape(T, 2) if tilted else None
-    pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status, dv)
+    pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status, dv,
+                                 lambda q, a: np.asarray(ca.sum1(f_axes(q.T, a.T) * dirs(q.T))).ravel())
     cap = np.asarray(f_cap(pos.T, *([ang.T] if ang is not None else []))).ravel()
     value = (lambda c: float(np.mean(c))) if kind == "mean" else (lambda c: float(np.min(c)))
     if value(cap) < value(c_guess):  # a local solve may end below its start: never report worse
         pos, ang, cap, status = p0, a_guess, c_guess, status + " (first guess kept: better)"
-    axes = tilted_axes(ang[:, 0], ang[:, 1]) if ang is not None else np.tile([0.0, 0.0, 1.0], (T, 1))
+    axes = np.asarray(f_axes(pos.T, *([ang.T] if ang is not None else []))).T
     return FeasiblePath(cap, pos, axes, status)
 
 
-def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status, dv=None):
-    """IPOPT's path if it is flyable (speed, acceleration, box, tilt within 1e-6 relative), else
-    the first guess (always flyable): a failed solve never reports a path the relay could not fly."""
+def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status, dv=None, lean_cos=None):
+    """IPOPT's path if it is flyable (speed, acceleration, box, tilt within 1e-6 relative; with
+    ``lean_cos(pos, ang)``, each axis's cosine to the path's thrust direction, that within the tilt
+    limit), else the first guess (always flyable): a failed solve never reports a path the relay
+    could not fly."""
     moves = np.diff(np.vstack([pos[:1], pos]), axis=0)  # from rest
+    changes = np.diff(moves, axis=0)
+    if len(changes):
+        changes[0] *= 2.0  # the first move from rest: at most a dt^2 / 2
     ok = (np.all(np.isfinite(pos)) and np.all(pos >= lo - 1e-6) and np.all(pos <= hi + 1e-6)
           and np.all(np.linalg.norm(moves, axis=1) <= step * (1 + 1e-6))
-          and (dv is None or np.all(np.linalg.norm(np.diff(moves, axis=0), axis=1) <= dv * (1 + 1e-6)))
-          and (ang is None or (np.all(np.isfinite(ang)) and np.all(ang[:, 0] <= max_tilt + 1e-9) and np.all(ang[:, 0] >= -1e-9))))
+          and (dv is None or np.all(np.linalg.norm(changes, axis=1) <= dv * (1 + 1e-6)))
+          and (ang is None or (np.all(np.isfinite(ang)) and np.all(ang[:, 0] <= max_tilt + 1e-9) and np.all(ang[:, 0] >= -1e-9)
+                               and (lean_cos is None or np.all(lean_cos(pos, ang) >= np.cos(max_tilt) - 1e-7)))))
     if ok:
         return np.clip(pos, lo, hi), ang
     log.warning("feasible path: IPOPT returned %s with a path outside the limits; the speed-limited grid path is reported", status)
     return p0, a0
 
 
-def _best_axes(landscape, times, positions, max_tilt: float, n_tilt: int = 6, n_az: int = 24) -> np.ndarray:
-    """(tilt, azimuth) of the best holdable axis of a coarse cone at each sample position."""
+def _best_axes(landscape, times, positions, max_tilt: float, dirs: np.ndarray, n_tilt: int = 6, n_az: int = 24) -> np.ndarray:
+    """(tilt, azimuth) of the best axis of a coarse cone at each sample position among those
+    within ``max_tilt`` of the path's thrust direction ``dirs (3, T)`` (the nearest to it if none is)."""
     grid = np.meshgrid(np.linspace(0.0, max_tilt, n_tilt), np.linspace(0.0, 2 * np.pi, n_az, endpoint=False), indexing="ij")
     tilt, az = grid[0].ravel(), grid[1].ravel()
     axes = tilted_axes(tilt, az)
     out = np.empty((len(times), 2))
     for k, t in enumerate(times):
-        j = int(np.argmax(landscape.capacity(float(t), positions[k][None], axes)[0]))
+        cos = axes @ dirs[:, k]
+        c = np.where(cos >= np.cos(max_tilt), landscape.capacity(float(t), positions[k][None], axes)[0], -np.inf)
+        j = int(np.argmax(c)) if np.isfinite(c).any() else int(np.argmax(cos))
         out[k] = tilt[j], az[j]
     return out
