@@ -155,7 +155,8 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
         x0.append(np.array([float(np.min(c_guess)) * scale]))
     nlp = {"x": ca.vertcat(*x), "f": objective, "g": ca.vertcat(*g)}
     solver = ca.nlpsol("feasible_path", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
-                                                        "ipopt.max_iter": max_iter, "ipopt.tol": 1e-8})
+                                                        "ipopt.max_iter": max_iter, "ipopt.tol": 1e-8,
+                                                        "ipopt.constr_viol_tol": 1e-9})
     sol = solver(x0=np.concatenate([np.ravel(v) for v in x0]), lbx=np.concatenate([np.ravel(v) for v in lbx]),
                  ubx=np.concatenate([np.ravel(v) for v in ubx]), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     status = str(solver.stats()["return_status"])
@@ -164,6 +165,8 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     ang = xs[3 * T:3 * T + 2 * T].reshape(T, 2) if tilted else None
     pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status, dv,
                                  lambda q, a: np.asarray(ca.sum1(f_axes(q.T, a.T) * dirs(q.T))).ravel())
+    if pos is p0:
+        status += " (outside the limits: first guess reported)"
     cap = np.asarray(f_cap(pos.T, *([ang.T] if ang is not None else []))).ravel()
     value = (lambda c: float(np.mean(c))) if kind == "mean" else (lambda c: float(np.min(c)))
     if value(cap) < value(c_guess):  # a local solve may end below its start: never report worse
@@ -181,14 +184,20 @@ def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status, dv=None,
     changes = np.diff(moves, axis=0)
     if len(changes):
         changes[0] *= 2.0  # the first move from rest: at most a dt^2 / 2
-    ok = (np.all(np.isfinite(pos)) and np.all(pos >= lo - 1e-6) and np.all(pos <= hi + 1e-6)
-          and np.all(np.linalg.norm(moves, axis=1) <= step * (1 + 1e-6))
-          and (dv is None or np.all(np.linalg.norm(changes, axis=1) <= dv * (1 + 1e-6)))
-          and (ang is None or (np.all(np.isfinite(ang)) and np.all(ang[:, 0] <= max_tilt + 1e-9) and np.all(ang[:, 0] >= -1e-9)
-                               and (lean_cos is None or np.all(lean_cos(pos, ang) >= np.cos(max_tilt) - 1e-7)))))
-    if ok:
+    checks = {
+        "finite": bool(np.all(np.isfinite(pos))) and (ang is None or bool(np.all(np.isfinite(ang)))),
+        "box": bool(np.all(pos >= lo - 1e-6) and np.all(pos <= hi + 1e-6)),
+        "speed": bool(np.all(np.linalg.norm(moves, axis=1) <= step * (1 + 1e-6))),
+        "acceleration": dv is None or bool(np.all(np.linalg.norm(changes, axis=1) <= dv * (1 + 1e-6))),
+        "tilt": ang is None or bool(np.all(ang[:, 0] <= max_tilt + 1e-9) and np.all(ang[:, 0] >= -1e-9)),
+    }
+    if checks["finite"] and ang is not None and lean_cos is not None:
+        checks["lean"] = bool(np.all(lean_cos(pos, ang) >= np.cos(max_tilt) - 1e-7))
+    failed = [name for name, ok in checks.items() if not ok]
+    if not failed:
         return np.clip(pos, lo, hi), ang
-    log.warning("feasible path: IPOPT returned %s with a path outside the limits; the speed-limited grid path is reported", status)
+    log.warning("feasible path: IPOPT returned %s with a path outside the limits (%s); the speed-limited grid path is "
+                "reported", status, ", ".join(failed))
     return p0, a0
 
 
