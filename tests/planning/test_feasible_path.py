@@ -4,7 +4,7 @@ capacity the scene's (recomputed with the numpy channel), never worse than its f
 import numpy as np
 import pytest
 
-from aerorelay.models.axes import axis_cone
+from aerorelay.models.axes import axis_cone, tilted_axes
 from aerorelay.planning.bound import CapacityLandscape, compute_bound
 from aerorelay.planning.feasible_path import _flyable_or_guess, best_feasible_path, speed_limited, thrust_directions
 from aerorelay.scenario import load_scenario
@@ -96,7 +96,7 @@ def test_an_axis_the_path_cannot_hold_while_accelerating_is_never_reported():
     pos = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.0, 0, 0]])
     ang = np.array([[0.0, 0.0], [np.radians(17.0), 0.0], [0.0, 0.0]])
     dirs = np.asarray(thrust_directions(3, dt, 9.81)(pos.T))
-    axes = np.column_stack([np.sin(ang[:, 0]) * np.cos(ang[:, 1]), np.sin(ang[:, 0]) * np.sin(ang[:, 1]), np.cos(ang[:, 0])])
+    axes = tilted_axes(ang[:, 0], ang[:, 1])
     cos = np.sum(axes * dirs.T, axis=1)
     assert cos[1] < np.cos(limit)
     p0, a0 = np.zeros((3, 3)), np.zeros((3, 2))

@@ -66,17 +66,24 @@ def _axis_of(tilt, az):
     return ca.vertcat(ca.sin(tilt) * ca.cos(az), ca.sin(tilt) * ca.sin(az), ca.cos(tilt))
 
 
-def thrust_directions(T: int, dt: float, gravity: float) -> ca.Function:
-    """CasADi function positions ``(3, T)`` -> unit thrust directions ``(3, T)`` ``(a + g e3)/|.|``
-    of the path's accelerations (second differences / dt^2; at the start from rest, ``2 (p_1 -
-    p_0) / dt^2``; the last sample repeats the one before): where the platform's body z must lean
-    for the path to be flown (eq. 20's ``rho_d``)."""
-    P = ca.SX.sym("p", 3, T)
-    acc: list[ca.SX] = [ca.SX.zeros(3) if T < 2 else 2.0 * (P[:, 1] - P[:, 0]) / dt**2]
+def _path_accelerations(P, dt: float) -> list:
+    """Accelerations (m/s^2) of a sampled path ``P (3, T)`` (CasADi), one per sample: at the start
+    from rest ``2 (p_1 - p_0) / dt^2``, then second differences / dt^2, the last sample repeating
+    the one before."""
+    T = P.shape[1]
+    acc = [ca.SX.zeros(3) if T < 2 else 2.0 * (P[:, 1] - P[:, 0]) / dt**2]
     for k in range(1, T):
         j = min(k, T - 2)
         acc.append((P[:, j + 1] - 2 * P[:, j] + P[:, j - 1]) / dt**2 if j >= 1 else acc[0])
-    f = ca.horzcat(*acc) + ca.repmat(ca.DM([0.0, 0.0, gravity]), 1, T)
+    return acc
+
+
+def thrust_directions(T: int, dt: float, gravity: float) -> ca.Function:
+    """CasADi function positions ``(3, T)`` -> unit thrust directions ``(3, T)`` ``(a + g e3)/|.|``
+    of the path's accelerations (``_path_accelerations``): where the platform's body z must lean
+    for the path to be flown (eq. 20's ``rho_d``)."""
+    P = ca.SX.sym("p", 3, T)
+    f = ca.horzcat(*_path_accelerations(P, dt)) + ca.repmat(ca.DM([0.0, 0.0, gravity]), 1, T)
     return ca.Function("thrust_dirs", [P], [f / ca.repmat(ca.sqrt(ca.sum1(f**2)), 3, 1)])
 
 
@@ -106,7 +113,6 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     A = ca.SX.sym("a", na, T) if tilted else None
     scene = landscape.scene
     dirs = thrust_directions(T, dt, landscape.gravity)
-    F = dirs(P)
     caps, axes_sym = [], []
     for k, t in enumerate(times):
         axis = _axis_of(A[0, k], A[1, k]) if A is not None else ca.DM([0.0, 0.0, 1.0])
@@ -128,13 +134,12 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     moves = ca.vertcat(*[ca.sumsqr(P[:, k + 1] - P[:, k]) for k in range(T - 1)])
     g = [moves / step**2]
     lbg, ubg = [np.full(T - 1, -np.inf)], [np.ones(T - 1)]
-    if dv is not None and T > 1:  # from rest: |p_1 - p_0| <= a dt^2 / 2, then |p_(k+1) - 2 p_k + p_(k-1)| <= a dt^2
-        changes = [2.0 * (P[:, 1] - P[:, 0])] + [P[:, k + 1] - 2 * P[:, k] + P[:, k - 1] for k in range(1, T - 1)]
-        g.append(ca.vertcat(*[ca.sumsqr(d) for d in changes]) / dv**2)
+    if max_accel is not None and T > 1:  # from rest: |p_1 - p_0| <= a dt^2 / 2, then |p_(k+1) - 2 p_k + p_(k-1)| <= a dt^2
+        g.append(ca.vertcat(*[ca.sumsqr(a) for a in _path_accelerations(P, dt)[:T - 1]]) / max_accel**2)
         lbg.append(np.full(T - 1, -np.inf))
         ubg.append(np.ones(T - 1))
     if tilted:  # each axis within the tilt limit of the thrust the path needs there
-        g.append(ca.sum1(AX * F).T)
+        g.append(ca.sum1(AX * dirs(P)).T)
         lbg.append(np.full(T, np.cos(max_tilt)))
         ubg.append(np.full(T, np.inf))
     if s is not None:
