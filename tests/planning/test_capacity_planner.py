@@ -76,9 +76,10 @@ def test_logged_capacity_equals_an_independent_recomputation(run):
 
 
 def test_reference_accelerates_and_brakes_within_its_limit_and_stops_on_the_target():
-    """The reference speeds up and brakes at <= max_accel and never passes the target (a
-    reference jumping from 3 m/s to rest made the relay overshoot by 3 m over the BS's null)."""
-    planner = SimpleNamespace(speed=3.0, max_accel=4.0, v_ref=np.zeros(3))
+    """The reference speeds up at <= max_accel, slows down early enough to stop at brake_accel and
+    never passes the target (a reference jumping from 3 m/s to rest made the relay overshoot by 3 m
+    over the BS's null)."""
+    planner = SimpleNamespace(speed=3.0, max_accel=4.0, brake_accel=1.5, v_ref=np.zeros(3))
     dt, p, target = 0.015, np.zeros(3), np.array([5.0, 2.0, -1.0])
     vs = [np.zeros(3)]
     for _ in range(1000):
@@ -92,6 +93,10 @@ def test_reference_accelerates_and_brakes_within_its_limit_and_stops_on_the_targ
     np.testing.assert_allclose(p, target, atol=1e-9)
     d_along = (target - np.cumsum(vs * dt, axis=0)) @ (target / np.linalg.norm(target))
     assert d_along.min() >= -1e-9  # never past the target
+    # braking: at every distance left, at most the speed that stops there at 1.5 m/s^2 (v^2 = 2 a d)
+    speed = np.linalg.norm(vs[1:], axis=1)
+    assert np.all(speed <= np.sqrt(2.0 * 1.5 * (d_along[:-1] + 1e-12)) + 1e-9)
+    assert np.sum(speed > 2.9) > 0  # and it does reach its cruise speed on the way
 
 
 def test_capacity_planner_keeps_its_link_at_three_metres_per_second():

@@ -14,7 +14,8 @@ stencil ``step_m`` apart, each with every antenna axis the platform can hold in 
 (``Multirotor.hover_tilt_limit``; vertical only for a coplanar platform). The best candidate
 becomes the new target (hill climbing over poses); the target stays within ``leash_m`` of the
 route (at the look-ahead time), and the position reference moves toward it at <= ``controller.
-capacity.speed_m_s``, speeding up and braking at <= ``max_accel_m_s2`` so it stops on the target.
+capacity.speed_m_s``, speeding up at <= ``max_accel_m_s2`` and braking at <= ``brake_accel_m_s2`` so it
+stops on the target.
 The antenna axis reference turns toward the best axis at <= ``axis_rate``; turned with the
 thrust direction the reference's acceleration needs, it is the NMPC's body z reference.
 
@@ -52,6 +53,7 @@ class CapacityPlanner:
     def __init__(self, ctx: PlannerContext, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
                  route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
+                 brake_accel_m_s2: float = 1.5,
                  excursion_m: float = 0.0, excursion_std_m: float = 1.0, yaw_rate_deg_s: float = 0.0,
                  tilt_fraction: float = 0.85, boundary_axes: bool = True, tracking_freq: float = 1.0):
         veh = ctx.vehicle
@@ -84,6 +86,7 @@ class CapacityPlanner:
         self.best_capacity = 0.0
         self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
         self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
+        self.brake_accel = min(brake_accel_m_s2, max_accel_m_s2)
         self.excursion, self.excursion_std = excursion_m, excursion_std_m
         self.tracking_freq = tracking_freq
         self._k = 0
@@ -148,13 +151,14 @@ class CapacityPlanner:
 
     def _velocity_toward(self, d_vec: np.ndarray, dt: float) -> np.ndarray:
         """Reference velocity (m/s, world) toward the target ``d_vec`` away: at most ``speed``, slow
-        enough to stop on it at ``max_accel`` (v <= sqrt(2 a d)), changing by <= ``max_accel dt``
-        per step (a reference that jumps from 3 m/s to rest overshoots by metres)."""
+        enough to stop on it at ``brake_accel`` (v <= sqrt(2 a d)), changing by <= ``max_accel dt``
+        per step (a reference that jumps from 3 m/s to rest overshoots by metres; one that brakes
+        at 4 m/s^2 left a tilted relay holding its antenna 0.9 m past it, motors at their bounds)."""
         d = float(np.linalg.norm(d_vec))
         if d < 1e-9:
             v_des = np.zeros(3)
         else:
-            v_des = d_vec / d * min(self.speed, np.sqrt(2.0 * self.max_accel * d))
+            v_des = d_vec / d * min(self.speed, np.sqrt(2.0 * self.brake_accel * d))
         dv = v_des - self.v_ref
         n = float(np.linalg.norm(dv))
         if n > self.max_accel * dt:

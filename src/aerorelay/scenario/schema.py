@@ -384,7 +384,10 @@ class CapacityPlannerConfig(_Strict):
     position weights below replace ``weights.position`` / ``weights.position_terminal``."""
 
     speed_m_s: float = Field(1.0, gt=0.0, le=5.0, description="reference speed limit, m/s")
-    max_accel_m_s2: float = Field(4.0, gt=0.0, le=8.0, description="reference acceleration limit (speeding up and braking), m/s^2")
+    max_accel_m_s2: float = Field(4.0, gt=0.0, le=8.0, description="reference acceleration limit, m/s^2")
+    brake_accel_m_s2: float = Field(1.5, gt=0.0, le=8.0, description="the reference slows down early enough to stop on "
+                                    "its target at this deceleration, m/s^2 (at most max_accel_m_s2; 4: the tilted relay at "
+                                    "3 m/s overshot its braking reference by 0.9 m, motors at their bounds: README, Speed)")
     margin_m: float = Field(0.05, ge=0.0, le=2.0, description="the reference keeps this far inside the workspace box, m")
     leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
     route_grid_m: float = Field(1.0, ge=0.1, le=3.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
