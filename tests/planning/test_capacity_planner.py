@@ -123,7 +123,8 @@ def test_observability_excursion_circles_only_while_the_estimate_is_poor():
     """With excursion_m the goal circles the target at that radius (a vertical component too) while
     an estimated jammer's std is above excursion_std_m; with a good estimate or the oracle it is the target."""
     planner = SimpleNamespace(excursion=2.0, excursion_std=1.0, speed=1.0, target=np.array([-3.0, 3.0, 5.0]),
-                              lo=np.full(3, -50.0), hi=np.full(3, 50.0))
+                              lo=np.full(3, -50.0), hi=np.full(3, 50.0), excursion_allowed=True)
+    planner._estimate_poor = lambda inp: CapacityPlanner._estimate_poor(planner, inp)
 
     def goal(t, std):
         inp = SimpleNamespace(t=t, jammer_std_m=None if std is None else np.array([std]))
@@ -138,6 +139,8 @@ def test_observability_excursion_circles_only_while_the_estimate_is_poor():
     np.testing.assert_allclose(speed, 1.0, rtol=1e-3)
     np.testing.assert_array_equal(goal(3.0, 0.5), planner.target)
     np.testing.assert_array_equal(goal(3.0, None), planner.target)
+    planner.excursion_allowed = False  # the circling point's link too weak: the excursion pauses
+    np.testing.assert_array_equal(goal(3.0, 5.0), planner.target)
 
 
 def test_a_level_only_relay_is_asked_to_tilt_toward_its_reference():

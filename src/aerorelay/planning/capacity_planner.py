@@ -27,7 +27,9 @@ better yaw; the axis reference is clipped to what it holds at its measured yaw. 
 still cannot triangulate a jammer from received power. While an estimated jammer's largest
 position std is above ``excursion_std_m``, the reference chases a point circling the target at
 ``excursion_m`` (at the speed limit, with a vertical component), so the relay's bearing and range
-to the jammer change; once every estimate is that good the excursion stops.
+to the jammer change; once every estimate is that good the excursion stops. It pauses while the
+circling point's best capacity (scored at each replan) is more than ``excursion_max_loss`` below the
+target's: information is not bought where the link is weakest.
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ class CapacityPlanner:
                  axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
                  route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
                  brake_accel_m_s2: float = 1.5,
-                 excursion_m: float = 0.0, excursion_std_m: float = 1.0, yaw_rate_deg_s: float = 0.0,
+                 excursion_m: float = 0.0, excursion_std_m: float = 1.0, excursion_max_loss: float = 0.05, yaw_rate_deg_s: float = 0.0,
                  tilt_fraction: float = 0.85, boundary_axes: bool = True, tracking_freq: float = 1.0):
         veh = ctx.vehicle
         # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
@@ -87,7 +89,10 @@ class CapacityPlanner:
         self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
         self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
         self.brake_accel = min(brake_accel_m_s2, max_accel_m_s2)
-        self.excursion, self.excursion_std = excursion_m, excursion_std_m
+        self.excursion, self.excursion_std, self.excursion_max_loss = excursion_m, excursion_std_m, excursion_max_loss
+        self.excursion_allowed = True
+        self.excursion_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.axes), source=self.source_name)
+                               if excursion_m > 0 else None)
         self.tracking_freq = tracking_freq
         self._k = 0
 
@@ -138,6 +143,10 @@ class CapacityPlanner:
             k = self.yaw.choose(c, self.best_capacity)
             if k is not None:
                 self.axis_goal, self.best_capacity = every[k], float(c[k])
+        if self.excursion_grid is not None and self._estimate_poor(inp):  # is the circling point's link good enough?
+            point = excursion_point(self.target, self.excursion, self.speed, inp.t, self.lo, self.hi)
+            c_point = self.excursion_grid(point[None, :], axes, pose, inp.jammer_positions, inp.jammer_powers)
+            self.excursion_allowed = float(np.max(c_point)) >= (1.0 - self.excursion_max_loss) * self.best_capacity
 
     def _turn_axis(self, dt: float):
         """Rotate the axis reference toward the goal at <= axis_rate (great-circle step)."""
@@ -168,16 +177,17 @@ class CapacityPlanner:
             return d_vec / dt
         return v
 
+    def _estimate_poor(self, inp: PlannerInput) -> bool:
+        """An estimated jammer's largest position std is above ``excursion_std``."""
+        return inp.jammer_std_m is not None and bool(np.any(np.asarray(inp.jammer_std_m) > self.excursion_std))
+
     def _goal(self, inp: PlannerInput) -> np.ndarray:
-        """Where the reference heads: the target, or a point circling it while a jammer estimate is poor."""
+        """Where the reference heads: the target, or a point circling it while a jammer estimate is
+        poor and the link there is within ``excursion_max_loss`` of the target's."""
         assert self.target is not None
-        poor = inp.jammer_std_m is not None and np.any(np.asarray(inp.jammer_std_m) > self.excursion_std)
-        if self.excursion <= 0 or not poor:
+        if self.excursion <= 0 or not self.excursion_allowed or not self._estimate_poor(inp):
             return self.target
-        w = self.speed / self.excursion
-        phase = w * inp.t
-        offset = self.excursion * np.array([np.cos(phase), np.sin(phase), 0.5 * np.sin(0.5 * phase)])
-        return np.clip(self.target + offset, self.lo, self.hi)
+        return excursion_point(self.target, self.excursion, self.speed, inp.t, self.lo, self.hi)
 
     def update(self, inp: PlannerInput) -> Reference:
         if self.p_ref is None or self.target is None:
@@ -221,3 +231,11 @@ class CapacityPlanner:
         w = self.tracking_freq
         return clip_norm(a_ref + w**2 * (self.p_ref - np.asarray(inp.p1, float)) + 2.0 * w * (self.v_ref - np.asarray(inp.v1, float)),
                          self.max_accel)
+
+
+def excursion_point(target: np.ndarray, radius: float, speed: float, t: float, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The observability excursion's point at time ``t`` (s): circling ``target`` (m, world) at
+    ``radius`` m and ``speed`` m/s, rising and sinking by half the radius, inside ``[lo, hi]``."""
+    phase = speed / radius * t
+    offset = radius * np.array([np.cos(phase), np.sin(phase), 0.5 * np.sin(0.5 * phase)])
+    return np.clip(target + offset, lo, hi)

@@ -61,6 +61,7 @@ def _capacity_seeking(ctx: PlannerContext):
     cfg = ctx.settings.capacity
     return CapacityPlanner(ctx, max_accel_m_s2=cfg.max_accel_m_s2, brake_accel_m_s2=cfg.brake_accel_m_s2, margin_m=cfg.margin_m, leash_m=cfg.leash_m,
                            route_grid_m=cfg.route_grid_m, lookahead_s=cfg.lookahead, axis_rate_deg_s=cfg.axis_rate_deg_s,
-                           excursion_m=cfg.excursion_m, excursion_std_m=cfg.excursion_std_m, yaw_rate_deg_s=cfg.yaw_rate_deg_s,
+                           excursion_m=cfg.excursion_m, excursion_std_m=cfg.excursion_std_m,
+                           excursion_max_loss=cfg.excursion_max_loss, yaw_rate_deg_s=cfg.yaw_rate_deg_s,
                            tilt_fraction=cfg.tilt_fraction, axis_step_deg=cfg.axis_step_deg,
                            boundary_axes=cfg.boundary_axes, tracking_freq=cfg.tracking_freq_rad_s)

@@ -413,6 +413,8 @@ class CapacityPlannerConfig(_Strict):
                                "excursion_std_m, the target circles at this radius (m) to make the jammer observable (0: off)")
     excursion_std_m: float = Field(1.0, gt=0.0, le=100.0, description="the excursion stops once every estimated jammer's "
                                    "largest position std is below this, m")
+    excursion_max_loss: float = Field(0.05, ge=0.0, le=1.0, description="the excursion pauses while the best capacity at "
+                                      "its circling point is more than this fraction below the target's (1: never pauses)")
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
     qp_iter_max: int = Field(50, ge=1, le=100, description="the tracking NMPC's QP interior-point iteration cap (5 "
