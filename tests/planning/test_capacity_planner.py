@@ -1,12 +1,14 @@
 """The capacity-seeking planner: smooth, feasible references that raise the true capacity."""
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from aerorelay.models.axes import axis_set
-from aerorelay.planning.capacity_planner import CapacityPlanner
+from aerorelay.planning.base import PlannerInput
+from aerorelay.planning.capacity_planner import CapacityPlanner, excursion_point
 from aerorelay.scenario import load_scenario
 from aerorelay.scenario.build import build, build_planner, build_scene, build_source
 
@@ -165,3 +167,28 @@ def test_coplanar_relay_holds_its_reference_with_the_tracking_acceleration():
     late = log["t"] >= 24.0
     err = np.hypot(np.hypot(log["p1_x"] - log["pd_x"], log["p1_y"] - log["pd_y"]), log["p1_z"] - log["pd_z"])[late]
     assert err.max() < 0.2
+
+
+@pytest.mark.parametrize("max_loss", [0.05, 1.0])
+def test_excursion_pauses_where_its_circling_point_is_jammed(max_loss):
+    """The excursion's point is scored at each replan: a strong jammer estimated right at it makes
+    its link far worse than the target's, so with a 5% allowance the excursion pauses (the goal is
+    the target); with a 100% allowance it circles whatever the link there."""
+    sc = SC.with_updates({"controller.capacity.excursion_m": 1.0, "controller.capacity.excursion_std_m": 0.5,
+                          "controller.capacity.excursion_max_loss": max_loss})
+    src = build_source(sc)
+    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+    t, speed = 3.0, sc.controller.capacity.speed_m_s
+    s = src.state(t)
+    quiet = PlannerInput(t=t, dt=sc.control_period_s, p1=np.array([-4.0, 3.0, 3.0]), p2=s.p, v2=s.v, a2=s.a,
+                         jammer_positions=np.zeros((1, 3)), jammer_powers=np.zeros(1))
+    planner.update(quiet)  # sets the target
+    point = excursion_point(planner.target, 1.0, speed, t, planner.lo, planner.hi)
+    jammed = replace(quiet, jammer_positions=point[None, :], jammer_powers=np.array([1e4]), jammer_std_m=np.array([5.0]))
+    planner._replan(jammed)
+    assert planner.excursion_allowed is (max_loss == 1.0)
+    goal = CapacityPlanner._goal(planner, jammed)
+    if max_loss == 1.0:
+        np.testing.assert_allclose(goal, excursion_point(planner.target, 1.0, speed, t, planner.lo, planner.hi))
+    else:
+        np.testing.assert_array_equal(goal, planner.target)
