@@ -6,7 +6,13 @@ import pytest
 
 from aerorelay.models.axes import axis_cone, tilted_axes
 from aerorelay.planning.bound import CapacityLandscape, compute_bound
-from aerorelay.planning.feasible_path import _flyable_or_guess, best_feasible_path, speed_limited, thrust_directions
+from aerorelay.planning.feasible_path import (
+    _flyable_or_guess,
+    best_feasible_path,
+    leaning_capacity,
+    speed_limited,
+    thrust_directions,
+)
 from aerorelay.scenario import load_scenario
 from aerorelay.scenario.build import bound_problem
 
@@ -122,3 +128,28 @@ def test_thrust_directions_of_a_path_from_rest_by_hand():
     got = np.asarray(thrust_directions(4, 0.5, 9.81)(P))
     for k, ax in enumerate([4.0, 2.0, -2.0, -2.0]):
         np.testing.assert_allclose(got[:, k], np.array([ax, 0.0, 9.81]) / np.hypot(ax, 9.81), atol=1e-12)
+
+
+def test_leaning_capacity_scores_only_the_axes_the_path_can_lean_to(problem):
+    """The large-scale fallback's capacity: at rest every axis of the hover cone counts; where the
+    path accelerates (0.5 m in the first 0.5 s from rest: 4 m/s^2, thrust 22 deg off vertical) only
+    the axes within the tilt limit of that thrust direction, worked out here by hand; where no
+    axis is (1 m: 8 m/s^2, 39 deg), the nearest one."""
+    pb, b, land = problem
+    limit = pb.vehicle.hover_tilt_limit
+    axes = axis_cone(limit, np.radians(5.0))
+    times = np.array([2.0, 2.5, 3.0])
+    rest = np.tile([-4.0, 3.0, 3.0], (3, 1))
+    caps = np.array([land.capacity(float(t), rest[k][None], axes)[0] for k, t in enumerate(times)])
+    np.testing.assert_allclose(leaning_capacity(land, times, rest, axes, limit), caps.max(axis=1))
+    for first_move, some_held in ((0.5, True), (1.0, False)):
+        moving = rest + np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]]) * first_move
+        caps = np.array([land.capacity(float(t), moving[k][None], axes)[0] for k, t in enumerate(times)])
+        a0 = np.array([2.0 * first_move / 0.25, 0.0, 9.81])  # from rest: 2 (p_1 - p_0) / dt^2, plus gravity
+        cos = axes @ (a0 / np.linalg.norm(a0))
+        held = cos >= np.cos(limit)
+        assert (0 < held.sum() < len(axes)) if some_held else held.sum() == 0
+        expected = caps[0][held].max() if some_held else caps[0][np.argmax(cos)]
+        got = leaning_capacity(land, times, moving, axes, limit)
+        assert got[0] == pytest.approx(expected, rel=1e-12)
+        np.testing.assert_allclose(leaning_capacity(land, times, moving, axes, 0.0), caps.max(axis=1))  # coplanar: no lean

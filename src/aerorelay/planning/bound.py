@@ -51,10 +51,10 @@ from ..models.propagation import LargeScaleRealization
 from ..models.radio import NodePose, RadioScene
 from ..models.vehicle import Multirotor
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
-from .feasible_path import best_feasible_path, speed_limited
+from .feasible_path import best_feasible_path, leaning_capacity, speed_limited
 
 log = logging.getLogger(__name__)
-BOUND_VERSION = "10"  # bump when the computation changes: cached bounds are recomputed
+BOUND_VERSION = "11"  # bump when the computation changes: cached bounds are recomputed
 
 
 @dataclass(frozen=True)
@@ -287,8 +287,9 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
 def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray, pb: BoundProblem, max_tilt: float,
              kind: str) -> tuple[tuple[np.ndarray, np.ndarray], str]:
     """The flyable path near a grid path: ``((capacity, position), status)``. With a large-scale
-    realization (a shadowing field is not symbolic) the grid path pulled back to the speed limit,
-    its best axis per sample, unrefined: still flyable, a weaker lower estimate."""
+    realization (a shadowing field is not symbolic) the grid path pulled back to the speed and
+    acceleration limits, its best axis per sample among those the platform can lean to there
+    (``leaning_capacity``), unrefined: still flyable, a weaker lower estimate."""
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
     v, accel = pb.resolution.max_speed_m_s, getattr(pb.resolution, "max_accel_m_s2", None)
     if scene.realization is None:
@@ -296,8 +297,7 @@ def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray,
         return (fp.capacity, fp.position), fp.status
     dt = float(times[1] - times[0]) if len(times) > 1 else 1.0
     pos = np.clip(speed_limited(grid_path, np.clip(pb.relay_start, lo, hi), v * dt, None if accel is None else accel * dt**2), lo, hi)
-    axes = axis_cone(max_tilt, np.radians(pb.resolution.axis_step_deg))
-    cap = np.array([scene.capacity(float(t), pos[k][None], axes)[0].max() for k, t in enumerate(times)])
+    cap = leaning_capacity(scene, times, pos, axis_cone(max_tilt, np.radians(pb.resolution.axis_step_deg)), max_tilt)
     return (cap, pos), "not refined (large-scale realization)"
 
 

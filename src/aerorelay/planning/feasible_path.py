@@ -206,6 +206,21 @@ def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status, dv=None,
     return p0, a0
 
 
+def leaning_capacity(landscape, times: np.ndarray, positions: np.ndarray, axes: np.ndarray, max_tilt: float) -> np.ndarray:
+    """Best capacity at each sample of a path ``positions (T, 3)`` (m) over the candidate ``axes
+    (K, 3)`` a platform can point there: on a tilted one (``max_tilt`` > 0 rad) those within
+    ``max_tilt`` of the thrust direction the path's acceleration needs (``thrust_directions``; the
+    nearest to it where none is), on a coplanar one every candidate (its axis is vertical)."""
+    caps = np.array([landscape.capacity(float(t), positions[k][None], axes)[0] for k, t in enumerate(times)])
+    if max_tilt <= 0.0 or len(times) < 2:
+        return caps.max(axis=1)
+    dirs = np.asarray(thrust_directions(len(times), float(times[1] - times[0]), landscape.gravity)(positions.T))
+    cos = axes @ dirs  # (K, T)
+    held = np.where((cos >= np.cos(max_tilt) - 1e-12).T, caps, -np.inf)
+    nearest = caps[np.arange(len(times)), np.argmax(cos, axis=0)]
+    return np.where(np.isfinite(held).any(axis=1), held.max(axis=1), nearest)
+
+
 def _best_axes(landscape, times, positions, max_tilt: float, dirs: np.ndarray, n_tilt: int = 6, n_az: int = 24) -> np.ndarray:
     """(tilt, azimuth) of the best axis of a coarse cone at each sample position among those
     within ``max_tilt`` of the path's thrust direction ``dirs (3, T)`` (the nearest to it if none is)."""
