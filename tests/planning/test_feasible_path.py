@@ -10,6 +10,7 @@ from aerorelay.planning.feasible_path import (
     _flyable_or_guess,
     best_feasible_path,
     leaning_capacity,
+    path_accelerations,
     speed_limited,
     thrust_directions,
 )
@@ -96,6 +97,24 @@ def test_a_path_outside_the_limits_is_never_reported():
     np.testing.assert_array_equal(pos, p0)
 
 
+def test_a_path_accelerating_beyond_the_limit_is_never_reported():
+    """From rest, 0.6 m in the first 0.5 s needs 4.8 m/s^2 (2 d / dt^2) where 4 are allowed; 0.5 m
+    is exactly at the limit; later, a second difference of 1.1 m over dt^2 = 0.25 s^2 is 4.4 m/s^2."""
+    dt, T = 0.5, 3
+    accels = path_accelerations(T, dt)
+    box = (-np.ones(3) * 5, np.ones(3) * 5)
+    p0 = np.zeros((T, 3))
+
+    def flown(pos):
+        ratio = lambda q: np.linalg.norm(np.asarray(accels(q.T))[:, :T - 1], axis=0) / 4.0  # noqa: E731
+        return _flyable_or_guess(pos, None, p0, None, *box, 2.0, 0.0, "Solve_Succeeded", ratio)[0]
+
+    ok = np.array([[0.0, 0, 0], [0.5, 0, 0], [1.0, 0, 0]])
+    np.testing.assert_array_equal(flown(ok), ok)
+    np.testing.assert_array_equal(flown(np.array([[0.0, 0, 0], [0.6, 0, 0], [1.2, 0, 0]])), p0)
+    np.testing.assert_array_equal(flown(np.array([[0.0, 0, 0], [0.5, 0, 0], [2.1, 0, 0]])), p0)
+
+
 def test_an_axis_the_path_cannot_hold_while_accelerating_is_never_reported():
     # braking at 4 m/s^2 toward -x (thrust 22 deg toward -x) with the antenna 17 deg toward +x: 39 deg apart
     dt, limit = 0.5, np.radians(18.0)
@@ -107,9 +126,9 @@ def test_an_axis_the_path_cannot_hold_while_accelerating_is_never_reported():
     assert cos[1] < np.cos(limit)
     p0, a0 = np.zeros((3, 3)), np.zeros((3, 2))
     box = (-np.ones(3) * 5, np.ones(3) * 5)
-    got, _ = _flyable_or_guess(pos, ang, p0, a0, *box, 1.0, limit, "Solve_Succeeded", 8.0, lambda q, a: cos)
+    got, _ = _flyable_or_guess(pos, ang, p0, a0, *box, 1.0, limit, "Solve_Succeeded", None, lambda q, a: cos)
     np.testing.assert_array_equal(got, p0)
-    got, _ = _flyable_or_guess(pos, ang, p0, a0, *box, 1.0, limit, "Solve_Succeeded", 8.0, lambda q, a: np.ones(3))
+    got, _ = _flyable_or_guess(pos, ang, p0, a0, *box, 1.0, limit, "Solve_Succeeded", None, lambda q, a: np.ones(3))
     np.testing.assert_array_equal(got, pos)  # the same path with holdable axes is kept
 
 
