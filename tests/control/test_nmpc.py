@@ -145,15 +145,20 @@ def test_iteration_limit_is_a_failure_with_fallback():
 
 def test_a_capped_qp_is_used_only_when_its_primal_residuals_pass_the_check(plant):
     """iter_max = 1 with accept_tol: the first interior-point iterate is primal feasible (HPIPM's
-    Riccati step satisfies the linearized dynamics) and is flown; a check it cannot pass (1e-300)
-    makes the same QP a failure, as without a cap check."""
+    Riccati step satisfies the linearized dynamics) and is flown; an iterate that fails the check
+    (1e-300) continues from itself to the uncapped solution (``iter_continue``), or, with no
+    continuation, makes the same QP a failure, as without a cap check."""
     x = VEH.hover_state(HOME)
     x[0:3] += 0.5
     capped = NMPC(SPEC, NmpcSettings(iter_max=1, accept_tol=1e-6))
     info = capped.step(x, np.zeros(6), params(HOME))
     assert info.ok and info.status == "CAPPED" and np.all(np.isfinite(info.u))
-    strict = NMPC(SPEC, NmpcSettings(iter_max=1, accept_tol=1e-300))
+    strict = NMPC(SPEC, NmpcSettings(iter_max=1, accept_tol=1e-300, iter_continue=0))
     assert strict.step(x, np.zeros(6), params(HOME)).status == "MAX_ITER"
+    continued = NMPC(SPEC, NmpcSettings(iter_max=1, accept_tol=1e-300)).step(x, np.zeros(6), params(HOME))
+    full = NMPC(SPEC, NmpcSettings()).step(x, np.zeros(6), params(HOME))
+    assert continued.ok and continued.status == "SUCCESS" and continued.qp_iters > 1
+    np.testing.assert_allclose(continued.u, full.u, rtol=1e-3, atol=1e-3 * np.abs(full.u).max())
     # a cap of a few iterations flies like the uncapped solver (one iterate alone is feasible
     # but too timid: 200 steps leave 0.51 of the 0.87 m offset, 3 or 50 iterations 0.47)
     ends = [fly(NMPC(SPEC, NmpcSettings(iter_max=n, accept_tol=1e-6)), plant, x.copy(), 200, lambda k: params(HOME))[0]

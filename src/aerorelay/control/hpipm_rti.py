@@ -169,7 +169,8 @@ class HpipmRti:
 
     def __init__(self, spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50,
                  tol_comp: float = 1e-4, warm_start: int = 2, hessian_reg: float = 1e-8,
-                 ric_alg: int = 1, simd_kernels: bool = True, feedback_mode: int = 0, accept_tol: float = 0.0):
+                 ric_alg: int = 1, simd_kernels: bool = True, feedback_mode: int = 0, accept_tol: float = 0.0,
+                 iter_continue: int = 0):
         self.spec = spec
         self.simd_compiled, self.simd_reason = use_simd_kernels(simd_kernels)
         lib = ctypes.CDLL(str(build_library(spec, simd_kernels=self.simd_compiled)))
@@ -186,7 +187,8 @@ class HpipmRti:
         n2 = condensed_horizon if 0 < condensed_horizon < spec.horizon else spec.horizon
         if feedback_mode == 1 and n2 < spec.horizon:
             raise ValueError("the sensitivity feedback needs the uncondensed QP (condensed_horizon = 0)")
-        settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg, feedback_mode, accept_tol], float)
+        settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg, feedback_mode, accept_tol,
+                             iter_continue], float)
         self._keep = list(stage_bounds(spec))
         self._mem = lib.rti_create(_ptr(settings), self._keep[0].ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
                                    *(_ptr(a) for a in self._keep[1:]))

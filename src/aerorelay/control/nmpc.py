@@ -64,6 +64,9 @@ class NmpcSettings:
     # hpipm backend: a QP the iteration cap stopped is used when HPIPM's largest residual is
     # <= accept_tol (0: never; it counts as a failure)
     accept_tol: float = 0.0
+    # hpipm backend, with accept_tol > 0: a capped iterate that fails the check continues from
+    # itself for up to this many more iterations (0: it is retried cold, under the same cap)
+    iter_continue: int = 50
     # hpipm backend: "primal_dual" starts each IPM from the guess and the previous QP's multipliers
     # (4.1 -> 2.8 iterations at tol 1e-4; cold after a reset or a failure, and a failed warm
     # solve is retried cold); "primal" from the guess only; "none" cold
@@ -104,7 +107,7 @@ class NmpcSettings:
         every run so that a campaign recomputes runs made with another solver configuration."""
         route = (f"hpipm/{self.warm_start}/cond={self.condensed_horizon}/feedback={self.feedback}" if self.backend == "hpipm"
                  else f"casadi/{self.qp_solver}")
-        accept = f"/accept={self.accept_tol:g}" if self.accept_tol > 0 else ""
+        accept = f"/accept={self.accept_tol:g}/continue={self.iter_continue}" if self.accept_tol > 0 else ""
         return f"{route}/tol={self.tol_comp:g}/iter_max={self.iter_max}{accept}"
 
     def conic_options(self) -> dict:
@@ -129,7 +132,8 @@ class _HpipmEngine:
                             warm_start={"none": 0, "primal": 1, "primal_dual": 2}[settings.warm_start],
                             ric_alg={"classical": 0, "square_root": 1}[settings.riccati],
                             simd_kernels=settings.simd_kernels,
-                            feedback_mode=int(settings.feedback == "sensitivity"), accept_tol=settings.accept_tol)
+                            feedback_mode=int(settings.feedback == "sensitivity"), accept_tol=settings.accept_tol,
+                            iter_continue=settings.iter_continue)
 
     def reset(self, X: np.ndarray, W: np.ndarray):
         self.rti.set_plan(X, W)

@@ -45,6 +45,7 @@ typedef struct { /* mirrored by hpipm_rti.RtiInfo (the caller times the phases) 
 
 typedef struct {
   int n2, iter_max, warm_start, ric_alg, cold, prepared; /* cold: no usable multipliers yet */
+  int iter_continue; /* > 0: a capped IPM whose iterate fails accept_tol continues from it for up to this many iterations */
   int feedback_mode; /* 0: feedback solves the QP; 1: prepare solves it at the predicted state, feedback corrects */
   int pred_status, pred_iter; /* feedback_mode 1: the preparation's IPM */
   int capped, pred_capped;    /* the last IPM stopped at iter_max with residuals <= accept_tol */
@@ -104,7 +105,7 @@ void rti_free(rti_mem *m) {
 #define RTI_TRY_ALLOC(var, size) do { (var) = rti_alloc(m, (size)); if (!(var)) goto fail; } while (0)
 #define RTI_MAX(a, b) ((a) > (b) ? (a) : (b))
 
-/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg, feedback_mode, accept_tol; bounds: idxbx, lbx, ubx (k >= 1),
+/* settings: n2, iter_max, warm_start, tol_comp, reg, ric_alg, feedback_mode, accept_tol, iter_continue; bounds: idxbx, lbx, ubx (k >= 1),
  * lbu, ubu (motor accelerations). Returns NULL when memory cannot be had. */
 rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx, const double *ubx,
                     const double *lbu, const double *ubu) {
@@ -122,6 +123,7 @@ rti_mem *rti_create(const double *settings, const int *idxbx, const double *lbx,
   m->ric_alg = (int)settings[5];
   m->feedback_mode = (int)settings[6];
   m->accept_tol = settings[7];
+  m->iter_continue = (int)settings[8];
   m->cold = 1;
   for (i = 0; i < RTI_NBX; i++) { m->idxbx[i] = idxbx[i]; m->lbx[i] = lbx[i]; m->ubx[i] = ubx[i]; }
   for (i = 0; i < RTI_NR; i++) { m->lbu[i] = lbu[i]; m->ubu[i] = ubu[i]; }
@@ -345,8 +347,9 @@ static void rti_shift(rti_mem *m, const double *X, const double *W) {
  * guess plus the previous QP's multipliers and slacks. Returns HPIPM's status. */
 static int rti_solve(rti_mem *m, struct d_ocp_qp *qp, struct d_ocp_qp_sol *sol, int warm_start, int *iter) {
   int k, status;
-  if (warm_start >= 1)
+  if (warm_start == 1 || warm_start == 2)
     for (k = 0; k <= qp->dim->N; k++) blasfeo_dvecse(qp->dim->nu[k] + qp->dim->nx[k], 0.0, sol->ux + k, 0);
+  if (warm_start > 2) warm_start = 2; /* 3: continue from the iterate in sol (its primal part kept) */
   d_ocp_qp_ipm_arg_set_warm_start(&warm_start, &m->ipm_arg);
   d_ocp_qp_ipm_solve(qp, sol, &m->ipm_arg, &m->ipm_ws);
   d_ocp_qp_ipm_get_status(&m->ipm_ws, &status);
@@ -381,6 +384,16 @@ static int rti_solve_qp(rti_mem *m, int *iter) {
     sol = &m->sol2;
   }
   status = rti_solve(m, qp, sol, m->cold ? 0 : m->warm_start, iter);
+  if (status == 1 && m->accept_tol > 0.0 && m->iter_continue > 0) {
+    /* the cap stopped an iterate that failed the quality check: continue from it (primal and
+     * dual kept) with up to iter_continue more iterations, instead of a cold start that the same
+     * cap would stop again */
+    int iter2 = 0, cap = m->iter_max;
+    d_ocp_qp_ipm_arg_set_iter_max(&m->iter_continue, &m->ipm_arg);
+    status = rti_solve(m, qp, sol, 3, &iter2);
+    d_ocp_qp_ipm_arg_set_iter_max(&cap, &m->ipm_arg);
+    *iter += iter2;
+  }
   if (status != 0 && !m->cold && m->warm_start) { /* a warm start gone wrong: once more from cold */
     int iter2 = 0;
     status = rti_solve(m, qp, sol, 0, &iter2);

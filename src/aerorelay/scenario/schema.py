@@ -418,8 +418,8 @@ class CapacityPlannerConfig(_Strict):
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
     qp_iter_max: int = Field(50, ge=1, le=100, description="the tracking NMPC's QP interior-point iteration cap (5 "
-                             "bounds the step time on the presets, but fails QPs with a heavy shaft-power weight at 3 m/s: "
-                             "README, Speed)")
+                             "trims the step-time tail on the presets; an iterate that fails qp_accept_tol continues from "
+                             "itself for up to 50 more: README, Speed)")
     qp_accept_tol: float = Field(0.0, ge=0.0, le=1e-2, description="a QP the cap stopped is flown when its primal "
                                  "residuals (dynamics, every inequality) are <= this, else it is a QP failure (0: never)")
 
