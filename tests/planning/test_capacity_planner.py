@@ -192,3 +192,21 @@ def test_excursion_pauses_where_its_circling_point_is_jammed(max_loss):
         np.testing.assert_allclose(goal, excursion_point(planner.target, 1.0, speed, t, planner.lo, planner.hi))
     else:
         np.testing.assert_array_equal(goal, planner.target)
+
+
+@pytest.mark.parametrize("every", [1, 4])
+def test_replan_every_sets_how_often_the_candidates_are_scored(every, monkeypatch):
+    """``controller.capacity.replan_every`` reaches the planner: over 8 control steps it scores its
+    candidates 8 times at 1, twice at 4 (the first step and the fifth)."""
+    sc = SC.with_updates({"controller.capacity.replan_every": every})
+    src = build_source(sc)
+    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+    calls = []
+    original = planner._replan
+    monkeypatch.setattr(planner, "_replan", lambda inp: (calls.append(inp.t), original(inp)))
+    for k in range(8):
+        t = k * sc.control_period_s
+        s = src.state(t)
+        planner.update(PlannerInput(t=t, dt=sc.control_period_s, p1=np.asarray(sc.nodes.relay, float), p2=s.p, v2=s.v, a2=s.a,
+                                    jammer_positions=np.zeros((1, 3)), jammer_powers=np.zeros(1)))
+    assert len(calls) == 8 // every

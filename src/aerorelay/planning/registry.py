@@ -59,7 +59,8 @@ def _baseline_b(ctx: PlannerContext):
 @register_planner("capacity")
 def _capacity_seeking(ctx: PlannerContext):
     cfg = ctx.settings.capacity
-    return CapacityPlanner(ctx, max_accel_m_s2=cfg.max_accel_m_s2, brake_accel_m_s2=cfg.brake_accel_m_s2, margin_m=cfg.margin_m, leash_m=cfg.leash_m,
+    return CapacityPlanner(ctx, replan_every=cfg.replan_every, max_accel_m_s2=cfg.max_accel_m_s2, brake_accel_m_s2=cfg.brake_accel_m_s2,
+                           margin_m=cfg.margin_m, leash_m=cfg.leash_m,
                            route_grid_m=cfg.route_grid_m, lookahead_s=cfg.lookahead, axis_rate_deg_s=cfg.axis_rate_deg_s,
                            excursion_m=cfg.excursion_m, excursion_std_m=cfg.excursion_std_m,
                            excursion_max_loss=cfg.excursion_max_loss, yaw_rate_deg_s=cfg.yaw_rate_deg_s,

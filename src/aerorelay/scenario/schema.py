@@ -417,6 +417,9 @@ class CapacityPlannerConfig(_Strict):
                                       "its circling point is more than this fraction below the target's (1: never pauses)")
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
+    replan_every: int = Field(4, ge=1, le=50, description="control steps between two replans (all candidates scored in "
+                              "one compiled call): 1 spreads the planner over every step, so no step carries it alone "
+                              "(README, Speed)")
     qp_iter_max: int = Field(50, ge=1, le=100, description="the tracking NMPC's QP interior-point iteration cap (5 "
                              "trims the step-time tail on the presets; an iterate that fails qp_accept_tol continues from "
                              "itself for up to 50 more: README, Speed)")
