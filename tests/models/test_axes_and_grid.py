@@ -1,11 +1,13 @@
 """The radio scene's vectorized capacity over relay poses against the independent per-link reference (property test)."""
 
+import casadi as ca
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aerorelay.models.antenna import DipolePattern, IsotropicPattern
-from aerorelay.models.axes import axis_cone
+from aerorelay.models.axes import axis_cone, tilted_axes
 from aerorelay.models.geometry import rotation_zyx
 from aerorelay.models.jammer import Jammer
 from aerorelay.models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene
@@ -70,3 +72,18 @@ def test_axis_set_stays_inside_an_azimuth_dependent_limit_and_its_boundary_reach
             if want > 2 * step:  # a ring around the azimuth wide enough to hold boundary points
                 reach = np.max(tilt[near] - np.interp(a[near], az, limits, period=2 * np.pi))
                 assert reach >= -0.25 * step - 1e-9
+
+
+@given(st.floats(0.0, np.pi), st.floats(-2 * np.pi, 2 * np.pi))
+def test_tilted_axes_is_one_definition_numerically_and_symbolically(tilt, azimuth):
+    """The CasADi expression (the flyable path's NLP) evaluates to the numpy axis, a unit vector
+    ``tilt`` from vertical whose horizontal part points toward ``azimuth``."""
+    t, a = ca.SX.sym("t"), ca.SX.sym("a")
+    f = ca.Function("axis", [t, a], [tilted_axes(t, a)])
+    sym = np.asarray(f(tilt, azimuth)).ravel()
+    num = tilted_axes(tilt, azimuth)
+    np.testing.assert_allclose(sym, num, atol=1e-14)
+    assert np.linalg.norm(num) == pytest.approx(1.0)
+    assert np.arccos(np.clip(num[2], -1, 1)) == pytest.approx(tilt, abs=1e-7)
+    if np.sin(tilt) > 1e-6:
+        assert np.arctan2(num[1], num[0]) == pytest.approx(np.arctan2(np.sin(azimuth), np.cos(azimuth)), abs=1e-7)

@@ -6,12 +6,17 @@ A dipole's gain depends on its axis only (not on yaw), so a relay attitude enter
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 
+from .backend import is_symbolic
 
-def tilted_axes(tilt, azimuth) -> np.ndarray:
-    """Unit axes ``(..., 3)`` tilted ``tilt`` rad from vertical toward ``azimuth`` rad (world, numpy:
-    scalars or arrays that broadcast)."""
+
+def tilted_axes(tilt, azimuth):
+    """Unit axes tilted ``tilt`` rad from vertical toward ``azimuth`` rad (world). *Dual*: numpy
+    scalars or arrays that broadcast give ``(..., 3)``; CasADi scalars give a ``(3, 1)`` expression."""
+    if is_symbolic(tilt, azimuth):
+        return ca.vertcat(ca.sin(tilt) * ca.cos(azimuth), ca.sin(tilt) * ca.sin(azimuth), ca.cos(tilt))
     tilt, azimuth = np.broadcast_arrays(np.asarray(tilt, float), np.asarray(azimuth, float))
     return np.stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)], axis=-1)
 

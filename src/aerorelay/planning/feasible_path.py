@@ -62,10 +62,6 @@ def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: floa
     return out
 
 
-def _axis_of(tilt, az):
-    return ca.vertcat(ca.sin(tilt) * ca.cos(az), ca.sin(tilt) * ca.sin(az), ca.cos(tilt))
-
-
 def _path_accelerations(P, dt: float) -> list:
     """Accelerations (m/s^2) of a sampled path ``P (3, T)`` (CasADi), one per sample: at the start
     from rest ``2 (p_1 - p_0) / dt^2``, then second differences / dt^2, the last sample repeating
@@ -121,7 +117,7 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     dirs = thrust_directions(T, dt, landscape.gravity)
     caps, axes_sym = [], []
     for k, t in enumerate(times):
-        axis = _axis_of(A[0, k], A[1, k]) if A is not None else ca.DM([0.0, 0.0, 1.0])
+        axis = tilted_axes(A[0, k], A[1, k]) if A is not None else ca.DM([0.0, 0.0, 1.0])
         axes_sym.append(axis)
         poses = {landscape.relay_name: NodePose(P[:, k], axis), landscape.source_name: landscape.source_pose(float(t))}
         caps.append(scene.evaluate(float(t), poses, jammer_powers=landscape.silent).capacity)
