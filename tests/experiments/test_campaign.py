@@ -166,8 +166,10 @@ def test_worker_killed_mid_run_is_redone_and_finished_run_kept(tiny, tmp_path):
 
     from dask.distributed import Client, LocalCluster
 
+    # the slow run must still be in flight when the short one is done: 8 s of mission took ~1 s on
+    # a fast hour of this VM and the poll missed it once in CI; 25 s and a 50 ms poll leave margin
     (tiny / "tiny.toml").write_text(TINY.replace('"controller.variant" = "unconstrained", "sim.duration_s" = 0.3',
-                                                 '"controller.variant" = "unconstrained", "sim.duration_s" = 8.0'))
+                                                 '"controller.variant" = "unconstrained", "sim.duration_s" = 25.0'))
     specs = expand(find_studies(tiny)[0], ROOT)
     out = tmp_path / "campaign"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, Client(cl) as c:
@@ -184,7 +186,7 @@ def test_worker_killed_mid_run_is_redone_and_finished_run_kept(tiny, tmp_path):
                 stamp = (run_dir(out, specs[0]) / "metrics.json").stat().st_mtime_ns
                 os.kill(pid, signal.SIGKILL)
                 killed = pid
-            time.sleep(0.2)
+            time.sleep(0.05)
         th.join(timeout=240)
     assert killed is not None, "never saw the slow run in flight"
     res = box["res"]
