@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from aerorelay.models.axes import axis_set
+from aerorelay.models.radio import NodePose
 from aerorelay.planning.base import PlannerInput
 from aerorelay.planning.capacity_planner import CapacityPlanner, excursion_point
 from aerorelay.scenario import load_scenario
@@ -210,3 +211,28 @@ def test_replan_every_sets_how_often_the_candidates_are_scored(every, monkeypatc
         planner.update(PlannerInput(t=t, dt=sc.control_period_s, p1=np.asarray(sc.nodes.relay, float), p2=s.p, v2=s.v, a2=s.a,
                                     jammer_positions=np.zeros((1, 3)), jammer_powers=np.zeros(1)))
     assert len(calls) == 8 // every
+
+
+def test_decoupled_scoring_picks_the_best_position_at_the_axis_then_the_best_axis_there():
+    """``scoring = "decoupled"`` scores the 27 positions at the current axis goal (vertical at the
+    start, the first of the axis set), then every axis at the best of them: checked against the
+    joint 27 x K grid of the same planner, read column- then row-wise."""
+    sc = SC.with_updates({"controller.capacity.scoring": "decoupled"})
+    src = build_source(sc)
+    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+    t = 2.0
+    s = src.state(t)
+    inp = PlannerInput(t=t, dt=sc.control_period_s, p1=np.array([-4.0, 3.0, 3.0]), p2=s.p, v2=s.v, a2=s.a,
+                       jammer_positions=np.array([[0.0, -3.0, 1.5]]), jammer_powers=np.array([50.0]))
+    planner.target = planner.p_ref = np.array([-4.0, 3.0, 3.0])
+    np.testing.assert_array_equal(planner.axis_goal, planner.axes[0])
+    cand = planner._candidates(inp, planner.target)
+    p2, b2 = planner._predicted_source(inp)
+    C = planner.grid(cand, planner.axes, NodePose(p2, b2), inp.jammer_positions, inp.jammer_powers)
+    planner._replan(inp)
+    i = int(np.argmax(C[:, 0]))
+    j = int(np.argmax(C[i]))
+    np.testing.assert_allclose(planner.target, cand[i])
+    np.testing.assert_allclose(planner.axis_goal, planner.axes[j])
+    assert planner.best_capacity == pytest.approx(C[i, j], rel=1e-9)
+    assert planner.best_capacity <= C.max() * (1 + 1e-12)  # a joint search can only do as well or better

@@ -57,7 +57,7 @@ class CapacityPlanner:
                  route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
                  brake_accel_m_s2: float = 1.5,
                  excursion_m: float = 0.0, excursion_std_m: float = 1.0, excursion_max_loss: float = 0.05, yaw_rate_deg_s: float = 0.0,
-                 tilt_fraction: float = 0.85, boundary_axes: bool = True, tracking_freq: float = 1.0):
+                 tilt_fraction: float = 0.85, boundary_axes: bool = True, tracking_freq: float = 1.0, scoring: str = "joint"):
         veh = ctx.vehicle
         # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
         # a margin of control authority) are axes it can actually fly
@@ -91,8 +91,13 @@ class CapacityPlanner:
         self.brake_accel = min(brake_accel_m_s2, max_accel_m_s2)
         self.excursion, self.excursion_std, self.excursion_max_loss = excursion_m, excursion_std_m, excursion_max_loss
         self.excursion_allowed = True
-        self.excursion_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.axes), source=self.source_name)
-                               if excursion_m > 0 else None)
+        if scoring not in ("joint", "decoupled"):
+            raise ValueError(f"scoring must be 'joint' or 'decoupled', got {scoring!r}")
+        # one position x every axis: the excursion's point, and the decoupled scoring's second pass
+        self.axis_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.axes), source=self.source_name)
+                          if excursion_m > 0 or scoring == "decoupled" else None)
+        self.position_grid = (CompiledRelayGrid(ctx.scene, len(self.offsets), 1, source=self.source_name)
+                              if scoring == "decoupled" and self.yaw is None else None)
         self.tracking_freq = tracking_freq
         self._k = 0
 
@@ -132,20 +137,28 @@ class CapacityPlanner:
         cand = self._candidates(inp, self.target)
         pose = NodePose(p2, b2)
         axes = self.axes if self.yaw is None else self.yaw.axes()
-        C = self.grid(cand, axes, pose, inp.jammer_positions, inp.jammer_powers)
-        i, j = np.unravel_index(int(np.argmax(C)), C.shape)
+        if self.position_grid is not None and self.axis_grid is not None:
+            # decoupled: the positions at the current axis goal, then every axis at the best of them
+            i = int(np.argmax(self.position_grid(cand, self.axis_goal[None, :], pose, inp.jammer_positions, inp.jammer_powers)))
+            c_axes = self.axis_grid(cand[i:i + 1], axes, pose, inp.jammer_positions, inp.jammer_powers)[0]
+            j = int(np.argmax(c_axes))
+            best = float(c_axes[j])
+        else:  # joint: every candidate position with every axis
+            C = self.grid(cand, axes, pose, inp.jammer_positions, inp.jammer_powers)
+            i, j = (int(v) for v in np.unravel_index(int(np.argmax(C)), C.shape))
+            best = float(C[i, j])
         self.target = cand[i]
         self.axis_goal = axes[j]
-        self.best_capacity = float(C[i, j])
+        self.best_capacity = best
         if self.yaw is not None and self.yaw_grid is not None:  # every yaw's axes at the chosen position
             every = self.yaw.all_axes()
             c = self.yaw_grid(cand[i:i + 1], every, pose, inp.jammer_positions, inp.jammer_powers)[0]
             k = self.yaw.choose(c, self.best_capacity)
             if k is not None:
                 self.axis_goal, self.best_capacity = every[k], float(c[k])
-        if self.excursion_grid is not None and self._estimate_poor(inp):  # is the circling point's link good enough?
+        if self.excursion > 0 and self.axis_grid is not None and self._estimate_poor(inp):  # the circling point's link
             point = excursion_point(self.target, self.excursion, self.speed, inp.t, self.lo, self.hi)
-            c_point = self.excursion_grid(point[None, :], axes, pose, inp.jammer_positions, inp.jammer_powers)
+            c_point = self.axis_grid(point[None, :], axes, pose, inp.jammer_positions, inp.jammer_powers)
             self.excursion_allowed = float(np.max(c_point)) >= (1.0 - self.excursion_max_loss) * self.best_capacity
 
     def _turn_axis(self, dt: float):

@@ -65,4 +65,4 @@ def _capacity_seeking(ctx: PlannerContext):
                            excursion_m=cfg.excursion_m, excursion_std_m=cfg.excursion_std_m,
                            excursion_max_loss=cfg.excursion_max_loss, yaw_rate_deg_s=cfg.yaw_rate_deg_s,
                            tilt_fraction=cfg.tilt_fraction, axis_step_deg=cfg.axis_step_deg,
-                           boundary_axes=cfg.boundary_axes, tracking_freq=cfg.tracking_freq_rad_s)
+                           boundary_axes=cfg.boundary_axes, tracking_freq=cfg.tracking_freq_rad_s, scoring=cfg.scoring)
