@@ -218,10 +218,14 @@ def leaning_capacity(landscape, times: np.ndarray, positions: np.ndarray, axes: 
     if max_tilt <= 0.0 or len(times) < 2:
         return caps.max(axis=1)
     dirs = np.asarray(thrust_directions(len(times), float(times[1] - times[0]), landscape.gravity)(positions.T))
-    cos = axes @ dirs  # (K, T)
+    return caps[np.arange(len(times)), _best_held_axis(caps, axes @ dirs, max_tilt)]
+
+
+def _best_held_axis(caps: np.ndarray, cos: np.ndarray, max_tilt: float) -> np.ndarray:
+    """Per sample, the index of the best axis (``caps (T, K)``) among those within ``max_tilt`` rad
+    of the path's thrust direction (``cos (K, T)``: each axis's cosine to it), the nearest where none is."""
     held = np.where((cos >= np.cos(max_tilt) - 1e-12).T, caps, -np.inf)
-    nearest = caps[np.arange(len(times)), np.argmax(cos, axis=0)]
-    return np.where(np.isfinite(held).any(axis=1), held.max(axis=1), nearest)
+    return np.where(np.isfinite(held).any(axis=1), np.argmax(held, axis=1), np.argmax(cos, axis=0))
 
 
 def _best_axes(landscape, times, positions, max_tilt: float, dirs: np.ndarray, n_tilt: int = 6, n_az: int = 24) -> np.ndarray:
@@ -230,10 +234,6 @@ def _best_axes(landscape, times, positions, max_tilt: float, dirs: np.ndarray, n
     grid = np.meshgrid(np.linspace(0.0, max_tilt, n_tilt), np.linspace(0.0, 2 * np.pi, n_az, endpoint=False), indexing="ij")
     tilt, az = grid[0].ravel(), grid[1].ravel()
     axes = tilted_axes(tilt, az)
-    out = np.empty((len(times), 2))
-    for k, t in enumerate(times):
-        cos = axes @ dirs[:, k]
-        c = np.where(cos >= np.cos(max_tilt), landscape.capacity(float(t), positions[k][None], axes)[0], -np.inf)
-        j = int(np.argmax(c)) if np.isfinite(c).any() else int(np.argmax(cos))
-        out[k] = tilt[j], az[j]
-    return out
+    caps = np.array([landscape.capacity(float(t), positions[k][None], axes)[0] for k, t in enumerate(times)])
+    j = _best_held_axis(caps, axes @ dirs, max_tilt)
+    return np.column_stack([tilt[j], az[j]])
