@@ -48,6 +48,7 @@ from ..models.geometry import E3
 from ..models.propagation import PathGain
 from ..models.radio import link_gain
 from ..models.sensing import KAPPA_DB, detector_log_mean_db, detector_log_std_db
+from .pair_search import best_pair
 from .window import MeasurementWindow, PendingReadings, cell_grid
 
 _ISOTROPIC = IsotropicPattern(1.0)
@@ -62,6 +63,10 @@ _NP = 7  # parameters per jammer: position (3), log EIRP, velocity (3)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
 _SLOPE_STEP = 1e-4  # central-difference step in the cosine of the pattern's log-gain slope
 _MAX_LOG_SLOPE = 1e3  # 1/rad: a slope cap (a pattern's exact null has an infinite log slope)
+_JOINT_EVERY = 8  # refinements between two joint searches for pairs of jammers
+_JOINT_CELLS = 256  # the pair search scores pairs among this many best single cells
+_JOINT_ROWS = 30  # window rows the pair search scores on (evenly thinned)
+_JOINT_POLISH = 6  # Levenberg-Marquardt iterations on the best pair before it is compared with the estimate
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,18 @@ class EstimatorSettings:
     window_rows: int = 60  # measurements Gauss-Newton fits (evenly thinned, each weighted for those it stands for)
     min_rows: int = 8  # Gauss-Newton starts after this many measurements
     refine_every: int = 2  # one Gauss-Newton iteration per this many measurement rounds
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    """A restart the joint pair search proposed: parameters (positions at ``t_ref``, s), the jammers
+    it counts as found, its damping and the polishing iterations left."""
+
+    theta: np.ndarray
+    found: np.ndarray
+    lam: float
+    left: int
+    t_ref: float
 
 
 @dataclass(frozen=True)
@@ -159,6 +176,7 @@ class JammerEstimator:
         self._grid_rows = np.zeros(n_jammers, int)  # measurements each jammer's grid has taken in
         self._rival = np.ones(n_jammers)  # likelihood ratio of the grid's rival mode to the estimate (<= 1)
         self._posterior: np.ndarray | None = None
+        self._candidate: _Candidate | None = None  # the joint pair search's restart, being polished
         self.pending = [PendingReadings() for _ in receivers]
         self._estimate = self._summarize()
 
@@ -454,44 +472,17 @@ class JammerEstimator:
 
     def _refine(self, t: float) -> None:
         """One Levenberg-Marquardt iteration on the window (log domain, weights exp(-age / forget_s))."""
-        idx = self.window.rows(self.s.window_rows)
-        z = self.window.z[idx]
-        thin = len(self.window) / idx.size  # each fitted row stands for this many
-        base = thin * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
+        idx, base = self._fit_rows(t, self.s.window_rows)
         self.theta[:, :3] = np.clip(self._positions_at(t), self.lo, self.hi)
         self.t_ref = t  # positions are now's; a row's is now's plus the velocity times its age
         self._reseed(idx, base)
+        if self.nj >= 2 and self._refines % _JOINT_EVERY == 0 and self._candidate is None:
+            self._joint_search(*self._fit_rows(t, _JOINT_ROWS))  # its candidate is polished from the next refinement on
+        else:
+            self._advance_candidate(idx, base)
         if not self.started.any():
             return
-        g, dg = self._window_gains(self.theta, idx, jacobian=True)
-        on = self._on_flags(self.theta, g, idx)
-        z_hat, J = self._model(self.theta, g, dg, on, idx)
-        free = np.outer(self.started, self._free).ravel()  # the found jammers' fitted parameters
-        cols = np.flatnonzero(free)
-        J = J[:, cols]
-        r = z - z_hat
-        var = self._row_variance(self.theta, g, on, idx)
-        mixed = self._mixed_rows(self.theta, g, on, idx, z_hat, var)
-        fit = base * ~mixed
-        fixed_cost = self._mixed_cost(base, var, mixed)
-        cost0, robust = self._huber(r, fit, var)
-        cost0 += self._velocity_cost(self.theta) + fixed_cost
-        wr = fit / var * robust
-        prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
-        H = J.T @ (J * wr[:, None]) + np.diag(prior)
-        full = np.zeros(_NP * self.nj)
-        full[cols] = np.linalg.solve(H + self.lam * np.diag(np.diag(H) + 1e-9),
-                                     J.T @ (wr * r) - prior * self.theta.ravel()[cols])
-        trial = self.theta + full.reshape(self.nj, _NP)
-        trial[:, :3] = np.clip(trial[:, :3], self.lo, self.hi)
-        trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
-        g_try, _ = self._window_gains(trial, idx, jacobian=False)
-        z_try, _ = self._model(trial, g_try, None, on, idx)
-        if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
-            self.theta, self.lam = trial, max(self.lam / 3.0, 1e-6)
-        else:
-            self.lam = min(self.lam * 5.0, 1e6)
-        chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
+        self.theta, self.lam, H, cols, chi2 = self._lm_step(self.theta, self.lam, idx, base)
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
@@ -499,6 +490,99 @@ class JammerEstimator:
         cov[np.ix_(cols, cols)] = np.linalg.pinv(H) * chi2
         self.local_cov = np.array([_clip_eigenvalues(cov[_NP * j:_NP * j + 3, _NP * j:_NP * j + 3], self._max_var)
                                    for j in range(self.nj)])
+
+    def _fit_rows(self, t: float, most: int) -> tuple[np.ndarray, np.ndarray]:
+        """At most ``most`` window rows (evenly thinned) and their weights at time ``t`` (s): each stands
+        for the rows thinned out, forgotten with ``exp(-age / forget_s)``."""
+        idx = self.window.rows(most)
+        return idx, len(self.window) / idx.size * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
+
+    def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray):
+        """One Levenberg-Marquardt iteration from ``theta`` (the found jammers' parameters) with damping
+        ``lam``: ``(theta, lam, H, cols, chi2)``, the new iterate and damping, the Gauss-Newton Hessian
+        at ``theta`` over the fitted columns ``cols`` and the window's reduced chi-square there."""
+        z = self.window.z[idx]
+        g, dg = self._window_gains(theta, idx, jacobian=True)
+        on = self._on_flags(theta, g, idx)
+        z_hat, J = self._model(theta, g, dg, on, idx)
+        free = np.outer(self.started, self._free).ravel()  # the found jammers' fitted parameters
+        cols = np.flatnonzero(free)
+        J = J[:, cols]
+        r = z - z_hat
+        var = self._row_variance(theta, g, on, idx)
+        mixed = self._mixed_rows(theta, g, on, idx, z_hat, var)
+        fit = base * ~mixed
+        fixed_cost = self._mixed_cost(base, var, mixed)
+        cost0, robust = self._huber(r, fit, var)
+        cost0 += self._velocity_cost(theta) + fixed_cost
+        wr = fit / var * robust
+        prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
+        H = J.T @ (J * wr[:, None]) + np.diag(prior)
+        full = np.zeros(_NP * self.nj)
+        full[cols] = np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-9), J.T @ (wr * r) - prior * theta.ravel()[cols])
+        trial = theta + full.reshape(self.nj, _NP)
+        trial[:, :3] = np.clip(trial[:, :3], self.lo, self.hi)
+        trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
+        g_try, _ = self._window_gains(trial, idx, jacobian=False)
+        z_try, _ = self._model(trial, g_try, None, on, idx)
+        chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
+        if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
+            return trial, max(lam / 3.0, 1e-6), H, cols, chi2
+        return theta, min(lam * 5.0, 1e6), H, cols, chi2
+
+    def _joint_search(self, idx: np.ndarray, base: np.ndarray) -> None:
+        """Score every pair of grid cells for two jammers at once on the window (``pair_search.py``),
+        the others held at their estimates; the best pair becomes a candidate that ``_advance_candidate``
+        polishes beside the estimate and adopts once its window fit is the better one. Two jammers found
+        one after the other can settle in a wrong pair of modes that compensate each other, which neither
+        one-jammer check (``_reseed``) leaves: measured, 10-15 m off at a reported std below 1 m."""
+        y = np.exp(self.window.z[idx] / KAPPA_DB)
+        weights = base / (y * y * self.rel2)
+        gains = self._row_gains(self.cells, idx)
+        g, _ = self._window_gains(self.theta, idx, jacobian=False)
+        for j in range(self.nj):
+            for k in range(j + 1, self.nj):
+                held = self.started.copy()
+                held[[j, k]] = False
+                others = (np.exp(np.where(held, self.theta[:, 3], -np.inf))[:, None] * g).sum(axis=0)
+                pair = best_pair(gains, weights, y - self._noise[self.window.ri[idx]] - others, keep=_JOINT_CELLS)
+                if pair.power_b <= 0.0 or self._pair_is_estimate(pair.a, pair.b, j, k):
+                    continue  # one cell explains it (the one-jammer checks handle that), or nothing new
+                seed = self.theta.copy()
+                seed[j] = np.r_[self.cells[pair.a], math.log(pair.power_a), np.zeros(3)]
+                seed[k] = np.r_[self.cells[pair.b], math.log(pair.power_b), np.zeros(3)]
+                found = self.started.copy()
+                found[[j, k]] = True
+                self._candidate = _Candidate(seed, found, 1e-2, _JOINT_POLISH, self.t_ref)
+                return  # one candidate at a time
+
+    def _pair_is_estimate(self, a: int, b: int, j: int, k: int) -> bool:
+        """Whether cells ``a, b`` are where jammers ``j, k`` are estimated (both found, each cell within
+        two cells of one of them): the pair search then proposes nothing new."""
+        if not (self.started[j] and self.started[k]):
+            return False
+        d = np.linalg.norm(self.cells[[a, b]][:, None, :] - self.theta[[j, k]][None, :, :3], axis=2)
+        return bool(min(max(d[0, 0], d[1, 1]), max(d[0, 1], d[1, 0])) <= 2.0 * self.spacing)
+
+    def _advance_candidate(self, idx: np.ndarray, base: np.ndarray) -> None:
+        """One Levenberg-Marquardt iteration on the joint search's candidate (its positions moved on to
+        now like the estimate's); adopt it as soon as its window fit beats the estimate's, drop it
+        after ``_JOINT_POLISH`` iterations that did not (one iteration per refinement: no step pays
+        for the whole polish)."""
+        c = self._candidate
+        if c is None:
+            return
+        current = self._window_cost(self.theta, idx, base) if self.started.any() else math.inf
+        started, self.started = self.started, c.found
+        theta = c.theta.copy()
+        theta[:, :3] = np.clip(theta[:, :3] + theta[:, 4:7] * (self.t_ref - c.t_ref), self.lo, self.hi)
+        if self._window_cost(theta, idx, base) < current:
+            self.theta, self.lam, self._candidate = theta, 1e-2, None
+            self._rival[:] = 0.0
+            return
+        theta, lam, *_ = self._lm_step(theta, c.lam, idx, base)
+        self.started = started
+        self._candidate = _Candidate(theta, c.found, lam, c.left - 1, self.t_ref) if c.left > 1 else None
 
     def _velocity_cost(self, theta: np.ndarray) -> float:
         """The velocities' prior, in the window cost's units: ``sum |v|^2 / jammer_speed^2``."""
