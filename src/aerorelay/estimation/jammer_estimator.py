@@ -95,7 +95,11 @@ class EstimatorSettings:
     jammer_speed_m_s: float = 0.0  # > 0: each jammer moves at a constant velocity, this the prior std per axis (m/s)
     switch_prob: float = 0.02
     confident_std_m: float = 1.5
-    window_rows: int = 60  # measurements Gauss-Newton fits (evenly thinned, each weighted for those it stands for)
+    # measurements Gauss-Newton fits: every one in the window (None), or at most this many, evenly thinned
+    # and each weighted for those it stands for. Thinned to 60, the fitted subset changed from fit to fit
+    # and the estimate swung across its valley by up to 3.8 m per refinement (a moving jammer seen from
+    # one spot); measured in the README ("Finding the jammer")
+    window_rows: int | None = None
     min_rows: int = 8  # Gauss-Newton starts after this many measurements
     refine_every: int = 2  # one Gauss-Newton iteration per this many measurement rounds
 
@@ -491,10 +495,10 @@ class JammerEstimator:
         self.local_cov = np.array([_clip_eigenvalues(cov[_NP * j:_NP * j + 3, _NP * j:_NP * j + 3], self._max_var)
                                    for j in range(self.nj)])
 
-    def _fit_rows(self, t: float, most: int) -> tuple[np.ndarray, np.ndarray]:
-        """At most ``most`` window rows (evenly thinned) and their weights at time ``t`` (s): each stands
-        for the rows thinned out, forgotten with ``exp(-age / forget_s)``."""
-        idx = self.window.rows(most)
+    def _fit_rows(self, t: float, most: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """At most ``most`` window rows (evenly thinned; None: every row) and their weights at time ``t``
+        (s): each stands for the rows thinned out, forgotten with ``exp(-age / forget_s)``."""
+        idx = self.window.rows(len(self.window) if most is None else most)
         return idx, len(self.window) / idx.size * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
 
     def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray):
