@@ -27,6 +27,7 @@ from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput
 from .jammer_sensing import JammerSensing
 from .perturbations import LinkPerturbations, PerturbationSettings
+from .realtime import full_collections_paused
 
 
 def log_columns(n_rotors: int) -> list[str]:
@@ -191,37 +192,38 @@ class ClosedLoop:
         log["safety_violation"] = np.zeros(n_steps, dtype=bool)
         log["fallback"] = np.zeros(n_steps, dtype=bool)
         wall0 = time.perf_counter()
-        for k in range(n_steps):
-            t = k * period
-            src = self.source.state(t)
-            eta2 = src.attitude(veh.gravity)
-            # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
-            p2_meas = src.p + self.rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
-            pj_std = None
-            if self.sensing is not None:  # what the relay estimated from its readings up to the last step
-                pj_meas, pj_powers = self.sensing.planner_view(st.senses_jammer_state)
-                pj_std = self.sensing.estimate.position_std_max()
-            else:
-                pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
-            t_plan = time.perf_counter()
-            ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers,
-                                                   pj_std, float(x[5]), x[6:9].copy()))
-            planner_ms = (time.perf_counter() - t_plan) * 1e3
-            P = self.controller.parameters(ref, p2_meas, src.v, src.a)
-            if k % 500 == 250:  # samples for benchmarking a full solve at the same points
-                self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
-            info = self.controller.step(x, u, P, shift=shift)
-            u = info.u
-            channel, v12, v10 = self._channel(t, x, src.p, eta2, src.v)
-            self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,
-                                           self.sensing.last_ms if self.sensing else 0.0))
-            self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
-            d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
-            x = np.asarray(self.plant(x, u, d)).ravel()
-            if not np.all(np.isfinite(x)):
-                raise FloatingPointError(f"plant state became non-finite at t = {t:.3f} s")
-            if progress is not None:
-                progress(k + 1, n_steps)
+        with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
+            for k in range(n_steps):
+                t = k * period
+                src = self.source.state(t)
+                eta2 = src.attitude(veh.gravity)
+                # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
+                p2_meas = src.p + self.rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
+                pj_std = None
+                if self.sensing is not None:  # what the relay estimated from its readings up to the last step
+                    pj_meas, pj_powers = self.sensing.planner_view(st.senses_jammer_state)
+                    pj_std = self.sensing.estimate.position_std_max()
+                else:
+                    pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
+                t_plan = time.perf_counter()
+                ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers,
+                                                       pj_std, float(x[5]), x[6:9].copy()))
+                planner_ms = (time.perf_counter() - t_plan) * 1e3
+                P = self.controller.parameters(ref, p2_meas, src.v, src.a)
+                if k % 500 == 250:  # samples for benchmarking a full solve at the same points
+                    self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
+                info = self.controller.step(x, u, P, shift=shift)
+                u = info.u
+                channel, v12, v10 = self._channel(t, x, src.p, eta2, src.v)
+                self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,
+                                               self.sensing.last_ms if self.sensing else 0.0))
+                self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
+                d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
+                x = np.asarray(self.plant(x, u, d)).ravel()
+                if not np.all(np.isfinite(x)):
+                    raise FloatingPointError(f"plant state became non-finite at t = {t:.3f} s")
+                if progress is not None:
+                    progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
         return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, self.nmpc.settings.fingerprint(),
                              self.controller.fallback_episodes)
