@@ -295,6 +295,34 @@ def test_a_moving_jammer_is_followed_with_the_constant_velocity_model():
     assert np.median(static) > 3.0 * np.median(moving)
 
 
+def test_a_jammer_flagged_off_in_every_row_keeps_the_prior_spread(monkeypatch):
+    """A second estimate put where the window's readings say no jammer radiates (strong, beside the
+    relay's path): every row flags it OFF, its columns of the Jacobian are zero, and the window says
+    nothing about where it is. Its reported std is the search box's (uniform prior), not 0 m, which
+    a pseudo-inverse of the Gauss-Newton Hessian gave it (a study flight reported a ghost 6-16 m
+    off at std 0.00 m, "confident")."""
+    est = two_jammer_estimator()
+    iso = IsotropicPattern()
+    det = EnergyDetector(100, seed=1)
+    for k in range(int(12.0 / DT)):  # one real jammer (the south-west one), both receivers
+        t = k * DT
+        rx, ax = relay_pose(t)
+        for i, (p, a) in enumerate(((rx, ax), (np.zeros(3), E3))):
+            est.add(t, i, p, a, float(det.measure(1.0 + inr_10db_power() * link_gain(JAMMER, E3, iso, p, a, DIPOLE))))
+        est.update(t)
+    est.theta[1] = np.r_[START + np.array([0.0, 0.5, 0.5]), np.log(1e6), np.zeros(3)]
+    est.started[1] = True
+    est._candidate, est._rival[1] = None, 0.0  # no restart, no rival mode: the local covariance alone
+    monkeypatch.setattr(est, "_reseed", lambda idx, base: None)
+    idx, _ = est._fit_rows(t, None)
+    g, _ = est._window_gains(est.theta, idx, jacobian=False)
+    assert not est._on_flags(est.theta, g, idx)[1].any()  # OFF in every row
+    est._refine(t + DT)
+    box_std = float(np.sqrt(np.max((BOX[1] - BOX[0]) ** 2 / 12.0)))
+    e = est._summarize()
+    assert e.position_std[1] >= 0.9 * box_std and not e.confident[1]
+
+
 PARK = np.array([-6.95, -5.95, 6.6])  # the corner the capacity-seeking relay parks in on the nominal mission
 
 

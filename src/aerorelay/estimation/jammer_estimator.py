@@ -63,6 +63,7 @@ _NP = 7  # parameters per jammer: position (3), log EIRP, velocity (3)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
 _SLOPE_STEP = 1e-4  # central-difference step in the cosine of the pattern's log-gain slope
 _MAX_LOG_SLOPE = 1e3  # 1/rad: a slope cap (a pattern's exact null has an infinite log slope)
+_LOG_POWER_PRIOR = 10.0  # std of ln EIRP in the covariance's prior (a factor e^10 either way)
 _JOINT_EVERY = 8  # refinements between two joint searches for pairs of jammers
 _JOINT_CELLS = 256  # the pair search scores pairs among this many best single cells
 _JOINT_ROWS = 30  # window rows the pair search scores on (evenly thinned)
@@ -169,6 +170,10 @@ class JammerEstimator:
         self.moving = settings.jammer_speed_m_s > 0.0
         self._free = np.r_[np.ones(4, bool), np.full(3, self.moving)]  # the parameters Gauss-Newton fits
         self._vel_info = 1.0 / settings.jammer_speed_m_s**2 if self.moving else 0.0
+        # the covariance's prior information per parameter: uniform in the box (12 / side^2), log EIRP
+        # std _LOG_POWER_PRIOR; the velocity's prior is in the Gauss-Newton Hessian already
+        self._prior_info = np.tile(np.r_[12.0 / (self.hi - self.lo) ** 2, 1.0 / _LOG_POWER_PRIOR**2, np.zeros(3)],
+                                   n_jammers)
         self.started = np.zeros(n_jammers, bool)
         self.on_prob = np.full(n_jammers, 0.5)
         self.local_cov = np.tile(np.diag((self.hi - self.lo) ** 2 / 12.0), (n_jammers, 1, 1))
@@ -491,7 +496,10 @@ class JammerEstimator:
             self._posterior = None
         self.chi2_scale = chi2
         cov = np.full((_NP * self.nj, _NP * self.nj), 0.0)
-        cov[np.ix_(cols, cols)] = np.linalg.pinv(H) * chi2
+        # with the prior (the search box, a wide log power): a direction the window says nothing about
+        # keeps the prior's spread. (pinv(H) gave it zero variance: a jammer flagged OFF in every row of
+        # the window, whose columns of J are zero, was reported at std 0 m, 6-16 m off, "confident".)
+        cov[np.ix_(cols, cols)] = np.linalg.inv(H / chi2 + np.diag(self._prior_info[cols]))
         self.local_cov = np.array([_clip_eigenvalues(cov[_NP * j:_NP * j + 3, _NP * j:_NP * j + 3], self._max_var)
                                    for j in range(self.nj)])
 
