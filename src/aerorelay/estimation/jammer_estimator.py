@@ -161,7 +161,8 @@ class JammerEstimator:
         self.axis_var = math.radians(settings.axis_error_deg) ** 2
         self.gain_cap = float(path_gain.gain_from_d2(_MIN_DISTANCE_M**2)) * max(r.pattern.g_bar for r in receivers)
         span = _WINDOW_FORGET_SPANS * settings.forget_s / row_s
-        self.window = MeasurementWindow(int(math.ceil(span * len(receivers))) + 2)
+        self.window = MeasurementWindow(int(math.ceil(span * len(receivers))) + 2,
+                                        len(self.cells) if n_jammers >= 2 else 0)  # cell gains: the pair search's
         self.s_ge = np.zeros((n_jammers, len(self.cells)))
         self.s_gg = np.zeros((n_jammers, len(self.cells)))
         # per jammer [position at t_ref (m), log EIRP, velocity (m/s)]; the velocity stays 0 for static jammers
@@ -296,7 +297,7 @@ class JammerEstimator:
             self.s_ge[j] = self.forget * self.s_ge[j] + wgt * g * (y - others)
             self.s_gg[j] = self.forget * self.s_gg[j] + wgt * g * g
             self._grid_rows[j] += 1
-        self.window.append(t, receiver, position, axis, y, jitter2)
+        self.window.append(t, receiver, position, axis, y, jitter2, g)
         self._posterior = None
 
     def _grid_posterior(self, j: int) -> np.ndarray:
@@ -550,7 +551,7 @@ class JammerEstimator:
         one-jammer check (``_reseed``) leaves: measured, 10-15 m off at a reported std below 1 m."""
         y = np.exp(self.window.z[idx] / KAPPA_DB)
         weights = base / (y * y * self.rel2)
-        gains = self._row_gains(self.cells, idx)
+        gains = self.window.cell_gains[idx].T  # (cells, rows), computed when each measurement came in
         g, _ = self._window_gains(self.theta, idx, jacobian=False)
         for j in range(self.nj):
             for k in range(j + 1, self.nj):

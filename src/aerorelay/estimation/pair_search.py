@@ -49,17 +49,24 @@ def best_pair(gains: np.ndarray, weights: np.ndarray, excess: np.ndarray, keep: 
     cells = np.arange(gains.shape[0]) if keep is None or keep >= gains.shape[0] else np.argsort(single)[::-1][:keep]
     gw, b, d, single = gw[cells], b[cells], d[cells], single[cells]
     S = gw @ gains[cells].T
-    det = np.outer(d, d) - S * S
-    ok_det = det > _DEGENERATE * np.outer(d, d)
-    safe = np.where(ok_det, det, 1.0)
-    pa = (d[None, :] * b[:, None] - S * b[None, :]) / safe
-    pb = (d[:, None] * b[None, :] - S * b[:, None]) / safe
-    both = ok_det & (pa > 0) & (pb > 0)
-    gain = np.where(both, 0.5 * (pa * b[:, None] + pb * b[None, :]), np.maximum(single[:, None], single[None, :]))
+    dd = np.outer(d, d)
+    det = dd - S * S
+    # the powers' numerators (their signs are the powers' where det > 0): P_a = num_a / det
+    num_a = d[None, :] * b[:, None]
+    num_a -= S * b[None, :]
+    num_b = d[:, None] * b[None, :]
+    num_b -= S * b[:, None]
+    both = (det > _DEGENERATE * dd) & (num_a > 0) & (num_b > 0)
+    gain = num_a * b[:, None]
+    gain += num_b * b[None, :]
+    gain *= 0.5
+    gain /= np.where(both, det, 1.0)
+    gain = np.where(both, gain, np.maximum(single[:, None], single[None, :]))
     np.fill_diagonal(gain, -np.inf)
     i, k = np.unravel_index(int(np.argmax(gain)), gain.shape)
     if both[i, k]:
-        return PairFit(int(cells[i]), int(cells[k]), float(pa[i, k]), float(pb[i, k]), float(gain[i, k]))
+        return PairFit(int(cells[i]), int(cells[k]), float(num_a[i, k] / det[i, k]), float(num_b[i, k] / det[i, k]),
+                       float(gain[i, k]))
     one, other = (i, k) if single[i] >= single[k] else (k, i)
     power = float(b[one] / d[one]) if single[one] > 0 else 0.0
     return PairFit(int(cells[one]), int(cells[other]), power, 0.0, float(gain[i, k]))
