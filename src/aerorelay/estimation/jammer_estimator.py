@@ -18,7 +18,7 @@ measurement, what the receiver's axis uncertainty (``axis_error_deg`` and the sp
 averaged into it) makes of the jammers' share of the reading: near an antenna null a reading says
 little about where the jammer is (the Gauss-Newton cost is that heteroscedastic likelihood).
 
-Two layers per jammer:
+Per jammer:
 
 1. **A point-mass (grid) Bayes filter with the power profiled out**: for every cell of a grid over
    the search box, the weighted least-squares sums of the excess power ``e = y - N - others``
@@ -29,11 +29,17 @@ Two layers per jammer:
 2. **Gauss-Newton (Levenberg-Marquardt) on a sliding window** of the measurements (log domain,
    the same weights) over ``(p_j, ln P_j)`` of every jammer jointly, started from the grid's best
    cell whenever the current estimate sits outside the grid posterior's mass: the precise local
-   estimate.
+   estimate. It fits every row of the window (``window_rows`` can thin them).
+3. With two or more jammers, **a joint search for pairs** (``pair_search.py``): every pair of the
+   best grid cells scored at once, the powers profiled out; the best pair is polished beside the
+   estimate and replaces it when it fits the window better (jammers found one after the other can
+   settle in a wrong pair of modes that compensate each other).
 
-The reported covariance is the Gauss-Newton one plus the grid posterior's spread about the
-estimate (less the grid's own quantization): an estimate the data do not pin down, or one with a
-rival mode, keeps a wide covariance instead of collapsing onto a wrong point.
+The reported covariance is the inverse of the Gauss-Newton information plus a prior (uniform in
+the search box, a wide log power: a direction the window says nothing about keeps the prior's
+spread), plus the grid posterior's spread about the estimate for a rival mode: an estimate the
+data do not pin down, or one with a rival mode, keeps a wide covariance instead of collapsing
+onto a wrong point.
 """
 
 from __future__ import annotations
