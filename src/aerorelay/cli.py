@@ -334,6 +334,10 @@ def bench(
         f"fail-safe episodes: {res['fallback_episodes']}",
         markup=False, highlight=False,
     )
+    gcs = res["garbage_collections"]
+    console.print("garbage collections during the flight (young / middle / full): "
+                  + " / ".join(f"{n} (longest {ms:.2f} ms)" for n, ms in zip(gcs["collections"], gcs["max_ms"], strict=True)),
+                  markup=False, highlight=False)
     if res["planner_preflight_s"] > 0:
         console.print(f"planner's pre-flight route: {res['planner_preflight_s']:.2f} s before take-off", markup=False, highlight=False)
     if "ipopt_over_rti_mean" in res:

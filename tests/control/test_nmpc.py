@@ -251,6 +251,7 @@ def test_bench_times_ipopt_also_for_the_lagged_input_rate():
     sc = SC.with_updates({"controller.exact_input_rate": False, "sim.duration_s": 4.0})
     res = benchmark_closed_loop(build(sc).closed_loop(), ipopt_points=1)
     assert res["ipopt_converged"] == "1/1" and res["qp_failures"] == 0
+    assert res["garbage_collections"]["collections"][2] == 0  # no full collection inside the flight
 
 
 def test_sensitivity_feedback_matches_a_solve_for_the_measured_state():

@@ -4,6 +4,7 @@ import gc
 
 import pytest
 
+from aerorelay.control.bench import collections_counted
 from aerorelay.scenario import parse_scenario
 from aerorelay.scenario.build import build, build_planner
 from aerorelay.sim.realtime import full_collections_paused
@@ -49,3 +50,15 @@ def test_no_automatic_full_collection_runs_during_a_mission():
         gc.set_threshold(*before)
     assert seen and min(seen) > 10**6
     assert not full
+
+
+def test_collections_are_counted_per_generation_and_the_counter_removed():
+    out: dict = {}
+    n_callbacks = len(gc.callbacks)
+    with collections_counted(out):
+        gc.collect(0)
+        gc.collect(2)
+        gc.collect(2)
+    assert out["collections"] == [1, 0, 2]
+    assert out["max_ms"][2] >= out["max_ms"][1] == 0.0 and out["max_ms"][2] > 0.0
+    assert len(gc.callbacks) == n_callbacks

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import gc
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -16,10 +18,36 @@ def stats_ms(values) -> dict:
             "p99": float(np.percentile(v, 99)), "max": float(v.max())}
 
 
+@contextmanager
+def collections_counted(out: dict):
+    """Count Python's garbage collections inside the block, per generation, and time the longest of
+    each: ``out["collections"]`` ``[young, middle, full]``, ``out["max_ms"]`` (ms). A full collection
+    walks every tracked object (70-100 ms during a mission here): the control loop holds them off
+    (``sim/realtime.py``), and this shows whether any ran inside a step's time anyway."""
+    counts, longest, start = [0, 0, 0], [0.0, 0.0, 0.0], [0.0]
+
+    def callback(phase: str, info: dict) -> None:
+        if phase == "start":
+            start[0] = time.perf_counter()
+            return
+        g = int(info["generation"])
+        counts[g] += 1
+        longest[g] = max(longest[g], (time.perf_counter() - start[0]) * 1e3)
+
+    gc.callbacks.append(callback)
+    try:
+        yield
+    finally:
+        gc.callbacks.remove(callback)
+        out.update(collections=counts, max_ms=longest)
+
+
 def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
     """Fly ``loop`` (a ClosedLoop) and time its controller; time IPOPT at a few visited states."""
+    collections: dict = {}
     wall0 = time.perf_counter()
-    result = loop.run()
+    with collections_counted(collections):
+        result = loop.run()
     wall = time.perf_counter() - wall0
     prep, feedback, iters, planner = (np.array([getattr(s, f) for s in loop.timings], float)
                                       for f in ("prep_ms", "feedback_ms", "qp_iters", "planner_ms"))
@@ -46,6 +74,7 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "step_p99_over_p50": float(np.percentile(whole + planner, 99) / np.percentile(whole + planner, 50)),
         "c_min": float(np.min(result.log["capacity"])),
         "route": loop.nmpc.route(),
+        "garbage_collections": collections,
     }
     if getattr(loop, "sensing", None) is not None:  # jammer.localization = "estimated": the estimator's update per step
         estimator = np.array([s.estimator_ms for s in loop.timings], float)
