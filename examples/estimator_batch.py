@@ -3,7 +3,7 @@ always on) and 10 dB switching 5 s ON / 5 s OFF, 3 seeds each, two flights at a 
 flight: the fraction of the mission after 10 s with the estimate within 1 m, the fraction
 "confidently wrong" (error above 1 m while the largest std is below 1.5 m, the planner's
 threshold), the estimator's mean cost, C_min; then the means and worst runs. The README's table of
-estimator changes was measured with it (~1 min on 2 cores).
+estimator changes was measured with it (26 s on 2 cores, 2026-12-02).
 """
 
 import os
