@@ -563,7 +563,7 @@ class JammerEstimator:
             for k in range(j + 1, self.nj):
                 held = self.started.copy()
                 held[[j, k]] = False
-                others = (np.exp(np.where(held, self.theta[:, 3], -np.inf))[:, None] * g).sum(axis=0)
+                others = (np.where(held, self._powers(self.theta), 0.0)[:, None] * g).sum(axis=0)
                 pair = best_pair(gains, weights, y - self._noise[self.window.ri[idx]] - others, keep=_JOINT_CELLS)
                 if pair.power_b <= 0.0 or self._pair_is_estimate(pair.a, pair.b, j, k):
                     continue  # one cell explains it (the one-jammer checks handle that), or nothing new

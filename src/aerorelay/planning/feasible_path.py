@@ -214,11 +214,16 @@ def leaning_capacity(landscape, times: np.ndarray, positions: np.ndarray, axes: 
     (K, 3)`` a platform can point there: on a tilted one (``max_tilt`` > 0 rad) those within
     ``max_tilt`` of the thrust direction the path's acceleration needs (``thrust_directions``; the
     nearest to it where none is), on a coplanar one every candidate (its axis is vertical)."""
-    caps = np.array([landscape.capacity(float(t), positions[k][None], axes)[0] for k, t in enumerate(times)])
+    caps = _sample_capacities(landscape, times, positions, axes)
     if max_tilt <= 0.0 or len(times) < 2:
         return caps.max(axis=1)
     dirs = np.asarray(thrust_directions(len(times), float(times[1] - times[0]), landscape.gravity)(positions.T))
     return caps[np.arange(len(times)), _best_held_axis(caps, axes @ dirs, max_tilt)]
+
+
+def _sample_capacities(landscape, times: np.ndarray, positions: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """``(T, K)``: the capacity at each sample's position ``positions (T, 3)`` with each of ``axes (K, 3)``."""
+    return np.array([landscape.capacity(float(t), positions[k][None], axes)[0] for k, t in enumerate(times)])
 
 
 def _best_held_axis(caps: np.ndarray, cos: np.ndarray, max_tilt: float) -> np.ndarray:
@@ -234,6 +239,6 @@ def _best_axes(landscape, times, positions, max_tilt: float, dirs: np.ndarray, n
     grid = np.meshgrid(np.linspace(0.0, max_tilt, n_tilt), np.linspace(0.0, 2 * np.pi, n_az, endpoint=False), indexing="ij")
     tilt, az = grid[0].ravel(), grid[1].ravel()
     axes = tilted_axes(tilt, az)
-    caps = np.array([landscape.capacity(float(t), positions[k][None], axes)[0] for k, t in enumerate(times)])
+    caps = _sample_capacities(landscape, times, positions, axes)
     j = _best_held_axis(caps, axes @ dirs, max_tilt)
     return np.column_stack([tilt[j], az[j]])
