@@ -378,13 +378,13 @@ class JammerEstimator:
         return out
 
     def _row_variance(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray,
-                      found: np.ndarray | None = None, t_ref: float | None = None) -> np.ndarray:
+                      found: np.ndarray, t_ref: float | None = None) -> np.ndarray:
         """Each row's log-reading variance (dB^2) under ``theta``: the detector's and the model error's,
         plus what the receiver's axis uncertainty (``axis_error_deg`` and the averaged axes' own spread)
         makes of the jammers' share of the reading. Near an antenna null the gain changes fastest with
         the axis: a reading there says little about where the jammer is, and is weighted so (without
-        this, a relay that holds the jammer in its null pulled the estimate into a narrow wrong valley)."""
-        found = self.started if found is None else found
+        this, a relay that holds the jammer in its null pulled the estimate into a narrow wrong valley).
+        ``found``: which jammers ``theta`` has found (``(nJ,)`` bool); the others contribute nothing."""
         contrib = on * np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
         S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
         slope = (contrib * self._axis_log_slopes(self._row_positions(theta, idx, t_ref), idx)).sum(axis=0) / S  # d ln S / d angle
@@ -415,18 +415,19 @@ class JammerEstimator:
         return float(np.sum(base * (rho + np.log(var)))), np.minimum(1.0, _HUBER_SIGMAS / np.maximum(u, 1e-300))
 
     def _mixed_rows(self, theta: np.ndarray, g: np.ndarray, on: np.ndarray, idx: np.ndarray, z_hat: np.ndarray,
-                    var: np.ndarray) -> np.ndarray:
+                    var: np.ndarray, found: np.ndarray) -> np.ndarray:
         """Rows whose reading lies between what ``theta`` predicts and what it predicts with one found
         jammer's ON flag flipped, more than 3 sigma from both: that jammer switched within the row's
         average. Neither state fits such a row and it says nothing about where the jammer is: it is
         left out of the fit at a fixed cost (``_mixed_cost``), where Huber charged it linearly and
-        made the true point look worse than a far, strong one at every switch."""
-        contrib = np.exp(np.where(self.started, theta[:, 3], -np.inf))[:, None] * g
+        made the true point look worse than a far, strong one at every switch. ``found``: which
+        jammers ``theta`` has found (``(nJ,)`` bool)."""
+        contrib = np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
         S = np.exp((z_hat - self.log_mean) / KAPPA_DB)
         c = _HUBER_SIGMAS * np.sqrt(var)
         z = self.window.z[idx]
         mixed = np.zeros(idx.size, bool)
-        for j in np.flatnonzero(self.started):
+        for j in np.flatnonzero(found):
             z_flip = KAPPA_DB * np.log(np.maximum(S + np.where(on[j], -contrib[j], contrib[j]), 1e-300)) + self.log_mean
             mixed |= (z > np.minimum(z_hat, z_flip) + c) & (z < np.maximum(z_hat, z_flip) - c)
         return mixed
@@ -435,12 +436,13 @@ class JammerEstimator:
         """What a mixed row costs: as much as a reading 3 sigma off."""
         return float(np.sum(base[mixed] * (_HUBER_SIGMAS**2 + np.log(var[mixed]))))
 
-    def _window_cost(self, theta: np.ndarray, idx: np.ndarray, base: np.ndarray) -> float:
+    def _window_cost(self, theta: np.ndarray, idx: np.ndarray, base: np.ndarray, found: np.ndarray) -> float:
+        """The window's robust cost of ``theta`` whose found jammers are ``found`` (``_lm_step``'s ``cost0``)."""
         g, _ = self._window_gains(theta, idx, jacobian=False)
         on = self._on_flags(theta, g, idx)
         z_hat, _ = self._model(theta, g, None, on, idx)
-        var = self._row_variance(theta, g, on, idx)
-        mixed = self._mixed_rows(theta, g, on, idx, z_hat, var)
+        var = self._row_variance(theta, g, on, idx, found)
+        mixed = self._mixed_rows(theta, g, on, idx, z_hat, var, found)
         return (self._huber(self.window.z[idx] - z_hat, base * ~mixed, var)[0] + self._mixed_cost(base, var, mixed)
                 + self._velocity_cost(theta))
 
@@ -478,7 +480,8 @@ class JammerEstimator:
             seed = self.theta.copy()
             seed[j] = np.r_[self.cells[best], math.log(power), np.zeros(3)]
             if self.started[j]:
-                drop = self._window_cost(seed, idx, base) - self._window_cost(self.theta, idx, base)
+                drop = (self._window_cost(seed, idx, base, self.started)
+                        - self._window_cost(self.theta, idx, base, self.started))
                 if drop >= 0.0:
                     self._rival[j] = math.exp(-0.5 * min(drop, 1400.0))
                     continue
@@ -498,7 +501,7 @@ class JammerEstimator:
             self._advance_candidate(idx, base)
         if not self.started.any():
             return
-        self.theta, self.lam, H, cols, chi2 = self._lm_step(self.theta, self.lam, idx, base)
+        self.theta, self.lam, H, cols, chi2 = self._lm_step(self.theta, self.lam, idx, base, self.started)
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
@@ -516,20 +519,20 @@ class JammerEstimator:
         idx = self.window.rows(len(self.window) if most is None else most)
         return idx, len(self.window) / idx.size * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
 
-    def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray):
-        """One Levenberg-Marquardt iteration from ``theta`` (the found jammers' parameters) with damping
-        ``lam``: ``(theta, lam, H, cols, chi2)``, the new iterate and damping, the Gauss-Newton Hessian
+    def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray, found: np.ndarray):
+        """One Levenberg-Marquardt iteration from ``theta`` (the parameters of the jammers ``found``,
+        ``(nJ,)`` bool) with damping ``lam``: ``(theta, lam, H, cols, chi2)``, the new iterate and damping, the Gauss-Newton Hessian
         at ``theta`` over the fitted columns ``cols`` and the window's reduced chi-square there."""
         z = self.window.z[idx]
         g, dg = self._window_gains(theta, idx, jacobian=True)
         on = self._on_flags(theta, g, idx)
         z_hat, J = self._model(theta, g, dg, on, idx)
-        free = np.outer(self.started, self._free).ravel()  # the found jammers' fitted parameters
+        free = np.outer(found, self._free).ravel()  # the found jammers' fitted parameters
         cols = np.flatnonzero(free)
         J = J[:, cols]
         r = z - z_hat
-        var = self._row_variance(theta, g, on, idx)
-        mixed = self._mixed_rows(theta, g, on, idx, z_hat, var)
+        var = self._row_variance(theta, g, on, idx, found)
+        mixed = self._mixed_rows(theta, g, on, idx, z_hat, var, found)
         fit = base * ~mixed
         fixed_cost = self._mixed_cost(base, var, mixed)
         cost0, robust = self._huber(r, fit, var)
@@ -541,11 +544,11 @@ class JammerEstimator:
         full[cols] = np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-9), J.T @ (wr * r) - prior * theta.ravel()[cols])
         trial = theta + full.reshape(self.nj, _NP)
         trial[:, :3] = np.clip(trial[:, :3], self.lo, self.hi)
-        trial[:, 3] = np.where(self.started, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
+        trial[:, 3] = np.where(found, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
         g_try, _ = self._window_gains(trial, idx, jacobian=False)
         z_try, _ = self._model(trial, g_try, None, on, idx)
         chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
-        if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
+        if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx, found))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
             return trial, max(lam / 3.0, 1e-6), H, cols, chi2
         return theta, min(lam * 5.0, 1e6), H, cols, chi2
 
@@ -591,16 +594,14 @@ class JammerEstimator:
         c = self._candidate
         if c is None:
             return
-        current = self._window_cost(self.theta, idx, base) if self.started.any() else math.inf
-        started, self.started = self.started, c.found
+        current = self._window_cost(self.theta, idx, base, self.started) if self.started.any() else math.inf
         theta = c.theta.copy()
         theta[:, :3] = np.clip(theta[:, :3] + theta[:, 4:7] * (self.t_ref - c.t_ref), self.lo, self.hi)
-        if self._window_cost(theta, idx, base) < current:
-            self.theta, self.lam, self._candidate = theta, 1e-2, None
+        if self._window_cost(theta, idx, base, c.found) < current:  # adopted: its jammers are found
+            self.theta, self.lam, self.started, self._candidate = theta, 1e-2, c.found.copy(), None
             self._rival[:] = 0.0
             return
-        theta, lam, *_ = self._lm_step(theta, c.lam, idx, base)
-        self.started = started
+        theta, lam, *_ = self._lm_step(theta, c.lam, idx, base, c.found)
         self._candidate = _Candidate(theta, c.found, lam, c.left - 1, self.t_ref) if c.left > 1 else None
 
     def _velocity_cost(self, theta: np.ndarray) -> float:
