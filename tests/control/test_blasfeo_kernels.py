@@ -5,6 +5,7 @@ import ctypes
 import numpy as np
 import pytest
 
+from aerorelay.control.blasfeo_contract import contract_violations
 from aerorelay.control.hpipm_rti import HpipmRti, _casadi_dir, cpu_has_avx2_fma
 from aerorelay.scenario import parse_scenario
 from aerorelay.scenario.build import ocp_spec
@@ -69,6 +70,29 @@ def test_dgemm_nn_matches_generic(kernels, kmax, offset):
         if kmax > 0 or offset == 0:  # the generic kernel reads one partial panel even when kmax = 0
             np.testing.assert_allclose(out[0], out[1], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(out[0], expected, rtol=1e-12, atol=1e-12)
+
+
+def test_our_kernels_and_casadis_compute_the_written_contracts(kernels):
+    """Every kernel blasfeo_avx2.c replaces, ours and CasADi's, against its numpy reference (the
+    engine compiles ours in only when CasADi's pass this same check)."""
+    ours, generic = kernels
+    assert contract_violations(ours) == []
+    assert contract_violations(generic) == []
+
+
+def test_contract_check_catches_another_contract(kernels):
+    """A kernel with the same arguments that computes something else is reported: here BLASFEO's
+    dsyrk (the lower triangle of A B^T only) standing in for dgemm_nt."""
+    ours, generic = kernels
+
+    class Swapped:
+        def __getattr__(self, name):
+            if name == "kernel_dgemm_nt_4x4_lib4":
+                return generic.kernel_dsyrk_nt_l_4x4_lib4
+            return getattr(ours, name)
+
+    bad = contract_violations(Swapped())
+    assert len(bad) == 1 and bad[0].startswith("kernel_dgemm_nt_4x4_lib4")
 
 
 def test_hpipm_uses_them_when_loaded_first():

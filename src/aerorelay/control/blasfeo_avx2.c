@@ -11,7 +11,16 @@
  * A: 4 x k panel (element (i, l) at A[i + 4 l]); nt: B a 4 x k panel; nn: B a k x 4 block of a
  * panel-major matrix starting at row offset offsetB of the panel at B, panel stride 4 sdb;
  * C, D: 4 x 4 panels (element (i, j) at [i + 4 j]). beta == 0 does not read C.
- * tests/control/test_blasfeo_kernels.py checks them against CasADi's own kernels.
+ * Their contracts are written out in aerorelay.control.blasfeo_contract: the engine compiles
+ * this file in only when CasADi's own kernels compute exactly those (checked at run time), and
+ * tests/control/test_blasfeo_kernels.py holds these to the same and to CasADi's kernels.
+ *
+ * Tried on the next kernels by profile (cold IPM solves of a heavy coplanar QP, 2026-12-02):
+ * AVX2 dgemv_n / dgemv_t made an IPM iteration 8-12% faster but, like any change of summation
+ * order, move the paper's controller's C_min at the rounding level (coplanar -0.34%): not kept
+ * (README, Speed). AVX2 dtrsm_nt_rl_inv, dpotrf_nt_l and dtrmm_nn_rl 4x4 were slower than
+ * BLASFEO's generic ones calling the dgemm kernel below: their 4 x 4 triangular parts are
+ * latency-bound chains, which the generic scalar code interleaves better.
  */
 #include <immintrin.h>
 
