@@ -7,7 +7,7 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.special import j0
 
@@ -168,9 +168,12 @@ def test_rma_av_as_a_scene_path_gain_takes_the_links_heights():
 
 
 @given(st.floats(-500, 500), st.floats(-500, 500), st.floats(10.5, 300.0), st.floats(0.0, 10.0))
+@example(0.0, 0.0, 10.5, 10.0)  # 0.5 m at 10.5 m height: above the 20 dB/decade floor's d^-2 (found by hypothesis)
+@example(0.0, 0.0, 10.5, 10.49)  # 1 cm
 @settings(max_examples=60, deadline=None)
 def test_rma_av_path_gain_is_dual_and_bounded_by_its_los_ceiling(x, y, h, z0):
-    """numpy and CasADi give the same expected gain; ``gain_from_d2`` (the estimator's cap) bounds it."""
+    """numpy and CasADi give the same expected gain; ``gain_from_d2`` (the estimator's cap) bounds it,
+    also closer than 1 m, where the LoS exponent (up to 22.1 dB/decade) gives more than ``d^-2``."""
     a, b = np.array([0.0, 0.0, z0]), np.array([x, y, h])
     d2 = float((b - a) @ (b - a))
     path = RmaAvPathGain(carrier_hz=2.4e9)
@@ -179,3 +182,5 @@ def test_rma_av_path_gain_is_dual_and_bounded_by_its_los_ceiling(x, y, h, z0):
     f = ca.Function("g", [pa, pb], [path.gain_between(pa, pb, ca.dot(pb - pa, pb - pa))])
     assert float(f(a, b)) == pytest.approx(g, rel=1e-9)
     assert 0.0 < g <= float(path.gain_from_d2(d2)) * (1 + 1e-12)
+    s2 = ca.SX.sym("d2")
+    assert float(ca.Function("cap", [s2], [path.gain_from_d2(s2)])(d2)) == pytest.approx(float(path.gain_from_d2(d2)), rel=1e-12)

@@ -82,6 +82,7 @@ class PathGain:
 # --- 3GPP TR 36.777 Annex B, RMa-AV (aerial UE 10 m < h_UT <= 300 m, d_2D <= 10 km) ----------
 
 RMA_AV_MIN_HEIGHT_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MAX_D2D_M = 10.0, 300.0, 10_000.0
+_RMA_AV_LOS_EXPONENT_MAX = 23.9 - 1.8 * math.log10(RMA_AV_MIN_HEIGHT_M)  # Table B-2's LoS dB/decade at its lowest height
 
 
 def check_rma_av_range(h_ut, d2d, what: str = "link"):
@@ -167,7 +168,7 @@ class RmaAvPathGain(PathGain):
     """3GPP TR 36.777 RMa-AV as every link's deterministic path gain: the expected gain over the
     LoS state, ``P_LoS g_LoS + (1 - P_LoS) g_NLoS`` at the link's ``d3D``, ``d2D`` and aerial
     height (``link_heights``); valid for aerial heights in (10, 300] m (checked at validation).
-    ``gain_from_d2`` (no heights) bounds it from above beyond 1 m (LoS at the floor of 20 dB per decade)."""
+    ``gain_from_d2`` (no heights) bounds it from above at every distance."""
 
     carrier_hz: float = 2.4e9
 
@@ -188,9 +189,15 @@ class RmaAvPathGain(PathGain):
         return los, state / rma_av_expected_gain(d3, d2d, h, self.carrier_hz), rma_av_shadow_std_db(h, los)
 
     def gain_from_d2(self, d2):
-        """Upper bound of the gain at squared length ``d2`` >= 1 m^2 for any height: LoS with the
-        exponent floor 20 dB/decade, ``d^-2 10^(-20 log10(40 pi f_c / 3) / 10)`` (f_c in GHz)."""
-        return (3.0 / (40.0 * np.pi * self.carrier_hz / 1e9)) ** 2 / d2
+        """Upper bound of the gain at squared length ``d2`` (m^2) for any aerial height in (10, 300]
+        m: LoS (NLoS loses at least as much), ``K d^-e/10`` with ``K = 10^(-20 log10(40 pi f_c / 3) / 10)``
+        (f_c in GHz) and the exponent ``e = max(23.9 - 1.8 log10 h, 20)`` of Table B-2 at its floor 20
+        beyond 1 m and at its largest, 22.1 (h = 10 m), below 1 m, where a larger exponent means
+        more gain. (The floor alone, ``K d^-2``, was below the gain under 1 m: 0.46e-3 against
+        0.40e-3 at 0.5 m and 10.5 m height.) numpy or CasADi."""
+        k = (3.0 / (40.0 * np.pi * self.carrier_hz / 1e9)) ** 2
+        near = d2 ** (-0.05 * (_RMA_AV_LOS_EXPONENT_MAX - 20.0))  # d^-(e_max - 20)/10: > 1 below 1 m
+        return k / d2 * ops(d2).fmax(near, 1.0)
 
     def describe(self) -> str:
         return f"3GPP TR 36.777 RMa-AV at {self.carrier_hz / 1e9:g} GHz (expected over the LoS state)"
