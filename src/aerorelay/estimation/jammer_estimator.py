@@ -495,13 +495,16 @@ class JammerEstimator:
         self.theta[:, :3] = np.clip(self._positions_at(t), self.lo, self.hi)
         self.t_ref = t  # positions are now's; a row's is now's plus the velocity times its age
         self._reseed(idx, base)
+        step = None
         if self.nj >= 2 and self._refines % _JOINT_EVERY == 0 and self._candidate is None:
             self._joint_search(*self._fit_rows(t, _JOINT_ROWS))  # its candidate is polished from the next refinement on
         else:
-            self._advance_candidate(idx, base)
+            step = self._advance_candidate(idx, base)
         if not self.started.any():
             return
-        self.theta, self.lam, H, cols, chi2 = self._lm_step(self.theta, self.lam, idx, base, self.started)
+        if step is None:
+            step = self._lm_step(self.theta, self.lam, idx, base, self.started)
+        self.theta, self.lam, H, cols, chi2, _ = step
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
@@ -521,8 +524,9 @@ class JammerEstimator:
 
     def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray, found: np.ndarray):
         """One Levenberg-Marquardt iteration from ``theta`` (the parameters of the jammers ``found``,
-        ``(nJ,)`` bool) with damping ``lam``: ``(theta, lam, H, cols, chi2)``, the new iterate and damping, the Gauss-Newton Hessian
-        at ``theta`` over the fitted columns ``cols`` and the window's reduced chi-square there."""
+        ``(nJ,)`` bool) with damping ``lam``: ``(theta, lam, H, cols, chi2, cost)``, the new iterate and
+        damping, the Gauss-Newton Hessian at ``theta`` over the fitted columns ``cols``, the window's
+        reduced chi-square there and the window cost of ``theta`` (``_window_cost``'s)."""
         z = self.window.z[idx]
         g, dg = self._window_gains(theta, idx, jacobian=True)
         on = self._on_flags(theta, g, idx)
@@ -535,8 +539,9 @@ class JammerEstimator:
         mixed = self._mixed_rows(theta, g, on, idx, z_hat, var, found)
         fit = base * ~mixed
         fixed_cost = self._mixed_cost(base, var, mixed)
-        cost0, robust = self._huber(r, fit, var)
-        cost0 += self._velocity_cost(theta) + fixed_cost
+        huber, robust = self._huber(r, fit, var)
+        cost0 = huber + (self._velocity_cost(theta) + fixed_cost)
+        window_cost = huber + fixed_cost + self._velocity_cost(theta)  # summed as _window_cost sums it
         wr = fit / var * robust
         prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
         H = J.T @ (J * wr[:, None]) + np.diag(prior)
@@ -549,8 +554,8 @@ class JammerEstimator:
         z_try, _ = self._model(trial, g_try, None, on, idx)
         chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
         if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx, found))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
-            return trial, max(lam / 3.0, 1e-6), H, cols, chi2
-        return theta, min(lam * 5.0, 1e6), H, cols, chi2
+            return trial, max(lam / 3.0, 1e-6), H, cols, chi2, window_cost
+        return theta, min(lam * 5.0, 1e6), H, cols, chi2, window_cost
 
     def _joint_search(self, idx: np.ndarray, base: np.ndarray) -> None:
         """Score every pair of grid cells for two jammers at once on the window (``pair_search.py``),
@@ -586,23 +591,27 @@ class JammerEstimator:
         d = np.linalg.norm(self.cells[[a, b]][:, None, :] - self.theta[[j, k]][None, :, :3], axis=2)
         return bool(min(max(d[0, 0], d[1, 1]), max(d[0, 1], d[1, 0])) <= 2.0 * self.spacing)
 
-    def _advance_candidate(self, idx: np.ndarray, base: np.ndarray) -> None:
+    def _advance_candidate(self, idx: np.ndarray, base: np.ndarray):
         """One Levenberg-Marquardt iteration on the joint search's candidate (its positions moved on to
         now like the estimate's); adopt it as soon as its window fit beats the estimate's, drop it
         after ``_JOINT_POLISH`` iterations that did not (one iteration per refinement: no step pays
-        for the whole polish)."""
+        for the whole polish). The estimate's own Levenberg-Marquardt step is taken here, its window
+        cost being what the candidate is compared with; it is returned for ``_refine`` to use (None
+        when no candidate lives or it was adopted: ``_refine`` then steps from the new estimate)."""
         c = self._candidate
         if c is None:
-            return
-        current = self._window_cost(self.theta, idx, base, self.started) if self.started.any() else math.inf
+            return None
+        step = self._lm_step(self.theta, self.lam, idx, base, self.started) if self.started.any() else None
+        current = step[5] if step is not None else math.inf
         theta = c.theta.copy()
         theta[:, :3] = np.clip(theta[:, :3] + theta[:, 4:7] * (self.t_ref - c.t_ref), self.lo, self.hi)
         if self._window_cost(theta, idx, base, c.found) < current:  # adopted: its jammers are found
             self.theta, self.lam, self.started, self._candidate = theta, 1e-2, c.found.copy(), None
             self._rival[:] = 0.0
-            return
+            return None
         theta, lam, *_ = self._lm_step(theta, c.lam, idx, base, c.found)
         self._candidate = _Candidate(theta, c.found, lam, c.left - 1, self.t_ref) if c.left > 1 else None
+        return step
 
     def _velocity_cost(self, theta: np.ndarray) -> float:
         """The velocities' prior, in the window cost's units: ``sum |v|^2 / jammer_speed^2``."""
