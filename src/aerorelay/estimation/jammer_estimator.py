@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -109,6 +110,17 @@ class EstimatorSettings:
     window_rows: int | None = None
     min_rows: int = 8  # Gauss-Newton starts after this many measurements
     refine_every: int = 2  # one Gauss-Newton iteration per this many measurement rounds
+
+
+class _LmStep(NamedTuple):
+    """One Levenberg-Marquardt iteration's outcome (``JammerEstimator._lm_step``)."""
+
+    theta: np.ndarray  # the new iterate
+    lam: float  # the next damping
+    H: np.ndarray  # the Gauss-Newton Hessian at the old iterate, over the fitted columns
+    cols: np.ndarray  # those columns
+    chi2: float  # the window's reduced chi-square at the old iterate
+    cost: float  # the window cost of the old iterate (_window_cost's)
 
 
 @dataclass(frozen=True)
@@ -245,8 +257,10 @@ class JammerEstimator:
         moved at its velocity between the estimate's positions and that row."""
         return self.window.t[idx] - (self.t_ref if t_ref is None else t_ref)
 
-    def _powers(self, theta: np.ndarray) -> np.ndarray:
-        return np.where(self.started, np.exp(np.where(self.started, theta[:, 3], 0.0)), 0.0)
+    @staticmethod
+    def _powers(theta: np.ndarray, found: np.ndarray) -> np.ndarray:
+        """Each jammer's EIRP (W) under ``theta``; 0 for those not ``found`` (``(nJ,)`` bool)."""
+        return np.where(found, np.exp(np.where(found, theta[:, 3], 0.0)), 0.0)
 
     # --- per measurement --------------------------------------------------------------------
     def add(self, t: float, receiver: int, position, axis, reading_w: float) -> None:
@@ -280,7 +294,7 @@ class JammerEstimator:
                     jitter2: float = 0.0) -> None:
         """One measurement ``y`` (W, averaged): each jammer's ON/OFF chain, then its grid sums."""
         noise = self.receivers[receiver].noise_w
-        P = self._powers(self.theta)
+        P = self._powers(self.theta, self.started)
         now = self._positions_at(t)
         g_est = np.array([float(self._gain(now[j], receiver, position, axis)) for j in range(self.nj)])
         on_now = self.on_prob > 0.5
@@ -385,7 +399,7 @@ class JammerEstimator:
         the axis: a reading there says little about where the jammer is, and is weighted so (without
         this, a relay that holds the jammer in its null pulled the estimate into a narrow wrong valley).
         ``found``: which jammers ``theta`` has found (``(nJ,)`` bool); the others contribute nothing."""
-        contrib = on * np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
+        contrib = on * self._powers(theta, found)[:, None] * g
         S = self._noise[self.window.ri[idx]] + contrib.sum(axis=0)
         slope = (contrib * self._axis_log_slopes(self._row_positions(theta, idx, t_ref), idx)).sum(axis=0) / S  # d ln S / d angle
         return self.sigma2 + (KAPPA_DB * slope) ** 2 * (self.axis_var + self.window.jitter2[idx])
@@ -422,7 +436,7 @@ class JammerEstimator:
         left out of the fit at a fixed cost (``_mixed_cost``), where Huber charged it linearly and
         made the true point look worse than a far, strong one at every switch. ``found``: which
         jammers ``theta`` has found (``(nJ,)`` bool)."""
-        contrib = np.exp(np.where(found, theta[:, 3], -np.inf))[:, None] * g
+        contrib = self._powers(theta, found)[:, None] * g
         S = np.exp((z_hat - self.log_mean) / KAPPA_DB)
         c = _HUBER_SIGMAS * np.sqrt(var)
         z = self.window.z[idx]
@@ -504,7 +518,7 @@ class JammerEstimator:
             return
         if step is None:
             step = self._lm_step(self.theta, self.lam, idx, base, self.started)
-        self.theta, self.lam, H, cols, chi2, _ = step
+        self.theta, self.lam, H, cols, chi2 = step.theta, step.lam, step.H, step.cols, step.chi2
         if chi2 != self.chi2_scale:
             self._posterior = None
         self.chi2_scale = chi2
@@ -522,11 +536,9 @@ class JammerEstimator:
         idx = self.window.rows(len(self.window) if most is None else most)
         return idx, len(self.window) / idx.size * np.exp(-(t - self.window.t[idx]) / self.s.forget_s)
 
-    def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray, found: np.ndarray):
+    def _lm_step(self, theta: np.ndarray, lam: float, idx: np.ndarray, base: np.ndarray, found: np.ndarray) -> _LmStep:
         """One Levenberg-Marquardt iteration from ``theta`` (the parameters of the jammers ``found``,
-        ``(nJ,)`` bool) with damping ``lam``: ``(theta, lam, H, cols, chi2, cost)``, the new iterate and
-        damping, the Gauss-Newton Hessian at ``theta`` over the fitted columns ``cols``, the window's
-        reduced chi-square there and the window cost of ``theta`` (``_window_cost``'s)."""
+        ``(nJ,)`` bool) with damping ``lam`` (see ``_LmStep``)."""
         z = self.window.z[idx]
         g, dg = self._window_gains(theta, idx, jacobian=True)
         on = self._on_flags(theta, g, idx)
@@ -554,8 +566,8 @@ class JammerEstimator:
         z_try, _ = self._model(trial, g_try, None, on, idx)
         chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
         if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx, found))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
-            return trial, max(lam / 3.0, 1e-6), H, cols, chi2, window_cost
-        return theta, min(lam * 5.0, 1e6), H, cols, chi2, window_cost
+            return _LmStep(trial, max(lam / 3.0, 1e-6), H, cols, chi2, window_cost)
+        return _LmStep(theta, min(lam * 5.0, 1e6), H, cols, chi2, window_cost)
 
     def _joint_search(self, idx: np.ndarray, base: np.ndarray) -> None:
         """Score every pair of grid cells for two jammers at once on the window (``pair_search.py``),
@@ -571,7 +583,7 @@ class JammerEstimator:
             for k in range(j + 1, self.nj):
                 held = self.started.copy()
                 held[[j, k]] = False
-                others = (np.where(held, self._powers(self.theta), 0.0)[:, None] * g).sum(axis=0)
+                others = (self._powers(self.theta, held)[:, None] * g).sum(axis=0)
                 pair = best_pair(gains, weights, y - self._noise[self.window.ri[idx]] - others, keep=_JOINT_CELLS)
                 if pair.power_b <= 0.0 or self._pair_is_estimate(pair.a, pair.b, j, k):
                     continue  # one cell explains it (the one-jammer checks handle that), or nothing new
@@ -591,7 +603,7 @@ class JammerEstimator:
         d = np.linalg.norm(self.cells[[a, b]][:, None, :] - self.theta[[j, k]][None, :, :3], axis=2)
         return bool(min(max(d[0, 0], d[1, 1]), max(d[0, 1], d[1, 0])) <= 2.0 * self.spacing)
 
-    def _advance_candidate(self, idx: np.ndarray, base: np.ndarray):
+    def _advance_candidate(self, idx: np.ndarray, base: np.ndarray) -> _LmStep | None:
         """One Levenberg-Marquardt iteration on the joint search's candidate (its positions moved on to
         now like the estimate's); adopt it as soon as its window fit beats the estimate's, drop it
         after ``_JOINT_POLISH`` iterations that did not (one iteration per refinement: no step pays
@@ -602,15 +614,15 @@ class JammerEstimator:
         if c is None:
             return None
         step = self._lm_step(self.theta, self.lam, idx, base, self.started) if self.started.any() else None
-        current = step[5] if step is not None else math.inf
+        current = step.cost if step is not None else math.inf
         theta = c.theta.copy()
         theta[:, :3] = np.clip(theta[:, :3] + theta[:, 4:7] * (self.t_ref - c.t_ref), self.lo, self.hi)
         if self._window_cost(theta, idx, base, c.found) < current:  # adopted: its jammers are found
             self.theta, self.lam, self.started, self._candidate = theta, 1e-2, c.found.copy(), None
             self._rival[:] = 0.0
             return None
-        theta, lam, *_ = self._lm_step(theta, c.lam, idx, base, c.found)
-        self._candidate = _Candidate(theta, c.found, lam, c.left - 1, self.t_ref) if c.left > 1 else None
+        polished = self._lm_step(theta, c.lam, idx, base, c.found)
+        self._candidate = _Candidate(polished.theta, c.found, polished.lam, c.left - 1, self.t_ref) if c.left > 1 else None
         return step
 
     def _velocity_cost(self, theta: np.ndarray) -> float:
@@ -630,7 +642,7 @@ class JammerEstimator:
                 covs.append(d.T @ (d * post[:, None]))
         covs_a = np.array(covs)
         std = np.sqrt(np.maximum(np.linalg.eigvalsh(covs_a)[:, -1], 0.0))
-        return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta), covs_a, self.on_prob.copy(), std,
+        return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta, self.started), covs_a, self.on_prob.copy(), std,
                               self.started & (std < self.s.confident_std_m))
 
     @property
