@@ -39,6 +39,7 @@ from .scenario.run import RunResult
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
 from .sim.initial import link_budget_lines as initial_link_budget_lines
+from .store import strict_json
 from .store.outputs import OutputError, check_output_folder, is_own_folder, mark, write_atomic
 from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 
@@ -47,7 +48,8 @@ class Result(RunResult):
     """A flown mission (``timeseries``, ``metrics``, ``bound``); ``save`` writes its run folder
     with the figures and ``run.mcap`` for Foxglove (``figures=False``: data files only)."""
 
-    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True) -> Path:
+    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True,
+             wait: bool = False) -> Path:
         def writer(tmp: Path) -> None:
             if figures:
                 bound = self.bound.frame() if self.bound is not None else None
@@ -56,7 +58,7 @@ class Result(RunResult):
             if extra is not None:
                 extra(tmp)
 
-        return super().save(folder, writer)
+        return super().save(folder, writer, wait=wait)
 
 
 def simulate(sc: Scenario, *, bound: bool = False, **parts) -> Result:
@@ -128,7 +130,7 @@ def _write_report(chosen: list[Study], specs: list, out: Path, meta: dict) -> di
             "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
             "controller": NmpcSettings().fingerprint()}
     summary = summarize(chosen, specs, out, {"campaign": meta})
-    write_atomic(out / "summary.json", json.dumps(summary, indent=1, default=str))
+    write_atomic(out / "summary.json", strict_json.dumps(summary, indent=1, default=str))
     write_atomic(out / "report.html", render_report(summary, chosen, specs, out, manifest))
     return summary
 
@@ -179,7 +181,7 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
     date = datetime.datetime.now().isoformat(timespec="seconds")
     out.mkdir(parents=True, exist_ok=True)
     mark(out, "campaign")
-    write_atomic(out / CAMPAIGN_FILE, json.dumps({"studies": [st.name for st in chosen], "quick": quick}))
+    write_atomic(out / CAMPAIGN_FILE, strict_json.dumps({"studies": [st.name for st in chosen], "quick": quick}))
     try:
         res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
     except KeyboardInterrupt:  # the runs that finished are reported before the interrupt goes on

@@ -12,10 +12,11 @@ from rich.table import Table
 
 from . import api
 from .scenario import Scenario, ScenarioError, load_scenario
-from .scenario.build import nmpc_settings
+from .scenario.build import check_buildable, nmpc_settings
 from .scenario.load import parse_sets as _parse_sets
-from .scenario.run import FIGURES_BYTES, check_run_size, log_bytes
-from .store.outputs import OutputError, check_output_folder
+from .scenario.run import check_run_size, output_bytes
+from .store import strict_json
+from .store.outputs import OutputBusyError, OutputError, check_output_folder, writing
 from .store.run_folder import METRICS_FILE
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
@@ -42,7 +43,7 @@ def _with_overrides(sc: Scenario, overrides: dict, sets: list[str] | None = None
     and its allowed range."""
     updates = {**parse_sets(sets), **{k: v for k, v in overrides.items() if v is not None}}
     try:
-        return sc.with_updates(updates) if updates else sc
+        return check_buildable(sc.with_updates(updates)) if updates else sc
     except ScenarioError as exc:
         _fail(str(exc))
         raise  # unreachable: _fail exits
@@ -137,18 +138,37 @@ def run(
     no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
     no_bound: bool = typer.Option(False, "--no-bound", help="skip the capacity bound (computed once per scenario geometry, cached)"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    wait: bool = typer.Option(False, "--wait", help="wait for another run writing the same --out instead of refusing"),
 ):
     """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json, the
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
                                                    "sim.duration_s": duration}, set_)
     try:
         check_run_size(sc)
     except ScenarioError as exc:
         _fail(str(exc))
-    _check_out(out, "run", need_bytes=log_bytes(sc) + (0 if no_figures else FIGURES_BYTES))
+    _check_out(out, "run", need_bytes=output_bytes(sc, figures=not no_figures))
+    try:
+        with writing(out, wait=wait):  # one writer per folder, from before the flight until it is saved
+            _check_out(out, "run", need_bytes=output_bytes(sc, figures=not no_figures))  # again: we may have waited
+            result = _fly(sc, no_bound)
+            result.save(out, figures=not no_figures)
+    except OutputBusyError as exc:
+        _fail(str(exc))
+    console.print(f"wrote {out}", markup=False, highlight=False)
+    console.print(_metrics_table({"value": result.metrics}))
+    for name, why in result.metrics.get("optional_outputs_failed", {}).items():
+        err_console.print(f"[bold yellow]warning[/] {name} not written: {why} (the run is saved)", highlight=False)
+    if result.metrics["unsafe"]:
+        err_console.print(f"[bold red]unsafe run[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
+        raise typer.Exit(EXIT_UNSAFE)
+
+
+def _fly(sc: Scenario, no_bound: bool) -> api.Result:
+    """The bound (unless ``no_bound``; cached per geometry), then the flight, with progress bars."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
     if not no_bound:  # computed once per scenario geometry (cached), with its own progress bar
         _bound_with_progress(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
@@ -157,14 +177,8 @@ def run(
     # the measured step times; the bar is redrawn from the loop every 50 steps instead
     with Progress(*cols, console=err_console, transient=False, auto_refresh=False) as prog:
         task = prog.add_task("mission", total=1)
-        result = api.simulate(sc, bound=not no_bound, progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
-                              if k % 50 == 0 or k == n else None)
-    result.save(out, figures=not no_figures)
-    console.print(f"wrote {out}", markup=False, highlight=False)
-    console.print(_metrics_table({"value": result.metrics}))
-    if result.metrics["unsafe"]:
-        err_console.print(f"[bold red]unsafe run[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
-        raise typer.Exit(EXIT_UNSAFE)
+        return api.simulate(sc, bound=not no_bound, progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
+                            if k % 50 == 0 or k == n else None)
 
 
 def _bound_with_progress(sc: Scenario):
@@ -192,11 +206,15 @@ def bound(
 
     sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     _check_out(out, "bound")
-    b = _bound_with_progress(sc)
-    tmp = new_sibling(out)
-    summary = write_bound_files(b, tmp)
-    fig_bound(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
-    swap_in(tmp, out, "bound")
+    try:
+        with writing(out):
+            b = _bound_with_progress(sc)
+            tmp = new_sibling(out)
+            summary = write_bound_files(b, tmp)
+            fig_bound(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+            swap_in(tmp, out, "bound")
+    except OutputBusyError as exc:
+        _fail(str(exc))
     t = Table(title=f"capacity bounds: {sc.name}")
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
@@ -302,7 +320,6 @@ def bench(
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
 ):
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
-    import json
 
 
     sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
@@ -344,7 +361,7 @@ def bench(
         console.print(f"full IPOPT solve / RTI step (means): x{res['ipopt_over_rti_mean']:.0f} "
                       f"(IPOPT converged {res['ipopt_converged']})", markup=False, highlight=False)
     if json_out is not None:
-        json_out.write_text(json.dumps(res, indent=2))
+        json_out.write_text(strict_json.dumps(res, indent=2))
 
 
 def _default_studies_dir() -> Path:

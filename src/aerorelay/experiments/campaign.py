@@ -26,6 +26,7 @@ from dask.distributed import Client, LocalCluster, as_completed
 from .._version import __version__
 from ..scenario.build import nmpc_settings
 from ..scenario.run import simulate
+from ..store import strict_json
 from ..store.outputs import check_output_folder, mark, write_atomic
 from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, MISSION_ULOG, SCENARIO_FILE, TIMESERIES_FILE
 from .study import RunSpec, scenario_of
@@ -120,7 +121,7 @@ LOCK_FILE = ".campaign.lock"
 
 
 def _write_manifest(out: Path, records: dict[str, dict]) -> None:
-    write_atomic(out / "manifest.json", json.dumps(records, indent=1, sort_keys=True))
+    write_atomic(out / "manifest.json", strict_json.dumps(records, indent=1, sort_keys=True))
 
 
 def load_manifest(out: Path) -> dict[str, dict]:

@@ -32,16 +32,24 @@ def mutual_alignment(v_12, v_10):
 
 def reachable_mutual_alignment(relay_positions, axes, p0, p2_path):
     """Largest mutual alignment (eq. 11) over relay ``positions`` ``(P, 3)`` and antenna ``axes``
-    ``(K, 3)`` (unit, world), at each MRAV-2 position of ``p2_path`` ``(T, 3)``; BS at ``p0``. ``(T,)``."""
+    ``(K, 3)`` (unit, world), at each MRAV-2 position of ``p2_path`` ``(T, 3)``; BS at ``p0``. ``(T,)``.
+    A relay position on the base station or on MRAV-2 has no link direction: it is left out (0 when
+    no position is left)."""
     g = np.asarray(relay_positions, float)
     axes = np.asarray(axes, float)
 
-    def cos_to(p):  # directional cosines (P, K) of the links from each relay position toward p
+    def cos_to(p):  # directional cosines (P, K) of the links from each relay position toward p (NaN at p itself)
         d = np.asarray(p, float) - g
-        return (d / np.linalg.norm(d, axis=1, keepdims=True)) @ axes.T
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (d / np.linalg.norm(d, axis=1, keepdims=True)) @ axes.T
 
     s10 = 1.0 - cos_to(p0) ** 2
-    return np.array([float(np.max(s10 * (1.0 - cos_to(p2) ** 2))) for p2 in np.asarray(p2_path, float)])
+
+    def best(p2) -> float:
+        a = s10 * (1.0 - cos_to(p2) ** 2)
+        return float(np.max(a)) if not np.isnan(a).any() else float(np.nanmax(a, initial=0.0))
+
+    return np.array([best(p2) for p2 in np.asarray(p2_path, float)])
 
 
 def spectral_efficiency(gamma):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from . import checks
 from .antenna import AntennaPattern, IsotropicPattern
 from .backend import is_symbolic
 from .geometry import E3
@@ -38,6 +39,11 @@ class PeriodicOnOff:
     off_s: float
     phase_s: float = 0.0
 
+    def __post_init__(self):
+        checks.number("PeriodicOnOff", "on_s", self.on_s, lo=0.0, lo_open=True)
+        checks.number("PeriodicOnOff", "off_s", self.off_s, lo=0.0, lo_open=True)
+        checks.number("PeriodicOnOff", "phase_s", self.phase_s)
+
     def is_on(self, t):
         tau = np.mod(np.asarray(t, dtype=float) - self.phase_s, self.on_s + self.off_s)
         return tau < self.on_s
@@ -58,6 +64,20 @@ class Jammer:
     point_at: str | None = None
     boresight: np.ndarray = field(default_factory=lambda: E3.copy())
     name: str = "jammer"
+
+    def __post_init__(self):
+        """Checked when made (``models.checks``): a named error, never a silent NaN or a negative power."""
+        checks.text("Jammer", "name", self.name)
+        who = f"Jammer({self.name!r})"
+        checks.vector(who, "position", self.position)
+        checks.number(who, "power", self.power, lo=0.0)
+        checks.number(who, "localization_delay", self.localization_delay, lo=0.0)
+        checks.has_method(who, "schedule", self.schedule, "is_on", "a schedule (AlwaysOn, PeriodicOnOff)")
+        if self.path is not None:
+            checks.has_method(who, "path", self.path, "state", "a path (models.mission)")
+        checks.has_method(who, "pattern", self.pattern, "gain_from_cos", "an antenna pattern")
+        checks.text(who, "point_at", self.point_at, optional=True)
+        checks.vector(who, "boresight", self.boresight, nonzero=True)
 
     def power_at(self, t):
         """Radiated power (W) at time ``t`` s: ``power`` when ON, 0 when OFF."""

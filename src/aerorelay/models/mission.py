@@ -142,8 +142,9 @@ class CsvPath(SampledPath):
         if not full and not all(c in names for c in POSITION_COLUMNS):
             missing = [c for c in CSV_COLUMNS if c not in names]
             raise ValueError(f"{path}: missing CSV columns {missing}; expected {','.join(CSV_COLUMNS)} or {','.join(POSITION_COLUMNS)}")
-        if data.size < (2 if full else 4):
-            raise ValueError(f"{path}: needs at least {2 if full else 4} rows of data, has {data.size}")
+        least = 2 if full else 5  # positions only: the smoothing spline needs 5 samples
+        if data.size < least:
+            raise ValueError(f"{path}: needs at least {least} rows of data, has {data.size}")
         for c in CSV_COLUMNS if full else POSITION_COLUMNS:
             col = np.asarray(data[c], float)
             bad = np.flatnonzero(~np.isfinite(col))
@@ -157,7 +158,11 @@ class CsvPath(SampledPath):
             v = np.column_stack([np.asarray(data[c], float) for c in ("vx", "vy", "vz")])
             a = np.column_stack([np.asarray(data[c], float) for c in ("ax", "ay", "az")])
         else:
-            v, a = smooth_derivatives(t, p)
+            try:
+                v, a = smooth_derivatives(t, p)
+            except ValueError as exc:
+                raise ValueError(f"{path}: no smooth velocity and acceleration fit these positions (scipy: {exc}); "
+                                 f"give the columns {','.join(CSV_COLUMNS)}") from None
         super().__init__(t, p, v, a)
 
 
@@ -168,6 +173,23 @@ def ned_to_world(p_ned: np.ndarray, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)
     c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return enu @ R.T + np.asarray(offset, float)
+
+
+ULOG_HEADER_BYTES = 16  # magic (7), version (1), timestamp (8); then messages: uint16 size, uint8 type, payload
+
+
+def ulog_cut_at(path: str | Path) -> int | None:
+    """Where a ULog file is cut (the byte offset of its last, incomplete message), or None when its
+    messages end exactly at the end of the file. pyulog stops silently at a cut message, so a log
+    truncated in the middle would otherwise fly as a shorter mission."""
+    data = Path(path).read_bytes()
+    pos, end = ULOG_HEADER_BYTES, len(data)
+    while pos + 3 <= end:
+        size = int.from_bytes(data[pos:pos + 2], "little")
+        if pos + 3 + size > end:
+            return pos
+        pos += 3 + size
+    return None if pos == end else pos
 
 
 class UlogPath(SampledPath):
@@ -182,6 +204,12 @@ class UlogPath(SampledPath):
             log = ULog(str(path), message_name_filter_list=[self.TOPIC])
         except Exception as exc:  # pyulog raises several kinds on a corrupt file
             raise ValueError(f"{path}: not a readable PX4 ULog ({type(exc).__name__}: {exc})") from None
+        if log.file_corruption:
+            raise ValueError(f"{path}: pyulog reports a corrupt file (bytes skipped to find its messages again)")
+        cut = ulog_cut_at(path)
+        if cut is not None:
+            raise ValueError(f"{path}: truncated: its last message, at byte {cut} of {Path(path).stat().st_size}, is incomplete "
+                             "(the file was cut while written or copied); flying it would fly part of the mission")
         data = next((d for d in log.data_list if d.name == self.TOPIC), None)
         if data is None:
             raise ValueError(f"{path}: no {self.TOPIC} topic in this ULog")
@@ -194,8 +222,10 @@ class UlogPath(SampledPath):
         if t.size < 2 or np.any(np.diff(t) <= 0):
             raise ValueError(f"{path}: {self.TOPIC} needs >= 2 samples at increasing times")
         cols = {f: np.asarray(d[f], float) for f in need[1:]}
-        if not all(np.all(np.isfinite(c)) for c in cols.values()):
-            raise ValueError(f"{path}: {self.TOPIC} holds non-finite values")
+        for f, c in cols.items():
+            bad = np.flatnonzero(~np.isfinite(c))
+            if bad.size:
+                raise ValueError(f"{path}: {self.TOPIC} holds non-finite values ({f} of sample {bad[0] + 1})")
         turn = (lambda x, y, z: ned_to_world(np.column_stack([x, y, z]), yaw_deg))
         p = ned_to_world(np.column_stack([cols["x"], cols["y"], cols["z"]]), yaw_deg, offset)
         super().__init__(t, p, turn(cols["vx"], cols["vy"], cols["vz"]), turn(cols["ax"], cols["ay"], cols["az"]))

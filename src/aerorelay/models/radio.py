@@ -22,6 +22,7 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
+from . import checks
 from .antenna import AntennaPattern
 from .backend import is_symbolic, ops
 from .geometry import E3
@@ -29,6 +30,7 @@ from .jammer import Jammer
 from .propagation import PathGain
 
 Role = Literal["base_station", "source", "relay"]
+ROLES = ("base_station", "source", "relay")
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,10 @@ class Antenna:
 
     pattern: AntennaPattern
     axis: np.ndarray = field(default_factory=lambda: E3.copy())
+
+    def __post_init__(self):
+        checks.has_method("Antenna", "pattern", self.pattern, "gain_from_cos", "an antenna pattern")
+        checks.vector("Antenna", "axis", self.axis, unit=True)
 
     def world_axis(self, R) -> np.ndarray:
         """The axis in the world for a body-to-world rotation ``R`` (``(..., 3, 3)``)."""
@@ -56,6 +62,15 @@ class Node:
     antenna: Antenna
     position: np.ndarray | None = None
 
+    def __post_init__(self):
+        checks.text("Node", "name", self.name)
+        who = f"Node({self.name!r})"
+        checks.one_of(who, "role", self.role, ROLES)
+        if not isinstance(self.antenna, Antenna):
+            raise checks.InvalidInput(f"{who}.antenna: must be an Antenna, got {type(self.antenna).__name__}")
+        if self.position is not None:
+            checks.vector(who, "position", self.position)
+
 
 @dataclass(frozen=True)
 class LinkBudget:
@@ -64,6 +79,10 @@ class LinkBudget:
     tx_power: float = 1.0
     noise_power: float = 1.0
     bandwidth: float = 1.0
+
+    def __post_init__(self):
+        for name in ("tx_power", "noise_power", "bandwidth"):
+            checks.number("LinkBudget", name, getattr(self, name), lo=0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -177,6 +196,13 @@ class RadioScene:
     path_gain: PathGain = PathGain()  # deterministic large-scale propagation of every link
 
     def __post_init__(self):
+        for field_name, items, kind in (("nodes", self.nodes, Node), ("jammers", self.jammers, Jammer)):
+            bad = [type(x).__name__ for x in items if not isinstance(x, kind)]
+            if bad:
+                raise checks.InvalidInput(f"RadioScene.{field_name}: must hold {kind.__name__} objects, got {bad[0]}")
+        if not isinstance(self.budget, LinkBudget):
+            raise checks.InvalidInput(f"RadioScene.budget: must be a LinkBudget, got {type(self.budget).__name__}")
+        checks.has_method("RadioScene", "path_gain", self.path_gain, "gain_from_d2", "a path gain (models.propagation)")
         names = [n.name for n in self.nodes]
         if len(set(names)) != len(names):
             raise ValueError(f"radio scene: node names must be unique, got {names}")

@@ -13,12 +13,14 @@ or pass a planner object to ``aerorelay.simulate(sc, planner=...)`` without regi
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
 
+from ..models import checks
 from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
@@ -68,6 +70,49 @@ class PlannerContext:
 
 class Planner(Protocol):
     def update(self, inp: PlannerInput) -> Reference: ...
+
+
+log = logging.getLogger(__name__)
+
+
+class CheckedPlanner:
+    """A user's planner behind the API's boundary check: every ``Reference`` it returns must carry
+    3-vectors of finite numbers (``p_opt``, ``p_ref``, ``v_ref``, ``a_ref``; ``axis`` None or a
+    non-zero 3-vector; finite ``yaw``), else InvalidInput naming the field and the step; a position
+    reference outside the workspace box is clipped into it, logged once, and counted
+    (``clipped_steps``, ``first_clip``: metrics.json's ``reference_clipped_steps``)."""
+
+    def __init__(self, planner: Planner, workspace_min, workspace_max):
+        self.planner = planner
+        self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
+        self.clipped_steps = 0
+        self.first_clip: str | None = None
+
+    def __getattr__(self, name: str):  # the wrapped planner's own attributes (e.g. preflight_s for the bench)
+        if name == "planner":
+            raise AttributeError(name)
+        return getattr(self.planner, name)
+
+    def update(self, inp: PlannerInput) -> Reference:
+        ref = self.planner.update(inp)
+        who = f"planner {type(self.planner).__name__} at t = {inp.t:.3f} s: Reference"
+        if not isinstance(ref, Reference):
+            raise checks.InvalidInput(f"planner {type(self.planner).__name__}.update must return a Reference, "
+                                      f"got {type(ref).__name__}")
+        vecs = {f: checks.vector(who, f, getattr(ref, f)) for f in ("p_opt", "p_ref", "v_ref", "a_ref")}
+        if ref.axis is not None:
+            checks.vector(who, "axis", ref.axis, nonzero=True)
+        checks.number(who, "yaw", ref.yaw)
+        p = vecs["p_ref"]
+        clipped = np.clip(p, self.lo, self.hi)
+        if np.array_equal(clipped, p):
+            return ref
+        self.clipped_steps += 1
+        if self.first_clip is None:
+            self.first_clip = (f"t = {inp.t:.3f} s: p_ref {np.array2string(p, precision=3)} outside the workspace "
+                               f"[{self.lo.tolist()}, {self.hi.tolist()}], clipped to {np.array2string(clipped, precision=3)}")
+            log.warning("planner %s: %s (later clips counted in metrics.json)", type(self.planner).__name__, self.first_clip)
+        return replace(ref, p_ref=clipped)
 
 
 PlannerFactory = Callable[[PlannerContext], Planner]

@@ -25,12 +25,12 @@ from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
-from ..planning.base import Planner, PlannerContext, planner_factory
+from ..planning.base import CheckedPlanner, Planner, PlannerContext, planner_factory
 from ..planning.bound import BoundProblem, CapacityBound, bound_key, cached_bound, compute_bound
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
-from .schema import JammerConfig, Scenario
+from .schema import JammerConfig, Scenario, ScenarioError
 
 ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
 
@@ -83,10 +83,18 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
         unit[i] = 1.0
         g = float(scene.evaluate(0.0, poses, jammer_powers=unit).interference[hop])
         if not g > 0:
-            raise ValueError(f"jammer {j.name!r}: inr_db_at_relay_start: the relay's start is in a null of the "
-                             "jammer-relay link (zero gain); give power_w instead")
+            raise ScenarioError(f"{sc.jammer_field(i)}.inr_db_at_relay_start: jammer {j.name!r}: the relay's start is in a "
+                                "null of the jammer-relay link (zero gain); give power_w instead")
         out.append(replace(j, power=10.0 ** (cfg.inr_db_at_relay_start / 10.0) * scene.budget.noise_power / g))
     return replace(scene, jammers=tuple(out))
+
+
+def check_buildable(sc: Scenario) -> Scenario:
+    """The checks that need the scenario's parts, made when it is loaded, before any work: the radio
+    scene builds (a jammer set by ``inr_db_at_relay_start`` must not sit in a null of the relay's
+    start). Raises ScenarioError naming the field; returns ``sc``."""
+    build_scene(sc)
+    return sc
 
 
 def path_gain(ch) -> PathGain:
@@ -171,7 +179,7 @@ def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
     lo, hi = _workspace(sc)
     return SafetyEnvelope.for_vehicle(vehicle, lo, hi, box_tolerance_m=fs.box_tolerance_m, max_tilt_deg=fs.max_tilt_deg,
                                       max_speed_m_s=fs.max_speed_m_s, max_body_rate_rad_s=fs.max_body_rate_rad_s,
-                                      max_handovers=fs.max_safety_handovers)
+                                      max_handovers=fs.max_safety_handovers, ground_z_m=sc.world.ground_z_m)
 
 
 def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> PlannerContext:
@@ -222,6 +230,8 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     vehicle = sc.platform.vehicle()
     scene = scene or build_scene(sc, jammers)
     source = build_source(sc)
+    if planner is not None:  # a user's planner: its references are checked at the boundary
+        planner = CheckedPlanner(planner, *_workspace(sc))
     planner = planner or build_planner(sc, vehicle, scene, source)
     controller = build_controller(sc, vehicle, nmpc_settings)
     plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)

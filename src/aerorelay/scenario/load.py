@@ -5,6 +5,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+from .build import check_buildable
 from .schema import Scenario, ScenarioError, parse_scenario
 
 
@@ -51,4 +52,4 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
     updates = parse_sets(set) if isinstance(set, list) else (set or {})
     if updates:
         sc = sc.with_updates(updates)
-    return sc
+    return check_buildable(sc)

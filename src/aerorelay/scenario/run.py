@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 from collections.abc import Callable
@@ -14,12 +15,14 @@ import pandas as pd
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
-from ..planning.base import Planner
+from ..planning.base import CheckedPlanner, Planner
 from ..planning.bound import CapacityBound
 from ..sim.closed_loop import MissionResult, log_columns
 from ..sim.metrics import compute_metrics
-from ..store.run_folder import MISSION_CSV, MISSION_ULOG, log_frame, publish_run
-from .build import build, scenario_bound
+from ..store.outputs import writing
+from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
+from ..store.strict_json import NULL_REASONS
+from .build import build, check_buildable, scenario_bound
 from .schema import Scenario, ScenarioError
 
 
@@ -34,21 +37,31 @@ class RunResult:
     metrics: dict
     bound: CapacityBound | None = None
 
-    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None) -> Path:
-        """Write the run folder (scenario.toml, timeseries.parquet, metrics.json, bound files). It holds
-        everything to fly the run again: a CSV mission is copied beside the scenario as
-        ``mission.csv`` and named relative to it, so ``aerorelay run FOLDER/scenario.toml`` re-flies it."""
+    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, wait: bool = False) -> Path:
+        """Write the run folder. Its essentials first, published at once: scenario.toml,
+        timeseries.parquet, metrics.json and, for a CSV or ULog mission, the file's copy beside the
+        scenario (``mission.csv`` / ``mission.ulg``, named relative to it), so ``aerorelay run
+        FOLDER/scenario.toml`` re-flies it. Then what is optional (the bound's files, what ``extra``
+        writes, e.g. figures), each on its own: one that fails is named in metrics.json
+        (``optional_outputs_failed``) and logged, and the run stays. One writer per folder
+        (``store.outputs.writing``: OutputBusyError, or ``wait``)."""
         m = self.scenario.mission
         copy = MISSION_ULOG if m.trajectory_ulog else MISSION_CSV if m.trajectory_csv else None
 
         def with_mission(tmp: Path) -> None:
             if copy is not None and m.flown_file is not None:
                 shutil.copyfile(m.flown_file, tmp / copy)
-            if extra is not None:
-                extra(tmp)
 
         toml = self.scenario.to_toml(copy)
-        publish_run(Path(folder), toml, self.timeseries, self.metrics, bound=self.bound, extra=with_mission)
+        with writing(folder, wait=wait) as out:
+            publish_run(out, toml, self.timeseries, self.metrics, extra=with_mission)
+            optional: dict[str, Callable[[Path], object]] = {}
+            if self.bound is not None:
+                bound = self.bound
+                optional["bound"] = lambda tmp: write_bound_files(bound, tmp)
+            if extra is not None:
+                optional["figures"] = extra
+            add_optional(out, optional, self.metrics)
         return Path(folder)
 
 
@@ -60,6 +73,14 @@ def log_bytes(sc: Scenario) -> int:
     steps = int(sc.duration_s / sc.control_period_s) + 1
     n_rotors = sc.platform.rotor_count if sc.platform.rotors is None else len(sc.platform.rotors)
     return steps * len(log_columns(n_rotors)) * 8
+
+
+def output_bytes(sc: Scenario, *, figures: bool) -> int:
+    """Bytes a run folder of ``sc`` needs at most on disk: the log (its in-memory size bounds the
+    parquet), the copy of a CSV or ULog mission file, and the figures when written."""
+    f = sc.mission.flown_file
+    copy = Path(f).stat().st_size if f and Path(f).is_file() else 0
+    return log_bytes(sc) + copy + (FIGURES_BYTES if figures else 0)
 
 
 def check_run_size(sc: Scenario) -> None:
@@ -77,17 +98,36 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
     m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage_threshold,
                         mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
                         workspace_min=sc.controller.workspace.min, workspace_max=sc.controller.workspace.max,
-                        box_tolerance_m=sc.controller.failsafe.box_tolerance_m)
+                        box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m)
     m["controller"] = mission.controller
     m["fallback_episodes"] = mission.fallback_episodes
+    if mission.aborted is not None:  # stopped early: unsafe, whatever the steps flown show
+        m["aborted"] = mission.aborted
+        m["unsafe"] = True
+        m["unsafe_reason"] = "; ".join(r for r in (m["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     if bound is not None:  # how far from what the physics allows (planning/bound.py)
-        m["capacity_efficiency_mean"] = m["c_mean"] / float(bound.path_mean.mean())
-        m["capacity_efficiency_min"] = m["c_min"] / float(bound.path_maxmin.min())
-        # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
-        m["capacity_efficiency_mean_flyable"] = m["c_mean"] / float(bound.flyable_mean.mean())
-        m["capacity_efficiency_min_flyable"] = m["c_min"] / float(bound.flyable_maxmin.min())
+        reasons: dict[str, str] = {}
+        for key, num, den, what in (
+                ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
+                ("capacity_efficiency_min", m["c_min"], bound.path_maxmin.min(), "the best-minimum path's minimum"),
+                # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
+                ("capacity_efficiency_mean_flyable", m["c_mean"], bound.flyable_mean.mean(), "the flyable mean path's mean"),
+                ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum")):
+            m[key], why = efficiency(num, float(den), what)
+            if why:
+                reasons[key] = why
         m["bound"] = bound.summary()
+        if reasons:
+            m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
     return m
+
+
+def efficiency(value: float, best: float, what: str) -> tuple[float | None, str | None]:
+    """``value / best``, or None with the reason when the ratio is undefined (``best`` zero, negative
+    or not finite: e.g. a jammer over the base station for a moment makes the best minimum 0)."""
+    if not (math.isfinite(best) and best > 0.0 and math.isfinite(value)):
+        return None, f"undefined: {what} is {best:g} (the run's value {value:g})"
+    return value / best, None
 
 
 def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
@@ -95,12 +135,22 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
              progress: Callable[[int, int], None] | None = None,
              bound_progress: Callable[[int, int], None] | None = None) -> RunResult:
     """Fly ``sc`` (parts given here replace the scenario's: a planner object, a radio scene, a
-    list of jammers); ``with_bound``: also compute (or load) the capacity bound."""
+    list of jammers); ``with_bound``: also compute (or load) the capacity bound. ``sc`` is validated
+    again first (a field changed after loading must pass every cross-field check too)."""
+    revalidated = sc.with_updates({})
+    if scene is None and jammers is None:
+        check_buildable(revalidated)
     check_run_size(sc)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
-    mission = parts.closed_loop().run(progress)
     injected = parts.scene if (scene is not None or jammers is not None) else None
+    # the bound before the flight: a bound that fails then costs no flight (cached per geometry)
     bound = scenario_bound(sc, bound_progress, parts.vehicle, injected) if with_bound else None
+    mission = parts.closed_loop().run(progress)
     base = log_columns(parts.vehicle.n_rotors)  # then the random channel terms and the jammer estimate, when any
     df = log_frame(mission.log, base + [c for c in mission.log if c not in base])
-    return RunResult(sc, mission, df, run_metrics(sc, mission, parts.vehicle, bound), bound)
+    metrics = run_metrics(sc, mission, parts.vehicle, bound)
+    if isinstance(parts.planner, CheckedPlanner):  # a user's planner: how often its position reference was clipped
+        metrics["reference_clipped_steps"] = parts.planner.clipped_steps
+        if parts.planner.first_clip is not None:
+            metrics["reference_clipped_first"] = parts.planner.first_clip
+    return RunResult(sc, mission, df, metrics, bound)

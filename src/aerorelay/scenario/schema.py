@@ -9,6 +9,7 @@ from __future__ import annotations
 import difflib
 import functools
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -510,9 +511,6 @@ class MissionConfig(_Strict):
     @classmethod
     def _increasing_times(cls, wps):
         _check_waypoint_times(wps, first_zero=True)
-        low = [w for w in wps if w[3] < 0.0]
-        if low:
-            raise ValueError(f"MRAV-2's path goes below ground (z < 0) at {low[0]}")
         return wps
 
     @field_validator("trajectory_csv")
@@ -534,12 +532,9 @@ class MissionConfig(_Strict):
         if not Path(self.trajectory_ulog).is_file():
             raise ValueError(f"trajectory_ulog: no such file {self.trajectory_ulog}")
         try:
-            path = UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
+            UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
         except ValueError as exc:
             raise ValueError(f"trajectory_ulog: {exc}") from None
-        low = path.cols["pz"].min()
-        if low < 0.0:
-            raise ValueError(f"trajectory_ulog: MRAV-2's path goes below ground (z = {low:.2f} m; shift it with ulog_offset_m)")
         return self
 
     @property
@@ -566,6 +561,21 @@ class MissionConfig(_Strict):
         if f and Path(f).is_file():
             return [float(v) for v in self.path().state(0.0).p]
         return list(self.waypoints[0][1:])
+
+
+class WorldConfig(_Strict):
+    """The world the vehicles fly in: the ground, and how far a mission may reach."""
+
+    ground_z_m: float = Field(0.0, ge=-1000.0, le=10000.0, description="height of the ground, m (world z): the workspace, "
+                              "every mission and every jammer stay at or above it; a vehicle below it makes the run unsafe")
+    mission_max_distance_m: float = Field(1000.0, gt=0.0, le=100_000.0, description="how far from controller.workspace "
+                                          "MRAV-2's path may reach, m: a sample farther away is refused as a damaged file")
+
+
+def _box_distance(p: np.ndarray, lo, hi) -> np.ndarray:
+    """Distance (m) of points ``(n, 3)`` from the box ``[lo, hi]`` (0 inside)."""
+    out = np.maximum(np.maximum(np.asarray(lo, float) - p, p - np.asarray(hi, float)), 0.0)
+    return np.linalg.norm(out, axis=1)
 
 
 class SimConfig(_Strict):
@@ -635,21 +645,47 @@ class EstimationConfig(_Strict):
         return self
 
 
+REACH_MAX_TIMES = 300  # mission instants the alignment reachability check samples (1 s apart up to 299 s)
+REACH_MAX_WORK = 6e7  # grid points x axes x instants it evaluates (~0.6 s on the project's VM; nominal: 2.5e7)
+REACH_MAX_POINTS = 10_000  # relay positions it searches at most (1 m apart up to this, then coarser)
+
+
+def reach_grid(lo: np.ndarray, hi: np.ndarray, max_points: int) -> np.ndarray:
+    """Relay positions over the box ``[lo, hi]`` (m): 1 m apart, or evenly coarser until at most
+    ``max_points``; ``(P, 3)``."""
+    spacing = 1.0
+    while True:
+        counts = [int(np.ceil((hi[i] - lo[i]) / spacing)) + 1 for i in range(3)]
+        if math.prod(counts) <= max_points:
+            break
+        spacing *= 1.1
+    return np.stack(np.meshgrid(*[np.linspace(lo[i], hi[i], counts[i]) for i in range(3)], indexing="ij"), -1).reshape(-1, 3)
+
+
+@functools.lru_cache(maxsize=8)
+def _platform_vehicle(platform_json: str) -> Multirotor:
+    """The platform's vehicle, built once per platform (its hover-tilt limits are LPs, cached on it)."""
+    return PlatformConfig.model_validate_json(platform_json).vehicle()
+
+
 @functools.lru_cache(maxsize=64)
 def _reachable_alignment(platform_json: str, mission_json: str, ws_min: tuple, ws_max: tuple, bs: tuple,
                          duration_s: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Per second of the mission: the largest mutual alignment the relay reaches in hover anywhere in
     the workspace (1 m grid, hover-holdable axes every 3 deg); the times (s); the hover tilt limit
-    (deg). Cached: every load of the same scenario asks the same."""
-    veh = PlatformConfig.model_validate_json(platform_json).vehicle()
+    (deg). Bounded whatever the scenario: at most ``REACH_MAX_TIMES`` instants (evenly spaced over a
+    longer mission) and ``REACH_MAX_WORK`` evaluations (a coarser grid over a large workspace), so
+    the check is exact on the presets and a lower estimate of the reach on huge scenarios. A grid
+    point on the base station or MRAV-2 (no link direction) is skipped. Cached: every load of the
+    same scenario asks the same."""
+    veh = _platform_vehicle(platform_json)
     lo, hi = np.array(ws_min, float), np.array(ws_max, float)
-    grid = np.stack(np.meshgrid(*[np.linspace(lo[i], hi[i], int(np.ceil(hi[i] - lo[i])) + 1) for i in range(3)],
-                                indexing="ij"), -1).reshape(-1, 3)  # <= 1 m apart
     path = source_trajectory(MissionConfig.model_validate_json(mission_json))
     end = min(duration_s, path.duration)  # MRAV-2 holds its last state after its path
-    times = np.linspace(0.0, end, int(np.ceil(end)) + 1)
-    p2 = np.array([path.state(t).p for t in times])
+    times = np.linspace(0.0, end, min(int(np.ceil(end)) + 1, REACH_MAX_TIMES))
     axes = axis_cone(veh.hover_tilt_limit, np.radians(3.0))
+    grid = reach_grid(lo, hi, min(REACH_MAX_POINTS, max(8, int(REACH_MAX_WORK / (len(axes) * len(times))))))
+    p2 = np.array([path.state(t).p for t in times])
     return reachable_mutual_alignment(grid, axes, bs, p2), times, math.degrees(veh.hover_tilt_limit)
 
 
@@ -671,6 +707,7 @@ class Scenario(_Strict):
     perturbations: PerturbationConfig = Field(default_factory=PerturbationConfig)
     bound: BoundConfig = Field(default_factory=BoundConfig)
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
+    world: WorldConfig = Field(default_factory=WorldConfig)
 
     @model_validator(mode="before")
     @classmethod
@@ -687,7 +724,7 @@ class Scenario(_Strict):
         """Every jammer of the scenario, in order ([jammer] or [[jammers]])."""
         return list(self.jammers) if self.jammers is not None else [self.jammer] if self.jammer is not None else []
 
-    def _jammer_field(self, i: int) -> str:
+    def jammer_field(self, i: int) -> str:
         return "jammer" if self.jammers is None else f"jammers[{i}]"
 
     @model_validator(mode="after")
@@ -703,7 +740,7 @@ class Scenario(_Strict):
         pts = {
             "nodes.bs": self.nodes.bs,
             "nodes.relay": self.nodes.relay,
-            **{f"{self._jammer_field(i)}.position": j.position for i, j in enumerate(self.jammer_configs)},
+            **{f"{self.jammer_field(i)}.position": j.position for i, j in enumerate(self.jammer_configs)},
             "mission.waypoints[0]": self.mission.start,
         }
         names = list(pts)
@@ -726,9 +763,57 @@ class Scenario(_Strict):
                 f"the control period ({self.control_period_s} s) must be a whole number of plant steps "
                 f"(sim.plant_rate_hz = {self.sim.plant_rate_hz})"
             )
+        self._above_ground()
+        self._mission_near_workspace()
         self._mu_reachable()
         self._rma_av_geometry()
         return self
+
+    def _above_ground(self):
+        """The workspace, the nodes, MRAV-2's path (every waypoint, or every sample of its file) and
+        every jammer (its position and waypoints) at or above ``world.ground_z_m``. Minimum-jerk and
+        straight segments never pass below both their ends, so the waypoints decide."""
+        g = self.world.ground_z_m
+        where = "the ground" if g == 0.0 else f"the ground (world.ground_z_m = {g:g} m)"
+        ws = self.controller.workspace
+        if ws.min[2] < g:
+            raise ValueError(f"controller.workspace.min: z = {ws.min[2]:g} m is below {where}; the relay must stay above it")
+        if self.nodes.bs[2] < g:
+            raise ValueError(f"nodes.bs: z = {self.nodes.bs[2]:g} m is below {where}")
+        m = self.mission
+        if m.flown_file is None:
+            low = [w for w in m.waypoints if w[3] < g]
+            if low:
+                raise ValueError(f"mission.waypoints: MRAV-2's path goes below ground (z < {g:g}) at {low[0]}")
+        else:
+            z = m.path().cols["pz"]
+            k = int(np.argmin(z))
+            if z[k] < g:
+                key = "trajectory_ulog" if m.trajectory_ulog else "trajectory_csv"
+                fix = "; shift it with ulog_offset_m" if m.trajectory_ulog else ""
+                raise ValueError(f"mission.{key}: MRAV-2's path goes below ground (z = {z[k]:.2f} m at sample {k + 1}{fix})"
+                                 if g == 0.0 else f"mission.{key}: MRAV-2's path goes below {where} (z = {z[k]:.2f} m at "
+                                 f"sample {k + 1}{fix})")
+        for i, j in enumerate(self.jammer_configs):
+            zs = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
+            if min(zs) < g:
+                raise ValueError(f"{self.jammer_field(i)}: its path goes below {where} (z = {min(zs):g} m)")
+
+    def _mission_near_workspace(self):
+        """MRAV-2's path within ``world.mission_max_distance_m`` of the relay's workspace: a sample
+        farther away (a ULog sample at 3e38 m, a CSV at 1e300 m) is a damaged or foreign file."""
+        m, ws, most = self.mission, self.controller.workspace, self.world.mission_max_distance_m
+        if m.flown_file is None:
+            pts, what = np.array([w[1:] for w in m.waypoints], float), "mission.waypoints[{k}]"
+        else:
+            c = m.path().cols
+            pts = np.column_stack([c["px"], c["py"], c["pz"]])
+            what = f"mission.{'trajectory_ulog' if m.trajectory_ulog else 'trajectory_csv'} sample {{k1}}"
+        d = _box_distance(pts, ws.min, ws.max)
+        k = int(np.argmax(d))
+        if d[k] > most:
+            raise ValueError(f"{what.format(k=k, k1=k + 1)}: MRAV-2 at {np.array2string(pts[k], precision=4)} is {d[k]:.4g} m "
+                             f"from controller.workspace; its path must stay within world.mission_max_distance_m = {most:g} m")
 
     def _rma_av_geometry(self):
         """RMa-AV (TR 36.777 Annex B) holds for aerial heights in (10, 300] m and physical units:
@@ -746,7 +831,7 @@ class Scenario(_Strict):
         heights["MRAV-2's path z"] = (min(z2), max(z2))
         for i, j in enumerate(self.jammer_configs):
             zj = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
-            heights[f"{self._jammer_field(i)} z"] = (min(zj), max(zj))
+            heights[f"{self.jammer_field(i)} z"] = (min(zj), max(zj))
         for what, (zmin, zmax) in heights.items():
             if zmin <= lo or zmax > hi:
                 raise ValueError(f"channel.propagation.model = 'rma_av' holds for aerial heights in ({lo:g}, {hi:g}] m "
@@ -901,8 +986,13 @@ def _format_errors(err: ValidationError) -> str:
         elif e["type"] == "finite_number":
             rng = _allowed_range(tuple(e["loc"]))
             msg = f"must be a finite number{' in ' + rng if rng else ''}"
+        if loc == "scenario" and _FIELD_PREFIX.match(msg):  # a cross-field check that names its field first
+            loc, msg = msg.split(": ", 1)
         lines.append(f"{loc}: {msg}{shown}")
     return "\n".join(lines)
+
+
+_FIELD_PREFIX = re.compile(r"^(jammers?|mission|controller|nodes|world)(\[\d+\])?(\.[a-z_]+)*: ")
 
 
 def parse_scenario(data: dict) -> Scenario:

@@ -97,6 +97,7 @@ class MissionResult:
     qp_failures: int
     controller: str = ""  # NmpcSettings.fingerprint() of the controller that flew it
     fallback_episodes: int = 0
+    aborted: str | None = None  # why the flight stopped early (the log holds the steps flown), None: flown to the end
 
 
 @dataclass(frozen=True)
@@ -192,6 +193,7 @@ class ClosedLoop:
         log["safety_violation"] = np.zeros(n_steps, dtype=bool)
         log["fallback"] = np.zeros(n_steps, dtype=bool)
         wall0 = time.perf_counter()
+        aborted, flown = None, n_steps
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
             for k in range(n_steps):
                 t = k * period
@@ -220,13 +222,16 @@ class ClosedLoop:
                 self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
                 d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
                 x = np.asarray(self.plant(x, u, d)).ravel()
-                if not np.all(np.isfinite(x)):
-                    raise FloatingPointError(f"plant state became non-finite at t = {t:.3f} s")
+                if not np.all(np.isfinite(x)):  # the steps flown are kept; the run is reported unsafe
+                    aborted, flown = f"the plant's state became non-finite after t = {t:.3f} s", k + 1
+                    break
                 if progress is not None:
                     progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
-        return MissionResult(log, wall, (n_steps - 1) * period, self.nmpc.failures, self.nmpc.settings.fingerprint(),
-                             self.controller.fallback_episodes)
+        if flown < n_steps:
+            log = {c: v[:flown] for c, v in log.items()}
+        return MissionResult(log, wall, (flown - 1) * period, self.nmpc.failures, self.nmpc.settings.fingerprint(),
+                             self.controller.fallback_episodes, aborted)
 
     def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, v12: float, v10: float, info: StepInfo):
         g21, g10 = (float(g) for g in channel.sinr)

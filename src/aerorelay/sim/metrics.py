@@ -28,16 +28,20 @@ FLIPPED_TILT_DEG = 90.0  # a body tilt beyond this is an inverted vehicle
 
 
 def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, workspace_min, workspace_max,
-                   box_tolerance_m: float) -> dict:
+                   box_tolerance_m: float, ground_z_m: float = -np.inf) -> dict:
     """Whether the relay stayed in its world: ``box_violation_max_m`` (largest distance outside the
     workspace box, 0 inside), ``min_altitude_m``, ``max_tilt_deg``, ``safety_violations`` (steps
     outside the supervisor's envelope) and the verdict ``unsafe`` with its ``unsafe_reason``: a
-    run that left the box (beyond the tolerance) or flipped is unsafe whatever the QPs reported."""
+    run that left the box (beyond the tolerance), went below the ground (``ground_z_m``, m, no
+    tolerance) or flipped is unsafe whatever the QPs reported."""
     outside = np.max(np.c_[np.asarray(workspace_min, float) - p1, p1 - np.asarray(workspace_max, float)], axis=1)
     box = float(max(outside.max(), 0.0))
     reasons = []
     if box > box_tolerance_m:
         reasons.append(f"left the workspace by {box:.2f} m")
+    lowest = float(p1[:, 2].min())
+    if lowest < ground_z_m:
+        reasons.append(f"went below the ground (z = {lowest:.2f} m, ground at {ground_z_m:g} m)")
     if tilt_deg.max() > FLIPPED_TILT_DEG:
         reasons.append(f"flipped (tilt {tilt_deg.max():.0f} deg)")
     return {"unsafe": bool(reasons), "unsafe_reason": "; ".join(reasons), "safety_violations": int(np.sum(violation)),
@@ -114,7 +118,7 @@ def estimation_metrics(log, period_s: float) -> dict:
 
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
-                    box_tolerance_m: float = 0.05) -> dict:
+                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf) -> dict:
     """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
     ``outage_threshold``, alignment threshold ``mu``, in the workspace box (m). Capacities
     normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
@@ -152,7 +156,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
         "taylor_rel_err_max": float(np.max(log["taylor_rel_err"])),
         "final_z_m": float(p1[-1, 2]),
-        **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m),
+        **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m, ground_z_m),
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
         **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],

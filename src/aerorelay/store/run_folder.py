@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
-import json
+import logging
+import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import pandas as pd
 
-from .outputs import new_sibling, swap_in
+from . import strict_json
+from .outputs import new_sibling, swap_in, write_atomic
+
+log = logging.getLogger(__name__)
 
 SCENARIO_FILE = "scenario.toml"
 TIMESERIES_FILE = "timeseries.parquet"
@@ -40,22 +44,22 @@ def write_bound_files(bound, out: Path) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     bound.frame().to_parquet(out / BOUND_PARQUET, index=False)
     summary = bound.summary()
-    (out / BOUND_JSON).write_text(json.dumps(summary, indent=2))
+    (out / BOUND_JSON).write_text(strict_json.dumps(summary, indent=2))
     return summary
 
 
 def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics: dict, *, bound=None,
                 extra: Callable[[Path], None] | None = None) -> None:
-    """Write scenario.toml, timeseries.parquet, metrics.json (+ the bound's files, + what ``extra``
-    writes, e.g. figures) into a temporary sibling folder, which then replaces ``out`` (only if
-    ``out`` is one of the program's own run folders, ``store.outputs``): an interrupted write never
-    leaves a half-finished run folder behind, and nobody else's files are ever deleted."""
+    """Write scenario.toml, timeseries.parquet, metrics.json (strict JSON) (+ the bound's files, + what
+    ``extra`` writes) into a temporary sibling folder, which then replaces ``out`` (only if ``out``
+    is one of the program's own run folders, ``store.outputs``): an interrupted write never leaves a
+    half-finished run folder behind, and nobody else's files are ever deleted."""
     out = Path(out)
     tmp = new_sibling(out)
     try:
         (tmp / SCENARIO_FILE).write_text(scenario_toml)
         timeseries.to_parquet(tmp / TIMESERIES_FILE, index=False)
-        (tmp / METRICS_FILE).write_text(json.dumps(metrics, indent=2))
+        (tmp / METRICS_FILE).write_text(strict_json.dumps(metrics, indent=2))
         if bound is not None:
             write_bound_files(bound, tmp)
         if extra is not None:
@@ -64,3 +68,33 @@ def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+OPTIONAL_FAILED = "optional_outputs_failed"  # metrics.json: optional output -> why it is missing
+
+
+def add_optional(out: Path, writers: Mapping[str, Callable[[Path], object]], metrics: dict) -> dict[str, str]:
+    """Add optional outputs to the published run folder ``out``, each written by its writer into a
+    temporary sibling and moved in only when complete: one that fails (a full disk, a figure's
+    error) is logged and named in metrics.json (``optional_outputs_failed``, rewritten atomically)
+    and never costs the run. Returns the failures (output -> reason)."""
+    out = Path(out)
+    failed: dict[str, str] = {}
+    for name, write in writers.items():
+        tmp = new_sibling(out)
+        try:
+            write(tmp)
+            for f in sorted(tmp.iterdir()):
+                os.replace(f, out / f.name)
+        except Exception as exc:  # optional: reported, never fatal
+            failed[name] = f"{type(exc).__name__}: {exc}"
+            log.warning("run folder %s: %s not written (%s); the run itself is saved", out, name, failed[name])
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    if failed:
+        metrics[OPTIONAL_FAILED] = {**metrics.get(OPTIONAL_FAILED, {}), **failed}
+        try:
+            write_atomic(out / METRICS_FILE, strict_json.dumps(metrics, indent=2))
+        except OSError as exc:
+            log.warning("run folder %s: could not record the missing outputs in %s (%s)", out, METRICS_FILE, exc)
+    return failed
