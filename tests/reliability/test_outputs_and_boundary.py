@@ -119,6 +119,16 @@ def test_a_killed_writers_leftovers_are_cleaned_by_the_next_one(tmp_path):
     assert clean_stale_siblings(out) == []
 
 
+def test_a_killed_atomic_writes_temporary_file_is_cleaned_by_the_next_write(tmp_path):
+    from aerorelay.store.outputs import write_atomic
+
+    dead = _dead_pid()
+    stale = tmp_path / f".manifest.json.tmp-{dead}-q1w2"
+    stale.write_text("{half")
+    write_atomic(tmp_path / "manifest.json", "{}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["manifest.json"]
+
+
 def test_a_writer_killed_mid_run_leaves_nothing_a_later_run_does_not_clean(tmp_path):
     out = tmp_path / "r"
     code = ("import sys, os, time; from aerorelay.store.outputs import new_sibling, writing\n"
@@ -136,7 +146,7 @@ def test_a_writer_killed_mid_run_leaves_nothing_a_later_run_does_not_clean(tmp_p
 # ---------------------------------------------------------------- strict JSON
 json_values = st.recursive(
     st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(), st.text(max_size=5), st.none(), st.booleans()),
-    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(min_size=1, max_size=4), inner, max_size=4)),
+    lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(min_size=1, max_size=4), children, max_size=4),
     max_leaves=20)
 
 

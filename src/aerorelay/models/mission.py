@@ -159,7 +159,9 @@ class CsvPath(SampledPath):
             a = np.column_stack([np.asarray(data[c], float) for c in ("ax", "ay", "az")])
         else:
             try:
-                v, a = smooth_derivatives(t, p)
+                with warnings.catch_warnings():  # absurd samples overflow inside scipy; the scenario names them
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    v, a = smooth_derivatives(t, p)
             except ValueError as exc:
                 raise ValueError(f"{path}: no smooth velocity and acceleration fit these positions (scipy: {exc}); "
                                  f"give the columns {','.join(CSV_COLUMNS)}") from None

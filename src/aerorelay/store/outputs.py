@@ -130,8 +130,8 @@ def _pid_alive(pid: int) -> bool:
 
 
 def clean_stale_siblings(folder: Path) -> list[Path]:
-    """Remove what an interrupted writer of ``folder`` left beside it: temporary siblings
-    (``.NAME.tmp-PID-*``) and set-aside old versions (``.NAME.old-PID``) whose process is gone.
+    """Remove what an interrupted writer of ``folder`` (or of a file) left beside it: temporary
+    siblings (``.NAME.tmp-PID-*``) and set-aside old versions (``.NAME.old-PID-*``) whose process is gone.
     Only names this program makes are touched; returns what was removed."""
     folder = Path(folder)
     removed: list[Path] = []
@@ -143,9 +143,13 @@ def clean_stale_siblings(folder: Path) -> list[Path]:
         pid = tail.split("-", 1)[0]
         if tag not in (TMP_TAG, "old") or not pid.isdigit() or int(pid) == os.getpid() or _pid_alive(int(pid)):
             continue
-        if p.is_dir() and not p.is_symlink():
+        if p.is_symlink():
+            continue
+        if p.is_dir():
             shutil.rmtree(p, ignore_errors=True)
-            removed.append(p)
+        else:
+            p.unlink(missing_ok=True)
+        removed.append(p)
     return removed
 
 
@@ -247,7 +251,8 @@ def write_atomic(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file in the same folder and a rename: a full
     disk or an interruption leaves the previous file, never a truncated one."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    clean_stale_siblings(path)  # a killed writer's temporary file
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{TMP_TAG}-{os.getpid()}-")
     try:
         follow_umask(Path(tmp), folder=False)
         with os.fdopen(fd, "w") as f:
