@@ -1,13 +1,14 @@
 # Two entry points for a fresh machine with only Python 3.11 and pip:
 #   make run   -> set up .venv, compute the nominal mission's capacity bound, fly it with the paper's
 #                 controller and the capacity-seeking one, compare both beside the bound
-#   make test  -> set up .venv (with test extras), lint (ruff), type-check (mypy), run the test suite
+#   make test  -> set up .venv (with test extras), lint (ruff), type-check (mypy), run the test suite, build the docs
+#   make docs  -> the documentation site (Sphinx + furo) in docs/_build/html, warnings as errors
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 OUT    ?= runs/demo
 
-.PHONY: run test bench clean
+.PHONY: run test docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,9 +29,13 @@ test: $(VENV)/.installed
 	$(BIN)/ruff check src tests
 	$(BIN)/mypy src
 	$(BIN)/python -m pytest -q
+	$(MAKE) docs
+
+docs: $(VENV)/.installed
+	$(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
 
 bench: $(VENV)/.installed
 	$(BIN)/aerorelay bench scenarios/nominal_tilted.toml
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis docs/_build docs/tutorials docs/reference/scenario.md

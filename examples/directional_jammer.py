@@ -1,13 +1,21 @@
-"""A directional jammer (cosine pattern) pointed at the base station, from the scenario file, with
-the interference-to-noise ratios at the start and the best link the physics allows."""
+"""
+A directional jammer
+====================
+
+A directional jammer (cosine pattern) pointed at the base station, from the scenario file, with
+the interference-to-noise ratios at the start and the best link the physics allows.
+"""
 
 import os
+from pathlib import Path
 
 import aerorelay as ar
 
+SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
+
 DURATION = float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "47"))
 
-sc = ar.load_scenario("scenarios/directional_jammer.toml", set={"sim.duration_s": DURATION})
+sc = ar.load_scenario(SCENARIOS / "directional_jammer.toml", set={"sim.duration_s": DURATION})
 budget = ar.link_budget(sc)
 print(f"interference / noise at t = 0: relay {budget['inr_relay_db']:+.1f} dB, BS {budget['inr_bs_db']:+.1f} dB")
 result = ar.simulate(sc.with_updates({"controller.planner": "capacity"}), bound=os.environ.get("AERORELAY_EXAMPLE_BOUND", "1") == "1")

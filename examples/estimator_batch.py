@@ -1,17 +1,24 @@
-"""The jammer estimator on a batch of flights: the capacity-seeking relay at 10 and 20 dB (jammer
+"""
+The jammer estimator on a batch of flights
+==========================================
+
+The jammer estimator on a batch of flights: the capacity-seeking relay at 10 and 20 dB (jammer
 always on) and 10 dB switching 5 s ON / 5 s OFF, 3 seeds each, two flights at a time. Prints per
 flight: the fraction of the mission after 10 s with the estimate within 1 m, the fraction
 "confidently wrong" (error above 1 m while the largest std is below 1.5 m, the planner's
-threshold), the estimator's mean cost, C_min; then the means and worst runs. The README's table of
-estimator changes was measured with it (26 s on 2 cores, 2026-12-02).
+threshold), the estimator's mean cost, C_min; then the means and worst runs. The table of
+estimator changes in the docs (Finding the jammer) was measured with it (26 s on 2 cores, 2026-12-02).
 """
 
 import os
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
 import aerorelay as ar
+
+SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
 
 DURATION = float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "47"))
 FLIGHTS = [(inr, schedule, seed) for inr, schedule in ((10.0, "always_on"), (20.0, "always_on"), (10.0, "on_off"))
@@ -20,7 +27,7 @@ FLIGHTS = [(inr, schedule, seed) for inr, schedule in ((10.0, "always_on"), (20.
 
 def fly(flight: tuple[float, str, int]) -> dict:
     inr, schedule, seed = flight
-    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={
+    sc = ar.load_scenario(SCENARIOS / "nominal_tilted.toml", set={
         "controller.planner": "capacity", "jammer.inr_db_at_relay_start": inr, "jammer.schedule": schedule,
         "jammer.localization": "estimated", "seed": seed, "sim.duration_s": DURATION})
     res = ar.simulate(sc)

@@ -1,9 +1,14 @@
-"""Fly the paper's nominal mission and plot the end-to-end capacity over time.
+"""
+Fly the nominal mission
+=======================
+
+Fly the paper's nominal mission and plot the end-to-end capacity over time::
 
     python examples/fly_nominal.py            # the whole 47 s mission, writes runs/example_nominal/
 """
 
 import os
+from pathlib import Path
 
 import matplotlib
 
@@ -12,10 +17,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import aerorelay as ar  # noqa: E402
 
+SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
+
 DURATION = float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "47"))
 OUT = os.environ.get("AERORELAY_EXAMPLE_OUT", "runs/example_nominal")
 
-sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": DURATION})
+sc = ar.load_scenario(SCENARIOS / "nominal_tilted.toml", set={"sim.duration_s": DURATION})
 result = ar.simulate(sc)
 df = result.timeseries
 print(f"C_min {result.metrics['c_min']:.3e}, mean C {result.metrics['c_mean']:.3e}, outage {result.metrics['outage_fraction']:.0%}")

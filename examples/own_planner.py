@@ -1,14 +1,21 @@
-"""Your own relay planner in a few lines: any object with update(PlannerInput) -> Reference.
+"""
+Your own relay planner
+======================
+
+Your own relay planner in a few lines: any object with update(PlannerInput) -> Reference.
 
 This one parks the relay on the segment between MRAV-2 and the base station, at a fixed fraction
 of the way, moving there at a bounded speed; the NMPC tracks it.
 """
 
 import os
+from pathlib import Path
 
 import numpy as np
 
 import aerorelay as ar
+
+SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
 
 DURATION = float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "47"))
 
@@ -32,6 +39,6 @@ class MidpointPlanner:
         return ar.Reference(p_opt=goal, p_ref=self.p_ref.copy(), v_ref=step / inp.dt, a_ref=np.zeros(3))
 
 
-sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": DURATION, "controller.variant": "unconstrained"})
+sc = ar.load_scenario(SCENARIOS / "nominal_tilted.toml", set={"sim.duration_s": DURATION, "controller.variant": "unconstrained"})
 result = ar.simulate(sc, planner=MidpointPlanner(sc.nodes.bs))
 print(f"midpoint planner: C_min {result.metrics['c_min']:.3e}, mean C {result.metrics['c_mean']:.3e}")

@@ -1,15 +1,20 @@
-"""Where the NMPC's step-time tail comes from: is it the warm start or the QP itself?
+"""
+Where the step-time tail comes from
+===================================
+
+Where the NMPC's step-time tail comes from: is it the warm start or the QP itself?
 
 Flies the nominal coplanar mission with the paper's controller, keeps the QP of every step whose
 warm-started interior-point method needed at least HEAVY iterations (the engine's guess, stage
 parameters and measured state at that step), solves each of them again from a cold start in a
 second engine, and prints both iteration counts, the cost of one iteration (a linear fit of the
 preparation time against the iterations), and what happens on those steps (alignment slack
-active, a motor at a bound). The README's "Where the tail comes from" was measured with it
+active, a motor at a bound). The docs' "Where the tail comes from" (Controller speed) was measured with it
 (2026-12-02; 7 s).
 """
 
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -17,6 +22,8 @@ import aerorelay as ar
 from aerorelay.api import build
 from aerorelay.control.hpipm_rti import HpipmRti
 from aerorelay.control.ocp import HESSIAN_REG
+
+SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
 
 DURATION = float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "47"))
 HEAVY = 7  # IPM iterations that make a step "heavy"
@@ -46,7 +53,7 @@ def fly_and_keep_heavy_qps(sc):
 
 
 def main():
-    sc = ar.load_scenario("scenarios/nominal_coplanar.toml", set={"sim.duration_s": DURATION})
+    sc = ar.load_scenario(SCENARIOS / "nominal_coplanar.toml", set={"sim.duration_s": DURATION})
     res, timings, kept, spec = fly_and_keep_heavy_qps(sc)
     iters = np.array([s.qp_iters for s in timings])
     prep = np.array([s.prep_ms for s in timings])

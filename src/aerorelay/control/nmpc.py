@@ -53,12 +53,12 @@ class StepInfo:
 
 @dataclass
 class NmpcSettings:
-    """How the RTI is solved. Defaults measured on the nominal tilted mission (see README, Speed)."""
+    """How the RTI is solved. Defaults measured on the nominal tilted mission (see docs/results/controller-speed.md)."""
 
     backend: str = "hpipm"  # "hpipm" (compiled engine) or "casadi" (casadi.conic route)
     # HPIPM's complementarity tolerance. Nominal tilted mission, hpipm backend, primal-dual warm
     # start: 1e-4 -> 2.8 IPM iterations per step, 1e-3 -> 2.25, 1e-2 -> 1.3; C_min 4.736e-4,
-    # 4.733e-4, 4.664e-4 (README, Speed). 1e-3 keeps C_min within 0.2% of the 1e-4 solution.
+    # 4.733e-4, 4.664e-4 (docs/results/controller-speed.md). 1e-3 keeps C_min within 0.2% of the 1e-4 solution.
     tol_comp: float = 1e-3
     iter_max: int = 50
     # hpipm backend: a QP the iteration cap stopped is used when HPIPM's largest residual is
@@ -76,7 +76,7 @@ class NmpcSettings:
     # applies the solution's first-order correction for the measured one (one Riccati sweep,
     # HPIPM's sens_frw). Default: "sensitivity" where possible. Nominal tilted mission, alternating
     # bench runs: feedback 0.08 / 0.12 ms mean / p99 (solve: 0.50 / 0.84), whole step 0.70-0.73 vs
-    # 0.65-0.66 ms, C_min 4.7323e-4 vs 4.7333e-4 (README, Speed)
+    # 0.65-0.66 ms, C_min 4.7323e-4 vs 4.7333e-4 (docs/results/controller-speed.md)
     feedback: str | None = None
     condensed_horizon: int = 0  # hpipm backend: partial condensing to this many stages (0: none)
     riccati: str = "square_root"  # hpipm backend: HPIPM's Riccati recursion, "square_root" or "classical"

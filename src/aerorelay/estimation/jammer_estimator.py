@@ -106,7 +106,7 @@ class EstimatorSettings:
     # measurements Gauss-Newton fits: every one in the window (None), or at most this many, evenly thinned
     # and each weighted for those it stands for. Thinned to 60, the fitted subset changed from fit to fit
     # and the estimate swung across its valley by up to 3.8 m per refinement (a moving jammer seen from
-    # one spot); measured in the README ("Finding the jammer")
+    # one spot); measured in docs/concepts/estimator.md
     window_rows: int | None = None
     min_rows: int = 8  # Gauss-Newton starts after this many measurements
     refine_every: int = 2  # one Gauss-Newton iteration per this many measurement rounds

@@ -1,7 +1,7 @@
 """Typed scenario configuration (pydantic) loaded from TOML presets in ``scenarios/``.
 
 Every field carries its unit in its name or docstring. Unknown fields are rejected. Defaults are
-the paper's Table I values and SPEC.md's resolved choices, so an empty ``[section]`` is valid.
+the paper's Table I values and the working spec's resolved choices (docs/concepts/spec.md), so an empty ``[section]`` is valid.
 """
 
 from __future__ import annotations
@@ -50,9 +50,9 @@ class _Strict(BaseModel):
 class Rotor(_Strict):
     """One rotor of a custom GTMR layout (body frame)."""
 
-    position: Vec3
-    axis: Vec3
-    spin: Literal[-1, 1]
+    position: Vec3 = Field(description="the rotor's position p_m_i, m (body frame)")
+    axis: Vec3 = Field(description="the rotor's thrust axis z_P_i (body frame; normalized, not zero)")
+    spin: Literal[-1, 1] = Field(description="s_i: the sign of the rotor's drag moment about its axis")
 
     _nonzero = field_validator("axis")(lambda v: _nonzero_direction(v, "a rotor's thrust axis"))
 
@@ -62,15 +62,16 @@ class PlatformConfig(_Strict):
 
     rotor_count: int = Field(6, ge=3, le=16, description="rotors of the star layout (arms evenly spaced)")
     tilt_deg: float = Field(20.0, ge=0.0, le=60.0, description="alternating tilt of each rotor about its arm, deg")
-    arm_length_m: float = Field(HEXAROTOR_ARM_LENGTH_M, gt=0.0, le=5.0)
+    arm_length_m: float = Field(HEXAROTOR_ARM_LENGTH_M, gt=0.0, le=5.0, description="star layout: distance of every rotor "
+                                "from the centre of mass, m")
     rotors: list[Rotor] | None = Field(None, min_length=4, description="custom layout; overrides tilt/arm")
-    mass_kg: float = Field(2.57, gt=0.0)
+    mass_kg: float = Field(2.57, gt=0.0, description="m, kg (Table I)")
     inertia_kgm2: Vec3 = Field(default_factory=lambda: [0.11, 0.11, 0.19], description="diagonal of J, kg m^2")
-    gravity_m_s2: float = Field(9.81, gt=0.0)
+    gravity_m_s2: float = Field(9.81, gt=0.0, description="g, m/s^2")
     c_xi: float = Field(1.18e-3, gt=0.0, description="thrust coefficient, N/Hz^2")
     c_tau: float = Field(2.5e-5, ge=0.0, description="drag-moment coefficient, N m/Hz^2")
-    omega_min_hz: float = Field(16.0, ge=0.0)
-    omega_max_hz: float = Field(100.0, gt=0.0)
+    omega_min_hz: float = Field(16.0, ge=0.0, description="lowest motor speed Omega, Hz (rev/s; thrust c_xi Omega^2)")
+    omega_max_hz: float = Field(100.0, gt=0.0, description="highest motor speed Omega, Hz")
     omega_dot_min_hz_s: float = Field(-300.0, le=-MIN_MOTOR_RATE_HZ_S, description="most negative motor acceleration, Hz/s")
     omega_dot_max_hz_s: float = Field(400.0, ge=MIN_MOTOR_RATE_HZ_S, description="largest motor acceleration, Hz/s")
     min_hover_margin: float = Field(0.2, ge=0.0, lt=1.0, description="fraction of omega_max_hz every motor keeps "
@@ -135,7 +136,8 @@ class PlatformConfig(_Strict):
 class AntennaConfig(_Strict):
     """Antenna pattern shared by every node (dipole along body z by default)."""
 
-    pattern: Literal["dipole", "sin_power"] = "dipole"
+    pattern: Literal["dipole", "sin_power"] = Field("dipole", description="the vehicles' antenna pattern: half-wave "
+                                                    "dipole (App. A) or sin(theta)^exponent")
     exponent: float = Field(2.0, gt=0.0, description="n of the sin^n pattern")
     g_bar: float = Field(1.0, gt=0.0, description="peak (broadside) gain")
     g_bar_dbi: float | None = Field(None, ge=-30.0, le=30.0, description="the peak gain in dBi (link budgets): sets "
@@ -187,7 +189,8 @@ class PropagationConfig(_Strict):
     correlated ``exp(-Delta d / decorrelation_m)``) perturbs the plant's channel and the bound, not
     what the controllers plan with."""
 
-    model: Literal["free_space", "log_distance", "rma_av"] = "free_space"
+    model: Literal["free_space", "log_distance", "rma_av"] = Field("free_space", description="the path-gain model "
+                                                                   "(see the table's text)")
     exponent: float = Field(2.0, ge=1.0, le=6.0, description="log_distance: path-loss exponent n")
     reference_distance_m: float = Field(1.0, gt=0.0, le=1000.0, description="log_distance: d0, m")
     reference_loss_db: float | None = Field(None, ge=-100.0, le=200.0, description="log_distance: PL(d0), dB "
@@ -214,7 +217,7 @@ class ChannelFadingConfig(_Strict):
     is a Gauss-Markov process with the correlation ``J0(2 pi f_D tau)`` at the control period,
     ``f_D`` from each link's relative speed and ``channel.carrier_hz``)."""
 
-    model: Literal["iid", "doppler"] = "iid"
+    model: Literal["iid", "doppler"] = Field("iid", description="iid: a Rician draw per step; doppler: time-correlated")
 
 
 class ChannelConfig(_Strict):
@@ -222,7 +225,8 @@ class ChannelConfig(_Strict):
     bit/s/Hz). ``units = "physical"``: carrier (Hz), bandwidth (Hz), transmit power (dBm), noise
     ``k T B`` plus a noise figure (dB), Friis free space with the wavelength; C in bit/s."""
 
-    units: Literal["normalized", "physical"] = "normalized"
+    units: Literal["normalized", "physical"] = Field("normalized", description="normalized: the paper's (B = 1, W, "
+                                                     "bit/s/Hz); physical: Hz, dBm, kTB noise, bit/s")
     bandwidth: float = Field(1.0, gt=0.0, description="B, normalized (units = normalized)")
     tx_power_w: float = Field(1.0, gt=0.0, description="P_U (units = normalized)")
     noise_power_w: float = Field(1.0, gt=0.0, description="sigma^2 (units = normalized)")
@@ -261,8 +265,9 @@ def dbm_to_w(dbm: float) -> float:
 class NodesConfig(_Strict):
     """Fixed and initial node positions (m, world). MRAV-2 starts at the mission's first point."""
 
-    bs: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
-    relay: Vec3 = Field(default_factory=lambda: [-6.95, 5.79, 1.72])
+    bs: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="the base station's position p0, m (world)")
+    relay: Vec3 = Field(default_factory=lambda: [-6.95, 5.79, 1.72], description="the relay's start p1(0), m (world), "
+                        "hovering; inside controller.workspace")
 
 
 Waypoint = Annotated[list[float], Field(min_length=4, max_length=4)]
@@ -287,11 +292,13 @@ class JammerConfig(_Strict):
     position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72], description="m, world (the start when moving)")
     waypoints: list[Waypoint] | None = Field(None, min_length=2, description="timed path [[t_s, x, y, z], ...]")
     path: Literal["linear", "minimum_jerk"] = Field("linear", description="how the jammer moves between waypoints")
-    power_w: float = Field(1.0, ge=0.0)
+    power_w: float = Field(1.0, ge=0.0, description="peak radiated power P_J, W (the paper's 1 W adds ~1% to its 1 W "
+                           "noise: set a jammer where it matters)")
     power_dbm: float | None = Field(None, ge=-30.0, le=90.0, description="peak power in dBm (replaces power_w)")
-    schedule: Literal["always_on", "on_off"] = "always_on"
-    on_s: float = Field(5.0, gt=0.0)
-    off_s: float = Field(5.0, gt=0.0)
+    schedule: Literal["always_on", "on_off"] = Field("always_on", description="always_on, or on_off: on_s ON then "
+                                                     "off_s OFF, repeating (OFF: P_J = 0)")
+    on_s: float = Field(5.0, gt=0.0, description="on_off schedule: ON time, s")
+    off_s: float = Field(5.0, gt=0.0, description="on_off schedule: OFF time, s")
     localization_delay_s: float = Field(2.0, ge=0.0, description="tau_E")
     localization: Literal["oracle", "estimated"] = Field(
         "oracle", description="oracle: the true position after tau_E (the paper's); estimated: the relay estimates it "
@@ -299,7 +306,8 @@ class JammerConfig(_Strict):
     inr_db_at_relay_start: float | None = Field(
         None, ge=-40.0, le=40.0, description="set the peak power so that this jammer's interference-to-noise ratio at "
         "the relay's start (hovering, its antenna gain included) is this many dB (replaces power_w / power_dbm)")
-    pattern: Literal["isotropic", "cosine"] = "isotropic"
+    pattern: Literal["isotropic", "cosine"] = Field("isotropic", description="the jammer's antenna: isotropic (the "
+                                                    "paper's) or cosine (g_max, exponent, back_lobe, pointed)")
     g_max: float = Field(1.0, gt=0.0, le=1e4, description="cosine pattern: peak gain (linear)")
     exponent: float = Field(0.0, ge=0.0, le=100.0, description="cosine pattern: n of max(cos psi, 0)^n")
     back_lobe: float = Field(0.0, ge=0.0, le=1.0, description="cosine pattern: gain floor relative to g_max")
@@ -333,7 +341,7 @@ class JammerConfig(_Strict):
 def _weights_model() -> type[BaseModel]:
     """``[controller.weights]``: one field per cost term of ``control/terms.py`` (and
     ``<name>_terminal`` for a term with its own terminal weight). Each is the diagonal entry
-    ``q`` of a term ``q * r^2`` (see README)."""
+    ``q`` of a term ``q * r^2`` (docs/concepts/weights-that-fly.md)."""
     fields: dict = {}
     for t in COST_TERMS:
         low = {"gt": 0.0} if t.strictly_positive else {"ge": 0.0}
@@ -364,8 +372,9 @@ class FailsafeConfig(_Strict):
 class Workspace(_Strict):
     """Axis-aligned box (m, world) the relay must stay in (NMPC position bounds)."""
 
-    min: Vec3 = Field(default_factory=lambda: [-7.0, -6.0, 0.5])
-    max: Vec3 = Field(default_factory=lambda: [7.0, 6.0, 19.0])
+    min: Vec3 = Field(default_factory=lambda: [-7.0, -6.0, 0.5], description="the box's lower corner, m (world; z at or "
+                      "above world.ground_z_m)")
+    max: Vec3 = Field(default_factory=lambda: [7.0, 6.0, 19.0], description="the box's upper corner, m (world)")
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -388,7 +397,7 @@ class CapacityPlannerConfig(_Strict):
     max_accel_m_s2: float = Field(4.0, gt=0.0, le=8.0, description="reference acceleration limit, m/s^2")
     brake_accel_m_s2: float = Field(1.5, gt=0.0, le=8.0, description="the reference slows down early enough to stop on "
                                     "its target at this deceleration, m/s^2 (at most max_accel_m_s2; 4: the tilted relay at "
-                                    "3 m/s overshot its braking reference by 0.9 m, motors at their bounds: README, Speed)")
+                                    "3 m/s overshot its braking reference by 0.9 m, motors at their bounds: docs/results/controller-speed.md)")
     margin_m: float = Field(0.05, ge=0.0, le=2.0, description="the reference keeps this far inside the workspace box, m")
     leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
     route_grid_m: float = Field(1.0, ge=0.1, le=3.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
@@ -420,13 +429,13 @@ class CapacityPlannerConfig(_Strict):
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
     scoring: Literal["joint", "decoupled"] = Field("joint", description="joint: every candidate position with every "
                                                    "holdable axis (27 x K poses); decoupled: the positions at the current "
-                                                   "axis goal, then every axis at the best one (27 + K: README, Speed)")
+                                                   "axis goal, then every axis at the best one (27 + K: docs/results/controller-speed.md)")
     replan_every: int = Field(4, ge=1, le=50, description="control steps between two replans (all candidates scored in "
                               "one compiled call): 1 spreads the planner over every step, so no step carries it alone "
-                              "(README, Speed)")
+                              "(docs/results/controller-speed.md)")
     qp_iter_max: int = Field(50, ge=1, le=100, description="the tracking NMPC's QP interior-point iteration cap (5 "
                              "trims the step-time tail on the presets; an iterate that fails qp_accept_tol continues from "
-                             "itself for up to 50 more: README, Speed)")
+                             "itself for up to 50 more: docs/results/controller-speed.md)")
     qp_accept_tol: float = Field(0.0, ge=0.0, le=1e-2, description="a QP the cap stopped is flown when its primal "
                                  "residuals (dynamics, every inequality) are <= this, else it is a QP failure (0: never)")
 
@@ -441,7 +450,9 @@ class CapacityPlannerConfig(_Strict):
 class ControllerConfig(_Strict):
     """Trajectory generator + communications-aware NMPC."""
 
-    variant: Literal["constrained", "unconstrained"] = "constrained"
+    variant: Literal["constrained", "unconstrained"] = Field("constrained", description="constrained: the paper's "
+                                                             "comms-aware NMPC (misalignment cost, alignment constraint); "
+                                                             "unconstrained: the same NMPC without them")
     planner: Literal["trajectory_generator", "isotropic", "single_shot", "capacity"] = Field(
         "trajectory_generator",
         description="the paper's generator; baseline A (isotropic surrogate); baseline B (single-shot plan); "
@@ -501,6 +512,7 @@ class MissionConfig(_Strict):
             [47.0, -1.5, 4.29, 17.5],
         ],
         min_length=2,
+        description="MRAV-2's timed path [[t_s, x, y, z], ...] (s, m world), minimum-jerk segments, first time 0",
     )
     trajectory_csv: str | None = Field(None, description="CSV with columns t,px,py,pz,vx,vy,vz,ax,ay,az (or t,px,py,pz)")
     trajectory_ulog: str | None = Field(None, description="PX4 flight log (ULog): vehicle_local_position, NED")
@@ -581,7 +593,7 @@ def _box_distance(p: np.ndarray, lo, hi) -> np.ndarray:
 class SimConfig(_Strict):
     """Closed-loop simulation rates and length."""
 
-    plant_rate_hz: float = Field(1000.0, gt=0.0, le=20000.0)
+    plant_rate_hz: float = Field(1000.0, gt=0.0, le=20000.0, description="RK4 rate of the simulated plant, Hz")
     control_rate_hz: float | None = Field(None, gt=0.0, le=500.0, description="default 1/Ts")
     duration_s: float | None = Field(None, gt=0.0, allow_inf_nan=False, description="default: the mission's length")
 
@@ -692,9 +704,9 @@ def _reachable_alignment(platform_json: str, mission_json: str, ws_min: tuple, w
 class Scenario(_Strict):
     """A complete, validated relay scenario."""
 
-    name: str = "scenario"
-    description: str = ""
-    seed: int = Field(0, ge=0)
+    name: str = Field("scenario", description="names the scenario in outputs and reports")
+    description: str = Field("", description="free text, shown in reports")
+    seed: int = Field(0, ge=0, description="seeds every random element (noise, fading, shadowing, the energy detector)")
     platform: PlatformConfig = Field(default_factory=PlatformConfig)
     antenna: AntennaConfig = Field(default_factory=AntennaConfig)
     channel: ChannelConfig = Field(default_factory=ChannelConfig)

@@ -1,4 +1,4 @@
-"""Mission metrics from a per-step log (SPEC.md 'Metrics')."""
+"""Mission metrics from a per-step log (docs/concepts/spec.md, 'Metrics')."""
 
 from __future__ import annotations
 
