@@ -218,9 +218,11 @@ def bound(
     t = Table(title=f"capacity bounds: {sc.name}")
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
+    from .sim.units import si
+
     for name in ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin"):
         s = summary[name]
-        t.add_row(name, f"{s['mean']:.3e}", f"{s['min']:.3e}", f"{s['outage_fraction']:.1%}")
+        t.add_row(name, si(s["mean"], sc.channel.capacity_unit), si(s["min"], sc.channel.capacity_unit), f"{s['outage_fraction']:.1%}")
     console.print(t)
     console.print(f"resolution: {json.dumps(summary['resolution'])}", markup=False, highlight=False)
     console.print(f"wrote {out}", markup=False, highlight=False)
@@ -250,7 +252,25 @@ def _lookup(m: dict, key: str):
         return None
 
 
+def unit_system(m: dict) -> str:
+    """A run's unit system: metrics.json's ``unit_system`` (older runs: the paper's normalized units)."""
+    return str(m.get("unit_system", "normalized"))
+
+
+def _unit_of(key: str, capacity_unit: str) -> str:
+    """The unit of a dotted key of KEY_METRICS (``bound.*`` capacities in the capacity's unit)."""
+    from .sim.units import DIMENSIONLESS, metric_unit
+
+    if key.startswith("bound."):
+        return DIMENSIONLESS if key.endswith("outage_fraction") else capacity_unit
+    return metric_unit(key.split(".")[0], capacity_unit) or ""
+
+
 def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
+    """Key metrics of runs of one unit system, each value with its unit (SI prefixes on bit/s, m, s, ...)."""
+    from .sim.units import si
+
+    capacity_unit = "bit/s" if unit_system(next(iter(runs.values()))) == "physical" else "bit/s/Hz"
     t = Table(show_header=True)
     t.add_column("metric")
     for name in runs:
@@ -259,7 +279,8 @@ def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
         t.add_column("ratio B/A", justify="right")
     for key in KEY_METRICS:
         vals = [_lookup(m, key) for m in runs.values()]
-        row = [key, *["-" if v is None else f"{v:.4g}" for v in vals]]
+        unit = _unit_of(key, capacity_unit)
+        row = [key, *["-" if v is None else si(float(v), unit) for v in vals]]
         if ratio:
             a, b = vals
             if a is None or b is None:
@@ -290,6 +311,11 @@ def compare(
             _fail(f"{f}: not a readable metrics file ({type(exc).__name__}: {exc})")
         if not isinstance(runs[str(d)], dict):
             _fail(f"{f}: not a metrics object")
+    systems = [unit_system(m) for m in runs.values()]
+    if systems[0] != systems[1]:
+        _fail(f"{run_a} is in {systems[0]} units (capacity in {'bit/s' if systems[0] == 'physical' else 'bit/s/Hz'}), "
+              f"{run_b} in {systems[1]} units: their ratio would mean nothing; compare runs of one unit system "
+              "(channel.units)")
     console.print(f"A = {run_a}\nB = {run_b}", markup=False, highlight=False)
     console.print(_metrics_table(dict(zip(("A", "B"), runs.values(), strict=False)), ratio=True))
 

@@ -78,7 +78,7 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
         if "flyable_mean" in bound:
             ax.semilogy(bound["t"], bound["flyable_mean"], color="C4", lw=1.0, ls=":", label="flyable path (best mean found, exactly <= v_max)")
     ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
-    ax.axhline(sc.channel.outage_threshold, color="r", ls="--", lw=1, label="outage threshold")
+    ax.axhline(sc.channel.outage, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
     ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
     ax.legend(fontsize=7)
@@ -166,7 +166,7 @@ def fig_bound(bound: pd.DataFrame, sc: Scenario):
     ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound, best minimum")
     ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound, best mean")
     ax.semilogy(bound["t"], bound["flyable_mean"], color="C4", lw=1.0, ls=":", label="flyable path, best mean found (exactly <= v_max)")
-    ax.axhline(sc.channel.outage_threshold, color="r", ls=":", lw=1, label="outage threshold")
+    ax.axhline(sc.channel.outage, color="r", ls=":", lw=1, label="outage threshold")
     ax.set_xlabel("t (s)")
     ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
     ax.set_title(f"{sc.name}: capacity bounds", fontsize=9)

@@ -277,7 +277,7 @@ def _table(headers, rows) -> str:
 
 def _outage_lines(ax, specs: list[RunSpec]) -> None:
     """The runs' outage thresholds (each scenario's ``channel.outage_threshold``, in its unit)."""
-    for thr, unit in sorted({(sc.channel.outage_threshold, sc.channel.capacity_unit) for sc in map(scenario_of, specs)}):
+    for thr, unit in sorted({(sc.channel.outage, sc.channel.capacity_unit) for sc in map(scenario_of, specs)}):
         ax.axhline(thr, color="r", ls="--", lw=0.8, label=f"outage threshold ({thr:g} {unit})")
 
 

@@ -277,7 +277,7 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
     realization = large_scale_realization(scene, noise, sc.seed)
     return BoundProblem(scene, build_source(sc), vehicle or sc.platform.vehicle(), lo, hi, np.array(sc.nodes.relay, float),
-                        sc.duration_s, sc.bound, sc.channel.outage_threshold, realization if realization.active else None)
+                        sc.duration_s, sc.bound, sc.channel.outage, realization if realization.active else None)
 
 
 def scenario_bound_key(sc: Scenario) -> str:

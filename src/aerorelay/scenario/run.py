@@ -19,6 +19,7 @@ from ..planning.base import CheckedPlanner, Planner
 from ..planning.bound import CapacityBound
 from ..sim.closed_loop import MissionResult, log_columns
 from ..sim.metrics import compute_metrics
+from ..sim.units import metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
@@ -95,7 +96,7 @@ def check_run_size(sc: Scenario) -> None:
 
 def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBound | None) -> dict:
     """``metrics.json`` of a mission (with its efficiency against the bound, when given)."""
-    m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage_threshold,
+    m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage,
                         mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
                         workspace_min=sc.controller.workspace.min, workspace_max=sc.controller.workspace.max,
                         box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m)
@@ -153,4 +154,6 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
         metrics["reference_clipped_steps"] = parts.planner.clipped_steps
         if parts.planner.first_clip is not None:
             metrics["reference_clipped_first"] = parts.planner.first_clip
+    metrics["unit_system"] = sc.channel.units
+    metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, bound)

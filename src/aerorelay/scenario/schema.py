@@ -27,6 +27,7 @@ from .tomltext import compact_toml
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 MIN_NODE_SEPARATION_M = 0.1
+OUTAGE_SPECTRAL_EFFICIENCY = 1e-3  # bit/s/Hz: the paper's outage threshold (B = 1); times the bandwidth in physical units
 MIN_MOTOR_RATE_HZ_S = 20.0  # slower motors cannot follow a braking manoeuvre (|omega_dot| bounds below this are rejected)
 MIN_PREDICTION_S = 0.3  # horizon x Ts: shorter predictions cannot plan a stop inside the workspace
 MAX_TS_S = 0.05  # one RK4 step per Ts: longer periods do not resolve the attitude dynamics
@@ -235,13 +236,24 @@ class ChannelConfig(_Strict):
     tx_power_dbm: float = Field(20.0, ge=-30.0, le=60.0, description="transmit power of MRAV-2 and the relay, dBm (physical)")
     noise_figure_db: float = Field(7.0, ge=0.0, le=30.0, description="receiver noise figure, dB (physical)")
     temperature_k: float = Field(290.0, gt=0.0, le=1000.0, description="noise temperature, K (physical)")
-    outage_threshold: float = Field(1e-3, gt=0.0, description="outage when C is below this (bit/s/Hz normalized; bit/s physical)")
+    outage_threshold: float | None = Field(None, gt=0.0, description="outage when the end-to-end C is below this, in the "
+                                           "capacity's unit (bit/s/Hz normalized, bit/s physical); default: "
+                                           "OUTAGE_SPECTRAL_EFFICIENCY = 1e-3 bit/s/Hz (the paper's), times bandwidth_hz "
+                                           "in physical units (20 kbit/s at 20 MHz)")
     propagation: PropagationConfig = Field(default_factory=PropagationConfig)
     fading: ChannelFadingConfig = Field(default_factory=ChannelFadingConfig)
 
     @property
     def physical(self) -> bool:
         return self.units == "physical"
+
+    @property
+    def outage(self) -> float:
+        """The outage threshold in the capacity's unit: ``outage_threshold``, or the paper's 1e-3
+        bit/s/Hz (normalized) and the same spectral efficiency times the bandwidth (physical, bit/s)."""
+        if self.outage_threshold is not None:
+            return self.outage_threshold
+        return OUTAGE_SPECTRAL_EFFICIENCY * (self.bandwidth_hz if self.physical else 1.0)
 
     @property
     def capacity_unit(self) -> str:
@@ -899,6 +911,8 @@ class Scenario(_Strict):
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
         the CSV's path (a run folder holds its own copy)."""
         data = self.model_dump(exclude_none=True)
+        data["channel"] = {k: (self.channel.outage if k == "outage_threshold" else data["channel"][k])
+                           for k in ChannelConfig.model_fields if k == "outage_threshold" or k in data["channel"]}
         m = data["mission"]
         if self.mission.flown_file:
             m.pop("waypoints", None)

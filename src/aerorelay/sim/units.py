@@ -1,0 +1,68 @@
+"""The unit of every metric in ``metrics.json`` (its ``units`` table) and how values print with SI
+prefixes. Capacities are in the scenario's capacity unit: bit/s/Hz (normalized, the paper's B = 1)
+or bit/s (physical)."""
+
+from __future__ import annotations
+
+import math
+
+DIMENSIONLESS = "1"
+# metric-name endings and the unit they carry (longest ending first)
+SUFFIX_UNITS = (("_hz_s", "Hz/s"), ("_fraction", DIMENSIONLESS), ("_ms", "ms"), ("_kJ", "kJ"), ("_deg", "deg"),
+                ("_hz", "Hz"), ("_m", "m"), ("_s", "s"))
+CAPACITY_METRICS = ("c_min", "c_mean")
+SPECTRAL = "bit/s/Hz"
+COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "reference_clipped_steps")
+NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
+                  "aborted", "reference_clipped_first", "bound")
+
+
+def metric_unit(key: str, capacity_unit: str) -> str | None:
+    """The unit of metric ``key`` (top-level name in metrics.json; None: not a quantity)."""
+    if key in NOT_QUANTITIES:
+        return None
+    if key in CAPACITY_METRICS:
+        return capacity_unit
+    if key.startswith("se_"):
+        return SPECTRAL
+    if key.startswith("capacity_efficiency") or key in COUNTS or key.endswith("_rel_err_max") or key.startswith("estimation_within"):
+        return DIMENSIONLESS
+    for suffix, unit in SUFFIX_UNITS:
+        if key.endswith(suffix):
+            return unit
+    return None
+
+
+def metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
+    """``{metric: unit}`` for every quantity in ``metrics`` (dicts of statistics such as
+    ``solve_ms`` take the unit of their name). Raises KeyError naming a metric without a unit, so
+    a new metric cannot be written without one."""
+    out = {}
+    for key in metrics:
+        unit = metric_unit(key, capacity_unit)
+        if unit is None and key not in NOT_QUANTITIES:
+            raise KeyError(f"metric {key!r} has no unit: add it to sim/units.py")
+        if unit is not None:
+            out[key] = unit
+    return out
+
+
+_PREFIXES = ((1e12, "T"), (1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n"))
+PREFIXABLE = ("bit/s", "W", "Hz", "m", "s")
+
+
+def si(value: float | None, unit: str, digits: int = 4) -> str:
+    """``value`` with an SI prefix on ``unit`` where that reads better (bit/s, W, Hz, m, s:
+    ``3.1e5 bit/s`` -> ``310 kbit/s``); other units (bit/s/Hz, deg, dimensionless) in plain
+    ``g`` format. None prints as ``-``."""
+    if value is None:
+        return "-"
+    if not math.isfinite(value):
+        return f"{value} {unit}".strip()
+    if unit not in PREFIXABLE or value == 0.0:
+        return f"{value:.{digits}g}" + ("" if unit in ("", DIMENSIONLESS) else f" {unit}")
+    for scale, prefix in _PREFIXES:
+        if abs(value) >= scale:
+            return f"{value / scale:.{digits}g} {prefix}{unit}"
+    scale, prefix = _PREFIXES[-1]
+    return f"{value / scale:.{digits}g} {prefix}{unit}"
