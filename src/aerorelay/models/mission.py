@@ -93,6 +93,25 @@ class LinearPath(_WaypointPath):
         return SourceState(self.p[i] + v * (t - self.t[i]), v, np.zeros(3))
 
 
+class RepeatingPath(SourceTrajectory):
+    """``path`` flown again and again from its first waypoint's time ``t0`` on, with period
+    ``T = duration - t0`` (a jammer circling a site: its last waypoint back at its first); holds the
+    first point before ``t0``. Its ``duration`` is infinite."""
+
+    def __init__(self, path: _WaypointPath):
+        self.path, self.t0 = path, float(path.t[0])
+        self.period = float(path.t[-1]) - self.t0
+
+    @property
+    def duration(self) -> float:
+        return float("inf")
+
+    def state(self, t: float) -> SourceState:
+        if t <= self.t0:
+            return self.path.state(t)
+        return self.path.state(self.t0 + (t - self.t0) % self.period)
+
+
 class SampledPath(SourceTrajectory):
     """A path from samples: times ``t`` (s, increasing), positions, velocities, accelerations
     ``(n, 3)`` (world), linearly interpolated; holds the first/last sample outside them."""

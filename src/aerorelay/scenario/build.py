@@ -20,7 +20,7 @@ from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
 from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
-from ..models.mission import LinearPath, MinimumJerkPath, SourceTrajectory, source_trajectory
+from ..models.mission import LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
@@ -40,7 +40,8 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
     sched = AlwaysOn() if cfg.schedule == "always_on" else PeriodicOnOff(cfg.on_s, cfg.off_s)
     path: SourceTrajectory | None = None
     if cfg.waypoints is not None:
-        path = LinearPath(cfg.waypoints) if cfg.path == "linear" else MinimumJerkPath(cfg.waypoints)
+        leg = LinearPath(cfg.waypoints) if cfg.path == "linear" else MinimumJerkPath(cfg.waypoints)
+        path = RepeatingPath(leg) if cfg.repeat else leg
     pattern: AntennaPattern = IsotropicPattern(1.0)
     if cfg.pattern == "cosine":
         pattern = CosinePattern(cfg.g_max, cfg.exponent, cfg.back_lobe)
@@ -50,10 +51,11 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
 
 
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
-    """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_axis``), source
+    """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_antenna_axis()``), source
     'source' (MRAV-2) and relay 'relay' (MRAV-1), antennas along body z; every jammer."""
     pat = sc.antenna.patterns()
-    bs_axis = np.array(sc.antenna.bs_axis, float) / np.linalg.norm(sc.antenna.bs_axis)
+    bs_axis = np.array(sc.antenna.bs_antenna_axis(), float)
+    bs_axis = bs_axis / np.linalg.norm(bs_axis)
     nodes = (Node("bs", "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
              Node("source", "source", Antenna(pat.source)),
              Node("relay", "relay", Antenna(pat.relay)))

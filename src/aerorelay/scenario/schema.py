@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
 from ..control.terms import COST_TERMS
-from ..models.antenna import DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
+from ..models.antenna import CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
 from ..models.channel import reachable_mutual_alignment
 from ..models.mission import CsvPath, MinimumJerkPath, UlogPath, source_trajectory
@@ -27,6 +27,7 @@ from .tomltext import compact_toml
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 MIN_NODE_SEPARATION_M = 0.1
+LOOP_CLOSURE_M = 0.01  # a repeating jammer path's last waypoint within this of its first (m)
 OUTAGE_SPECTRAL_EFFICIENCY = 1e-3  # bit/s/Hz: the paper's outage threshold (B = 1); times the bandwidth in physical units
 MIN_MOTOR_RATE_HZ_S = 20.0  # slower motors cannot follow a braking manoeuvre (|omega_dot| bounds below this are rejected)
 MIN_PREDICTION_S = 0.3  # horizon x Ts: shorter predictions cannot plan a stop inside the workspace
@@ -143,8 +144,17 @@ class AntennaConfig(_Strict):
     g_bar: float = Field(1.0, gt=0.0, description="peak (broadside) gain")
     g_bar_dbi: float | None = Field(None, ge=-30.0, le=30.0, description="the peak gain in dBi (link budgets): sets "
                                     "g_bar = 10^(g_bar_dbi / 10); given with g_bar, the two must agree")
-    bs_pattern: Literal["dipole", "isotropic"] = Field(
-        "dipole", description="the base station's antenna: a vertical dipole (of `pattern`) or isotropic (gain g_bar)")
+    bs_pattern: Literal["dipole", "isotropic", "cosine"] = Field(
+        "dipole", description="the base station's antenna: a vertical dipole (of `pattern`), isotropic (gain g_bar) or "
+        "cosine: a sector antenna G = bs_g_max max(max(cos psi, 0)^bs_exponent, bs_back_lobe), psi off its boresight, "
+        "pointed by bs_tilt_deg and bs_azimuth_deg")
+    bs_g_max: float = Field(4.0, gt=0.0, le=1e4, description="cosine base station: peak gain (linear; 4 = 6 dBi)")
+    bs_exponent: float = Field(2.0, ge=0.0, le=100.0, description="cosine base station: n of max(cos psi, 0)^n")
+    bs_back_lobe: float = Field(0.01, ge=0.0, le=1.0, description="cosine base station: gain floor relative to bs_g_max")
+    bs_tilt_deg: float = Field(10.0, ge=-90.0, le=90.0, description="cosine base station: boresight below the horizon, "
+                               "deg (down-tilt; negative points it up)")
+    bs_azimuth_deg: float = Field(0.0, ge=-360.0, le=360.0, description="cosine base station: boresight azimuth, deg "
+                                  "(from world x toward world y)")
     source_pattern: Literal["dipole", "isotropic"] = Field(
         "dipole", description="MRAV-2's antenna: a dipole (of `pattern`) along its body z, or isotropic (gain g_bar)")
     directivity: float = Field(1.0, gt=0.0, le=10.0,
@@ -164,6 +174,21 @@ class AntennaConfig(_Strict):
         object.__setattr__(self, "g_bar", linear)
         return self
 
+    @model_validator(mode="after")
+    def _one_bs_direction(self):
+        if self.bs_pattern == "cosine" and self.bs_axis != [0.0, 0.0, 1.0]:
+            raise ValueError("bs_axis: a cosine base station is pointed by bs_tilt_deg and bs_azimuth_deg; "
+                             "leave bs_axis at its default")
+        return self
+
+    def bs_antenna_axis(self) -> list[float]:
+        """The base station's antenna axis (world; the scene normalizes it): ``bs_axis``, or a cosine
+        antenna's boresight from its down-tilt and azimuth."""
+        if self.bs_pattern != "cosine":
+            return list(self.bs_axis)
+        tilt, az = math.radians(self.bs_tilt_deg), math.radians(self.bs_azimuth_deg)
+        return [math.cos(tilt) * math.cos(az), math.cos(tilt) * math.sin(az), -math.sin(tilt)]
+
     def build(self):
         """The relay's pattern (a dipole scaled by the directivity)."""
         g = self.g_bar * self.directivity
@@ -174,8 +199,10 @@ class AntennaConfig(_Strict):
     def patterns(self) -> NodePatterns:
         """Every node's pattern; the trajectory generator's surrogate does not use them (eq. 12-13)."""
         dipole = self.build()
+        bs = {"dipole": dipole, "isotropic": IsotropicPattern(self.g_bar),
+              "cosine": CosinePattern(self.bs_g_max, self.bs_exponent, self.bs_back_lobe)}[self.bs_pattern]
         return NodePatterns(relay=dipole, source=dipole if self.source_pattern == "dipole" else IsotropicPattern(self.g_bar),
-                            bs=dipole if self.bs_pattern == "dipole" else IsotropicPattern(self.g_bar))
+                            bs=bs)
 
 
 BOLTZMANN_J_K = 1.380649e-23
@@ -304,6 +331,8 @@ class JammerConfig(_Strict):
     position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72], description="m, world (the start when moving)")
     waypoints: list[Waypoint] | None = Field(None, min_length=2, description="timed path [[t_s, x, y, z], ...]")
     path: Literal["linear", "minimum_jerk"] = Field("linear", description="how the jammer moves between waypoints")
+    repeat: bool = Field(False, description="fly the waypoints again and again (a loop: the last waypoint at the first "
+                         "one's position); false: hold the last one")
     power_w: float = Field(1.0, ge=0.0, description="peak radiated power P_J, W (the paper's 1 W adds ~1% to its 1 W "
                            "noise: set a jammer where it matters)")
     power_dbm: float | None = Field(None, ge=-30.0, le=90.0, description="peak power in dBm (replaces power_w)")
@@ -341,6 +370,12 @@ class JammerConfig(_Strict):
             if "position" in self.model_fields_set and self.position != start:
                 raise ValueError(f"position {self.position} differs from waypoints[0] {start}: omit position for a moving jammer")
             object.__setattr__(self, "position", start)
+            end = self.waypoints[-1][1:]
+            if self.repeat and math.dist(start, end) > LOOP_CLOSURE_M:
+                raise ValueError(f"repeat = true flies the waypoints as a loop: the last one {end} must be at the first "
+                                 f"one's position {start} (within {LOOP_CLOSURE_M} m)")
+        elif self.repeat:
+            raise ValueError("repeat = true needs waypoints (a fixed jammer has nothing to repeat)")
         if self.pattern == "cosine" and (self.point_at is None) == (self.boresight is None):
             raise ValueError("a cosine jammer needs exactly one of point_at (a node) and boresight (a direction)")
         if self.pattern == "isotropic" and (self.point_at is not None or self.boresight is not None):

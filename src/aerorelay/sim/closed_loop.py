@@ -139,7 +139,8 @@ class ClosedLoop:
         noise = settings.channel_noise or PerturbationSettings()
         self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
                                                seed=settings.seed)
-        self.columns = self.columns + self.perturbations.columns + (sensing.columns if sensing else [])
+        self._jammer_columns = [f"jam_{j.name}_{a}" for j in scene.jammers for a in "xyz"]  # true positions, m (world)
+        self.columns = self.columns + self._jammer_columns + self.perturbations.columns + (sensing.columns if sensing else [])
         self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
         self._noise_values: dict[str, Any] = {}  # log values of the random terms and the jammer estimate
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
@@ -253,5 +254,8 @@ class ClosedLoop:
         log["fallback"][k] = info.fallback
         log["safety_violation"][k] = bool(self.controller.last_violations)
         log["taylor_rel_err"][k] = ref.taylor_rel_err
+        for j in self.scene.jammers:
+            x, y, z = j.position_at(t)
+            log[f"jam_{j.name}_x"][k], log[f"jam_{j.name}_y"][k], log[f"jam_{j.name}_z"][k] = x, y, z
         for name, val in self._noise_values.items():
             log[name][k] = val
