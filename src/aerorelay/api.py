@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import datetime
 import json
+import logging
 import platform
 import tomllib
 from collections.abc import Callable
@@ -119,6 +120,7 @@ class Reproduction:
     report: Path
 
 
+log = logging.getLogger(__name__)
 CAMPAIGN_FILE = "campaign.json"  # which studies a campaign folder holds, and whether in quick mode
 
 
@@ -172,7 +174,10 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
     n_studies)`` is called once the studies are expanded."""
     folder, out = Path(studies_dir), Path(out)
     chosen = find_studies(folder, studies or None)
-    specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick)]
+    notices: list[str] = []
+    specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick, notices=notices)]
+    for n in notices:
+        log.warning("%s", n)
     if on_start is not None:
         on_start(len(specs), len(chosen))
     if workers is not None and workers < 1:
@@ -188,6 +193,6 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
         _write_report(chosen, specs, out, {"version": __version__, "date": date, "quick": quick, "interrupted": True})
         raise
     meta = {"version": __version__, "date": date, "quick": quick, "runs_ran": res.ran, "runs_skipped": res.skipped,
-            "wall_s": res.wall_s}
+            "wall_s": res.wall_s, "notices": notices}
     summary = _write_report(chosen, specs, out, meta)
     return Reproduction(chosen, specs, res, summary, out / "report.html")

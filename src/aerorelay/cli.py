@@ -439,6 +439,8 @@ def reproduce(
                           "run the same command to resume", markup=False)
         raise typer.Exit(130) from None
     summary, res, meta = rep.summary, rep.campaign, rep.summary["campaign"]
+    for notice in meta.get("notices", []):
+        err_console.print(f"[bold yellow]note[/] {notice}", highlight=False)
     t = Table(title="the paper's claims on our numbers")
     t.add_column("claim")
     t.add_column("verdict")

@@ -59,6 +59,9 @@ def test_repository_studies_expand():
     # K = inf has no random element: one run per variant instead of 50 identical ones
     assert len(fading_full) == 3 * 2 * 50 + 2 and len(fading_quick) == 3 * 2 * 2 + 2
     assert sum("fading_k_db=inf" in s.group for s in fading_full) == 2
+    notices: list[str] = []
+    expand(studies["fading"], ROOT, notices=notices)  # and it says so, once per collapsed group
+    assert len(notices) == 2 and all("fading_k_db=inf" in n and "50 seeds" in n and "flown once" in n for n in notices)
     assert len({s.key for s in fading_full}) == len(fading_full)
     assert "duration_s = 20.0" in fading_quick[0].scenario_toml
     groups = {s.group for s in expand(studies["geometry"], ROOT)}

@@ -271,8 +271,10 @@ def group_names(study) -> list[str]:
     return [_group(run.id, keys, combo) for run in study.runs for combo in combos]
 
 
-def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
-    """All runs of a study, each with its validated, fully resolved scenario."""
+def expand(study: Study, root: Path, *, quick: bool = False, notices: list[str] | None = None) -> list[RunSpec]:
+    """All runs of a study, each with its validated, fully resolved scenario. A run with nothing
+    random is flown once whatever ``seeds`` says (its repetitions would be identical): each such
+    group is said in ``notices`` when given."""
     bases: dict[str, Scenario] = {}
     for path in {study.base, *(r.base for r in study.runs if r.base)}:
         try:
@@ -290,6 +292,9 @@ def expand(study: Study, root: Path, *, quick: bool = False) -> list[RunSpec]:
             group = _group(run.id, grid_keys, combo)
             where = f"study {study.name}, run {group}"
             deterministic = not _updated(base, updates, where).stochastic
+            if deterministic and seeds > 1 and notices is not None:
+                notices.append(f"study {study.name}, run {group}: nothing random (no finite-K fading, CSI or process noise, "
+                               f"shadowing or estimated jammer), so its {seeds} seeds would be identical: flown once")
             for s in range(1 if deterministic else seeds):  # more seeds would fly the same run again
                 u = dict(updates)
                 u["seed"] = base.seed + s
