@@ -33,6 +33,7 @@ from .planning.bound import CapacityBound
 from .report.figures import write_run_figures
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_run_mcap
+from .report.run_report import RUN_REPORT, render_run_report
 from .report.summary import summarize
 from .scenario import Scenario, parse_scenario
 from .scenario.build import build, build_scene, scenario_bound
@@ -41,7 +42,7 @@ from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
 from .sim.initial import link_budget_lines as initial_link_budget_lines
 from .store import strict_json
-from .store.outputs import OutputError, check_output_folder, is_own_folder, mark, write_atomic
+from .store.outputs import OutputError, check_output_folder, folder_kind, is_own_folder, mark, write_atomic
 from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 
 
@@ -154,11 +155,23 @@ def _campaign_info(out: Path) -> dict:
     return {"studies": studies, "quick": quick}
 
 
-def report(out: str | Path, *, studies_dir: str | Path = "experiments") -> dict:
+def report_run(run_dir: str | Path) -> Path:
+    """Render ``report.html`` of one run folder (its metrics with units, safety verdict, figures)."""
+    d = Path(run_dir)
+    if folder_kind(d) != "run" or not (d / METRICS_FILE).is_file():
+        raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
+    write_atomic(d / RUN_REPORT, render_run_report(d))
+    return d / RUN_REPORT
+
+
+def report(out: str | Path, *, studies_dir: str | Path | None = None) -> dict:
     """Render ``report.html`` and ``summary.json`` of a campaign folder from whatever runs are
-    finished (partial studies marked as such); the summary is returned."""
-    out, folder = Path(out), Path(studies_dir)
+    finished (partial studies marked as such); the summary is returned. The studies are read from
+    ``studies_dir``, else from the folder the campaign was run with (its campaign.json), else
+    ``experiments/``."""
+    out = Path(out)
     info = _campaign_info(out)
+    folder = Path(studies_dir or info.get("studies_dir") or "experiments")
     chosen = find_studies(folder, info["studies"])
     specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=info["quick"])]
     meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": info["quick"],
@@ -186,7 +199,8 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
     date = datetime.datetime.now().isoformat(timespec="seconds")
     out.mkdir(parents=True, exist_ok=True)
     mark(out, "campaign")
-    write_atomic(out / CAMPAIGN_FILE, strict_json.dumps({"studies": [st.name for st in chosen], "quick": quick}))
+    write_atomic(out / CAMPAIGN_FILE, strict_json.dumps({"studies": [st.name for st in chosen], "quick": quick,
+                                                          "studies_dir": str(folder.resolve())}))
     try:
         res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
     except KeyboardInterrupt:  # the runs that finished are reported before the interrupt goes on

@@ -471,14 +471,25 @@ def export(
 
 @app.command("report")
 def report_cmd(
-    out: Path = typer.Argument(..., help="campaign folder (an aerorelay reproduce --out)", show_default=False),
-    studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)", show_default=False),
+    out: Path = typer.Argument(..., help="a campaign folder (aerorelay reproduce --out) or one run folder (aerorelay run --out)",
+                               show_default=False),
+    studies_dir: Path = typer.Option(None, "--studies-dir", show_default=False,
+                                     help="folder of study TOML files (default: the one the campaign ran with, else experiments/)"),
 ):
-    """Render report.html and summary.json from whatever runs of a campaign are finished (partial studies marked)."""
+    """Render report.html (and a campaign's summary.json) from a campaign's finished runs (partial studies
+    marked), or from one run folder."""
     from .experiments.study import StudyError
+    from .store.outputs import folder_kind
 
+    if folder_kind(out) == "run":
+        try:
+            path = api.report_run(out)
+        except OutputError as exc:
+            _fail(str(exc))
+        console.print(f"report: {path}", markup=False, highlight=False)
+        return
     try:
-        summary = api.report(out, studies_dir=studies_dir or _default_studies_dir())
+        summary = api.report(out, studies_dir=studies_dir)
     except StudyError as exc:
         _fail(str(exc))
     meta = summary["campaign"]

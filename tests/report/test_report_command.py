@@ -36,7 +36,7 @@ def test_report_of_a_partial_custom_campaign(tmp_path):
     assert "<h1>aerorelay: my relay sweep</h1>" in html and "claims on our numbers" not in html
     assert "Partial report" not in html
     (out / "runs" / "mine" / "b" / "seed0" / "timeseries.parquet").write_bytes(b"")  # a run that no longer checks out
-    res = runner.invoke(app, ["report", str(out), "--studies-dir", str(studies)])
+    res = runner.invoke(app, ["report", str(out)])  # the campaign folder alone: it knows its studies folder
     assert res.exit_code == 0 and "1 of 2 runs finished" in res.output, res.output
     html = (out / "report.html").read_text()
     assert "Partial report: 1 of 2 runs finished" in html and "1 run(s) without results" in html
@@ -57,3 +57,18 @@ def test_capacity_units_follow_the_runs_link_budget():
     assert capacity_unit([spec(phys), spec(phys)]) == "bit/s"
     assert capacity_unit([spec(norm), spec(phys)]) == "bit/s/Hz; physical-unit runs bit/s"
     assert _headers(["c_min", "outage_fraction"], "bit/s") == ["C_min (bit/s)", "outage fraction"]
+
+
+def test_report_of_one_run_folder(tmp_path):
+    """`aerorelay report RUN_DIR`: one self-contained page with the run's metrics in their units, its
+    safety verdict and its figures, drawn from the folder's files (also for a run without figures)."""
+    runner = CliRunner()
+    run = tmp_path / "r"
+    res = runner.invoke(app, ["run", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(run), "--duration", "0.5",
+                              "--no-bound", "--no-figures"])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["report", str(run)])
+    assert res.exit_code == 0, res.output
+    page = (run / "report.html").read_text()
+    assert "c_min" in page and "bit/s/Hz" in page and "safe:" in page and page.count("data:image/png;base64,") == 4
+    assert "nominal_tilted" in page and "<pre>" in page

@@ -39,6 +39,19 @@ def is_own_folder(folder: Path, kind: str) -> bool:
     return bool(sig) and all((folder / f).is_file() for f in sig)
 
 
+def folder_kind(folder: Path) -> str | None:
+    """Which of this program's outputs ``folder`` is (``run``, ``bound``, ``campaign``), from its
+    marker or an older version's files; None when it is none of them."""
+    folder = Path(folder)
+    try:
+        kind = (folder / MARKER).read_text().strip()
+    except OSError:
+        kind = ""
+    if kind:
+        return kind
+    return next((k for k in ("campaign", "run", "bound") if is_own_folder(folder, k)), None)
+
+
 def _forbidden(folder: Path) -> str | None:
     resolved = folder.resolve()
     if resolved == Path.cwd().resolve():

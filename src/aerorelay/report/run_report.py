@@ -1,0 +1,64 @@
+"""One run's report: ``aerorelay report RUN_DIR`` writes ``RUN_DIR/report.html``, one self-contained
+file (figures embedded) with the run's scenario, its key metrics with their units, its safety
+verdict, what is null and why, and its figures (capacity over the bound, alignment and slack,
+tracking, the 3D path), drawn from the run folder's own files."""
+
+from __future__ import annotations
+
+import html
+import json
+import tomllib
+from pathlib import Path
+
+import pandas as pd
+
+from ..scenario import parse_scenario
+from ..sim.units import DIMENSIONLESS, si
+from ..store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
+from .figures import fig_capacity, fig_constraints, fig_tracking, fig_trajectory_3d
+from .html import CSS, _png
+
+RUN_REPORT = "report.html"
+RUN_METRICS = ("c_min", "c_mean", "outage_fraction", "outage_duration_max_s", "capacity_efficiency_min",
+               "capacity_efficiency_mean", "alignment_ok_fraction", "slack_active_fraction", "position_error_mean_m",
+               "distance_m", "energy_kJ", "final_z_m", "max_tilt_deg", "min_altitude_m", "infeasible_fraction",
+               "fallback_fraction", "motor_saturation_fraction", "solve_ms", "feedback_ms", "steps", "sim_s", "wall_s")
+
+
+def _value(m: dict, key: str, units: dict) -> str:
+    v = m.get(key)
+    unit = units.get(key, "")
+    if isinstance(v, dict):  # statistics of a timing: mean / p99 / max
+        return " / ".join(si(v.get(s), unit) for s in ("mean", "p99", "max") if s in v) + " (mean / p99 / max)"
+    if v is None:
+        why = (m.get("null_reasons") or {}).get(key)
+        return f"- ({html.escape(why)})" if why else "-"
+    if isinstance(v, bool):
+        return str(v)
+    return si(float(v), unit) if unit != DIMENSIONLESS else f"{float(v):.4g}"
+
+
+def render_run_report(run: Path) -> str:
+    """The HTML of one run folder's report (read from its scenario.toml, metrics.json,
+    timeseries.parquet and bound.parquet when there)."""
+    run = Path(run)
+    sc = parse_scenario(tomllib.loads((run / SCENARIO_FILE).read_text()))
+    m = json.loads((run / METRICS_FILE).read_text())
+    df = pd.read_parquet(run / TIMESERIES_FILE)
+    bound = pd.read_parquet(run / BOUND_PARQUET) if (run / BOUND_PARQUET).is_file() else None
+    units = m.get("units") or {}
+    rows = "".join(f"<tr><td>{k}</td><td>{_value(m, k, units)}</td></tr>" for k in RUN_METRICS if k in m)
+    verdict = (f'<p class="no">unsafe: {html.escape(str(m.get("unsafe_reason", "")))}</p>' if m.get("unsafe")
+               else '<p class="yes">safe: the relay stayed in its workspace, above the ground, upright</p>')
+    missing = m.get("optional_outputs_failed") or {}
+    warn = "".join(f'<p class="warn">{html.escape(k)} not written: {html.escape(v)}</p>' for k, v in missing.items())
+    figs = [_png(fig_capacity(df, sc, bound), "capacity"), _png(fig_constraints(df, sc), "alignment and slack"),
+            _png(fig_tracking(df, sc), "tracking"), _png(fig_trajectory_3d(df, sc), "3D path")]
+    title = html.escape(f"{sc.name}: {sc.controller.planner} planner, {sc.controller.variant}")
+    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title><style>{CSS}</style></head><body>"
+            f"<h1>{title}</h1><p>{html.escape(sc.description)}</p>{verdict}{warn}"
+            f"<p>capacities in {html.escape(sc.channel.capacity_unit)} ({html.escape(sc.channel.units)} units); outage below "
+            f"{si(sc.channel.outage, sc.channel.capacity_unit)}</p>"
+            f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
+            + "".join(figs) + f"<details><summary>scenario.toml</summary><pre>{html.escape(sc.to_toml())}</pre></details>"
+            "</body></html>")
