@@ -72,3 +72,27 @@ def test_report_of_one_run_folder(tmp_path):
     page = (run / "report.html").read_text()
     assert "c_min" in page and "bit/s/Hz" in page and "safe:" in page and page.count("data:image/png;base64,") == 4
     assert "nominal_tilted" in page and "<pre>" in page
+
+
+SWEEP = f"""
+name = "sweep"
+title = "my mu sweep"
+base = "{ROOT / 'scenarios' / 'nominal_tilted.toml'}"
+[[runs]]
+id = "base"
+set = {{ "sim.duration_s" = 0.3 }}
+[grid]
+"controller.mu" = [0.1, 0.2, 0.3]
+"""
+
+
+def test_a_custom_sweep_is_plotted_against_c_min_and_mean_c(tmp_path):
+    studies = tmp_path / "studies"
+    studies.mkdir()
+    (studies / "sweep.toml").write_text(SWEEP)
+    out = tmp_path / "camp"
+    res = CliRunner().invoke(app, ["reproduce", "--out", str(out), "--studies-dir", str(studies), "--workers", "1"])
+    assert res.exit_code == 0, res.output
+    page = (out / "report.html").read_text()
+    start = page.index("Swept: <code>controller.mu</code>")
+    assert "data:image/png;base64," in page[start:start + 400]

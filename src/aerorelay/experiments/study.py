@@ -246,6 +246,37 @@ def _group(run_id: str, keys: list[str], combo: tuple) -> str:
     return label if run_id == "base" and label else (f"{run_id}[{label}]" if label else run_id)
 
 
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def sweep_series(study) -> list[tuple[str, str, list[tuple[float, str]]]]:
+    """The study's swept numeric parameters as series ``(parameter, label, [(value, group), ...])``:
+    each numeric ``[grid]`` key against its values, one series per run and combination of the
+    other keys; and, without a grid, a dotted key every run sets to a different number."""
+    keys, combos = _combos(study)
+    out = []
+    for key in keys:
+        if len(study.grid[key]) < 2 or not all(_number(v) for v in study.grid[key]):
+            continue
+        for run in study.runs:
+            series: dict[str, list[tuple[float, str]]] = {}
+            for combo in combos:
+                rest = ",".join(f"{k.split('.')[-1]}={_fmt(v)}" for k, v in zip(keys, combo, strict=True) if k != key)
+                value = combo[keys.index(key)]
+                series.setdefault(rest, []).append((float(value), _group(run.id, keys, combo)))
+            for rest, points in series.items():
+                label = ",".join(x for x in (run.id if run.id != "base" else "", rest) if x)
+                out.append((key, label, sorted(points)))
+    if not keys and len(study.runs) >= 3:
+        shared = set.intersection(*(set(r.set) for r in study.runs))
+        for key in sorted(shared):
+            values = [r.set[key] for r in study.runs]
+            if all(_number(v) for v in values) and len(set(values)) == len(values):
+                out.append((key, "", sorted((float(r.set[key]), r.id) for r in study.runs)))
+    return out
+
+
 def combinations(study, pair_key: str) -> dict[str, dict[str, str]]:
     """Grid combinations without ``pair_key``: ``{combination label: {pair value: group}}``."""
     keys, combos = _combos(study)

@@ -21,6 +21,7 @@ from ..experiments.campaign import first_run_per_group, run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study, groups_of_run, scenario_of  # noqa: E402
 from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
+from .sweeps import sweep_figures  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
 MAIN_METRICS = ("c_min", "c_mean", "outage_fraction", "outage_duration_mean_s", "outage_duration_max_s")
@@ -316,7 +317,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                                                       f"</summary>{table}</details>")
     if study_sum.get("ranking"):
         parts.append(_ranking_table(study_sum["ranking"]))
-    for fig in (*_tradeoff_figures(study, study_sum), *_bound_figures(study, specs, out),
+    for fig in (*sweep_figures(study, study_sum, capacity_unit(specs), _png), *_tradeoff_figures(study, study_sum),
+                *_bound_figures(study, specs, out),
                 *_estimation_figures(study, specs, out), _capacity_figure(study, specs, out),
                 _bars_figure(study_sum),
                 _trajectory_3d(study, specs, out)):
