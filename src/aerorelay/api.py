@@ -16,6 +16,7 @@ from __future__ import annotations
 import datetime
 import json
 import logging
+import os
 import platform
 import tomllib
 from collections.abc import Callable
@@ -27,6 +28,7 @@ import pandas as pd
 from ._version import __version__
 from .control.bench import benchmark_closed_loop
 from .control.nmpc import NmpcSettings
+from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignResult, is_finished, load_manifest, run_campaign
 from .experiments.study import Study, StudyError, expand, find_studies
 from .planning.bound import CapacityBound
@@ -174,21 +176,31 @@ def report(out: str | Path, *, studies_dir: str | Path | None = None) -> dict:
     folder = Path(studies_dir or info.get("studies_dir") or "experiments")
     chosen = find_studies(folder, info["studies"])
     specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=info["quick"])]
+    if info.get("runs") is not None:  # a budgeted campaign: the runs it chose
+        keep = set(info["runs"])
+        specs = [s for s in specs if s.key in keep]
     meta = {"version": __version__, "date": datetime.datetime.now().isoformat(timespec="seconds"), "quick": info["quick"],
-            "runs_ran": 0, "runs_skipped": 0, "wall_s": 0.0}
+            "runs_ran": 0, "runs_skipped": 0, "wall_s": 0.0, "notices": info.get("notices", [])}
     return _write_report(chosen, specs, out, meta)
 
 
 def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool = False, studies_dir: str | Path = "experiments",
               scheduler: str | None = None, workers: int | None = None, progress=None, on_start=None,
-              wait: bool = False) -> Reproduction:
+              wait: bool = False, budget_s: float | None = None) -> Reproduction:
     """Run the named studies (default: all in ``studies_dir``) as a campaign on dask (resuming a
     previous one in ``out``), then write ``report.html`` and ``summary.json``. ``on_start(n_runs,
-    n_studies)`` is called once the studies are expanded."""
+    n_studies)`` is called once the studies are expanded. ``budget_s``: keep only the runs whose
+    estimated wall time fits (``experiments.budget``; the others are named in the notices and in
+    the report as left out)."""
     folder, out = Path(studies_dir), Path(out)
     chosen = find_studies(folder, studies or None)
     notices: list[str] = []
     specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick, notices=notices)]
+    selected = None
+    if budget_s is not None:
+        choice = within_budget(specs, budget_s, workers or os.cpu_count() or 1)
+        specs, selected = choice.kept, [s.key for s in choice.kept]
+        notices += left_out_notices(choice, budget_s)
     for n in notices:
         log.warning("%s", n)
     if on_start is not None:
@@ -200,7 +212,8 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
     out.mkdir(parents=True, exist_ok=True)
     mark(out, "campaign")
     write_atomic(out / CAMPAIGN_FILE, strict_json.dumps({"studies": [st.name for st in chosen], "quick": quick,
-                                                          "studies_dir": str(folder.resolve())}))
+                                                          "studies_dir": str(folder.resolve()), "runs": selected,
+                                                          "notices": notices}))
     try:
         res = run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
     except KeyboardInterrupt:  # the runs that finished are reported before the interrupt goes on

@@ -25,6 +25,7 @@ err_console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSAFE = 3  # the run finished but the relay left its workspace or flipped (metrics.json: unsafe, unsafe_reason)
+QUICK_BUDGET_MIN = 5.0  # reproduce --quick: minutes of estimated wall time (experiments/budget.py)
 
 
 def _load_or_exit(path: Path) -> Scenario:
@@ -406,6 +407,9 @@ def reproduce(
     studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)", show_default=False),
     workers: int = typer.Option(None, "--workers", min=1, help="local cluster size (default: one per core)", show_default=False),
     wait: bool = typer.Option(False, "--wait", help="wait for another campaign running in the same folder instead of refusing"),
+    budget_min: float = typer.Option(None, "--budget-min", min=0.0, show_default=False,
+                                     help="keep only the runs whose estimated wall time fits in this many minutes (default with "
+                                          "--quick: 5; 0: no budget); what is left out is listed"),
 ):
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -429,8 +433,10 @@ def reproduce(
                 desc = "" if rec is None else f"{rec['key']}: {rec['status']}"
                 prog.update(task, completed=done, description=desc)
 
+            budget = QUICK_BUDGET_MIN if budget_min is None and quick else budget_min
             rep = api.reproduce(studies or None, out=out, quick=quick, studies_dir=folder, scheduler=scheduler, workers=workers,
-                                progress=progress, on_start=on_start, wait=wait)
+                                progress=progress, on_start=on_start, wait=wait,
+                                budget_s=budget * 60.0 if budget else None)
     except (StudyError, CampaignBusyError, OutputError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:

@@ -1,0 +1,79 @@
+"""A time budget for ``reproduce --quick``: which runs fit in a few minutes, and what is left out.
+
+Each run's cost is estimated from what it flies (measured on the project's 2-core VM, one dask
+worker per core): the closed loop at ``SIM_S_PER_MISSION_S`` of wall time per simulated second
+(nominal 47 s mission: 4.7 s), a fixed ``RUN_OVERHEAD_S`` per run (scenario, parts, compiled
+library), and a capacity bound at ``BOUND_S_PER_MISSION_S`` the first time a geometry is seen
+(nominal: 20 s; cached afterwards). Runs are taken round-robin over the studies, each study's
+runs in order, so every study keeps its first runs; the others are left out and named."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..scenario.build import scenario_bound_key
+from .study import RunSpec, scenario_of
+
+SIM_S_PER_MISSION_S = 0.1
+RUN_OVERHEAD_S = 2.0
+BOUND_S_PER_MISSION_S = 0.45
+
+
+@dataclass(frozen=True)
+class BudgetChoice:
+    """The runs kept within the budget, those left out, and the estimated wall time of the kept (s)."""
+
+    kept: list[RunSpec]
+    left_out: list[RunSpec]
+    estimated_s: float
+
+
+def run_cost_s(spec: RunSpec, bounds_seen: set[str]) -> float:
+    """Estimated worker-seconds of one run (its bound counted once per geometry: ``bounds_seen``)."""
+    sc = scenario_of(spec)
+    cost = RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * sc.duration_s
+    if spec.bound:
+        key = scenario_bound_key(sc)
+        if key not in bounds_seen:
+            bounds_seen.add(key)
+            cost += BOUND_S_PER_MISSION_S * sc.duration_s
+    return cost
+
+
+def within_budget(specs: list[RunSpec], budget_s: float, workers: int) -> BudgetChoice:
+    """The runs that fit in ``budget_s`` of wall time on ``workers`` workers, taken round-robin
+    over the studies in their order (each study's runs in order)."""
+    by_study: dict[str, list[RunSpec]] = {}
+    for s in specs:
+        by_study.setdefault(s.study, []).append(s)
+    queues = [list(v) for v in by_study.values()]
+    kept: list[RunSpec] = []
+    seen: set[str] = set()
+    total = 0.0
+    full = False
+    while any(queues) and not full:
+        for q in queues:
+            if not q:
+                continue
+            trial = set(seen)
+            cost = run_cost_s(q[0], trial)
+            if (total + cost) / max(workers, 1) > budget_s:
+                full = True
+                break
+            kept.append(q.pop(0))
+            seen, total = trial, total + cost
+    chosen = {s.key for s in kept}
+    return BudgetChoice([s for s in specs if s.key in chosen], [s for s in specs if s.key not in chosen], total / max(workers, 1))
+
+
+def left_out_notices(choice: BudgetChoice, budget_s: float) -> list[str]:
+    """What a budget left out, one line per study (its runs named), and what the kept runs cost."""
+    if not choice.left_out:
+        return [f"budget {budget_s / 60:.1f} min: every run fits (estimated {choice.estimated_s / 60:.1f} min)"]
+    by_study: dict[str, list[str]] = {}
+    for s in choice.left_out:
+        by_study.setdefault(s.study, []).append(s.group if s.seed == 0 else f"{s.group} seed {s.seed}")
+    lines = [f"budget {budget_s / 60:.1f} min: {len(choice.kept)} runs kept (estimated {choice.estimated_s / 60:.1f} min), "
+             f"{len(choice.left_out)} left out (run without --quick, or with a larger --budget-min, for them):"]
+    lines += [f"  left out of {study}: {', '.join(groups)}" for study, groups in by_study.items()]
+    return lines

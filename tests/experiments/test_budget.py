@@ -1,0 +1,45 @@
+"""reproduce --quick's time budget: the runs kept fit the budget by the cost model, every study
+keeps its first runs (round-robin), nothing is lost or duplicated, what is left out is named."""
+
+from pathlib import Path
+
+import pytest
+
+from aerorelay.experiments.budget import RUN_OVERHEAD_S, SIM_S_PER_MISSION_S, left_out_notices, run_cost_s, within_budget
+from aerorelay.experiments.study import expand, find_studies
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def quick_specs():
+    studies = find_studies(ROOT / "experiments", ["nominal", "fading", "beyond"])
+    return [r for st in studies for r in expand(st, ROOT, quick=True)]
+
+
+def test_the_cost_of_a_run_is_its_overhead_its_mission_and_its_first_bound(quick_specs):
+    spec = next(s for s in quick_specs if s.study == "nominal")
+    assert run_cost_s(spec, set()) == pytest.approx(RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * 47.0)
+    bounded = next(s for s in quick_specs if s.bound)
+    seen: set[str] = set()
+    first, again = run_cost_s(bounded, seen), run_cost_s(bounded, seen)
+    assert first > again == pytest.approx(RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * 47.0)  # the bound is cached after the first
+
+
+@pytest.mark.parametrize("budget_s,workers", [(30.0, 1), (60.0, 2), (200.0, 2), (1e9, 2)])
+def test_the_budget_keeps_what_fits_round_robin_and_names_the_rest(quick_specs, budget_s, workers):
+    c = within_budget(quick_specs, budget_s, workers)
+    assert c.estimated_s <= budget_s
+    assert sorted(s.key for s in c.kept + c.left_out) == sorted(s.key for s in quick_specs)
+    assert not {s.key for s in c.kept} & {s.key for s in c.left_out}
+    order = [s.key for s in quick_specs]
+    assert [s.key for s in c.kept] == [k for k in order if k in {s.key for s in c.kept}]  # the studies' order kept
+    if c.kept and len(c.kept) >= 3:  # round-robin: every study has its first run before any study has its second
+        assert {s.study for s in c.kept} == {s.study for s in quick_specs}
+    for s in c.kept:  # within a study, runs are kept in order: no later run without the earlier ones
+        earlier = [x.key for x in quick_specs if x.study == s.study][: [x.key for x in quick_specs if x.study == s.study].index(s.key)]
+        assert set(earlier) <= {k.key for k in c.kept}
+    text = "\n".join(left_out_notices(c, budget_s))
+    assert ("left out" in text) == bool(c.left_out)
+    for s in c.left_out:
+        assert s.group in text
