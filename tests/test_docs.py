@@ -1,0 +1,61 @@
+"""The documentation cannot drift from the code: the scenario reference is generated from the
+schema (every field with its type, default, unit, range and description; a field without a
+description fails the build) and the README stays a front door."""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+from aerorelay.scenario.schema import Scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+import scenario_reference  # noqa: E402
+
+
+def _leaf_fields(model, prefix=""):
+    from aerorelay.scenario.schema import _submodel
+
+    for name, info in model.model_fields.items():
+        sub = _submodel(info.annotation)
+        yield prefix + name, info
+        if sub is not None:
+            yield from _leaf_fields(sub, f"{prefix}{name}.")
+
+
+def test_every_schema_field_is_in_the_reference_with_its_description():
+    text = scenario_reference.render()
+    for key, info in _leaf_fields(Scenario):
+        name = key.split(".")[-1]
+        assert f"| `{name}` |" in text, key
+        if info.description:
+            assert " ".join(info.description.split())[:40].replace("|", "\\|") in text, key
+
+
+def test_a_field_without_a_description_fails_the_build(monkeypatch):
+    from sphinx.errors import ExtensionError
+
+    from aerorelay.scenario.schema import WorldConfig
+
+    monkeypatch.setattr(WorldConfig.model_fields["ground_z_m"], "description", None)
+    with pytest.raises(ExtensionError, match="world.ground_z_m"):
+        scenario_reference.render()
+
+
+def test_units_come_from_the_field_name_or_its_description():
+    assert scenario_reference._unit("decorrelation_m", "") == "m"
+    assert scenario_reference._unit("omega_dot_max_hz_s", "") == "Hz/s"
+    assert scenario_reference._unit("position", "m, world (the start when moving)") == "m"
+    assert scenario_reference._unit("forget_s", "time constant") == "s"
+    assert scenario_reference._unit("exponent", "n of the sin^n pattern") == ""
+
+
+def test_the_readme_is_a_front_door():
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) < 150
+    text = "\n".join(lines[:30])
+    assert "make run" in text and "make test" in text
+    for link in [part.split(")")[0] for part in "\n".join(lines).split("](")[1:]]:
+        if not link.startswith("http"):
+            assert (ROOT / link.split("#")[0]).exists(), link
