@@ -101,3 +101,32 @@ class Jammer:
     def is_localized(self, t) -> bool:
         """Whether the controller knows the jammer position at time ``t`` (``t >= tau_E``)."""
         return bool(t >= self.localization_delay)
+
+
+class JammerTruthHidden(LookupError):
+    """A planner or controller asked where a jammer truly is, or what it truly radiates: they know
+    only what the relay was told or estimated (``PlannerInput``), never the plant's truth."""
+
+
+@dataclass(frozen=True)
+class HiddenJammer(Jammer):
+    """A jammer as the relay's world view holds it: its name, antenna pattern and pointing (what
+    the controllers model), no true position, path, power or schedule. ``position_at`` and
+    ``power_at`` raise JammerTruthHidden, so a channel evaluated without the known positions and
+    powers fails loudly instead of silently using the truth."""
+
+    def __post_init__(self):
+        checks.text("Jammer", "name", self.name)
+
+    @classmethod
+    def of(cls, j: Jammer) -> HiddenJammer:
+        return cls(np.full(3, np.nan), float("nan"), AlwaysOn(), j.localization_delay, None, j.pattern, j.point_at,
+                   np.asarray(j.boresight, float).copy(), j.name)
+
+    def position_at(self, t: float) -> np.ndarray:
+        raise JammerTruthHidden(f"jammer {self.name!r}: its true position is not in the relay's world view; pass the "
+                                "positions the relay knows (PlannerInput.jammer_positions)")
+
+    def power_at(self, t):
+        raise JammerTruthHidden(f"jammer {self.name!r}: its true power is not in the relay's world view; pass the powers "
+                                "the relay assumes (PlannerInput.jammer_powers)")

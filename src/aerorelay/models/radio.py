@@ -26,7 +26,7 @@ from . import checks
 from .antenna import AntennaPattern
 from .backend import is_symbolic, ops
 from .geometry import E3
-from .jammer import Jammer
+from .jammer import HiddenJammer, Jammer
 from .propagation import PathGain
 
 Role = Literal["base_station", "source", "relay"]
@@ -98,7 +98,7 @@ class NodePose:
 class Emitter:
     """A jammer at one instant: position (m), boresight (unit, world), pattern, radiated power (W)."""
 
-    position: np.ndarray
+    position: np.ndarray | None  # None: a silent jammer whose position was not asked
     axis: np.ndarray
     pattern: AntennaPattern
     power: float
@@ -215,6 +215,14 @@ class RadioScene:
             if j.point_at is not None and j.point_at not in names:
                 raise ValueError(f"jammer {j.name!r}: point_at {j.point_at!r} is not a node ({', '.join(names)})")
 
+    def world_view(self) -> RadioScene:
+        """The scene as the relay knows it: nodes, antennas, link budget and propagation, and each
+        jammer's antenna but not where it is or what it radiates (``HiddenJammer``): planners and
+        controllers are built from this, the truth stays in the plant and the metrics."""
+        from dataclasses import replace
+
+        return replace(self, jammers=tuple(HiddenJammer.of(j) for j in self.jammers))
+
     def node(self, name: str) -> Node:
         for n in self.nodes:
             if n.name == name:
@@ -257,11 +265,13 @@ class RadioScene:
         and ``powers`` ``(nJ,)`` (what a controller knows); boresights track their target node."""
         out = []
         for i, j in enumerate(self.jammers):
-            p = _given(positions[i]) if positions is not None else j.position_at(t)
             power = _given(powers[i]) if powers is not None else float(j.power_at(t))
             silent = not is_symbolic(power) and power == 0.0
+            # a silent jammer adds nothing wherever it is (``interference`` skips it): its position is not asked
+            p = _given(positions[i]) if positions is not None else None if silent else j.position_at(t)
             target = poses[j.point_at].position if j.point_at is not None and not silent else None
-            out.append(Emitter(p, j.axis(p, target), j.pattern, power))
+            axis = np.asarray(j.boresight, float) if p is None else j.axis(p, target)
+            out.append(Emitter(p, axis, j.pattern, power))
         return out
 
     def interference(self, emitters: Sequence[Emitter], rx: NodePose, pat_rx: AntennaPattern, fading=None):

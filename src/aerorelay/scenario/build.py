@@ -185,9 +185,11 @@ def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
 
 
 def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> PlannerContext:
+    """What a planner is built from: the relay's world view of the scene (no true jammer position or
+    power: ``RadioScene.world_view``), MRAV-2's planned path, the vehicle, the workspace."""
     lo, hi = _workspace(sc)
-    return PlannerContext(scene, source, vehicle, lo, hi, np.array(sc.nodes.relay, float), sc.duration_s, sc.controller,
-                          sc.antenna.g_bar)
+    return PlannerContext(scene.world_view(), source, vehicle, lo, hi, np.array(sc.nodes.relay, float), sc.duration_s,
+                          sc.controller, sc.antenna.g_bar)
 
 
 def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:
