@@ -29,7 +29,7 @@ print(f"C_min {result.metrics['c_min']:.3e}, mean C {result.metrics['c_mean']:.3
 
 fig, ax = plt.subplots(figsize=(7, 3))
 ax.semilogy(df["t"], df["capacity"].clip(lower=1e-12), label="end-to-end C")
-ax.axhline(sc.channel.outage_threshold, color="r", ls="--", label="outage threshold")
+ax.axhline(sc.channel.outage, color="r", ls="--", label="outage threshold")
 ax.set_xlabel("t (s)")
 ax.set_ylabel("C (bit/s/Hz)")
 ax.legend()

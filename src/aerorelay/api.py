@@ -29,7 +29,7 @@ from ._version import __version__
 from .control.bench import benchmark_closed_loop
 from .control.nmpc import NmpcSettings
 from .experiments.budget import left_out_notices, within_budget
-from .experiments.campaign import CampaignResult, is_finished, load_manifest, run_campaign
+from .experiments.campaign import CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
 from .experiments.study import Study, StudyError, expand, find_studies
 from .planning.bound import CapacityBound
 from .report.figures import write_run_figures
@@ -130,8 +130,8 @@ CAMPAIGN_FILE = "campaign.json"  # which studies a campaign folder holds, and wh
 def _write_report(chosen: list[Study], specs: list, out: Path, meta: dict) -> dict:
     manifest = load_manifest(out)
     meta = {**meta, "runs_total": len(specs), "runs_finished": sum(is_finished(out, s) for s in specs),
-            "runs_failed": sum(manifest.get(s.key, {}).get("status") == "failed" for s in specs),
-            "runs_unsafe": sum(manifest.get(s.key, {}).get("status") == "unsafe" for s in specs),
+            "runs_failed": sum(manifest.get(s.key, {}).get("status") == RunStatus.FAILED for s in specs),
+            "runs_unsafe": sum(manifest.get(s.key, {}).get("status") == RunStatus.UNSAFE for s in specs),
             "runs_compute_s": sum(manifest.get(s.key, {}).get("wall_s") or 0.0 for s in specs),
             "controller": NmpcSettings().fingerprint()}
     summary = summarize(chosen, specs, out, {"campaign": meta})

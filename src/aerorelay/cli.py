@@ -414,7 +414,7 @@ def reproduce(
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from .experiments.campaign import CampaignBusyError, load_manifest
+    from .experiments.campaign import CampaignBusyError, RunStatus, load_manifest
     from .experiments.study import StudyError
 
     _check_out(out, "campaign")
@@ -440,7 +440,7 @@ def reproduce(
     except (StudyError, CampaignBusyError, OutputError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
-        n = sum(r.get("status") == "done" for r in load_manifest(out).values())
+        n = sum(r.get("status") == RunStatus.DONE for r in load_manifest(out).values())
         err_console.print(f"interrupted: {n} finished runs are kept in {out} (partial report: {out / 'report.html'}); "
                           "run the same command to resume", markup=False)
         raise typer.Exit(130) from None

@@ -46,7 +46,8 @@ def test_bench_feedback_phase(benchmark, loop_mid_mission):
 def test_bench_trajectory_generator(benchmark, loop_mid_mission):
     loop = loop_mid_mission
     src = loop.source.state(9.0)
-    inp = PlannerInput(9.0, 0.015, src.p + 1.0, src.p, src.v, src.a, loop.scene.jammers[0].position[None], np.ones(1))
+    inp = PlannerInput(t=9.0, dt=0.015, p1=src.p + 1.0, p2=src.p, v2=src.v, a2=src.a,
+                       jammer_positions=loop.scene.jammers[0].position[None], jammer_powers=np.ones(1))
     ref = benchmark(loop.planner.update, inp)
     assert np.all(np.isfinite(ref.p_ref))
 

@@ -70,7 +70,8 @@ def test_every_planner_answers_through_one_interface():
     short = SC.with_updates({"sim.duration_s": 4.0})
     src = source_trajectory(short.mission)
     s = src.state(1.0)
-    inp = PlannerInput(1.0, 0.015, np.array(short.nodes.relay), s.p, s.v, s.a, np.array([short.jammer.position]), np.ones(1))
+    inp = PlannerInput(t=1.0, dt=0.015, p1=np.array(short.nodes.relay), p2=s.p, v2=s.v, a2=s.a,
+                       jammer_positions=np.array([short.jammer.position]), jammer_powers=np.ones(1))
     for name in ("trajectory_generator", "isotropic", "single_shot"):
         sc = short.with_updates({"controller.planner": name})
         planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)

@@ -8,14 +8,10 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from ..stats import stats_ms
 from .full_nlp import FullNlp
+from .nmpc import QpStatus
 from .ocp import unpack_plan
-
-
-def stats_ms(values) -> dict:
-    v = np.asarray(values, float)
-    return {"mean": float(v.mean()), "p50": float(np.percentile(v, 50)), "p95": float(np.percentile(v, 95)),
-            "p99": float(np.percentile(v, 99)), "max": float(v.max())}
 
 
 @contextmanager
@@ -70,7 +66,7 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "qp_failures": result.qp_failures,
         "fallback_episodes": result.fallback_episodes,
         "qp_iterations": {"mean": float(iters.mean()), "p99": float(np.percentile(iters, 99)), "max": int(iters.max())},
-        "qp_capped": int(np.sum(np.asarray(result.log["qp_status"]) == "CAPPED")),
+        "qp_capped": int(np.sum(np.asarray(result.log["qp_status"]) == QpStatus.CAPPED)),
         "step_p99_over_p50": float(np.percentile(whole + planner, 99) / np.percentile(whole + planner, 50)),
         "c_min": float(np.min(result.log["capacity"])),
         "route": loop.nmpc.route(),

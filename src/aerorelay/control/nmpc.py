@@ -21,6 +21,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -121,10 +122,24 @@ class NmpcSettings:
         return {}
 
 
+class QpStatus(StrEnum):
+    """What a QP solve ended with (the log's ``qp_status``; compares equal to its text)."""
+
+    NOT_PREPARED = "NOT_PREPARED"
+    SUCCESS = "SUCCESS"
+    MAX_ITER = "MAX_ITER"
+    MIN_STEP = "MIN_STEP"
+    NAN_SOL = "NAN_SOL"
+    INCONS_EQ = "INCONS_EQ"
+    CAPPED = "CAPPED"  # the iteration cap stopped on an iterate that passed the quality check (NmpcSettings.accept_tol)
+    NAN_IN_SOLUTION = "NaN in solution"
+
+
 class _HpipmEngine:
     """Compiled engine: linearization + HPIPM (+ partial condensing) + update, two C calls."""
 
-    STATUS = {-1: "NOT_PREPARED", 0: "SUCCESS", 1: "MAX_ITER", 2: "MIN_STEP", 3: "NAN_SOL", 4: "INCONS_EQ"}
+    STATUS = {-1: QpStatus.NOT_PREPARED, 0: QpStatus.SUCCESS, 1: QpStatus.MAX_ITER, 2: QpStatus.MIN_STEP, 3: QpStatus.NAN_SOL,
+              4: QpStatus.INCONS_EQ}
 
     def __init__(self, spec: OcpSpec, settings: NmpcSettings):
         self.rti = HpipmRti(spec, condensed_horizon=settings.condensed_horizon, iter_max=settings.iter_max,
@@ -147,9 +162,9 @@ class _HpipmEngine:
 
     def feedback(self, xa0: np.ndarray, shift: bool) -> QpResult:
         u, info = self.rti.feedback(xa0, shift)
-        status = "CAPPED" if info.capped else self.STATUS.get(info.status, f"status {info.status}")
+        status = QpStatus.CAPPED if info.capped else self.STATUS.get(info.status, f"status {info.status}")
         if not info.ok and info.status == 0:
-            status = "NaN in solution"
+            status = QpStatus.NAN_IN_SOLUTION
         return QpResult(bool(info.ok), u, status, float(info.slack_max), int(info.iter), bool(info.capped))
 
 

@@ -17,6 +17,7 @@ import os
 import time
 import traceback
 from dataclasses import dataclass
+from enum import StrEnum
 from pathlib import Path
 
 import pyarrow as pa
@@ -95,11 +96,11 @@ def execute_run(spec: RunSpec, out: str) -> dict:
         result = simulate(scenario_of(spec), with_bound=spec.bound)
         result.save(run_dir(Path(out), spec))
         unsafe = result.metrics["unsafe"]
-        record.update(status="unsafe" if unsafe else "done", wall_s=time.perf_counter() - t0, c_min=result.metrics["c_min"])
+        record.update(status=RunStatus.UNSAFE if unsafe else RunStatus.DONE, wall_s=time.perf_counter() - t0, c_min=result.metrics["c_min"])
         if unsafe:
             record["error"] = f"unsafe: {result.metrics['unsafe_reason']}"
     except Exception as exc:  # recorded, the campaign goes on
-        record.update(status="failed", wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",
+        record.update(status=RunStatus.FAILED, wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",
                       traceback=traceback.format_exc(limit=8))
     return record
 
@@ -111,6 +112,15 @@ class CampaignResult:
     ran: int
     failed: int
     wall_s: float
+
+
+class RunStatus(StrEnum):
+    """A campaign run's outcome in the manifest (compares equal to its text): flown and safe, raised,
+    or flown but unsafe (left its world; its numbers are not used)."""
+
+    DONE = "done"
+    FAILED = "failed"
+    UNSAFE = "unsafe"
 
 
 class CampaignBusyError(RuntimeError):
@@ -182,8 +192,8 @@ def _run_locked(specs, out: Path, client, scheduler, n_workers, progress) -> Cam
     for s in specs:
         if s not in todo:
             rec = records.get(s.key, {})
-            if rec.get("status") != "done" or rec.get("scenario_hash") != s.scenario_hash:
-                records[s.key] = _record(s, "done", wall_s=rec.get("wall_s"))
+            if rec.get("status") != RunStatus.DONE or rec.get("scenario_hash") != s.scenario_hash:
+                records[s.key] = _record(s, RunStatus.DONE, wall_s=rec.get("wall_s"))
     _write_manifest(out, records)
     t0 = time.perf_counter()
     done = len(specs) - len(todo)
@@ -201,10 +211,10 @@ def _run_locked(specs, out: Path, client, scheduler, n_workers, progress) -> Cam
                 try:
                     rec = fut.result()
                 except Exception as exc:  # a worker that died (KilledWorker) fails its run, not the campaign
-                    rec = _record(spec, "failed", error=f"{type(exc).__name__}: {exc}")
+                    rec = _record(spec, RunStatus.FAILED, error=f"{type(exc).__name__}: {exc}")
                 fut.release()  # a finished run is never recomputed after a worker loss
                 records[rec["key"]] = rec
-                failed += rec["status"] != "done"
+                failed += rec["status"] != RunStatus.DONE
                 done += 1
                 _write_manifest(out, records)
                 if progress:

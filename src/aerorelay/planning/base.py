@@ -27,7 +27,7 @@ from ..models.vehicle import Multirotor
 from .trajectory_generator import Reference
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PlannerInput:
     """What the relay knows at one control step (world frame, SI units).
 

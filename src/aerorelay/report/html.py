@@ -17,7 +17,7 @@ import pandas as pd  # noqa: E402
 import plotly.graph_objects as go  # noqa: E402
 from plotly.offline import get_plotlyjs  # noqa: E402
 
-from ..experiments.campaign import first_run_per_group, run_dir  # noqa: E402
+from ..experiments.campaign import RunStatus, first_run_per_group, run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study, groups_of_run, scenario_of  # noqa: E402
 from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
@@ -324,11 +324,11 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                 _trajectory_3d(study, specs, out)):
         if fig:
             parts.append(fig)
-    failed = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == "failed"]
+    failed = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == RunStatus.FAILED]
     if failed or study_sum["missing_runs"]:
         items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in failed)
         parts.append(f'<div class="warn">{len(study_sum["missing_runs"])} run(s) without results.<ul>{items}</ul></div>')
-    unsafe = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == "unsafe"]
+    unsafe = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == RunStatus.UNSAFE]
     if unsafe:
         items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in unsafe)
         parts.append(f'<div class="warn">{len(unsafe)} unsafe run(s): the relay left its world whatever the QPs '

@@ -29,6 +29,9 @@ from .jammer_sensing import JammerSensing
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
 
+BENCH_POINT_EVERY = 500  # control steps between two states kept for `aerorelay bench`'s full IPOPT solves
+BENCH_POINT_OFFSET = 250  # the first one kept, mid-way into the first interval
+
 
 def log_columns(n_rotors: int) -> list[str]:
     """The per-step log's columns, in order, for a relay with ``n_rotors`` rotors."""
@@ -209,11 +212,12 @@ class ClosedLoop:
                 else:
                     pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
                 t_plan = time.perf_counter()
-                ref = self.planner.update(PlannerInput(t, period, x[0:3].copy(), p2_meas, src.v, src.a, pj_meas, pj_powers,
-                                                       pj_std, float(x[5]), x[6:9].copy()))
+                ref = self.planner.update(PlannerInput(t=t, dt=period, p1=x[0:3].copy(), p2=p2_meas, v2=src.v, a2=src.a,
+                                                       jammer_positions=pj_meas, jammer_powers=pj_powers, jammer_std_m=pj_std,
+                                                       psi1=float(x[5]), v1=x[6:9].copy()))
                 planner_ms = (time.perf_counter() - t_plan) * 1e3
                 P = self.controller.parameters(ref, p2_meas, src.v, src.a)
-                if k % 500 == 250:  # samples for benchmarking a full solve at the same points
+                if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
                     self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
                 info = self.controller.step(x, u, P, shift=shift)
                 u = info.u

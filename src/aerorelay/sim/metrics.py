@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..control.bench import stats_ms
+from ..control.nmpc import QpStatus
 from ..models.vehicle import Multirotor
+from ..stats import stats_ms
 
 # A slack below this fraction of mu is the interior-point solver's tolerance (complementarity
 # 1e-4), not a relaxation of the alignment constraint: on the nominal tilted mission the slack
@@ -147,7 +148,7 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(mu, 1e-9))),
         "infeasible_fraction": float(np.mean(failed)),
         # QPs the iteration cap stopped on a primal-feasible iterate (NmpcSettings.accept_tol)
-        "qp_capped_fraction": float(np.mean(np.asarray(log["qp_status"]) == "CAPPED")) if "qp_status" in log else 0.0,
+        "qp_capped_fraction": float(np.mean(np.asarray(log["qp_status"]) == QpStatus.CAPPED)) if "qp_status" in log else 0.0,
         "fallback_fraction": float(np.mean(fallback)),
         "solve_ms": {**stats_ms(solve), "std": float(solve.std())},
         "feedback_ms": stats_ms(np.asarray(log["feedback_ms"], float)) if "feedback_ms" in log else None,
