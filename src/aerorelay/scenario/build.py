@@ -46,8 +46,9 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
     if cfg.pattern == "cosine":
         pattern = CosinePattern(cfg.g_max, cfg.exponent, cfg.back_lobe)
     boresight = np.array(cfg.boresight, float) / np.linalg.norm(cfg.boresight) if cfg.boresight is not None else np.array([0.0, 0.0, 1.0])
-    return Jammer(np.array(cfg.position, float), cfg.peak_power_w, sched, cfg.localization_delay_s, path, pattern,
-                  cfg.point_at, boresight, cfg.name)
+    return Jammer(position=np.array(cfg.position, float), power=cfg.peak_power_w, schedule=sched,
+                  localization_delay=cfg.localization_delay_s, path=path, pattern=pattern, point_at=cfg.point_at,
+                  boresight=boresight, name=cfg.name)
 
 
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
@@ -188,8 +189,9 @@ def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source
     """What a planner is built from: the relay's world view of the scene (no true jammer position or
     power: ``RadioScene.world_view``), MRAV-2's planned path, the vehicle, the workspace."""
     lo, hi = _workspace(sc)
-    return PlannerContext(scene.world_view(), source, vehicle, lo, hi, np.array(sc.nodes.relay, float), sc.duration_s,
-                          sc.controller, sc.antenna.g_bar)
+    return PlannerContext(scene=scene.world_view(), source=source, vehicle=vehicle, workspace_min=lo, workspace_max=hi,
+                          relay_start=np.array(sc.nodes.relay, float), duration_s=sc.duration_s, settings=sc.controller,
+                          surrogate_g_bar=sc.antenna.g_bar)
 
 
 def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:
@@ -203,9 +205,10 @@ def sim_settings(sc: Scenario) -> SimSettings:
     # the Rician K is SimSettings.fading_k_db (the closed loop puts it in)
     noise = PerturbationSettings(fading_model=ch.fading.model, shadow_std_db=ch.propagation.shadowing_std_db,
                                  decorrelation_m=ch.propagation.decorrelation_m, carrier_hz=ch.carrier_hz)
-    return SimSettings(sc.control_period_s, sc.duration_s, sc.sim.plant_rate_hz, np.array(sc.nodes.relay, float), sc.seed,
-                       p.csi_noise_m, p.process_noise_v, p.process_noise_w, p.fading_k_db, sc.controller.senses_jammer_state,
-                       noise)
+    return SimSettings(period_s=sc.control_period_s, duration_s=sc.duration_s, plant_rate_hz=sc.sim.plant_rate_hz,
+                       relay_start=np.array(sc.nodes.relay, float), seed=sc.seed, csi_noise_m=p.csi_noise_m,
+                       process_noise_v=p.process_noise_v, process_noise_w=p.process_noise_w, fading_k_db=p.fading_k_db,
+                       senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise)
 
 
 @dataclass

@@ -69,7 +69,7 @@ def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float) 
     return ca.Function("plant_step", [x, u, d], [xk])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SimSettings:
     """How a mission is flown: control period and length (s), plant rate (Hz), the relay's start
     (m), the seed, and the disturbances unknown to the controller (CSI noise m, process noise
