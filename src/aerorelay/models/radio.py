@@ -16,7 +16,7 @@ call evaluates one pose or a grid of relay positions ``(M, 1, 3)`` x antenna axe
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import casadi as ca
@@ -219,8 +219,6 @@ class RadioScene:
         """The scene as the relay knows it: nodes, antennas, link budget and propagation, and each
         jammer's antenna but not where it is or what it radiates (``HiddenJammer``): planners and
         controllers are built from this, the truth stays in the plant and the metrics."""
-        from dataclasses import replace
-
         return replace(self, jammers=tuple(HiddenJammer.of(j) for j in self.jammers))
 
     def node(self, name: str) -> Node:

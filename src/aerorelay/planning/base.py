@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -50,12 +50,64 @@ class PlannerInput:
     v1: np.ndarray | None = None  # the relay's measured velocity, m/s (None: not given)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
+class GeneratorSettings:
+    """The paper's trajectory generator (and baselines A/B): the surrogate's alignment ``mu``, the
+    reference governor's speed (m/s), the eigenvalue floor of ``H11`` after regularization."""
+
+    mu: float = 0.2
+    governor_speed_m_s: float = 0.5
+    hessian_eig_floor: float = 1e-3
+
+
+@dataclass(frozen=True, kw_only=True)
+class CapacityPlannerSettings:
+    """The capacity-seeking planner (``[controller.capacity]``; meanings and units there):
+    reference speed (m/s) and accelerations (m/s^2), margins and leash (m), the pre-flight route's
+    grid (m, s), look-ahead (s), antenna axes (deg, deg/s, fraction of the tilt limit), the
+    observability excursion (m, m, fraction), yaw (deg/s), the level-only tracking frequency
+    (rad/s), the scoring and how often it replans (steps)."""
+
+    speed_m_s: float = 1.0
+    replan_every: int = 4
+    step_m: float = 0.3
+    leash_m: float = 1.0
+    lookahead_s: float = 1.0
+    axis_step_deg: float = 5.0
+    axis_rate_deg_s: float = 30.0
+    margin_m: float = 0.05
+    route_grid_m: float = 1.0
+    route_dt_s: float = 1.0
+    accel_tau_s: float = 0.3
+    max_accel_m_s2: float = 4.0
+    brake_accel_m_s2: float = 1.5
+    excursion_m: float = 0.0
+    excursion_std_m: float = 1.0
+    excursion_max_loss: float = 0.05
+    yaw_rate_deg_s: float = 0.0
+    tilt_fraction: float = 0.85
+    boundary_axes: bool = True
+    tracking_freq_rad_s: float = 1.0
+    scoring: str = "joint"
+
+    def __post_init__(self):
+        checks.one_of("CapacityPlannerSettings", "scoring", self.scoring, ("joint", "decoupled"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlannerSettings:
+    """Every built-in planner's settings (a part is built from these, never from a scenario)."""
+
+    generator: GeneratorSettings = GeneratorSettings()
+    capacity: CapacityPlannerSettings = CapacityPlannerSettings()
+
+
+@dataclass(frozen=True, kw_only=True)
 class PlannerContext:
-    """What a planner is built from: the radio scene, MRAV-2's planned path, the relay vehicle
-    (built once, with its hover-tilt limits), the workspace box (m), the relay's start (m), the
-    mission length (s), the controller settings (``[controller]`` of a scenario: duck-typed) and
-    the surrogate's ``G_bar``."""
+    """What a planner is built from: the relay's world view of the radio scene, MRAV-2's planned
+    path, the relay vehicle (built once, with its hover-tilt limits), the workspace box (m), the
+    relay's start (m), the mission length (s), the planners' typed settings and the surrogate's
+    ``G_bar``."""
 
     scene: RadioScene
     source: SourceTrajectory
@@ -64,7 +116,7 @@ class PlannerContext:
     workspace_max: np.ndarray
     relay_start: np.ndarray
     duration_s: float
-    settings: Any
+    settings: PlannerSettings = PlannerSettings()
     surrogate_g_bar: float = 1.0  # G_bar of the generator's surrogate (eq. 12-13)
 
 

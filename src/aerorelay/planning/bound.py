@@ -37,7 +37,6 @@ import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -57,6 +56,18 @@ log = logging.getLogger(__name__)
 BOUND_VERSION = "11"  # bump when the computation changes: cached bounds are recomputed
 
 
+@dataclass(frozen=True, kw_only=True)
+class BoundResolution:
+    """The bound's resolution (``[bound]``): position grid (m), time grid (s), antenna-axis spacing
+    (deg), the paths' speed limit (m/s) and the flyable paths' acceleration limit (m/s^2; None: none)."""
+
+    grid_m: float = 0.5
+    dt_s: float = 0.5
+    axis_step_deg: float = 5.0
+    max_speed_m_s: float = 1.0
+    max_accel_m_s2: float | None = 4.0
+
+
 @dataclass(frozen=True)
 class BoundProblem:
     """What a bound depends on: the radio scene, MRAV-2's path, the relay vehicle (its hover-tilt
@@ -70,7 +81,7 @@ class BoundProblem:
     workspace_max: np.ndarray
     relay_start: np.ndarray
     duration_s: float
-    resolution: Any
+    resolution: BoundResolution
     outage_threshold: float = 1e-3
     realization: LargeScaleRealization | None = None  # the run's shadowing field / LoS states (None: deterministic)
 
@@ -278,7 +289,7 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
                   "hover_tilt_limit_deg": float(np.degrees(max_tilt)), "axes": int(len(axes)), "cells": int(cells.shape[0]),
                   "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m),
                   "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s), "flyable_status": statuses,
-                  "flyable_max_accel_m_s2": getattr(b, "max_accel_m_s2", None)}
+                  "flyable_max_accel_m_s2": b.max_accel_m_s2}
     return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
                          paths["maxmin"][1], *flyable["mean"], *flyable["maxmin"], resolution, pb.outage_threshold,
                          f"{pb.scene.describe()}; {ASSUMPTIONS}")
@@ -291,7 +302,7 @@ def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray,
     acceleration limits, its best axis per sample among those the platform can lean to there
     (``leaning_capacity``), unrefined: still flyable, a weaker lower estimate."""
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
-    v, accel = pb.resolution.max_speed_m_s, getattr(pb.resolution, "max_accel_m_s2", None)
+    v, accel = pb.resolution.max_speed_m_s, pb.resolution.max_accel_m_s2
     if scene.realization is None:
         fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind, max_accel=accel)
         return (fp.capacity, fp.position), fp.status

@@ -52,32 +52,28 @@ from .trajectory_generator import Reference
 class CapacityPlanner:
     """Hill climbing on the true capacity over (position, antenna axis), speed-limited reference."""
 
-    def __init__(self, ctx: PlannerContext, *, replan_every: int = 4, step_m: float = 0.3, leash_m: float = 1.0, lookahead_s: float = 1.0,
-                 axis_step_deg: float = 5.0, axis_rate_deg_s: float = 30.0, margin_m: float = 0.05,
-                 route_grid_m: float = 1.0, route_dt_s: float = 1.0, accel_tau_s: float = 0.3, max_accel_m_s2: float = 4.0,
-                 brake_accel_m_s2: float = 1.5,
-                 excursion_m: float = 0.0, excursion_std_m: float = 1.0, excursion_max_loss: float = 0.05, yaw_rate_deg_s: float = 0.0,
-                 tilt_fraction: float = 0.85, boundary_axes: bool = True, tracking_freq: float = 1.0, scoring: str = "joint"):
+    def __init__(self, ctx: PlannerContext):
+        s = ctx.settings.capacity  # CapacityPlannerSettings
         veh = ctx.vehicle
         # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
         # a margin of control authority) are axes it can actually fly
         az = np.radians(np.arange(0.0, 360.0, 10.0))
-        limits = tilt_fraction * veh.hover_tilt_limits(az)
+        limits = s.tilt_fraction * veh.hover_tilt_limits(az)
         self.tilt_limit = float(limits.max())
-        self.axes = axis_set(az, limits, np.radians(axis_step_deg), boundary=boundary_axes)
-        self.lo, self.hi = np.asarray(ctx.workspace_min, float) + margin_m, np.asarray(ctx.workspace_max, float) - margin_m
-        self.offsets = step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
-        self.speed = ctx.settings.capacity.speed_m_s
-        self.replan_every, self.leash, self.lookahead = replan_every, leash_m, lookahead_s
-        self.axis_rate = np.radians(axis_rate_deg_s)
+        self.axes = axis_set(az, limits, np.radians(s.axis_step_deg), boundary=s.boundary_axes)
+        self.lo, self.hi = np.asarray(ctx.workspace_min, float) + s.margin_m, np.asarray(ctx.workspace_max, float) - s.margin_m
+        self.offsets = s.step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
+        self.speed = s.speed_m_s
+        self.replan_every, self.leash, self.lookahead = s.replan_every, s.leash_m, s.lookahead_s
+        self.axis_rate = np.radians(s.axis_rate_deg_s)
         self.gravity = veh.gravity
         self.source_name = ctx.scene.name_of("source")
         t0 = time.perf_counter()
-        self.route_t, self.route_p = self._preflight_route(ctx, route_grid_m, route_dt_s)
+        self.route_t, self.route_p = self._preflight_route(ctx, s.route_grid_m, s.route_dt_s)
         self.grid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes), source=self.source_name)
         # yawing the platform (yaw_rate_deg_s > 0, a tilted platform): rotated axis sets scored at the best position
-        self.yaw = (PlatformYaw(self.axes, az, limits, rate=np.radians(yaw_rate_deg_s))
-                    if yaw_rate_deg_s > 0 and self.tilt_limit > 0 else None)
+        self.yaw = (PlatformYaw(self.axes, az, limits, rate=np.radians(s.yaw_rate_deg_s))
+                    if s.yaw_rate_deg_s > 0 and self.tilt_limit > 0 else None)
         self.yaw_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.yaw.all_axes()), source=self.source_name)
                          if self.yaw is not None else None)
         self.preflight_s = time.perf_counter() - t0
@@ -87,18 +83,17 @@ class CapacityPlanner:
         self.axis_goal = E3.copy()
         self.best_capacity = 0.0
         self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
-        self.accel_tau, self.max_accel = accel_tau_s, max_accel_m_s2
-        self.brake_accel = min(brake_accel_m_s2, max_accel_m_s2)
-        self.excursion, self.excursion_std, self.excursion_max_loss = excursion_m, excursion_std_m, excursion_max_loss
+        self.accel_tau, self.max_accel = s.accel_tau_s, s.max_accel_m_s2
+        self.brake_accel = min(s.brake_accel_m_s2, s.max_accel_m_s2)
+        self.excursion, self.excursion_std, self.excursion_max_loss = s.excursion_m, s.excursion_std_m, s.excursion_max_loss
         self.excursion_allowed = True
-        if scoring not in ("joint", "decoupled"):
-            raise ValueError(f"scoring must be 'joint' or 'decoupled', got {scoring!r}")
+        scoring = s.scoring
         # one position x every axis: the excursion's point, and the decoupled scoring's second pass
         self.axis_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.axes), source=self.source_name)
-                          if excursion_m > 0 or scoring == "decoupled" else None)
+                          if s.excursion_m > 0 or scoring == "decoupled" else None)
         self.position_grid = (CompiledRelayGrid(ctx.scene, len(self.offsets), 1, source=self.source_name)
                               if scoring == "decoupled" and self.yaw is None else None)
-        self.tracking_freq = tracking_freq
+        self.tracking_freq = s.tracking_freq_rad_s
         self._k = 0
 
     def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:

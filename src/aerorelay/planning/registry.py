@@ -29,7 +29,7 @@ class FixedPlanReference:
 
 
 def _generator(ctx: PlannerContext, mu: float) -> TrajectoryGenerator:
-    b, c = ctx.scene.budget, ctx.settings
+    b, c = ctx.scene.budget, ctx.settings.generator
     gains = tuple(float(j.pattern.g_bar) for j in ctx.scene.jammers)  # the surrogate's conservative jammer gain: its peak
     return TrajectoryGenerator(
         SurrogateParams(mu, ctx.surrogate_g_bar, b.tx_power, b.noise_power, b.bandwidth, gains),
@@ -40,7 +40,7 @@ def _generator(ctx: PlannerContext, mu: float) -> TrajectoryGenerator:
 
 @register_planner("trajectory_generator")
 def _paper_generator(ctx: PlannerContext):
-    return GeneratorPlanner(_generator(ctx, ctx.settings.mu))
+    return GeneratorPlanner(_generator(ctx, ctx.settings.generator.mu))
 
 
 @register_planner("isotropic")
@@ -51,18 +51,11 @@ def _baseline_a(ctx: PlannerContext):
 
 @register_planner("single_shot")
 def _baseline_b(ctx: PlannerContext):
-    planner = SingleShotPlanner(ctx.scene, max_speed=ctx.settings.governor_speed_m_s, gravity=ctx.vehicle.gravity)
+    planner = SingleShotPlanner(ctx.scene, max_speed=ctx.settings.generator.governor_speed_m_s, gravity=ctx.vehicle.gravity)
     plan = planner.plan(ctx.source, ctx.relay_start, ctx.duration_s, ctx.workspace_min, ctx.workspace_max)
     return FixedPlanReference(PlannedReference(plan))
 
 
 @register_planner("capacity")
 def _capacity_seeking(ctx: PlannerContext):
-    cfg = ctx.settings.capacity
-    return CapacityPlanner(ctx, replan_every=cfg.replan_every, max_accel_m_s2=cfg.max_accel_m_s2, brake_accel_m_s2=cfg.brake_accel_m_s2,
-                           margin_m=cfg.margin_m, leash_m=cfg.leash_m,
-                           route_grid_m=cfg.route_grid_m, lookahead_s=cfg.lookahead, axis_rate_deg_s=cfg.axis_rate_deg_s,
-                           excursion_m=cfg.excursion_m, excursion_std_m=cfg.excursion_std_m,
-                           excursion_max_loss=cfg.excursion_max_loss, yaw_rate_deg_s=cfg.yaw_rate_deg_s,
-                           tilt_fraction=cfg.tilt_fraction, axis_step_deg=cfg.axis_step_deg,
-                           boundary_axes=cfg.boundary_axes, tracking_freq=cfg.tracking_freq_rad_s, scoring=cfg.scoring)
+    return CapacityPlanner(ctx)

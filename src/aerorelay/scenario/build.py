@@ -25,8 +25,16 @@ from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
-from ..planning.base import CheckedPlanner, Planner, PlannerContext, planner_factory
-from ..planning.bound import BoundProblem, CapacityBound, bound_key, cached_bound, compute_bound
+from ..planning.base import (
+    CapacityPlannerSettings,
+    CheckedPlanner,
+    GeneratorSettings,
+    Planner,
+    PlannerContext,
+    PlannerSettings,
+    planner_factory,
+)
+from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
@@ -190,8 +198,22 @@ def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source
     power: ``RadioScene.world_view``), MRAV-2's planned path, the vehicle, the workspace."""
     lo, hi = _workspace(sc)
     return PlannerContext(scene=scene.world_view(), source=source, vehicle=vehicle, workspace_min=lo, workspace_max=hi,
-                          relay_start=np.array(sc.nodes.relay, float), duration_s=sc.duration_s, settings=sc.controller,
+                          relay_start=np.array(sc.nodes.relay, float), duration_s=sc.duration_s, settings=planner_settings(sc),
                           surrogate_g_bar=sc.antenna.g_bar)
+
+
+def planner_settings(sc: Scenario) -> PlannerSettings:
+    """The built-in planners' typed settings from ``[controller]`` and ``[controller.capacity]``."""
+    c, cap = sc.controller, sc.controller.capacity
+    return PlannerSettings(
+        generator=GeneratorSettings(mu=c.mu, governor_speed_m_s=c.governor_speed_m_s, hessian_eig_floor=c.hessian_eig_floor),
+        capacity=CapacityPlannerSettings(
+            speed_m_s=cap.speed_m_s, replan_every=cap.replan_every, leash_m=cap.leash_m, lookahead_s=cap.lookahead,
+            axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
+            route_grid_m=cap.route_grid_m, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
+            excursion_m=cap.excursion_m, excursion_std_m=cap.excursion_std_m, excursion_max_loss=cap.excursion_max_loss,
+            yaw_rate_deg_s=cap.yaw_rate_deg_s, tilt_fraction=cap.tilt_fraction, boundary_axes=cap.boundary_axes,
+            tracking_freq_rad_s=cap.tracking_freq_rad_s, scoring=cap.scoring))
 
 
 def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:
@@ -284,7 +306,14 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
     realization = large_scale_realization(scene, noise, sc.seed)
     return BoundProblem(scene, build_source(sc), vehicle or sc.platform.vehicle(), lo, hi, np.array(sc.nodes.relay, float),
-                        sc.duration_s, sc.bound, sc.channel.outage, realization if realization.active else None)
+                        sc.duration_s, bound_resolution(sc), sc.channel.outage, realization if realization.active else None)
+
+
+def bound_resolution(sc: Scenario) -> BoundResolution:
+    """The bound's typed resolution from ``[bound]``."""
+    b = sc.bound
+    return BoundResolution(grid_m=b.grid_m, dt_s=b.dt_s, axis_step_deg=b.axis_step_deg, max_speed_m_s=b.max_speed_m_s,
+                           max_accel_m_s2=b.max_accel_m_s2)
 
 
 def scenario_bound_key(sc: Scenario) -> str:
