@@ -546,6 +546,12 @@ class ControllerConfig(_Strict):
         return self.variant == "constrained" and self.planner != "capacity"
 
 
+@functools.lru_cache(maxsize=16)
+def _flight_file_path(kind: str, file: str, stamp: tuple, yaw_deg: float, offset: tuple):
+    """A CSV or ULog path, cached by file, modification stamp and frame (read-only objects)."""
+    return UlogPath(file, yaw_deg=yaw_deg, offset=list(offset)) if kind == "ulog" else CsvPath(file)
+
+
 class MissionConfig(_Strict):
     """MRAV-2 path: minimum-jerk segments through timed waypoints ``[t_s, x, y, z]`` or a CSV."""
 
@@ -602,7 +608,13 @@ class MissionConfig(_Strict):
         return self.trajectory_ulog or self.trajectory_csv
 
     def path(self):
-        """MRAV-2's path object (``models.mission``)."""
+        """MRAV-2's path object (``models.mission``); a flight file is read once per content stamp
+        (the checks of a load ask for it several times)."""
+        f = self.flown_file
+        if f and Path(f).is_file():
+            st = Path(f).stat()
+            return _flight_file_path("ulog" if self.trajectory_ulog else "csv", f, (st.st_mtime_ns, st.st_size),
+                                     self.ulog_yaw_deg, tuple(self.ulog_offset_m))
         if self.trajectory_ulog:
             return UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
         return CsvPath(self.trajectory_csv) if self.trajectory_csv else MinimumJerkPath(self.waypoints)
