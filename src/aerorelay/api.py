@@ -29,23 +29,38 @@ from ._version import __version__
 from .control.bench import benchmark_closed_loop
 from .control.nmpc import NmpcSettings
 from .experiments.budget import left_out_notices, within_budget
-from .experiments.campaign import CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
+from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
 from .experiments.study import Study, StudyError, expand, find_studies
 from .planning.bound import CapacityBound
-from .report.figures import write_run_figures
+from .report.figures import fig_bound, write_run_figures
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_run_mcap
 from .report.run_report import RUN_REPORT, render_run_report
+from .report.summary import metric as _metric
 from .report.summary import summarize
-from .scenario import Scenario, parse_scenario
-from .scenario.build import build, build_scene, scenario_bound
-from .scenario.run import RunResult
+from .scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from .scenario.build import build, build_scene, check_buildable, nmpc_settings, scenario_bound
+from .scenario.load import parse_sets as _parse_sets
+from .scenario.run import RunResult, check_run_size, output_bytes
 from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
 from .sim.initial import link_budget_lines as initial_link_budget_lines
+from .sim.units import metric_unit as _metric_unit
+from .sim.units import si as _si
 from .store import strict_json
-from .store.outputs import OutputError, check_output_folder, folder_kind, is_own_folder, mark, write_atomic
-from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
+from .store.outputs import (
+    OutputBusyError,
+    OutputError,
+    check_output_folder,
+    folder_kind,
+    is_own_folder,
+    mark,
+    new_sibling,
+    swap_in,
+    write_atomic,
+    writing,
+)
+from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE, write_bound_files
 
 
 class Result(RunResult):
@@ -223,3 +238,72 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
             "wall_s": res.wall_s, "notices": notices}
     summary = _write_report(chosen, specs, out, meta)
     return Reproduction(chosen, specs, res, summary, out / "report.html")
+
+
+# ---------------------------------------------------------------- what the command line calls
+parse_sets = _parse_sets  # "--set" items -> dotted keys and values (ScenarioError naming a malformed one)
+si = _si  # a value with its unit and an SI prefix (310 kbit/s)
+metric_unit = _metric_unit
+metric = _metric  # a dotted metric of a metrics dict
+
+
+def updated(sc: Scenario, updates: dict) -> Scenario:
+    """``sc`` with dotted-key updates, validated like a scenario file, its parts' checks included."""
+    return check_buildable(sc.with_updates(updates)) if updates else sc
+
+
+def solver_settings(sc: Scenario, **overrides) -> NmpcSettings:
+    """The NMPC's solver settings of ``sc`` with ``NmpcSettings`` fields overridden (None: kept)."""
+    return nmpc_settings(sc, **overrides)
+
+
+def check_run(sc: Scenario, out: str | Path, *, figures: bool = True) -> None:
+    """Every check a run makes before flying: its log fits the machine's memory (ScenarioError) and
+    ``out`` can take the run folder with room for it (OutputError)."""
+    check_run_size(sc)
+    check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
+
+
+def check_output(out: str | Path, kind: str) -> None:
+    """``out`` can take this program's ``kind`` of output (run, bound, campaign): OutputError otherwise."""
+    check_output_folder(out, kind)
+
+
+def write_bound(sc: Scenario, out: str | Path, progress: Callable[[int, int], None] | None = None) -> dict:
+    """The bound of ``sc`` written as a bound folder (bound.json, bound.parquet, bound.png), one
+    writer at a time (OutputBusyError); returns bound.json's summary."""
+    with writing(out) as folder:
+        b = bound(sc, progress)
+        tmp = new_sibling(folder)
+        summary = write_bound_files(b, tmp)
+        fig_bound(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+        swap_in(tmp, folder, "bound")
+    return summary
+
+
+def strict_json_text(data, indent: int = 2) -> str:
+    """``data`` as strict JSON (no NaN / Infinity: null, with the reason under ``null_reasons``)."""
+    return strict_json.dumps(data, indent=indent)
+
+
+def is_run_folder(folder: str | Path) -> bool:
+    """Whether ``folder`` is one run's folder (not a campaign's or a bound's)."""
+    return folder_kind(Path(folder)) == "run"
+
+
+def run_metrics_file(run_dir: str | Path) -> Path:
+    """A run folder's metrics.json."""
+    return Path(run_dir) / METRICS_FILE
+
+
+def finished_runs(out: str | Path) -> int:
+    """How many runs of a campaign folder are recorded done."""
+    return sum(r.get("status") == RunStatus.DONE for r in load_manifest(Path(out)).values())
+
+
+output_lock = writing  # hold a run or bound folder's one-writer lock (OutputBusyError when another process writes it)
+
+__all__ = ["CampaignBusyError", "OutputBusyError", "OutputError", "Result", "Scenario", "ScenarioError", "StudyError",
+           "bench", "bound", "check_output", "check_run", "export", "finished_runs", "is_run_folder", "link_budget", "link_budget_lines",
+           "load_scenario", "metric", "metric_unit", "output_lock", "parse_sets", "report", "report_run", "reproduce",
+           "run_metrics_file", "si", "simulate", "solver_settings", "strict_json_text", "updated", "write_bound"]

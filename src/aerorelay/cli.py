@@ -11,13 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 from . import api
-from .scenario import Scenario, ScenarioError, load_scenario
-from .scenario.build import check_buildable, nmpc_settings
-from .scenario.load import parse_sets as _parse_sets
-from .scenario.run import check_run_size, output_bytes
-from .store import strict_json
-from .store.outputs import OutputBusyError, OutputError, check_output_folder, writing
-from .store.run_folder import METRICS_FILE
+from .api import CampaignBusyError, OutputBusyError, OutputError, Scenario, ScenarioError, StudyError, load_scenario
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
 console = Console()
@@ -44,16 +38,16 @@ def _with_overrides(sc: Scenario, overrides: dict, sets: list[str] | None = None
     and its allowed range."""
     updates = {**parse_sets(sets), **{k: v for k, v in overrides.items() if v is not None}}
     try:
-        return check_buildable(sc.with_updates(updates)) if updates else sc
+        return api.updated(sc, updates)
     except ScenarioError as exc:
         _fail(str(exc))
         raise  # unreachable: _fail exits
 
 
-def _check_out(out: Path, kind: str, need_bytes: int = 0) -> None:
+def _check_out(out: Path, kind: str) -> None:
     """``--out`` checked before any work: a named error and exit 2 when it cannot take the output."""
     try:
-        check_output_folder(out, kind, need_bytes=need_bytes)
+        api.check_output(out, kind)
     except OutputError as exc:
         _fail(str(exc))
 
@@ -71,7 +65,7 @@ SET_HELP = "override a scenario field, e.g. --set controller.mu=0.3 (repeatable;
 def parse_sets(items: list[str] | None) -> dict:
     """``--set`` items as dotted keys -> values; a malformed item exits 2 naming it."""
     try:
-        return _parse_sets(items)
+        return api.parse_sets(items)
     except ScenarioError as exc:
         _fail(str(exc))
 
@@ -145,14 +139,10 @@ def run(
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
     sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
                                                    "sim.duration_s": duration}, set_)
+    _check_run(sc, out, figures=not no_figures)
     try:
-        check_run_size(sc)
-    except ScenarioError as exc:
-        _fail(str(exc))
-    _check_out(out, "run", need_bytes=output_bytes(sc, figures=not no_figures))
-    try:
-        with writing(out, wait=wait):  # one writer per folder, from before the flight until it is saved
-            _check_out(out, "run", need_bytes=output_bytes(sc, figures=not no_figures))  # again: we may have waited
+        with api.output_lock(out, wait=wait):  # one writer per folder, from before the flight until it is saved
+            _check_run(sc, out, figures=not no_figures)  # again: we may have waited
             result = _fly(sc, no_bound)
             result.save(out, figures=not no_figures)
     except OutputBusyError as exc:
@@ -164,6 +154,14 @@ def run(
     if result.metrics["unsafe"]:
         err_console.print(f"[bold red]unsafe run[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
         raise typer.Exit(EXIT_UNSAFE)
+
+
+def _check_run(sc: Scenario, out: Path, *, figures: bool) -> None:
+    """The run's checks before flying (its size, its output folder): exit 2 naming what fails."""
+    try:
+        api.check_run(sc, out, figures=figures)
+    except (ScenarioError, OutputError) as exc:
+        _fail(str(exc))
 
 
 def _fly(sc: Scenario, no_bound: bool) -> api.Result:
@@ -201,26 +199,21 @@ def bound(
     """The best link the physics allows on this scenario: static and path capacity bounds."""
     import json
 
-    from .report.figures import fig_bound
-    from .store.outputs import new_sibling, swap_in
-    from .store.run_folder import write_bound_files
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     _check_out(out, "bound")
     try:
-        with writing(out):
-            b = _bound_with_progress(sc)
-            tmp = new_sibling(out)
-            summary = write_bound_files(b, tmp)
-            fig_bound(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
-            swap_in(tmp, out, "bound")
+        with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
+                      TimeElapsedColumn(), console=err_console, transient=True) as prog:
+            task = prog.add_task("bound", total=1)
+            summary = api.write_bound(sc, out, progress=lambda k, n: prog.update(task, completed=k, total=n))
     except OutputBusyError as exc:
         _fail(str(exc))
     t = Table(title=f"capacity bounds: {sc.name}")
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
-    from .sim.units import si
-
+    si = api.si
     for name in ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin"):
         s = summary[name]
         t.add_row(name, si(s["mean"], sc.channel.capacity_unit), si(s["min"], sc.channel.capacity_unit), f"{s['outage_fraction']:.1%}")
@@ -245,10 +238,8 @@ KEY_METRICS = (
 
 def _lookup(m: dict, key: str):
     """A dotted metric, or None where an older run folder does not have it."""
-    from .report.summary import metric
-
     try:
-        return metric(m, key)
+        return api.metric(m, key)
     except (KeyError, TypeError):
         return None
 
@@ -260,17 +251,14 @@ def unit_system(m: dict) -> str:
 
 def _unit_of(key: str, capacity_unit: str) -> str:
     """The unit of a dotted key of KEY_METRICS (``bound.*`` capacities in the capacity's unit)."""
-    from .sim.units import DIMENSIONLESS, metric_unit
-
     if key.startswith("bound."):
-        return DIMENSIONLESS if key.endswith("outage_fraction") else capacity_unit
-    return metric_unit(key.split(".")[0], capacity_unit) or ""
+        return "1" if key.endswith("outage_fraction") else capacity_unit
+    return api.metric_unit(key.split(".")[0], capacity_unit) or ""
 
 
 def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
     """Key metrics of runs of one unit system, each value with its unit (SI prefixes on bit/s, m, s, ...)."""
-    from .sim.units import si
-
+    si = api.si
     capacity_unit = "bit/s" if unit_system(next(iter(runs.values()))) == "physical" else "bit/s/Hz"
     t = Table(show_header=True)
     t.add_column("metric")
@@ -302,7 +290,7 @@ def compare(
 
     runs = {}
     for d in (run_a, run_b):
-        f = d / METRICS_FILE
+        f = api.run_metrics_file(d)
         if not f.exists():
             err_console.print(f"{d}: no metrics.json (is it an `aerorelay run` output folder?)", markup=False)
             raise typer.Exit(EXIT_BAD_INPUT)
@@ -353,7 +341,7 @@ def bench(
                                                    "controller.planner": planner,
                                                    "sim.control_rate_hz": control_rate_hz}, set_)
     try:
-        settings = nmpc_settings(sc, backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
+        settings = api.solver_settings(sc, backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
                                  warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,
                                  accept_tol=accept_tol)
     except ValueError as exc:
@@ -388,7 +376,7 @@ def bench(
         console.print(f"full IPOPT solve / RTI step (means): x{res['ipopt_over_rti_mean']:.0f} "
                       f"(IPOPT converged {res['ipopt_converged']})", markup=False, highlight=False)
     if json_out is not None:
-        json_out.write_text(strict_json.dumps(res, indent=2))
+        json_out.write_text(api.strict_json_text(res))
 
 
 def _default_studies_dir() -> Path:
@@ -414,9 +402,6 @@ def reproduce(
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from .experiments.campaign import CampaignBusyError, RunStatus, load_manifest
-    from .experiments.study import StudyError
-
     _check_out(out, "campaign")
 
     folder = studies_dir or _default_studies_dir()
@@ -440,7 +425,7 @@ def reproduce(
     except (StudyError, CampaignBusyError, OutputError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
-        n = sum(r.get("status") == RunStatus.DONE for r in load_manifest(out).values())
+        n = api.finished_runs(out)
         err_console.print(f"interrupted: {n} finished runs are kept in {out} (partial report: {out / 'report.html'}); "
                           "run the same command to resume", markup=False)
         raise typer.Exit(130) from None
@@ -484,10 +469,7 @@ def report_cmd(
 ):
     """Render report.html (and a campaign's summary.json) from a campaign's finished runs (partial studies
     marked), or from one run folder."""
-    from .experiments.study import StudyError
-    from .store.outputs import folder_kind
-
-    if folder_kind(out) == "run":
+    if api.is_run_folder(out):
         try:
             path = api.report_run(out)
         except OutputError as exc:
