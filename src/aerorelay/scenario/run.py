@@ -17,7 +17,7 @@ from ..models.jammer import Jammer
 from ..models.radio import RadioScene
 from ..planning.base import CheckedPlanner, Planner
 from ..planning.bound import CapacityBound
-from ..sim.closed_loop import MissionResult, log_columns
+from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
 from ..sim.metrics import compute_metrics
 from ..sim.units import metric_units
 from ..store.outputs import writing
@@ -148,7 +148,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     bound = scenario_bound(sc, bound_progress, parts.vehicle, injected) if with_bound else None
     mission = parts.closed_loop().run(progress)
     base = log_columns(parts.vehicle.n_rotors)  # then the random channel terms and the jammer estimate, when any
-    df = log_frame(mission.log, base + [c for c in mission.log if c not in base])
+    df = log_frame(mission.log, base + [c for c in mission.log if c not in base], LOG_COLUMN_TYPES)
     metrics = run_metrics(sc, mission, parts.vehicle, bound)
     if isinstance(parts.planner, CheckedPlanner):  # a user's planner: how often its position reference was clipped
         metrics["reference_clipped_steps"] = parts.planner.clipped_steps

@@ -33,6 +33,12 @@ BENCH_POINT_EVERY = 500  # control steps between two states kept for `aerorelay 
 BENCH_POINT_OFFSET = 250  # the first one kept, mid-way into the first interval
 
 
+# the log's columns that are not floats, with their types (flags and the QP's status text)
+LOG_COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool, "safety_violation": bool}
+# the columns a step records by name, after the numeric row (written in log_columns' order)
+RECORDED_BY_NAME = ("qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err")
+
+
 def log_columns(n_rotors: int) -> list[str]:
     """The per-step log's columns, in order, for a relay with ``n_rotors`` rotors."""
     return (
@@ -136,8 +142,7 @@ class ClosedLoop:
         self.controller, self.plant, self.settings = controller, plant, settings
         self.spec = controller.spec
         self.columns = log_columns(self.veh.n_rotors)
-        self._numeric_columns = [c for c in self.columns
-                                 if c not in ("qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err")]
+        self._numeric_columns = [c for c in self.columns if c not in RECORDED_BY_NAME]
         self.rng = np.random.default_rng(settings.seed)
         noise = settings.channel_noise or PerturbationSettings()
         self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
@@ -192,10 +197,10 @@ class ClosedLoop:
         x = veh.hover_state(st.relay_start)
         u = np.zeros(veh.n_rotors)
         log: dict[str, np.ndarray] = {c: np.empty(n_steps) for c in self.columns}
-        log["qp_status"] = np.empty(n_steps, dtype=object)
-        log["qp_ok"] = np.zeros(n_steps, dtype=bool)
-        log["safety_violation"] = np.zeros(n_steps, dtype=bool)
-        log["fallback"] = np.zeros(n_steps, dtype=bool)
+        for name in RECORDED_BY_NAME:  # flags and the status text: their own dtypes (taylor_rel_err stays float)
+            kind = LOG_COLUMN_TYPES.get(name, float)
+            if kind is not float:
+                log[name] = np.zeros(n_steps, dtype=bool) if kind is bool else np.empty(n_steps, dtype=object)
         wall0 = time.perf_counter()
         aborted, flown = None, n_steps
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)

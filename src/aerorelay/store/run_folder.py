@@ -24,17 +24,15 @@ MISSION_CSV = "mission.csv"  # a CSV mission's copy, named by the run's scenario
 MISSION_ULOG = "mission.ulg"  # a ULog mission's copy
 
 
-def log_frame(log: dict, columns: list[str]) -> pd.DataFrame:
-    """The per-step log as a DataFrame with the documented column order."""
+def log_frame(log: dict, columns: list[str], types: dict[str, type]) -> pd.DataFrame:
+    """The per-step log as a DataFrame with the documented column order, the columns named in
+    ``types`` cast to theirs (the rest are floats)."""
     missing = [c for c in columns if c not in log]
     if missing:
         raise ValueError(f"the mission log lacks the columns {missing} of its vehicle")
     df = pd.DataFrame({c: log[c] for c in columns})
-    df["jammer_on"] = df["jammer_on"].astype(bool)
-    df["qp_status"] = df["qp_status"].astype(str)
-    df["qp_ok"] = df["qp_ok"].astype(bool)
-    df["fallback"] = df["fallback"].astype(bool)
-    df["safety_violation"] = df["safety_violation"].astype(bool)
+    for name, kind in types.items():
+        df[name] = df[name].astype(kind)
     return df
 
 
