@@ -40,8 +40,10 @@ def test_a_cosine_base_station_has_its_peak_on_its_boresight_and_the_cosine_law_
     t, a = math.radians(tilt), math.radians(az)
     boresight = [math.cos(t) * math.cos(a), math.cos(t) * math.sin(a), -math.sin(t)]
     assert _bs_gain_toward(sc, boresight) == pytest.approx(g_max, rel=1e-9)
-    # 40 deg off the boresight, in the vertical plane through it: g_max cos(40 deg)^n
-    off = [math.cos(t + math.radians(40)) * math.cos(a), math.cos(t + math.radians(40)) * math.sin(a), -math.sin(t + math.radians(40))]
+    # 40 deg off the boresight, above it in the vertical plane through it (never straight down, where the
+    # relay's own dipole has its null): g_max cos(40 deg)^n
+    up = t - math.radians(40)
+    off = [math.cos(up) * math.cos(a), math.cos(up) * math.sin(a), -math.sin(up)]
     assert _bs_gain_toward(sc, off) == pytest.approx(g_max * max(math.cos(math.radians(40)) ** n, 0.001), rel=1e-9)
 
 

@@ -78,6 +78,8 @@ def validate(
     """Validate a scenario and print it fully resolved (every default spelled out)."""
     sc = _with_overrides(_load_or_exit(scenario), {}, set_)
     print(f"# {scenario}: valid")
+    if sc.channel.outage_threshold is None:
+        print(f"# channel.outage_threshold (unset) resolves to {sc.channel.outage:g} {sc.channel.capacity_unit}")
     print(sc.to_toml())
 
 

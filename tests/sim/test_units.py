@@ -48,11 +48,16 @@ def test_the_physical_outage_threshold_is_the_papers_spectral_efficiency_times_t
     assert sc.channel.outage == 1e-3  # the paper's, normalized
 
 
-def test_an_explicit_threshold_wins_and_the_resolved_one_is_written():
-    sc = load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"channel.units": "physical", "channel.bandwidth_hz": 1e6})
-    assert "outage_threshold = 1000.0" in sc.to_toml()
+def test_an_explicit_threshold_wins_and_the_resolved_one_is_recorded():
+    sc = load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"channel.units": "physical", "channel.bandwidth_hz": 1e6,
+                                                                        "sim.duration_s": 0.3})
+    assert sc.channel.outage == 1000.0
+    m = ar.simulate(sc).metrics
+    assert m["outage_threshold"] == 1000.0 and m["units"]["outage_threshold"] == "bit/s"
+    res = CliRunner().invoke(app, ["validate", str(ROOT / "scenarios" / "nominal_tilted.toml")])
+    assert "outage_threshold (unset) resolves to 0.001 bit/s/Hz" in res.output
     sc2 = sc.with_updates({"channel.outage_threshold": 5e4})
-    assert sc2.channel.outage == 5e4
+    assert sc2.channel.outage == 5e4 and sc2.with_updates({"channel.units": "normalized"}).channel.outage == 5e4
 
 
 @given(value=st.floats(min_value=1e-9, max_value=1e14), unit=st.sampled_from(["bit/s", "W", "Hz", "m", "s"]))

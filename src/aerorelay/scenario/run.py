@@ -154,6 +154,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
         metrics["reference_clipped_steps"] = parts.planner.clipped_steps
         if parts.planner.first_clip is not None:
             metrics["reference_clipped_first"] = parts.planner.first_clip
+    metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit
     metrics["unit_system"] = sc.channel.units
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, bound)

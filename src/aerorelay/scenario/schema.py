@@ -958,8 +958,6 @@ class Scenario(_Strict):
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
         the CSV's path (a run folder holds its own copy)."""
         data = self.model_dump(exclude_none=True)
-        data["channel"] = {k: (self.channel.outage if k == "outage_threshold" else data["channel"][k])
-                           for k in ChannelConfig.model_fields if k == "outage_threshold" or k in data["channel"]}
         m = data["mission"]
         if self.mission.flown_file:
             m.pop("waypoints", None)
