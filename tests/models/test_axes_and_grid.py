@@ -66,13 +66,17 @@ def test_axis_set_stays_inside_an_azimuth_dependent_limit_and_its_boundary_reach
     lim = np.interp(a, az, limits, period=2 * np.pi)
     assert np.all(tilt <= lim + 1e-9)
     if boundary and limits.max() > 0:
-        for t_az in np.linspace(0.0, 2 * np.pi, 7, endpoint=False):
-            spacing = step / np.sin(limits.max())  # the boundary's azimuth spacing at most
-            near = np.abs((a - t_az + np.pi) % (2 * np.pi) - np.pi) <= spacing  # axes toward about that azimuth
-            want = float(np.interp(t_az, az, limits, period=2 * np.pi))
-            if want > 2 * step:  # a ring around the azimuth wide enough to hold boundary points
-                reach = np.max(tilt[near] - np.interp(a[near], az, limits, period=2 * np.pi))
-                assert reach >= -0.25 * step - 1e-9
+        # the contract as documented: along the limit, about ``step`` apart, an axis at the limit itself
+        # wherever the limit lies beyond its last ring by more than a tenth of a step. (Where it lies
+        # within that tenth the ring is trusted, though an inner ring holds as few as 6-7 azimuths: a
+        # known gap, fixing it changes the capacity planner's axes and so its numbers; docs/decisions.md.)
+        n = max(6, int(np.ceil(2 * np.pi * np.sin(limits.max()) / step)))
+        grid = 2 * np.pi * np.arange(n) / n
+        want = np.interp(grid, az, limits, period=2 * np.pi)
+        beyond = want - np.floor(want / step + 1e-9) * step > 0.1 * step
+        for t_az, w in zip(grid[beyond & (want > 0)], want[beyond & (want > 0)], strict=True):
+            hit = np.abs((a - t_az + np.pi) % (2 * np.pi) - np.pi) < 1e-9
+            assert np.any(np.abs(tilt[hit] - w) < 1e-9), (t_az, w)
 
 
 @given(st.floats(0.0, np.pi), st.floats(-2 * np.pi, 2 * np.pi))
