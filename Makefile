@@ -18,7 +18,12 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $@
 
-run: $(VENV)/.installed
+# the main job needs only the runtime dependencies (not the test and documentation tools)
+$(VENV)/.installed-run: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+run: $(VENV)/.installed-run
 	$(BIN)/aerorelay info scenarios/nominal_tilted.toml
 	$(BIN)/aerorelay bound scenarios/nominal_tilted.toml --out $(OUT)/bound
 	$(BIN)/aerorelay run scenarios/nominal_tilted.toml --out $(OUT)/paper
