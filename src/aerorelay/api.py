@@ -172,6 +172,12 @@ def _campaign_info(out: Path) -> dict:
     return {"studies": studies, "quick": quick}
 
 
+def default_studies_dir() -> Path:
+    """``experiments/`` in the working directory, else the repository's own."""
+    here = Path("experiments")
+    return here if here.is_dir() else Path(__file__).resolve().parents[2] / "experiments"
+
+
 def report_run(run_dir: str | Path) -> Path:
     """Render ``report.html`` of one run folder (its metrics with units, safety verdict, figures)."""
     d = Path(run_dir)
@@ -188,7 +194,7 @@ def report(out: str | Path, *, studies_dir: str | Path | None = None) -> dict:
     ``experiments/``."""
     out = Path(out)
     info = _campaign_info(out)
-    folder = Path(studies_dir or info.get("studies_dir") or "experiments")
+    folder = Path(studies_dir or info.get("studies_dir") or default_studies_dir())
     chosen = find_studies(folder, info["studies"])
     specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=info["quick"])]
     if info.get("runs") is not None:  # a budgeted campaign: the runs it chose
@@ -303,7 +309,8 @@ def finished_runs(out: str | Path) -> int:
 
 output_lock = writing  # hold a run or bound folder's one-writer lock (OutputBusyError when another process writes it)
 
-__all__ = ["CampaignBusyError", "OutputBusyError", "OutputError", "Result", "Scenario", "ScenarioError", "StudyError",
-           "bench", "bound", "check_output", "check_run", "export", "finished_runs", "is_run_folder", "link_budget", "link_budget_lines",
-           "load_scenario", "metric", "metric_unit", "output_lock", "parse_sets", "report", "report_run", "reproduce",
-           "run_metrics_file", "si", "simulate", "solver_settings", "strict_json_text", "updated", "write_bound"]
+__all__ = ["CampaignBusyError", "OutputBusyError", "OutputError", "Result", "Scenario", "ScenarioError",
+           "StudyError", "bench", "bound", "check_output", "check_run", "default_studies_dir", "export",
+           "finished_runs", "is_run_folder", "link_budget", "link_budget_lines", "load_scenario", "metric",
+           "metric_unit", "output_lock", "parse_sets", "report", "report_run", "reproduce", "run_metrics_file", "si",
+           "simulate", "solver_settings", "strict_json_text", "updated", "write_bound"]

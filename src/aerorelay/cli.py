@@ -381,13 +381,6 @@ def bench(
         json_out.write_text(api.strict_json_text(res))
 
 
-def _default_studies_dir() -> Path:
-    here = Path("experiments")
-    if here.is_dir():
-        return here
-    return Path(__file__).resolve().parents[2] / "experiments"
-
-
 @app.command()
 def reproduce(
     studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)", show_default=False),
@@ -406,7 +399,7 @@ def reproduce(
 
     _check_out(out, "campaign")
 
-    folder = studies_dir or _default_studies_dir()
+    folder = studies_dir or api.default_studies_dir()
     cols = (TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
     try:
         with Progress(*cols, console=err_console) as prog:
