@@ -23,7 +23,7 @@ from ..sim.units import metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
-from .build import build, check_buildable, scenario_bound
+from .build import build, scenario_bound
 from .schema import Scenario, ScenarioError
 
 
@@ -137,10 +137,9 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
              bound_progress: Callable[[int, int], None] | None = None) -> RunResult:
     """Fly ``sc`` (parts given here replace the scenario's: a planner object, a radio scene, a
     list of jammers); ``with_bound``: also compute (or load) the capacity bound. ``sc`` is validated
-    again first (a field changed after loading must pass every cross-field check too)."""
-    revalidated = sc.with_updates({})
-    if scene is None and jammers is None:
-        check_buildable(revalidated)
+    again first (a field changed after loading must pass every cross-field check too; the parts'
+    own checks, e.g. an ``inr_db_at_relay_start`` jammer in a null, raise when ``build`` makes them)."""
+    sc.with_updates({})
     check_run_size(sc)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None

@@ -552,6 +552,13 @@ def _flight_file_path(kind: str, file: str, stamp: tuple, yaw_deg: float, offset
     return UlogPath(file, yaw_deg=yaw_deg, offset=list(offset)) if kind == "ulog" else CsvPath(file)
 
 
+def flight_path(kind: str, file: str, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)):
+    """A mission file's path (``kind`` ``csv`` or ``ulog``), read once per content: every check of a
+    load and the path itself share it. ValueError names a file that cannot be read."""
+    st = Path(file).stat()
+    return _flight_file_path(kind, file, (st.st_mtime_ns, st.st_size), float(yaw_deg), tuple(offset))
+
+
 class MissionConfig(_Strict):
     """MRAV-2 path: minimum-jerk segments through timed waypoints ``[t_s, x, y, z]`` or a CSV."""
 
@@ -585,7 +592,7 @@ class MissionConfig(_Strict):
             return v
         if not Path(v).is_file():
             raise ValueError(f"no such file {v}")
-        CsvPath(v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
+        flight_path("csv", v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
         return v
 
     @model_validator(mode="after")
@@ -597,7 +604,7 @@ class MissionConfig(_Strict):
         if not Path(self.trajectory_ulog).is_file():
             raise ValueError(f"trajectory_ulog: no such file {self.trajectory_ulog}")
         try:
-            UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
+            flight_path("ulog", self.trajectory_ulog, self.ulog_yaw_deg, self.ulog_offset_m)
         except ValueError as exc:
             raise ValueError(f"trajectory_ulog: {exc}") from None
         return self
@@ -612,9 +619,9 @@ class MissionConfig(_Strict):
         (the checks of a load ask for it several times)."""
         f = self.flown_file
         if f and Path(f).is_file():
-            st = Path(f).stat()
-            return _flight_file_path("ulog" if self.trajectory_ulog else "csv", f, (st.st_mtime_ns, st.st_size),
-                                     self.ulog_yaw_deg, tuple(self.ulog_offset_m))
+            if self.trajectory_ulog:
+                return flight_path("ulog", f, self.ulog_yaw_deg, self.ulog_offset_m)
+            return flight_path("csv", f)
         if self.trajectory_ulog:
             return UlogPath(self.trajectory_ulog, yaw_deg=self.ulog_yaw_deg, offset=self.ulog_offset_m)
         return CsvPath(self.trajectory_csv) if self.trajectory_csv else MinimumJerkPath(self.waypoints)

@@ -46,10 +46,10 @@ def write_bound_files(bound, out: Path) -> dict:
     return summary
 
 
-def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics: dict, *, bound=None,
+def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics: dict, *,
                 extra: Callable[[Path], None] | None = None) -> None:
-    """Write scenario.toml, timeseries.parquet, metrics.json (strict JSON) (+ the bound's files, + what
-    ``extra`` writes) into a temporary sibling folder, which then replaces ``out`` (only if ``out``
+    """Write scenario.toml, timeseries.parquet, metrics.json (strict JSON) (+ what ``extra`` writes:
+    a mission file's copy) into a temporary sibling folder, which then replaces ``out`` (only if ``out``
     is one of the program's own run folders, ``store.outputs``): an interrupted write never leaves a
     half-finished run folder behind, and nobody else's files are ever deleted."""
     out = Path(out)
@@ -58,8 +58,6 @@ def publish_run(out: Path, scenario_toml: str, timeseries: pd.DataFrame, metrics
         (tmp / SCENARIO_FILE).write_text(scenario_toml)
         timeseries.to_parquet(tmp / TIMESERIES_FILE, index=False)
         (tmp / METRICS_FILE).write_text(strict_json.dumps(metrics, indent=2))
-        if bound is not None:
-            write_bound_files(bound, tmp)
         if extra is not None:
             extra(tmp)
         swap_in(tmp, out, "run")
