@@ -2,9 +2,10 @@ from pathlib import Path
 
 import pytest
 
+from aerorelay.assembly import load_scenario, parse_scenario
+from aerorelay.assembly.parts import nmpc_settings, relay_pattern
+from aerorelay.config import ScenarioError
 from aerorelay.control.nmpc import NmpcSettings
-from aerorelay.scenario import ScenarioError, load_scenario, parse_scenario
-from aerorelay.scenario.build import nmpc_settings
 
 ROOT = Path(__file__).resolve().parents[1]
 PRESETS = sorted((ROOT / "scenarios").glob("*.toml"))
@@ -141,7 +142,7 @@ def test_antenna_gain_in_dbi():
 
     sc = parse_scenario({"antenna": {"g_bar_dbi": 2.15}})
     assert sc.antenna.g_bar == pytest.approx(1.640590, rel=1e-6)
-    assert sc.antenna.build().g_bar == pytest.approx(1.640590, rel=1e-6)
+    assert relay_pattern(sc.antenna).g_bar == pytest.approx(1.640590, rel=1e-6)
     assert parse_scenario(tomllib.loads(sc.to_toml())) == sc
     assert parse_scenario({"antenna": {"g_bar_dbi": 0.0, "g_bar": 1.0}}).antenna.g_bar == 1.0
     with pytest.raises(ScenarioError, match="g_bar_dbi"):

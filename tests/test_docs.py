@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from aerorelay.scenario.schema import Scenario
+from aerorelay.config import Scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "docs" / "_ext"))
@@ -15,7 +15,7 @@ import scenario_reference  # noqa: E402
 
 
 def _leaf_fields(model, prefix=""):
-    from aerorelay.scenario.schema import _submodel
+    from aerorelay.config.errors import _submodel
 
     for name, info in model.model_fields.items():
         sub = _submodel(info.annotation)
@@ -36,7 +36,7 @@ def test_every_schema_field_is_in_the_reference_with_its_description():
 def test_a_field_without_a_description_fails_the_build(monkeypatch):
     from sphinx.errors import ExtensionError
 
-    from aerorelay.scenario.schema import WorldConfig
+    from aerorelay.config import WorldConfig
 
     monkeypatch.setattr(WorldConfig.model_fields["ground_z_m"], "description", None)
     with pytest.raises(ExtensionError, match="world.ground_z_m"):

@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import aerorelay as ar
-from aerorelay.scenario import ScenarioError, load_scenario
+from aerorelay.assembly import load_scenario
+from aerorelay.config import ScenarioError
 
 ROOT = Path(__file__).resolve().parent.parent
 NOMINAL = ROOT / "scenarios" / "nominal_tilted.toml"

@@ -95,7 +95,7 @@ def _submodel(ann):
 
 
 def render() -> str:
-    from aerorelay.scenario.schema import Scenario
+    from aerorelay.config import Scenario
 
     missing: list[str] = []
     sections: list[str] = []
@@ -131,7 +131,7 @@ def render() -> str:
     walk(Scenario, "")
     if missing:
         raise ExtensionError(f"scenario fields without a description ({len(missing)}): {', '.join(missing)}")
-    head = ("# Scenario reference\n\nGenerated from the schema (`aerorelay.scenario.schema`) at every docs build. "
+    head = ("# Scenario reference\n\nGenerated from the schema (`aerorelay.config`) at every docs build. "
             "A scenario file states only what differs from these defaults; `aerorelay validate FILE` prints it "
             "fully resolved. Lists of tables (`[[jammers]]`, `[[platform.rotors]]`) repeat the table's fields per item. "
             "Ranges: `[` / `]` include the bound, `(` / `)` exclude it.\n\n")

@@ -9,13 +9,14 @@ capacity-seeking relay, radio scenes with any number of jammers). The public API
 
 from ._version import __version__
 from .api import Result, bench, bound, link_budget, reproduce, simulate
+from .assembly import load_scenario, parse_scenario
+from .assembly.parts import build, build_scene
+from .config import Scenario, ScenarioError
 from .models.antenna import CosinePattern, DipolePattern, IsotropicPattern, SinPowerPattern, TabulatedPattern
 from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from .models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene, route_capacity
 from .planning.base import PlannerContext, PlannerInput, register_planner
 from .planning.trajectory_generator import Reference
-from .scenario import Scenario, ScenarioError, load_scenario, parse_scenario
-from .scenario.build import build, build_scene
 
 __all__ = [
     "__version__", "Result", "bench", "bound", "link_budget", "reproduce", "simulate", "CosinePattern", "DipolePattern",

@@ -26,11 +26,20 @@ from pathlib import Path
 import pandas as pd
 
 from ._version import __version__
+from .assembly import load_scenario, parse_scenario
+from .assembly.load import parse_sets as _parse_sets
+from .assembly.load import updated as _updated
+from .assembly.parts import build, build_scene, nmpc_settings, scenario_bound
+from .assembly.vehicle import build_vehicle
+from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop
 from .control.nmpc import NmpcSettings
 from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
+from .experiments.run import RunResult, check_run_size, output_bytes
+from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
+from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .report.figures import fig_bound, write_run_figures
 from .report.html import render_report
@@ -38,11 +47,6 @@ from .report.mcap_export import MCAP_FILE, write_run_mcap
 from .report.run_report import RUN_REPORT, render_run_report
 from .report.summary import metric as _metric
 from .report.summary import summarize
-from .scenario import Scenario, ScenarioError, load_scenario, parse_scenario
-from .scenario.build import build, build_scene, check_buildable, nmpc_settings, scenario_bound
-from .scenario.load import parse_sets as _parse_sets
-from .scenario.run import RunResult, check_run_size, output_bytes
-from .scenario.run import simulate as _simulate
 from .sim.initial import initial_link_budget
 from .sim.initial import link_budget_lines as initial_link_budget_lines
 from .sim.units import metric_unit as _metric_unit
@@ -62,35 +66,32 @@ from .store.outputs import (
 )
 from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE, write_bound_files
 
-
-class Result(RunResult):
-    """A flown mission (``timeseries``, ``metrics``, ``bound``); ``save`` writes its run folder
-    with the figures and ``run.mcap`` for Foxglove (``figures=False``: data files only)."""
-
-    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True,
-             wait: bool = False) -> Path:
-        def writer(tmp: Path) -> None:
-            if figures:
-                bound = self.bound.frame() if self.bound is not None else None
-                write_run_figures(self.timeseries, self.scenario, tmp, bound)
-                write_run_mcap(self.timeseries, self.scenario, tmp / MCAP_FILE, bound)
-            if extra is not None:
-                extra(tmp)
-
-        return super().save(folder, writer, wait=wait)
+Result = RunResult  # the one result class: ``ar.simulate`` attaches the figure and MCAP writer
 
 
-def simulate(sc: Scenario, *, bound: bool = False, **parts) -> Result:
+def write_run_views(result: RunResult, tmp: Path) -> None:
+    """The run's figures and ``run.mcap`` for Foxglove, written into the run folder ``tmp``."""
+    bound = result.bound.frame() if result.bound is not None else None
+    write_run_figures(result.timeseries, result.scenario, tmp, bound)
+    write_run_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE, bound)
+
+
+def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     """Fly ``sc``; ``bound=True`` also computes its capacity bound (efficiency in the metrics).
     Keyword parts (``planner``, ``jammers``, ``scene``, ``nmpc_settings``, ``progress``) replace the
-    scenario's (see ``scenario.run.simulate``)."""
-    r = _simulate(sc, with_bound=bound, **parts)
-    return Result(r.scenario, r.mission, r.timeseries, r.metrics, r.bound)
+    scenario's (see ``experiments.run.simulate``). ``save`` writes the run folder with the figures
+    and ``run.mcap`` (``figures=False``: data files only)."""
+    return _simulate(sc, with_bound=bound, views=write_run_views, **parts)
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound:
     """The scenario's capacity bounds (static and path), computed once per geometry and cached."""
     return scenario_bound(sc, progress)
+
+
+def vehicle(sc: Scenario) -> Multirotor:
+    """The relay's vehicle model (``[platform]``): allocation, hover speeds, tilt limits."""
+    return build_vehicle(sc.platform)
 
 
 def link_budget(sc: Scenario) -> dict[str, float]:
@@ -255,7 +256,7 @@ metric = _metric  # a dotted metric of a metrics dict
 
 def updated(sc: Scenario, updates: dict) -> Scenario:
     """``sc`` with dotted-key updates, validated like a scenario file, its parts' checks included."""
-    return check_buildable(sc.with_updates(updates)) if updates else sc
+    return _updated(sc, updates) if updates else sc
 
 
 def solver_settings(sc: Scenario, **overrides) -> NmpcSettings:

@@ -85,7 +85,7 @@ def validate(
 
 def model_summary(sc: Scenario) -> Table:
     """A table of the derived physical quantities of a scenario (hover, allocation, channel at t=0)."""
-    veh = sc.platform.vehicle()
+    veh = api.vehicle(sc)
     F, M = veh.allocation()
     hover = veh.hover_speeds()
     budget = api.link_budget(sc)

@@ -7,10 +7,10 @@ read from these benchmarks and from ``aerorelay bench``, never asserted in unit 
 import numpy as np
 import pytest
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import build
 from aerorelay.models.radio import NodePose
 from aerorelay.planning.base import PlannerInput
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import build
 
 
 @pytest.fixture(scope="module", params=["constrained", "unconstrained"])

@@ -5,10 +5,10 @@ import ctypes
 import numpy as np
 import pytest
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import ocp_spec
 from aerorelay.control.blasfeo_contract import contract_violations
 from aerorelay.control.hpipm_rti import HpipmRti, _casadi_dir, cpu_has_avx2_fma
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import ocp_spec
 
 pytestmark = pytest.mark.skipif(not cpu_has_avx2_fma(), reason="CPU without AVX2/FMA: kernels not compiled in")
 
@@ -101,9 +101,9 @@ def test_hpipm_uses_them_when_loaded_first():
     import sys
 
     code = ("import numpy as np\n"
-            "from aerorelay.scenario import parse_scenario\n"
+            "from aerorelay.assembly import parse_scenario\n"
             "from aerorelay.control.nmpc import NMPC\n"
-            "from aerorelay.scenario.build import ocp_spec, weight_parameters\n"
+            "from aerorelay.assembly.parts import ocp_spec, weight_parameters\n"
             "sc = parse_scenario({})\n"
             "spec = ocp_spec(sc)\n"
             "c = NMPC(spec)\n"

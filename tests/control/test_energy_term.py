@@ -5,9 +5,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.parts import build, ocp_spec
 from aerorelay.control.terms import COST_TERMS, StageVars
-from aerorelay.scenario import load_scenario
-from aerorelay.scenario.build import build, ocp_spec
 
 SC = load_scenario("scenarios/nominal_tilted.toml")
 SPEC = ocp_spec(SC)

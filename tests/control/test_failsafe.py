@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
+from aerorelay.assembly import load_scenario, parse_scenario
+from aerorelay.assembly.parts import build
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.control.failsafe import BrakeLaw
 from aerorelay.control.ocp import QpResult
-from aerorelay.scenario import load_scenario, parse_scenario
-from aerorelay.scenario.build import build
 from aerorelay.sim.closed_loop import plant_step_function
 
 SCEN = "scenarios"
@@ -15,10 +16,10 @@ SCEN = "scenarios"
 @pytest.mark.parametrize("preset", ["nominal_tilted", "nominal_coplanar", "quad_x", "octo_tilted"])
 def test_brake_law_stops_any_vehicle_at_its_hold_point(preset):
     sc = load_scenario(f"{SCEN}/{preset}.toml")
-    veh = sc.platform.vehicle()
+    veh = build_vehicle(sc.platform)
     ws = sc.controller.workspace
     law = BrakeLaw(veh, ws.min, ws.max)
-    plant = plant_step_function(sc.platform.vehicle(), sc.sim.plant_rate_hz, sc.control_period_s)
+    plant = plant_step_function(build_vehicle(sc.platform), sc.sim.plant_rate_hz, sc.control_period_s)
     x = veh.hover_state([0.0, 0.0, 5.0])
     x[3:6] = np.radians([10.0, -8.0, 20.0])
     x[6:9] = [1.0, -0.8, -1.0]  # moving at 1.6 m/s, tilted, yawed
@@ -43,7 +44,7 @@ def test_hand_over_at_speed_near_a_wall_stays_in_the_workspace(preset, gap_m, sp
     aimed at the hand-over position overshot the box by 0.24 m. Stopping earlier and harder keeps
     every vehicle inside, at 3 m/s 1.5 m from the wall too."""
     sc = load_scenario(f"{SCEN}/{preset}.toml")
-    veh = sc.platform.vehicle()
+    veh = build_vehicle(sc.platform)
     ws = sc.controller.workspace
     law = BrakeLaw(veh, ws.min, ws.max)
     plant = plant_step_function(veh, sc.sim.plant_rate_hz, sc.control_period_s)
@@ -68,7 +69,7 @@ def test_random_hand_overs_that_can_stop_in_time_stay_in_the_workspace_and_settl
     like forces in the allocation) the tilted hexarotor tumbled in one such case and left the box
     by 4.5 m."""
     sc = load_scenario(f"{SCEN}/{preset}.toml")
-    veh = sc.platform.vehicle()
+    veh = build_vehicle(sc.platform)
     lo, hi = np.array(sc.controller.workspace.min), np.array(sc.controller.workspace.max)
     law = BrakeLaw(veh, lo, hi)
     plant = plant_step_function(veh, sc.sim.plant_rate_hz, sc.control_period_s)
@@ -98,7 +99,7 @@ def test_random_hand_overs_that_can_stop_in_time_stay_in_the_workspace_and_settl
 def test_hold_point_is_inside_the_shrunk_workspace():
     sc = parse_scenario({})
     ws = sc.controller.workspace
-    law = BrakeLaw(sc.platform.vehicle(), ws.min, ws.max, margin_m=0.5)
+    law = BrakeLaw(build_vehicle(sc.platform), ws.min, ws.max, margin_m=0.5)
     np.testing.assert_allclose(law.hold_point([-10.0, 0.0, 0.0]), [-6.5, 0.0, 1.0])
 
 

@@ -1,11 +1,12 @@
 import numpy as np
 import pytest
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import ocp_spec, weight_parameters
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.control.full_nlp import FullNlp
 from aerorelay.control.nmpc import NMPC, NmpcSettings
 from aerorelay.control.ocp import unpack_plan
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import ocp_spec, weight_parameters
 from aerorelay.sim.closed_loop import plant_step_function
 
 SC = parse_scenario({})
@@ -22,7 +23,7 @@ def nmpc(request):
 
 @pytest.fixture(scope="module")
 def plant():
-    return plant_step_function(SC.platform.vehicle(), SC.sim.plant_rate_hz, SC.control_period_s)
+    return plant_step_function(build_vehicle(SC.platform), SC.sim.plant_rate_hz, SC.control_period_s)
 
 
 def params(p_ref, v_ref=np.zeros(3), p2=P2, sc=SC, spec=SPEC):
@@ -245,8 +246,8 @@ def test_unpack_plan_inverts_pack_plan():
 
 
 def test_bench_times_ipopt_also_for_the_lagged_input_rate():
+    from aerorelay.assembly.parts import build
     from aerorelay.control.bench import benchmark_closed_loop
-    from aerorelay.scenario.build import build
 
     sc = SC.with_updates({"controller.exact_input_rate": False, "sim.duration_s": 4.0})
     res = benchmark_closed_loop(build(sc).closed_loop(), ipopt_points=1)

@@ -4,13 +4,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import ocp_spec, weight_parameters
 from aerorelay.control.linearization import check_dimensions, stage_linearization, terminal_linearization
 from aerorelay.control.nmpc import NMPC, NmpcSettings
 from aerorelay.control.ocp import OcpSpec
 from aerorelay.control.params import StageParams
 from aerorelay.control.terms import CONSTRAINTS, Constraint
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import ocp_spec, weight_parameters
 
 SC = parse_scenario({})
 

@@ -4,6 +4,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from aerorelay.assembly.parts import node_patterns, relay_pattern
 from aerorelay.models.channel import (
     end_to_end_capacity,
     inverse_capacity,
@@ -129,25 +130,25 @@ def test_surrogate_by_hand_and_dual():
 
 
 def test_node_patterns_from_the_antenna_options():
+    from aerorelay.assembly import parse_scenario
     from aerorelay.models.antenna import IsotropicPattern
-    from aerorelay.scenario import parse_scenario
 
-    pat = parse_scenario({"antenna": {"bs_pattern": "isotropic", "directivity": 1.64}}).antenna.patterns()
+    pat = node_patterns(parse_scenario({"antenna": {"bs_pattern": "isotropic", "directivity": 1.64}}).antenna)
     assert isinstance(pat.bs, IsotropicPattern) and pat.bs.gain_from_cos(np.array([1.0, 0.0])).tolist() == [1.0, 1.0]
     assert pat.relay.gain_from_cos(0.0) == pytest.approx(1.64) and pat.source is pat.relay
     assert pat.relay.gain_from_cos(1.0) == 0.0  # still a null on the axis
 
 
 def test_directivity_scales_a_dipole_to_dipole_snr_by_its_square():
+    from aerorelay.assembly import parse_scenario
     from aerorelay.models.geometry import rotation_zyx
-    from aerorelay.scenario import parse_scenario
 
     rng = np.random.default_rng(5)
     kw = dict(tx_power=1.0, jam_power=0.0, noise_power=1.0)
     for _ in range(10):
         p, q = rng.uniform(-5, 5, 3), rng.uniform(-5, 5, 3)
         Ra, Rb = rotation_zyx(rng.uniform(-0.5, 0.5, 3)), rotation_zyx(rng.uniform(-0.5, 0.5, 3))
-        g = [link_sinr(p, Ra, q, Rb, PJ, pattern=parse_scenario({"antenna": {"directivity": d}}).antenna.build(), **kw)
+        g = [link_sinr(p, Ra, q, Rb, PJ, pattern=relay_pattern(parse_scenario({"antenna": {"directivity": d}}).antenna), **kw)
              for d in (1.0, 1.64)]
         assert g[1] == pytest.approx(1.64**2 * g[0], rel=1e-12)
 

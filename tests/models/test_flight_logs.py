@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import aerorelay as ar
+from aerorelay.config import ScenarioError
 from aerorelay.models.mission import CsvPath, UlogPath, ned_to_world
-from aerorelay.scenario import ScenarioError
 
 FIELDS = ("x", "y", "z", "vx", "vy", "vz", "ax", "ay", "az")
 

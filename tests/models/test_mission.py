@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
+from aerorelay.assembly import parse_scenario
 from aerorelay.models.geometry import rotation_zyx
 from aerorelay.models.mission import CsvPath, MinimumJerkPath
-from aerorelay.scenario import parse_scenario
 
 WPS = parse_scenario({}).mission.waypoints
 

@@ -6,13 +6,14 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import build_scene
+from aerorelay.config import ScenarioError
 from aerorelay.models.antenna import CosinePattern, DipolePattern, IsotropicPattern
 from aerorelay.models.geometry import rotation_zyx
 from aerorelay.models.jammer import Jammer
 from aerorelay.models.mission import LinearPath
 from aerorelay.models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene, link_gain, route_capacity
-from aerorelay.scenario import ScenarioError, parse_scenario
-from aerorelay.scenario.build import build_scene
 from tests.reference_channel import end_to_end_capacity, link_sinr
 
 P0, P1, P2, PJ = np.zeros(3), np.array([-6.95, 5.79, 1.72]), np.array([-3.04, 5.79, 1.72]), np.array([-6.95, -5.79, 1.72])

@@ -1,13 +1,14 @@
 import numpy as np
 import pytest
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import build_planner, build_scene
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.models.geometry import E3, attitude_from_thrust, rotation_zyx
 from aerorelay.models.mission import source_trajectory
 from aerorelay.planning.base import PlannerInput
 from aerorelay.planning.baselines import PlannedReference, SingleShotPlanner
 from aerorelay.planning.registry import GeneratorPlanner
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import build_planner, build_scene
 from tests.reference_channel import end_to_end_capacity, link_sinr
 
 SC = parse_scenario({})
@@ -59,9 +60,9 @@ def test_planned_reference_interpolates(plan):
 def test_baseline_a_plans_with_isotropic_surrogate():
     src = source_trajectory(SC.mission)
     iso = SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"})
-    a = build_planner(iso, iso.platform.vehicle(), build_scene(iso), src)
+    a = build_planner(iso, build_vehicle(iso.platform), build_scene(iso), src)
     assert isinstance(a, GeneratorPlanner) and a.generator.sp.mu == 1.0
-    assert build_planner(SC, SC.platform.vehicle(), build_scene(SC), src).generator.sp.mu == SC.controller.mu
+    assert build_planner(SC, build_vehicle(SC.platform), build_scene(SC), src).generator.sp.mu == SC.controller.mu
 
 
 def test_every_planner_answers_through_one_interface():
@@ -74,7 +75,7 @@ def test_every_planner_answers_through_one_interface():
                        jammer_positions=np.array([short.jammer.position]), jammer_powers=np.ones(1))
     for name in ("trajectory_generator", "isotropic", "single_shot"):
         sc = short.with_updates({"controller.planner": name})
-        planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+        planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), src)
         ref = planner.update(inp)
         assert ref.p_ref.shape == (3,) and np.all(np.isfinite(ref.p_ref)), name
         assert hasattr(planner, "generator") == (name != "single_shot"), name

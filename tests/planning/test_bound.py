@@ -5,11 +5,12 @@ import itertools
 import numpy as np
 import pytest
 
+from aerorelay.assembly import load_scenario, parse_scenario
+from aerorelay.assembly.parts import bound_problem, build_scene, build_source
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.models.axes import axis_cone
 from aerorelay.models.radio import NodePose
 from aerorelay.planning.bound import CapacityLandscape, _dp, _footprint, compute_bound
-from aerorelay.scenario import load_scenario, parse_scenario
-from aerorelay.scenario.build import bound_problem, build_scene, build_source
 
 SHORT = load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 2.0})
 
@@ -25,7 +26,7 @@ def test_random_feasible_poses_never_beat_the_static_bound(bound):
     rng = np.random.default_rng(7)
     scene = CapacityLandscape(build_scene(SHORT), build_source(SHORT), SHORT.platform.gravity_m_s2)
     ws = SHORT.controller.workspace
-    limit = SHORT.platform.vehicle().hover_tilt_limit
+    limit = build_vehicle(SHORT.platform).hover_tilt_limit
     for k, t in enumerate(bound.t):
         P = rng.uniform(ws.min, ws.max, size=(5000, 3))
         tilt = limit * np.sqrt(rng.uniform(size=5000))
@@ -74,7 +75,7 @@ def test_dynamic_programming_matches_brute_force(kind):
 
 
 def test_hover_tilt_limit_is_zero_for_a_coplanar_platform_and_widens_with_the_rotor_tilt():
-    limits = [parse_scenario({"platform": {"tilt_deg": a}}).platform.vehicle().hover_tilt_limit for a in (0.0, 20.0, 30.0)]
+    limits = [build_vehicle(parse_scenario({"platform": {"tilt_deg": a}}).platform).hover_tilt_limit for a in (0.0, 20.0, 30.0)]
     assert limits[0] == 0.0 and 0.0 < limits[1] < limits[2] < np.radians(30.0)
     assert np.degrees(limits[1]) == pytest.approx(17.9, abs=0.3)
     assert axis_cone(0.0, np.radians(5)).shape == (1, 3)

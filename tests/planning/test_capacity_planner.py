@@ -6,12 +6,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.parts import build, build_planner, build_scene, build_source
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.models.axes import axis_set
 from aerorelay.models.radio import NodePose
 from aerorelay.planning.base import PlannerInput
 from aerorelay.planning.capacity_planner import CapacityPlanner, excursion_point
-from aerorelay.scenario import load_scenario
-from aerorelay.scenario.build import build, build_planner, build_scene, build_source
 
 SC = load_scenario("scenarios/nominal_tilted.toml").with_updates({"controller.planner": "capacity", "sim.duration_s": 8.0})
 
@@ -32,7 +33,7 @@ def test_capacity_planner_flies_smoothly_inside_the_box(run):
     ws = SC.controller.workspace
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
     assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)
-    veh = SC.platform.vehicle()
+    veh = build_vehicle(SC.platform)
     speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
     rates = np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
     assert speeds.min() >= veh.omega_min - 1e-3 and speeds.max() <= veh.omega_max + 1e-3
@@ -115,7 +116,7 @@ def test_preflight_route_moves_at_every_speed_limit(speed):
     could not move: the relay stayed at its start, C_min 0.05 of the bound) and never outruns the
     speed limit by more than the grid allows."""
     sc = SC.with_updates({"controller.capacity.speed_m_s": speed})
-    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), build_source(sc))
+    planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), build_source(sc))
     steps = np.linalg.norm(np.diff(planner.route_p, axis=0), axis=1) / np.diff(planner.route_t)
     assert np.ptp(planner.route_p, axis=0).max() > 1.0
     grid = SC.controller.capacity.route_grid_m
@@ -178,7 +179,7 @@ def test_excursion_pauses_where_its_circling_point_is_jammed(max_loss):
     sc = SC.with_updates({"controller.capacity.excursion_m": 1.0, "controller.capacity.excursion_std_m": 0.5,
                           "controller.capacity.excursion_max_loss": max_loss})
     src = build_source(sc)
-    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+    planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), src)
     t, speed = 3.0, sc.controller.capacity.speed_m_s
     s = src.state(t)
     quiet = PlannerInput(t=t, dt=sc.control_period_s, p1=np.array([-4.0, 3.0, 3.0]), p2=s.p, v2=s.v, a2=s.a,
@@ -201,7 +202,7 @@ def test_replan_every_sets_how_often_the_candidates_are_scored(every, monkeypatc
     candidates 8 times at 1, twice at 4 (the first step and the fifth)."""
     sc = SC.with_updates({"controller.capacity.replan_every": every})
     src = build_source(sc)
-    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+    planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), src)
     calls = []
     original = planner._replan
     monkeypatch.setattr(planner, "_replan", lambda inp: (calls.append(inp.t), original(inp)))
@@ -219,7 +220,7 @@ def test_decoupled_scoring_picks_the_best_position_at_the_axis_then_the_best_axi
     joint 27 x K grid of the same planner, read column- then row-wise."""
     sc = SC.with_updates({"controller.capacity.scoring": "decoupled"})
     src = build_source(sc)
-    planner = build_planner(sc, sc.platform.vehicle(), build_scene(sc), src)
+    planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), src)
     t = 2.0
     s = src.state(t)
     inp = PlannerInput(t=t, dt=sc.control_period_s, p1=np.array([-4.0, 3.0, 3.0]), p2=s.p, v2=s.v, a2=s.a,

@@ -4,6 +4,8 @@ capacity the scene's (recomputed with the numpy channel), never worse than its f
 import numpy as np
 import pytest
 
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.parts import bound_problem
 from aerorelay.models.axes import axis_cone, tilted_axes
 from aerorelay.planning.bound import CapacityLandscape, compute_bound
 from aerorelay.planning.feasible_path import (
@@ -14,8 +16,6 @@ from aerorelay.planning.feasible_path import (
     speed_limited,
     thrust_directions,
 )
-from aerorelay.scenario import load_scenario
-from aerorelay.scenario.build import bound_problem
 
 SHORT = load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 6.0})
 

@@ -4,10 +4,11 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.parts import build
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.models.axes import axis_set
 from aerorelay.planning.platform_yaw import PlatformYaw, rotate_z
-from aerorelay.scenario import load_scenario
-from aerorelay.scenario.build import build
 
 AZ = np.radians(np.arange(0.0, 360.0, 10.0))
 # a limit with peaks 120 deg apart, like the nominal tilted hexarotor's (9.6-17.8 deg)
@@ -71,6 +72,6 @@ def test_yawing_relay_stays_on_its_reference_and_inside_its_limits():
     err = np.hypot(np.hypot(log["p1_x"] - log["pd_x"], log["p1_y"] - log["pd_y"]), log["p1_z"] - log["pd_z"])
     assert err.max() < 1.0
     assert res.qp_failures == 0 and not log["fallback"].any() and not log["safety_violation"].any()
-    veh = sc.platform.vehicle()
+    veh = build_vehicle(sc.platform)
     speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
     assert speeds.min() >= veh.omega_min - 1e-3 and speeds.max() <= veh.omega_max + 1e-3

@@ -5,11 +5,11 @@ import itertools
 import numpy as np
 import pytest
 
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.parts import build_scene
 from aerorelay.models.axes import axis_set
 from aerorelay.models.radio import NodePose
 from aerorelay.planning.relay_grid import CompiledRelayGrid
-from aerorelay.scenario import load_scenario
-from aerorelay.scenario.build import build_scene
 
 AXES = axis_set(np.radians(np.arange(0.0, 360.0, 30.0)), np.full(12, np.radians(20.0)), np.radians(10.0))
 OFFSETS = 0.3 * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import aerorelay as ar
+from aerorelay.assembly import load_scenario
 from aerorelay.models.jammer import HiddenJammer, JammerTruthHidden
-from aerorelay.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -47,7 +47,7 @@ def test_a_planner_in_estimated_mode_cannot_reach_the_true_jammer_positions(plan
     leaks = [a for a in arrays if a.shape[-1:] == (3,) and np.any(np.all(np.isclose(a.reshape(-1, 3), true), axis=1))]
     assert not leaks, "the planner holds the true jammer position"
     assert all(isinstance(j, HiddenJammer) for j in _reachable(parts.planner) if isinstance(j, ar.Jammer))
-    from aerorelay.scenario.build import planner_context
+    from aerorelay.assembly.parts import planner_context
 
     ctx = planner_context(sc, parts.vehicle, parts.scene, parts.source)
     assert ctx.scene.jammers and all(isinstance(j, HiddenJammer) for j in ctx.scene.jammers)

@@ -10,11 +10,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.checks import REACH_MAX_POINTS, REACH_MAX_TIMES, REACH_MAX_WORK, reach_grid
+from aerorelay.config import ScenarioError
 from aerorelay.models.axes import axis_cone
 from aerorelay.models.channel import reachable_mutual_alignment
 from aerorelay.models.mission import ulog_cut_at
-from aerorelay.scenario import ScenarioError, load_scenario
-from aerorelay.scenario.schema import REACH_MAX_POINTS, REACH_MAX_TIMES, REACH_MAX_WORK, reach_grid
 from tests.models.test_flight_logs import _flight, write_ulog
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,7 +42,7 @@ def test_the_reach_grid_never_exceeds_its_cap_and_covers_the_box(span, cap):
 def test_the_reachability_work_is_capped(monkeypatch, ws, end_s):
     """Whatever the workspace and the mission's length, the check evaluates at most REACH_MAX_WORK
     (position, axis, instant) triples and REACH_MAX_TIMES instants (counted, not timed)."""
-    from aerorelay.scenario import schema
+    from aerorelay.assembly import checks as schema
 
     seen = {}
 

@@ -12,11 +12,11 @@ import pytest
 from typer.testing import CliRunner
 
 import aerorelay as ar
+from aerorelay.assembly import load_scenario
 from aerorelay.cli import EXIT_BAD_INPUT, EXIT_UNSAFE, app
+from aerorelay.config import ScenarioError
 from aerorelay.experiments.campaign import LOCK_FILE, CampaignBusyError, is_finished, load_manifest, run_campaign, run_dir
 from aerorelay.experiments.study import RunSpec
-from aerorelay.scenario import ScenarioError, load_scenario
-from aerorelay.scenario.schema import Scenario
 from aerorelay.store.cache import entry_is_intact
 from aerorelay.store.codegen import shared_library
 from aerorelay.store.outputs import MARKER, OutputError, check_output_folder, mark
@@ -269,7 +269,7 @@ def test_the_capacity_planner_and_the_unconstrained_variant_do_not_need_a_reacha
 @pytest.fixture
 def unchecked_mu(monkeypatch):
     """The reach check off: the layers behind validation must hold on their own."""
-    monkeypatch.setattr(Scenario, "_mu_reachable", lambda self: None)
+    monkeypatch.setattr("aerorelay.assembly.checks._mu_reachable", lambda sc: None)
 
 
 def test_a_relay_that_leaves_its_world_is_reported_unsafe_with_its_exit_code(tmp_path, unchecked_mu):

@@ -14,9 +14,11 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 import aerorelay as ar
+from aerorelay.assembly import load_scenario
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.cli import EXIT_BAD_INPUT, EXIT_UNSAFE, app
-from aerorelay.scenario import ScenarioError, load_scenario
-from aerorelay.scenario.run import efficiency, output_bytes, run_metrics
+from aerorelay.config import ScenarioError
+from aerorelay.experiments.run import efficiency, output_bytes, run_metrics
 from aerorelay.store import run_folder
 from aerorelay.store.outputs import OutputError, check_output_folder
 
@@ -62,7 +64,7 @@ def test_metrics_survive_a_bound_whose_best_is_zero_or_undefined(flown, zero, va
     arrays = {k: np.full(3, 2e-3) for k in ("path_maxmin", "path_mean", "flyable_maxmin", "flyable_mean")}
     arrays[zero] = np.full(3, value)
     bound = SimpleNamespace(**arrays, summary=lambda: {"static": {"min": value}})
-    m = run_metrics(sc, res.mission, sc.platform.vehicle(), bound)
+    m = run_metrics(sc, res.mission, build_vehicle(sc.platform), bound)
     nulls = [k for k in m if k.startswith("capacity_efficiency") and m[k] is None]
     assert len(nulls) == 1 and nulls[0] in m["null_reasons"]
     text = run_folder.strict_json.dumps(m)
@@ -151,7 +153,7 @@ def test_a_diverging_plant_keeps_the_steps_flown_and_is_unsafe(tmp_path, monkeyp
             calls[0] += 1
             return f(x, u, d) if calls[0] < 7 else np.full(np.size(x), np.nan)
         return step
-    monkeypatch.setattr("aerorelay.scenario.build.plant_step_function", diverging)
+    monkeypatch.setattr("aerorelay.assembly.parts.plant_step_function", diverging)
     res = run_cli("run", NOMINAL, "--out", tmp_path / "r", "--duration", "0.3", "--no-bound", "--no-figures")
     assert res.exit_code == EXIT_UNSAFE, res.output
     m = strict_load(tmp_path / "r" / "metrics.json")

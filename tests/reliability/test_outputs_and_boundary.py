@@ -16,9 +16,10 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 import aerorelay as ar
+from aerorelay.assembly import load_scenario
 from aerorelay.cli import EXIT_BAD_INPUT, app
+from aerorelay.config import ScenarioError
 from aerorelay.models.checks import InvalidInput
-from aerorelay.scenario import ScenarioError, load_scenario
 from aerorelay.store import strict_json
 from aerorelay.store.outputs import OutputBusyError, clean_stale_siblings, lock_path, new_sibling, writing
 

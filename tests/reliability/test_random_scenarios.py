@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import aerorelay as ar
-from aerorelay.scenario import ScenarioError
+from aerorelay.config import ScenarioError
 
 NOMINAL = Path(__file__).resolve().parents[2] / "scenarios" / "nominal_tilted.toml"
 BASE = ar.load_scenario(NOMINAL, set={"sim.duration_s": 2.0})

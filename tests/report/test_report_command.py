@@ -5,10 +5,10 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
+from aerorelay.assembly import parse_scenario
 from aerorelay.cli import app
 from aerorelay.experiments.study import RunSpec
 from aerorelay.report.html import _headers, capacity_unit
-from aerorelay.scenario import parse_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 CUSTOM = f"""

@@ -5,10 +5,11 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import build
+from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.cli import app
 from aerorelay.models.geometry import rotation_batch
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import build
 from aerorelay.sim.closed_loop import log_columns
 from aerorelay.sim.metrics import compute_metrics
 from tests.reference_channel import end_to_end_capacity, link_sinr
@@ -33,7 +34,7 @@ def test_short_mission_runs_without_failures(short_run):
 
 
 def test_bounds_never_violated(short_run):
-    log, veh = short_run.log, SHORT.platform.vehicle()
+    log, veh = short_run.log, build_vehicle(SHORT.platform)
     speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
     rates = np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
     assert speeds.min() >= veh.omega_min - 1e-6 and speeds.max() <= veh.omega_max + 1e-6
@@ -59,12 +60,12 @@ def test_logged_capacity_equals_recomputation_from_logged_states(short_run):
 
 
 def test_metrics_from_log(short_run):
-    m = compute_metrics(short_run.log, vehicle=SHORT.platform.vehicle(), period_s=SHORT.control_period_s,
+    m = compute_metrics(short_run.log, vehicle=build_vehicle(SHORT.platform), period_s=SHORT.control_period_s,
                         outage_threshold=SHORT.channel.outage, mu=SHORT.controller.mu, wall_s=1.0, sim_s=3.0)
     assert m["c_min"] == pytest.approx(np.min(short_run.log["capacity"]))
     assert 0 <= m["outage_fraction"] <= 1 and m["infeasible_fraction"] == 0
     # hover-dominated 3 s: energy close to hover shaft power x time
-    veh = SHORT.platform.vehicle()
+    veh = build_vehicle(SHORT.platform)
     assert m["energy_kJ"] == pytest.approx(veh.shaft_power(veh.hover_speeds()) * 3.0 / 1e3, rel=0.1)
 
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import aerorelay as ar
+from aerorelay.assembly.parts import build
+from aerorelay.config import ScenarioError
 from aerorelay.models.geometry import rotation_batch
-from aerorelay.scenario import ScenarioError
-from aerorelay.scenario.build import build
 from aerorelay.sim.jammer_sensing import match_estimates
 from aerorelay.sim.metrics import estimation_metrics
 from tests.reference_channel import DIPOLE

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aerorelay.assembly import load_scenario, parse_scenario
+from aerorelay.assembly.parts import build, build_scene
+from aerorelay.config import ScenarioError
 from aerorelay.models.geometry import rotation_batch
 from aerorelay.models.propagation import rma_av_los_probability
-from aerorelay.scenario import ScenarioError, load_scenario, parse_scenario
-from aerorelay.scenario.build import build, build_scene
 from aerorelay.sim.perturbations import LinkPerturbations, PerturbationSettings
 from tests.reference_channel import end_to_end_capacity, jammer_gain_sq, legitimate_gain_sq
 

@@ -4,9 +4,9 @@ import gc
 
 import pytest
 
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import build, build_planner
 from aerorelay.control.bench import collections_counted
-from aerorelay.scenario import parse_scenario
-from aerorelay.scenario.build import build, build_planner
 from aerorelay.sim.realtime import full_collections_paused
 
 

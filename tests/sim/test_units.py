@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 import aerorelay as ar
+from aerorelay.assembly import load_scenario
 from aerorelay.cli import EXIT_BAD_INPUT, app
-from aerorelay.scenario import load_scenario
 from aerorelay.sim.units import metric_units, si
 
 ROOT = Path(__file__).resolve().parents[2]

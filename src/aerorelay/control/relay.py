@@ -1,7 +1,7 @@
 """The relay controller: OCP, NMPC, stage parameters and the fail-safe.
 
 ``RelayController(spec, weights, mu=..., failsafe=...)`` (built from a scenario by
-``scenario.build``) owns the NMPC (``nmpc.py``) and the brake law (``failsafe.py``).
+``assembly.parts``) owns the NMPC (``nmpc.py``) and the brake law (``failsafe.py``).
 Each control step: ``parameters(ref, p2, v2, a2)`` fills the named stage parameters from the
 planner's reference and MRAV-2's state; ``step(x, u_prev, P)`` runs one RTI. After
 ``controller.failsafe.failures_to_fallback`` consecutive QP failures, or at once on a non-finite

@@ -90,7 +90,7 @@ class Receiver:
 
 @dataclass(frozen=True)
 class EstimatorSettings:
-    """See ``[estimation]`` (``scenario/schema.py``): times s, distances m, powers dB."""
+    """See ``[estimation]`` (``config/sections.py``): times s, distances m, powers dB."""
 
     search_min: np.ndarray
     search_max: np.ndarray

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..scenario.build import scenario_bound_key
+from ..assembly.parts import scenario_bound_key
 from .study import RunSpec, scenario_of
 
 SIM_S_PER_MISSION_S = 0.12

@@ -25,11 +25,11 @@ import pyarrow.parquet as pq
 from dask.distributed import Client, LocalCluster, as_completed
 
 from .._version import __version__
-from ..scenario.build import nmpc_settings
-from ..scenario.run import simulate
+from ..assembly.parts import nmpc_settings
 from ..store import strict_json
 from ..store.outputs import check_output_folder, mark, write_atomic
 from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, MISSION_ULOG, SCENARIO_FILE, TIMESERIES_FILE
+from .run import simulate
 from .study import RunSpec, scenario_of
 
 log = logging.getLogger(__name__)

@@ -21,7 +21,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ..scenario import Scenario, ScenarioError, load_scenario, parse_scenario
+from ..assembly import load_scenario, parse_scenario, updated
+from ..config import Scenario, ScenarioError
 
 
 class StudyError(ValueError):
@@ -338,7 +339,7 @@ def expand(study: Study, root: Path, *, quick: bool = False, notices: list[str] 
 
 def _updated(base: Scenario, updates: dict, where: str) -> Scenario:
     try:
-        return base.with_updates(updates)
+        return updated(base, updates)
     except ScenarioError as exc:
         raise StudyError(f"{where}: {exc}") from None
 

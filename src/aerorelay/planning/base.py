@@ -3,7 +3,7 @@
 A planner is an object with ``update(PlannerInput) -> Reference``, called once per control step
 with what the relay knows (``examples/own_planner.py`` is a template). A named planner
 (``controller.planner`` in a scenario) is built by the factory registered under its name from a
-``PlannerContext``, the parts the composition root (``scenario/build.py``) made:
+``PlannerContext``, the parts the composition root (``assembly/parts.py``) made:
 
     @register_planner("name")
     def _mine(ctx: PlannerContext) -> Planner: ...

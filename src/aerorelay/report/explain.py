@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..assembly.parts import build_scene, scenario_bound
 from ..experiments.campaign import first_run_per_group, run_dir
 from ..experiments.study import Explanation, RunSpec, scenario_of
 from ..models.channel import end_to_end_capacity
 from ..models.fading import RicianFading
 from ..models.geometry import rotation_batch
-from ..scenario.build import build_scene, scenario_bound
 from ..store.run_folder import TIMESERIES_FILE
 
 

@@ -12,8 +12,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import plotly.graph_objects as go  # noqa: E402
 
-from ..scenario import Scenario  # noqa: E402
-from ..scenario.build import build_jammer  # noqa: E402
+from ..assembly.parts import build_jammer  # noqa: E402
+from ..config import Scenario  # noqa: E402
 
 RELAY, SOURCE = "#d4a017", "#7b3fa0"
 
@@ -96,7 +96,7 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
 def fig_constraints(df: pd.DataFrame, sc: Scenario):
     p = sc.platform
     fig, axes = plt.subplots(4, 1, figsize=(7, 8), sharex=True)
-    for i in range(1, p.vehicle().n_rotors + 1):
+    for i in range(1, sum(1 for c in df.columns if c.removeprefix("Omega_").isdigit()) + 1):
         axes[0].plot(df["t"], df[f"Omega_{i}"], lw=0.8, label=f"rotor {i}")
         axes[1].plot(df["t"], df[f"u_{i}"], lw=0.6, label=f"rotor {i}")
     for ax, lo, hi, lab in ((axes[0], p.omega_min_hz, p.omega_max_hz, r"$\Omega$ (Hz)"),

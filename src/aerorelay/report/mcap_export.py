@@ -44,7 +44,7 @@ from foxglove.messages import (
     Vector3,
 )
 
-from ..scenario import Scenario
+from ..config import Scenario
 from .figures import jammer_tracks
 
 MCAP_FILE = "run.mcap"

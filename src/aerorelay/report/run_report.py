@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..scenario import parse_scenario
+from ..assembly import parse_scenario
 from ..sim.units import DIMENSIONLESS, si
 from ..store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 from .figures import fig_capacity, fig_constraints, fig_tracking, fig_trajectory_3d

@@ -131,7 +131,7 @@ class BenchPoint:
 
 
 class ClosedLoop:
-    """Flies one mission from its parts (``scenario.build`` makes them from a scenario):
+    """Flies one mission from its parts (``assembly.parts`` makes them from a scenario):
     ``run(progress)`` returns a MissionResult."""
 
     def __init__(self, *, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory, planner: Planner,

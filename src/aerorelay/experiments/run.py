@@ -7,11 +7,14 @@ import math
 import os
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
 
+from ..assembly.load import updated
+from ..assembly.parts import build, scenario_bound
+from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
@@ -23,35 +26,43 @@ from ..sim.units import metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
-from .build import build, scenario_bound
-from .schema import Scenario, ScenarioError
 
 
 @dataclass
 class RunResult:
     """One flown mission: ``timeseries`` (one row per control step, the parquet's columns),
-    ``metrics`` (as ``metrics.json``), the capacity ``bound`` when computed, the raw ``mission``."""
+    ``metrics`` (as ``metrics.json``), the capacity ``bound`` when computed, the raw ``mission``;
+    ``views`` writes the run's figures and MCAP into its folder (``ar.simulate`` attaches the
+    report's writer; a campaign's runs have none)."""
 
     scenario: Scenario
     mission: MissionResult
     timeseries: pd.DataFrame
     metrics: dict
     bound: CapacityBound | None = None
+    views: Callable[[RunResult, Path], None] | None = field(default=None, repr=False)
 
-    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, wait: bool = False) -> Path:
+    def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True,
+             wait: bool = False) -> Path:
         """Write the run folder. Its essentials first, published at once: scenario.toml,
         timeseries.parquet, metrics.json and, for a CSV or ULog mission, the file's copy beside the
         scenario (``mission.csv`` / ``mission.ulg``, named relative to it), so ``aerorelay run
-        FOLDER/scenario.toml`` re-flies it. Then what is optional (the bound's files, what ``extra``
-        writes, e.g. figures), each on its own: one that fails is named in metrics.json
-        (``optional_outputs_failed``) and logged, and the run stays. One writer per folder
-        (``store.outputs.writing``: OutputBusyError, or ``wait``)."""
+        FOLDER/scenario.toml`` re-flies it. Then what is optional (the bound's files; the figures and
+        MCAP with ``figures`` when ``views`` is set, and what ``extra`` writes), each on its own: one
+        that fails is named in metrics.json (``optional_outputs_failed``) and logged, and the run
+        stays. One writer per folder (``store.outputs.writing``: OutputBusyError, or ``wait``)."""
         m = self.scenario.mission
         copy = MISSION_ULOG if m.trajectory_ulog else MISSION_CSV if m.trajectory_csv else None
 
         def with_mission(tmp: Path) -> None:
             if copy is not None and m.flown_file is not None:
                 shutil.copyfile(m.flown_file, tmp / copy)
+
+        def views(tmp: Path) -> None:
+            if figures and self.views is not None:
+                self.views(self, tmp)
+            if extra is not None:
+                extra(tmp)
 
         toml = self.scenario.to_toml(copy)
         with writing(folder, wait=wait) as out:
@@ -60,8 +71,8 @@ class RunResult:
             if self.bound is not None:
                 bound = self.bound
                 optional["bound"] = lambda tmp: write_bound_files(bound, tmp)
-            if extra is not None:
-                optional["figures"] = extra
+            if extra is not None or (figures and self.views is not None):
+                optional["figures"] = views
             add_optional(out, optional, self.metrics)
         return Path(folder)
 
@@ -134,12 +145,14 @@ def efficiency(value: float, best: float, what: str) -> tuple[float | None, str 
 def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
              jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None, with_bound: bool = False,
              progress: Callable[[int, int], None] | None = None,
-             bound_progress: Callable[[int, int], None] | None = None) -> RunResult:
+             bound_progress: Callable[[int, int], None] | None = None,
+             views: Callable[[RunResult, Path], None] | None = None) -> RunResult:
     """Fly ``sc`` (parts given here replace the scenario's: a planner object, a radio scene, a
-    list of jammers); ``with_bound``: also compute (or load) the capacity bound. ``sc`` is validated
+    list of jammers); ``with_bound``: also compute (or load) the capacity bound; ``views``: what writes
+    the figures and MCAP when the result is saved. ``sc`` is validated
     again first (a field changed after loading must pass every cross-field check too; the parts'
     own checks, e.g. an ``inr_db_at_relay_start`` jammer in a null, raise when ``build`` makes them)."""
-    sc.with_updates({})
+    updated(sc, {})
     check_run_size(sc)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None
@@ -156,4 +169,4 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit
     metrics["unit_system"] = sc.channel.units
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
-    return RunResult(sc, mission, df, metrics, bound)
+    return RunResult(sc, mission, df, metrics, bound, views)

@@ -1,12 +1,15 @@
-"""Reading scenario files: TOML text, ``--set`` overrides, user trajectory files, with named errors."""
+"""Loading a scenario: TOML text, ``--set`` overrides, user trajectory files; validated as data
+(``config``), then checked with physics (``checks``) and for the parts it needs (``build``), with
+named errors."""
 
 from __future__ import annotations
 
 import tomllib
 from pathlib import Path
 
-from .build import check_buildable
-from .schema import Scenario, ScenarioError, parse_scenario
+from ..config import Scenario, ScenarioError, validate_config
+from .checks import check_physics
+from .parts import check_buildable
 
 
 def parse_sets(items: list[str] | None) -> dict:
@@ -46,10 +49,22 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
         if isinstance(f, str) and f and not Path(f).is_absolute():
             data["mission"][key] = str((path.parent / f).resolve())
     try:
-        sc = parse_scenario(data)
+        sc = validate_config(data)
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
     updates = parse_sets(set) if isinstance(set, list) else (set or {})
     if updates:
         sc = sc.with_updates(updates)
-    return check_buildable(sc)
+    return check_buildable(check_physics(sc))
+
+
+def parse_scenario(data: dict) -> Scenario:
+    """Validate a scenario from a plain dict (as data, then its physics checks); raises
+    ScenarioError with one line per problem."""
+    return check_physics(validate_config(data))
+
+
+def updated(sc: Scenario, updates: dict) -> Scenario:
+    """``sc`` with dotted-key ``updates`` (``Scenario.with_updates``), checked like a loaded
+    scenario: data, physics, the parts it needs."""
+    return check_buildable(check_physics(sc.with_updates(updates)))

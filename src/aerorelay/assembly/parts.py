@@ -1,6 +1,6 @@
 """The composition root: a validated ``Scenario`` -> the parts a mission is made of.
 
-The only module that knows both the schema and the parts. ``models``, ``planning``,
+The only module that knows both the configuration (``config``) and the parts. ``models``, ``planning``,
 ``control`` and ``sim`` take parts (a vehicle, a radio scene, a path, settings dataclasses),
 never a ``Scenario``. The vehicle is built once per mission (its hover-tilt limits are cached on
 it) and shared by the planner, the controller, the plant and the bound.
@@ -13,12 +13,13 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
+from ..config import AntennaConfig, JammerConfig, Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
-from ..models.antenna import AntennaPattern, CosinePattern, IsotropicPattern
+from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
@@ -38,7 +39,8 @@ from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
-from .schema import JammerConfig, Scenario, ScenarioError
+from .checks import check_physics
+from .vehicle import build_vehicle
 
 ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
 
@@ -59,10 +61,28 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
                   boresight=boresight, name=cfg.name)
 
 
+def relay_pattern(cfg: AntennaConfig) -> AntennaPattern:
+    """The relay's pattern: a dipole (or sin^n) scaled by the directivity."""
+    g = cfg.g_bar * cfg.directivity
+    if cfg.pattern == "dipole":
+        return DipolePattern(g)
+    return SinPowerPattern(cfg.exponent, g)
+
+
+def node_patterns(cfg: AntennaConfig) -> NodePatterns:
+    """Every node's pattern from ``[antenna]``; the trajectory generator's surrogate does not use
+    them (eq. 12-13)."""
+    dipole = relay_pattern(cfg)
+    bs = {"dipole": dipole, "isotropic": IsotropicPattern(cfg.g_bar),
+          "cosine": CosinePattern(cfg.bs_g_max, cfg.bs_exponent, cfg.bs_back_lobe)}[cfg.bs_pattern]
+    return NodePatterns(relay=dipole, source=dipole if cfg.source_pattern == "dipole" else IsotropicPattern(cfg.g_bar),
+                        bs=bs)
+
+
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
     """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_antenna_axis()``), source
     'source' (MRAV-2) and relay 'relay' (MRAV-1), antennas along body z; every jammer."""
-    pat = sc.antenna.patterns()
+    pat = node_patterns(sc.antenna)
     bs_axis = np.array(sc.antenna.bs_antenna_axis(), float)
     bs_axis = bs_axis / np.linalg.norm(bs_axis)
     nodes = (Node("bs", "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
@@ -136,7 +156,7 @@ def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None) -> OcpSpec:
     """The NMPC problem structure described by a scenario."""
     c = sc.controller
     lo, hi = _workspace(sc)
-    return OcpSpec(vehicle=vehicle or sc.platform.vehicle(), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
+    return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
                    bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
                    exact_input_rate=c.exact_input_rate)
 
@@ -255,8 +275,10 @@ class Parts:
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
           jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None) -> Parts:
     """The parts of ``sc``; ``planner``, ``scene`` or ``jammers`` given here replace the ones the
-    scenario names (objects with the same interface: see ``planning.base``, ``models.radio``)."""
-    vehicle = sc.platform.vehicle()
+    scenario names (objects with the same interface: see ``planning.base``, ``models.radio``).
+    The scenario's physics checks run first (once per content: ``assembly.checks``)."""
+    check_physics(sc)
+    vehicle = build_vehicle(sc.platform)
     scene = scene or build_scene(sc, jammers)
     source = build_source(sc)
     if planner is not None:  # a user's planner: its references are checked at the boundary
@@ -305,7 +327,7 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
     scene = scene or build_scene(sc)
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
     realization = large_scale_realization(scene, noise, sc.seed)
-    return BoundProblem(scene, build_source(sc), vehicle or sc.platform.vehicle(), lo, hi, np.array(sc.nodes.relay, float),
+    return BoundProblem(scene, build_source(sc), vehicle or build_vehicle(sc.platform), lo, hi, np.array(sc.nodes.relay, float),
                         sc.duration_s, bound_resolution(sc), sc.channel.outage, realization if realization.active else None)
 
 

@@ -1,0 +1,203 @@
+"""The checks a scenario needs physics or its mission file's content for, run once per load as
+their own step after the data is valid (``config``): the platform hovers with its margin and can
+hold its attitude, the workspace, the mission and the jammers stay above the ground, the mission
+stays near the workspace, ``controller.mu`` is reachable, RMa-AV's geometry holds. Each raises
+ScenarioError with the line ``config`` would show for the field it names."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from ..config import MissionConfig, PlatformConfig, Scenario, ScenarioError
+from ..config.errors import error_line
+from ..config.scenario import after_validation
+from ..models.axes import axis_cone
+from ..models.channel import reachable_mutual_alignment
+from ..models.mission import source_trajectory
+from ..models.propagation import RMA_AV_MAX_D2D_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MIN_HEIGHT_M
+from ..models.vehicle import HoverInfeasibleError
+from .vehicle import shared_vehicle
+
+REACH_MAX_TIMES = 300  # mission instants the alignment reachability check samples (1 s apart up to 299 s)
+REACH_MAX_WORK = 6e7  # grid points x axes x instants it evaluates (~0.6 s on the project's VM; nominal: 2.5e7)
+REACH_MAX_POINTS = 10_000  # relay positions it searches at most (1 m apart up to this, then coarser)
+
+
+def check_physics(sc: Scenario) -> Scenario:
+    """Every physics check of ``sc`` (see the module); returns ``sc``. Remembered per scenario
+    content, so a scenario validated again (``simulate``, ``build``) is not checked twice."""
+    key = sc.model_dump_json()
+    if key in _PASSED:
+        return sc
+    for loc, check in (("platform", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
+                       ("scenario", _mu_reachable), ("scenario", _rma_av_geometry)):
+        try:
+            check(sc)
+        except ValueError as exc:
+            raise ScenarioError(error_line(loc, str(exc))) from None
+    if len(_PASSED) >= 256:
+        _PASSED.clear()
+    _PASSED.add(key)
+    return sc
+
+
+_PASSED: set[str] = set()  # scenarios (their JSON) that passed every check
+after_validation(check_physics)  # Scenario.with_updates runs them too
+
+
+def _hovers(sc: Scenario) -> None:
+    """The rotor layout produces thrust plus three independent moments, and hovers with every motor
+    ``min_hover_margin`` below ``omega_max_hz``."""
+    p = sc.platform
+    veh = shared_vehicle(p)
+    F, M = veh.allocation()
+    if np.linalg.matrix_rank(np.vstack([F, M]), tol=1e-9 * max(1.0, float(np.abs(F).max()))) < 4 or \
+            np.linalg.matrix_rank(M, tol=1e-12) < 3:
+        raise ValueError("the rotor layout's allocation cannot produce thrust plus three independent moments "
+                         f"(rank [F; M] = {np.linalg.matrix_rank(np.vstack([F, M]))}, rank M = {np.linalg.matrix_rank(M)}): "
+                         "the vehicle cannot hold its attitude")
+    try:
+        hover = veh.hover_speeds()
+    except HoverInfeasibleError as exc:
+        raise ValueError(str(exc)) from None
+    limit = (1.0 - p.min_hover_margin) * p.omega_max_hz
+    if float(np.max(hover)) > limit + 1e-9:
+        raise ValueError(f"hover needs {np.max(hover):.2f} Hz, above {limit:.2f} Hz = (1 - min_hover_margin "
+                         f"{p.min_hover_margin:g}) x omega_max_hz: no thrust left to brake or recover; raise "
+                         "omega_max_hz or state a smaller min_hover_margin")
+
+
+def _box_distance(p: np.ndarray, lo, hi) -> np.ndarray:
+    """Distance (m) of points ``(n, 3)`` from the box ``[lo, hi]`` (0 inside)."""
+    out = np.maximum(np.maximum(np.asarray(lo, float) - p, p - np.asarray(hi, float)), 0.0)
+    return np.linalg.norm(out, axis=1)
+
+
+def _above_ground(sc: Scenario) -> None:
+    """The workspace, the nodes, MRAV-2's path (every waypoint, or every sample of its file) and
+    every jammer (its position and waypoints) at or above ``world.ground_z_m``. Minimum-jerk and
+    straight segments never pass below both their ends, so the waypoints decide."""
+    g = sc.world.ground_z_m
+    where = "the ground" if g == 0.0 else f"the ground (world.ground_z_m = {g:g} m)"
+    ws = sc.controller.workspace
+    if ws.min[2] < g:
+        raise ValueError(f"controller.workspace.min: z = {ws.min[2]:g} m is below {where}; the relay must stay above it")
+    if sc.nodes.bs[2] < g:
+        raise ValueError(f"nodes.bs: z = {sc.nodes.bs[2]:g} m is below {where}")
+    m = sc.mission
+    if m.flown_file is None:
+        low = [w for w in m.waypoints if w[3] < g]
+        if low:
+            raise ValueError(f"mission.waypoints: MRAV-2's path goes below ground (z < {g:g}) at {low[0]}")
+    else:
+        z = m.flight().cols["pz"]
+        k = int(np.argmin(z))
+        if z[k] < g:
+            key = "trajectory_ulog" if m.trajectory_ulog else "trajectory_csv"
+            fix = "; shift it with ulog_offset_m" if m.trajectory_ulog else ""
+            raise ValueError(f"mission.{key}: MRAV-2's path goes below ground (z = {z[k]:.2f} m at sample {k + 1}{fix})"
+                             if g == 0.0 else f"mission.{key}: MRAV-2's path goes below {where} (z = {z[k]:.2f} m at "
+                             f"sample {k + 1}{fix})")
+    for i, j in enumerate(sc.jammer_configs):
+        zs = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
+        if min(zs) < g:
+            raise ValueError(f"{sc.jammer_field(i)}: its path goes below {where} (z = {min(zs):g} m)")
+
+def _mission_near_workspace(sc: Scenario) -> None:
+    """MRAV-2's path within ``world.mission_max_distance_m`` of the relay's workspace: a sample
+    farther away (a ULog sample at 3e38 m, a CSV at 1e300 m) is a damaged or foreign file."""
+    m, ws, most = sc.mission, sc.controller.workspace, sc.world.mission_max_distance_m
+    if m.flown_file is None:
+        pts, what = np.array([w[1:] for w in m.waypoints], float), "mission.waypoints[{k}]"
+    else:
+        c = m.flight().cols
+        pts = np.column_stack([c["px"], c["py"], c["pz"]])
+        what = f"mission.{'trajectory_ulog' if m.trajectory_ulog else 'trajectory_csv'} sample {{k1}}"
+    d = _box_distance(pts, ws.min, ws.max)
+    k = int(np.argmax(d))
+    if d[k] > most:
+        raise ValueError(f"{what.format(k=k, k1=k + 1)}: MRAV-2 at {np.array2string(pts[k], precision=4)} is {d[k]:.4g} m "
+                         f"from controller.workspace; its path must stay within world.mission_max_distance_m = {most:g} m")
+
+def _rma_av_geometry(sc: Scenario) -> None:
+    """RMa-AV (TR 36.777 Annex B) holds for aerial heights in (10, 300] m and physical units:
+    every link's higher end (the relay's workspace, MRAV-2's path, every jammer) must be there."""
+    if sc.channel.propagation.model != "rma_av":
+        return
+    if not sc.channel.physical:
+        raise ValueError("channel.propagation.model = 'rma_av' gives losses in dB at a carrier in Hz: "
+                         "set channel.units = 'physical'")
+    lo, hi = RMA_AV_MIN_HEIGHT_M, RMA_AV_MAX_HEIGHT_M
+    ws = sc.controller.workspace
+    heights = {"controller.workspace z": (ws.min[2], ws.max[2])}
+    path = source_trajectory(sc.mission)
+    z2 = [path.state(t).p[2] for t in np.linspace(0.0, path.duration, 200)]
+    heights["MRAV-2's path z"] = (min(z2), max(z2))
+    for i, j in enumerate(sc.jammer_configs):
+        zj = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
+        heights[f"{sc.jammer_field(i)} z"] = (min(zj), max(zj))
+    for what, (zmin, zmax) in heights.items():
+        if zmin <= lo or zmax > hi:
+            raise ValueError(f"channel.propagation.model = 'rma_av' holds for aerial heights in ({lo:g}, {hi:g}] m "
+                             f"(TR 36.777 Table B-2): {what} spans {zmin:.2f}-{zmax:.2f} m")
+    span = math.dist(ws.min[:2], ws.max[:2]) + max(math.dist(sc.nodes.bs[:2], p[:2]) for p in (ws.min, ws.max))
+    if span > RMA_AV_MAX_D2D_M:
+        raise ValueError(f"channel.propagation.model = 'rma_av' holds for 2D distances <= {RMA_AV_MAX_D2D_M:g} m")
+
+def _mu_reachable(sc: Scenario) -> None:
+    """``controller.mu`` no higher than the mutual alignment the relay can reach while holding a
+    hover, somewhere in its workspace, at every second of the mission. Above it the alignment
+    slack dominates the NMPC's cost all mission long and the NMPC trades the vehicle's stability
+    for alignment (measured on the nominal missions, supervisor on: mu = 0.9 flips the tilted
+    hexarotor (109 deg) and sends it 3.8 m out of the box, mu = 0.7 the coplanar one 12.5 m;
+    mu = 0.7 tilted and 0.5 coplanar, just above their reach, fly inside it)."""
+    c = sc.controller
+    if not c.comms_aware or c.mu <= 0.0:
+        return
+    reach, times, tilt = _reachable_alignment(sc.platform.model_dump_json(), sc.mission.model_dump_json(),
+                                              tuple(c.workspace.min), tuple(c.workspace.max), tuple(sc.nodes.bs),
+                                              sc.duration_s)
+    k = int(np.argmin(reach))
+    limit = math.floor(reach[k] * 100.0) / 100.0
+    if c.mu > limit:
+        raise ValueError(
+            f"controller.mu = {c.mu:g} is above {reach[k]:.3f}, the largest mutual alignment the relay can reach "
+            f"while holding a hover (tilt <= {tilt:.1f} deg) anywhere in "
+            f"controller.workspace at t = {times[k]:.0f} s of the mission: the alignment slack would dominate the "
+            f"NMPC's cost and trade the vehicle's stability for alignment; use mu in (0, {limit:.2f}]")
+
+
+def reach_grid(lo: np.ndarray, hi: np.ndarray, max_points: int) -> np.ndarray:
+    """Relay positions over the box ``[lo, hi]`` (m): 1 m apart, or evenly coarser until at most
+    ``max_points``; ``(P, 3)``."""
+    spacing = 1.0
+    while True:
+        counts = [int(np.ceil((hi[i] - lo[i]) / spacing)) + 1 for i in range(3)]
+        if math.prod(counts) <= max_points:
+            break
+        spacing *= 1.1
+    return np.stack(np.meshgrid(*[np.linspace(lo[i], hi[i], counts[i]) for i in range(3)], indexing="ij"), -1).reshape(-1, 3)
+
+
+@functools.lru_cache(maxsize=64)
+def _reachable_alignment(platform_json: str, mission_json: str, ws_min: tuple, ws_max: tuple, bs: tuple,
+                         duration_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per second of the mission: the largest mutual alignment the relay reaches in hover anywhere in
+    the workspace (1 m grid, hover-holdable axes every 3 deg); the times (s); the hover tilt limit
+    (deg). Bounded whatever the scenario: at most ``REACH_MAX_TIMES`` instants (evenly spaced over a
+    longer mission) and ``REACH_MAX_WORK`` evaluations (a coarser grid over a large workspace), so
+    the check is exact on the presets and a lower estimate of the reach on huge scenarios. A grid
+    point on the base station or MRAV-2 (no link direction) is skipped. Cached: every load of the
+    same scenario asks the same."""
+    veh = shared_vehicle(PlatformConfig.model_validate_json(platform_json))
+    lo, hi = np.array(ws_min, float), np.array(ws_max, float)
+    path = source_trajectory(MissionConfig.model_validate_json(mission_json))
+    end = min(duration_s, path.duration)  # MRAV-2 holds its last state after its path
+    times = np.linspace(0.0, end, min(int(np.ceil(end)) + 1, REACH_MAX_TIMES))
+    axes = axis_cone(veh.hover_tilt_limit, np.radians(3.0))
+    grid = reach_grid(lo, hi, min(REACH_MAX_POINTS, max(8, int(REACH_MAX_WORK / (len(axes) * len(times))))))
+    p2 = np.array([path.state(t).p for t in times])
+    return reachable_mutual_alignment(grid, axes, bs, p2), times, math.degrees(veh.hover_tilt_limit)

@@ -1,0 +1,105 @@
+"""``[mission]``: MRAV-2's path as data (timed waypoints, or a CSV or PX4 ULog flight file, read
+and checked when the table is validated: the file is part of the data)."""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+from pydantic import Field, field_validator, model_validator
+
+from ..models.mission import CsvPath, UlogPath
+from .base import Strict, Vec3, Waypoint, check_waypoint_times
+
+
+@functools.lru_cache(maxsize=16)
+def _flight_file_path(kind: str, file: str, stamp: tuple, yaw_deg: float, offset: tuple):
+    """A CSV or ULog path, cached by file, modification stamp and frame (read-only objects)."""
+    return UlogPath(file, yaw_deg=yaw_deg, offset=list(offset)) if kind == "ulog" else CsvPath(file)
+
+
+def flight_path(kind: str, file: str, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)):
+    """A mission file's path (``kind`` ``csv`` or ``ulog``), read once per content: every check of a
+    load and the path itself share it. ValueError names a file that cannot be read."""
+    st = Path(file).stat()
+    return _flight_file_path(kind, file, (st.st_mtime_ns, st.st_size), float(yaw_deg), tuple(offset))
+
+
+class MissionConfig(Strict):
+    """MRAV-2 path: minimum-jerk segments through timed waypoints ``[t_s, x, y, z]`` or a CSV."""
+
+    waypoints: list[Waypoint] = Field(
+        default_factory=lambda: [
+            [0.0, -3.04, 5.79, 1.72],
+            [12.0, -1.5, 4.29, 9.0],
+            [17.0, -1.5, 4.29, 9.0],
+            [28.0, -3.0, 4.29, 16.5],
+            [38.0, 0.0, 4.29, 16.5],
+            [47.0, -1.5, 4.29, 17.5],
+        ],
+        min_length=2,
+        description="MRAV-2's timed path [[t_s, x, y, z], ...] (s, m world), minimum-jerk segments, first time 0",
+    )
+    trajectory_csv: str | None = Field(None, description="CSV with columns t,px,py,pz,vx,vy,vz,ax,ay,az (or t,px,py,pz)")
+    trajectory_ulog: str | None = Field(None, description="PX4 flight log (ULog): vehicle_local_position, NED")
+    ulog_yaw_deg: float = Field(0.0, ge=-360.0, le=360.0, description="turns the ULog's east-north frame about z, deg")
+    ulog_offset_m: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="shifts the ULog's path, m (world)")
+
+    @field_validator("waypoints")
+    @classmethod
+    def _increasing_times(cls, wps):
+        check_waypoint_times(wps, first_zero=True)
+        return wps
+
+    @field_validator("trajectory_csv")
+    @classmethod
+    def _readable_csv(cls, v):
+        if v is None:
+            return v
+        if not Path(v).is_file():
+            raise ValueError(f"no such file {v}")
+        flight_path("csv", v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
+        return v
+
+    @model_validator(mode="after")
+    def _readable_ulog(self):
+        if self.trajectory_ulog is None:
+            return self
+        if self.trajectory_csv is not None:
+            raise ValueError("give one of trajectory_csv and trajectory_ulog, not both")
+        if not Path(self.trajectory_ulog).is_file():
+            raise ValueError(f"trajectory_ulog: no such file {self.trajectory_ulog}")
+        try:
+            flight_path("ulog", self.trajectory_ulog, self.ulog_yaw_deg, self.ulog_offset_m)
+        except ValueError as exc:
+            raise ValueError(f"trajectory_ulog: {exc}") from None
+        return self
+
+    @property
+    def flown_file(self) -> str | None:
+        """The mission file that flies (ULog or CSV), if any."""
+        return self.trajectory_ulog or self.trajectory_csv
+
+    def flight(self) -> CsvPath | UlogPath | None:
+        """The flight file's reading (``models.mission``), read once per content stamp (the checks
+        of a load ask for it several times); None for a waypoint mission or a file that is gone."""
+        f = self.flown_file
+        if not (f and Path(f).is_file()):
+            return None
+        if self.trajectory_ulog:
+            return flight_path("ulog", f, self.ulog_yaw_deg, self.ulog_offset_m)
+        return flight_path("csv", f)
+
+    @property
+    def duration_s(self) -> float:
+        """Mission length (s): the last waypoint's time, or the flight file's last time."""
+        flight = self.flight()
+        return flight.duration if flight is not None else self.waypoints[-1][0]
+
+    @property
+    def start(self) -> list[float]:
+        """MRAV-2's initial position (m)."""
+        flight = self.flight()
+        if flight is not None:
+            return [float(v) for v in flight.state(0.0).p]
+        return list(self.waypoints[0][1:])
