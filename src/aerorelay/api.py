@@ -29,7 +29,7 @@ from ._version import __version__
 from .assembly import load_scenario, parse_scenario
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
-from .assembly.parts import build, build_scene, nmpc_settings, scenario_bound
+from .assembly.parts import build, build_scene, nmpc_settings, one_relay, scenario_bound
 from .assembly.vehicle import build_vehicle
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop
@@ -91,17 +91,21 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
 
 def vehicle(sc: Scenario) -> Multirotor:
     """The relay's vehicle model (``[platform]``): allocation, hover speeds, tilt limits."""
-    return build_vehicle(sc.platform)
+    return build_vehicle(sc.platform_of(0))
 
 
 def link_budget(sc: Scenario) -> dict[str, float]:
-    """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry."""
-    return initial_link_budget(build_scene(sc), sc.nodes.relay, sc.mission.start)
+    """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry (one relay
+    and one source: a network's budget is ``link_budget_lines``)."""
+    if sc.is_fleet:
+        raise ScenarioError("link_budget: a network's start is given hop by hop by link_budget_lines")
+    return initial_link_budget(build_scene(sc), sc.relay_list[0].start, sc.source_list[0].mission.start)
 
 
 def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
     """The initial link budget line by line in the scenario's units (``aerorelay info``)."""
-    return initial_link_budget_lines(build_scene(sc), sc.nodes.relay, sc.mission.start, physical=sc.channel.physical)
+    starts = {r.name: r.start for r in sc.relay_list} | {s.name: s.mission.start for s in sc.source_list}
+    return initial_link_budget_lines(build_scene(sc), starts, physical=sc.channel.physical)
 
 
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
@@ -266,7 +270,9 @@ def solver_settings(sc: Scenario, **overrides) -> NmpcSettings:
 
 def check_run(sc: Scenario, out: str | Path, *, figures: bool = True) -> None:
     """Every check a run makes before flying: its log fits the machine's memory (ScenarioError) and
-    ``out`` can take the run folder with room for it (OutputError)."""
+    ``out`` can take the run folder with room for it (OutputError); a fleet, which does not fly yet,
+    is a ScenarioError naming it."""
+    one_relay(sc)
     check_run_size(sc)
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
 

@@ -88,7 +88,7 @@ def model_summary(sc: Scenario) -> Table:
     veh = api.vehicle(sc)
     F, M = veh.allocation()
     hover = veh.hover_speeds()
-    budget = api.link_budget(sc)
+    budget = None if sc.is_fleet else api.link_budget(sc)
     t = Table(title=f"model summary: {sc.name}", show_header=True)
     t.add_column("quantity")
     t.add_column("value", justify="right")
@@ -98,12 +98,16 @@ def model_summary(sc: Scenario) -> Table:
     t.add_row("allocation rank [F; M]", str(np.linalg.matrix_rank(np.vstack([F, M]))))
     t.add_row("hover speeds (Hz)", ", ".join(f"{h:.2f}" for h in hover))
     t.add_row("hover shaft power (W)", f"{veh.shaft_power(hover):.1f}")
-    t.add_row("Gamma_21 at t=0", f"{budget['gamma_21']:.4f}")
-    t.add_row("Gamma_10 at t=0", f"{budget['gamma_10']:.4f}")
-    t.add_row("end-to-end capacity C at t=0", f"{budget['capacity']:.4f}")
-    t.add_row("mutual alignment at t=0", f"{budget['mutual_alignment']:.3f} (mu = {sc.controller.mu})")
+    if budget is not None:
+        t.add_row("Gamma_21 at t=0", f"{budget['gamma_21']:.4f}")
+        t.add_row("Gamma_10 at t=0", f"{budget['gamma_10']:.4f}")
+        t.add_row("end-to-end capacity C at t=0", f"{budget['capacity']:.4f}")
+        t.add_row("mutual alignment at t=0", f"{budget['mutual_alignment']:.3f} (mu = {sc.controller.mu})")
+    else:
+        t.add_row("relays / sources / routes", f"{len(sc.relay_list)} / {len(sc.source_list)} / {len(sc.route_list)}")
     t.add_row("jammers", str(len(sc.jammer_configs)))
-    t.add_row("interference / noise at t=0: relay, BS (dB)", f"{budget['inr_relay_db']:.1f}, {budget['inr_bs_db']:.1f}")
+    if budget is not None:
+        t.add_row("interference / noise at t=0: relay, BS (dB)", f"{budget['inr_relay_db']:.1f}, {budget['inr_bs_db']:.1f}")
     t.add_row("mission length (s)", f"{sc.duration_s:g}")
     return t
 
@@ -210,7 +214,7 @@ def bound(
                       TimeElapsedColumn(), console=err_console, transient=True) as prog:
             task = prog.add_task("bound", total=1)
             summary = api.write_bound(sc, out, progress=lambda k, n: prog.update(task, completed=k, total=n))
-    except OutputBusyError as exc:
+    except (OutputBusyError, ScenarioError) as exc:
         _fail(str(exc))
     t = Table(title=f"capacity bounds: {sc.name}")
     for c in ("bound", "mean C", "min C", "outage"):

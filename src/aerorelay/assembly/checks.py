@@ -32,7 +32,7 @@ def check_physics(sc: Scenario) -> Scenario:
     key = sc.model_dump_json()
     if key in _PASSED:
         return sc
-    for loc, check in (("platform", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
+    for loc, check in (("scenario", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
                        ("scenario", _mu_reachable), ("scenario", _rma_av_geometry)):
         try:
             check(sc)
@@ -51,7 +51,23 @@ after_validation(check_physics)  # Scenario.with_updates runs them too
 def _hovers(sc: Scenario) -> None:
     """The rotor layout produces thrust plus three independent moments, and hovers with every motor
     ``min_hover_margin`` below ``omega_max_hz``."""
-    p = sc.platform
+    for field, p in _platforms(sc):
+        try:
+            _hovers_with_margin(p)
+        except ValueError as exc:
+            raise ValueError(f"{field}: {exc}") from None
+
+
+def _platforms(sc: Scenario) -> list[tuple[str, PlatformConfig]]:
+    """``[platform]`` and every relay's own platform, with its field."""
+    out = [("platform", sc.platform)]
+    for i, r in enumerate(sc.relays or []):
+        if r.platform is not None:
+            out.append((f"relays[{i}].platform", sc.platform_of(i)))
+    return out
+
+
+def _hovers_with_margin(p: PlatformConfig) -> None:
     veh = shared_vehicle(p)
     F, M = veh.allocation()
     if np.linalg.matrix_rank(np.vstack([F, M]), tol=1e-9 * max(1.0, float(np.abs(F).max()))) < 4 or \
@@ -87,19 +103,19 @@ def _above_ground(sc: Scenario) -> None:
         raise ValueError(f"controller.workspace.min: z = {ws.min[2]:g} m is below {where}; the relay must stay above it")
     if sc.nodes.bs[2] < g:
         raise ValueError(f"nodes.bs: z = {sc.nodes.bs[2]:g} m is below {where}")
-    m = sc.mission
-    if m.flown_file is None:
-        low = [w for w in m.waypoints if w[3] < g]
-        if low:
-            raise ValueError(f"mission.waypoints: MRAV-2's path goes below ground (z < {g:g}) at {low[0]}")
-    else:
+    for field, m in _missions(sc):
+        if m.flown_file is None:
+            low = [w for w in m.waypoints if w[3] < g]
+            if low:
+                raise ValueError(f"{field}.waypoints: MRAV-2's path goes below ground (z < {g:g}) at {low[0]}")
+            continue
         z = m.flight().cols["pz"]
         k = int(np.argmin(z))
         if z[k] < g:
             key = "trajectory_ulog" if m.trajectory_ulog else "trajectory_csv"
             fix = "; shift it with ulog_offset_m" if m.trajectory_ulog else ""
-            raise ValueError(f"mission.{key}: MRAV-2's path goes below ground (z = {z[k]:.2f} m at sample {k + 1}{fix})"
-                             if g == 0.0 else f"mission.{key}: MRAV-2's path goes below {where} (z = {z[k]:.2f} m at "
+            raise ValueError(f"{field}.{key}: MRAV-2's path goes below ground (z = {z[k]:.2f} m at sample {k + 1}{fix})"
+                             if g == 0.0 else f"{field}.{key}: MRAV-2's path goes below {where} (z = {z[k]:.2f} m at "
                              f"sample {k + 1}{fix})")
     for i, j in enumerate(sc.jammer_configs):
         zs = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
@@ -109,18 +125,27 @@ def _above_ground(sc: Scenario) -> None:
 def _mission_near_workspace(sc: Scenario) -> None:
     """MRAV-2's path within ``world.mission_max_distance_m`` of the relay's workspace: a sample
     farther away (a ULog sample at 3e38 m, a CSV at 1e300 m) is a damaged or foreign file."""
-    m, ws, most = sc.mission, sc.controller.workspace, sc.world.mission_max_distance_m
-    if m.flown_file is None:
-        pts, what = np.array([w[1:] for w in m.waypoints], float), "mission.waypoints[{k}]"
-    else:
-        c = m.flight().cols
-        pts = np.column_stack([c["px"], c["py"], c["pz"]])
-        what = f"mission.{'trajectory_ulog' if m.trajectory_ulog else 'trajectory_csv'} sample {{k1}}"
-    d = _box_distance(pts, ws.min, ws.max)
-    k = int(np.argmax(d))
-    if d[k] > most:
-        raise ValueError(f"{what.format(k=k, k1=k + 1)}: MRAV-2 at {np.array2string(pts[k], precision=4)} is {d[k]:.4g} m "
-                         f"from controller.workspace; its path must stay within world.mission_max_distance_m = {most:g} m")
+    ws, most = sc.controller.workspace, sc.world.mission_max_distance_m
+    for field, m in _missions(sc):
+        if m.flown_file is None:
+            pts, what = np.array([w[1:] for w in m.waypoints], float), field + ".waypoints[{k}]"
+        else:
+            c = m.flight().cols
+            pts = np.column_stack([c["px"], c["py"], c["pz"]])
+            what = f"{field}.{'trajectory_ulog' if m.trajectory_ulog else 'trajectory_csv'} sample {{k1}}"
+        d = _box_distance(pts, ws.min, ws.max)
+        k = int(np.argmax(d))
+        if d[k] > most:
+            raise ValueError(f"{what.format(k=k, k1=k + 1)}: MRAV-2 at {np.array2string(pts[k], precision=4)} is "
+                             f"{d[k]:.4g} m from controller.workspace; its path must stay within "
+                             f"world.mission_max_distance_m = {most:g} m")
+
+
+def _missions(sc: Scenario) -> list[tuple[str, MissionConfig]]:
+    """Every source's mission with its field: ``mission``, or ``sources[i].mission``."""
+    if sc.sources is None:
+        return [("mission", sc.mission)]
+    return [(f"sources[{i}].mission", s.mission) for i, s in enumerate(sc.sources)]
 
 def _rma_av_geometry(sc: Scenario) -> None:
     """RMa-AV (TR 36.777 Annex B) holds for aerial heights in (10, 300] m and physical units:
@@ -133,9 +158,10 @@ def _rma_av_geometry(sc: Scenario) -> None:
     lo, hi = RMA_AV_MIN_HEIGHT_M, RMA_AV_MAX_HEIGHT_M
     ws = sc.controller.workspace
     heights = {"controller.workspace z": (ws.min[2], ws.max[2])}
-    path = source_trajectory(sc.mission)
-    z2 = [path.state(t).p[2] for t in np.linspace(0.0, path.duration, 200)]
-    heights["MRAV-2's path z"] = (min(z2), max(z2))
+    for field, m in _missions(sc):
+        path = source_trajectory(m)
+        z2 = [path.state(t).p[2] for t in np.linspace(0.0, path.duration, 200)]
+        heights["MRAV-2's path z" if field == "mission" else f"{field} z"] = (min(z2), max(z2))
     for i, j in enumerate(sc.jammer_configs):
         zj = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
         heights[f"{sc.jammer_field(i)} z"] = (min(zj), max(zj))
@@ -154,10 +180,12 @@ def _mu_reachable(sc: Scenario) -> None:
     for alignment (measured on the nominal missions, supervisor on: mu = 0.9 flips the tilted
     hexarotor (109 deg) and sends it 3.8 m out of the box, mu = 0.7 the coplanar one 12.5 m;
     mu = 0.7 tilted and 0.5 coplanar, just above their reach, fly inside it)."""
-    c = sc.controller
+    if sc.is_fleet:  # a relay of a chain aligns with its route neighbours, not with the base station and MRAV-2
+        return
+    c, platform, mission = sc.controller_of(0), sc.platform_of(0), sc.source_list[0].mission
     if not c.comms_aware or c.mu <= 0.0:
         return
-    reach, times, tilt = _reachable_alignment(sc.platform.model_dump_json(), sc.mission.model_dump_json(),
+    reach, times, tilt = _reachable_alignment(platform.model_dump_json(), mission.model_dump_json(),
                                               tuple(c.workspace.min), tuple(c.workspace.max), tuple(sc.nodes.bs),
                                               sc.duration_s)
     k = int(np.argmin(reach))

@@ -14,6 +14,7 @@ import casadi as ca
 import numpy as np
 
 from ..config import AntennaConfig, JammerConfig, Scenario, ScenarioError
+from ..config.network import BASE_STATION
 from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
@@ -81,16 +82,19 @@ def node_patterns(cfg: AntennaConfig) -> NodePatterns:
 
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
     """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_antenna_axis()``), source
-    'source' (MRAV-2) and relay 'relay' (MRAV-1), antennas along body z; every jammer."""
+    'source' (MRAV-2) and relay 'relay' (MRAV-1) or the fleet's sources and relays by name, antennas along
+    body z; the routes (``[network]``); every jammer."""
     pat = node_patterns(sc.antenna)
     bs_axis = np.array(sc.antenna.bs_antenna_axis(), float)
     bs_axis = bs_axis / np.linalg.norm(bs_axis)
-    nodes = (Node("bs", "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
-             Node("source", "source", Antenna(pat.source)),
-             Node("relay", "relay", Antenna(pat.relay)))
+    nodes = (Node(BASE_STATION, "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
+             *(Node(s.name, "source", Antenna(pat.source)) for s in sc.source_list),
+             *(Node(r.name, "relay", Antenna(pat.relay)) for r in sc.relay_list))
     ch = sc.channel
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
-    scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), ("source", "relay", "bs"), path_gain(ch))
+    routes = tuple(tuple(r) for r in sc.route_list)
+    scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), routes[0], path_gain(ch),
+                       routes=routes if len(routes) > 1 else ())
     if jammers is None and any(j.inr_db_at_relay_start is not None for j in sc.jammer_configs):
         scene = _powers_for_inr(scene, sc)
     return scene
@@ -102,8 +106,8 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
     ``aerorelay info`` evaluates it: the channel's interference per unit power, one jammer at a time)."""
     I = np.eye(3)
     relay, source = scene.name_of("relay"), scene.name_of("source")
-    poses = {relay: scene.pose(relay, np.array(sc.nodes.relay, float), I),
-             source: scene.pose(source, np.array(sc.mission.start, float), I)}
+    poses = {relay: scene.pose(relay, relay_start(sc), I),
+             source: scene.pose(source, np.array(sc.source_list[0].mission.start, float), I)}
     hop = next(k for k, (_, rx) in enumerate(scene.hops) if rx == relay)
     out = []
     for i, (j, cfg) in enumerate(zip(scene.jammers, sc.jammer_configs, strict=True)):
@@ -142,9 +146,14 @@ def path_gain(ch) -> PathGain:
     return PathGain.log_distance(prop.exponent, prop.reference_distance_m, loss)
 
 
+def relay_start(sc: Scenario) -> np.ndarray:
+    """The (first) relay's start, m (world)."""
+    return np.array(sc.relay_list[0].start, float)
+
+
 def build_source(sc: Scenario) -> SourceTrajectory:
     """MRAV-2's path (minimum-jerk waypoints, the user's CSV or a PX4 flight log)."""
-    return source_trajectory(sc.mission)
+    return source_trajectory(sc.source_list[0].mission)
 
 
 def _workspace(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +165,7 @@ def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None) -> OcpSpec:
     """The NMPC problem structure described by a scenario."""
     c = sc.controller
     lo, hi = _workspace(sc)
-    return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
+    return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
                    bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
                    exact_input_rate=c.exact_input_rate)
 
@@ -168,7 +177,7 @@ def _vec3(v) -> tuple[float, float, float]:
 def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
     """The ``sw_*`` stage parameters: square roots of the weights in columns 0..N-1 and of the
     terminal weights in column N (0 for terms without a terminal part and for slacks)."""
-    w: dict[str, float] = sc.controller.weights.model_dump()  # type: ignore[attr-defined]
+    w: dict[str, float] = sc.controller.weights.model_dump()
     if sc.controller.planner == "capacity":  # a tracking NMPC under the capacity planner
         cap = sc.controller.capacity
         w.update(position=cap.position_weight, position_terminal=cap.position_weight_terminal)
@@ -218,7 +227,7 @@ def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source
     power: ``RadioScene.world_view``), MRAV-2's planned path, the vehicle, the workspace."""
     lo, hi = _workspace(sc)
     return PlannerContext(scene=scene.world_view(), source=source, vehicle=vehicle, workspace_min=lo, workspace_max=hi,
-                          relay_start=np.array(sc.nodes.relay, float), duration_s=sc.duration_s, settings=planner_settings(sc),
+                          relay_start=relay_start(sc), duration_s=sc.duration_s, settings=planner_settings(sc),
                           surrogate_g_bar=sc.antenna.g_bar)
 
 
@@ -248,7 +257,7 @@ def sim_settings(sc: Scenario) -> SimSettings:
     noise = PerturbationSettings(fading_model=ch.fading.model, shadow_std_db=ch.propagation.shadowing_std_db,
                                  decorrelation_m=ch.propagation.decorrelation_m, carrier_hz=ch.carrier_hz)
     return SimSettings(period_s=sc.control_period_s, duration_s=sc.duration_s, plant_rate_hz=sc.sim.plant_rate_hz,
-                       relay_start=np.array(sc.nodes.relay, float), seed=sc.seed, csi_noise_m=p.csi_noise_m,
+                       relay_start=relay_start(sc), seed=sc.seed, csi_noise_m=p.csi_noise_m,
                        process_noise_v=p.process_noise_v, process_noise_w=p.process_noise_w, fading_k_db=p.fading_k_db,
                        senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise)
 
@@ -272,12 +281,26 @@ class Parts:
                           controller=self.controller, plant=self.plant, settings=self.settings, sensing=self.sensing)
 
 
+def one_relay(sc: Scenario) -> Scenario:
+    """A one-relay scenario with its relay's own ``platform`` and ``controller`` (``[[relays]]``) as
+    the scenario's, so every part reads them where a file with ``nodes.relay`` has them. A fleet
+    (more than one relay or source) is a named error: flying and bounding a fleet are not built yet."""
+    if sc.is_fleet:
+        raise ScenarioError(f"relays / sources: this scenario is a network of {len(sc.relay_list)} relays and "
+                            f"{len(sc.source_list)} sources; flying a fleet is not built yet (validate, info and the "
+                            "network's link budget work; docs/concepts/networks.md)")
+    if sc.relays is None or (sc.relays[0].platform is None and not sc.relays[0].controller):
+        return sc
+    return sc.model_copy(update={"platform": sc.platform_of(0), "controller": sc.controller_of(0)})
+
+
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
           jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None) -> Parts:
     """The parts of ``sc``; ``planner``, ``scene`` or ``jammers`` given here replace the ones the
     scenario names (objects with the same interface: see ``planning.base``, ``models.radio``).
     The scenario's physics checks run first (once per content: ``assembly.checks``)."""
     check_physics(sc)
+    sc = one_relay(sc)
     vehicle = build_vehicle(sc.platform)
     scene = scene or build_scene(sc, jammers)
     source = build_source(sc)
@@ -299,7 +322,7 @@ def search_box(sc: Scenario, source: SourceTrajectory) -> tuple[np.ndarray, np.n
     est = sc.estimation
     if est.search_min_m is not None:
         return np.array(est.search_min_m, float), np.array(est.search_max_m, float)
-    pts = np.vstack([sc.nodes.bs, sc.nodes.relay] + [source.state(t).p for t in np.linspace(0.0, sc.duration_s, 50)])
+    pts = np.vstack([sc.nodes.bs, relay_start(sc)] + [source.state(t).p for t in np.linspace(0.0, sc.duration_s, 50)])
     lo, hi = pts.min(axis=0) - SEARCH_MARGIN_M, pts.max(axis=0) + SEARCH_MARGIN_M
     lo[2], hi[2] = max(0.0, pts[:, 2].min() - SEARCH_MARGIN_M), pts[:, 2].max() + 0.5 * SEARCH_MARGIN_M
     return lo, hi
@@ -323,11 +346,12 @@ def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> 
 def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> BoundProblem:
     """The bound of the run: its scene, and the run's own large-scale realization (shadowing field,
     LoS states) where the channel has one, the same the plant flies through (same seed)."""
+    sc = one_relay(sc)
     lo, hi = _workspace(sc)
     scene = scene or build_scene(sc)
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
     realization = large_scale_realization(scene, noise, sc.seed)
-    return BoundProblem(scene, build_source(sc), vehicle or build_vehicle(sc.platform), lo, hi, np.array(sc.nodes.relay, float),
+    return BoundProblem(scene, build_source(sc), vehicle or build_vehicle(sc.platform_of(0)), lo, hi, relay_start(sc),
                         sc.duration_s, bound_resolution(sc), sc.channel.outage, realization if realization.active else None)
 
 
@@ -340,7 +364,9 @@ def bound_resolution(sc: Scenario) -> BoundResolution:
 
 def scenario_bound_key(sc: Scenario) -> str:
     """Everything the bound depends on (not the controller, except its workspace box)."""
-    data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers", "mission", "bound"})
+    sc = one_relay(sc)
+    fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
+    data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers", "mission", "bound"} | fleet)
     data["workspace"] = sc.controller.workspace.model_dump()
     data["duration_s"] = sc.duration_s
     if sc.channel.propagation.random:  # the bound searches the run's own realization

@@ -87,4 +87,4 @@ def error_line(loc: str, msg: str) -> str:
     return f"{loc}: {msg}"
 
 
-_FIELD_PREFIX = re.compile(r"^(jammers?|mission|controller|nodes|world)(\[\d+\])?(\.[a-z_]+)*: ")
+_FIELD_PREFIX = re.compile(r"^(jammers?|mission|controller|nodes|world|relays|sources|network|platform)(\[\d+\])?(\.[a-z_]+)*: ")

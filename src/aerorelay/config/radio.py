@@ -204,7 +204,8 @@ class JammerConfig(Strict):
     g_max: float = Field(1.0, gt=0.0, le=1e4, description="cosine pattern: peak gain (linear)")
     exponent: float = Field(0.0, ge=0.0, le=100.0, description="cosine pattern: n of max(cos psi, 0)^n")
     back_lobe: float = Field(0.0, ge=0.0, le=1.0, description="cosine pattern: gain floor relative to g_max")
-    point_at: Literal["bs", "relay", "source"] | None = Field(None, description="cosine pattern: the node it tracks")
+    point_at: str | None = Field(None, min_length=1, description="cosine pattern: the node it tracks (bs, relay, source, "
+                                 "or a name of [[relays]] / [[sources]])")
     boresight: Vec3 | None = Field(None, description="cosine pattern: fixed boresight direction, world")
 
     @property

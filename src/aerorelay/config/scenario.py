@@ -20,6 +20,15 @@ from .base import ScenarioError, Strict
 from .controller import ControllerConfig
 from .errors import format_errors
 from .mission import MissionConfig
+from .network import (
+    BASE_STATION,
+    LEGACY_RELAY,
+    LEGACY_SOURCE,
+    PLATFORM_PRESETS,
+    NetworkConfig,
+    RelayConfig,
+    SourceConfig,
+)
 from .platform import PlatformConfig
 from .radio import AntennaConfig, ChannelConfig, JammerConfig, NodesConfig
 from .sections import BoundConfig, EstimationConfig, PerturbationConfig, SimConfig, WorldConfig
@@ -56,6 +65,11 @@ class Scenario(Strict):
     bound: BoundConfig = Field(default_factory=BoundConfig)
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
     world: WorldConfig = Field(default_factory=WorldConfig)
+    relays: list[RelayConfig] | None = Field(None, min_length=1, max_length=16, description="the relays of a network "
+                                             "(replaces nodes.relay)")
+    sources: list[SourceConfig] | None = Field(None, min_length=1, max_length=16, description="the inspection drones "
+                                               "(replaces [mission])")
+    network: NetworkConfig = Field(default_factory=NetworkConfig)
 
     @model_validator(mode="before")
     @classmethod
@@ -84,11 +98,13 @@ class Scenario(Strict):
             dup = sorted({n for n in names if names.count(n) > 1})
             if dup:
                 raise ValueError(f"jammers: names must be unique, {dup} used more than once")
+        self._one_way_to_name_the_fleet()
         pts = {
             "nodes.bs": self.nodes.bs,
-            "nodes.relay": self.nodes.relay,
+            **{self._relay_field(i, "start", legacy="nodes.relay"): r.start for i, r in enumerate(self.relay_list)},
             **{f"{self.jammer_field(i)}.position": j.position for i, j in enumerate(self.jammer_configs)},
-            "mission.waypoints[0]": self.mission.start,
+            **{self._source_field(i, "mission start", legacy="mission.waypoints[0]"): s.mission.start
+               for i, s in enumerate(self.source_list)},
         }
         names = list(pts)
         for i, a in enumerate(names):
@@ -102,8 +118,18 @@ class Scenario(Strict):
         if len(modes) > 1:
             raise ValueError("jammer.localization: every jammer must use the same mode (oracle or estimated)")
         ws = self.controller.workspace
-        if not ws.contains(self.nodes.relay):
-            raise ValueError(f"nodes.relay {self.nodes.relay} must lie inside controller.workspace [{ws.min}, {ws.max}]")
+        for i, r in enumerate(self.relay_list):
+            if not ws.contains(r.start):
+                where = self._relay_field(i, "start", legacy="nodes.relay")
+                raise ValueError(f"{where} {r.start} must lie inside controller.workspace [{ws.min}, {ws.max}]")
+        self._routes_hold()
+        nodes = [BASE_STATION] + [r.name for r in self.relay_list] + [s.name for s in self.source_list]
+        for i, j in enumerate(self.jammer_configs):
+            if j.point_at is not None and j.point_at not in nodes:
+                raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
+        self._separation_holds()
+        for i in range(len(self.relay_list)):
+            self.controller_of(i)
         steps = self.sim.plant_rate_hz * self.control_period_s
         if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
             raise ValueError(
@@ -111,6 +137,126 @@ class Scenario(Strict):
                 f"(sim.plant_rate_hz = {self.sim.plant_rate_hz})"
             )
         return self
+
+    # --- the fleet: relays, sources, routes (legacy files: one relay 'relay', one source 'source') ---
+
+    @property
+    def is_network_file(self) -> bool:
+        """Whether the file names its fleet ([[relays]] / [[sources]]) instead of nodes.relay and [mission]."""
+        return self.relays is not None or self.sources is not None
+
+    @property
+    def relay_list(self) -> list[RelayConfig]:
+        """Every relay: ``[[relays]]``, or the one at ``nodes.relay`` named ``relay``."""
+        return list(self.relays) if self.relays is not None else [RelayConfig(name=LEGACY_RELAY, start=self.nodes.relay)]
+
+    @property
+    def source_list(self) -> list[SourceConfig]:
+        """Every source: ``[[sources]]``, or the one flying ``[mission]`` named ``source``."""
+        return list(self.sources) if self.sources is not None else [SourceConfig(name=LEGACY_SOURCE, mission=self.mission)]
+
+    @property
+    def route_list(self) -> list[list[str]]:
+        """Every route ``[source, relay, ..., "bs"]``: ``network.routes``, or one per source through
+        every relay in order."""
+        if self.network.routes is not None:
+            return [list(r) for r in self.network.routes]
+        relays = [r.name for r in self.relay_list]
+        return [[s.name, *relays, BASE_STATION] for s in self.source_list]
+
+    @property
+    def is_fleet(self) -> bool:
+        """More than one relay or more than one source."""
+        return len(self.relay_list) > 1 or len(self.source_list) > 1
+
+    def platform_of(self, i: int) -> PlatformConfig:
+        """Relay ``i``'s platform: its own (a preset or a table), else ``[platform]``."""
+        p = self.relay_list[i].platform
+        if p is None:
+            return self.platform
+        return PlatformConfig(**PLATFORM_PRESETS[p]) if isinstance(p, str) else p
+
+    def controller_of(self, i: int) -> ControllerConfig:
+        """Relay ``i``'s controller: ``[controller]`` with its ``[relays.controller]`` fields over it."""
+        override = self.relay_list[i].controller
+        if not override:
+            return self.controller
+        try:
+            return ControllerConfig.model_validate(_merged(self.controller.model_dump(), override))
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            loc = ".".join(str(x) for x in first["loc"])
+            raise ValueError(f"relays[{i}].controller.{loc}: {first['msg'].removeprefix('Value error, ')}") from None
+
+    def _relay_field(self, i: int, what: str, *, legacy: str) -> str:
+        return legacy if self.relays is None else f"relays[{i}].{what}"
+
+    def _source_field(self, i: int, what: str, *, legacy: str) -> str:
+        return legacy if self.sources is None else f"sources[{i}].{what}"
+
+    def _one_way_to_name_the_fleet(self) -> None:
+        if self.relays is not None and "relay" in self.nodes.model_fields_set:
+            raise ValueError("nodes.relay: give the relays as [[relays]] or one nodes.relay, not both")
+        if self.sources is not None and "mission" in self.model_fields_set:
+            raise ValueError("mission: give the sources as [[sources]] (each with its [sources.mission]) or one "
+                             "[mission], not both")
+        names = [s.name for s in self.source_list] + [r.name for r in self.relay_list] + [BASE_STATION]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"network: {twice} named more than once (sources, relays and the base station "
+                             f"'{BASE_STATION}' need distinct names)")
+
+    def _routes_hold(self) -> None:
+        """Each route from a source through relays to the base station, no node twice, no route
+        twice; every relay and every source on a route."""
+        sources, relays = [s.name for s in self.source_list], [r.name for r in self.relay_list]
+        routes = self.route_list
+        for i, route in enumerate(routes):
+            where = f"network.routes[{i}]"
+            unknown = [n for n in route if n not in sources + relays + [BASE_STATION]]
+            if unknown:
+                raise ValueError(f"{where}: no node named {unknown[0]!r} (sources {sources}, relays {relays}, base "
+                                 f"station '{BASE_STATION}')")
+            if len(route) < 2 or route[-1] != BASE_STATION:
+                raise ValueError(f"{where}: {route} must end at the base station '{BASE_STATION}'")
+            if route[0] not in sources:
+                raise ValueError(f"{where}: {route} must start at a source ({', '.join(sources)})")
+            twice = [n for n in route if route.count(n) > 1]
+            if twice:
+                raise ValueError(f"{where}: {route} passes {twice[0]!r} twice (a cycle)")
+            wrong = [n for n in route[1:-1] if n not in relays]
+            if wrong:
+                raise ValueError(f"{where}: {wrong[0]!r} inside the route is not a relay (relays {relays})")
+            if route in routes[:i]:
+                raise ValueError(f"{where}: {route} is given twice")
+        used = {n for r in routes for n in r}
+        for i, r in enumerate(self.relay_list):
+            if r.name not in used:
+                raise ValueError(f"relays[{i}]: {r.name!r} is on no route of network.routes (a relay carries data)")
+        for i, s in enumerate(self.source_list):
+            if s.name not in used:
+                raise ValueError(f"sources[{i}]: {s.name!r} is on no route of network.routes (its data goes nowhere)")
+
+    def _separation_holds(self) -> None:
+        """``network.min_separation_m``: every two vehicles start that far apart, and the workspace
+        holds the relays that far apart (on a cubic lattice of that spacing)."""
+        d = self.network.min_separation_m
+        if d <= 0.0:
+            return
+        ws = self.controller.workspace
+        room = math.prod(math.floor((hi - lo) / d + 1e-9) + 1 for lo, hi in zip(ws.min, ws.max, strict=True))
+        if room < len(self.relay_list):
+            raise ValueError(f"network.min_separation_m: controller.workspace holds {room} vehicles {d:g} m apart "
+                             f"(a cubic lattice), fewer than the {len(self.relay_list)} relays")
+        starts = {f"relays[{i}] ({r.name!r})": r.start for i, r in enumerate(self.relay_list)}
+        starts |= {f"sources[{i}] ({s.name!r})": s.mission.start for i, s in enumerate(self.source_list)}
+        names = list(starts)
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                gap = math.dist(starts[a], starts[b])
+                if gap < d:
+                    raise ValueError(f"network.min_separation_m: {a} and {b} start {gap:.3g} m apart, closer than "
+                                     f"the separation {d:g} m")
 
     @property
     def stochastic(self) -> bool:
@@ -130,14 +276,16 @@ class Scenario(Strict):
 
     @property
     def duration_s(self) -> float:
-        return self.sim.duration_s if self.sim.duration_s is not None else self.mission.duration_s
+        if self.sim.duration_s is not None:
+            return self.sim.duration_s
+        return max(s.mission.duration_s for s in self.source_list)  # every source's mission
 
     def to_toml(self, mission_file: str | None = None) -> str:
         """The resolved scenario as TOML text (every default spelled out), arrays on one line, with
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
         the CSV's path (a run folder holds its own copy)."""
-        data = self.model_dump(exclude_none=True)
-        m = data["mission"]
+        data = self._plain_data()
+        m = data.get("mission", {})
         if self.mission.flown_file:
             m.pop("waypoints", None)
             if mission_file is not None:
@@ -147,11 +295,24 @@ class Scenario(Strict):
             m.pop("ulog_offset_m", None)
         return compact_toml(data)
 
+    def _plain_data(self) -> dict:
+        """``model_dump`` as a file would say it: a network file without ``nodes.relay`` and
+        ``[mission]`` (its ``[[relays]]`` and ``[[sources]]`` say them), a one-relay file without a
+        default ``[network]``."""
+        data = self.model_dump(exclude_none=True)
+        if self.relays is not None:
+            data["nodes"].pop("relay", None)
+        if self.sources is not None:
+            data.pop("mission", None)
+        if not self.is_network_file and self.network == NetworkConfig():
+            data.pop("network", None)
+        return data
+
     def with_updates(self, updates: dict) -> Scenario:
         """A new scenario with dotted-key updates, e.g. ``{"controller.variant": "unconstrained"}``,
         validated as data and by the load checks registered with ``after_validation`` (the physics
         checks of ``assembly.checks``)."""
-        data = self.model_dump(exclude_none=True)
+        data = self._plain_data()
         if self.mission.flown_file and "mission.waypoints" in updates:  # waypoints given: they fly, not the file
             data["mission"].pop("trajectory_csv", None)
             data["mission"].pop("trajectory_ulog", None)
@@ -187,6 +348,14 @@ def after_validation(check: Callable[[Scenario], object]) -> None:
     layer never imports them."""
     if check not in _AFTER_VALIDATION:
         _AFTER_VALIDATION.append(check)
+
+
+def _merged(base: dict, override: dict) -> dict:
+    """``base`` with ``override``'s values over it, tables merged key by key."""
+    out = dict(base)
+    for k, v in override.items():
+        out[k] = _merged(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
 
 
 def validate_config(data: dict) -> Scenario:

@@ -22,7 +22,7 @@ def k_factor_linear(k_db: float) -> float:
 class RicianFading:
     """Seeded generator of Rician amplitudes with K-factor ``k_db`` (dB) and ``E[alpha^2] = 1``."""
 
-    def __init__(self, k_db: float, seed: int | None = None):
+    def __init__(self, k_db: float, seed: int | np.random.SeedSequence | None = None):
         self.k_db = k_db
         self.k = k_factor_linear(k_db)
         self._rng = np.random.default_rng(seed)
@@ -52,7 +52,7 @@ class ClarkeRicianFading:
     sqrt(1/(K+1)) n``, amplitude ``|h|``, ``E|h|^2 = 1``. Seeded per run.
     """
 
-    def __init__(self, k_db: float, n_links: int, seed: int | None = None, n_sinusoids: int = 32):
+    def __init__(self, k_db: float, n_links: int, seed: int | np.random.SeedSequence | None = None, n_sinusoids: int = 32):
         self.k = k_factor_linear(k_db)
         rng = np.random.default_rng(seed)
         self._cos = np.cos(rng.uniform(0.0, 2.0 * np.pi, (n_links, n_sinusoids)))

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backend import is_symbolic, ops
+from .streams import generator, stream
 
 SPEED_OF_LIGHT_M_S = 299_792_458.0
 
@@ -215,7 +216,8 @@ class ShadowingField:
     phi_m)``, ``w_m`` multivariate Cauchy with scale ``1/d_corr`` (the spectral density of
     ``exp(-r/d)`` in 3D, a Student t with one degree of freedom), ``phi_m`` uniform. Seeded."""
 
-    def __init__(self, n_links: int, decorrelation_m: float, seed: int | None = None, n_features: int = 256):
+    def __init__(self, n_links: int, decorrelation_m: float, seed: int | np.random.SeedSequence | None = None,
+                 n_features: int = 256):
         if decorrelation_m <= 0:
             raise ValueError(f"shadowing decorrelation distance must be > 0 m, got {decorrelation_m}")
         rng = np.random.default_rng(seed)
@@ -252,8 +254,8 @@ class LargeScaleRealization:
         self.rma = path_gain if isinstance(path_gain, RmaAvPathGain) else None
         self.std_db = std_db
         random = self.rma is not None or std_db > 0
-        self.field = ShadowingField(n_links, decorrelation_m, seed=seed + 2) if random else None
-        self.u = np.random.default_rng(seed + 3).uniform(size=n_links) if self.rma is not None else None
+        self.field = ShadowingField(n_links, decorrelation_m, seed=stream(seed, "shadowing")) if random else None
+        self.u = generator(seed, "los").uniform(size=n_links) if self.rma is not None else None
 
     @property
     def active(self) -> bool:

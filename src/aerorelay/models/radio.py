@@ -106,13 +106,16 @@ class Emitter:
 
 @dataclass(frozen=True)
 class ChannelState:
-    """One evaluation of the channel: per hop of the route (in route order) the SINR and the
-    interference ``sum_j F_Jj^2 P_J`` at its receiver (W); the end-to-end capacity."""
+    """One evaluation of the channel: per hop (every link of every route once, in route order) the
+    SINR and the interference ``sum_j F_Jj^2 P_J`` at its receiver (W); the capacity of each route
+    (``route_capacity``, eq. 9 with any number of hops) and the network's rate ``capacity`` (every
+    hop of every route in its own slot: ``network_rate``; the route's capacity for one route)."""
 
     hops: tuple[tuple[str, str], ...]
     sinr: tuple[np.ndarray, ...]
     interference: tuple[np.ndarray, ...]
     capacity: np.ndarray
+    route_capacity: tuple[np.ndarray, ...] = ()
 
     def spectral_efficiency(self) -> tuple[np.ndarray, ...]:
         """``log2(1 + Gamma_k)`` per hop, bit/s/Hz (eq. 8 with B = 1)."""
@@ -185,15 +188,32 @@ def route_capacity(sinrs: Sequence, bandwidth: float = 1.0):
     return bandwidth * np.where(alive, num / np.where(alive, den, 1.0), 0.0)
 
 
+def network_rate(route_sinrs: Sequence[Sequence], bandwidth: float = 1.0):
+    """The rate every source of a network gets when every hop of every route has its own time slot
+    (no two hops interfere; the jammers reach every receiver): ``R = B / sum_s sum_{k in route s}
+    1/log2(1 + Gamma_{s,k})``, which is eq. 9 for one route of two hops. Zero when any hop is dead.
+    ``route_sinrs``: per route, its hops' SINRs; numpy (broadcast) or CasADi."""
+    se = [spectral_efficiency(g) for r in route_sinrs for g in r]
+    if is_symbolic(*se):
+        return bandwidth / sum(1.0 / s for s in se)
+    se = list(np.broadcast_arrays(*se))
+    alive = np.all([s > 0 for s in se], axis=0)
+    with np.errstate(divide="ignore"):
+        inv = sum(1.0 / np.where(alive, s, 1.0) for s in se)
+    return bandwidth * np.where(alive, 1.0 / inv, 0.0)
+
+
 @dataclass(frozen=True)
 class RadioScene:
-    """Nodes, jammers, link budget and the route data takes (node names, source first, base station last)."""
+    """Nodes, jammers, link budget and the routes data takes (node names, a source first, a base
+    station last): ``route`` for one, ``routes`` for a network (then ``route`` is ignored)."""
 
     nodes: tuple[Node, ...]
     jammers: tuple[Jammer, ...] = ()
     budget: LinkBudget = LinkBudget()
     route: tuple[str, ...] = ("source", "relay", "bs")
     path_gain: PathGain = PathGain()  # deterministic large-scale propagation of every link
+    routes: tuple[tuple[str, ...], ...] = ()  # a network's routes (empty: the one ``route``)
 
     def __post_init__(self):
         for field_name, items, kind in (("nodes", self.nodes, Node), ("jammers", self.jammers, Jammer)):
@@ -206,11 +226,14 @@ class RadioScene:
         names = [n.name for n in self.nodes]
         if len(set(names)) != len(names):
             raise ValueError(f"radio scene: node names must be unique, got {names}")
-        missing = [r for r in self.route if r not in names]
-        if missing or len(self.route) < 2:
-            raise ValueError(f"radio scene: route {list(self.route)} must name >= 2 of the nodes {names}")
-        if self.node(self.route[0]).role != "source" or self.node(self.route[-1]).role != "base_station":
-            raise ValueError("radio scene: the route must start at a source and end at a base station")
+        for route in self.all_routes:
+            missing = [r for r in route if r not in names]
+            if missing or len(route) < 2:
+                raise ValueError(f"radio scene: route {list(route)} must name >= 2 of the nodes {names}")
+            if self.node(route[0]).role != "source" or self.node(route[-1]).role != "base_station":
+                raise ValueError("radio scene: the route must start at a source and end at a base station")
+            if len(set(route)) != len(route):
+                raise ValueError(f"radio scene: route {list(route)} passes a node twice")
         for j in self.jammers:
             if j.point_at is not None and j.point_at not in names:
                 raise ValueError(f"jammer {j.name!r}: point_at {j.point_at!r} is not a node ({', '.join(names)})")
@@ -232,8 +255,22 @@ class RadioScene:
         return next(n.name for n in self.nodes if n.role == role)
 
     @property
+    def all_routes(self) -> tuple[tuple[str, ...], ...]:
+        """The routes data takes: ``routes``, or the one ``route``."""
+        return tuple(tuple(r) for r in self.routes) if self.routes else (tuple(self.route),)
+
+    @property
     def hops(self) -> tuple[tuple[str, str], ...]:
-        return tuple(zip(self.route[:-1], self.route[1:], strict=True))
+        """Every link of every route once (a link two routes share is one hop), in route order."""
+        out: list[tuple[str, str]] = []
+        for route in self.all_routes:
+            out += [h for h in zip(route[:-1], route[1:], strict=True) if h not in out]
+        return tuple(out)
+
+    def route_hops(self) -> tuple[tuple[int, ...], ...]:
+        """Per route, the indices in ``hops`` of its links, in order."""
+        hops = self.hops
+        return tuple(tuple(hops.index(h) for h in zip(r[:-1], r[1:], strict=True)) for r in self.all_routes)
 
     @property
     def fading_links(self) -> int:
@@ -306,7 +343,10 @@ class RadioScene:
                     i_rx = np.nan_to_num(i_rx, nan=np.inf)
                 sinrs.append(h * b.tx_power / (i_rx + b.noise_power))  # eq. 5
                 interference.append(i_rx)
-        return ChannelState(self.hops, tuple(sinrs), tuple(interference), route_capacity(sinrs, b.bandwidth))
+        per_route = [[sinrs[k] for k in r] for r in self.route_hops()]
+        routes = tuple(route_capacity(r, b.bandwidth) for r in per_route)
+        rate = routes[0] if len(routes) == 1 else network_rate(per_route, b.bandwidth)
+        return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, routes)
 
     def relay_grid(self, t: float, positions, axes, poses: Mapping[str, NodePose], *, jammer_positions=None,
                    jammer_powers=None, relay: str = "relay", fading=None) -> np.ndarray:
@@ -337,7 +377,9 @@ class RadioScene:
         if not self.jammers:
             parts.append("no jammer")
         b = self.budget
-        parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; route {' -> '.join(self.route)}")
+        routes = "; ".join(" -> ".join(r) for r in self.all_routes)
+        parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; "
+                     f"{'route' if len(self.all_routes) == 1 else 'routes'} {routes}")
         if not self.path_gain.is_paper:
             parts.append(self.path_gain.describe())
         return "; ".join(parts)

@@ -31,7 +31,7 @@ def detector_log_std_db(n_samples: int) -> float:
 class EnergyDetector:
     """Seeded energy detector over ``n_samples`` complex samples with a ``bias_db`` calibration error."""
 
-    def __init__(self, n_samples: int, bias_db: float = 0.0, seed: int | None = None):
+    def __init__(self, n_samples: int, bias_db: float = 0.0, seed: int | np.random.SeedSequence | None = None):
         if n_samples < 1:
             raise ValueError(f"n_samples must be >= 1, got {n_samples}")
         self.n = int(n_samples)

@@ -23,6 +23,7 @@ from ..models.channel import misalignment, mutual_alignment
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
+from ..models.streams import generator
 from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput
 from .jammer_sensing import JammerSensing
@@ -39,16 +40,25 @@ LOG_COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_statu
 RECORDED_BY_NAME = ("qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err")
 
 
+# the log's columns by group, in order (one row per control step; units in guide/run-folders)
+RELAY_STATE_COLUMNS = ("p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z", "omega1_x", "omega1_y",
+                       "omega1_z")  # the plant's state x[0:12]: m, rad, m/s, rad/s (world; ZYX Euler; body rates)
+SOURCE_COLUMNS = ("p2_x", "p2_y", "p2_z", "phi2", "theta2", "psi2")  # MRAV-2's position (m) and attitude (rad)
+REFERENCE_COLUMNS = ("pd_x", "pd_y", "pd_z")  # the planner's position reference, m
+LINK_COLUMNS = ("jammer_on", "gamma_21", "gamma_10", "se_21", "se_10", "capacity", "v_12", "v_10", "mutual_alignment")
+STEP_COLUMNS = ("slack_max", "solve_ms", "feedback_ms")
+
+
+def rotor_columns(n_rotors: int) -> tuple[list[str], list[str]]:
+    """The motor speeds' (``Omega_i``, Hz) and their rates' (``u_i``, Hz/s) columns."""
+    return [f"Omega_{i}" for i in range(1, n_rotors + 1)], [f"u_{i}" for i in range(1, n_rotors + 1)]
+
+
 def log_columns(n_rotors: int) -> list[str]:
     """The per-step log's columns, in order, for a relay with ``n_rotors`` rotors."""
-    return (
-        ["t", "p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z", "omega1_x", "omega1_y", "omega1_z"]
-        + [f"Omega_{i}" for i in range(1, n_rotors + 1)]
-        + [f"u_{i}" for i in range(1, n_rotors + 1)]
-        + ["p2_x", "p2_y", "p2_z", "phi2", "theta2", "psi2", "pd_x", "pd_y", "pd_z", "jammer_on", "gamma_21", "gamma_10",
-           "se_21", "se_10", "capacity", "v_12", "v_10", "mutual_alignment", "slack_max", "solve_ms", "feedback_ms",
-           "qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err"]
-    )
+    omega, rates = rotor_columns(n_rotors)
+    return ["t", *RELAY_STATE_COLUMNS, *omega, *rates, *SOURCE_COLUMNS, *REFERENCE_COLUMNS, *LINK_COLUMNS, *STEP_COLUMNS,
+            *RECORDED_BY_NAME]
 
 
 def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float) -> ca.Function:
@@ -142,8 +152,9 @@ class ClosedLoop:
         self.controller, self.plant, self.settings = controller, plant, settings
         self.spec = controller.spec
         self.columns = log_columns(self.veh.n_rotors)
-        self._numeric_columns = [c for c in self.columns if c not in RECORDED_BY_NAME]
-        self.rng = np.random.default_rng(settings.seed)
+        self._rotor_columns = rotor_columns(self.veh.n_rotors)
+        self.csi_rng = generator(settings.seed, "csi")  # one stream per purpose (models/streams.py)
+        self.process_rng = generator(settings.seed, "process")
         noise = settings.channel_noise or PerturbationSettings()
         self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
                                                seed=settings.seed)
@@ -186,7 +197,7 @@ class ClosedLoop:
     def _measured_jammers(self, t: float) -> np.ndarray:
         """Jammer positions ``(nJ, 3)`` as the controller knows them (with CSI noise)."""
         noise = self.settings.csi_noise_m
-        return np.array([j.position_at(t) + (self.rng.normal(0.0, noise, 3) if noise > 0 else 0.0)
+        return np.array([j.position_at(t) + (self.csi_rng.normal(0.0, noise, 3) if noise > 0 else 0.0)
                          for j in self.scene.jammers]).reshape(-1, 3)
 
     def run(self, progress=None) -> MissionResult:
@@ -209,7 +220,7 @@ class ClosedLoop:
                 src = self.source.state(t)
                 eta2 = src.attitude(veh.gravity)
                 # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
-                p2_meas = src.p + self.rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
+                p2_meas = src.p + self.csi_rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
                 pj_std = None
                 if self.sensing is not None:  # what the relay estimated from its readings up to the last step
                     pj_meas, pj_powers = self.sensing.planner_view(st.senses_jammer_state)
@@ -230,7 +241,8 @@ class ClosedLoop:
                 self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,
                                                self.sensing.last_ms if self.sensing else 0.0))
                 self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
-                d = np.concatenate([self.rng.normal(0.0, st.process_noise_v, 3), self.rng.normal(0.0, st.process_noise_w, 3)])
+                d = np.concatenate([self.process_rng.normal(0.0, st.process_noise_v, 3),
+                                    self.process_rng.normal(0.0, st.process_noise_w, 3)])
                 x = np.asarray(self.plant(x, u, d)).ravel()
                 if not np.all(np.isfinite(x)):  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"the plant's state became non-finite after t = {t:.3f} s", k + 1
@@ -249,22 +261,20 @@ class ClosedLoop:
         nr = self.veh.n_rotors
         if x.shape != (self.veh.nx,) or u.shape != (nr,):
             raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
-        se21, se10 = math.log2(1 + g21), math.log2(1 + g10)
-        cap = float(channel.capacity)
-        values = (
-            [t, *x[0:12], *x[12 : 12 + nr], *u, *p2, *eta2, *ref.p_ref, float(jam_on), g21, g10,
-             se21, se10, cap, v12, v10,
-             float(mutual_alignment(v12, v10)), info.slack_max, info.solve_ms, info.feedback_ms]
-        )
-        for name, val in zip(self._numeric_columns, values, strict=True):
-            log[name][k] = val
-        log["qp_ok"][k] = info.ok
-        log["qp_status"][k] = info.status
-        log["fallback"][k] = info.fallback
-        log["safety_violation"][k] = bool(self.controller.last_violations)
-        log["taylor_rel_err"][k] = ref.taylor_rel_err
+        omega, rates = self._rotor_columns
+        row = {"t": t, **dict(zip(RELAY_STATE_COLUMNS, x[0:12], strict=True)), **dict(zip(omega, x[12 : 12 + nr], strict=True)),
+               **dict(zip(rates, u, strict=True)), **dict(zip(SOURCE_COLUMNS, [*p2, *eta2], strict=True)),
+               **dict(zip(REFERENCE_COLUMNS, ref.p_ref, strict=True)),
+               "jammer_on": float(jam_on), "gamma_21": g21, "gamma_10": g10, "se_21": math.log2(1 + g21),
+               "se_10": math.log2(1 + g10), "capacity": float(channel.capacity), "v_12": v12, "v_10": v10,
+               "mutual_alignment": float(mutual_alignment(v12, v10)), "slack_max": info.slack_max,
+               "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms,
+               "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
+               "safety_violation": bool(self.controller.last_violations), "taylor_rel_err": ref.taylor_rel_err}
         for j in self.scene.jammers:
-            x, y, z = j.position_at(t)
-            log[f"jam_{j.name}_x"][k], log[f"jam_{j.name}_y"][k], log[f"jam_{j.name}_z"][k] = x, y, z
-        for name, val in self._noise_values.items():
+            row.update(zip((f"jam_{j.name}_x", f"jam_{j.name}_y", f"jam_{j.name}_z"), j.position_at(t), strict=True))
+        row.update(self._noise_values)
+        if k == 0 and set(row) != set(self.columns):  # a column never written, or a value without a column
+            raise ValueError(f"log row: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
+        for name, val in row.items():
             log[name][k] = val

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from ..models.channel import misalignment, mutual_alignment
-from ..models.radio import RadioScene
+from ..models.radio import NodePose, RadioScene
 
 
 def initial_link_budget(scene: RadioScene, relay_position, source_position) -> dict[str, float]:
@@ -30,15 +32,20 @@ def _db(x: float) -> float:
     return 10.0 * float(np.log10(x)) if x > 0 else -np.inf
 
 
-def link_budget_lines(scene: RadioScene, relay_position, source_position, *, physical: bool) -> list[tuple[str, str]]:
-    """The initial link budget line by line (level attitudes, jammers at peak): per hop distance,
-    path loss, antenna gains, received, interference and noise powers, SINR; the capacity. Powers
-    in dBm (``physical``) or dBW (the paper's normalized 1 W units), gains in dBi."""
+def start_poses(scene: RadioScene, starts: Mapping[str, object]) -> dict[str, NodePose]:
+    """Every node's pose at the start: the moving ones at ``starts`` (name -> m, world) with level
+    attitudes, the fixed ones where they stand."""
     I = np.eye(3)
-    p1, p2 = np.asarray(relay_position, float), np.asarray(source_position, float)
-    relay, source = scene.name_of("relay"), scene.name_of("source")
-    poses = {relay: scene.pose(relay, p1, I), source: scene.pose(source, p2, I)}
-    poses = {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None} | poses
+    poses = {n: scene.pose(n, np.asarray(p, float), I) for n, p in starts.items()}
+    return {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None} | poses
+
+
+def link_budget_lines(scene: RadioScene, starts: Mapping[str, object], *, physical: bool) -> list[tuple[str, str]]:
+    """The initial link budget line by line (level attitudes, jammers at peak) with the moving nodes
+    at ``starts`` (name -> m, world): per hop distance, path loss, antenna gains, received,
+    interference and noise powers, SINR; the capacity (per route and the network's rate for a
+    network). Powers in dBm (``physical``) or dBW (the paper's normalized 1 W units), gains in dBi."""
+    poses = start_poses(scene, starts)
     state = scene.evaluate(0.0, poses, jammer_powers=np.array([j.power for j in scene.jammers]))
     b = scene.budget
     unit, off = ("dBm", 30.0) if physical else ("dBW", 0.0)
@@ -59,6 +66,13 @@ def link_budget_lines(scene: RadioScene, relay_position, source_position, *, phy
                  (f"{tx} -> {rx}: received power", f"{rx_power:.1f} {unit}"),
                  (f"{tx} -> {rx}: interference at {rx}", f"{_db(float(state.interference[k])) + off:.1f} {unit}"),
                  (f"{tx} -> {rx}: SINR", f"{_db(float(state.sinr[k])):.1f} dB")]
-    cap = float(state.capacity)
-    rows.append(("end-to-end capacity", f"{cap / 1e6:.3f} Mbit/s" if physical else f"{cap:.4g} bit/s/Hz"))
+    def rate(c) -> str:
+        return f"{float(c) / 1e6:.3f} Mbit/s" if physical else f"{float(c):.4g} bit/s/Hz"
+
+    if len(scene.all_routes) == 1:
+        rows.append(("end-to-end capacity", rate(state.capacity)))
+        return rows
+    for route, c in zip(scene.all_routes, state.route_capacity, strict=True):
+        rows.append((f"route {' -> '.join(route)}: capacity alone", rate(c)))
+    rows.append(("network rate (every source, each hop its own slot)", rate(state.capacity)))
     return rows

@@ -28,6 +28,7 @@ from ..estimation.jammer_estimator import JammerEstimate, JammerEstimator
 from ..models.antenna import IsotropicPattern
 from ..models.radio import ChannelState, NodePose, RadioScene
 from ..models.sensing import EnergyDetector
+from ..models.streams import stream
 
 _COV = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
 
@@ -43,7 +44,7 @@ class JammerSensing:
         if missing:
             raise ValueError(f"estimation: {missing} receive no hop of the route {list(scene.route)}: nothing to measure")
         self.hop_of = [rx_of_hop[r] for r in receivers]
-        self.detector = EnergyDetector(n_samples, bias_db, seed=seed + 3)
+        self.detector = EnergyDetector(n_samples, bias_db, seed=stream(seed, "detector"))
         self.noise = scene.budget.noise_power
         self.names = [j.name for j in scene.jammers]
         self.columns = [f"meas_{r}_w" for r in receivers] + ["estimator_ms"] + [

@@ -22,6 +22,7 @@ import numpy as np
 from ..models.fading import ClarkeRicianFading, RicianFading
 from ..models.propagation import SPEED_OF_LIGHT_M_S, LargeScaleRealization
 from ..models.radio import RadioScene
+from ..models.streams import stream
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,8 @@ class LinkPerturbations:
         fading_on = settings.k_db is not None and not math.isinf(settings.k_db)
         k = float(settings.k_db) if settings.k_db is not None else math.inf
         self.doppler = fading_on and settings.fading_model == "doppler"
-        self.iid = RicianFading(k, seed=seed + 1) if fading_on and not self.doppler else None
-        self.clarke = ClarkeRicianFading(k, n, seed=seed + 1) if self.doppler else None
+        self.iid = RicianFading(k, seed=stream(seed, "fading")) if fading_on and not self.doppler else None
+        self.clarke = ClarkeRicianFading(k, n, seed=stream(seed, "fading")) if self.doppler else None
         self.large_scale = large_scale_realization(scene, settings, seed)
         self.carrier = settings.carrier_hz
         labels = [f"{tx}_{rx}" for tx, rx, _ in self.links]

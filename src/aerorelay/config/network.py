@@ -1,0 +1,65 @@
+"""Relay networks as data: ``[[relays]]`` (each a vehicle with its own NMPC), ``[[sources]]`` (the
+inspection drones, each with its mission) and ``[network]`` (the routes from each source through
+relays to the base station, and the separation every vehicle keeps). A file with ``[nodes] relay``
+and ``[mission]`` is one relay named ``relay`` and one source named ``source``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import Field, field_validator
+
+from .base import Strict, Vec3
+from .mission import MissionConfig
+from .platform import PlatformConfig
+
+BASE_STATION = "bs"  # the base station's name in routes ([nodes] bs)
+LEGACY_RELAY, LEGACY_SOURCE = "relay", "source"  # the one relay and source of a file with [nodes] relay and [mission]
+
+# platform presets a relay may name (``platform = "quad_x"``); an inline table is a [platform] table
+PLATFORM_PRESETS: dict[str, dict[str, Any]] = {
+    "hexa_tilted": {},  # the paper's hexarotor, rotors tilted 20 deg (the [platform] defaults)
+    "hexa_coplanar": {"tilt_deg": 0.0, "arm_length_m": 0.35},
+    "octo_tilted": {"rotor_count": 8, "tilt_deg": 20.0, "arm_length_m": 0.35},
+    "quad_x": {"rotors": [{"position": [s * 0.2475, t * 0.2475, 0.0], "axis": [0.0, 0.0, 1.0], "spin": spin}
+                          for s, t, spin in ((1, 1, 1), (-1, 1, -1), (-1, -1, 1), (1, -1, -1))]},
+}
+
+NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]*$"
+
+
+class RelayConfig(Strict):
+    """One relay of the fleet: its name, start and (optionally) its own platform and controller."""
+
+    name: str = Field(min_length=1, max_length=32, pattern=NAME_PATTERN, description="names the relay in routes, logs "
+                      "and reports (letters, digits, _ and -; a letter first)")
+    start: Vec3 = Field(description="the relay's start, m (world), hovering; inside controller.workspace")
+    platform: str | PlatformConfig | None = Field(None, description="a preset name (hexa_tilted, hexa_coplanar, "
+                                                  "octo_tilted, quad_x) or an inline [platform] table; default: [platform]")
+    controller: dict[str, Any] | None = Field(None, description="fields of [controller] this relay flies with instead "
+                                              "of the shared ones (e.g. planner, mu, weights)")
+
+    @field_validator("platform")
+    @classmethod
+    def _known_preset(cls, v):
+        if isinstance(v, str) and v not in PLATFORM_PRESETS:
+            raise ValueError(f"unknown platform preset {v!r}; use one of {sorted(PLATFORM_PRESETS)} or an inline table")
+        return v
+
+
+class SourceConfig(Strict):
+    """One inspection drone (a source of data): its name and its mission."""
+
+    name: str = Field(min_length=1, max_length=32, pattern=NAME_PATTERN, description="names the source in routes, logs "
+                      "and reports")
+    mission: MissionConfig = Field(default_factory=MissionConfig, description="its path, as [mission]")
+
+
+class NetworkConfig(Strict):
+    """How data flows: each route from a source through relays to the base station ``bs``; every
+    hop of every route has its own time slot (docs/concepts/networks.md)."""
+
+    routes: list[list[str]] | None = Field(None, min_length=1, description="each [source, relay, ..., \"bs\"]; default: "
+                                           "one route per source through every relay in order")
+    min_separation_m: float = Field(0.0, ge=0.0, le=100.0, description="between any two vehicles, m (0: no separation "
+                                    "constraint)")

@@ -1,0 +1,142 @@
+"""Relay networks in a scenario file: [[relays]], [[sources]], [network]; named errors for every
+malformed network (issue: relay networks I)."""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly import build_scene, parse_scenario
+from aerorelay.config import ScenarioError
+
+WPS = [[0.0, 30.0, 0.0, 5.0], [20.0, 40.0, 0.0, 8.0]]
+WS = {"min": [-5.0, -10.0, 0.5], "max": [45.0, 10.0, 20.0]}
+
+
+def chain(**network) -> dict:
+    return {"controller": {"workspace": copy.deepcopy(WS), "planner": "capacity"},
+            "relays": [{"name": "r1", "start": [20.0, 1.0, 5.0]}, {"name": "r2", "start": [10.0, -1.0, 5.0]}],
+            "sources": [{"name": "inspector", "mission": {"waypoints": copy.deepcopy(WPS)}}],
+            "network": {"routes": [["inspector", "r1", "r2", "bs"]], **network}}
+
+
+def test_a_chain_reads_and_builds_its_scene():
+    sc = parse_scenario(chain(min_separation_m=2.0))
+    assert [r.name for r in sc.relay_list] == ["r1", "r2"] and sc.route_list == [["inspector", "r1", "r2", "bs"]]
+    scene = build_scene(sc)
+    assert scene.all_routes == (("inspector", "r1", "r2", "bs"),)
+    assert scene.hops == (("inspector", "r1"), ("r1", "r2"), ("r2", "bs"))
+    again = parse_scenario(tomllib.loads(sc.to_toml()))  # the resolved file reads back the same
+    assert again == sc
+
+
+def test_a_file_with_nodes_relay_is_one_relay_and_one_source():
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml")
+    assert [r.name for r in sc.relay_list] == ["relay"] and [s.name for s in sc.source_list] == ["source"]
+    assert sc.route_list == [["source", "relay", "bs"]] and not sc.is_fleet and "[network]" not in sc.to_toml()
+
+
+def test_default_routes_go_through_every_relay_in_order():
+    data = chain()
+    data["network"] = {}
+    assert parse_scenario(data).route_list == [["inspector", "r1", "r2", "bs"]]
+
+
+def test_two_sources_sharing_two_relays():
+    data = chain()
+    data["sources"].append({"name": "second", "mission": {"waypoints": [[0.0, 30.0, 5.0, 6.0], [20.0, 35.0, 5.0, 6.0]]}})
+    data["network"]["routes"].append(["second", "r1", "r2", "bs"])
+    sc = parse_scenario(data)
+    scene = build_scene(sc)
+    assert len(scene.all_routes) == 2 and scene.route_hops() == ((0, 1, 2), (3, 1, 2))
+    lines = dict(ar.api.link_budget_lines(sc))
+    routes = [float(lines[f"route {r}: capacity alone"].split()[0]) for r in ("inspector -> r1 -> r2 -> bs",
+                                                                             "second -> r1 -> r2 -> bs")]
+    rate = float(lines["network rate (every source, each hop its own slot)"].split()[0])
+    # R = B / sum_s sum_k 1/se = 1 / (1/C_1 + 1/C_2) when every hop counts once per route
+    assert rate == pytest.approx(1.0 / (1.0 / routes[0] + 1.0 / routes[1]), rel=1e-3)
+
+
+@pytest.mark.parametrize("change,message", [
+    (lambda d: d["network"].update(routes=[["inspector", "r1", "r2"]]), r"network\.routes\[0\]: .* must end at the base station 'bs'"),
+    (lambda d: d["network"].update(routes=[["inspector", "r1", "rX", "bs"]]), r"network\.routes\[0\]: no node named 'rX'"),
+    (lambda d: d["network"].update(routes=[["inspector", "r1", "r2", "r1", "bs"]]), r"network\.routes\[0\]: .* passes 'r1' twice \(a cycle\)"),
+    (lambda d: d["network"].update(routes=[["r1", "r2", "bs"]]), r"network\.routes\[0\]: .* must start at a source \(inspector\)"),
+    (lambda d: d["network"].update(routes=[["inspector", "r1", "bs"]]), r"relays\[1\]: 'r2' is on no route"),
+    (lambda d: d["relays"].append({"name": "r1", "start": [30.0, 5.0, 5.0]}), r"network: \['r1'\] named more than once"),
+    (lambda d: d["relays"][1].update(name="bs"), r"network: \['bs'\] named more than once"),
+    (lambda d: d["network"].update(min_separation_m=3.0) or d["relays"][1].update(start=[18.5, 1.0, 5.0]),
+     r"network\.min_separation_m: relays\[0\] \('r1'\) and relays\[1\] \('r2'\) start 1\.5 m apart, closer than the separation 3 m"),
+    (lambda d: d["controller"]["workspace"].update(min=[0.0, 0.0, 0.5], max=[30.0, 2.0, 2.0]) or d["relays"][0].update(start=[1.0, 1.0, 1.0])
+     or d["relays"][1].update(start=[29.0, 1.0, 1.0]) or d["relays"].append({"name": "r3", "start": [15.0, 1.0, 1.0]})
+     or d["network"].update(routes=[["inspector", "r1", "r2", "r3", "bs"]])
+     or d["network"].update(min_separation_m=16.0),
+     r"network\.min_separation_m: controller\.workspace holds 2 vehicles 16 m apart \(a cubic lattice\), fewer than the 3 relays"),
+    (lambda d: d.update(nodes={"relay": [1.0, 1.0, 1.0]}), r"nodes\.relay: give the relays as \[\[relays\]\] or one nodes\.relay"),
+    (lambda d: d.update(mission={"waypoints": WPS}), r"mission: give the sources as \[\[sources\]\]"),
+    (lambda d: d["relays"][0].update(start=[100.0, 0.0, 5.0]), r"relays\[0\]\.start \[100\.0, 0\.0, 5\.0\] must lie inside controller\.workspace"),
+    (lambda d: d["relays"][0].update(platform="tricopter"), r"relays\.0\.platform: .*unknown platform preset 'tricopter'"),
+    (lambda d: d["relays"][0].update(controller={"mu": 3.0}), r"relays\[0\]\.controller\.mu: Input should be less than or equal to 1"),
+    (lambda d: d["relays"][0].update(name="r 1"), r"relays\.0\.name"),
+])
+def test_a_malformed_network_is_a_named_error(change, message):
+    data = chain()
+    change(data)
+    with pytest.raises(ScenarioError, match=message):
+        parse_scenario(data)
+
+
+def test_a_relay_flies_its_own_platform_and_controller():
+    data = chain()
+    data["relays"][0].update(platform="quad_x", controller={"mu": 0.3, "weights": {"yaw": 2.0}})
+    sc = parse_scenario(data)
+    assert sc.platform_of(0).rotors is not None and sc.platform_of(1) == sc.platform
+    assert sc.controller_of(0).mu == 0.3 and sc.controller_of(0).weights.yaw == 2.0
+    assert sc.controller_of(0).weights.position == sc.controller.weights.position and sc.controller_of(1) == sc.controller
+
+
+def test_a_fleet_is_refused_by_the_closed_loop_with_its_reason():
+    with pytest.raises(ScenarioError, match="network of 2 relays and 1 sources; flying a fleet is not built yet"):
+        ar.build(parse_scenario(chain()))
+
+
+def test_a_relay_on_an_own_platform_that_cannot_hover_is_named():
+    data = chain()
+    data["relays"][1]["platform"] = {"mass_kg": 30.0}
+    with pytest.raises(ScenarioError, match=r"^relays\[1\]\.platform: hover infeasible"):
+        parse_scenario(data)
+
+
+def test_one_relay_written_as_a_network_flies_bit_identically():
+    """The nominal preset with its relay as [[relays]] and its mission as [[sources]] (no separation)."""
+    data = tomllib.loads(open("scenarios/nominal_tilted.toml").read())
+    data.setdefault("sim", {})["duration_s"] = 1.5
+    legacy = parse_scenario(data)
+    net = copy.deepcopy(data)
+    net["relays"] = [{"name": "r1", "start": legacy.nodes.relay}]
+    net["sources"] = [{"name": "inspector", "mission": net.pop("mission", {})}]
+    net.get("nodes", {}).pop("relay", None)
+    net["network"] = {"routes": [["inspector", "r1", "bs"]]}
+    a, b = ar.simulate(legacy).timeseries, ar.simulate(parse_scenario(net)).timeseries
+    assert list(a.columns) == list(b.columns)
+    for c in a.columns:
+        if not c.endswith("_ms"):
+            assert a[c].equals(b[c]), c
+
+
+def test_running_or_bounding_a_fleet_stops_before_any_work(tmp_path):
+    from typer.testing import CliRunner
+
+    from aerorelay.cli import app
+
+    f = tmp_path / "chain.toml"
+    f.write_text(parse_scenario(chain()).to_toml())
+    for cmd in ("run", "bound"):
+        res = CliRunner().invoke(app, [cmd, str(f), "--out", str(tmp_path / cmd)])
+        assert res.exit_code == 2 and "flying a fleet is not built yet" in res.output, res.output
+        assert not (tmp_path / cmd).exists()
+    res = CliRunner().invoke(app, ["info", str(f)])
+    assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output
