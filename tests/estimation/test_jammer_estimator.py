@@ -22,6 +22,14 @@ JAMMER = np.array([-6.95, -5.79, 1.72])
 START = np.array([-6.95, 5.79, 1.72])
 BOX = (np.array([-17.0, -10.0, 0.0]), np.array([10.0, 15.8, 22.5]))
 DIPOLE = DipolePattern(1.0)
+RELAY_RX = Receiver(name="relay", pattern=DIPOLE, noise_w=1.0)
+BS_RX = Receiver(name="bs", pattern=DIPOLE, noise_w=1.0, fixed=True)
+
+
+def SETTINGS(**kw) -> EstimatorSettings:  # noqa: N802 (reads as the settings constant it builds)
+    """The estimator's settings over the test box."""
+    return EstimatorSettings(search_min=BOX[0], search_max=BOX[1], **kw)
+
 
 
 def relay_pose(t):
@@ -34,8 +42,8 @@ def relay_pose(t):
 
 def fly(power_w, duration_s, *, schedule=lambda t: True, bs=True, seed=1):
     """Feed ``duration_s`` of readings; return the estimator and per-step (t, estimate)."""
-    receivers = [Receiver("relay", DIPOLE, 1.0)] + ([Receiver("bs", DIPOLE, 1.0, fixed=True)] if bs else [])
-    est = JammerEstimator(1, receivers, PathGain(), EstimatorSettings(*BOX), DT)
+    receivers = [RELAY_RX] + ([BS_RX] if bs else [])
+    est = JammerEstimator(1, receivers, PathGain(), SETTINGS(), DT)
     det = EnergyDetector(100, seed=seed)
     out = []
     for k in range(int(duration_s / DT)):
@@ -85,8 +93,8 @@ def test_on_off_schedule_is_tracked():
 
 
 def test_fixed_receiver_gains_are_the_channels():
-    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0), Receiver("bs", DIPOLE, 1.0, fixed=True)], PathGain(),
-                          EstimatorSettings(*BOX), DT)
+    est = JammerEstimator(1, [RELAY_RX, BS_RX], PathGain(),
+                          SETTINGS(), DT)
     ref = link_gain(est.cells, E3, IsotropicPattern(), np.zeros(3), E3, DIPOLE)
     np.testing.assert_allclose(est._cell_gains(1, np.zeros(3), E3), ref, rtol=1e-12)
     with pytest.raises(ValueError, match="positive finite"):
@@ -140,8 +148,8 @@ def fly_two(est: JammerEstimator, t0: float, t1: float, seed: int = 1):
 
 
 def two_jammer_estimator() -> JammerEstimator:
-    receivers = [Receiver("relay", DIPOLE, 1.0), Receiver("bs", DIPOLE, 1.0, fixed=True)]
-    return JammerEstimator(2, receivers, PathGain(), EstimatorSettings(*BOX), DT)
+    receivers = [RELAY_RX, BS_RX]
+    return JammerEstimator(2, receivers, PathGain(), SETTINGS(), DT)
 
 
 def test_two_jammers_are_found_one_after_the_other():
@@ -206,7 +214,7 @@ def test_a_jammer_held_in_the_antenna_null_does_not_pull_the_estimate_away(wobbl
     with every row at the detector's variance (the model before) give a largest error of 1.31 / 1.13 m
     after 15 s in these two cases; weighted, 0.57 / 0.33 m (the 20 dB study run drifted 1.3-1.5 m at a
     reported std of 0.1 m)."""
-    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), EstimatorSettings(*BOX), DT)
+    est = JammerEstimator(1, [RELAY_RX], PathGain(), SETTINGS(), DT)
     det = EnergyDetector(100, seed=4)
     power = 100.0 * float(np.sum((START - JAMMER) ** 2))  # 20 dB
     errors, stds = [], []
@@ -228,7 +236,7 @@ def test_a_jammer_held_in_the_antenna_null_does_not_pull_the_estimate_away(wobbl
 def test_axis_log_slope_is_the_gain_change_as_the_axis_turns(angle_deg, roll):
     """``|d ln G / d angle|`` against a central difference of the link gain with the axis turned
     toward the link, for a dipole at ``angle_deg`` off its axis."""
-    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), EstimatorSettings(*BOX), DT)
+    est = JammerEstimator(1, [RELAY_RX], PathGain(), SETTINGS(), DT)
     rx = np.array([1.0, 2.0, 3.0])
     link = np.array([np.cos(roll), np.sin(roll), 0.0])  # from the receiver toward the jammer
     jammer = rx + 5.0 * link
@@ -251,7 +259,7 @@ def test_information_is_jt_j_over_the_variance_of_the_measurement_model():
     """``information`` against a central-difference Jacobian of the log reading written out here
     (``10 log10(N + P g(p)) + E[10 log10 X]`` over position and log power), with the axis known
     exactly (every row at the detector's and model error's variance)."""
-    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), EstimatorSettings(*BOX, axis_error_deg=0.0), DT)
+    est = JammerEstimator(1, [RELAY_RX], PathGain(), SETTINGS(axis_error_deg=0.0), DT)
     rows = [relay_pose(t) for t in np.arange(0.0, 6.0, 0.5)]
     for k, (rx, ax) in enumerate(rows):
         est.window.append(0.5 * k, 0, rx, ax, 2.0)
@@ -271,8 +279,8 @@ def test_information_is_jt_j_over_the_variance_of_the_measurement_model():
 def fly_moving(jammer_speed_m_s: float, seed: int = 1) -> np.ndarray:
     """A jammer driving 0.3 m/s east past the circling relay (10 dB at the start, relay only): the
     estimate's error (m) each step from 15 s on."""
-    receivers = [Receiver("relay", DIPOLE, 1.0)]
-    est = JammerEstimator(1, receivers, PathGain(), EstimatorSettings(*BOX, jammer_speed_m_s=jammer_speed_m_s), DT)
+    receivers = [RELAY_RX]
+    est = JammerEstimator(1, receivers, PathGain(), SETTINGS(jammer_speed_m_s=jammer_speed_m_s), DT)
     det = EnergyDetector(100, seed=seed)
     velocity = np.array([0.3, 0.0, 0.0])
     errors = []
@@ -337,8 +345,8 @@ def circle_then_park(t):
 def largest_refit_jump(window_rows: int | None) -> float:
     """A jammer driving 0.3 m/s east, the relay parked from 15 s: the largest change (m) of the estimate's
     error vector from one control step to the next after 20 s."""
-    settings = EstimatorSettings(*BOX, jammer_speed_m_s=0.5, window_rows=window_rows)
-    est = JammerEstimator(1, [Receiver("relay", DIPOLE, 1.0)], PathGain(), settings, DT)
+    settings = SETTINGS(jammer_speed_m_s=0.5, window_rows=window_rows)
+    est = JammerEstimator(1, [RELAY_RX], PathGain(), settings, DT)
     det = EnergyDetector(100, seed=1)
     start, velocity = np.array([-7.0, -3.0, 1.5]), np.array([0.3, 0.0, 0.0])
     power = 10.0 * float(np.sum((START - start) ** 2))

@@ -209,7 +209,9 @@ def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings |
     spec = ocp_spec(sc, vehicle)
     fs = sc.controller.failsafe
     return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
-                           failsafe=FailsafeSettings(fs.failures_to_fallback, fs.successes_to_resume, fs.workspace_margin_m),
+                           failsafe=FailsafeSettings(failures_to_fallback=fs.failures_to_fallback,
+                                                     successes_to_resume=fs.successes_to_resume,
+                                                     workspace_margin_m=fs.workspace_margin_m),
                            settings=settings or nmpc_settings(sc), envelope=safety_envelope(sc, vehicle) if fs.supervisor else None)
 
 
@@ -332,10 +334,11 @@ def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> 
     """The relay's (and the base station's, with ``use_bs``) energy detectors and the jammer estimator."""
     est = sc.estimation
     names = ["relay"] + (["bs"] if est.use_bs else [])
-    receivers = [Receiver(n, scene.node(n).antenna.pattern, scene.budget.noise_power, scene.node(n).position is not None)
+    receivers = [Receiver(name=n, pattern=scene.node(n).antenna.pattern, noise_w=scene.budget.noise_power,
+                          fixed=scene.node(n).position is not None)
                  for n in names]
     lo, hi = search_box(sc, source)
-    settings = EstimatorSettings(lo, hi, n_samples=est.n_samples, aggregate_steps=est.aggregate_steps,
+    settings = EstimatorSettings(search_min=lo, search_max=hi, n_samples=est.n_samples, aggregate_steps=est.aggregate_steps,
                                  grid_m=est.grid_m, forget_s=est.forget_s, model_error_db=est.model_error_db,
                                  axis_error_deg=est.axis_error_deg, jammer_speed_m_s=est.jammer_speed_m_s,
                                  confident_std_m=est.confident_std_m)

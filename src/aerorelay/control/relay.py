@@ -28,7 +28,7 @@ from .supervisor import SafetyEnvelope
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class FailsafeSettings:
     """When the brake law takes over (consecutive QP failures) and hands back (consecutive
     successes); how far inside the workspace (m) its hold point stays."""

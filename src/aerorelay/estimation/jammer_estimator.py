@@ -77,7 +77,7 @@ _JOINT_ROWS = 30  # window rows the pair search scores on (evenly thinned)
 _JOINT_POLISH = 6  # Levenberg-Marquardt iterations on the best pair before it is compared with the estimate
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Receiver:
     """A measuring receiver: its antenna pattern (the axis comes with each reading), noise power (W),
     and whether it is fixed (a base station: one pose for every reading, its gains computed once)."""
@@ -88,7 +88,7 @@ class Receiver:
     fixed: bool = False
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class EstimatorSettings:
     """See ``[estimation]`` (``config/sections.py``): times s, distances m, powers dB."""
 

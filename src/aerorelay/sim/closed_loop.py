@@ -106,7 +106,7 @@ class SimSettings:
     channel_noise: PerturbationSettings | None = None
 
 
-@dataclass
+@dataclass(kw_only=True)
 class MissionResult:
     """Per-step log (dict of equal-length arrays) and run facts."""
 
@@ -252,8 +252,9 @@ class ClosedLoop:
         wall = time.perf_counter() - wall0
         if flown < n_steps:
             log = {c: v[:flown] for c, v in log.items()}
-        return MissionResult(log, wall, (flown - 1) * period, self.nmpc.failures, self.nmpc.settings.fingerprint(),
-                             self.controller.fallback_episodes, aborted)
+        return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period, qp_failures=self.nmpc.failures,
+                             controller=self.nmpc.settings.fingerprint(), fallback_episodes=self.controller.fallback_episodes,
+                             aborted=aborted)
 
     def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, v12: float, v10: float, info: StepInfo):
         g21, g10 = (float(g) for g in channel.sinr)
