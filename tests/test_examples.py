@@ -13,7 +13,8 @@ EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 
 def test_every_example_is_tested():
     assert {p.name for p in EXAMPLES} >= {"fly_nominal.py", "two_jammers_one_moving.py", "directional_jammer.py",
-                                          "own_planner.py", "dask_sweep.py", "estimator_batch.py"}
+                                          "own_planner.py", "dask_sweep.py", "estimator_batch.py",
+                                          "relay_chain.py", "two_sources.py"}
 
 
 @pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.name)

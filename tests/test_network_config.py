@@ -98,8 +98,9 @@ def test_a_relay_flies_its_own_platform_and_controller():
     assert sc.controller_of(0).weights.position == sc.controller.weights.position and sc.controller_of(1) == sc.controller
 
 
-def test_a_fleet_is_refused_by_the_closed_loop_with_its_reason():
-    with pytest.raises(ScenarioError, match="network of 2 relays and 1 sources; flying a fleet is not built yet"):
+def test_the_one_relay_parts_refuse_a_fleet_with_its_reason():
+    with pytest.raises(ScenarioError, match="network of 2 relays and 1 sources: a fleet flies with build_fleet, and the "
+                                            "bound of a fleet is not built yet"):
         ar.build(parse_scenario(chain()))
 
 
@@ -127,16 +128,18 @@ def test_one_relay_written_as_a_network_flies_bit_identically():
             assert a[c].equals(b[c]), c
 
 
-def test_running_or_bounding_a_fleet_stops_before_any_work(tmp_path):
+def test_a_fleet_runs_from_the_command_line_and_its_bound_is_refused(tmp_path):
     from typer.testing import CliRunner
 
     from aerorelay.cli import app
 
     f = tmp_path / "chain.toml"
     f.write_text(parse_scenario(chain()).to_toml())
-    for cmd in ("run", "bound"):
-        res = CliRunner().invoke(app, [cmd, str(f), "--out", str(tmp_path / cmd)])
-        assert res.exit_code == 2 and "flying a fleet is not built yet" in res.output, res.output
-        assert not (tmp_path / cmd).exists()
+    res = CliRunner().invoke(app, ["bound", str(f), "--out", str(tmp_path / "b")])
+    assert res.exit_code == 2 and "the bound of a fleet is not built yet" in res.output, res.output
+    assert not (tmp_path / "b").exists()
+    res = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--duration", "0.5"])
+    assert res.exit_code == 0, res.output
+    assert {"scenario.toml", "timeseries.parquet", "metrics.json"} <= {p.name for p in (tmp_path / "r").iterdir()}
     res = CliRunner().invoke(app, ["info", str(f)])
     assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output

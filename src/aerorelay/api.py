@@ -29,7 +29,7 @@ from ._version import __version__
 from .assembly import load_scenario, parse_scenario
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
-from .assembly.parts import build, build_scene, nmpc_settings, one_relay, scenario_bound
+from .assembly.parts import build, build_scene, nmpc_settings, scenario_bound
 from .assembly.vehicle import build_vehicle
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop
@@ -81,7 +81,7 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     Keyword parts (``planner``, ``jammers``, ``scene``, ``nmpc_settings``, ``progress``) replace the
     scenario's (see ``experiments.run.simulate``). ``save`` writes the run folder with the figures
     and ``run.mcap`` (``figures=False``: data files only)."""
-    return _simulate(sc, with_bound=bound, views=write_run_views, **parts)
+    return _simulate(sc, with_bound=bound, views=None if sc.is_fleet else write_run_views, **parts)
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound:
@@ -270,9 +270,7 @@ def solver_settings(sc: Scenario, **overrides) -> NmpcSettings:
 
 def check_run(sc: Scenario, out: str | Path, *, figures: bool = True) -> None:
     """Every check a run makes before flying: its log fits the machine's memory (ScenarioError) and
-    ``out`` can take the run folder with room for it (OutputError); a fleet, which does not fly yet,
-    is a ScenarioError naming it."""
-    one_relay(sc)
+    ``out`` can take the run folder with room for it (OutputError)."""
     check_run_size(sc)
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
 

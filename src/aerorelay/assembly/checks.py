@@ -109,7 +109,7 @@ def _above_ground(sc: Scenario) -> None:
             if low:
                 raise ValueError(f"{field}.waypoints: MRAV-2's path goes below ground (z < {g:g}) at {low[0]}")
             continue
-        z = m.flight().cols["pz"]
+        z = _flight_columns(field, m)["pz"]
         k = int(np.argmin(z))
         if z[k] < g:
             key = "trajectory_ulog" if m.trajectory_ulog else "trajectory_csv"
@@ -130,7 +130,7 @@ def _mission_near_workspace(sc: Scenario) -> None:
         if m.flown_file is None:
             pts, what = np.array([w[1:] for w in m.waypoints], float), field + ".waypoints[{k}]"
         else:
-            c = m.flight().cols
+            c = _flight_columns(field, m)
             pts = np.column_stack([c["px"], c["py"], c["pz"]])
             what = f"{field}.{'trajectory_ulog' if m.trajectory_ulog else 'trajectory_csv'} sample {{k1}}"
         d = _box_distance(pts, ws.min, ws.max)
@@ -139,6 +139,14 @@ def _mission_near_workspace(sc: Scenario) -> None:
             raise ValueError(f"{what.format(k=k, k1=k + 1)}: MRAV-2 at {np.array2string(pts[k], precision=4)} is "
                              f"{d[k]:.4g} m from controller.workspace; its path must stay within "
                              f"world.mission_max_distance_m = {most:g} m")
+
+
+def _flight_columns(field: str, m: MissionConfig) -> dict:
+    """The columns of a mission's flight file (a file gone since the table was read is named)."""
+    flight = m.flight()
+    if flight is None:
+        raise ValueError(f"{field}: {m.flown_file}: no such file")
+    return flight.cols
 
 
 def _missions(sc: Scenario) -> list[tuple[str, MissionConfig]]:

@@ -37,7 +37,9 @@ from ..planning.base import (
     planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
+from ..planning.fleet import EquidistantPlanner, EquidistantSettings, FleetPlanner
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
+from ..sim.fleet import FleetLoop, FleetRelay
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from .checks import check_physics
@@ -105,9 +107,9 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
     interference-to-noise ratio at the relay's start is that (level attitudes at t = 0, as
     ``aerorelay info`` evaluates it: the channel's interference per unit power, one jammer at a time)."""
     I = np.eye(3)
-    relay, source = scene.name_of("relay"), scene.name_of("source")
-    poses = {relay: scene.pose(relay, relay_start(sc), I),
-             source: scene.pose(source, np.array(sc.source_list[0].mission.start, float), I)}
+    relay = scene.name_of("relay")  # the first relay: a fleet's INR is set at r1's start
+    starts = {r.name: r.start for r in sc.relay_list} | {s.name: s.mission.start for s in sc.source_list}
+    poses = {n: scene.pose(n, np.array(p, float), I) for n, p in starts.items()}  # a fleet: every vehicle at its start
     hop = next(k for k, (_, rx) in enumerate(scene.hops) if rx == relay)
     out = []
     for i, (j, cfg) in enumerate(zip(scene.jammers, sc.jammer_configs, strict=True)):
@@ -286,11 +288,12 @@ class Parts:
 def one_relay(sc: Scenario) -> Scenario:
     """A one-relay scenario with its relay's own ``platform`` and ``controller`` (``[[relays]]``) as
     the scenario's, so every part reads them where a file with ``nodes.relay`` has them. A fleet
-    (more than one relay or source) is a named error: flying and bounding a fleet are not built yet."""
+    (more than one relay or source) is a named error: its parts are ``build_fleet``'s, and its bound is
+    not built yet."""
     if sc.is_fleet:
         raise ScenarioError(f"relays / sources: this scenario is a network of {len(sc.relay_list)} relays and "
-                            f"{len(sc.source_list)} sources; flying a fleet is not built yet (validate, info and the "
-                            "network's link budget work; docs/concepts/networks.md)")
+                            f"{len(sc.source_list)} sources: a fleet flies with build_fleet, and the bound of a fleet is "
+                            "not built yet (docs/concepts/networks.md)")
     if sc.relays is None or (sc.relays[0].platform is None and not sc.relays[0].controller):
         return sc
     return sc.model_copy(update={"platform": sc.platform_of(0), "controller": sc.controller_of(0)})
@@ -324,7 +327,8 @@ def search_box(sc: Scenario, source: SourceTrajectory) -> tuple[np.ndarray, np.n
     est = sc.estimation
     if est.search_min_m is not None:
         return np.array(est.search_min_m, float), np.array(est.search_max_m, float)
-    pts = np.vstack([sc.nodes.bs, relay_start(sc)] + [source.state(t).p for t in np.linspace(0.0, sc.duration_s, 50)])
+    rows: list[np.ndarray] = [np.asarray(sc.nodes.bs, float), relay_start(sc)]
+    pts = np.vstack(rows + [source.state(t).p for t in np.linspace(0.0, sc.duration_s, 50)])
     lo, hi = pts.min(axis=0) - SEARCH_MARGIN_M, pts.max(axis=0) + SEARCH_MARGIN_M
     lo[2], hi[2] = max(0.0, pts[:, 2].min() - SEARCH_MARGIN_M), pts[:, 2].max() + 0.5 * SEARCH_MARGIN_M
     return lo, hi
@@ -385,3 +389,52 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
         return compute_bound(pb, progress)
     return cached_bound(pb, scenario_bound_key(sc), progress)
 
+
+
+def relay_scenario(sc: Scenario, i: int) -> Scenario:
+    """Relay ``i``'s view of a fleet scenario: its platform, its controller flying the tracking
+    NMPC (the capacity planner's: no comms-aware terms, whose base station and MRAV-2 a relay inside
+    a chain does not have), its start."""
+    ctrl = sc.controller_of(i).model_copy(update={"planner": "capacity"})
+    return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
+
+
+@dataclass
+class FleetParts:
+    """Everything a fleet's mission is made of."""
+
+    scenario: Scenario
+    scene: RadioScene
+    relays: list[FleetRelay]
+    sources: dict[str, SourceTrajectory]
+    planner: FleetPlanner
+    settings: SimSettings
+
+    def closed_loop(self) -> FleetLoop:
+        return FleetLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
+                         settings=self.settings)
+
+
+def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> FleetParts:
+    """The parts of a fleet (more than one relay or source): each relay's vehicle, tracking NMPC with
+    its supervisor, plant; each source's path; the fleet planner (``network.planner``). Random
+    channel terms, noise and jammer estimation are not built for fleets yet: a named error."""
+    check_physics(sc)
+    if sc.stochastic or sc.estimates_jammers:
+        raise ScenarioError("relays / sources: a fleet flies the deterministic channel so far (no fading, shadowing, "
+                            "CSI or process noise, estimated jammers); docs/concepts/networks.md")
+    scene = build_scene(sc)
+    relays = []
+    for i, r in enumerate(sc.relay_list):
+        view = relay_scenario(sc, i)
+        vehicle = build_vehicle(view.platform)
+        relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=build_controller(view, vehicle, nmpc_settings),
+                                 plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
+                                 start=np.array(r.start, float)))
+    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    lo, hi = _workspace(sc)
+    planner = EquidistantPlanner(sc.route_list, {r.name: r.start for r in relays},
+                                 EquidistantSettings(speed_m_s=sc.controller.capacity.speed_m_s,
+                                                     margin_m=sc.controller.capacity.margin_m,
+                                                     workspace_min=_vec3(lo), workspace_max=_vec3(hi)))
+    return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc))

@@ -5,7 +5,7 @@ and ``[mission]`` is one relay named ``relay`` and one source named ``source``."
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
@@ -63,3 +63,6 @@ class NetworkConfig(Strict):
                                            "one route per source through every relay in order")
     min_separation_m: float = Field(0.0, ge=0.0, le=100.0, description="between any two vehicles, m (0: no separation "
                                     "constraint)")
+    planner: Literal["equidistant"] = Field("equidistant", description="the fleet's planner: equidistant (each relay "
+                                            "evenly spaced on the line from the base station to its source); every "
+                                            "relay's NMPC tracks it (the tracking NMPC of controller.planner = capacity)")

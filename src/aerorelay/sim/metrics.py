@@ -166,3 +166,58 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "wall_s": float(wall_s),
         "sim_s": float(sim_s),
     }
+
+
+def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], period_s: float, outage_threshold: float,
+                  wall_s: float, sim_s: float, min_separation_m: float, workspace_min, workspace_max,
+                  box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf) -> dict:
+    """Metrics of a fleet's flight (``sim.fleet`` log): the network's rate and every route's (minimum,
+    mean, outage below ``outage_threshold``), the smallest separation between two vehicles (m),
+    per relay its safety, tracking, energy and step times, and the fleet's step time (the relays'
+    solve times summed per step, ms). Unsafe when a relay is, or two vehicles came closer than
+    ``min_separation_m`` (> 0)."""
+    cap = np.asarray(log["capacity"], float)
+    out: dict = {"c_min": float(cap.min()), "c_mean": float(cap.mean()),
+                 "outage_fraction": float(np.mean(cap < outage_threshold)), **outage_durations(cap < outage_threshold, period_s)}
+    out["routes"], out["relays"] = {}, {}
+    for s in sources:
+        c = np.asarray(log[f"capacity.{s}"], float)
+        out["routes"][s] = {"c_min": float(c.min()), "c_mean": float(c.mean()),
+                             "outage_fraction": float(np.mean(c < outage_threshold))}
+    sep = np.asarray(log["separation_min"], float)
+    out["separation_min_m"] = float(sep.min())
+    fleet_ms = np.zeros(cap.size)
+    reasons = []
+    for name, veh in relays.items():
+        def col(q, name=name):
+            return np.asarray(log[f"{name}.{q}"])
+        p = np.column_stack([col("p_x"), col("p_y"), col("p_z")]).astype(float)
+        pd = np.column_stack([col("pd_x"), col("pd_y"), col("pd_z")]).astype(float)
+        speeds = np.column_stack([col(f"Omega_{i}") for i in range(1, veh.n_rotors + 1)]).astype(float)
+        inputs = np.column_stack([col(f"u_{i}") for i in range(1, veh.n_rotors + 1)]).astype(float)
+        tilt = np.degrees(np.arccos(np.clip(np.cos(col("phi").astype(float)) * np.cos(col("theta").astype(float)), -1, 1)))
+        solve = col("solve_ms").astype(float)
+        fleet_ms += solve
+        safety = safety_metrics(p, tilt, col("safety_violation").astype(bool), workspace_min, workspace_max,
+                                box_tolerance_m, ground_z_m)
+        out["relays"][name] = {
+            **safety,
+            "position_error_mean_m": float(np.mean(np.linalg.norm(p - pd, axis=1))),
+            "distance_m": float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))),
+            "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period_s / 1e3),
+            "infeasible_fraction": float(np.mean(~col("qp_ok").astype(bool))),
+            "fallback_fraction": float(np.mean(col("fallback").astype(bool))),
+            "solve_ms": stats_ms(solve),
+            **saturation_metrics(speeds, inputs, veh),
+        }
+        if safety["unsafe"]:
+            reasons.append(f"relay {name!r}: {safety['unsafe_reason']}")
+    if min_separation_m > 0 and sep.min() < min_separation_m:
+        k = int(np.argmin(sep))
+        reasons.append(f"two vehicles {sep[k]:.2f} m apart at t = {float(log['t'][k]):.2f} s, closer than "
+                       f"network.min_separation_m = {min_separation_m:g} m")
+    out["fleet_solve_ms"] = stats_ms(fleet_ms)
+    out["unsafe"] = bool(reasons)
+    out["unsafe_reason"] = "; ".join(reasons)
+    out["steps"], out["wall_s"], out["sim_s"] = int(cap.size), float(wall_s), float(sim_s)
+    return out

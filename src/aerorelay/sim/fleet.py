@@ -1,0 +1,155 @@
+"""Flies a fleet: every relay its own vehicle, NMPC (with its supervisor and fail-safe) and plant,
+every source its own mission, one fleet planner, the network's true channel.
+
+The log names each vehicle's columns ``<node>.<quantity>`` (``r1.p_x``, ``r1.phi``,
+``inspector.p_z``), each hop's SINR ``sinr.<tx>.<rx>``, each route's capacity ``capacity.<source>``
+and the network's rate ``capacity`` (``models.radio.network_rate``); ``separation_min`` (m) is the
+smallest distance between two vehicles at the step. Units as in the one-relay log.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..control.relay import RelayController
+from ..models.geometry import rotation_zyx
+from ..models.mission import SourceTrajectory
+from ..models.radio import RadioScene
+from ..models.vehicle import Multirotor
+from ..planning.fleet import FleetInput, FleetPlanner
+from .closed_loop import LOG_COLUMN_TYPES, MissionResult, SimSettings
+from .realtime import full_collections_paused
+
+VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
+SOURCE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi")
+RELAY_STEP = ("pd_x", "pd_y", "pd_z", "solve_ms", "feedback_ms", "qp_ok", "qp_status", "fallback", "safety_violation")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FleetRelay:
+    """One relay of the fleet: its name, vehicle, controller, plant step and start (m, world)."""
+
+    name: str
+    vehicle: Multirotor
+    controller: RelayController
+    plant: ca.Function
+    start: np.ndarray
+
+
+def fleet_columns(relays: list[FleetRelay], sources: list[str], scene: RadioScene) -> list[str]:
+    """The fleet log's columns, in order."""
+    cols = ["t"]
+    for r in relays:
+        n = r.vehicle.n_rotors
+        cols += [f"{r.name}.{q}" for q in VEHICLE_STATE]
+        cols += [f"{r.name}.Omega_{i}" for i in range(1, n + 1)] + [f"{r.name}.u_{i}" for i in range(1, n + 1)]
+        cols += [f"{r.name}.{q}" for q in RELAY_STEP]
+    for s in sources:
+        cols += [f"{s}.{q}" for q in SOURCE_STATE]
+    cols += [f"sinr.{tx}.{rx}" for tx, rx in scene.hops]
+    cols += [f"capacity.{route[0]}" for route in scene.all_routes]
+    cols += ["capacity", "jammer_on", "separation_min"]
+    cols += [f"jam_{j.name}_{a}" for j in scene.jammers for a in "xyz"]
+    return cols
+
+
+def column_type(name: str) -> type:
+    """A fleet column's type: the one-relay log's type of its quantity (flags, the QP status), else float."""
+    return LOG_COLUMN_TYPES.get(name.rsplit(".", 1)[-1], float)
+
+
+def separation_min(points: np.ndarray) -> float:
+    """The smallest distance (m) between two of ``points`` ``(n, 3)``; inf for fewer than two."""
+    if len(points) < 2:
+        return math.inf
+    d = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)
+    return float(d[np.triu_indices(len(points), 1)].min())
+
+
+class FleetLoop:
+    """Flies the fleet: ``run(progress)`` returns a MissionResult whose log is the fleet log."""
+
+    def __init__(self, *, scene: RadioScene, relays: list[FleetRelay], sources: dict[str, SourceTrajectory],
+                 planner: FleetPlanner, settings: SimSettings):
+        self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
+        self.columns = fleet_columns(relays, list(sources), scene)
+        self.source_of: dict[str, str] = {}  # each relay's source (of its first route): MRAV-2 in its NMPC's parameters
+        for route in scene.all_routes:
+            for name in route[1:-1]:
+                self.source_of.setdefault(name, route[0])
+        self.bs = scene.fixed_pose(scene.name_of("base_station")).position
+
+    def run(self, progress=None) -> MissionResult:
+        st = self.settings
+        period = st.period_s
+        n_steps = int(math.floor(st.duration_s / period + 1e-9)) + 1
+        x = {r.name: r.vehicle.hover_state(r.start) for r in self.relays}
+        u = {r.name: np.zeros(r.vehicle.n_rotors) for r in self.relays}
+        log: dict[str, np.ndarray] = {}
+        for c in self.columns:
+            kind = column_type(c)
+            log[c] = np.zeros(n_steps, bool) if kind is bool else np.empty(n_steps, object) if kind is str else np.empty(n_steps)
+        wall0 = time.perf_counter()
+        aborted, flown = None, n_steps
+        with full_collections_paused():
+            for k in range(n_steps):
+                t = k * period
+                src = {name: path.state(t) for name, path in self.sources.items()}
+                positions = {**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in src.items()},
+                             self.scene.name_of("base_station"): self.bs}
+                velocities = {**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in src.items()}}
+                refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities))
+                row: dict[str, object] = {"t": t}
+                for r in self.relays:
+                    s = src[self.source_of[r.name]]
+                    P = r.controller.parameters(refs[r.name], s.p, s.v, s.a)
+                    info = r.controller.step(x[r.name], u[r.name], P, shift=period >= r.controller.spec.ts - 1e-12)
+                    u[r.name] = info.u
+                    xs, n = x[r.name], r.vehicle.n_rotors
+                    row |= {f"{r.name}.{q}": v for q, v in zip(VEHICLE_STATE, xs[0:12], strict=True)}
+                    row |= {f"{r.name}.Omega_{i}": xs[11 + i] for i in range(1, n + 1)}
+                    row |= {f"{r.name}.u_{i}": info.u[i - 1] for i in range(1, n + 1)}
+                    row |= {f"{r.name}.pd_{a}": v for a, v in zip("xyz", refs[r.name].p_ref, strict=True)}
+                    row |= {f"{r.name}.solve_ms": info.solve_ms, f"{r.name}.feedback_ms": info.feedback_ms,
+                            f"{r.name}.qp_ok": info.ok, f"{r.name}.qp_status": info.status,
+                            f"{r.name}.fallback": info.fallback,
+                            f"{r.name}.safety_violation": bool(r.controller.last_violations)}
+                poses = {n: self.scene.pose(n, xs[0:3], rotation_zyx(xs[3:6])) for n, xs in x.items()}
+                for name, s in src.items():
+                    eta = s.attitude(self.relays[0].vehicle.gravity)
+                    poses[name] = self.scene.pose(name, s.p, rotation_zyx(eta))
+                    row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta], strict=True)}
+                state = self.scene.evaluate(t, poses)
+                row |= {f"sinr.{tx}.{rx}": float(g) for (tx, rx), g in zip(state.hops, state.sinr, strict=True)}
+                row |= {f"capacity.{route[0]}": float(c) for route, c in zip(self.scene.all_routes, state.route_capacity,
+                                                                            strict=True)}
+                row["capacity"] = float(state.capacity)
+                row["jammer_on"] = float(any(float(j.power_at(t)) > 0 for j in self.scene.jammers))
+                row["separation_min"] = separation_min(np.array([positions[n] for n in (*x, *src)]))
+                for j in self.scene.jammers:
+                    row |= dict(zip((f"jam_{j.name}_x", f"jam_{j.name}_y", f"jam_{j.name}_z"), j.position_at(t), strict=True))
+                if k == 0 and set(row) != set(self.columns):
+                    raise ValueError(f"fleet log row: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
+                for name, val in row.items():
+                    log[name][k] = val
+                for r in self.relays:
+                    x[r.name] = np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel()
+                bad = [n for n, xs in x.items() if not np.all(np.isfinite(xs))]
+                if bad:
+                    aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1
+                    break
+                if progress is not None:
+                    progress(k + 1, n_steps)
+        wall = time.perf_counter() - wall0
+        if flown < n_steps:
+            log = {c: v[:flown] for c, v in log.items()}
+        first = self.relays[0].controller
+        return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period,
+                             qp_failures=sum(r.controller.nmpc.failures for r in self.relays),
+                             controller=first.nmpc.settings.fingerprint(),
+                             fallback_episodes=sum(r.controller.fallback_episodes for r in self.relays), aborted=aborted)

@@ -1,0 +1,113 @@
+"""A fleet flown together (sim/fleet.py): the logged rates recomputed from the logged poses with the
+paper's link equations written here (eq. 5-7 with half-wave dipoles, App. A), the equidistant
+planner's places by hand, separation in the metrics."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly import parse_scenario
+from aerorelay.planning.fleet import equidistant_targets
+from aerorelay.sim.fleet import separation_min
+from aerorelay.sim.metrics import fleet_metrics
+
+WS = {"min": [-5.0, -10.0, 0.5], "max": [45.0, 12.0, 20.0]}
+CHAIN = {"sim": {"duration_s": 2.0},
+         "controller": {"workspace": WS},
+         "jammer": {"position": [15.0, -8.0, 2.0], "power_w": 4.0},
+         "relays": [{"name": "r1", "start": [20.0, 1.0, 5.0]}, {"name": "r2", "start": [10.0, -1.0, 5.0]}],
+         "sources": [{"name": "inspector", "mission": {"waypoints": [[0.0, 30.0, 0.0, 5.0], [20.0, 40.0, 0.0, 8.0]]}}],
+         "network": {"routes": [["inspector", "r1", "r2", "bs"]], "min_separation_m": 2.0}}
+
+
+def two_sources() -> dict:
+    d = copy.deepcopy(CHAIN)
+    d["sources"].append({"name": "second", "mission": {"waypoints": [[0.0, 30.0, 8.0, 6.0], [20.0, 35.0, 10.0, 6.0]]}})
+    d["network"]["routes"].append(["second", "r1", "r2", "bs"])
+    return d
+
+
+def _axis(phi, theta, psi):
+    """Body z in the world, ZYX Euler angles: the third column of Rz(psi) Ry(theta) Rx(phi)."""
+    return np.array([math.cos(psi) * math.sin(theta) * math.cos(phi) + math.sin(psi) * math.sin(phi),
+                     math.sin(psi) * math.sin(theta) * math.cos(phi) - math.cos(psi) * math.sin(phi),
+                     math.cos(theta) * math.cos(phi)])
+
+
+def _dipole(c):
+    """Half-wave dipole, peak 1: cos^2(pi/2 cos th) / sin^2 th."""
+    return math.cos(0.5 * math.pi * c) ** 2 / (1.0 - c * c)
+
+
+def _gain(p_tx, b_tx, p_rx, b_rx, tx_dipole=True):
+    d = p_rx - p_tx
+    n = float(np.linalg.norm(d))
+    g_tx = _dipole(float(d @ b_tx) / n) if tx_dipole else 1.0
+    return g_tx * _dipole(float(-d @ b_rx) / n) / n**2
+
+
+def _recompute(row, routes, jammer_power):
+    """Per hop Gamma = P_U G G / d^2 / (sigma^2 + P_J G_J / d_J^2) (P_U = sigma^2 = 1, B = 1), per route
+    C_s = 1 / sum_k 1/log2(1 + Gamma), network R = 1 / sum_s sum_k 1/log2(1 + Gamma)."""
+    def pose(n):
+        if n == "bs":
+            return np.zeros(3), np.array([0.0, 0.0, 1.0])
+        return (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]),
+                _axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]))
+    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+    gamma, inv_total, per_route = {}, 0.0, []
+    for route in routes:
+        inv = 0.0
+        for tx, rx in zip(route[:-1], route[1:], strict=False):
+            (pt, bt), (pr, br) = pose(tx), pose(rx)
+            interference = jammer_power * _gain(pj, None, pr, br, tx_dipole=False)
+            gamma[tx, rx] = _gain(pt, bt, pr, br) / (1.0 + interference)
+            inv += 1.0 / math.log2(1.0 + gamma[tx, rx])
+        per_route.append(1.0 / inv)
+        inv_total += inv
+    return gamma, per_route, 1.0 / inv_total
+
+
+@pytest.mark.parametrize("data", [CHAIN, two_sources()], ids=["chain", "two_sources"])
+def test_logged_rates_equal_the_link_equations_on_the_logged_poses(data):
+    sc = parse_scenario(data)
+    r = ar.simulate(sc)
+    df, m = r.timeseries, r.metrics
+    assert not m["unsafe"], m["unsafe_reason"]
+    for k in (0, len(df) // 2, len(df) - 1):
+        row = df.iloc[k]
+        gamma, routes, rate = _recompute(row, sc.route_list, 4.0)
+        for (tx, rx), g in gamma.items():
+            assert row[f"sinr.{tx}.{rx}"] == pytest.approx(g, rel=1e-9)
+        for route, c in zip(sc.route_list, routes, strict=True):
+            assert row[f"capacity.{route[0]}"] == pytest.approx(c, rel=1e-9)
+        assert row["capacity"] == pytest.approx(rate, rel=1e-9)
+    assert m["c_min"] == pytest.approx(df["capacity"].min()) and m["separation_min_m"] == pytest.approx(df["separation_min"].min())
+    assert set(m["relays"]) == {"r1", "r2"} and set(m["routes"]) == {r[0] for r in sc.route_list} and "fleet_solve_ms" in m
+
+
+def test_equidistant_places_by_hand():
+    pos = {"s": np.array([30.0, 0.0, 6.0]), "bs": np.zeros(3), "t": np.array([0.0, 30.0, 6.0])}
+    got = equidistant_targets([["s", "r1", "r2", "bs"]], pos)
+    np.testing.assert_allclose(got["r2"], [10.0, 0.0, 2.0])  # first from the base station: 1/3 of the way
+    np.testing.assert_allclose(got["r1"], [20.0, 0.0, 4.0])
+    shared = equidistant_targets([["s", "r1", "bs"], ["t", "r1", "bs"]], pos)
+    np.testing.assert_allclose(shared["r1"], [7.5, 7.5, 3.0])  # the mean of its places (15,0,3) and (0,15,3)
+
+
+def test_separation_min_and_its_verdict():
+    assert separation_min(np.array([[0.0, 0, 0], [3.0, 4.0, 0], [0, 0, 12.0]])) == pytest.approx(5.0)
+    sc = parse_scenario(CHAIN)
+    r = ar.simulate(sc)
+    relays = {"r1": ar.api.vehicle(sc), "r2": ar.api.vehicle(sc)}
+    common = dict(relays=relays, sources=["inspector"], period_s=sc.control_period_s, outage_threshold=1e-3, wall_s=1.0,
+                  sim_s=1.0, workspace_min=WS["min"], workspace_max=WS["max"])
+    sep = float(r.timeseries["separation_min"].min())
+    assert not fleet_metrics(r.mission.log, min_separation_m=sep - 0.1, **common)["unsafe"]
+    m = fleet_metrics(r.mission.log, min_separation_m=sep + 0.1, **common)
+    assert m["unsafe"] and "closer than network.min_separation_m" in m["unsafe_reason"]
