@@ -163,13 +163,14 @@ def _workspace(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ws.min, float), np.array(ws.max, float)
 
 
-def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None) -> OcpSpec:
-    """The NMPC problem structure described by a scenario."""
+def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None, neighbours: int = 0) -> OcpSpec:
+    """The NMPC problem structure described by a scenario (``neighbours``: the other vehicles a
+    fleet's relay keeps its separation from)."""
     c = sc.controller
     lo, hi = _workspace(sc)
     return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
                    bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
-                   exact_input_rate=c.exact_input_rate)
+                   exact_input_rate=c.exact_input_rate, neighbours=neighbours)
 
 
 def _vec3(v) -> tuple[float, float, float]:
@@ -205,10 +206,11 @@ def nmpc_settings(sc: Scenario, **overrides) -> NmpcSettings:
     return NmpcSettings(**base)
 
 
-def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings | None = None) -> RelayController:
+def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings | None = None,
+                     neighbours: int = 0) -> RelayController:
     """NMPC + fail-safe for the scenario's controller settings (``settings``: the solver's, else
-    ``nmpc_settings(sc)``)."""
-    spec = ocp_spec(sc, vehicle)
+    ``nmpc_settings(sc)``; ``neighbours``: a fleet's relay's separation constraint)."""
+    spec = ocp_spec(sc, vehicle, neighbours)
     fs = sc.controller.failsafe
     return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
                            failsafe=FailsafeSettings(failures_to_fallback=fs.failures_to_fallback,
@@ -409,10 +411,11 @@ class FleetParts:
     sources: dict[str, SourceTrajectory]
     planner: FleetPlanner
     settings: SimSettings
+    separation_m: float = 0.0
 
     def closed_loop(self) -> FleetLoop:
         return FleetLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
-                         settings=self.settings)
+                         settings=self.settings, separation_m=self.separation_m)
 
 
 def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> FleetParts:
@@ -425,10 +428,12 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
                             "CSI or process noise, estimated jammers); docs/concepts/networks.md")
     scene = build_scene(sc)
     relays = []
+    # each relay keeps min_separation_m from every other vehicle (none set: the NMPC of one relay)
+    others = len(sc.relay_list) - 1 + len(sc.source_list) if sc.network.min_separation_m > 0 else 0
     for i, r in enumerate(sc.relay_list):
         view = relay_scenario(sc, i)
         vehicle = build_vehicle(view.platform)
-        relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=build_controller(view, vehicle, nmpc_settings),
+        relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=build_controller(view, vehicle, nmpc_settings, others),
                                  plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
                                  start=np.array(r.start, float)))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
@@ -437,4 +442,4 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
                                  EquidistantSettings(speed_m_s=sc.controller.capacity.speed_m_s,
                                                      margin_m=sc.controller.capacity.margin_m,
                                                      workspace_min=_vec3(lo), workspace_max=_vec3(hi)))
-    return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc))
+    return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc), sc.network.min_separation_m)

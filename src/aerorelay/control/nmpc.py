@@ -216,6 +216,11 @@ class NMPC:
         """The current linearization point ``z`` (after the last step's shift, if any)."""
         return pack_plan(*self.engine.plan())
 
+    def plan(self) -> tuple[np.ndarray, np.ndarray]:
+        """The current linearization point as ``(X (nx, N + 1), W (nw, N))``: the last plan shifted
+        by the step flown since (its first column is the state now, predicted)."""
+        return self.engine.plan()
+
     def reset(self, xa0: np.ndarray):
         """Initialize the guess with ``xa0`` held over the horizon and zero inputs."""
         N = self.spec.horizon

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..models.vehicle import Multirotor
 from .params import StageParams
-from .terms import CONSTRAINTS, COST_TERMS, REFERENCE_SIGNALS, Constraint, CostTerm, StageVars
+from .terms import CONSTRAINTS, COST_TERMS, REFERENCE_SIGNALS, SEPARATION, Constraint, CostTerm, StageVars
 
 INF = 1e8  # 'unbounded' in the QP's bound vectors
 HESSIAN_REG = 1e-8  # added to the Gauss-Newton Hessian's diagonal (both QP routes)
@@ -63,6 +63,7 @@ class OcpSpec:
     exact_input_rate: bool = True
     cost_terms: tuple[CostTerm, ...] = field(default=COST_TERMS)
     constraints_all: tuple[Constraint, ...] = field(default=CONSTRAINTS)
+    neighbours: int = 0  # other vehicles this relay keeps its separation from (a fleet's; 0: none)
 
     def __post_init__(self):
         if self.horizon < 1 or self.ts <= 0:
@@ -77,7 +78,8 @@ class OcpSpec:
 
     @property
     def constraints(self) -> tuple[Constraint, ...]:
-        return tuple(c for c in self.constraints_all if self.constrained or not c.comms_aware)
+        own = tuple(c for c in self.constraints_all if self.constrained or not c.comms_aware)
+        return own + ((SEPARATION,) if self.neighbours else ())
 
     @property
     def soft_constraints(self) -> tuple[Constraint, ...]:
@@ -112,6 +114,8 @@ class OcpSpec:
     def params(self) -> StageParams:
         """The per-stage parameter layout: reference signals, sqrt-weights, slack penalties."""
         fields = list(REFERENCE_SIGNALS)
+        if self.neighbours:  # the other vehicles' predicted positions (m, world) and the separation (m)
+            fields += [("p_others", 3 * self.neighbours), ("separation_m", 1)]
         fields += [(f"sw_{t.name}", 1) for t in self.terms]
         fields += [(f"sw_slack_{c.name}", 1) for c in self.soft_constraints]
         internal: tuple[str, ...] = ()
@@ -133,7 +137,7 @@ class OcpSpec:
             v.omega_dot_min, v.omega_dot_max, self.horizon, self.ts, self.constrained, self.bs_position,
             self.workspace_min, self.workspace_max, self.exact_input_rate, self.params.names,
             [c.name for c in self.constraints], [c.soft for c in self.constraints],
-        ]
+        ] + ([self.neighbours] if self.neighbours else [])  # a one-relay OCP keeps its cached engine
         return repr(parts)
 
     # -- expressions -------------------------------------------------------------------------

@@ -65,9 +65,11 @@ class RelayController:
     def settings(self) -> NmpcSettings:
         return self.nmpc.settings
 
-    def parameters(self, ref, p2, v2, a2) -> np.ndarray:
+    def parameters(self, ref, p2, v2, a2, others: np.ndarray | None = None, separation_m: float = 0.0) -> np.ndarray:
         """Stage parameters: the governed reference extrapolated at ``v_ref``, ``rho_d`` from
-        ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration, mu, weights."""
+        ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration, mu, weights;
+        a relay of a fleet (``spec.neighbours``): the other vehicles' predicted positions ``others``
+        ``(3 neighbours, N + 1)`` (m, world) and the separation to keep (m)."""
         spec = self.spec
         tk = spec.ts * np.arange(spec.horizon + 1)
         # rho_d (eq. 20), unless a planner gives the antenna axis itself
@@ -81,6 +83,11 @@ class RelayController:
             "psi_ref": ref.yaw,
             **self.weights,
         }
+        if spec.neighbours:
+            if others is None or np.shape(others) != (3 * spec.neighbours, spec.horizon + 1):
+                raise ValueError(f"parameters: others must be (3 x {spec.neighbours}, {spec.horizon + 1}), got "
+                                 f"{None if others is None else np.shape(others)}")
+            values["p_others"], values["separation_m"] = others, separation_m
         return spec.params.matrix(spec.horizon + 1, values)
 
     def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:

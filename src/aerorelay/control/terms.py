@@ -75,6 +75,15 @@ class StageVars:
         return misalignment(self.pos, self.R, self.p["p2"])
 
     @cached_property
+    def separation_margins(self):
+        """``|p - q_j|^2 - d^2`` (m^2) for every other vehicle ``j`` at its predicted position ``q_j``
+        (``p_others``, 3 per vehicle) and the separation ``d`` (``separation_m``)."""
+        q = self.p["p_others"]
+        n = q.shape[0] // 3
+        d = [self.pos - q[3 * j : 3 * j + 3] for j in range(n)]
+        return ca.vertcat(*[ca.dot(e, e) - self.p["separation_m"] ** 2 for e in d])
+
+    @cached_property
     def v10(self):
         """Directional cosine squared toward the base station (eq. 23)."""
         return misalignment(self.pos, self.R, self.bs)
@@ -126,6 +135,11 @@ COST_TERMS: tuple[CostTerm, ...] = (
     CostTerm("input_rate", lambda s: s.u - s.u_prev, 1e-5, "on u_k - u_(k-1) (eq. 22), (Hz/s)^-2",
              terminal=None, strictly_positive=True),
 )
+
+# A fleet's relays keep apart: present in the OCP of a relay that has neighbours (``OcpSpec.neighbours``),
+# whose predicted positions come as the stage parameter ``p_others`` (their latest plans, one step old).
+SEPARATION = Constraint("separation", lambda s: s.separation_margins,
+                        "|p - q_j|^2 - d^2 >= -pi for every other vehicle j (network.min_separation_m)", comms_aware=False)
 
 CONSTRAINTS: tuple[Constraint, ...] = (
     Constraint("mutual_alignment", lambda s: mutual_alignment(s.v12, s.v10) - s.p["mu"],

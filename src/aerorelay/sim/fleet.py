@@ -75,14 +75,32 @@ class FleetLoop:
     """Flies the fleet: ``run(progress)`` returns a MissionResult whose log is the fleet log."""
 
     def __init__(self, *, scene: RadioScene, relays: list[FleetRelay], sources: dict[str, SourceTrajectory],
-                 planner: FleetPlanner, settings: SimSettings):
+                 planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0):
         self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
+        self.separation_m = separation_m
         self.columns = fleet_columns(relays, list(sources), scene)
         self.source_of: dict[str, str] = {}  # each relay's source (of its first route): MRAV-2 in its NMPC's parameters
         for route in scene.all_routes:
             for name in route[1:-1]:
                 self.source_of.setdefault(name, route[0])
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
+
+    def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
+        """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
+        plan, shifted by the step flown since (one step old; its current position held before its
+        first plan), a source at constant acceleration."""
+        spec = self.relays[0].controller.spec
+        tk = spec.ts * np.arange(spec.horizon + 1)
+        out = {}
+        for r in self.relays:
+            nmpc = r.controller.nmpc
+            if nmpc.initialized:
+                out[r.name] = nmpc.plan()[0][0:3].copy()
+            else:
+                out[r.name] = np.repeat(x[r.name][0:3, None], spec.horizon + 1, axis=1)
+        for name, s in src.items():
+            out[name] = s.p[:, None] + s.v[:, None] * tk + 0.5 * s.a[:, None] * tk**2
+        return out
 
     def run(self, progress=None) -> MissionResult:
         st = self.settings
@@ -105,9 +123,13 @@ class FleetLoop:
                 velocities = {**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in src.items()}}
                 refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities))
                 row: dict[str, object] = {"t": t}
+                predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 for r in self.relays:
                     s = src[self.source_of[r.name]]
-                    P = r.controller.parameters(refs[r.name], s.p, s.v, s.a)
+                    others = None
+                    if r.controller.spec.neighbours:
+                        others = np.vstack([q for n, q in predicted.items() if n != r.name])
+                    P = r.controller.parameters(refs[r.name], s.p, s.v, s.a, others, self.separation_m)
                     info = r.controller.step(x[r.name], u[r.name], P, shift=period >= r.controller.spec.ts - 1e-12)
                     u[r.name] = info.u
                     xs, n = x[r.name], r.vehicle.n_rotors
