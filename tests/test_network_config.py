@@ -140,6 +140,7 @@ def test_a_fleet_runs_from_the_command_line_and_its_bound_is_refused(tmp_path):
     assert not (tmp_path / "b").exists()
     res = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--duration", "0.5"])
     assert res.exit_code == 0, res.output
-    assert {"scenario.toml", "timeseries.parquet", "metrics.json"} <= {p.name for p in (tmp_path / "r").iterdir()}
+    assert {"scenario.toml", "timeseries.parquet", "metrics.json", "rates.png", "sinr.png", "paths.png"} <= {
+        p.name for p in (tmp_path / "r").iterdir()}
     res = CliRunner().invoke(app, ["info", str(f)])
     assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output

@@ -42,6 +42,7 @@ from .experiments.study import Study, StudyError, expand, find_studies
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .report.figures import fig_bound, write_run_figures
+from .report.fleet_figures import write_fleet_figures
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_run_mcap
 from .report.run_report import RUN_REPORT, render_run_report
@@ -76,12 +77,17 @@ def write_run_views(result: RunResult, tmp: Path) -> None:
     write_run_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE, bound)
 
 
+def write_fleet_views(result: RunResult, tmp: Path) -> None:
+    """A fleet's figures (the rates, every hop's SINR, the paths) into the run folder ``tmp``."""
+    write_fleet_figures(result.timeseries, result.scenario, tmp)
+
+
 def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     """Fly ``sc``; ``bound=True`` also computes its capacity bound (efficiency in the metrics).
     Keyword parts (``planner``, ``jammers``, ``scene``, ``nmpc_settings``, ``progress``) replace the
     scenario's (see ``experiments.run.simulate``). ``save`` writes the run folder with the figures
     and ``run.mcap`` (``figures=False``: data files only)."""
-    return _simulate(sc, with_bound=bound, views=None if sc.is_fleet else write_run_views, **parts)
+    return _simulate(sc, with_bound=bound, views=write_fleet_views if sc.is_fleet else write_run_views, **parts)
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound:

@@ -136,9 +136,10 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
 
 
 def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettings | None,
-                    progress: Callable[[int, int], None] | None, given: dict) -> RunResult:
+                    progress: Callable[[int, int], None] | None, given: dict,
+                    views: Callable[[RunResult, Path], None] | None) -> RunResult:
     """Fly a fleet (``assembly.parts.build_fleet``); its log and metrics (``sim.metrics.fleet_metrics``).
-    Parts passed in, the bound of a fleet and the run's figures are not built for fleets yet: named."""
+    Parts passed in and the bound of a fleet are not built for fleets yet: named."""
     passed = [k for k, v in given.items() if v is not None]
     if passed or with_bound:
         raise ScenarioError(f"relays / sources: a fleet flies its scenario's own parts without a bound so far "
@@ -159,7 +160,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
         metrics["unsafe_reason"] = "; ".join(r for r in (metrics["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
-    return RunResult(sc, mission, df, metrics, None, None)
+    return RunResult(sc, mission, df, metrics, None, views)
 
 
 def efficiency(value: float, best: float, what: str) -> tuple[float | None, str | None]:
@@ -184,7 +185,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     check_run_size(sc)
     if sc.is_fleet:
         return _simulate_fleet(sc, with_bound=with_bound, nmpc_settings=nmpc_settings, progress=progress,
-                               given=dict(planner=planner, scene=scene, jammers=jammers))
+                               given=dict(planner=planner, scene=scene, jammers=jammers), views=views)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)

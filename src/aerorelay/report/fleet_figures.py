@@ -1,0 +1,74 @@
+"""A fleet's run as figures (``sim.fleet`` log): the network's rate and each route's, each hop's
+SINR, and the vehicles' paths seen from above and from the side."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from ..config import Scenario  # noqa: E402
+
+FLEET_FIGURES = ("rates.png", "sinr.png", "paths.png")
+
+
+def fig_rates(df: pd.DataFrame, sc: Scenario):
+    """The network's rate (every source at it) and each route's capacity alone, with the outage threshold."""
+    unit, scale = ("Mbit/s", 1e-6) if sc.channel.physical else ("bit/s/Hz", 1.0)
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    for route in sc.route_list:
+        ax.semilogy(df["t"], df[f"capacity.{route[0]}"] * scale, lw=0.8, label=f"route {' -> '.join(route)} alone")
+    ax.semilogy(df["t"], df["capacity"] * scale, lw=1.6, color="k", label="network rate")
+    ax.axhline(sc.channel.outage * scale, color="r", ls="--", lw=0.8, label="outage threshold")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel(f"rate ({unit})")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def fig_sinr(df: pd.DataFrame, sc: Scenario):
+    """Each hop's SINR (dB)."""
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    for c in [c for c in df.columns if c.startswith("sinr.")]:
+        _, tx, rx = c.split(".")
+        ax.plot(df["t"], 10 * np.log10(np.maximum(df[c].to_numpy(float), 1e-30)), lw=0.8, label=f"{tx} -> {rx}")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("SINR (dB)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def fig_paths(df: pd.DataFrame, sc: Scenario):
+    """Every vehicle's path from above (x, y) and from the side (x, z); the base station and the jammers."""
+    fig, (top, side) = plt.subplots(1, 2, figsize=(10, 4))
+    for name in [r.name for r in sc.relay_list] + [s.name for s in sc.source_list]:
+        x, y, z = (df[f"{name}.p_{a}"].to_numpy(float) for a in "xyz")
+        for ax, v in ((top, y), (side, z)):
+            ax.plot(x, v, lw=1.0, label=name)
+            ax.plot(x[0], v[0], "o", ms=3, color=ax.lines[-1].get_color())
+    for ax, i in ((top, 1), (side, 2)):
+        ax.plot(sc.nodes.bs[0], sc.nodes.bs[i], "k^", label="bs")
+        for j in sc.jammer_configs:
+            ax.plot(df[f"jam_{j.name}_x"], df[f"jam_{j.name}_{'yz'[i - 1]}"], "rx", ms=4, label=f"jammer {j.name!r}")
+        ax.set_xlabel("x (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+    top.set_ylabel("y (m)")
+    side.set_ylabel("z (m)")
+    top.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def write_fleet_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
+    """Write ``rates.png``, ``sinr.png`` and ``paths.png`` into ``out``."""
+    for name, make in zip(FLEET_FIGURES, (fig_rates, fig_sinr, fig_paths), strict=True):
+        fig = make(df, sc)
+        fig.savefig(Path(out) / name, dpi=110)
+        plt.close(fig)
