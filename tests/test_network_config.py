@@ -142,5 +142,7 @@ def test_a_fleet_runs_from_the_command_line_and_its_bound_is_refused(tmp_path):
     assert res.exit_code == 0, res.output
     assert {"scenario.toml", "timeseries.parquet", "metrics.json", "rates.png", "sinr.png", "paths.png"} <= {
         p.name for p in (tmp_path / "r").iterdir()}
+    res = CliRunner().invoke(app, ["report", str(tmp_path / "r")])
+    assert res.exit_code == 2 and "a fleet's run: its report is not built yet" in res.output, res.output
     res = CliRunner().invoke(app, ["info", str(f)])
     assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output

@@ -194,6 +194,9 @@ def report_run(run_dir: str | Path) -> Path:
     d = Path(run_dir)
     if folder_kind(d) != "run" or not (d / METRICS_FILE).is_file():
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
+    if "relays" in json.loads((d / METRICS_FILE).read_text()):
+        raise OutputError(f"{d}: a fleet's run: its report is not built yet (its figures rates.png, sinr.png and paths.png "
+                          "are in the folder; docs/concepts/networks.md)")
     write_atomic(d / RUN_REPORT, render_run_report(d))
     return d / RUN_REPORT
 
