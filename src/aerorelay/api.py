@@ -44,7 +44,7 @@ from .planning.bound import CapacityBound
 from .report.figures import fig_bound, write_run_figures
 from .report.fleet_figures import write_fleet_figures
 from .report.html import render_report
-from .report.mcap_export import MCAP_FILE, write_run_mcap
+from .report.mcap_export import MCAP_FILE, write_fleet_mcap, write_run_mcap
 from .report.run_report import RUN_REPORT, render_run_report
 from .report.summary import metric as _metric
 from .report.summary import summarize
@@ -78,8 +78,9 @@ def write_run_views(result: RunResult, tmp: Path) -> None:
 
 
 def write_fleet_views(result: RunResult, tmp: Path) -> None:
-    """A fleet's figures (the rates, every hop's SINR, the paths) into the run folder ``tmp``."""
+    """A fleet's figures (the rates, every hop's SINR, the paths) and ``run.mcap`` into the run folder ``tmp``."""
     write_fleet_figures(result.timeseries, result.scenario, tmp)
+    write_fleet_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE)
 
 
 def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:

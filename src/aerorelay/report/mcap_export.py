@@ -172,3 +172,54 @@ def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFra
                 ents.append(_marker("bound_best_position", t[k], best[k], (0.1, 0.7, 0.2), 0.25))
             scene.log(SceneUpdate(entities=ents), log_time=ns)
     return Path(path)
+
+
+FLEET_COLOURS = ((0.83, 0.63, 0.09), (0.2, 0.55, 0.85), (0.3, 0.7, 0.3), (0.85, 0.4, 0.6), (0.5, 0.5, 0.5))
+
+
+def write_fleet_mcap(df: pd.DataFrame, sc: Scenario, path: Path, *, scene_every: int = 5) -> Path:
+    """``run.mcap`` of a fleet's run (``sim.fleet`` log): ``/tf`` ``world -> <node>`` for every relay
+    and source each step; ``/scene`` every ``scene_every`` steps: every vehicle with its antenna axis,
+    each relay's reference, the base station, every jammer, and every hop of every route coloured by
+    its SINR; ``/scene/static`` the workspace box; ``/timeseries`` every numeric column."""
+    ctx = foxglove.Context()
+    t = df["t"].to_numpy()
+    relays, sources = [r.name for r in sc.relay_list], [s.name for s in sc.source_list]
+    pos = {n: df[[f"{n}.p_x", f"{n}.p_y", f"{n}.p_z"]].to_numpy() for n in relays + sources}
+    eul = {n: df[[f"{n}.phi", f"{n}.theta", f"{n}.psi"]].to_numpy() for n in relays + sources}
+    ref = {n: df[[f"{n}.pd_x", f"{n}.pd_y", f"{n}.pd_z"]].to_numpy() for n in relays}
+    hops = [tuple(c.split(".")[1:]) for c in df.columns if c.startswith("sinr.")]
+    p0 = np.array(sc.nodes.bs, float)
+    pos["bs"] = np.repeat(p0[None, :], len(t), axis=0)
+    tracks = jammer_tracks(sc, t)
+    cols = [c for c in df.columns if not c.endswith("qp_status")]
+    values = df[cols].astype(float).to_numpy()
+    colour = {n: FLEET_COLOURS[i % len(FLEET_COLOURS)] for i, n in enumerate(relays + sources)}
+    with foxglove.open_mcap(str(path), allow_overwrite=True, context=ctx):
+        tf = FrameTransformsChannel("/tf", context=ctx)
+        scene = SceneUpdateChannel("/scene", context=ctx)
+        static = SceneUpdateChannel("/scene/static", context=ctx)
+        series = foxglove.Channel("/timeseries", schema=_timeseries_schema(cols), message_encoding="json", context=ctx)
+        ws = sc.controller.workspace
+        static.log(SceneUpdate(entities=[SceneEntity(timestamp=_stamp(0.0), frame_id="world", id="workspace",
+                                                     lines=[_box_lines(ws.min, ws.max)])]), log_time=0)
+        for k in range(len(t)):
+            ns = _ns(t[k])
+            tf.log(FrameTransforms(transforms=[
+                FrameTransform(timestamp=_stamp(t[k]), parent_frame_id="world", child_frame_id=n,
+                               translation=Vector3(x=pos[n][k, 0], y=pos[n][k, 1], z=pos[n][k, 2]),
+                               rotation=quaternion_zyx(*eul[n][k])) for n in relays + sources]), log_time=ns)
+            series.log({c: float(v) for c, v in zip(cols, values[k], strict=True)}, log_time=ns)
+            if k % scene_every:
+                continue
+            ents = [_vehicle(n, t[k], colour[n]) for n in relays + sources]
+            ents += [_marker(f"reference_{n}", t[k], ref[n][k], colour[n], 0.2) for n in relays]
+            ents.append(SceneEntity(timestamp=_stamp(t[k]), frame_id="world", id="bs",
+                                    cylinders=[CylinderPrimitive(pose=_pose(p0 + [0, 0, 0.5]), size=Vector3(x=0.4, y=0.4, z=1.0),
+                                                                 bottom_scale=1.0, top_scale=1.0,
+                                                                 color=Color(r=0.1, g=0.1, b=0.1, a=1))]))
+            ents += [_link(f"link_{tx}_{rx}", t[k], pos[tx][k], pos[rx][k], float(df[f"sinr.{tx}.{rx}"].iloc[k]))
+                     for tx, rx in hops]
+            ents += [_marker(f"jammer_{name}", t[k], P[k], (0.9, 0.1, 0.1), 0.4) for name, P in tracks]
+            scene.log(SceneUpdate(entities=ents), log_time=ns)
+    return Path(path)
