@@ -133,3 +133,45 @@ def test_each_relays_nmpc_keeps_the_separation():
     free, kept = gap(_converging(0.0)), gap(_converging(3.0))
     assert free[-1] < 2.1 and free.min() < 2.1  # the places are 2 m apart: nothing keeps them from meeting there
     assert kept.min() > 3.0 - 0.05 and kept[-1] > 3.0 - 0.05  # the soft constraint holds (its slack < 5 cm)
+
+
+def _iso_scene(route):
+    from aerorelay.models.antenna import IsotropicPattern
+    from aerorelay.models.radio import Antenna, LinkBudget, Node, RadioScene
+
+    iso = Antenna(IsotropicPattern(1.0))
+    nodes = (Node("bs", "base_station", iso, np.zeros(3)), Node("s", "source", iso),
+             *(Node(n, "relay", iso) for n in route[1:-1]))
+    return RadioScene(nodes, (), LinkBudget(1.0, 1.0, 1.0), tuple(route))  # SNR 1 / d^2: 0.01 at 10 m
+
+
+@pytest.mark.parametrize("route,want", [(["s", "r1", "bs"], {"r1": [10.0, 0.0, 5.0]}),
+                                        (["s", "r1", "r2", "bs"], {"r1": [40 / 3, 0.0, 5.0], "r2": [20 / 3, 0.0, 5.0]})])
+def test_the_fleets_capacity_planner_finds_the_even_spacing_in_free_space(route, want):
+    """Isotropic nodes, no jammer, low SNR (1 / d^2): the chain's best places are evenly spaced on the
+    segment (1/log2(1 + 1/d^2) is convex in the hop's length d there, so equal hops minimize the sum
+    of the hops' terms; at high SNR it is not: one relay on top of an end wins); the planner's
+    coordinate-wise goals on their 0.5 m grid stop within a grid cell's diagonal of them."""
+    from aerorelay.planning.fleet import FleetCapacityPlanner, FleetCapacitySettings, FleetInput
+
+    scene = _iso_scene(route)
+    starts = {n: np.array([3.0 + 4 * i, 4.0, 5.0]) for i, n in enumerate(route[1:-1])}
+    planner = FleetCapacityPlanner(scene, starts, {n: 0.3 for n in starts},
+                                   FleetCapacitySettings(step_m=0.5, replan_every=1, workspace_min=(-50, -50, 5.0),
+                                                         workspace_max=(50, 50, 5.0)))
+    inp = FleetInput(t=0.0, dt=0.06, positions={"s": np.array([20.0, 0.0, 5.0])}, velocities={"s": np.zeros(3)},
+                     axes={"s": np.array([0.0, 0.0, 1.0])}, jammer_positions=np.zeros((0, 3)), jammer_powers=np.zeros(0))
+    for _ in range(200):
+        planner.update(inp)
+    for name, p in want.items():
+        assert np.linalg.norm(planner.goals[name] - p) <= np.sqrt(3) * 0.5, (name, planner.goals[name])  # a grid cell's diagonal
+
+
+def test_the_fleets_capacity_planner_beats_the_equidistant_chain_under_the_jammer():
+    means = {}
+    for planner in ("equidistant", "capacity"):
+        sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": planner, "sim.duration_s": 10.0})
+        m = ar.simulate(sc).metrics
+        assert not m["unsafe"], m["unsafe_reason"]
+        means[planner] = m["c_mean"]
+    assert means["capacity"] > 1.01 * means["equidistant"], means

@@ -37,7 +37,13 @@ from ..planning.base import (
     planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
-from ..planning.fleet import EquidistantPlanner, EquidistantSettings, FleetPlanner
+from ..planning.fleet import (
+    EquidistantPlanner,
+    EquidistantSettings,
+    FleetCapacityPlanner,
+    FleetCapacitySettings,
+    FleetPlanner,
+)
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.fleet import FleetLoop, FleetRelay
 from ..sim.jammer_sensing import JammerSensing
@@ -437,9 +443,22 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
                                  plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
                                  start=np.array(r.start, float)))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    return FleetParts(sc, scene, relays, sources, fleet_planner(sc, scene, relays), sim_settings(sc),
+                      sc.network.min_separation_m)
+
+
+def fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> FleetPlanner:
+    """The fleet's planner named by ``network.planner``, built from the scene's world view."""
     lo, hi = _workspace(sc)
-    planner = EquidistantPlanner(sc.route_list, {r.name: r.start for r in relays},
-                                 EquidistantSettings(speed_m_s=sc.controller.capacity.speed_m_s,
-                                                     margin_m=sc.controller.capacity.margin_m,
-                                                     workspace_min=_vec3(lo), workspace_max=_vec3(hi)))
-    return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc), sc.network.min_separation_m)
+    cap = sc.controller.capacity
+    starts = {r.name: r.start for r in relays}
+    if sc.network.planner == "capacity":
+        return FleetCapacityPlanner(scene.world_view(), starts, {r.name: r.vehicle.hover_tilt_limit for r in relays},
+                                    FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
+                                                          axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s,
+                                                          tilt_fraction=cap.tilt_fraction, margin_m=cap.margin_m,
+                                                          workspace_min=_vec3(lo), workspace_max=_vec3(hi),
+                                                          separation_m=sc.network.min_separation_m))
+    return EquidistantPlanner(sc.route_list, starts, EquidistantSettings(speed_m_s=cap.speed_m_s, margin_m=cap.margin_m,
+                                                                         workspace_min=_vec3(lo), workspace_max=_vec3(hi)))
+

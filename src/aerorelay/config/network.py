@@ -63,6 +63,8 @@ class NetworkConfig(Strict):
                                            "one route per source through every relay in order")
     min_separation_m: float = Field(0.0, ge=0.0, le=100.0, description="between any two vehicles, m (0: no separation "
                                     "constraint)")
-    planner: Literal["equidistant"] = Field("equidistant", description="the fleet's planner: equidistant (each relay "
-                                            "evenly spaced on the line from the base station to its source); every "
-                                            "relay's NMPC tracks it (the tracking NMPC of controller.planner = capacity)")
+    planner: Literal["equidistant", "capacity"] = Field(
+        "equidistant", description="the fleet's planner: equidistant (each relay evenly spaced on the line from the "
+        "base station to its source) or capacity (each relay in turn moves its goal and antenna axis to the best of "
+        "its neighbourhood on the network's rate, the others held; [controller.capacity] speed, axes, replanning); "
+        "every relay's NMPC tracks it (the tracking NMPC of controller.planner = capacity)")

@@ -185,7 +185,12 @@ def route_capacity(sinrs: Sequence, bandwidth: float = 1.0):
     num = np.prod(se, axis=0)
     den = sum(np.prod([s for j, s in enumerate(se) if j != k], axis=0) for k in range(len(se)))
     alive = np.all([s > 0 for s in se], axis=0)
-    return bandwidth * np.where(alive, num / np.where(alive, den, 1.0), 0.0)
+    with np.errstate(invalid="ignore"):
+        out = bandwidth * np.where(alive, num / np.where(alive, den, 1.0), 0.0)
+    if np.any(np.isinf(se)):  # a hop of zero length (two nodes on one point): its share of the time is 0
+        with np.errstate(divide="ignore"):
+            out = np.where(np.isnan(out), bandwidth / sum(1.0 / s for s in se), out)
+    return out
 
 
 def network_rate(route_sinrs: Sequence[Sequence], bandwidth: float = 1.0):

@@ -27,6 +27,7 @@ from .realtime import full_collections_paused
 
 VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
 SOURCE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi")
+SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
 RELAY_STEP = ("pd_x", "pd_y", "pd_z", "solve_ms", "feedback_ms", "qp_ok", "qp_status", "fallback", "safety_violation")
 
 
@@ -84,6 +85,14 @@ class FleetLoop:
             for name in route[1:-1]:
                 self.source_of.setdefault(name, route[0])
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
+        self.gravity = relays[0].vehicle.gravity
+
+    def _known_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The jammers as the fleet knows them (the oracle after each one's ``tau_E``, as the one-relay
+        loop): positions ``(nJ, 3)`` m, and the nominal powers (0 before localization), W."""
+        js = self.scene.jammers
+        return (np.array([j.position_at(t) for j in js]).reshape(-1, 3),
+                np.array([j.power if j.is_localized(t) else 0.0 for j in js]))
 
     def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
         """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
@@ -121,7 +130,11 @@ class FleetLoop:
                 positions = {**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in src.items()},
                              self.scene.name_of("base_station"): self.bs}
                 velocities = {**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in src.items()}}
-                refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities))
+                axes = {**{n: rotation_zyx(xs[3:6])[:, 2] for n, xs in x.items()},
+                        **{n: rotation_zyx(s.attitude(self.gravity))[:, 2] for n, s in src.items()}}
+                known = self._known_jammers(t)
+                refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities, axes=axes,
+                                                      jammer_positions=known[0], jammer_powers=known[1]))
                 row: dict[str, object] = {"t": t}
                 predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 for r in self.relays:
@@ -129,7 +142,7 @@ class FleetLoop:
                     others = None
                     if r.controller.spec.neighbours:
                         others = np.vstack([q for n, q in predicted.items() if n != r.name])
-                    P = r.controller.parameters(refs[r.name], s.p, s.v, s.a, others, self.separation_m)
+                    P = r.controller.parameters(refs[r.name], s.p, s.v, s.a, others, self.separation_m + SEPARATION_MARGIN_M)
                     info = r.controller.step(x[r.name], u[r.name], P, shift=period >= r.controller.spec.ts - 1e-12)
                     u[r.name] = info.u
                     xs, n = x[r.name], r.vehicle.n_rotors
@@ -143,7 +156,7 @@ class FleetLoop:
                             f"{r.name}.safety_violation": bool(r.controller.last_violations)}
                 poses = {n: self.scene.pose(n, xs[0:3], rotation_zyx(xs[3:6])) for n, xs in x.items()}
                 for name, s in src.items():
-                    eta = s.attitude(self.relays[0].vehicle.gravity)
+                    eta = s.attitude(self.gravity)
                     poses[name] = self.scene.pose(name, s.p, rotation_zyx(eta))
                     row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta], strict=True)}
                 state = self.scene.evaluate(t, poses)
