@@ -146,3 +146,16 @@ def test_a_fleet_runs_from_the_command_line_and_its_bound_is_refused(tmp_path):
     assert res.exit_code == 2 and "a fleet's run: its report is not built yet" in res.output, res.output
     res = CliRunner().invoke(app, ["info", str(f)])
     assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output
+
+
+def test_a_sources_mission_file_is_named_relative_to_the_scenario_file(tmp_path):
+    (tmp_path / "src.csv").write_text("t,px,py,pz\n" + "".join(f"{t},{30 + 0.5 * t},0.0,5.0\n" for t in range(6)))
+    data = chain()
+    data["sources"][0]["mission"] = {"trajectory_csv": "src.csv"}
+    f = tmp_path / "chain.toml"
+    f.write_text(parse_scenario({**data, "sources": [{"name": "inspector", "mission": {"trajectory_csv":
+                                                                                       str(tmp_path / "src.csv")}}]})
+                 .to_toml().replace(str(tmp_path / "src.csv"), "src.csv"))
+    sc = ar.load_scenario(f)
+    assert sc.source_list[0].mission.trajectory_csv == str((tmp_path / "src.csv").resolve())
+    assert sc.duration_s == 5.0

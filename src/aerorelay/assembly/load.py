@@ -44,10 +44,12 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
-    for key in ("trajectory_csv", "trajectory_ulog"):  # mission files are named relative to the scenario file
-        f = data.get("mission", {}).get(key) if isinstance(data.get("mission"), dict) else None
-        if isinstance(f, str) and f and not Path(f).is_absolute():
-            data["mission"][key] = str((path.parent / f).resolve())
+    missions = [data.get("mission")] + [s.get("mission") for s in data.get("sources") or [] if isinstance(s, dict)]
+    for mission in (m for m in missions if isinstance(m, dict)):  # mission files are named relative to the scenario file
+        for key in ("trajectory_csv", "trajectory_ulog"):
+            f = mission.get(key)
+            if isinstance(f, str) and f and not Path(f).is_absolute():
+                mission[key] = str((path.parent / f).resolve())
     try:
         sc = validate_config(data)
     except RecursionError:
