@@ -159,3 +159,8 @@ def test_a_sources_mission_file_is_named_relative_to_the_scenario_file(tmp_path)
     sc = ar.load_scenario(f)
     assert sc.source_list[0].mission.trajectory_csv == str((tmp_path / "src.csv").resolve())
     assert sc.duration_s == 5.0
+    run = ar.simulate(ar.load_scenario(f, set={"sim.duration_s": 0.3}))
+    run.save(tmp_path / "run", figures=False)  # the run folder holds the source's file and flies again
+    assert (tmp_path / "run" / "mission_inspector.csv").read_text() == (tmp_path / "src.csv").read_text()
+    again = ar.load_scenario(tmp_path / "run" / "scenario.toml")
+    assert again.source_list[0].mission.trajectory_csv == str((tmp_path / "run" / "mission_inspector.csv").resolve())

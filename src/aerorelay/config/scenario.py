@@ -280,19 +280,16 @@ class Scenario(Strict):
             return self.sim.duration_s
         return max(s.mission.duration_s for s in self.source_list)  # every source's mission
 
-    def to_toml(self, mission_file: str | None = None) -> str:
+    def to_toml(self, mission_file: str | None = None, source_files: dict[str, str] | None = None) -> str:
         """The resolved scenario as TOML text (every default spelled out), arrays on one line, with
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
-        the CSV's path (a run folder holds its own copy)."""
+        the CSV's path, ``source_files`` (source name -> file) each ``[[sources]]`` mission's (a run
+        folder holds its own copies)."""
         data = self._plain_data()
-        m = data.get("mission", {})
-        if self.mission.flown_file:
-            m.pop("waypoints", None)
-            if mission_file is not None:
-                m["trajectory_ulog" if self.mission.trajectory_ulog else "trajectory_csv"] = mission_file
-        if not self.mission.trajectory_ulog:
-            m.pop("ulog_yaw_deg", None)
-            m.pop("ulog_offset_m", None)
+        if "mission" in data:
+            _only_what_flies(data["mission"], self.mission, mission_file)
+        for cfg, m in zip(self.sources or [], data.get("sources", []), strict=True):
+            _only_what_flies(m["mission"], cfg.mission, (source_files or {}).get(cfg.name))
         return compact_toml(data)
 
     def _plain_data(self) -> dict:
@@ -348,6 +345,18 @@ def after_validation(check: Callable[[Scenario], object]) -> None:
     layer never imports them."""
     if check not in _AFTER_VALIDATION:
         _AFTER_VALIDATION.append(check)
+
+
+def _only_what_flies(m: dict, cfg: MissionConfig, file: str | None) -> None:
+    """A mission table as its file says it: no waypoints beside a CSV or ULog (``file`` replaces
+    its path), no ULog frame fields without a ULog."""
+    if cfg.flown_file:
+        m.pop("waypoints", None)
+        if file is not None:
+            m["trajectory_ulog" if cfg.trajectory_ulog else "trajectory_csv"] = file
+    if not cfg.trajectory_ulog:
+        m.pop("ulog_yaw_deg", None)
+        m.pop("ulog_offset_m", None)
 
 
 def _merged(base: dict, override: dict) -> dict:

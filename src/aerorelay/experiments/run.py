@@ -54,10 +54,14 @@ class RunResult:
         stays. One writer per folder (``store.outputs.writing``: OutputBusyError, or ``wait``)."""
         m = self.scenario.mission
         copy = MISSION_ULOG if m.trajectory_ulog else MISSION_CSV if m.trajectory_csv else None
+        sources = {s.name: (s.mission.flown_file, f"mission_{s.name}{Path(MISSION_ULOG if s.mission.trajectory_ulog else MISSION_CSV).suffix}")
+                   for s in self.scenario.sources or [] if s.mission.flown_file}  # a fleet's: one copy per source
 
         def with_mission(tmp: Path) -> None:
             if copy is not None and m.flown_file is not None:
                 shutil.copyfile(m.flown_file, tmp / copy)
+            for src, name in sources.values():
+                shutil.copyfile(src, tmp / name)
 
         def views(tmp: Path) -> None:
             if figures and self.views is not None:
@@ -65,7 +69,7 @@ class RunResult:
             if extra is not None:
                 extra(tmp)
 
-        toml = self.scenario.to_toml(copy)
+        toml = self.scenario.to_toml(copy, {n: name for n, (_, name) in sources.items()})
         with writing(folder, wait=wait) as out:
             publish_run(out, toml, self.timeseries, self.metrics, extra=with_mission)
             optional: dict[str, Callable[[Path], object]] = {}
@@ -91,8 +95,8 @@ def log_bytes(sc: Scenario) -> int:
 def output_bytes(sc: Scenario, *, figures: bool) -> int:
     """Bytes a run folder of ``sc`` needs at most on disk: the log (its in-memory size bounds the
     parquet), the copy of a CSV or ULog mission file, and the figures when written."""
-    f = sc.mission.flown_file
-    copy = Path(f).stat().st_size if f and Path(f).is_file() else 0
+    files = [sc.mission.flown_file] + [s.mission.flown_file for s in sc.sources or []]
+    copy = sum(Path(f).stat().st_size for f in files if f and Path(f).is_file())
     return log_bytes(sc) + copy + (FIGURES_BYTES if figures else 0)
 
 
