@@ -164,3 +164,17 @@ def test_a_sources_mission_file_is_named_relative_to_the_scenario_file(tmp_path)
     assert (tmp_path / "run" / "mission_inspector.csv").read_text() == (tmp_path / "src.csv").read_text()
     again = ar.load_scenario(tmp_path / "run" / "scenario.toml")
     assert again.source_list[0].mission.trajectory_csv == str((tmp_path / "run" / "mission_inspector.csv").resolve())
+
+
+def test_what_a_fleet_does_not_fly_yet_is_named_before_any_work(tmp_path):
+    from typer.testing import CliRunner
+
+    from aerorelay.cli import app
+
+    f = tmp_path / "chain.toml"
+    f.write_text(parse_scenario(chain()).to_toml())
+    noisy = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--set", "perturbations.csi_noise_m=0.1"])
+    assert noisy.exit_code == 2 and "a fleet flies the deterministic channel so far" in noisy.output, noisy.output
+    assert not (tmp_path / "r").exists()
+    bench = CliRunner().invoke(app, ["bench", str(f)])
+    assert bench.exit_code == 2 and "fleet_solve_ms" in bench.output, bench.output

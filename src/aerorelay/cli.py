@@ -371,6 +371,9 @@ def bench(
                                  accept_tol=accept_tol)
     except ValueError as exc:
         _fail(str(exc))
+    if sc.is_fleet:
+        _fail("bench times one relay's controller; a fleet's step times per relay and for the fleet are in its run's "
+              "metrics.json (relays.<name>.solve_ms, fleet_solve_ms)")
     res = api.bench(sc, settings, ipopt_points=ipopt_points)
     t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")

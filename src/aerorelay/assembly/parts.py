@@ -135,9 +135,19 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
 def check_buildable(sc: Scenario) -> Scenario:
     """The checks that need the scenario's parts, made when it is loaded, before any work: the radio
     scene builds (a jammer set by ``inr_db_at_relay_start`` must not sit in a null of the relay's
-    start). Raises ScenarioError naming the field; returns ``sc``."""
+    start), and a fleet asks only for what a fleet flies. Raises ScenarioError naming the field;
+    returns ``sc``."""
     build_scene(sc)
+    fleet_flies(sc)
     return sc
+
+
+def fleet_flies(sc: Scenario) -> None:
+    """A fleet (more than one relay or source) flies the deterministic channel so far: random channel
+    terms, noise and jammer estimation are a named error."""
+    if sc.is_fleet and (sc.stochastic or sc.estimates_jammers):
+        raise ScenarioError("relays / sources: a fleet flies the deterministic channel so far (no fading, shadowing, "
+                            "CSI or process noise, estimated jammers); docs/concepts/networks.md")
 
 
 def path_gain(ch) -> PathGain:
@@ -429,9 +439,7 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
     its supervisor, plant; each source's path; the fleet planner (``network.planner``). Random
     channel terms, noise and jammer estimation are not built for fleets yet: a named error."""
     check_physics(sc)
-    if sc.stochastic or sc.estimates_jammers:
-        raise ScenarioError("relays / sources: a fleet flies the deterministic channel so far (no fading, shadowing, "
-                            "CSI or process noise, estimated jammers); docs/concepts/networks.md")
+    fleet_flies(sc)
     scene = build_scene(sc)
     relays = []
     # each relay keeps min_separation_m from every other vehicle (none set: the NMPC of one relay)
