@@ -45,7 +45,7 @@ from .report.figures import fig_bound, write_run_figures
 from .report.fleet_figures import write_fleet_figures
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_fleet_mcap, write_run_mcap
-from .report.run_report import RUN_REPORT, render_run_report
+from .report.run_report import RUN_REPORT, render_fleet_report, render_run_report
 from .report.summary import metric as _metric
 from .report.summary import summarize
 from .sim.initial import initial_link_budget
@@ -195,10 +195,8 @@ def report_run(run_dir: str | Path) -> Path:
     d = Path(run_dir)
     if folder_kind(d) != "run" or not (d / METRICS_FILE).is_file():
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
-    if "relays" in json.loads((d / METRICS_FILE).read_text()):
-        raise OutputError(f"{d}: a fleet's run: its report is not built yet (its figures rates.png, sinr.png and paths.png "
-                          "are in the folder; docs/concepts/networks.md)")
-    write_atomic(d / RUN_REPORT, render_run_report(d))
+    fleet = "relays" in json.loads((d / METRICS_FILE).read_text())
+    write_atomic(d / RUN_REPORT, render_fleet_report(d) if fleet else render_run_report(d))
     return d / RUN_REPORT
 
 

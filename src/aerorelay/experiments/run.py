@@ -23,7 +23,7 @@ from ..planning.bound import CapacityBound
 from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
 from ..sim.fleet import column_type
 from ..sim.metrics import compute_metrics, fleet_metrics
-from ..sim.units import metric_units
+from ..sim.units import fleet_metric_units, metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
@@ -164,6 +164,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
         metrics["unsafe_reason"] = "; ".join(r for r in (metrics["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
+    metrics["units"] = fleet_metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, None, views)
 
 

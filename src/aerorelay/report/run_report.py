@@ -1,4 +1,4 @@
-"""One run's report: ``aerorelay report RUN_DIR`` writes ``RUN_DIR/report.html``, one self-contained
+"""One run's report (a fleet's too: ``render_fleet_report``): ``aerorelay report RUN_DIR`` writes ``RUN_DIR/report.html``, one self-contained
 file (figures embedded) with the run's scenario, its key metrics with their units, its safety
 verdict, what is null and why, and its figures (capacity over the bound, alignment and slack,
 tracking, the 3D path), drawn from the run folder's own files."""
@@ -13,9 +13,10 @@ from pathlib import Path
 import pandas as pd
 
 from ..assembly import parse_scenario
-from ..sim.units import DIMENSIONLESS, si
+from ..sim.units import DIMENSIONLESS, fleet_metric_units, si
 from ..store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 from .figures import fig_capacity, fig_constraints, fig_tracking, fig_trajectory_3d
+from .fleet_figures import fig_paths, fig_rates, fig_sinr
 from .html import CSS, _png
 
 RUN_REPORT = "report.html"
@@ -59,6 +60,37 @@ def render_run_report(run: Path) -> str:
             f"<h1>{title}</h1><p>{html.escape(sc.description)}</p>{verdict}{warn}"
             f"<p>capacities in {html.escape(sc.channel.capacity_unit)} ({html.escape(sc.channel.units)} units); outage below "
             f"{si(sc.channel.outage, sc.channel.capacity_unit)}</p>"
+            f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
+            + "".join(figs) + f"<details><summary>scenario.toml</summary><pre>{html.escape(sc.to_toml())}</pre></details>"
+            "</body></html>")
+
+
+def render_fleet_report(run: Path) -> str:
+    """The HTML of a fleet's run folder: the network's, each route's and each relay's metrics with
+    their units (``metrics.json``'s ``units``), the safety verdict and the fleet's figures."""
+    run = Path(run)
+    sc = parse_scenario(tomllib.loads((run / SCENARIO_FILE).read_text()))
+    m = json.loads((run / METRICS_FILE).read_text())
+    df = pd.read_parquet(run / TIMESERIES_FILE)
+    units = m.get("units") or fleet_metric_units(m, sc.channel.capacity_unit)  # a folder written before units
+
+    def value(key: str) -> str:
+        node: object = m
+        for part in key.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        return _value({"v": node}, "v", {"v": units.get(key, "")})
+
+    rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{value(k)}</td></tr>" for k in units)
+    verdict = (f'<p class="no">unsafe: {html.escape(str(m.get("unsafe_reason", "")))}</p>' if m.get("unsafe")
+               else '<p class="yes">safe: every relay stayed in its workspace, above the ground, upright, and no two '
+                    'vehicles came closer than network.min_separation_m</p>')
+    figs = [_png(fig_rates(df, sc), "rates"), _png(fig_sinr(df, sc), "SINR per hop"), _png(fig_paths(df, sc), "paths")]
+    routes = "; ".join(" -> ".join(r) for r in sc.route_list)
+    title = html.escape(f"{sc.name}: {len(sc.relay_list)} relays, {len(sc.source_list)} sources, {sc.network.planner} planner")
+    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title><style>{CSS}</style></head><body>"
+            f"<h1>{title}</h1><p>{html.escape(sc.description)}</p><p>routes: {html.escape(routes)}</p>{verdict}"
+            f"<p>rates in {html.escape(sc.channel.capacity_unit)} ({html.escape(sc.channel.units)} units); the network's "
+            f"rate is every source's (each hop its own slot); outage below {si(sc.channel.outage, sc.channel.capacity_unit)}</p>"
             f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
             + "".join(figs) + f"<details><summary>scenario.toml</summary><pre>{html.escape(sc.to_toml())}</pre></details>"
             "</body></html>")

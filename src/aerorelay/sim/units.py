@@ -47,6 +47,19 @@ def metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
     return out
 
 
+FLEET_GROUPS = ("routes", "relays")  # a fleet's metrics per route (by source) and per relay
+
+
+def fleet_metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
+    """``metric_units`` of a fleet's metrics: the network's at the top, each route's and each relay's
+    as ``routes.<source>.<metric>`` and ``relays.<name>.<metric>``."""
+    out = metric_units({k: v for k, v in metrics.items() if k not in FLEET_GROUPS}, capacity_unit)
+    for group in FLEET_GROUPS:
+        for node, node_metrics in metrics.get(group, {}).items():
+            out |= {f"{group}.{node}.{k}": u for k, u in metric_units(node_metrics, capacity_unit).items()}
+    return out
+
+
 _PREFIXES = ((1e12, "T"), (1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n"))
 PREFIXABLE = ("bit/s", "W", "Hz", "m", "s")
 
