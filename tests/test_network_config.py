@@ -140,10 +140,12 @@ def test_a_fleet_runs_from_the_command_line_and_its_bound_is_refused(tmp_path):
     assert not (tmp_path / "b").exists()
     res = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--duration", "0.5"])
     assert res.exit_code == 0, res.output
-    assert {"scenario.toml", "timeseries.parquet", "metrics.json", "rates.png", "sinr.png", "paths.png"} <= {
+    assert {"scenario.toml", "timeseries.parquet", "metrics.json", "rates.png", "sinr.png", "paths.png", "trajectory.html"} <= {
         p.name for p in (tmp_path / "r").iterdir()}
     res = CliRunner().invoke(app, ["report", str(tmp_path / "r")])
     assert res.exit_code == 0, res.output
+    view = (tmp_path / "r" / "trajectory.html").read_text()
+    assert all(f'"name":"{n}' in view.replace(": ", ":") for n in ("relay r1", "relay r2", "source inspector", "bs"))
     page = (tmp_path / "r" / "report.html").read_text()
     assert "relays.r2.position_error_mean_m" in page and "routes.inspector.c_mean" in page and page.count("<img") == 3
     res = CliRunner().invoke(app, ["info", str(f)])

@@ -11,8 +11,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+import plotly.graph_objects as go  # noqa: E402
 
 from ..config import Scenario  # noqa: E402
+from .figures import jammer_traces  # noqa: E402
 
 FLEET_FIGURES = ("rates.png", "sinr.png", "paths.png")
 
@@ -66,9 +68,37 @@ def fig_paths(df: pd.DataFrame, sc: Scenario):
     return fig
 
 
+def fleet_trajectory_html(df: pd.DataFrame, sc: Scenario) -> str:
+    """A self-contained interactive 3D view of every vehicle (a relay's path coloured by the network's
+    rate), each relay's reference, the base station and the jammers."""
+    unit = sc.channel.capacity_unit
+    traces = []
+    for i, r in enumerate(sc.relay_list):
+        bar = dict(title=dict(text=f"network rate ({unit})", side="right"), x=1.0, len=0.6, y=0.35) if i == 0 else None
+        traces.append(go.Scatter3d(x=df[f"{r.name}.p_x"], y=df[f"{r.name}.p_y"], z=df[f"{r.name}.p_z"], mode="lines",
+                                   name=f"relay {r.name}", text=[f"t={t:.2f}s R={c:.3g}" for t, c in zip(df["t"], df["capacity"],
+                                                                                                        strict=True)],
+                                   line=dict(color=df["capacity"], colorscale="Viridis", width=6, colorbar=bar)))
+        traces.append(go.Scatter3d(x=df[f"{r.name}.pd_x"], y=df[f"{r.name}.pd_y"], z=df[f"{r.name}.pd_z"], mode="lines",
+                                   name=f"{r.name} reference", line=dict(width=2, dash="dot")))
+    for s in sc.source_list:
+        traces.append(go.Scatter3d(x=df[f"{s.name}.p_x"], y=df[f"{s.name}.p_y"], z=df[f"{s.name}.p_z"], mode="lines",
+                                   name=f"source {s.name}", line=dict(width=4)))
+    traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="bs",
+                               marker=dict(color="black", size=5)))
+    fig = go.Figure([*traces, *jammer_traces(sc, df["t"].to_numpy())])
+    routes = "; ".join(" -> ".join(r) for r in sc.route_list)
+    fig.update_layout(title=f"{sc.name}: {routes}", height=720,
+                      scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),
+                      legend=dict(x=0.0, y=1.0, xanchor="left", yanchor="top", bgcolor="rgba(255,255,255,0.7)"),
+                      margin=dict(l=10, r=80, t=50, b=10))
+    return fig.to_html(include_plotlyjs=True, full_html=True)
+
+
 def write_fleet_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
-    """Write ``rates.png``, ``sinr.png`` and ``paths.png`` into ``out``."""
+    """Write ``rates.png``, ``sinr.png``, ``paths.png`` and ``trajectory.html`` into ``out``."""
     for name, make in zip(FLEET_FIGURES, (fig_rates, fig_sinr, fig_paths), strict=True):
         fig = make(df, sc)
         fig.savefig(Path(out) / name, dpi=110)
         plt.close(fig)
+    (Path(out) / "trajectory.html").write_text(fleet_trajectory_html(df, sc))
