@@ -19,6 +19,7 @@ Log times are the mission's time (ns from 0). ``docs/foxglove_layout.json`` open
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from pathlib import Path
 
 import foxglove
@@ -120,14 +121,42 @@ def _timeseries_schema(columns: list[str]) -> foxglove.Schema:
 
 
 def numeric_columns(df: pd.DataFrame) -> list[str]:
-    """The time-series columns written to ``/timeseries`` (numbers and flags, not the status text)."""
-    return [c for c in df.columns if c != "qp_status"]
+    """The time-series columns written to ``/timeseries`` (numbers and flags, not the QP status text:
+    ``qp_status``, a fleet's ``<relay>.qp_status``)."""
+    return [c for c in df.columns if c.rsplit(".", 1)[-1] != "qp_status"]
+
+
+@contextmanager
+def _mcap_channels(path: Path, sc: Scenario, cols: list[str]):
+    """Open ``path`` as MCAP with the channels ``/tf``, ``/scene``, ``/scene/static`` (the workspace
+    box, logged once) and ``/timeseries`` of ``cols``; yields ``(tf, scene, series)``."""
+    ctx = foxglove.Context()
+    with foxglove.open_mcap(str(path), allow_overwrite=True, context=ctx):
+        tf = FrameTransformsChannel("/tf", context=ctx)
+        scene = SceneUpdateChannel("/scene", context=ctx)
+        static = SceneUpdateChannel("/scene/static", context=ctx)
+        series = foxglove.Channel("/timeseries", schema=_timeseries_schema(cols), message_encoding="json", context=ctx)
+        ws = sc.controller.workspace
+        static.log(SceneUpdate(entities=[SceneEntity(timestamp=_stamp(0.0), frame_id="world", id="workspace",
+                                                     lines=[_box_lines(ws.min, ws.max)])]), log_time=0)
+        yield tf, scene, series
+
+
+def _frame(name: str, t: float, p, eta) -> FrameTransform:
+    """``world -> name`` at position ``p`` (m) and ZYX Euler angles ``eta`` (rad)."""
+    return FrameTransform(timestamp=_stamp(t), parent_frame_id="world", child_frame_id=name,
+                          translation=Vector3(x=p[0], y=p[1], z=p[2]), rotation=quaternion_zyx(*eta))
+
+
+def _base_station(t: float, p0: np.ndarray) -> SceneEntity:
+    return SceneEntity(timestamp=_stamp(t), frame_id="world", id="bs",
+                       cylinders=[CylinderPrimitive(pose=_pose(p0 + [0, 0, 0.5]), size=Vector3(x=0.4, y=0.4, z=1.0),
+                                                    bottom_scale=1.0, top_scale=1.0, color=Color(r=0.1, g=0.1, b=0.1, a=1))])
 
 
 def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFrame | None = None, *,
                    scene_every: int = 5) -> Path:
     """``run.mcap`` of one run (see the module docstring); returns its path."""
-    ctx = foxglove.Context()
     t = df["t"].to_numpy()
     p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
     p2 = df[["p2_x", "p2_y", "p2_z"]].to_numpy()
@@ -141,29 +170,16 @@ def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFra
     best = None
     if bound is not None:
         best = np.column_stack([np.interp(t, bound["t"], bound[f"static_position_{a}"]) for a in "xyz"])
-    with foxglove.open_mcap(str(path), allow_overwrite=True, context=ctx):
-        tf = FrameTransformsChannel("/tf", context=ctx)
-        scene = SceneUpdateChannel("/scene", context=ctx)
-        static = SceneUpdateChannel("/scene/static", context=ctx)
-        series = foxglove.Channel("/timeseries", schema=_timeseries_schema(cols), message_encoding="json", context=ctx)
-        ws = sc.controller.workspace
-        static.log(SceneUpdate(entities=[SceneEntity(timestamp=_stamp(0.0), frame_id="world", id="workspace",
-                                                     lines=[_box_lines(ws.min, ws.max)])]), log_time=0)
+    with _mcap_channels(path, sc, cols) as (tf, scene, series):
         for k in range(len(t)):
             ns = _ns(t[k])
-            tf.log(FrameTransforms(transforms=[
-                FrameTransform(timestamp=_stamp(t[k]), parent_frame_id="world", child_frame_id="relay",
-                               translation=Vector3(x=p1[k, 0], y=p1[k, 1], z=p1[k, 2]), rotation=quaternion_zyx(*e1[k])),
-                FrameTransform(timestamp=_stamp(t[k]), parent_frame_id="world", child_frame_id="mrav2",
-                               translation=Vector3(x=p2[k, 0], y=p2[k, 1], z=p2[k, 2]), rotation=quaternion_zyx(*e2[k])),
-            ]), log_time=ns)
+            tf.log(FrameTransforms(transforms=[_frame("relay", t[k], p1[k], e1[k]), _frame("mrav2", t[k], p2[k], e2[k])]),
+                   log_time=ns)
             series.log({c: float(v) for c, v in zip(cols, values[k], strict=True)}, log_time=ns)
             if k % scene_every:
                 continue
             ents = [_vehicle("relay", t[k], (0.83, 0.63, 0.09)), _vehicle("mrav2", t[k], (0.48, 0.25, 0.63)),
-                    SceneEntity(timestamp=_stamp(t[k]), frame_id="world", id="bs",
-                                cylinders=[CylinderPrimitive(pose=_pose(p0 + [0, 0, 0.5]), size=Vector3(x=0.4, y=0.4, z=1.0),
-                                                             bottom_scale=1.0, top_scale=1.0, color=Color(r=0.1, g=0.1, b=0.1, a=1))]),
+                    _base_station(t[k], p0),
                     _marker("reference", t[k], pd_[k], (0.83, 0.63, 0.09), 0.2),
                     _link("link_source_relay", t[k], p2[k], p1[k], float(df["gamma_21"].iloc[k])),
                     _link("link_relay_bs", t[k], p1[k], p0, float(df["gamma_10"].iloc[k]))]
@@ -182,7 +198,6 @@ def write_fleet_mcap(df: pd.DataFrame, sc: Scenario, path: Path, *, scene_every:
     and source each step; ``/scene`` every ``scene_every`` steps: every vehicle with its antenna axis,
     each relay's reference, the base station, every jammer, and every hop of every route coloured by
     its SINR; ``/scene/static`` the workspace box; ``/timeseries`` every numeric column."""
-    ctx = foxglove.Context()
     t = df["t"].to_numpy()
     relays, sources = [r.name for r in sc.relay_list], [s.name for s in sc.source_list]
     pos = {n: df[[f"{n}.p_x", f"{n}.p_y", f"{n}.p_z"]].to_numpy() for n in relays + sources}
@@ -192,32 +207,19 @@ def write_fleet_mcap(df: pd.DataFrame, sc: Scenario, path: Path, *, scene_every:
     p0 = np.array(sc.nodes.bs, float)
     pos["bs"] = np.repeat(p0[None, :], len(t), axis=0)
     tracks = jammer_tracks(sc, t)
-    cols = [c for c in df.columns if not c.endswith("qp_status")]
+    cols = numeric_columns(df)
     values = df[cols].astype(float).to_numpy()
     colour = {n: FLEET_COLOURS[i % len(FLEET_COLOURS)] for i, n in enumerate(relays + sources)}
-    with foxglove.open_mcap(str(path), allow_overwrite=True, context=ctx):
-        tf = FrameTransformsChannel("/tf", context=ctx)
-        scene = SceneUpdateChannel("/scene", context=ctx)
-        static = SceneUpdateChannel("/scene/static", context=ctx)
-        series = foxglove.Channel("/timeseries", schema=_timeseries_schema(cols), message_encoding="json", context=ctx)
-        ws = sc.controller.workspace
-        static.log(SceneUpdate(entities=[SceneEntity(timestamp=_stamp(0.0), frame_id="world", id="workspace",
-                                                     lines=[_box_lines(ws.min, ws.max)])]), log_time=0)
+    with _mcap_channels(path, sc, cols) as (tf, scene, series):
         for k in range(len(t)):
             ns = _ns(t[k])
-            tf.log(FrameTransforms(transforms=[
-                FrameTransform(timestamp=_stamp(t[k]), parent_frame_id="world", child_frame_id=n,
-                               translation=Vector3(x=pos[n][k, 0], y=pos[n][k, 1], z=pos[n][k, 2]),
-                               rotation=quaternion_zyx(*eul[n][k])) for n in relays + sources]), log_time=ns)
+            tf.log(FrameTransforms(transforms=[_frame(n, t[k], pos[n][k], eul[n][k]) for n in relays + sources]), log_time=ns)
             series.log({c: float(v) for c, v in zip(cols, values[k], strict=True)}, log_time=ns)
             if k % scene_every:
                 continue
             ents = [_vehicle(n, t[k], colour[n]) for n in relays + sources]
             ents += [_marker(f"reference_{n}", t[k], ref[n][k], colour[n], 0.2) for n in relays]
-            ents.append(SceneEntity(timestamp=_stamp(t[k]), frame_id="world", id="bs",
-                                    cylinders=[CylinderPrimitive(pose=_pose(p0 + [0, 0, 0.5]), size=Vector3(x=0.4, y=0.4, z=1.0),
-                                                                 bottom_scale=1.0, top_scale=1.0,
-                                                                 color=Color(r=0.1, g=0.1, b=0.1, a=1))]))
+            ents.append(_base_station(t[k], p0))
             ents += [_link(f"link_{tx}_{rx}", t[k], pos[tx][k], pos[rx][k], float(df[f"sinr.{tx}.{rx}"].iloc[k]))
                      for tx, rx in hops]
             ents += [_marker(f"jammer_{name}", t[k], P[k], (0.9, 0.1, 0.1), 0.4) for name, P in tracks]
