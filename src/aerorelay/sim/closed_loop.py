@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -59,6 +60,43 @@ def log_columns(n_rotors: int) -> list[str]:
     omega, rates = rotor_columns(n_rotors)
     return ["t", *RELAY_STATE_COLUMNS, *omega, *rates, *SOURCE_COLUMNS, *REFERENCE_COLUMNS, *LINK_COLUMNS, *STEP_COLUMNS,
             *RECORDED_BY_NAME]
+
+
+def step_count(duration_s: float, period_s: float) -> int:
+    """Control steps of a mission of ``duration_s`` at ``period_s`` (both ends included)."""
+    return int(math.floor(duration_s / period_s + 1e-9)) + 1
+
+
+def jammer_columns(scene: RadioScene) -> list[str]:
+    """The true jammer positions' columns ``jam_<name>_x/y/z`` (m, world)."""
+    return [f"jam_{j.name}_{a}" for j in scene.jammers for a in "xyz"]
+
+
+def jammer_values(scene: RadioScene, t: float) -> dict[str, float]:
+    """Every jammer's true position at ``t`` by its ``jammer_columns`` names."""
+    return dict(zip(jammer_columns(scene), [float(v) for j in scene.jammers for v in j.position_at(t)], strict=True))
+
+
+def new_log(columns: list[str], n_steps: int, kind_of: Callable[[str], type]) -> dict[str, np.ndarray]:
+    """An empty per-step log: a float, bool or object (text) array per column, by ``kind_of``."""
+    def empty(kind: type) -> np.ndarray:
+        return np.zeros(n_steps, dtype=bool) if kind is bool else np.empty(n_steps, dtype=object) if kind is str \
+            else np.empty(n_steps)
+    return {c: empty(kind_of(c)) for c in columns}
+
+
+def record_row(log: dict[str, np.ndarray], k: int, row: dict, columns: list[str], who: str = "log row") -> None:
+    """Write step ``k``'s ``row`` (by column name) into ``log``; at the first step, a column declared
+    but not recorded, or recorded but not declared, is an error."""
+    if k == 0 and set(row) != set(columns):
+        raise ValueError(f"{who}: columns {sorted(set(columns) ^ set(row))} not both declared and recorded")
+    for name, val in row.items():
+        log[name][k] = val
+
+
+def steps_flown(log: dict[str, np.ndarray], flown: int) -> dict[str, np.ndarray]:
+    """The log's first ``flown`` steps (a flight ended early keeps what it flew)."""
+    return {c: v[:flown] for c, v in log.items()}
 
 
 def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float) -> ca.Function:
@@ -158,8 +196,7 @@ class ClosedLoop:
         noise = settings.channel_noise or PerturbationSettings()
         self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
                                                seed=settings.seed)
-        self._jammer_columns = [f"jam_{j.name}_{a}" for j in scene.jammers for a in "xyz"]  # true positions, m (world)
-        self.columns = self.columns + self._jammer_columns + self.perturbations.columns + (sensing.columns if sensing else [])
+        self.columns = self.columns + jammer_columns(scene) + self.perturbations.columns + (sensing.columns if sensing else [])
         self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
         self._noise_values: dict[str, Any] = {}  # log values of the random terms and the jammer estimate
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
@@ -203,15 +240,12 @@ class ClosedLoop:
     def run(self, progress=None) -> MissionResult:
         st, veh = self.settings, self.veh
         period = st.period_s
-        n_steps = int(math.floor(st.duration_s / period + 1e-9)) + 1
+        n_steps = step_count(st.duration_s, period)
         shift = period >= self.spec.ts - 1e-12
         x = veh.hover_state(st.relay_start)
         u = np.zeros(veh.n_rotors)
-        log: dict[str, np.ndarray] = {c: np.empty(n_steps) for c in self.columns}
-        for name in RECORDED_BY_NAME:  # flags and the status text: their own dtypes (taylor_rel_err stays float)
-            kind = LOG_COLUMN_TYPES.get(name, float)
-            if kind is not float:
-                log[name] = np.zeros(n_steps, dtype=bool) if kind is bool else np.empty(n_steps, dtype=object)
+        # flags and the status text recorded by name: their own dtypes (the rest, jammer_on too, float until log_frame)
+        log = new_log(self.columns, n_steps, lambda c: LOG_COLUMN_TYPES.get(c, float) if c in RECORDED_BY_NAME else float)
         wall0 = time.perf_counter()
         aborted, flown = None, n_steps
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
@@ -251,7 +285,7 @@ class ClosedLoop:
                     progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
         if flown < n_steps:
-            log = {c: v[:flown] for c, v in log.items()}
+            log = steps_flown(log, flown)
         return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period, qp_failures=self.nmpc.failures,
                              controller=self.nmpc.settings.fingerprint(), fallback_episodes=self.controller.fallback_episodes,
                              aborted=aborted)
@@ -272,10 +306,6 @@ class ClosedLoop:
                "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms,
                "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
                "safety_violation": bool(self.controller.last_violations), "taylor_rel_err": ref.taylor_rel_err}
-        for j in self.scene.jammers:
-            row.update(zip((f"jam_{j.name}_x", f"jam_{j.name}_y", f"jam_{j.name}_z"), j.position_at(t), strict=True))
+        row.update(jammer_values(self.scene, t))
         row.update(self._noise_values)
-        if k == 0 and set(row) != set(self.columns):  # a column never written, or a value without a column
-            raise ValueError(f"log row: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
-        for name, val in row.items():
-            log[name][k] = val
+        record_row(log, k, row, self.columns)

@@ -22,7 +22,17 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetInput, FleetPlanner
-from .closed_loop import LOG_COLUMN_TYPES, MissionResult, SimSettings
+from .closed_loop import (
+    LOG_COLUMN_TYPES,
+    MissionResult,
+    SimSettings,
+    jammer_columns,
+    jammer_values,
+    new_log,
+    record_row,
+    step_count,
+    steps_flown,
+)
 from .realtime import full_collections_paused
 
 VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
@@ -55,8 +65,7 @@ def fleet_columns(relays: list[FleetRelay], sources: list[str], scene: RadioScen
     cols += [f"sinr.{tx}.{rx}" for tx, rx in scene.hops]
     cols += [f"capacity.{route[0]}" for route in scene.all_routes]
     cols += ["capacity", "jammer_on", "separation_min"]
-    cols += [f"jam_{j.name}_{a}" for j in scene.jammers for a in "xyz"]
-    return cols
+    return cols + jammer_columns(scene)
 
 
 def column_type(name: str) -> type:
@@ -114,13 +123,10 @@ class FleetLoop:
     def run(self, progress=None) -> MissionResult:
         st = self.settings
         period = st.period_s
-        n_steps = int(math.floor(st.duration_s / period + 1e-9)) + 1
+        n_steps = step_count(st.duration_s, period)
         x = {r.name: r.vehicle.hover_state(r.start) for r in self.relays}
         u = {r.name: np.zeros(r.vehicle.n_rotors) for r in self.relays}
-        log: dict[str, np.ndarray] = {}
-        for c in self.columns:
-            kind = column_type(c)
-            log[c] = np.zeros(n_steps, bool) if kind is bool else np.empty(n_steps, object) if kind is str else np.empty(n_steps)
+        log = new_log(self.columns, n_steps, column_type)
         wall0 = time.perf_counter()
         aborted, flown = None, n_steps
         with full_collections_paused():
@@ -166,12 +172,8 @@ class FleetLoop:
                 row["capacity"] = float(state.capacity)
                 row["jammer_on"] = float(any(float(j.power_at(t)) > 0 for j in self.scene.jammers))
                 row["separation_min"] = separation_min(np.array([positions[n] for n in (*x, *src)]))
-                for j in self.scene.jammers:
-                    row |= dict(zip((f"jam_{j.name}_x", f"jam_{j.name}_y", f"jam_{j.name}_z"), j.position_at(t), strict=True))
-                if k == 0 and set(row) != set(self.columns):
-                    raise ValueError(f"fleet log row: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
-                for name, val in row.items():
-                    log[name][k] = val
+                row |= jammer_values(self.scene, t)
+                record_row(log, k, row, self.columns, "fleet log row")
                 for r in self.relays:
                     x[r.name] = np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel()
                 bad = [n for n, xs in x.items() if not np.all(np.isfinite(xs))]
@@ -182,7 +184,7 @@ class FleetLoop:
                     progress(k + 1, n_steps)
         wall = time.perf_counter() - wall0
         if flown < n_steps:
-            log = {c: v[:flown] for c, v in log.items()}
+            log = steps_flown(log, flown)
         first = self.relays[0].controller
         return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period,
                              qp_failures=sum(r.controller.nmpc.failures for r in self.relays),
