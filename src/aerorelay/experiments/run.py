@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..assembly.load import updated
 from ..assembly.parts import build, build_fleet, scenario_bound
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
@@ -186,7 +185,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     the figures and MCAP when the result is saved. ``sc`` is validated
     again first (a field changed after loading must pass every cross-field check too; the parts'
     own checks, e.g. an ``inr_db_at_relay_start`` jammer in a null, raise when ``build`` makes them)."""
-    updated(sc, {})
+    sc.with_updates({})  # validated as data and with physics again (the parts' own checks raise when built)
     check_run_size(sc)
     if sc.is_fleet:
         return _simulate_fleet(sc, with_bound=with_bound, nmpc_settings=nmpc_settings, progress=progress,
