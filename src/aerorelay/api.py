@@ -111,8 +111,7 @@ def link_budget(sc: Scenario) -> dict[str, float]:
 
 def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
     """The initial link budget line by line in the scenario's units (``aerorelay info``)."""
-    starts = {r.name: r.start for r in sc.relay_list} | {s.name: s.mission.start for s in sc.source_list}
-    return initial_link_budget_lines(build_scene(sc), starts, physical=sc.channel.physical)
+    return initial_link_budget_lines(build_scene(sc), sc.starts, physical=sc.channel.physical)
 
 
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:

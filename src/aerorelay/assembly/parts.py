@@ -114,8 +114,7 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
     ``aerorelay info`` evaluates it: the channel's interference per unit power, one jammer at a time)."""
     I = np.eye(3)
     relay = scene.name_of("relay")  # the first relay: a fleet's INR is set at r1's start
-    starts = {r.name: r.start for r in sc.relay_list} | {s.name: s.mission.start for s in sc.source_list}
-    poses = {n: scene.pose(n, np.array(p, float), I) for n, p in starts.items()}  # a fleet: every vehicle at its start
+    poses = {n: scene.pose(n, np.array(p, float), I) for n, p in sc.starts.items()}  # a fleet: every vehicle at its start
     hop = next(k for k, (_, rx) in enumerate(scene.hops) if rx == relay)
     out = []
     for i, (j, cfg) in enumerate(zip(scene.jammers, sc.jammer_configs, strict=True)):

@@ -165,6 +165,11 @@ class Scenario(Strict):
         return [[s.name, *relays, BASE_STATION] for s in self.source_list]
 
     @property
+    def starts(self) -> dict[str, list[float]]:
+        """Every vehicle's start by node name (m, world): the relays', then the sources' (their missions')."""
+        return {r.name: r.start for r in self.relay_list} | {s.name: s.mission.start for s in self.source_list}
+
+    @property
     def is_fleet(self) -> bool:
         """More than one relay or more than one source."""
         return len(self.relay_list) > 1 or len(self.source_list) > 1
