@@ -136,8 +136,9 @@ class FleetLoop:
                 positions = {**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in src.items()},
                              self.scene.name_of("base_station"): self.bs}
                 velocities = {**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in src.items()}}
-                axes = {**{n: rotation_zyx(xs[3:6])[:, 2] for n, xs in x.items()},
-                        **{n: rotation_zyx(s.attitude(self.gravity))[:, 2] for n, s in src.items()}}
+                eta = {**{n: xs[3:6] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in src.items()}}
+                R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
+                axes = {n: Rn[:, 2] for n, Rn in R.items()}
                 known = self._known_jammers(t)
                 refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities, axes=axes,
                                                       jammer_positions=known[0], jammer_powers=known[1]))
@@ -160,11 +161,9 @@ class FleetLoop:
                             f"{r.name}.qp_ok": info.ok, f"{r.name}.qp_status": info.status,
                             f"{r.name}.fallback": info.fallback,
                             f"{r.name}.safety_violation": bool(r.controller.last_violations)}
-                poses = {n: self.scene.pose(n, xs[0:3], rotation_zyx(xs[3:6])) for n, xs in x.items()}
+                poses = {n: self.scene.pose(n, positions[n], R[n]) for n in R}
                 for name, s in src.items():
-                    eta = s.attitude(self.gravity)
-                    poses[name] = self.scene.pose(name, s.p, rotation_zyx(eta))
-                    row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta], strict=True)}
+                    row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta[name]], strict=True)}
                 state = self.scene.evaluate(t, poses)
                 row |= {f"sinr.{tx}.{rx}": float(g) for (tx, rx), g in zip(state.hops, state.sinr, strict=True)}
                 row |= {f"capacity.{route[0]}": float(c) for route, c in zip(self.scene.all_routes, state.route_capacity,
