@@ -81,6 +81,8 @@ def test_two_sources_sharing_two_relays():
     (lambda d: d["relays"][0].update(platform="tricopter"), r"relays\.0\.platform: .*unknown platform preset 'tricopter'"),
     (lambda d: d["relays"][0].update(controller={"mu": 3.0}), r"relays\[0\]\.controller\.mu: Input should be less than or equal to 1"),
     (lambda d: d["relays"][0].update(name="r 1"), r"relays\.0\.name"),
+    (lambda d: d["relays"][1].update(controller={"horizon": 45}),
+     r"relays\[1\]\.controller\.horizon: every relay of a fleet predicts on the shared controller\.horizon = 30 .* got 45"),
 ])
 def test_a_malformed_network_is_a_named_error(change, message):
     data = chain()

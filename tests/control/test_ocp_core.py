@@ -101,3 +101,28 @@ def test_size_mismatch_raises_instead_of_shifting_data():
         ctrl.step(x[:-1], np.zeros(6), P)
     with pytest.raises(ValueError, match="input 6"):
         ctrl.step(x, np.zeros(4), P)
+
+
+def test_a_fleet_relays_p0_parameter_is_the_base_station_of_the_one_relay_ocp():
+    """With ``p0_parameter`` the comms-aware terms look toward the stage parameter ``p0``: its residuals and
+    constraint rows equal those of the one-relay OCP whose base station sits at that point."""
+    from dataclasses import replace
+
+    base = ocp_spec(SC)
+    here = np.array([3.0, -4.0, 2.0])
+    fixed = replace(base, bs_position=tuple(here))
+    fleet = replace(base, p0_parameter=True)
+    assert "p0" in fleet.params and "p0" not in base.params and fleet.key() != base.key()
+    rng = np.random.default_rng(0)
+    xa, w = rng.normal(size=fixed.nx), rng.normal(size=fixed.nw)
+    p_fixed = rng.normal(size=fixed.n_params)
+    p_fleet = np.zeros(fleet.n_params)
+    for name in fixed.params.names:
+        p_fleet[fleet.params[name]] = p_fixed[fixed.params[name]]
+    p_fleet[fleet.params["p0"]] = here
+    for f in ("stage_residual", "constraint_expr"):
+        values = []
+        for spec, p in ((fixed, p_fixed), (fleet, p_fleet)):
+            X, W, P = ca.SX.sym("x", spec.nx), ca.SX.sym("w", spec.nw), ca.SX.sym("p", spec.n_params)
+            values.append(np.array(ca.Function("f", [X, W, P], [getattr(spec, f)(X, W, P)])(xa, w, p)).ravel())
+        np.testing.assert_allclose(values[1], values[0], rtol=1e-12, err_msg=f)

@@ -3,7 +3,7 @@ import pytest
 from scipy.optimize import minimize
 
 from aerorelay.models.channel import inverse_capacity
-from aerorelay.planning.trajectory_generator import SurrogateParams, TrajectoryGenerator
+from aerorelay.planning.trajectory_generator import SurrogateParams, TrajectoryGenerator, regularized
 
 P0 = np.zeros(3)
 P1 = np.array([-6.95, 5.79, 1.72])
@@ -82,9 +82,9 @@ def test_governor_bounds_reference_speed_and_taylor_error_is_logged():
 def test_indefinite_hessian_is_regularized():
     tg = make()
     H = np.diag([1.0, -2.0, 0.5])
-    Hr, reg = tg._regularize(H)
+    Hr, reg = regularized(H, tg.eig_floor)
     assert reg and np.linalg.eigvalsh(Hr).min() > 0
-    Hs, reg2 = tg._regularize(np.eye(3))
+    Hs, reg2 = regularized(np.eye(3), tg.eig_floor)
     assert not reg2 and np.array_equal(Hs, np.eye(3))
 
 

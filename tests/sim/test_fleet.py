@@ -175,3 +175,37 @@ def test_the_fleets_capacity_planner_beats_the_equidistant_chain_under_the_jamme
         assert not m["unsafe"], m["unsafe_reason"]
         means[planner] = m["c_mean"]
     assert means["capacity"] > 1.01 * means["equidistant"], means
+
+
+def test_the_papers_fleet_looks_at_each_relays_route_neighbours():
+    """network.planner = "paper": every relay flies the comms-aware NMPC whose alignment terms look upstream at
+    the previous node of its route and downstream at the next (the next relay's latest plan or the base
+    station); the generator moves the references; the flight is safe."""
+    from aerorelay.assembly.parts import build_fleet
+
+    sc = parse_scenario({**CHAIN, "network": {**CHAIN["network"], "planner": "paper"}})
+    parts = build_fleet(sc)
+    seen: dict[str, list] = {}
+    for r in parts.relays:
+        assert r.controller.spec.constrained and r.controller.spec.p0_parameter
+        original = r.controller.parameters
+
+        def spy(*a, _orig=original, _name=r.name, **kw):
+            seen.setdefault(_name, []).append((kw["p2_path"].copy(), kw["p0_path"].copy()))
+            return _orig(*a, **kw)
+        r.controller.parameters = spy
+    loop = parts.closed_loop()
+    res = loop.run()
+    assert res.qp_failures == 0 and res.aborted is None
+    bs = np.zeros(3)
+    up_r1, down_r1 = seen["r1"][-1]
+    up_r2, down_r2 = seen["r2"][-1]
+    src = parts.sources["inspector"].state(res.log["t"][-1])
+    np.testing.assert_allclose(up_r1[:, 0], src.p)  # r1 looks at the inspector ...
+    np.testing.assert_allclose(down_r2, np.repeat(bs[:, None], down_r2.shape[1], axis=1))  # r2 at the base station
+    last = {n: np.array([res.log[f"{n}.p_{a}"][-1] for a in "xyz"]) for n in ("r1", "r2")}
+    assert np.linalg.norm(down_r1[:, 0] - last["r2"]) < 0.05  # ... r1 at r2's plan (one step old) ...
+    assert np.linalg.norm(up_r2[:, 0] - last["r1"]) < 0.05  # ... and r2 at r1's
+    assert np.linalg.norm(down_r1[:, -1] - down_r1[:, 0]) > 0  # a plan over the horizon, not a point held
+    ref_moved = np.hypot(res.log["r1.pd_x"][-1] - res.log["r1.pd_x"][0], res.log["r1.pd_y"][-1] - res.log["r1.pd_y"][0])
+    assert ref_moved > 0.05

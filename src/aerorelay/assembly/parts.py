@@ -44,6 +44,8 @@ from ..planning.fleet import (
     FleetCapacitySettings,
     FleetPlanner,
 )
+from ..planning.network_generator import NetworkGenerator
+from ..planning.trajectory_generator import SurrogateParams
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.fleet import FleetLoop, FleetRelay
 from ..sim.jammer_sensing import JammerSensing
@@ -178,14 +180,15 @@ def _workspace(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ws.min, float), np.array(ws.max, float)
 
 
-def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None, neighbours: int = 0) -> OcpSpec:
+def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None, neighbours: int = 0, p0_parameter: bool = False) -> OcpSpec:
     """The NMPC problem structure described by a scenario (``neighbours``: the other vehicles a
-    fleet's relay keeps its separation from)."""
+    fleet's relay keeps its separation from; ``p0_parameter``: its comms-aware terms look toward its
+    next node on the route, a stage parameter, instead of the base station)."""
     c = sc.controller
     lo, hi = _workspace(sc)
     return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
                    bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
-                   exact_input_rate=c.exact_input_rate, neighbours=neighbours)
+                   exact_input_rate=c.exact_input_rate, neighbours=neighbours, p0_parameter=p0_parameter)
 
 
 def _vec3(v) -> tuple[float, float, float]:
@@ -222,10 +225,10 @@ def nmpc_settings(sc: Scenario, **overrides) -> NmpcSettings:
 
 
 def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings | None = None,
-                     neighbours: int = 0) -> RelayController:
+                     neighbours: int = 0, p0_parameter: bool = False) -> RelayController:
     """NMPC + fail-safe for the scenario's controller settings (``settings``: the solver's, else
-    ``nmpc_settings(sc)``; ``neighbours``: a fleet's relay's separation constraint)."""
-    spec = ocp_spec(sc, vehicle, neighbours)
+    ``nmpc_settings(sc)``; ``neighbours``, ``p0_parameter``: a fleet relay's, as ``ocp_spec``)."""
+    spec = ocp_spec(sc, vehicle, neighbours, p0_parameter)
     fs = sc.controller.failsafe
     return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
                            failsafe=FailsafeSettings(failures_to_fallback=fs.failures_to_fallback,
@@ -409,10 +412,11 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 
 
 def relay_scenario(sc: Scenario, i: int) -> Scenario:
-    """Relay ``i``'s view of a fleet scenario: its platform, its controller flying the tracking
-    NMPC (the capacity planner's: no comms-aware terms, whose base station and MRAV-2 a relay inside
-    a chain does not have), its start."""
-    ctrl = sc.controller_of(i).model_copy(update={"planner": "capacity"})
+    """Relay ``i``'s view of a fleet scenario: its platform and its controller: under the paper's
+    generator (``network.planner = "paper"``) the comms-aware NMPC (its alignment terms toward its two
+    neighbours on its route), else the tracking NMPC of the capacity planner."""
+    planner = "trajectory_generator" if sc.network.planner == "paper" else "capacity"
+    ctrl = sc.controller_of(i).model_copy(update={"planner": planner})
     return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
 
 
@@ -446,7 +450,8 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
     for i, r in enumerate(sc.relay_list):
         view = relay_scenario(sc, i)
         vehicle = build_vehicle(view.platform)
-        relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=build_controller(view, vehicle, nmpc_settings, others),
+        controller = build_controller(view, vehicle, nmpc_settings, others, p0_parameter=view.controller.comms_aware)
+        relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=controller,
                                  plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
                                  start=np.array(r.start, float)))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
@@ -459,6 +464,11 @@ def fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> 
     lo, hi = _workspace(sc)
     cap = sc.controller.capacity
     starts = {r.name: r.start for r in relays}
+    if sc.network.planner == "paper":
+        c = sc.controller
+        return NetworkGenerator(SurrogateParams.of_scene(scene.world_view(), c.mu, sc.antenna.g_bar), sc.route_list,
+                                list(starts), _vec3(sc.nodes.bs), governor_speed=c.governor_speed_m_s,
+                                eig_floor=c.hessian_eig_floor, workspace_min=lo, workspace_max=hi)
     if sc.network.planner == "capacity":
         return FleetCapacityPlanner(scene.world_view(), starts, {r.name: r.vehicle.hover_tilt_limit for r in relays},
                                     FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,

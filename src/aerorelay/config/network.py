@@ -63,8 +63,10 @@ class NetworkConfig(Strict):
                                            "one route per source through every relay in order")
     min_separation_m: float = Field(0.0, ge=0.0, le=100.0, description="between any two vehicles, m (0: no separation "
                                     "constraint)")
-    planner: Literal["equidistant", "capacity"] = Field(
+    planner: Literal["equidistant", "capacity", "paper"] = Field(
         "equidistant", description="the fleet's planner: equidistant (each relay evenly spaced on the line from the "
-        "base station to its source) or capacity (each relay in turn moves its goal and antenna axis to the best of "
-        "its neighbourhood on the network's rate, the others held; [controller.capacity] speed, axes, replanning); "
-        "every relay's NMPC tracks it (the tracking NMPC of controller.planner = capacity)")
+        "base station to its source), capacity (each relay in turn moves its goal and antenna axis to the best of "
+        "its neighbourhood on the network's rate, the others held; [controller.capacity] speed, axes, replanning), "
+        "both tracked by the tracking NMPC of controller.planner = capacity; or paper (the paper's generator over "
+        "every hop of every route, eq. 15-19; controller.mu, governor_speed_m_s, hessian_eig_floor), tracked by the "
+        "comms-aware NMPC with each relay's alignment terms toward its two neighbours on its first route")

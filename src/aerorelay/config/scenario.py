@@ -128,6 +128,7 @@ class Scenario(Strict):
             if j.point_at is not None and j.point_at not in nodes:
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
         self._separation_holds()
+        self._one_time_grid()
         for i in range(len(self.relay_list)):
             self.controller_of(i)
         steps = self.sim.plant_rate_hz * self.control_period_s
@@ -192,6 +193,16 @@ class Scenario(Strict):
             first = exc.errors()[0]
             loc = ".".join(str(x) for x in first["loc"])
             raise ValueError(f"relays[{i}].controller.{loc}: {first['msg'].removeprefix('Value error, ')}") from None
+
+    def _one_time_grid(self) -> None:
+        """Every relay's NMPC predicts on the shared horizon and step (the relays exchange their plans)."""
+        for i in range(len(self.relay_list)):
+            c = self.controller_of(i)
+            for f in ("horizon", "ts_s"):
+                if getattr(c, f) != getattr(self.controller, f):
+                    raise ValueError(f"relays[{i}].controller.{f}: every relay of a fleet predicts on the shared "
+                                     f"controller.{f} = {getattr(self.controller, f)} (they exchange their plans), got "
+                                     f"{getattr(c, f)}")
 
     def _relay_field(self, i: int, what: str, *, legacy: str) -> str:
         return legacy if self.relays is None else f"relays[{i}].{what}"

@@ -64,6 +64,7 @@ class OcpSpec:
     cost_terms: tuple[CostTerm, ...] = field(default=COST_TERMS)
     constraints_all: tuple[Constraint, ...] = field(default=CONSTRAINTS)
     neighbours: int = 0  # other vehicles this relay keeps its separation from (a fleet's; 0: none)
+    p0_parameter: bool = False  # the node toward the base station is the stage parameter p0 (a fleet's relay), not bs_position
 
     def __post_init__(self):
         if self.horizon < 1 or self.ts <= 0:
@@ -114,6 +115,8 @@ class OcpSpec:
     def params(self) -> StageParams:
         """The per-stage parameter layout: reference signals, sqrt-weights, slack penalties."""
         fields = list(REFERENCE_SIGNALS)
+        if self.p0_parameter:  # the next node toward the base station over the horizon (m, world)
+            fields.append(("p0", 3))
         if self.neighbours:  # the other vehicles' predicted positions (m, world) and the separation (m)
             fields += [("p_others", 3 * self.neighbours), ("separation_m", 1)]
         fields += [(f"sw_{t.name}", 1) for t in self.terms]
@@ -137,7 +140,7 @@ class OcpSpec:
             v.omega_dot_min, v.omega_dot_max, self.horizon, self.ts, self.constrained, self.bs_position,
             self.workspace_min, self.workspace_max, self.exact_input_rate, self.params.names,
             [c.name for c in self.constraints], [c.soft for c in self.constraints],
-        ] + ([self.neighbours] if self.neighbours else [])  # a one-relay OCP keeps its cached engine
+        ] + ([self.neighbours] if self.neighbours else []) + (["p0"] if self.p0_parameter else [])  # a one-relay OCP keeps its cached engine
         return repr(parts)
 
     # -- expressions -------------------------------------------------------------------------

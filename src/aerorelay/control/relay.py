@@ -65,11 +65,14 @@ class RelayController:
     def settings(self) -> NmpcSettings:
         return self.nmpc.settings
 
-    def parameters(self, ref, p2, v2, a2, others: np.ndarray | None = None, separation_m: float = 0.0) -> np.ndarray:
+    def parameters(self, ref, p2, v2, a2, others: np.ndarray | None = None, separation_m: float = 0.0, *,
+                   p2_path: np.ndarray | None = None, p0_path: np.ndarray | None = None) -> np.ndarray:
         """Stage parameters: the governed reference extrapolated at ``v_ref``, ``rho_d`` from
-        ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration, mu, weights;
-        a relay of a fleet (``spec.neighbours``): the other vehicles' predicted positions ``others``
-        ``(3 neighbours, N + 1)`` (m, world) and the separation to keep (m)."""
+        ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration (or its
+        predicted ``p2_path`` ``(3, N + 1)``, m: a fleet's upstream node), mu, weights; a relay of a
+        fleet: the other vehicles' predicted positions ``others`` ``(3 neighbours, N + 1)`` (m, world)
+        and the separation to keep (m) (``spec.neighbours``), the next node toward the base station
+        ``p0_path`` ``(3, N + 1)`` (m, world; ``spec.p0_parameter``)."""
         spec = self.spec
         tk = spec.ts * np.arange(spec.horizon + 1)
         # rho_d (eq. 20), unless a planner gives the antenna axis itself
@@ -78,7 +81,7 @@ class RelayController:
             "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
             "v_ref": ref.v_ref,
             "rho_d": rho_d,
-            "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2,
+            "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2 if p2_path is None else p2_path,
             "mu": self.mu,
             "psi_ref": ref.yaw,
             **self.weights,
@@ -88,6 +91,10 @@ class RelayController:
                 raise ValueError(f"parameters: others must be (3 x {spec.neighbours}, {spec.horizon + 1}), got "
                                  f"{None if others is None else np.shape(others)}")
             values["p_others"], values["separation_m"] = others, separation_m
+        if spec.p0_parameter:
+            if p0_path is None:
+                raise ValueError(f"parameters: this relay's OCP needs p0_path (3, {spec.horizon + 1}), its next node toward the base station")
+            values["p0"] = p0_path
         return spec.params.matrix(spec.horizon + 1, values)
 
     def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:

@@ -34,6 +34,8 @@ REFERENCE_SIGNALS: tuple[tuple[str, int], ...] = (
     ("mu", 1),  # minimum mutual alignment (eq. 27e)
     ("psi_ref", 1),  # yaw reference, rad (0 unless a planner turns the platform)
 )
+# A fleet's relay (``OcpSpec.p0_parameter``) adds ("p0", 3): its next node toward the base station on
+# its route (the next relay's latest plan or the base station), m, world; v_10 is the cosine toward it.
 
 
 class StageVars:
@@ -52,7 +54,8 @@ class StageVars:
         self.slack = {} if w is None else {c.name: w[nr + i] for i, c in enumerate(spec.soft_constraints)}
         self.u_prev: Any = xa[12 + nr :] if spec.exact_input_rate else p.get("u_prev")
         self.p = p
-        self.bs = ca.DM(spec.bs_position)
+        # the link toward the base station: the BS itself, or a fleet's next node on the route (parameter p0)
+        self.bs = p["p0"] if spec.p0_parameter else ca.DM(spec.bs_position)
 
     @cached_property
     def R(self):
@@ -85,7 +88,7 @@ class StageVars:
 
     @cached_property
     def v10(self):
-        """Directional cosine squared toward the base station (eq. 23)."""
+        """Directional cosine squared toward the base station (eq. 23), or a fleet's next node toward it."""
         return misalignment(self.pos, self.R, self.bs)
 
 

@@ -87,9 +87,23 @@ def inverse_capacity(p1, p2, p0, p_jams, jam_powers, *, mu: float, g_bar: float,
     """Trajectory-generator cost ``f(kappa) = (1/B)(1/log2(1+G_21) + 1/log2(1+G_10))`` (eq. 15). *Dual*.
 
     Built on the conservative surrogate SINRs; ``kappa = (p1, p2)``; ``p0`` is the BS; one entry of
-    ``p_jams`` / ``jam_powers`` per jammer.
+    ``p_jams`` / ``jam_powers`` per jammer. ``network_inverse_capacity`` for the hops (2, 1), (1, 0).
     """
+    return network_inverse_capacity([(p2, p1), (p1, p0)], p_jams, jam_powers, mu=mu, g_bar=g_bar, tx_power=tx_power,
+                                    noise_power=noise_power, bandwidth=bandwidth, jam_gains=jam_gains)
+
+
+def network_inverse_capacity(hops, p_jams, jam_powers, *, mu: float, g_bar: float, tx_power: float, noise_power: float,
+                             bandwidth: float = 1.0, jam_gains=None):
+    """Eq. 15 over every hop of a network: ``f = (1/B) sum_hops 1/log2(1 + Gamma_bar_hop)``, the inverse of
+    the network rate (``radio.network_rate``) on the conservative surrogate SINRs (eq. 12-13). ``hops``:
+    ``(p_tx, p_rx)`` for every hop of every route, a hop shared by two routes listed once per route (m,
+    world). *Dual*."""
     kw = dict(mu=mu, g_bar=g_bar, tx_power=tx_power, noise_power=noise_power, jam_gains=jam_gains)
-    g21 = surrogate_sinr(p2, p1, p_jams, jam_powers, **kw)
-    g10 = surrogate_sinr(p1, p0, p_jams, jam_powers, **kw)
-    return (1.0 / spectral_efficiency(g21) + 1.0 / spectral_efficiency(g10)) / bandwidth
+    total = None
+    for p_tx, p_rx in hops:
+        term = 1.0 / spectral_efficiency(surrogate_sinr(p_tx, p_rx, p_jams, jam_powers, **kw))
+        total = term if total is None else total + term
+    if total is None:
+        raise ValueError("network_inverse_capacity: no hop given")
+    return total / bandwidth

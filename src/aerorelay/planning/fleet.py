@@ -24,7 +24,7 @@ from .trajectory_generator import Reference
 class FleetInput:
     """What the fleet knows at one control step (world frame, SI units): every vehicle's position
     (m), velocity (m/s) and antenna axis (unit) by node name (relays: measured; sources: over their
-    optical links); the jammers' positions ``(nJ, 3)`` (m) and the powers to plan with ``(nJ,)`` (W:
+    optical links), the sources' accelerations (m/s^2); the jammers' positions ``(nJ, 3)`` (m) and the powers to plan with ``(nJ,)`` (W:
     0 before a jammer is localized)."""
 
     t: float
@@ -32,6 +32,7 @@ class FleetInput:
     positions: Mapping[str, np.ndarray]
     velocities: Mapping[str, np.ndarray]
     axes: Mapping[str, np.ndarray] = field(default_factory=dict)
+    accelerations: Mapping[str, np.ndarray] = field(default_factory=dict)
     jammer_positions: np.ndarray | None = None
     jammer_powers: np.ndarray | None = None
 

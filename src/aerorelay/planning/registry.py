@@ -29,10 +29,9 @@ class FixedPlanReference:
 
 
 def _generator(ctx: PlannerContext, mu: float) -> TrajectoryGenerator:
-    b, c = ctx.scene.budget, ctx.settings.generator
-    gains = tuple(float(j.pattern.g_bar) for j in ctx.scene.jammers)  # the surrogate's conservative jammer gain: its peak
+    c = ctx.settings.generator
     return TrajectoryGenerator(
-        SurrogateParams(mu, ctx.surrogate_g_bar, b.tx_power, b.noise_power, b.bandwidth, gains),
+        SurrogateParams.of_scene(ctx.scene, mu, ctx.surrogate_g_bar),
         ctx.scene.fixed_pose(ctx.scene.name_of("base_station")).position, governor_speed=c.governor_speed_m_s,
         eig_floor=c.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max,
     )

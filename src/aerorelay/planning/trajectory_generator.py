@@ -17,6 +17,7 @@ import numpy as np
 
 from ..models.channel import inverse_capacity
 from ..models.geometry import clip_norm
+from ..models.radio import RadioScene
 from ..store.codegen import BufferedCall
 
 log = logging.getLogger(__name__)
@@ -32,6 +33,13 @@ class SurrogateParams:
     noise_power: float
     bandwidth: float = 1.0
     jam_gains: tuple[float, ...] = (1.0,)  # each jammer's peak gain (1: the paper's isotropic jammer)
+
+    @classmethod
+    def of_scene(cls, scene: RadioScene, mu: float, g_bar: float) -> SurrogateParams:
+        """The surrogate of ``scene``'s link budget with alignment ``mu`` and antenna gain ``g_bar``; each
+        jammer at its peak gain (the surrogate's conservative jammer gain)."""
+        b = scene.budget
+        return cls(mu, g_bar, b.tx_power, b.noise_power, b.bandwidth, tuple(float(j.pattern.g_bar) for j in scene.jammers))
 
 
 @dataclass(kw_only=True)
@@ -108,14 +116,6 @@ class TrajectoryGenerator:
         f, g, H = self._expand(p1, p2, p_jam, jam_power)
         return f, g[:3], g[3:], H[:3, :3], H[:3, 3:], H[3:, 3:]
 
-    def _regularize(self, H11: np.ndarray) -> tuple[np.ndarray, bool]:
-        """Eigenvalue floor: H11 made safely positive definite (the paper perturbs kappa_e instead)."""
-        lam, V = np.linalg.eigh(0.5 * (H11 + H11.T))
-        floor = self.eig_floor * max(1.0, float(np.max(np.abs(lam))))
-        if lam.min() >= floor:
-            return H11, False
-        return (V * np.maximum(lam, floor)) @ V.T, True
-
     def _taylor_error(self, p1, p2, f_now: float, p_jam, jam_power) -> float:
         """``|f - f2| / |f|`` at the new ``kappa`` for the previous step's expansion (eq. 20).
 
@@ -136,10 +136,10 @@ class TrajectoryGenerator:
         """Eq. 17-19 at the expansion point ``kappa_e = (p1, p2)`` (so ``delta_2 = 0``)."""
         f, g, H = self._expand(p1, p2, p_jam, jam_power)
         if not (np.isfinite(f) and np.all(np.isfinite(g[:3])) and np.all(np.isfinite(H[:3]))):
-            raise _NonFinite
+            raise NonFinite
         err = self._taylor_error(p1, p2, f, p_jam, jam_power)
         self._prev = (np.concatenate([p1, p2]), f, g, H, np.array(p_jam, float), np.array(jam_power, float))
-        H11r, reg = self._regularize(H[:3, :3])
+        H11r, reg = regularized(H[:3, :3], self.eig_floor)
         K = np.linalg.solve(H11r, H[:3, 3:])
         p_opt = np.clip(p1 - np.linalg.solve(H11r, g[:3]), self.lo, self.hi)
         return p_opt, -K @ v2, -K @ a2, err, reg
@@ -150,23 +150,42 @@ class TrajectoryGenerator:
         p1, p2, v2, a2 = (np.asarray(a, float) for a in (p1, p2, v2, a2))
         try:
             p_opt, v_d, a_d, err, reg = self.optimum(p1, p2, v2, a2, np.asarray(p_jam, float), np.asarray(jam_power, float))
-        except _NonFinite:
+        except NonFinite:
             log.warning("trajectory generator: non-finite surrogate at p1 = %s; holding the last reference", np.round(p1, 2))
             hold = self.p_ref.copy() if self.p_ref is not None else p1.copy()
             self.p_ref = hold
             return Reference(p_opt=hold, p_ref=hold.copy(), v_ref=np.zeros(3), a_ref=np.zeros(3))
         if self.p_ref is None:
             self.p_ref = p1.copy()
-        step = p_opt - self.p_ref
-        max_step = self.governor_speed * dt
-        n = np.linalg.norm(step)
-        if n > max_step:
-            step *= max_step / n
-        self.p_ref = self.p_ref + step
-        v_ref = step / dt if n > max_step else clip_norm(v_d, self.governor_speed)
-        a_ref = clip_norm(a_d, self.max_ref_accel)
+        self.p_ref, v_ref, a_ref = governed(self.p_ref, p_opt, v_d, a_d, dt, self.governor_speed, self.max_ref_accel)
         return Reference(p_opt=p_opt, p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=a_ref, taylor_rel_err=err, regularized=reg)
 
+def regularized(H: np.ndarray, eig_floor: float, relative: bool = False) -> tuple[np.ndarray, bool]:
+    """Eigenvalue floor: ``H`` made safely positive definite (every eigenvalue at least ``eig_floor``
+    times the largest magnitude, or than 1 when that is smaller and not ``relative``; the paper perturbs
+    kappa_e instead); whether it had to. ``relative``: scale-free (a cost in s/bit in physical units
+    has eigenvalues far below 1)."""
+    lam, V = np.linalg.eigh(0.5 * (H + H.T))
+    top = float(np.max(np.abs(lam)))
+    floor = eig_floor * (top if relative else max(1.0, top))
+    if lam.min() >= floor:
+        return H, False
+    return (V * np.maximum(lam, floor)) @ V.T, True
 
-class _NonFinite(ArithmeticError):
+
+def governed(p_ref: np.ndarray, p_opt: np.ndarray, v_d: np.ndarray, a_d: np.ndarray, dt: float, speed: float,
+             max_accel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference governor: ``p_ref`` (m) moved toward ``p_opt`` by at most ``speed * dt``; the
+    velocity reference that step's (m/s) when it is capped, else ``v_d`` capped at ``speed``; ``a_d``
+    capped at ``max_accel`` (m/s^2). Returns ``(p_ref, v_ref, a_ref)``."""
+    step = p_opt - p_ref
+    max_step = speed * dt
+    n = np.linalg.norm(step)
+    if n > max_step:
+        step *= max_step / n
+    v_ref = step / dt if n > max_step else clip_norm(v_d, speed)
+    return p_ref + step, v_ref, clip_norm(a_d, max_accel)
+
+
+class NonFinite(ArithmeticError):
     """The surrogate's expansion is not finite at this geometry."""

@@ -89,11 +89,14 @@ class FleetLoop:
         self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
         self.separation_m = separation_m
         self.columns = fleet_columns(relays, list(sources), scene)
-        self.source_of: dict[str, str] = {}  # each relay's source (of its first route): MRAV-2 in its NMPC's parameters
+        # each relay's two neighbours on its first route: (upstream, toward the base station), the nodes its
+        # NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)
+        self.neighbours_of: dict[str, tuple[str, str]] = {}
         for route in scene.all_routes:
-            for name in route[1:-1]:
-                self.source_of.setdefault(name, route[0])
+            for i in range(1, len(route) - 1):
+                self.neighbours_of.setdefault(route[i], (route[i - 1], route[i + 1]))
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
+        self._bs_path = np.repeat(self.bs[:, None], relays[0].controller.spec.horizon + 1, axis=1)
         self.gravity = relays[0].vehicle.gravity
 
     def _known_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -141,15 +144,18 @@ class FleetLoop:
                 axes = {n: Rn[:, 2] for n, Rn in R.items()}
                 known = self._known_jammers(t)
                 refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities, axes=axes,
+                                                      accelerations={n: s.a for n, s in src.items()},
                                                       jammer_positions=known[0], jammer_powers=known[1]))
                 row: dict[str, object] = {"t": t}
                 predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 for r in self.relays:
-                    s = src[self.source_of[r.name]]
+                    up, down = self.neighbours_of[r.name]
                     others = None
                     if r.controller.spec.neighbours:
                         others = np.vstack([q for n, q in predicted.items() if n != r.name])
-                    P = r.controller.parameters(refs[r.name], s.p, s.v, s.a, others, self.separation_m + SEPARATION_MARGIN_M)
+                    zero = np.zeros(3)
+                    P = r.controller.parameters(refs[r.name], zero, zero, zero, others, self.separation_m + SEPARATION_MARGIN_M,
+                                                p2_path=predicted[up], p0_path=predicted.get(down, self._bs_path))
                     info = r.controller.step(x[r.name], u[r.name], P, shift=period >= r.controller.spec.ts - 1e-12)
                     u[r.name] = info.u
                     xs, n = x[r.name], r.vehicle.n_rotors
