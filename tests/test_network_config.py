@@ -101,8 +101,8 @@ def test_a_relay_flies_its_own_platform_and_controller():
 
 
 def test_the_one_relay_parts_refuse_a_fleet_with_its_reason():
-    with pytest.raises(ScenarioError, match="network of 2 relays and 1 sources: a fleet flies with build_fleet, and the "
-                                            "bound of a fleet is not built yet"):
+    with pytest.raises(ScenarioError, match="network of 2 relays and 1 sources: a fleet flies with build_fleet and its "
+                                            "bound is network_bound"):
         ar.build(parse_scenario(chain()))
 
 
@@ -130,18 +130,22 @@ def test_one_relay_written_as_a_network_flies_bit_identically():
             assert a[c].equals(b[c]), c
 
 
-def test_a_fleet_runs_from_the_command_line_and_its_bound_is_refused(tmp_path):
+def test_a_fleet_runs_from_the_command_line_with_its_network_bound(tmp_path):
     from typer.testing import CliRunner
 
     from aerorelay.cli import app
 
     f = tmp_path / "chain.toml"
-    f.write_text(parse_scenario(chain()).to_toml())
+    coarse = {**chain(), "bound": {"network_grid_m": 5.0, "network_dt_s": 10.0}}
+    f.write_text(parse_scenario(coarse).to_toml())
     res = CliRunner().invoke(app, ["bound", str(f), "--out", str(tmp_path / "b")])
-    assert res.exit_code == 2 and "the bound of a fleet is not built yet" in res.output, res.output
-    assert not (tmp_path / "b").exists()
+    assert res.exit_code == 0 and "achieved" in res.output, res.output
+    assert {"bound.json", "bound.parquet", "bound.png"} <= {p.name for p in (tmp_path / "b").iterdir()}
     res = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--duration", "0.5"])
     assert res.exit_code == 0, res.output
+    import json
+    m = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert 0 < m["capacity_efficiency_mean"] <= m["capacity_efficiency_mean_achieved"] and m["bound"]["relays"] == ["r1", "r2"]
     assert {"scenario.toml", "timeseries.parquet", "metrics.json", "rates.png", "sinr.png", "paths.png", "trajectory.html"} <= {
         p.name for p in (tmp_path / "r").iterdir()}
     res = CliRunner().invoke(app, ["report", str(tmp_path / "r")])

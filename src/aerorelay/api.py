@@ -29,7 +29,7 @@ from ._version import __version__
 from .assembly import load_scenario, parse_scenario
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
-from .assembly.parts import build, build_scene, nmpc_settings, scenario_bound
+from .assembly.parts import build, build_scene, network_bound, nmpc_settings, scenario_bound
 from .assembly.vehicle import build_vehicle
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop
@@ -41,8 +41,9 @@ from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
+from .planning.network_bound import NetworkBound
 from .report.figures import fig_bound, write_run_figures
-from .report.fleet_figures import write_fleet_figures
+from .report.fleet_figures import fig_network_bound, write_fleet_figures
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_fleet_mcap, write_run_mcap
 from .report.run_report import RUN_REPORT, render_fleet_report, render_run_report
@@ -91,9 +92,11 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     return _simulate(sc, with_bound=bound, views=write_fleet_views if sc.is_fleet else write_run_views, **parts)
 
 
-def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound:
-    """The scenario's capacity bounds (static and path), computed once per geometry and cached."""
-    return scenario_bound(sc, progress)
+def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:
+    """The scenario's capacity bounds (static and path), computed once per geometry and cached; a
+    fleet's network bound (``planning/network_bound.py``: static upper bound and the refined
+    configuration) for a fleet."""
+    return network_bound(sc, progress) if sc.is_fleet else scenario_bound(sc, progress)
 
 
 def vehicle(sc: Scenario) -> Multirotor:
@@ -294,7 +297,7 @@ def write_bound(sc: Scenario, out: str | Path, progress: Callable[[int, int], No
         b = bound(sc, progress)
         tmp = new_sibling(folder)
         summary = write_bound_files(b, tmp)
-        fig_bound(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+        (fig_network_bound if sc.is_fleet else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
         swap_in(tmp, folder, "bound")
     return summary
 

@@ -174,9 +174,6 @@ def _fly(sc: Scenario, no_bound: bool) -> api.Result:
     """The bound (unless ``no_bound``; cached per geometry), then the flight, with progress bars."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    if sc.is_fleet and not no_bound:
-        err_console.print("[bold yellow]note[/] the bound of a fleet is not built yet: flown without it", highlight=False)
-        no_bound = True
     if not no_bound:  # computed once per scenario geometry (cached), with its own progress bar
         _bound_with_progress(sc)
     cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
@@ -223,7 +220,8 @@ def bound(
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
     si = api.si
-    for name in ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin"):
+    names = ("static", "achieved") if sc.is_fleet else ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin")
+    for name in names:
         s = summary[name]
         t.add_row(name, si(s["mean"], sc.channel.capacity_unit), si(s["min"], sc.channel.capacity_unit), f"{s['outage_fraction']:.1%}")
     console.print(t)
@@ -277,7 +275,8 @@ def _fleet_keys(runs: dict[str, dict]) -> list[str]:
             + [f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
                                                           "solve_ms.mean", "solve_ms.p99")]
-            + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "wall_s", "sim_s"])
+            + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "wall_s", "sim_s", "bound.static.mean", "bound.achieved.mean",
+               "capacity_efficiency_mean", "capacity_efficiency_mean_achieved"])
 
 
 def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:

@@ -44,6 +44,7 @@ from ..planning.fleet import (
     FleetCapacitySettings,
     FleetPlanner,
 )
+from ..planning.network_bound import NetworkBound, NetworkBoundProblem, compute_network_bound
 from ..planning.network_generator import NetworkGenerator
 from ..planning.trajectory_generator import SurrogateParams
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
@@ -308,12 +309,12 @@ class Parts:
 def one_relay(sc: Scenario) -> Scenario:
     """A one-relay scenario with its relay's own ``platform`` and ``controller`` (``[[relays]]``) as
     the scenario's, so every part reads them where a file with ``nodes.relay`` has them. A fleet
-    (more than one relay or source) is a named error: its parts are ``build_fleet``'s, and its bound is
-    not built yet."""
+    (more than one relay or source) is a named error: its parts are ``build_fleet``'s, its bound
+    ``network_bound``'s."""
     if sc.is_fleet:
         raise ScenarioError(f"relays / sources: this scenario is a network of {len(sc.relay_list)} relays and "
-                            f"{len(sc.source_list)} sources: a fleet flies with build_fleet, and the bound of a fleet is "
-                            "not built yet (docs/concepts/networks.md)")
+                            f"{len(sc.source_list)} sources: a fleet flies with build_fleet and its bound is network_bound "
+                            "(docs/concepts/networks.md)")
     if sc.relays is None or (sc.relays[0].platform is None and not sc.relays[0].controller):
         return sc
     return sc.model_copy(update={"platform": sc.platform_of(0), "controller": sc.controller_of(0)})
@@ -399,6 +400,28 @@ def scenario_bound_key(sc: Scenario) -> str:
     if sc.channel.propagation.random:  # the bound searches the run's own realization
         data["seed"] = sc.seed
     return bound_key(data)
+
+
+def network_bound_problem(sc: Scenario) -> NetworkBoundProblem:
+    """A fleet's network bound: its true scene, every source's path, every relay's hover tilt limit,
+    the workspace box, ``[bound]``'s network grid and time step."""
+    b = sc.bound
+    lo, hi = _workspace(sc)
+    vehicles = [build_vehicle(sc.platform_of(i)) for i in range(len(sc.relay_list))]
+    return NetworkBoundProblem(
+        build_scene(sc), {s.name: source_trajectory(s.mission) for s in sc.source_list},
+        {r.name: v.hover_tilt_limit for r, v in zip(sc.relay_list, vehicles, strict=True)}, lo, hi, sc.duration_s,
+        BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
+                        max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
+        vehicles[0].gravity, sc.channel.outage)
+
+
+def network_bound(sc: Scenario, progress=None) -> NetworkBound:
+    """A fleet's network bound, computed once per geometry and cached."""
+    data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers", "bound",
+                                  "platform"})
+    data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s, "kind": "network"}
+    return cached_bound(network_bound_problem(sc), bound_key(data), progress, compute=compute_network_bound, kind=NetworkBound)
 
 
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:

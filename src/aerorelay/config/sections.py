@@ -51,6 +51,9 @@ class BoundConfig(Strict):
     axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the relay antenna axes searched, deg")
     max_accel_m_s2: float = Field(4.0, gt=0.0, le=50.0, description="acceleration limit of the flyable paths (from rest "
                                   "at the start), m/s^2: the capacity planner's reference limit by default")
+    network_grid_m: float = Field(2.0, ge=0.25, le=10.0, description="position grid spacing of a fleet's network bound "
+                                  "(two or more relays: its cost grows with the square of the cells), m")
+    network_dt_s: float = Field(2.0, ge=0.05, le=30.0, description="time grid spacing of a fleet's network bound, s")
 
 
 class EstimationConfig(Strict):

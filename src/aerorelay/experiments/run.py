@@ -12,13 +12,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..assembly.parts import build, build_fleet, scenario_bound
+from ..assembly.parts import build, build_fleet, network_bound, scenario_bound
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
 from ..planning.base import CheckedPlanner, Planner
 from ..planning.bound import CapacityBound
+from ..planning.network_bound import NetworkBound
 from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
 from ..sim.fleet import column_type
 from ..sim.metrics import compute_metrics, fleet_metrics
@@ -39,7 +40,7 @@ class RunResult:
     mission: MissionResult
     timeseries: pd.DataFrame
     metrics: dict
-    bound: CapacityBound | None = None
+    bound: CapacityBound | NetworkBound | None = None
     views: Callable[[RunResult, Path], None] | None = field(default=None, repr=False)
 
     def save(self, folder: str | Path, extra: Callable[[Path], None] | None = None, *, figures: bool = True,
@@ -140,13 +141,15 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
 
 def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettings | None,
                     progress: Callable[[int, int], None] | None, given: dict,
+                    bound_progress: Callable[[int, int], None] | None,
                     views: Callable[[RunResult, Path], None] | None) -> RunResult:
-    """Fly a fleet (``assembly.parts.build_fleet``); its log and metrics (``sim.metrics.fleet_metrics``).
-    Parts passed in and the bound of a fleet are not built for fleets yet: named."""
+    """Fly a fleet (``assembly.parts.build_fleet``); its log and metrics (``sim.metrics.fleet_metrics``),
+    with the network bound (``with_bound``: computed before the flight, cached) and the efficiency
+    against it. Parts passed in are not taken for fleets yet: named."""
     passed = [k for k, v in given.items() if v is not None]
-    if passed or with_bound:
-        raise ScenarioError(f"relays / sources: a fleet flies its scenario's own parts without a bound so far "
-                            f"({', '.join(passed + (['the bound'] if with_bound else []))} given)")
+    if passed:
+        raise ScenarioError(f"relays / sources: a fleet flies its scenario's own parts so far ({', '.join(passed)} given)")
+    bound = network_bound(sc, bound_progress) if with_bound else None
     loop = build_fleet(sc, nmpc_settings=nmpc_settings).closed_loop()
     mission = loop.run(progress)
     df = log_frame(mission.log, loop.columns, {c: column_type(c) for c in mission.log if column_type(c) is not float})
@@ -163,8 +166,27 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
         metrics["unsafe_reason"] = "; ".join(r for r in (metrics["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
+    if bound is not None:
+        network_efficiency(metrics, bound)
     metrics["units"] = fleet_metric_units(metrics, sc.channel.capacity_unit)
-    return RunResult(sc, mission, df, metrics, None, views)
+    return RunResult(sc, mission, df, metrics, bound, views)
+
+
+def network_efficiency(m: dict, bound: NetworkBound) -> None:
+    """A fleet's efficiency against its network bound: the run's mean and minimum rate over the static
+    upper bound's (``capacity_efficiency_*``) and over the refined configuration's (``*_achieved``)."""
+    reasons: dict[str, str] = {}
+    for key, num, den, what in (
+            ("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
+            ("capacity_efficiency_min", m["c_min"], bound.static.min(), "the static bound's minimum"),
+            ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
+            ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")):
+        m[key], why = efficiency(num, float(den), what)
+        if why:
+            reasons[key] = why
+    m["bound"] = bound.summary()
+    if reasons:
+        m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
 
 
 def efficiency(value: float, best: float, what: str) -> tuple[float | None, str | None]:
@@ -189,7 +211,8 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     check_run_size(sc)
     if sc.is_fleet:
         return _simulate_fleet(sc, with_bound=with_bound, nmpc_settings=nmpc_settings, progress=progress,
-                               given=dict(planner=planner, scene=scene, jammers=jammers), views=views)
+                               given=dict(planner=planner, scene=scene, jammers=jammers), views=views,
+                               bound_progress=bound_progress)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)

@@ -312,8 +312,10 @@ def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray,
     return (cap, pos), "not refined (large-scale realization)"
 
 
-def cached_bound(pb: BoundProblem, key: str, progress=None) -> CapacityBound:
-    """``compute_bound`` once per ``key`` (everything the problem depends on), kept in the cache folder."""
+def cached_bound(pb, key: str, progress=None, *, compute=None, kind=None):
+    """``compute_bound`` once per ``key`` (everything the problem depends on), kept in the cache folder
+    (``compute``, ``kind``: another bound's function and class, e.g. a fleet's network bound)."""
+    compute, kind = compute or compute_bound, kind or CapacityBound
     path = cache_dir() / "bounds" / f"bound_{key}.npz"
     with cache_lock(path):  # campaign runs sharing a geometry compute it once
         if entry_is_intact(path):
@@ -321,11 +323,11 @@ def cached_bound(pb: BoundProblem, key: str, progress=None) -> CapacityBound:
                 with np.load(path, allow_pickle=False) as z:
                     resolution = json.loads(str(z["resolution"]))
                     arrays = {k: z[k] for k in z.files if k not in ("resolution", "outage_threshold", "assumptions")}
-                    return CapacityBound(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]),
-                                         assumptions=str(z["assumptions"]))
+                    return kind(**arrays, resolution=resolution, outage_threshold=float(z["outage_threshold"]),
+                                assumptions=str(z["assumptions"]))
             except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
                 log.warning("cached bound %s is unreadable (%s): recomputed", path, exc)
-        bound = compute_bound(pb, progress)
+        bound = compute(pb, progress)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
         with os.fdopen(fd, "wb") as f:
             payload: dict = {**bound.arrays(), "resolution": json.dumps(bound.resolution),

@@ -102,3 +102,18 @@ def write_fleet_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
         fig.savefig(Path(out) / name, dpi=110)
         plt.close(fig)
     (Path(out) / "trajectory.html").write_text(fleet_trajectory_html(df, sc))
+
+
+def fig_network_bound(bound: pd.DataFrame, sc: Scenario):
+    """A fleet's network bound over time: the static upper bound and the refined configuration's rate
+    (``aerorelay bound`` on a fleet)."""
+    fig, ax = plt.subplots(figsize=(7, 3.4))
+    ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static upper bound (relaxed axes, grid)")
+    ax.semilogy(bound["t"], bound["achieved"], color="C2", lw=1.6, label="refined configuration (one axis per relay)")
+    ax.axhline(sc.channel.outage, color="r", ls=":", lw=1, label="outage threshold")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel(f"network rate ({sc.channel.capacity_unit})")
+    ax.set_title(f"{sc.name}: network bound", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
