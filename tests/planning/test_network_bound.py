@@ -147,3 +147,21 @@ def test_poses_of_the_sources_follow_their_missions():
     solver = NetworkBoundSolver(problem(sc, {"s": path}, ["r1", "r2"], [0, -1, 1], [20, 1, 3], 1.0))
     assert isinstance(solver.fixed_poses(5.0)["s"], NodePose)
     np.testing.assert_allclose(solver.fixed_poses(5.0)["s"].position, [15.0, 0.0, 2.0])
+
+
+def test_the_separation_keeps_relays_off_the_nodes_where_high_snr_would_collapse_the_chain():
+    """At high SNR the best chain puts its relays on the ends (a hop of length 0 costs nothing); with a
+    separation every relay keeps it from the source, the base station and its neighbour, on the grid
+    and refined."""
+    names = ["r1", "r2"]
+    sc = RadioScene((Node("bs", "base_station", Antenna(IsotropicPattern(1.0)), BS), Node("s", "source", Antenna(IsotropicPattern(1.0))),
+                     *(Node(n, "relay", Antenna(IsotropicPattern(1.0))) for n in names)), (), LinkBudget(1e4, 1.0, 1.0),
+                    ("s", *names, "bs"), routes=(("s", *names, "bs"),))
+    src = np.array([20.0, 0.0, 2.0])
+    free = compute_network_bound(problem(sc, {"s": still(src)}, names, [-2, -2, 0], [22, 2, 4], 1.0))
+    gaps = lambda P: [np.linalg.norm(P[0] - src), np.linalg.norm(P[0] - P[1]), np.linalg.norm(P[1] - BS)]  # noqa: E731
+    assert min(gaps(free.achieved_positions[0])) < 1.0  # collapsed onto the ends
+    pb = problem(sc, {"s": still(src)}, names, [-2, -2, 0], [22, 2, 4], 1.0)
+    kept = compute_network_bound(NetworkBoundProblem(**{**pb.__dict__, "separation_m": 3.0}))
+    assert min(gaps(kept.static_positions[0])) >= 3.0 - 1e-9 and min(gaps(kept.achieved_positions[0])) >= 3.0 - 1e-6
+    assert kept.static[0] < free.static[0]

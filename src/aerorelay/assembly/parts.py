@@ -404,7 +404,7 @@ def scenario_bound_key(sc: Scenario) -> str:
 
 def network_bound_problem(sc: Scenario) -> NetworkBoundProblem:
     """A fleet's network bound: its true scene, every source's path, every relay's hover tilt limit,
-    the workspace box, ``[bound]``'s network grid and time step."""
+    the workspace box, ``[bound]``'s network grid and time step, the network's separation."""
     b = sc.bound
     lo, hi = _workspace(sc)
     vehicles = [build_vehicle(sc.platform_of(i)) for i in range(len(sc.relay_list))]
@@ -413,7 +413,7 @@ def network_bound_problem(sc: Scenario) -> NetworkBoundProblem:
         {r.name: v.hover_tilt_limit for r, v in zip(sc.relay_list, vehicles, strict=True)}, lo, hi, sc.duration_s,
         BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
-        vehicles[0].gravity, sc.channel.outage)
+        vehicles[0].gravity, sc.channel.outage, sc.network.min_separation_m)
 
 
 def network_bound(sc: Scenario, progress=None) -> NetworkBound:
