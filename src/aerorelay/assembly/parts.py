@@ -44,7 +44,7 @@ from ..planning.fleet import (
     FleetCapacitySettings,
     FleetPlanner,
 )
-from ..planning.network_bound import NetworkBound, NetworkBoundProblem, compute_network_bound
+from ..planning.network_bound import NETWORK_BOUND_VERSION, NetworkBound, NetworkBoundProblem, compute_network_bound
 from ..planning.network_generator import NetworkGenerator
 from ..planning.trajectory_generator import SurrogateParams
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
@@ -420,7 +420,8 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     """A fleet's network bound, computed once per geometry and cached."""
     data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers", "bound",
                                   "platform"})
-    data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s, "kind": "network"}
+    data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
+             "kind": f"network {NETWORK_BOUND_VERSION}"}
     return cached_bound(network_bound_problem(sc), bound_key(data), progress, compute=compute_network_bound, kind=NetworkBound)
 
 

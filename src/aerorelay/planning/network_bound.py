@@ -42,6 +42,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, position_grid
 
+NETWORK_BOUND_VERSION = "2"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
 ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere on the position grid of the workspace box at least the "
