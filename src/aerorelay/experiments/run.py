@@ -123,20 +123,26 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
         m["unsafe"] = True
         m["unsafe_reason"] = "; ".join(r for r in (m["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     if bound is not None:  # how far from what the physics allows (planning/bound.py)
-        reasons: dict[str, str] = {}
-        for key, num, den, what in (
-                ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
-                ("capacity_efficiency_min", m["c_min"], bound.path_maxmin.min(), "the best-minimum path's minimum"),
-                # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
-                ("capacity_efficiency_mean_flyable", m["c_mean"], bound.flyable_mean.mean(), "the flyable mean path's mean"),
-                ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum")):
-            m[key], why = efficiency(num, float(den), what)
-            if why:
-                reasons[key] = why
-        m["bound"] = bound.summary()
-        if reasons:
-            m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
+        add_efficiencies(m, bound.summary(), (
+            ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
+            ("capacity_efficiency_min", m["c_min"], bound.path_maxmin.min(), "the best-minimum path's minimum"),
+            # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
+            ("capacity_efficiency_mean_flyable", m["c_mean"], bound.flyable_mean.mean(), "the flyable mean path's mean"),
+            ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum")))
     return m
+
+
+def add_efficiencies(m: dict, summary: dict, rows) -> None:
+    """Each ``(key, value, best, what)`` of ``rows`` as ``m[key] = value / best`` (None, with its reason
+    under ``null_reasons``, when undefined: ``efficiency``); the bound's ``summary`` under ``bound``."""
+    reasons: dict[str, str] = {}
+    for key, num, den, what in rows:
+        m[key], why = efficiency(num, float(den), what)
+        if why:
+            reasons[key] = why
+    m["bound"] = summary
+    if reasons:
+        m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
 
 
 def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettings | None,
@@ -175,18 +181,11 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
 def network_efficiency(m: dict, bound: NetworkBound) -> None:
     """A fleet's efficiency against its network bound: the run's mean and minimum rate over the static
     upper bound's (``capacity_efficiency_*``) and over the refined configuration's (``*_achieved``)."""
-    reasons: dict[str, str] = {}
-    for key, num, den, what in (
-            ("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
-            ("capacity_efficiency_min", m["c_min"], bound.static.min(), "the static bound's minimum"),
-            ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
-            ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")):
-        m[key], why = efficiency(num, float(den), what)
-        if why:
-            reasons[key] = why
-    m["bound"] = bound.summary()
-    if reasons:
-        m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
+    add_efficiencies(m, bound.summary(), (
+        ("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
+        ("capacity_efficiency_min", m["c_min"], bound.static.min(), "the static bound's minimum"),
+        ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
+        ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")))
 
 
 def efficiency(value: float, best: float, what: str) -> tuple[float | None, str | None]:
