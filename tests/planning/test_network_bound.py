@@ -126,6 +126,8 @@ def test_best_gain_reads_the_reachable_cosines():
     when |e| <= tau, else at the cosine sin(|e| - tau)."""
     best = BestGain(DipolePattern(), np.radians(20.0))
     assert best(np.sin(np.radians(15.0))) == pytest.approx(1.0)
+    within = np.sin(np.radians(np.linspace(-19.9, 19.9, 999)))
+    assert np.all(best(within) >= 1.0)  # the peak itself wherever an axis reaches broadside, not a sample near it
     c = np.sin(np.radians(40.0))
     want = np.cos(0.5 * np.pi * c) ** 2 / (1 - c * c)
     assert best(np.sin(np.radians(60.0))) == pytest.approx(want, rel=2e-3)
