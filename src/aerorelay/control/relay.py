@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..models.geometry import thrust_direction_from_acceleration
+from ..models.geometry import constant_acceleration_path, thrust_direction_from_acceleration
 from .failsafe import BrakeLaw, Hold
 from .nmpc import NMPC, NmpcSettings, StepInfo
 from .ocp import OcpSpec
@@ -81,7 +81,7 @@ class RelayController:
             "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
             "v_ref": ref.v_ref,
             "rho_d": rho_d,
-            "p2": p2[:, None] + v2[:, None] * tk + 0.5 * a2[:, None] * tk**2 if p2_path is None else p2_path,
+            "p2": constant_acceleration_path(p2, v2, a2, tk) if p2_path is None else p2_path,
             "mu": self.mu,
             "psi_ref": ref.yaw,
             **self.weights,

@@ -115,3 +115,10 @@ def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     """``v`` scaled down to Euclidean norm ``limit`` where it is longer (numpy)."""
     n = float(np.linalg.norm(v))
     return v if n <= limit else v * (limit / n)
+
+
+def constant_acceleration_path(p, v, a, tk: np.ndarray) -> np.ndarray:
+    """Positions ``(3, len(tk))`` (m) at the times ``tk`` (s) from ``p`` (m), ``v`` (m/s), ``a`` (m/s^2):
+    ``p + v t + a t^2 / 2`` (how the NMPC predicts MRAV-2 and a fleet's sources over its horizon)."""
+    p, v, a = (np.asarray(x, float) for x in (p, v, a))
+    return p[:, None] + v[:, None] * tk + 0.5 * a[:, None] * tk**2

@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from ..control.relay import RelayController
-from ..models.geometry import rotation_zyx
+from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
@@ -120,7 +120,7 @@ class FleetLoop:
             else:
                 out[r.name] = np.repeat(x[r.name][0:3, None], spec.horizon + 1, axis=1)
         for name, s in src.items():
-            out[name] = s.p[:, None] + s.v[:, None] * tk + 0.5 * s.a[:, None] * tk**2
+            out[name] = constant_acceleration_path(s.p, s.v, s.a, tk)
         return out
 
     def run(self, progress=None) -> MissionResult:
