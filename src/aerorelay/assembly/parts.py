@@ -44,7 +44,13 @@ from ..planning.fleet import (
     FleetCapacitySettings,
     FleetPlanner,
 )
-from ..planning.network_bound import NETWORK_BOUND_VERSION, NetworkBound, NetworkBoundProblem, compute_network_bound
+from ..planning.network_bound import (
+    NETWORK_BOUND_VERSION,
+    NetworkBound,
+    NetworkBoundProblem,
+    compute_network_bound,
+    spliced,
+)
 from ..planning.network_generator import NetworkGenerator
 from ..planning.trajectory_generator import SurrogateParams
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
@@ -402,27 +408,42 @@ def scenario_bound_key(sc: Scenario) -> str:
     return bound_key(data)
 
 
-def network_bound_problem(sc: Scenario) -> NetworkBoundProblem:
-    """A fleet's network bound: its true scene, every source's path, every relay's hover tilt limit,
-    the workspace box, ``[bound]``'s network grid and time step, the network's separation."""
+def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> NetworkBoundProblem:
+    """A fleet's network bound (without the relays ``lost``): its true scene, every source's path,
+    every relay's hover tilt limit, the workspace box, ``[bound]``'s network grid and time step, the
+    network's separation."""
     b = sc.bound
     lo, hi = _workspace(sc)
-    vehicles = [build_vehicle(sc.platform_of(i)) for i in range(len(sc.relay_list))]
+    vehicles = {r.name: build_vehicle(sc.platform_of(i)) for i, r in enumerate(sc.relay_list)}
     return NetworkBoundProblem(
-        build_scene(sc), {s.name: source_trajectory(s.mission) for s in sc.source_list},
-        {r.name: v.hover_tilt_limit for r, v in zip(sc.relay_list, vehicles, strict=True)}, lo, hi, sc.duration_s,
+        build_scene(sc).without(lost), {s.name: source_trajectory(s.mission) for s in sc.source_list},
+        {name: v.hover_tilt_limit for name, v in vehicles.items() if name not in lost}, lo, hi, sc.duration_s,
         BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
-        vehicles[0].gravity, sc.channel.outage, sc.network.min_separation_m)
+        next(iter(vehicles.values())).gravity, sc.channel.outage, sc.network.min_separation_m)
 
 
 def network_bound(sc: Scenario, progress=None) -> NetworkBound:
-    """A fleet's network bound, computed once per geometry and cached."""
-    data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers", "bound",
-                                  "platform"})
-    data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
-             "kind": f"network {NETWORK_BOUND_VERSION}"}
-    return cached_bound(network_bound_problem(sc), bound_key(data), progress, compute=compute_network_bound, kind=NetworkBound)
+    """A fleet's network bound, computed once per geometry and cached; with relays lost in flight
+    (``relays.lost_at_s``), from each loss on the bound of the smaller fleet (each fleet's bound cached
+    on its own: the loss times are not in its key)."""
+    fleets = [(0.0, frozenset[str]()), *sc.losses]
+    parts = []
+    for i, (t, lost) in enumerate(fleets):
+        data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers",
+                                      "bound", "platform"})
+        for r in data.get("relays") or []:
+            r.pop("lost_at_s", None)
+        data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
+                 "kind": f"network {NETWORK_BOUND_VERSION}", **({"lost": sorted(lost)} if lost else {})}
+
+        def step(k, n, i=i):
+            if progress is not None:
+                progress(i * n + k, len(fleets) * n)
+
+        parts.append((t, cached_bound(network_bound_problem(sc, lost), bound_key(data), step, compute=compute_network_bound,
+                                      kind=NetworkBound)))
+    return parts[0][1] if len(parts) == 1 else spliced(parts)
 
 
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:
@@ -458,7 +479,15 @@ class FleetParts:
 
     def closed_loop(self) -> FleetLoop:
         return FleetLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
-                         settings=self.settings, separation_m=self.separation_m)
+                         settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
+                         replanner=self.replanner)
+
+    def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
+        """The planner of the fleet without the relays ``lost``, its references starting where the
+        others are (``positions``, m, world)."""
+        sc = self.scenario.without_relays(lost)
+        kept = [replace(r, start=np.asarray(positions[r.name], float)) for r in self.relays if r.name not in lost]
+        return fleet_planner(sc, self.scene.without(lost), kept)
 
 
 def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> FleetParts:

@@ -38,6 +38,9 @@ class RelayConfig(Strict):
                                                   "octo_tilted, quad_x) or an inline [platform] table; default: [platform]")
     controller: dict[str, Any] | None = Field(None, description="fields of [controller] this relay flies with instead "
                                               "of the shared ones (e.g. planner, mu, weights)")
+    lost_at_s: float | None = Field(None, gt=0.0, description="the relay is lost at this time, s (battery, fault): from "
+                                    "then on it is gone, every route through it skips it and the others re-plan; "
+                                    "before the mission's end; default: never")
 
     @field_validator("platform")
     @classmethod

@@ -129,6 +129,7 @@ class Scenario(Strict):
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
         self._separation_holds()
         self._one_time_grid()
+        self._losses_hold()
         for i in range(len(self.relay_list)):
             self.controller_of(i)
         steps = self.sim.plant_rate_hz * self.control_period_s
@@ -203,6 +204,37 @@ class Scenario(Strict):
                     raise ValueError(f"relays[{i}].controller.{f}: every relay of a fleet predicts on the shared "
                                      f"controller.{f} = {getattr(self.controller, f)} (they exchange their plans), got "
                                      f"{getattr(c, f)}")
+
+    def _losses_hold(self) -> None:
+        """``relays.lost_at_s``: before the mission's end, one relay at least never lost, no jammer aimed at a
+        relay that is lost."""
+        lost = {r.name: (i, r.lost_at_s) for i, r in enumerate(self.relay_list) if r.lost_at_s is not None}
+        for i, t in lost.values():
+            if t >= self.duration_s:
+                raise ValueError(f"relays[{i}].lost_at_s: {t:g} s must be before the mission's end ({self.duration_s:g} s)")
+        if lost and len(lost) == len(self.relay_list):
+            i = max(i for i, _ in lost.values())
+            raise ValueError(f"relays[{i}].lost_at_s: every relay would be lost; keep one relay at least (no lost_at_s)")
+        for i, j in enumerate(self.jammer_configs):
+            if j.point_at in lost:
+                raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is lost at {lost[j.point_at][1]:g} s "
+                                 "(relays.lost_at_s); aim the jammer at a node that stays")
+
+    @property
+    def losses(self) -> list[tuple[float, frozenset[str]]]:
+        """When relays are lost: ``(t, every relay lost by then)`` in time order (s); empty: none is."""
+        times = sorted({r.lost_at_s for r in self.relay_list if r.lost_at_s is not None})
+        return [(t, frozenset(r.name for r in self.relay_list if r.lost_at_s is not None and r.lost_at_s <= t))
+                for t in times]
+
+    def without_relays(self, lost: frozenset[str]) -> Scenario:
+        """The fleet with the relays ``lost`` gone: every route through one skips it (a route keeps its
+        source and the base station), no loss left to happen."""
+        relays = [r.model_copy(update={"lost_at_s": None}) for r in self.relay_list if r.name not in lost]
+        routes = [[n for n in route if n not in lost] for route in self.route_list]
+        routes = [r for i, r in enumerate(routes) if r not in routes[:i]]  # two routes may become one
+        network = self.network.model_copy(update={"routes": routes})
+        return self.model_copy(update={"relays": relays, "network": network})
 
     def _relay_field(self, i: int, what: str, *, legacy: str) -> str:
         return legacy if self.relays is None else f"relays[{i}].{what}"

@@ -164,7 +164,8 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
                             sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
                             outage_threshold=sc.channel.outage, wall_s=mission.wall_s, sim_s=mission.sim_s,
                             min_separation_m=sc.network.min_separation_m, workspace_min=ws.min, workspace_max=ws.max,
-                            box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m)
+                            box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
+                            losses=sc.losses)
     metrics["controller"] = mission.controller
     metrics["fallback_episodes"] = mission.fallback_episodes
     if mission.aborted is not None:
@@ -180,12 +181,23 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
 
 def network_efficiency(m: dict, bound: NetworkBound) -> None:
     """A fleet's efficiency against its network bound: the run's mean and minimum rate over the static
-    upper bound's (``capacity_efficiency_*``) and over the refined configuration's (``*_achieved``)."""
-    add_efficiencies(m, bound.summary(), (
-        ("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
-        ("capacity_efficiency_min", m["c_min"], bound.static.min(), "the static bound's minimum"),
-        ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
-        ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")))
+    upper bound's (``capacity_efficiency_*``) and over the refined configuration's (``*_achieved``);
+    with relays lost, before the first loss and from the last on, against the bound of the fleet
+    flying then (``*_before_loss``, ``*_after_loss``)."""
+    rows = [("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
+            ("capacity_efficiency_min", m["c_min"], bound.static.min(), "the static bound's minimum"),
+            ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
+            ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")]
+    losses, summary = m.get("losses", []), bound.summary()
+    if losses:
+        for label, part in (("before_loss", bound.t < losses[0]["t_s"] - 1e-9), ("after_loss", bound.t >= losses[-1]["t_s"] - 1e-9)):
+            if f"c_mean_{label}" in m and part.any():
+                summary[f"static_{label}"] = {"mean": float(bound.static[part].mean()), "min": float(bound.static[part].min())}
+                rows += [(f"capacity_efficiency_mean_{label}", m[f"c_mean_{label}"], bound.static[part].mean(),
+                          f"the static bound's mean {label.replace('_', ' ')}"),
+                         (f"capacity_efficiency_min_{label}", m[f"c_min_{label}"], bound.static[part].min(),
+                          f"the static bound's minimum {label.replace('_', ' ')}")]
+    add_efficiencies(m, summary, rows)
 
 
 def efficiency(value: float, best: float, what: str) -> tuple[float | None, str | None]:

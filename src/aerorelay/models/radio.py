@@ -259,6 +259,19 @@ class RadioScene:
         """The first node with this role."""
         return next(n.name for n in self.nodes if n.role == role)
 
+    def without(self, lost) -> RadioScene:
+        """The scene with the relays named in ``lost`` gone: every route through one skips it (two
+        routes that become one are one), the nodes removed; the jammers as they are (their powers
+        were set for the whole fleet)."""
+        lost = set(lost)
+        routes: list[tuple[str, ...]] = []
+        for r in self.all_routes:
+            kept = tuple(n for n in r if n not in lost)
+            if kept not in routes:
+                routes.append(kept)
+        nodes = tuple(n for n in self.nodes if n.name not in lost)
+        return replace(self, nodes=nodes, route=routes[0], routes=tuple(routes) if len(routes) > 1 else ())
+
     @property
     def all_routes(self) -> tuple[tuple[str, ...], ...]:
         """The routes data takes: ``routes``, or the one ``route``."""

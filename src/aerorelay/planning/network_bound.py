@@ -394,3 +394,28 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                   "tilt_limits_deg": {r: float(np.degrees(v)) for r, v in pb.tilt_limits.items()},
                   "separation_m": pb.separation_m, "grid_excess": max(excess, 0.0)}
     return NetworkBound(times, static, sp, achieved, ap, ax, solver.relays, resolution, pb.outage_threshold)
+
+
+def spliced(parts: list[tuple[float, NetworkBound]]) -> NetworkBound:
+    """One bound over a mission whose fleet shrinks: from each part's start time (s) on, that part's
+    bound (a fleet without the relays lost by then); the first part's relays, a relay's positions NaN
+    once it is gone. Every part on the same time grid."""
+    first = parts[0][1]
+    out = NetworkBound(first.t.copy(), first.static.copy(), first.static_positions.copy(), first.achieved.copy(),
+                       first.achieved_positions.copy(), first.achieved_axes.copy(), list(first.relays),
+                       dict(first.resolution), first.outage_threshold, first.assumptions)
+    phases = []
+    for t0, b in parts:
+        if not np.allclose(b.t, first.t):
+            raise ValueError("spliced network bound: the parts' time grids differ")
+        rows = first.t >= t0 - 1e-9
+        out.static[rows], out.achieved[rows] = b.static[rows], b.achieved[rows]
+        for arr, src in ((out.static_positions, b.static_positions), (out.achieved_positions, b.achieved_positions),
+                         (out.achieved_axes, b.achieved_axes)):
+            arr[rows] = np.nan
+            for k, name in enumerate(b.relays):
+                arr[rows, out.relays.index(name)] = src[rows, k]
+        phases.append({"from_s": float(t0), "relays": list(b.relays), "cells": b.resolution.get("cells"),
+                       "grid_excess": b.resolution.get("grid_excess")})
+    out.resolution["phases"] = phases
+    return out

@@ -1,5 +1,7 @@
 """Flies a fleet: every relay its own vehicle, NMPC (with its supervisor and fail-safe) and plant,
-every source its own mission, one fleet planner, the network's true channel.
+every source its own mission, one fleet planner, the network's true channel. A relay lost in flight
+(``losses``) is gone from then on: every route through it skips it, the planner is rebuilt for the
+smaller fleet from where the others are, and its columns read NaN (``qp_status`` "lost").
 
 The log names each vehicle's columns ``<node>.<quantity>`` (``r1.p_x``, ``r1.phi``,
 ``inspector.p_z``), each hop's SINR ``sinr.<tx>.<rx>``, each route's capacity ``capacity.<source>``
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -38,6 +41,8 @@ from .realtime import full_collections_paused
 VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
 SOURCE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi")
 SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
+GONE_CLEARANCE_M = 10.0  # a lost relay in another's separation constraint: the separation plus this below that relay's own
+# plan, never reached within a step (a fixed point 100 m or 1 km away scaled the constraint until the QP stopped converging)
 RELAY_STEP = ("pd_x", "pd_y", "pd_z", "solve_ms", "feedback_ms", "qp_ok", "qp_status", "fallback", "safety_violation")
 
 
@@ -52,8 +57,10 @@ class FleetRelay:
     start: np.ndarray
 
 
-def fleet_columns(relays: list[FleetRelay], sources: list[str], scene: RadioScene) -> list[str]:
-    """The fleet log's columns, in order."""
+def fleet_columns(relays: list[FleetRelay], sources: list[str], scene: RadioScene,
+                  hops: Sequence[tuple[str, str]] = ()) -> list[str]:
+    """The fleet log's columns, in order; ``hops``: links the network takes later (after a relay is
+    lost), logged after the scene's own."""
     cols = ["t"]
     for r in relays:
         n = r.vehicle.n_rotors
@@ -62,7 +69,7 @@ def fleet_columns(relays: list[FleetRelay], sources: list[str], scene: RadioScen
         cols += [f"{r.name}.{q}" for q in RELAY_STEP]
     for s in sources:
         cols += [f"{s}.{q}" for q in SOURCE_STATE]
-    cols += [f"sinr.{tx}.{rx}" for tx, rx in scene.hops]
+    cols += [f"sinr.{tx}.{rx}" for tx, rx in (*scene.hops, *(h for h in hops if h not in scene.hops))]
     cols += [f"capacity.{route[0]}" for route in scene.all_routes]
     cols += ["capacity", "jammer_on", "separation_min"]
     return cols + jammer_columns(scene)
@@ -71,6 +78,25 @@ def fleet_columns(relays: list[FleetRelay], sources: list[str], scene: RadioScen
 def column_type(name: str) -> type:
     """A fleet column's type: the one-relay log's type of its quantity (flags, the QP status), else float."""
     return LOG_COLUMN_TYPES.get(name.rsplit(".", 1)[-1], float)
+
+
+def gone_row(r: FleetRelay) -> dict[str, object]:
+    """A lost relay's columns at a step: NaN, its flags false, ``qp_status`` "lost"."""
+    n = r.vehicle.n_rotors
+    names = [*VEHICLE_STATE, *(f"Omega_{i}" for i in range(1, n + 1)), *(f"u_{i}" for i in range(1, n + 1)), *RELAY_STEP]
+    row: dict[str, object] = {f"{r.name}.{q}": math.nan for q in names}
+    return row | {f"{r.name}.qp_ok": False, f"{r.name}.qp_status": "lost", f"{r.name}.fallback": False,
+                  f"{r.name}.safety_violation": False}
+
+
+def route_neighbours(scene: RadioScene) -> dict[str, tuple[str, str]]:
+    """Each relay's two neighbours on its first route: (upstream, toward the base station), the nodes
+    its NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)."""
+    out: dict[str, tuple[str, str]] = {}
+    for route in scene.all_routes:
+        for i in range(1, len(route) - 1):
+            out.setdefault(route[i], (route[i - 1], route[i + 1]))
+    return out
 
 
 def separation_min(points: np.ndarray) -> float:
@@ -85,16 +111,19 @@ class FleetLoop:
     """Flies the fleet: ``run(progress)`` returns a MissionResult whose log is the fleet log."""
 
     def __init__(self, *, scene: RadioScene, relays: list[FleetRelay], sources: dict[str, SourceTrajectory],
-                 planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0):
+                 planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
+                 losses: Sequence[tuple[float, frozenset[str]]] = (),
+                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None):
+        """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(lost, positions)``
+        builds the planner of the fleet without ``lost`` from the survivors' positions (m, world)."""
+        if losses and replanner is None:
+            raise ValueError("FleetLoop: relays are lost in flight (losses) but no replanner builds the smaller fleet's planner")
         self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
         self.separation_m = separation_m
-        self.columns = fleet_columns(relays, list(sources), scene)
-        # each relay's two neighbours on its first route: (upstream, toward the base station), the nodes its
-        # NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)
-        self.neighbours_of: dict[str, tuple[str, str]] = {}
-        for route in scene.all_routes:
-            for i in range(1, len(route) - 1):
-                self.neighbours_of.setdefault(route[i], (route[i - 1], route[i + 1]))
+        self.losses, self.replanner = list(losses), replanner
+        later = [h for _, lost in self.losses for h in scene.without(lost).hops]
+        self.columns = fleet_columns(relays, list(sources), scene, later)
+        self.neighbours_of = route_neighbours(scene)
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
         self._bs_path = np.repeat(self.bs[:, None], relays[0].controller.spec.horizon + 1, axis=1)
         self.gravity = relays[0].vehicle.gravity
@@ -123,6 +152,14 @@ class FleetLoop:
             out[name] = constant_acceleration_path(s.p, s.v, s.a, tk)
         return out
 
+    def _lose(self, lost: frozenset[str], x: dict[str, np.ndarray]) -> None:
+        """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
+        others from where they are."""
+        assert self.replanner is not None  # checked in __init__
+        self.scene = self.scene.without(lost)
+        self.planner = self.replanner(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
+        self.neighbours_of = route_neighbours(self.scene)
+
     def run(self, progress=None) -> MissionResult:
         st = self.settings
         period = st.period_s
@@ -130,16 +167,22 @@ class FleetLoop:
         x = {r.name: r.vehicle.hover_state(r.start) for r in self.relays}
         u = {r.name: np.zeros(r.vehicle.n_rotors) for r in self.relays}
         log = new_log(self.columns, n_steps, column_type)
+        sinr_columns = [c for c in self.columns if c.startswith("sinr.")]
+        pending, lost = list(self.losses), frozenset[str]()
         wall0 = time.perf_counter()
         aborted, flown = None, n_steps
         with full_collections_paused():
             for k in range(n_steps):
                 t = k * period
+                while pending and t >= pending[0][0] - 1e-9:
+                    lost = pending.pop(0)[1]
+                    self._lose(lost, x)
+                flying = {n: xs for n, xs in x.items() if n not in lost}
                 src = {name: path.state(t) for name, path in self.sources.items()}
-                positions = {**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in src.items()},
+                positions = {**{n: xs[0:3].copy() for n, xs in flying.items()}, **{n: s.p for n, s in src.items()},
                              self.scene.name_of("base_station"): self.bs}
-                velocities = {**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in src.items()}}
-                eta = {**{n: xs[3:6] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in src.items()}}
+                velocities = {**{n: xs[6:9].copy() for n, xs in flying.items()}, **{n: s.v for n, s in src.items()}}
+                eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in src.items()}}
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
                 axes = {n: Rn[:, 2] for n, Rn in R.items()}
                 known = self._known_jammers(t)
@@ -149,10 +192,14 @@ class FleetLoop:
                 row: dict[str, object] = {"t": t}
                 predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 for r in self.relays:
+                    if r.name in lost:
+                        row |= gone_row(r)
+                        continue
                     up, down = self.neighbours_of[r.name]
                     others = None
                     if r.controller.spec.neighbours:
-                        others = np.vstack([q for n, q in predicted.items() if n != r.name])
+                        gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
+                        others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
                     zero = np.zeros(3)
                     P = r.controller.parameters(refs[r.name], zero, zero, zero, others, self.separation_m + SEPARATION_MARGIN_M,
                                                 p2_path=predicted[up], p0_path=predicted.get(down, self._bs_path))
@@ -171,17 +218,19 @@ class FleetLoop:
                 for name, s in src.items():
                     row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta[name]], strict=True)}
                 state = self.scene.evaluate(t, poses)
+                row |= dict.fromkeys(sinr_columns, math.nan)  # a hop the network does not take now
                 row |= {f"sinr.{tx}.{rx}": float(g) for (tx, rx), g in zip(state.hops, state.sinr, strict=True)}
                 row |= {f"capacity.{route[0]}": float(c) for route, c in zip(self.scene.all_routes, state.route_capacity,
                                                                             strict=True)}
                 row["capacity"] = float(state.capacity)
                 row["jammer_on"] = float(any(float(j.power_at(t)) > 0 for j in self.scene.jammers))
-                row["separation_min"] = separation_min(np.array([positions[n] for n in (*x, *src)]))
+                row["separation_min"] = separation_min(np.array([positions[n] for n in (*flying, *src)]))
                 row |= jammer_values(self.scene, t)
                 record_row(log, k, row, self.columns, "fleet log row")
                 for r in self.relays:
-                    x[r.name] = np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel()
-                bad = [n for n, xs in x.items() if not np.all(np.isfinite(xs))]
+                    if r.name not in lost:
+                        x[r.name] = np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel()
+                bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
                 if bad:
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1
                     break

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..control.nmpc import QpStatus
@@ -119,7 +121,8 @@ def estimation_metrics(log, period_s: float) -> dict:
 
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
-                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf) -> dict:
+                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf,
+                  losses: Sequence[tuple[float, frozenset[str]]] = ()) -> dict:
     """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
     ``outage_threshold``, alignment threshold ``mu``, in the workspace box (m). Capacities
     normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
@@ -170,12 +173,15 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
 
 def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], period_s: float, outage_threshold: float,
                   wall_s: float, sim_s: float, min_separation_m: float, workspace_min, workspace_max,
-                  box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf) -> dict:
+                  box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf,
+                  losses: Sequence[tuple[float, frozenset[str]]] = ()) -> dict:
     """Metrics of a fleet's flight (``sim.fleet`` log): the network's rate and every route's (minimum,
     mean, outage below ``outage_threshold``), the smallest separation between two vehicles (m),
     per relay its safety, tracking, energy and step times, and the fleet's step time (the relays'
     solve times summed per step, ms). Unsafe when a relay is, or two vehicles came closer than
-    ``min_separation_m`` (> 0)."""
+    ``min_separation_m`` (> 0). With relays lost in flight (``losses``: ``(t, every relay lost by
+    then)``), a relay's metrics cover the steps it flew, and the rate before the first loss and from
+    the last one on is given (``c_mean_before_loss``, ``c_mean_after_loss``, ...)."""
     cap = np.asarray(log["capacity"], float)
     out: dict = {"c_min": float(cap.min()), "c_mean": float(cap.mean()),
                  "outage_fraction": float(np.mean(cap < outage_threshold)), **outage_durations(cap < outage_threshold, period_s)}
@@ -184,20 +190,28 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
         c = np.asarray(log[f"capacity.{s}"], float)
         out["routes"][s] = {"c_min": float(c.min()), "c_mean": float(c.mean()),
                              "outage_fraction": float(np.mean(c < outage_threshold))}
+    if losses:
+        t = np.asarray(log["t"], float)
+        out["losses"] = [{"t_s": float(tl), "relays": sorted(lost)} for tl, lost in losses]
+        for label, rows in (("before_loss", t < losses[0][0] - 1e-9), ("after_loss", t >= losses[-1][0] - 1e-9)):
+            if rows.any():
+                out[f"c_mean_{label}"], out[f"c_min_{label}"] = float(cap[rows].mean()), float(cap[rows].min())
     sep = np.asarray(log["separation_min"], float)
     out["separation_min_m"] = float(sep.min())
     fleet_ms = np.zeros(cap.size)
     reasons = []
     for name, veh in relays.items():
-        def col(q, name=name):
-            return np.asarray(log[f"{name}.{q}"])
+        flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))  # a lost relay's steps read NaN
+
+        def col(q, name=name, flew=flew):
+            return np.asarray(log[f"{name}.{q}"])[flew]
         p = np.column_stack([col("p_x"), col("p_y"), col("p_z")]).astype(float)
         pd = np.column_stack([col("pd_x"), col("pd_y"), col("pd_z")]).astype(float)
         speeds = np.column_stack([col(f"Omega_{i}") for i in range(1, veh.n_rotors + 1)]).astype(float)
         inputs = np.column_stack([col(f"u_{i}") for i in range(1, veh.n_rotors + 1)]).astype(float)
         tilt = np.degrees(np.arccos(np.clip(np.cos(col("phi").astype(float)) * np.cos(col("theta").astype(float)), -1, 1)))
         solve = col("solve_ms").astype(float)
-        fleet_ms += solve
+        fleet_ms[flew] += solve
         safety = safety_metrics(p, tilt, col("safety_violation").astype(bool), workspace_min, workspace_max,
                                 box_tolerance_m, ground_z_m)
         out["relays"][name] = {
@@ -210,6 +224,9 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
             "solve_ms": stats_ms(solve),
             **saturation_metrics(speeds, inputs, veh),
         }
+        lost_at = [tl for tl, lost in losses if name in lost]
+        if lost_at:
+            out["relays"][name]["lost_at_s"] = lost_at[0]
         if safety["unsafe"]:
             reasons.append(f"relay {name!r}: {safety['unsafe_reason']}")
     if min_separation_m > 0 and sep.min() < min_separation_m:

@@ -10,11 +10,12 @@ DIMENSIONLESS = "1"
 # metric-name endings and the unit they carry (longest ending first)
 SUFFIX_UNITS = (("_hz_s", "Hz/s"), ("_fraction", DIMENSIONLESS), ("_ms", "ms"), ("_kJ", "kJ"), ("_deg", "deg"),
                 ("_hz", "Hz"), ("_m", "m"), ("_s", "s"))
-CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold")
+CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", "c_mean_before_loss", "c_min_after_loss",
+                    "c_mean_after_loss")
 SPECTRAL = "bit/s/Hz"
 COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "reference_clipped_steps")
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
-                  "aborted", "reference_clipped_first", "bound")
+                  "aborted", "reference_clipped_first", "bound", "losses")
 
 
 def metric_unit(key: str, capacity_unit: str) -> str | None:
