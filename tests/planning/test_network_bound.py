@@ -167,3 +167,33 @@ def test_the_separation_keeps_relays_off_the_nodes_where_high_snr_would_collapse
     kept = compute_network_bound(NetworkBoundProblem(**{**pb.__dict__, "separation_m": 3.0}))
     assert min(gaps(kept.static_positions[0])) >= 3.0 - 1e-9 and min(gaps(kept.achieved_positions[0])) >= 3.0 - 1e-6
     assert kept.static[0] < free.static[0]
+
+
+def test_the_offset_table_gives_every_pairs_term_as_its_link_computed_alone():
+    """A path gain of the length alone: each relay-relay link's term read from the grid's table of
+    displacements equals the formula on the two cells, 1 / log2(1 + P g_tx(sin e) g_rx(-sin e) / d^2 / (I + N))
+    (each end's best holdable gain), both directions; and the per-link route gives the same numbers."""
+    sc = scene(["r1", "r2"], DipolePattern(), [["s", "r1", "r2", "bs"]], jammer=[6.0, -6.0, 1.0])
+    solver = NetworkBoundSolver(problem(sc, {"s": still([14.0, 2.0, 4.0])}, ["r1", "r2"], [0, -3, 1], [12, 3, 5], 2.0))
+    assert solver.offsets is not None and not solver.offsets.vectors[len(solver.offsets.vectors) // 2].any()
+    poses = solver.fixed_poses(0.0)
+    interference = {r: solver.least_interference(0.0, r, poses) for r in solver.relays}
+    table = solver.pair_terms("r1", "r2", slice(3, 40), interference)
+    back = solver.pair_terms("r1", "r2", slice(3, 40), interference, rows_are_tx=False)
+    rng = np.random.default_rng(3)
+    for i, j in zip(rng.integers(3, 40, 200), rng.integers(0, len(solver.cells), 200), strict=True):
+        for tx, rx, got in ((i, j, table[i - 3, j]), (j, i, back[i - 3, j])):
+            d = solver.cells[rx] - solver.cells[tx]
+            n = np.linalg.norm(d)
+            if n == 0:
+                assert got == np.inf  # one cell: no link
+                continue
+            g = solver.best["r1"](d[2] / n) * solver.best["r2"](-d[2] / n)
+            assert got == pytest.approx(1.0 / np.log2(1.0 + g / n**2 / (interference["r2"][rx] + 1.0)), rel=1e-12)
+    solver.offsets = None  # the per-link route: every link from its two cells
+    np.testing.assert_allclose(solver.pair_terms("r1", "r2", slice(3, 40), interference), table, rtol=1e-12)
+
+
+def test_a_path_gain_of_the_ends_heights_is_not_read_from_the_offset_table():
+    from aerorelay.models.propagation import PathGain, RmaAvPathGain
+    assert PathGain.free_space(2.4e9).distance_only and not RmaAvPathGain().distance_only

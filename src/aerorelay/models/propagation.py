@@ -71,6 +71,12 @@ class PathGain:
         here; models that need the ends' heights override it (numpy or CasADi)."""
         return self.gain_from_d2(d2)
 
+    @property
+    def distance_only(self) -> bool:
+        """Whether the gain depends on the link's length alone (not on where its ends are): then a
+        link's gain is the same for every translation of it."""
+        return type(self).gain_between is PathGain.gain_between
+
     def describe(self) -> str:
         return f"path gain {self.scale:.4g} d^-{self.exponent:g}"
 

@@ -169,6 +169,29 @@ def relay_forest(routes: Sequence[Sequence[str]], relays: Sequence[str]) -> tupl
     return [(r, o, is_tx, n) for (r, o, is_tx), n in unary.items()], pairs
 
 
+class OffsetTable:
+    """Every displacement between two cells of a regular grid of ``shape`` cells ``step`` m apart
+    (``vectors``, ``(2 nx - 1) (2 ny - 1) (2 nz - 1)`` of them, m) and, for a block of cells against
+    every cell, the index of their displacement in it (one subtraction: the cells' flat offsets are
+    linear in their grid indices)."""
+
+    def __init__(self, shape: Sequence[int], step: float):
+        n = np.asarray(shape, np.int64)
+        span = 2 * n - 1
+        strides = np.array([span[1] * span[2], span[2], 1], np.int64)
+        ix = np.indices(tuple(int(k) for k in n)).reshape(3, -1).T  # each cell's grid index, in position_grid's (ij) order
+        self.flat = ix @ strides
+        self.centre = int((n - 1) @ strides)
+        o = np.indices(tuple(int(k) for k in span)).reshape(3, -1).T - (n - 1)
+        self.vectors = o * float(step)
+
+    def between(self, rows: slice, rows_are_tx: bool) -> np.ndarray:
+        """``(rows, M)`` indices into ``vectors`` of the link from ``rows`` to every cell
+        (``rows_are_tx``), or from every cell to ``rows``."""
+        here, there = self.flat[rows][:, None], self.flat[None, :]
+        return (there - here if rows_are_tx else here - there) + self.centre
+
+
 class NetworkBoundSolver:
     """The per-instant bound on a fixed grid (one instance per problem)."""
 
@@ -181,9 +204,13 @@ class NetworkBoundSolver:
             raise ValueError(f"network bound: jammer(s) {aimed} aim at a relay, whose place the bound searches; not supported")
         res = pb.resolution
         self.lo, self.hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
-        _, self.cells = position_grid(self.lo, self.hi, res.grid_m)
+        grid, self.cells = position_grid(self.lo, self.hi, res.grid_m)
         self.best = {r: BestGain(pb.scene.node(r).antenna.pattern, pb.tilt_limits[r]) for r in self.relays}
         self.cones = {r: axis_cone(pb.tilt_limits[r], np.radians(res.axis_step_deg)) for r in self.relays}
+        self.offsets = OffsetTable([len(g) for g in grid], res.grid_m) if pb.scene.path_gain.distance_only else None
+        zero = np.zeros(3)
+        self.signal = {} if self.offsets is None else {(tx, rx): self._signal(tx, rx, zero, self.offsets.vectors)
+                                                       for tx, rx in self.pairs}
 
     # -- channel pieces -------------------------------------------------------------------
     def fixed_poses(self, t: float) -> dict[str, NodePose]:
@@ -213,9 +240,10 @@ class NetworkBoundSolver:
         return i.min(axis=1)
 
     def _term(self, gamma):
+        """``1 / log2(1 + Gamma)``, inf for a dead hop (Gamma = 0)."""
+        se = spectral_efficiency(gamma)
         with np.errstate(divide="ignore"):
-            se = spectral_efficiency(gamma)
-            return np.where(se > 0, 1.0 / np.where(se > 0, se, 1.0), np.inf)
+            return np.reciprocal(se, out=se) if isinstance(se, np.ndarray) else 1.0 / se
 
     def _too_close(self, poses) -> np.ndarray:
         """``(M,)``: inf at the cells closer than the separation to a source or the base station, else 0."""
@@ -248,20 +276,32 @@ class NetworkBoundSolver:
             out[r] = out[r] + count * self._term(gamma)
         return out
 
-    def pair_terms(self, tx: str, rx: str, rows: slice, interference, rows_are_tx: bool = True) -> np.ndarray:
-        """``(rows, M)``: the relaxed term of the hop ``tx -> rx`` with the cells of ``rows`` for ``tx``
-        (``rows_are_tx``) or for ``rx``, and every cell for the other end."""
-        b = self.scene.budget
-        here, there = self.cells[rows][:, None, :], self.cells[None, :, :]
-        p_tx, p_rx = (here, there) if rows_are_tx else (there, here)
-        i_rx = interference[rx][None, :] if rows_are_tx else interference[rx][rows][:, None]
+    def _signal(self, tx: str, rx: str, p_tx: np.ndarray, p_rx: np.ndarray) -> np.ndarray:
+        """The relaxed received power of the hop ``tx -> rx`` between ``p_tx`` and ``p_rx`` (m, world,
+        broadcast), W: ``P_U g_tx g_rx h``, each end's best holdable gain toward the other; 0 for a link
+        shorter than the separation (not a place the pair may take) or of zero length (one cell)."""
         d, d2, path = self._path(p_tx, p_rx)
         with np.errstate(divide="ignore", invalid="ignore"):
             sin_e = d[..., 2] / np.sqrt(d2)
-            g = self.best[tx](sin_e) * self.best[rx](-sin_e)
-            gamma = np.nan_to_num(g * path * b.tx_power / (i_rx + b.noise_power), nan=0.0, posinf=0.0)
+            s = np.nan_to_num(self.best[tx](sin_e) * self.best[rx](-sin_e) * path * self.scene.budget.tx_power, nan=0.0,
+                              posinf=0.0)
         if self.pb.separation_m > 0:
-            gamma = np.where(d2 < self.pb.separation_m**2, 0.0, gamma)  # too close: not a place the pair may take
+            s = np.where(d2 < self.pb.separation_m**2, 0.0, s)
+        return s
+
+    def pair_terms(self, tx: str, rx: str, rows: slice, interference, rows_are_tx: bool = True) -> np.ndarray:
+        """``(rows, M)``: the relaxed term of the hop ``tx -> rx`` with the cells of ``rows`` for ``tx``
+        (``rows_are_tx``) or for ``rx``, and every cell for the other end. A path gain of the length
+        alone reads each link's signal from the grid's offset table (computed once), else per link."""
+        b = self.scene.budget
+        i_rx = interference[rx][None, :] if rows_are_tx else interference[rx][rows][:, None]
+        if self.offsets is not None:
+            s = self.signal[tx, rx][self.offsets.between(rows, rows_are_tx)]
+        else:
+            here, there = self.cells[rows][:, None, :], self.cells[None, :, :]
+            s = self._signal(tx, rx, *((here, there) if rows_are_tx else (there, here)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gamma = s / (i_rx + b.noise_power)
         return self._term(gamma)
 
     # -- min-sum on the forest ----------------------------------------------------------------
