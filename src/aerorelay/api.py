@@ -29,10 +29,10 @@ from ._version import __version__
 from .assembly import load_scenario, parse_scenario
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
-from .assembly.parts import build, build_scene, network_bound, nmpc_settings, scenario_bound
+from .assembly.parts import build, build_fleet, build_scene, network_bound, nmpc_settings, scenario_bound
 from .assembly.vehicle import build_vehicle
 from .config import Scenario, ScenarioError
-from .control.bench import benchmark_closed_loop
+from .control.bench import benchmark_closed_loop, benchmark_fleet
 from .control.nmpc import NmpcSettings
 from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
@@ -118,7 +118,15 @@ def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
 
 
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
-    """Time the controller on a mission (preparation, feedback, planner; IPOPT at a few states)."""
+    """Time the controller on a mission (preparation, feedback, planner; IPOPT at a few states); a
+    fleet's per relay, its planner's and the fleet's step (``control.bench.benchmark_fleet``)."""
+    if sc.is_fleet:
+        warm = sc.without_relays(frozenset()).with_updates({"sim.duration_s": 0.1})  # compile / load first (no loss in 0.1 s)
+        build_fleet(warm, nmpc_settings=settings).closed_loop().run()
+        res = benchmark_fleet(build_fleet(sc, nmpc_settings=settings).closed_loop())
+        res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
+        res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.network.planner} fleet planner)"
+        return res
     build(sc.with_updates({"sim.duration_s": 0.1}), nmpc_settings=settings).closed_loop().run()  # compile / load first
     parts = build(sc, nmpc_settings=settings)
     res = benchmark_closed_loop(parts.closed_loop(), ipopt_points=ipopt_points)

@@ -370,10 +370,12 @@ def bench(
                                  accept_tol=accept_tol)
     except ValueError as exc:
         _fail(str(exc))
-    if sc.is_fleet:
-        _fail("bench times one relay's controller; a fleet's step times per relay and for the fleet are in its run's "
-              "metrics.json (relays.<name>.solve_ms, fleet_solve_ms)")
     res = api.bench(sc, settings, ipopt_points=ipopt_points)
+    if sc.is_fleet:
+        _print_fleet_bench(res)
+        if json_out is not None:
+            json_out.write_text(api.strict_json_text(res))
+        return
     t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
     t.add_column("timing (ms)")
     for c in ("mean", "p50", "p95", "p99", "max"):
@@ -404,6 +406,27 @@ def bench(
                       f"(IPOPT converged {res['ipopt_converged']})", markup=False, highlight=False)
     if json_out is not None:
         json_out.write_text(api.strict_json_text(res))
+
+
+def _print_fleet_bench(res: dict) -> None:
+    """``aerorelay bench`` of a fleet: each relay's step, the planner's and the fleet's."""
+    stats = ("mean", "p50", "p95", "p99", "max")
+    t = Table(title=f"bench: {res['scenario']}, {res['steps']} steps, {res['sim_s']:.1f} s simulated")
+    t.add_column("timing (ms)")
+    for c in stats:
+        t.add_column(c, justify="right")
+    rows = [(f"{name}: {key.removesuffix('_ms')}", r[key]) for name, r in res["relays"].items()
+            for key in ("preparation_ms", "feedback_ms", "step_ms")]
+    rows += [("fleet planner", res["planner_ms"]), ("fleet, one computer", res["fleet_step_one_computer_ms"]),
+             ("fleet, a computer per relay", res["fleet_step_own_computers_ms"])]
+    for label, v in rows:
+        t.add_row(label, *[f"{v[c]:.3f}" for c in stats])
+    console.print(t)
+    misses = ", ".join(f"{n} {r['deadline_misses']}" for n, r in res["relays"].items())
+    console.print(f"wall {res['wall_s']:.1f} s for {res['sim_s']:.1f} s simulated (x{res['real_time_factor']:.2f} real time); "
+                  f"deadline misses vs {res['control_period_ms']:g} ms period: per relay {misses}; fleet on one computer "
+                  f"{res['deadline_misses_one_computer']}, a computer per relay {res['deadline_misses_own_computers']}; "
+                  f"QP failures: {res['qp_failures']}; fail-safe episodes: {res['fallback_episodes']}", markup=False, highlight=False)
 
 
 @app.command()

@@ -91,3 +91,46 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         out["ipopt_converged"] = f"{ok}/{len(points)}"
         out["ipopt_over_rti_mean"] = float(np.mean(times) / whole.mean())
     return out
+
+
+def benchmark_fleet(loop) -> dict:
+    """Fly ``loop`` (a FleetLoop) and time it: each relay's controller step (preparation, feedback,
+    deadline misses, over the steps it flew), the fleet planner's step, and the fleet's step two ways:
+    one computer flying every relay in turn (the relays' steps and the planner's summed) and each
+    relay on its own computer (the slowest relay's step plus the planner's). Times in ms."""
+    collections: dict = {}
+    wall0 = time.perf_counter()
+    with collections_counted(collections):
+        result = loop.run()
+    wall = time.perf_counter() - wall0
+    log, period_ms = result.log, loop.settings.period_s * 1e3
+    planner = np.asarray(loop.planner_ms, float)[: len(log["t"])]
+    summed, slowest = planner.copy(), np.zeros_like(planner)
+    relays = {}
+    for r in loop.relays:
+        step = np.asarray(log[f"{r.name}.solve_ms"], float)
+        feedback = np.asarray(log[f"{r.name}.feedback_ms"], float)
+        flew = np.isfinite(step)  # a relay lost in flight times nothing after
+        summed[flew] += step[flew]
+        slowest = np.maximum(slowest, np.where(flew, step, 0.0))
+        relays[r.name] = {"preparation_ms": stats_ms(step[flew] - feedback[flew]), "feedback_ms": stats_ms(feedback[flew]),
+                          "step_ms": stats_ms(step[flew]), "deadline_misses": int(np.sum(step[flew] > period_ms)),
+                          "qp_failures": r.controller.nmpc.failures, "steps": int(flew.sum())}
+    own = slowest + planner
+    return {
+        "steps": int(len(planner)),
+        "sim_s": result.sim_s,
+        "wall_s": wall,
+        "real_time_factor": result.sim_s / wall,
+        "relays": relays,
+        "planner_ms": stats_ms(planner),
+        "fleet_step_one_computer_ms": stats_ms(summed),
+        "fleet_step_own_computers_ms": stats_ms(own),
+        "control_period_ms": period_ms,
+        "deadline_misses_one_computer": int(np.sum(summed > period_ms)),
+        "deadline_misses_own_computers": int(np.sum(own > period_ms)),
+        "qp_failures": result.qp_failures,
+        "fallback_episodes": result.fallback_episodes,
+        "c_min": float(np.min(log["capacity"])),
+        "garbage_collections": collections,
+    }

@@ -121,6 +121,7 @@ class FleetLoop:
         self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
         self.separation_m = separation_m
         self.losses, self.replanner = list(losses), replanner
+        self.planner_ms: list[float] = []  # the fleet planner's time per step, ms (aerorelay bench)
         later = [h for _, lost in self.losses for h in scene.without(lost).hops]
         self.columns = fleet_columns(relays, list(sources), scene, later)
         self.neighbours_of = route_neighbours(scene)
@@ -186,9 +187,11 @@ class FleetLoop:
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
                 axes = {n: Rn[:, 2] for n, Rn in R.items()}
                 known = self._known_jammers(t)
+                t0 = time.perf_counter()
                 refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities, axes=axes,
                                                       accelerations={n: s.a for n, s in src.items()},
                                                       jammer_positions=known[0], jammer_powers=known[1]))
+                self.planner_ms.append((time.perf_counter() - t0) * 1e3)
                 row: dict[str, object] = {"t": t}
                 predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 for r in self.relays:
