@@ -420,7 +420,8 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
         {name: v.hover_tilt_limit for name, v in vehicles.items() if name not in lost}, lo, hi, sc.duration_s,
         BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
-        next(iter(vehicles.values())).gravity, sc.channel.outage, sc.network.min_separation_m)
+        next(iter(vehicles.values())).gravity, sc.channel.outage, sc.network.min_separation_m,
+        {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost})
 
 
 def network_bound(sc: Scenario, progress=None) -> NetworkBound:
@@ -434,6 +435,7 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
                                       "bound", "platform"})
         for r in data.get("relays") or []:
             r.pop("lost_at_s", None)
+        data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
         data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
                  "kind": f"network {NETWORK_BOUND_VERSION}", **({"lost": sorted(lost)} if lost else {})}
 

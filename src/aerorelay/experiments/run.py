@@ -181,7 +181,8 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
 
 def network_efficiency(m: dict, bound: NetworkBound) -> None:
     """A fleet's efficiency against its network bound: the run's mean and minimum rate over the static
-    upper bound's (``capacity_efficiency_*``) and over the refined configuration's (``*_achieved``);
+    upper bound's (``capacity_efficiency_*``), over the refined configuration's (``*_achieved``) and
+    over the flyable fleet path's (``*_flyable``, without losses);
     with relays lost, before the first loss and from the last on, against the bound of the fleet
     flying then (``*_before_loss``, ``*_after_loss``)."""
     rows = [("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
@@ -189,6 +190,9 @@ def network_efficiency(m: dict, bound: NetworkBound) -> None:
             ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
             ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")]
     losses, summary = m.get("losses", []), bound.summary()
+    if "flyable" in summary and not losses:  # against the flyable fleet path (a lower estimate of the best path)
+        rows += [("capacity_efficiency_mean_flyable", m["c_mean"], summary["flyable"]["mean"], "the flyable fleet path's mean"),
+                 ("capacity_efficiency_min_flyable", m["c_min"], summary["flyable"]["min"], "the flyable fleet path's minimum")]
     if losses:
         for label, part in (("before_loss", bound.t < losses[0]["t_s"] - 1e-9), ("after_loss", bound.t >= losses[-1]["t_s"] - 1e-9)):
             if f"c_mean_{label}" in m and part.any():

@@ -41,8 +41,9 @@ from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, position_grid
+from .feasible_path import speed_limited
 
-NETWORK_BOUND_VERSION = "3"  # bump when the computation changes: cached network bounds are recomputed
+NETWORK_BOUND_VERSION = "4"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
 ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere on the position grid of the workspace box at least the "
@@ -71,6 +72,7 @@ class NetworkBoundProblem:
     gravity: float = 9.81
     outage_threshold: float = 1e-3
     separation_m: float = 0.0  # every relay at least this far (m) from the fixed nodes and its route neighbours
+    starts: Mapping[str, np.ndarray] = field(default_factory=dict)  # each relay's start (m, world): the flyable path's
 
 
 @dataclass
@@ -89,6 +91,11 @@ class NetworkBound:
     resolution: dict = field(default_factory=dict)
     outage_threshold: float = 1e-3
     assumptions: str = ASSUMPTIONS
+    # the flyable fleet path (a lower estimate of the best fleet path; empty: not computed): its true rate
+    # ``(T,)`` (NaN after a relay is lost), positions and axes ``(T, K, 3)``
+    flyable: np.ndarray = field(default_factory=lambda: np.empty(0))
+    flyable_positions: np.ndarray = field(default_factory=lambda: np.empty((0, 0, 3)))
+    flyable_axes: np.ndarray = field(default_factory=lambda: np.empty((0, 0, 3)))
 
     def __post_init__(self):
         self.relays = [str(r) for r in self.relays]  # a cached bound's names come back as a numpy array
@@ -98,21 +105,32 @@ class NetworkBound:
         def stats(c: np.ndarray) -> dict:
             return {"mean": float(c.mean()), "min": float(c.min()), "outage_fraction": float(np.mean(c < self.outage_threshold))}
 
-        return {"static": stats(self.static), "achieved": stats(self.achieved), "relays": self.relays,
-                "resolution": self.resolution, "assumptions": self.assumptions}
+        out = {"static": stats(self.static), "achieved": stats(self.achieved), "relays": self.relays,
+               "resolution": self.resolution, "assumptions": self.assumptions}
+        flown = self.flyable[np.isfinite(self.flyable)]
+        if flown.size:
+            out["flyable"] = {**stats(flown), "until_s": float(self.t[: flown.size][-1])}
+        return out
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {"t": self.t, "static": self.static, "static_positions": self.static_positions, "achieved": self.achieved,
                 "achieved_positions": self.achieved_positions, "achieved_axes": self.achieved_axes,
-                "relays": np.array(self.relays)}
+                "relays": np.array(self.relays), "flyable": self.flyable, "flyable_positions": self.flyable_positions,
+                "flyable_axes": self.flyable_axes}
 
     def frame(self) -> pd.DataFrame:
         cols: dict[str, np.ndarray] = {"t": self.t, "static": self.static, "achieved": self.achieved}
+        fly = len(self.flyable) == len(self.t)
+        if fly:
+            cols["flyable"] = self.flyable
         for k, name in enumerate(self.relays):
             for i, ax in enumerate("xyz"):
                 cols[f"static.{name}.p_{ax}"] = self.static_positions[:, k, i]
                 cols[f"achieved.{name}.p_{ax}"] = self.achieved_positions[:, k, i]
                 cols[f"achieved.{name}.axis_{ax}"] = self.achieved_axes[:, k, i]
+                if fly:
+                    cols[f"flyable.{name}.p_{ax}"] = self.flyable_positions[:, k, i]
+                    cols[f"flyable.{name}.axis_{ax}"] = self.flyable_axes[:, k, i]
         return pd.DataFrame(cols)
 
 
@@ -365,11 +383,9 @@ class NetworkBoundSolver:
         with np.errstate(divide="ignore", invalid="ignore"):
             return float(np.nan_to_num(self.scene.evaluate(t, {**poses, **relay_poses}).capacity, nan=0.0))
 
-    def refine(self, t: float, cells: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """The grid chain refined on the true rate: each relay's best cone axis there (one at a time),
-        then L-BFGS-B over every position and (tilt, azimuth) jointly inside the box and tilt limits."""
-        poses = self.fixed_poses(t)
-        P = self.cells[cells].copy()
+    def best_axes(self, t: float, P: np.ndarray, poses) -> np.ndarray:
+        """Each relay's best axis of its cone for the relays at ``P`` ``(K, 3)`` on the true rate, one
+        relay at a time, twice round (``(K, 3)``, unit, world)."""
         A = np.tile([0.0, 0.0, 1.0], (len(self.relays), 1))
         for _ in range(2):
             for k, r in enumerate(self.relays):
@@ -378,6 +394,36 @@ class NetworkBoundSolver:
                     A[k] = a
                     scores.append(self.rate(t, P, A, poses))
                 A[k] = self.cones[r][int(np.argmax(scores))]
+        return A
+
+    def flyable(self, times: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """The flyable fleet path: each relay from its start (at rest) chasing its refined place
+        ``targets`` ``(T, K, 3)`` at most ``max_speed_m_s`` and changing its move by at most
+        ``max_accel_m_s2`` per sample (``feasible_path.speed_limited``), with each relay's best cone axis
+        at each sample (holdable in hover). Its true rate ``(T,)``, positions and axes ``(T, K, 3)``, and
+        the closest it brings a relay to another vehicle or the base station (m)."""
+        res = self.pb.resolution
+        dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
+        dv = None if res.max_accel_m_s2 is None else res.max_accel_m_s2 * dt**2
+        P = np.stack([speed_limited(targets[:, k], self.pb.starts[r], res.max_speed_m_s * dt, dv)
+                      for k, r in enumerate(self.relays)], axis=1)
+        rate, A, closest = np.empty(len(times)), np.empty_like(P), np.inf
+        for i, t in enumerate(times):
+            poses = self.fixed_poses(float(t))
+            A[i] = self.best_axes(float(t), P[i], poses)
+            rate[i] = self.rate(float(t), P[i], A[i], poses)
+            others = np.array([p.position for p in poses.values()])
+            gaps = [np.linalg.norm(others - q, axis=1).min() for q in P[i]]
+            gaps += [np.linalg.norm(P[i, a] - P[i, b]) for a in range(len(P[i])) for b in range(a + 1, len(P[i]))]
+            closest = min(closest, float(min(gaps)))
+        return rate, P, A, closest
+
+    def refine(self, t: float, cells: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """The grid chain refined on the true rate: each relay's best cone axis there (one at a time),
+        then L-BFGS-B over every position and (tilt, azimuth) jointly inside the box and tilt limits."""
+        poses = self.fixed_poses(t)
+        P = self.cells[cells].copy()
+        A = self.best_axes(t, P, poses)
         limits = [self.pb.tilt_limits[r] for r in self.relays]
         tilt0 = np.arccos(np.clip(A[:, 2], -1, 1))
         az0 = np.arctan2(A[:, 1], A[:, 0])
@@ -433,17 +479,27 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                   "times": int(len(times)), "method": f"min-sum dynamic programming on the relays' {method}",
                   "tilt_limits_deg": {r: float(np.degrees(v)) for r, v in pb.tilt_limits.items()},
                   "separation_m": pb.separation_m, "grid_excess": max(excess, 0.0)}
-    return NetworkBound(times, static, sp, achieved, ap, ax, solver.relays, resolution, pb.outage_threshold)
+    fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
+    if set(pb.starts) >= set(solver.relays):
+        fr, fp, fa, closest = solver.flyable(times, ap)
+        resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
+                       "flyable_closest_m": closest}
+    return NetworkBound(times, static, sp, achieved, ap, ax, solver.relays, resolution, pb.outage_threshold,
+                        flyable=fr, flyable_positions=fp, flyable_axes=fa)
 
 
 def spliced(parts: list[tuple[float, NetworkBound]]) -> NetworkBound:
     """One bound over a mission whose fleet shrinks: from each part's start time (s) on, that part's
     bound (a fleet without the relays lost by then); the first part's relays, a relay's positions NaN
-    once it is gone. Every part on the same time grid."""
+    once it is gone; the flyable path until the first loss. Every part on the same time grid."""
     first = parts[0][1]
     out = NetworkBound(first.t.copy(), first.static.copy(), first.static_positions.copy(), first.achieved.copy(),
                        first.achieved_positions.copy(), first.achieved_axes.copy(), list(first.relays),
-                       dict(first.resolution), first.outage_threshold, first.assumptions)
+                       dict(first.resolution), first.outage_threshold, first.assumptions, first.flyable.copy(),
+                       first.flyable_positions.copy(), first.flyable_axes.copy())
+    if len(out.flyable) and len(parts) > 1:  # the full fleet's flyable path, until the first loss (not flown after)
+        after = out.t >= parts[1][0] - 1e-9
+        out.flyable[after], out.flyable_positions[after], out.flyable_axes[after] = np.nan, np.nan, np.nan
     phases = []
     for t0, b in parts:
         if not np.allclose(b.t, first.t):
