@@ -30,6 +30,11 @@ SCALAR_METRICS = (
     "estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimation_err_mean_m", "estimation_err_final_m",
     "estimation_std_final_m", "estimator_ms.mean", "estimator_ms.p99", "estimation_crlb_first_1m_s", "estimation_crlb_10s_m",
     "estimation_within_1m_after_bound",
+    # fleets (sim.metrics.fleet_metrics): the network bound, the closest two vehicles, a relay lost in flight
+    "capacity_efficiency_mean_achieved", "capacity_efficiency_min_achieved", "bound.static.mean", "bound.static.min",
+    "bound.achieved.mean", "bound.flyable.mean", "bound.flyable.min", "separation_min_m", "fleet_solve_ms.mean", "fleet_solve_ms.p99", "c_mean_before_loss",
+    "c_min_before_loss", "c_mean_after_loss", "c_min_after_loss", "capacity_efficiency_mean_before_loss",
+    "capacity_efficiency_mean_after_loss", "capacity_efficiency_min_after_loss",
 )
 
 
@@ -38,6 +43,15 @@ def metric(m: dict, dotted: str):
     for part in dotted.split("."):
         v = v[part]
     return v
+
+
+def has_metric(m: dict, dotted: str) -> bool:
+    """Whether ``m`` holds the (dotted) metric as a number (a one-relay bound has no ``bound.static``)."""
+    try:
+        v = metric(m, dotted)
+    except (KeyError, TypeError):
+        return False
+    return v is None or isinstance(v, int | float)
 
 
 def _load_metrics(out: Path, spec: RunSpec) -> dict | None:
@@ -72,7 +86,7 @@ def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
             continue
         entry: dict = {"n": len(ms), "runs": [r.key for r in runs]}
         for key in SCALAR_METRICS:
-            if not all(key.split(".")[0] in m for m in ms):  # e.g. efficiency only where a bound was computed
+            if not all(has_metric(m, key) for m in ms):  # e.g. efficiency only where a bound was computed
                 continue
             vals = np.asarray([metric(m, key) for m in ms], dtype=float)
             entry[key] = float(vals.mean())
