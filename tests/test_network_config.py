@@ -186,5 +186,3 @@ def test_what_a_fleet_does_not_fly_yet_is_named_before_any_work(tmp_path):
     noisy = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--set", "perturbations.csi_noise_m=0.1"])
     assert noisy.exit_code == 2 and "a fleet flies the deterministic channel so far" in noisy.output, noisy.output
     assert not (tmp_path / "r").exists()
-    bench = CliRunner().invoke(app, ["bench", str(f)])
-    assert bench.exit_code == 2 and "fleet_solve_ms" in bench.output, bench.output

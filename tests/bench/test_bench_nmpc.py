@@ -1,4 +1,5 @@
-"""pytest-benchmark timings of the controller (run with ``pytest tests/bench --benchmark-enable``).
+"""pytest-benchmark timings of the controller (run with ``pytest tests/bench --benchmark-enable -n 0``:
+one process, as the suite runs on pytest-xdist).
 
 In the normal suite ``--benchmark-disable`` runs each body once as a smoke test; speed targets are
 read from these benchmarks and from ``aerorelay bench``, never asserted in unit tests.
