@@ -156,7 +156,9 @@ def test_the_fleets_capacity_planner_finds_the_even_spacing_in_free_space(route,
 
     scene = _iso_scene(route)
     starts = {n: np.array([3.0 + 4 * i, 4.0, 5.0]) for i, n in enumerate(route[1:-1])}
-    planner = FleetCapacityPlanner(scene, starts, {n: 0.3 for n in starts},
+    from aerorelay.models.axes import axis_cone
+
+    planner = FleetCapacityPlanner(scene, starts, {n: axis_cone(0.85 * 0.3, np.radians(5.0)) for n in starts},
                                    FleetCapacitySettings(step_m=0.5, replan_every=1, workspace_min=(-50, -50, 5.0),
                                                          workspace_max=(50, 50, 5.0)))
     inp = FleetInput(t=0.0, dt=0.06, positions={"s": np.array([20.0, 0.0, 5.0])}, velocities={"s": np.zeros(3)},

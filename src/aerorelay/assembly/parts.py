@@ -37,6 +37,7 @@ from ..planning.base import (
     planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
+from ..planning.capacity_planner import holdable_axes
 from ..planning.fleet import (
     EquidistantPlanner,
     EquidistantSettings,
@@ -525,10 +526,12 @@ def fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> 
                                 list(starts), _vec3(sc.nodes.bs), governor_speed=c.governor_speed_m_s,
                                 eig_floor=c.hessian_eig_floor, workspace_min=lo, workspace_max=hi)
     if sc.network.planner == "capacity":
-        return FleetCapacityPlanner(scene.world_view(), starts, {r.name: r.vehicle.hover_tilt_limit for r in relays},
+        # each relay's antenna axes it can hold at zero yaw toward each azimuth (its own limit there, times
+        # tilt_fraction), as the one relay's planner: its best azimuth's limit everywhere was not holdable (3 m tracking errors)
+        axes = {r.name: holdable_axes(r.vehicle, cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes)[2] for r in relays}
+        return FleetCapacityPlanner(scene.world_view(), starts, axes,
                                     FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
-                                                          axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s,
-                                                          tilt_fraction=cap.tilt_fraction, margin_m=cap.margin_m,
+                                                          axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
                                                           workspace_min=_vec3(lo), workspace_max=_vec3(hi),
                                                           separation_m=sc.network.min_separation_m))
     return EquidistantPlanner(sc.route_list, starts, EquidistantSettings(speed_m_s=cap.speed_m_s, margin_m=cap.margin_m,

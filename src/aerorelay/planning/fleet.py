@@ -15,7 +15,6 @@ from typing import Protocol
 
 import numpy as np
 
-from ..models.axes import axis_cone
 from ..models.radio import NodePose, RadioScene
 from .trajectory_generator import Reference
 
@@ -99,17 +98,14 @@ class EquidistantPlanner:
 @dataclass(frozen=True, kw_only=True)
 class FleetCapacitySettings:
     """The fleet's capacity-seeking planner: every ``replan_every`` control steps each relay in turn
-    scores its 27 neighbouring goals ``step_m`` (m) apart with every holdable antenna axis (tilt rings
-    every ``axis_step_deg``, at most its hover tilt limit times ``tilt_fraction``) on the network's
-    rate, the others held; references move at ``speed_m_s`` (m/s) and turn at ``axis_rate_deg_s``
-    (deg/s) inside the workspace box less ``margin_m`` (m)."""
+    scores its 27 neighbouring goals ``step_m`` (m) apart with every antenna axis it can hold (its
+    candidate axes) on the network's rate, the others held; references move at ``speed_m_s`` (m/s)
+    and turn at ``axis_rate_deg_s`` (deg/s) inside the workspace box less ``margin_m`` (m)."""
 
     speed_m_s: float = 1.0
     step_m: float = 0.5
     replan_every: int = 4
-    axis_step_deg: float = 5.0
     axis_rate_deg_s: float = 30.0
-    tilt_fraction: float = 0.85
     margin_m: float = 0.05
     workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
@@ -138,16 +134,16 @@ class FleetCapacityPlanner:
     the others' goals held), from what the fleet knows: the scene's world view with the jammers at the
     positions and powers the fleet was told (``FleetInput.jammer_positions`` / ``jammer_powers``)."""
 
-    def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], tilt_limits: Mapping[str, float],
+    def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], candidate_axes: Mapping[str, np.ndarray],
                  settings: FleetCapacitySettings):
+        """``candidate_axes``: each relay's holdable antenna axes ``(n, 3)`` (unit, world)."""
         self.scene, self.settings = scene, settings
         self.refs = {n: np.asarray(p, float).copy() for n, p in relay_starts.items()}
         self.goals = {n: p.copy() for n, p in self.refs.items()}
         up = np.array([0.0, 0.0, 1.0])
         self.axis_goals = {n: up.copy() for n in self.refs}
         self.axes = {n: up.copy() for n in self.refs}
-        self.candidate_axes = {n: axis_cone(settings.tilt_fraction * tilt_limits[n], np.radians(settings.axis_step_deg))
-                               for n in self.refs}
+        self.candidate_axes = {n: np.asarray(candidate_axes[n], float) for n in self.refs}
         lo, hi = np.asarray(settings.workspace_min, float), np.asarray(settings.workspace_max, float)
         self.lo, self.hi = lo + settings.margin_m, hi - settings.margin_m
         self.k = 0
