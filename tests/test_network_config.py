@@ -186,3 +186,16 @@ def test_what_a_fleet_does_not_fly_yet_is_named_before_any_work(tmp_path):
     noisy = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--set", "perturbations.csi_noise_m=0.1"])
     assert noisy.exit_code == 2 and "a fleet flies the deterministic channel so far" in noisy.output, noisy.output
     assert not (tmp_path / "r").exists()
+
+
+def test_one_relay_written_as_a_network_gets_its_bound_and_its_capacity_planner():
+    """A one-relay network file names its relay (r1), not 'relay': the single-relay bound's grid and the
+    capacity planner's compiled grid place that node (they looked for 'relay': a KeyError)."""
+    data = tomllib.loads(open("scenarios/nominal_tilted.toml").read())
+    data.setdefault("sim", {})["duration_s"] = 1.0
+    data["relays"] = [{"name": "r1", "start": data.get("nodes", {}).pop("relay", [-6.95, 5.79, 1.72])}]
+    data["sources"] = [{"name": "inspector", "mission": data.pop("mission", {})}]
+    data["controller"] = {**data.get("controller", {}), "planner": "capacity"}
+    data["bound"] = {"grid_m": 1.0, "dt_s": 0.5}
+    r = ar.simulate(parse_scenario(data), bound=True)
+    assert not r.metrics["unsafe"] and 0 < r.metrics["capacity_efficiency_mean"] <= 1.05

@@ -365,7 +365,7 @@ def search_box(sc: Scenario, source: SourceTrajectory) -> tuple[np.ndarray, np.n
 def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> JammerSensing:
     """The relay's (and the base station's, with ``use_bs``) energy detectors and the jammer estimator."""
     est = sc.estimation
-    names = ["relay"] + (["bs"] if est.use_bs else [])
+    names = [scene.name_of("relay")] + (["bs"] if est.use_bs else [])
     receivers = [Receiver(name=n, pattern=scene.node(n).antenna.pattern, noise_w=scene.budget.noise_power,
                           fixed=scene.node(n).position is not None)
                  for n in names]

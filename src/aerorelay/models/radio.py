@@ -367,10 +367,12 @@ class RadioScene:
         return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, routes)
 
     def relay_grid(self, t: float, positions, axes, poses: Mapping[str, NodePose], *, jammer_positions=None,
-                   jammer_powers=None, relay: str = "relay", fading=None) -> np.ndarray:
+                   jammer_powers=None, relay: str | None = None, fading=None) -> np.ndarray:
         """End-to-end capacity ``(M, K)`` for relay positions ``(M, 3)`` x relay antenna axes ``(K, 3)``
         (world), the other moving nodes at ``poses``, the jammers as in ``evaluate``; ``fading`` as
-        there, each link's gain a scalar or ``(M, 1)`` (per relay position)."""
+        there, each link's gain a scalar or ``(M, 1)`` (per relay position). ``relay``: the node
+        placed on the grid (default: the scene's first relay)."""
+        relay = relay or self.name_of("relay")
         P = np.atleast_2d(np.asarray(positions, float))[:, None, :]
         B = np.atleast_2d(np.asarray(axes, float))[None, :, :]
         state = self.evaluate(t, {**poses, relay: NodePose(P, B)}, jammer_positions=jammer_positions, jammer_powers=jammer_powers,

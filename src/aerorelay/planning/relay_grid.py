@@ -25,8 +25,10 @@ class CompiledRelayGrid:
     (nJ,))`` -> capacity ``(M, K)``: relay positions m (world) x relay antenna axes (unit, world),
     powers W. The scene's other moving node is the source (its pose given); fixed nodes as placed."""
 
-    def __init__(self, scene: RadioScene, n_positions: int, n_axes: int, *, source: str, relay: str = "relay"):
+    def __init__(self, scene: RadioScene, n_positions: int, n_axes: int, *, source: str, relay: str | None = None):
+        """``relay``: the node on the grid (default: the scene's first relay)."""
         self.m, self.k, self.nj = int(n_positions), int(n_axes), len(scene.jammers)
+        relay = relay or scene.name_of("relay")
         self._call = BufferedCall(compiled(self._grid_function(scene, source, relay), "relay_grid"))
         self._z = self._call.arg
 
