@@ -220,8 +220,9 @@ def bound(
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
     si = api.si
-    names = ("static", "achieved") if sc.is_fleet else ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin")
-    for name in names:
+    names = ("static", "achieved", "flyable") if sc.is_fleet else ("static", "path_mean", "path_maxmin", "flyable_mean",
+                                                                    "flyable_maxmin")
+    for name in (n for n in names if n in summary):
         s = summary[name]
         t.add_row(name, si(s["mean"], sc.channel.capacity_unit), si(s["min"], sc.channel.capacity_unit), f"{s['outage_fraction']:.1%}")
     console.print(t)
@@ -240,6 +241,7 @@ KEY_METRICS = (
     "capacity_efficiency_mean", "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min",
     "bound.path_mean.outage_fraction", "bound.static.mean", "capacity_efficiency_mean_flyable",
     "capacity_efficiency_min_flyable", "bound.flyable_mean.mean", "bound.flyable_maxmin.min",
+    "bound.flyable.mean", "c_mean_before_loss", "c_mean_after_loss", "capacity_efficiency_mean_after_loss",
 )
 
 

@@ -105,11 +105,13 @@ def write_fleet_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
 
 
 def fig_network_bound(bound: pd.DataFrame, sc: Scenario):
-    """A fleet's network bound over time: the static upper bound and the refined configuration's rate
-    (``aerorelay bound`` on a fleet)."""
+    """A fleet's network bound over time: the static upper bound, the refined configuration's rate and
+    the flyable fleet path's (``aerorelay bound`` on a fleet)."""
     fig, ax = plt.subplots(figsize=(7, 3.4))
     ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static upper bound (relaxed axes, grid)")
     ax.semilogy(bound["t"], bound["achieved"], color="C2", lw=1.6, label="refined configuration (one axis per relay)")
+    if "flyable" in bound:
+        ax.semilogy(bound["t"], bound["flyable"], color="C0", lw=1.2, label="flyable fleet path (from the starts, speed-limited)")
     ax.axhline(sc.channel.outage, color="r", ls=":", lw=1, label="outage threshold")
     ax.set_xlabel("t (s)")
     ax.set_ylabel(f"network rate ({sc.channel.capacity_unit})")
