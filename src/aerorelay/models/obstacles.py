@@ -1,0 +1,121 @@
+"""Obstacles as exact signed distances: axis-aligned boxes (buildings) and vertical cylinders
+(towers, poles), each grown by a margin. Pure numpy; world frame, metres.
+
+``signed_distance(p)`` is the Euclidean distance from ``p`` to the grown obstacle, negative inside
+(the depth to its surface). ``closest_point(p)`` is the nearest point of its surface, and
+``separating_plane(p)`` the plane through that point with the outward unit normal toward ``p``: the
+obstacle is convex, so it lies entirely on the plane's far side, and a controller that keeps
+``n . x >= n . q`` keeps out (a linear constraint per stage, chosen from the previous plan).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box ``[lo, hi]`` (m, world) grown by ``margin`` m on every side (its corners
+    rounded: the set of points within ``margin`` of the box)."""
+
+    lo: tuple[float, float, float]
+    hi: tuple[float, float, float]
+    margin: float = 0.0
+
+    def __post_init__(self):
+        if any(h <= lo for lo, h in zip(self.lo, self.hi, strict=True)) or self.margin < 0:
+            raise ValueError(f"box: lo {self.lo} must be below hi {self.hi} on every axis and margin >= 0")
+
+    def _core(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The signed distance to the box itself (no margin), the nearest point of its surface and the
+        outward unit normal there ``(..., 3)``."""
+        lo, hi = np.asarray(self.lo, float), np.asarray(self.hi, float)
+        c, h = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        q = np.abs(p - c) - h
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+        inside = np.minimum(q.max(axis=-1), 0.0)
+        nearest = np.clip(p, lo, hi)
+        # inside: push the coordinate closest to a face onto that face
+        axis = np.argmax(q, axis=-1)
+        into = (q.max(axis=-1) < 0)[..., None] & (np.arange(3) == axis[..., None])
+        face = np.where(p - c >= 0, hi, lo)
+        nearest = np.where(into, face, nearest)
+        # on or inside the box: the normal of the nearest face; outside: toward p
+        face_normal = np.where(np.arange(3) == axis[..., None], np.where(p - c >= 0, 1.0, -1.0), 0.0)
+        return outside + inside, nearest, _normal(p, nearest, outside, face_normal)
+
+    def signed_distance(self, p) -> np.ndarray:
+        return self._core(np.asarray(p, float))[0] - self.margin
+
+    def closest_point(self, p) -> np.ndarray:
+        """The nearest point of the grown box's surface (m, world)."""
+        _, q, n = self._core(np.asarray(p, float))
+        return q + self.margin * n
+
+
+@dataclass(frozen=True)
+class VerticalCylinder:
+    """A vertical cylinder of ``radius`` m about ``(x, y) = centre`` from ``z_min`` to ``z_max`` (m,
+    world) grown by ``margin`` m (edges rounded)."""
+
+    centre: tuple[float, float]
+    radius: float
+    z_min: float
+    z_max: float
+    margin: float = 0.0
+
+    def __post_init__(self):
+        if self.radius <= 0 or self.z_max <= self.z_min or self.margin < 0:
+            raise ValueError("vertical cylinder: radius > 0, z_min < z_max and margin >= 0")
+
+    def _core(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As ``Box._core``."""
+        c = np.asarray(self.centre, float)
+        rel = p[..., 0:2] - c
+        r = np.linalg.norm(rel, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            radial = np.where(r[..., None] > 0, rel / r[..., None], np.array([1.0, 0.0]))
+        zc, hz = 0.5 * (self.z_min + self.z_max), 0.5 * (self.z_max - self.z_min)
+        a, b = r - self.radius, np.abs(p[..., 2] - zc) - hz  # radial and vertical excess
+        outside = np.hypot(np.maximum(a, 0.0), np.maximum(b, 0.0))
+        inside = np.minimum(np.maximum(a, b), 0.0)
+        # nearest surface point: clamp outside; inside onto the nearer of the side and the caps
+        r_near = np.where((a < 0) & (b < 0) & (a >= b), self.radius, np.minimum(r, self.radius))
+        z = p[..., 2]
+        z_near = np.clip(z, self.z_min, self.z_max)
+        cap = (a < 0) & (b < 0) & (b > a)
+        z_near = np.where(cap, np.where(z >= zc, self.z_max, self.z_min), z_near)
+        xy = c + radial * r_near[..., None]
+        nearest = np.concatenate([xy, z_near[..., None]], axis=-1)
+        # on or inside: the side's radial normal or the nearer cap's; outside: toward p
+        side = np.concatenate([radial, np.zeros_like(z[..., None])], axis=-1)
+        up = np.where(z >= zc, 1.0, -1.0)[..., None] * np.array([0.0, 0.0, 1.0])
+        return outside + inside, nearest, _normal(p, nearest, outside, np.where((b > a)[..., None], up, side))
+
+    def signed_distance(self, p) -> np.ndarray:
+        return self._core(np.asarray(p, float))[0] - self.margin
+
+    def closest_point(self, p) -> np.ndarray:
+        """The nearest point of the grown cylinder's surface (m, world)."""
+        _, q, n = self._core(np.asarray(p, float))
+        return q + self.margin * n
+
+
+Obstacle = Box | VerticalCylinder
+
+
+def _normal(p: np.ndarray, nearest: np.ndarray, outside: np.ndarray, on_surface: np.ndarray) -> np.ndarray:
+    """The outward unit normal at ``nearest``: toward ``p`` when ``p`` is outside (``outside`` > 0, its
+    distance), else ``on_surface`` (the face's)."""
+    out = (np.asarray(outside) > 1e-12)[..., None]
+    return np.where(out, (p - nearest) / np.where(out, np.asarray(outside)[..., None], 1.0), on_surface)
+
+
+def separating_plane(obstacle: Obstacle, p) -> tuple[np.ndarray, float]:
+    """``(n, c)``: the plane ``n . x = c`` through the grown obstacle's nearest surface point to ``p``
+    with the outward unit normal ``n``; the whole obstacle lies in ``n . x <= c`` (convexity), so
+    ``n . x >= c`` keeps a point out of it."""
+    _, q, n = obstacle._core(np.asarray(p, float))
+    return n, float(n @ (q + obstacle.margin * n))
