@@ -429,22 +429,23 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     """A fleet's network bound, computed once per geometry and cached; with relays lost in flight
     (``relays.lost_at_s``), from each loss on the bound of the smaller fleet (each fleet's bound cached
     on its own: the loss times are not in its key)."""
+    data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers",
+                                  "bound", "platform"})
+    for r in data.get("relays") or []:
+        r.pop("lost_at_s", None)
+    data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
+    data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
+             "kind": f"network {NETWORK_BOUND_VERSION}"}
     fleets = [(0.0, frozenset[str]()), *sc.losses]
     parts = []
     for i, (t, lost) in enumerate(fleets):
-        data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers",
-                                      "bound", "platform"})
-        for r in data.get("relays") or []:
-            r.pop("lost_at_s", None)
-        data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
-        data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
-                 "kind": f"network {NETWORK_BOUND_VERSION}", **({"lost": sorted(lost)} if lost else {})}
+        key = bound_key(data | ({"lost": sorted(lost)} if lost else {}))
 
         def step(k, n, i=i):
             if progress is not None:
                 progress(i * n + k, len(fleets) * n)
 
-        parts.append((t, cached_bound(network_bound_problem(sc, lost), bound_key(data), step, compute=compute_network_bound,
+        parts.append((t, cached_bound(network_bound_problem(sc, lost), key, step, compute=compute_network_bound,
                                       kind=NetworkBound)))
     return parts[0][1] if len(parts) == 1 else spliced(parts)
 

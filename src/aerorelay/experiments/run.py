@@ -22,7 +22,7 @@ from ..planning.bound import CapacityBound
 from ..planning.network_bound import NetworkBound
 from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
 from ..sim.fleet import column_type
-from ..sim.metrics import compute_metrics, fleet_metrics
+from ..sim.metrics import compute_metrics, fleet_metrics, loss_phases
 from ..sim.units import fleet_metric_units, metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
@@ -194,7 +194,7 @@ def network_efficiency(m: dict, bound: NetworkBound) -> None:
         rows += [("capacity_efficiency_mean_flyable", m["c_mean"], summary["flyable"]["mean"], "the flyable fleet path's mean"),
                  ("capacity_efficiency_min_flyable", m["c_min"], summary["flyable"]["min"], "the flyable fleet path's minimum")]
     if losses:
-        for label, part in (("before_loss", bound.t < losses[0]["t_s"] - 1e-9), ("after_loss", bound.t >= losses[-1]["t_s"] - 1e-9)):
+        for label, part in loss_phases(bound.t, [loss["t_s"] for loss in losses]).items():
             if f"c_mean_{label}" in m and part.any():
                 summary[f"static_{label}"] = {"mean": float(bound.static[part].mean()), "min": float(bound.static[part].min())}
                 rows += [(f"capacity_efficiency_mean_{label}", m[f"c_mean_{label}"], bound.static[part].mean(),

@@ -121,8 +121,7 @@ def estimation_metrics(log, period_s: float) -> dict:
 
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
-                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf,
-                  losses: Sequence[tuple[float, frozenset[str]]] = ()) -> dict:
+                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf) -> dict:
     """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
     ``outage_threshold``, alignment threshold ``mu``, in the workspace box (m). Capacities
     normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
@@ -171,6 +170,13 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
     }
 
 
+def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndarray]:
+    """Which of the times ``t`` (s) lie before the first loss and from the last one on (a loss at
+    ``t_l`` counts from ``t_l`` itself): ``{"before_loss": mask, "after_loss": mask}``."""
+    t = np.asarray(t, float)
+    return {"before_loss": t < loss_times[0] - 1e-9, "after_loss": t >= loss_times[-1] - 1e-9}
+
+
 def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], period_s: float, outage_threshold: float,
                   wall_s: float, sim_s: float, min_separation_m: float, workspace_min, workspace_max,
                   box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf,
@@ -193,7 +199,7 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
     if losses:
         t = np.asarray(log["t"], float)
         out["losses"] = [{"t_s": float(tl), "relays": sorted(lost)} for tl, lost in losses]
-        for label, rows in (("before_loss", t < losses[0][0] - 1e-9), ("after_loss", t >= losses[-1][0] - 1e-9)):
+        for label, rows in loss_phases(t, [tl for tl, _ in losses]).items():
             if rows.any():
                 out[f"c_mean_{label}"], out[f"c_min_{label}"] = float(cap[rows].mean()), float(cap[rows].min())
     sep = np.asarray(log["separation_min"], float)
