@@ -159,20 +159,29 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) ->
     return fig.to_html(include_plotlyjs=include_plotlyjs, full_html=True)
 
 
-def fig_bound(bound: pd.DataFrame, sc: Scenario):
-    """The capacity bounds of a scenario over time and the flyable path (``aerorelay bound``)."""
+def bound_figure(bound: pd.DataFrame, sc: Scenario, series: list[tuple[str, dict]], ylabel: str, title: str):
+    """A bound's series over time on a log axis, each ``(column, matplotlib style with its label)``,
+    with the outage threshold: the figure ``aerorelay bound`` writes."""
     fig, ax = plt.subplots(figsize=(7, 3.4))
-    ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static bound (best pose per instant)")
-    ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound, best minimum")
-    ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound, best mean")
-    ax.semilogy(bound["t"], bound["flyable_mean"], color="C4", lw=1.0, ls=":", label="flyable path, best mean found (exactly <= v_max)")
+    for column, style in series:
+        ax.semilogy(bound["t"], bound[column], **style)
     ax.axhline(sc.channel.outage, color="r", ls=":", lw=1, label="outage threshold")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
-    ax.set_title(f"{sc.name}: capacity bounds", fontsize=9)
+    ax.set_ylabel(f"{ylabel} ({sc.channel.capacity_unit})")
+    ax.set_title(f"{sc.name}: {title}", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def fig_bound(bound: pd.DataFrame, sc: Scenario):
+    """The capacity bounds of a scenario over time and the flyable path (``aerorelay bound``)."""
+    return bound_figure(bound, sc, [
+        ("static", dict(color="0.4", ls="--", label="static bound (best pose per instant)")),
+        ("path_maxmin", dict(color="C1", lw=2.4, alpha=0.6, label="path bound, best minimum")),
+        ("path_mean", dict(color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound, best mean")),
+        ("flyable_mean", dict(color="C4", lw=1.0, ls=":", label="flyable path, best mean found (exactly <= v_max)")),
+    ], "C", "capacity bounds")
 
 
 FIGURES = {

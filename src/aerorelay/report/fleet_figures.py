@@ -14,7 +14,7 @@ import pandas as pd  # noqa: E402
 import plotly.graph_objects as go  # noqa: E402
 
 from ..config import Scenario  # noqa: E402
-from .figures import jammer_traces  # noqa: E402
+from .figures import bound_figure, jammer_traces  # noqa: E402
 
 FLEET_FIGURES = ("rates.png", "sinr.png", "paths.png")
 
@@ -107,15 +107,8 @@ def write_fleet_figures(df: pd.DataFrame, sc: Scenario, out: Path) -> None:
 def fig_network_bound(bound: pd.DataFrame, sc: Scenario):
     """A fleet's network bound over time: the static upper bound, the refined configuration's rate and
     the flyable fleet path's (``aerorelay bound`` on a fleet)."""
-    fig, ax = plt.subplots(figsize=(7, 3.4))
-    ax.semilogy(bound["t"], bound["static"], color="0.4", ls="--", label="static upper bound (relaxed axes, grid)")
-    ax.semilogy(bound["t"], bound["achieved"], color="C2", lw=1.6, label="refined configuration (one axis per relay)")
+    series: list[tuple[str, dict]] = [("static", dict(color="0.4", ls="--", label="static upper bound (relaxed axes, grid)")),
+                                      ("achieved", dict(color="C2", lw=1.6, label="refined configuration (one axis per relay)"))]
     if "flyable" in bound:
-        ax.semilogy(bound["t"], bound["flyable"], color="C0", lw=1.2, label="flyable fleet path (from the starts, speed-limited)")
-    ax.axhline(sc.channel.outage, color="r", ls=":", lw=1, label="outage threshold")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel(f"network rate ({sc.channel.capacity_unit})")
-    ax.set_title(f"{sc.name}: network bound", fontsize=9)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    return fig
+        series.append(("flyable", dict(color="C0", lw=1.2, label="flyable fleet path (from the starts, speed-limited)")))
+    return bound_figure(bound, sc, series, "network rate", "network bound")
