@@ -46,5 +46,5 @@ def test_the_los_states_and_the_shadowing_field_draw_from_their_own_streams():
 
 
 def test_an_unknown_purpose_is_named():
-    with pytest.raises(ValueError, match="random stream 'wind'"):
-        stream(0, "wind")
+    with pytest.raises(ValueError, match="random stream 'weather'"):
+        stream(0, "weather")

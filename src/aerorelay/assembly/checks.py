@@ -17,6 +17,7 @@ from ..config.scenario import after_validation
 from ..models.axes import axis_cone
 from ..models.channel import reachable_mutual_alignment
 from ..models.mission import source_trajectory
+from ..models.obstacles import obstacle_model
 from ..models.propagation import RMA_AV_MAX_D2D_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MIN_HEIGHT_M
 from ..models.vehicle import HoverInfeasibleError
 from .vehicle import shared_vehicle
@@ -33,7 +34,7 @@ def check_physics(sc: Scenario) -> Scenario:
     if key in _PASSED:
         return sc
     for loc, check in (("scenario", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
-                       ("scenario", _mu_reachable), ("scenario", _rma_av_geometry)):
+                       ("scenario", _mu_reachable), ("scenario", _rma_av_geometry), ("scenario", _missions_clear_obstacles)):
         try:
             check(sc)
         except ValueError as exc:
@@ -121,6 +122,27 @@ def _above_ground(sc: Scenario) -> None:
         zs = [j.position[2]] + [w[3] for w in (j.waypoints or [])]
         if min(zs) < g:
             raise ValueError(f"{sc.jammer_field(i)}: its path goes below {where} (z = {min(zs):g} m)")
+
+MISSION_SAMPLE_S = 0.1  # the obstacle check samples every mission this often (a source at 10 m/s moves 1 m)
+
+
+def _missions_clear_obstacles(sc: Scenario) -> None:
+    """No source's path enters an obstacle (the obstacle itself: a source may inspect it closely),
+    sampled every ``MISSION_SAMPLE_S`` over the mission."""
+    if not sc.obstacles:
+        return
+    shapes = [obstacle_model(o, margin=False) for o in sc.obstacle_list]
+    times = np.arange(0.0, sc.duration_s + 1e-9, MISSION_SAMPLE_S)
+    for field, m in _missions(sc):
+        path = source_trajectory(m)
+        p = np.array([path.state(float(t)).p for t in times])
+        for o, shape in zip(sc.obstacle_list, shapes, strict=True):
+            d = np.asarray(shape.signed_distance(p))
+            if d.min() < 0:
+                k = int(np.argmin(d))
+                raise ValueError(f"{field}: the source's path goes through obstacle {o.name!r} ({-d[k]:.2f} m deep at "
+                                 f"t = {times[k]:.1f} s, {np.round(p[k], 2).tolist()}): move the path or the obstacle")
+
 
 def _mission_near_workspace(sc: Scenario) -> None:
     """MRAV-2's path within ``world.mission_max_distance_m`` of the relay's workspace: a sample

@@ -45,6 +45,7 @@ from ..planning.fleet import (
     FleetCapacitySettings,
     FleetPlanner,
 )
+from ..planning.keep_out import KeepOutFleetPlanner, KeepOutPlanner
 from ..planning.network_bound import (
     NETWORK_BOUND_VERSION,
     NetworkBound,
@@ -54,10 +55,12 @@ from ..planning.network_bound import (
 )
 from ..planning.network_generator import NetworkGenerator
 from ..planning.trajectory_generator import SurrogateParams
+from ..sim.air import Air
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.fleet import FleetLoop, FleetRelay
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
+from . import world
 from .checks import check_physics
 from .vehicle import build_vehicle
 
@@ -196,7 +199,8 @@ def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None, neighbours: int = 
     lo, hi = _workspace(sc)
     return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
                    bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
-                   exact_input_rate=c.exact_input_rate, neighbours=neighbours, p0_parameter=p0_parameter)
+                   exact_input_rate=c.exact_input_rate, neighbours=neighbours, p0_parameter=p0_parameter,
+                   disturbance=sc.wind is not None and sc.wind.observer, obstacles=len(sc.obstacle_list))
 
 
 def _vec3(v) -> tuple[float, float, float]:
@@ -242,7 +246,8 @@ def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings |
                            failsafe=FailsafeSettings(failures_to_fallback=fs.failures_to_fallback,
                                                      successes_to_resume=fs.successes_to_resume,
                                                      workspace_margin_m=fs.workspace_margin_m),
-                           settings=settings or nmpc_settings(sc), envelope=safety_envelope(sc, vehicle) if fs.supervisor else None)
+                           settings=settings or nmpc_settings(sc), envelope=safety_envelope(sc, vehicle) if fs.supervisor else None,
+                           obstacles=world.obstacles(sc))
 
 
 def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
@@ -251,7 +256,8 @@ def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
     lo, hi = _workspace(sc)
     return SafetyEnvelope.for_vehicle(vehicle, lo, hi, box_tolerance_m=fs.box_tolerance_m, max_tilt_deg=fs.max_tilt_deg,
                                       max_speed_m_s=fs.max_speed_m_s, max_body_rate_rad_s=fs.max_body_rate_rad_s,
-                                      max_handovers=fs.max_safety_handovers, ground_z_m=sc.world.ground_z_m)
+                                      max_handovers=fs.max_safety_handovers, ground_z_m=sc.world.ground_z_m,
+                                      obstacles=world.obstacles(sc, margin=False))
 
 
 def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> PlannerContext:
@@ -260,7 +266,7 @@ def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source
     lo, hi = _workspace(sc)
     return PlannerContext(scene=scene.world_view(), source=source, vehicle=vehicle, workspace_min=lo, workspace_max=hi,
                           relay_start=relay_start(sc), duration_s=sc.duration_s, settings=planner_settings(sc),
-                          surrogate_g_bar=sc.antenna.g_bar)
+                          surrogate_g_bar=sc.antenna.g_bar, obstacles=world.obstacles(sc))
 
 
 def planner_settings(sc: Scenario) -> PlannerSettings:
@@ -307,10 +313,12 @@ class Parts:
     plant: ca.Function
     settings: SimSettings
     sensing: JammerSensing | None = None
+    air: Air | None = None  # [wind]: the wind, the relay's plant with drag, its observer
 
     def closed_loop(self) -> ClosedLoop:
         return ClosedLoop(vehicle=self.vehicle, scene=self.scene, source=self.source, planner=self.planner,
-                          controller=self.controller, plant=self.plant, settings=self.settings, sensing=self.sensing)
+                          controller=self.controller, plant=self.plant, settings=self.settings, sensing=self.sensing,
+                          air=self.air)
 
 
 def one_relay(sc: Scenario) -> Scenario:
@@ -340,10 +348,13 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     if planner is not None:  # a user's planner: its references are checked at the boundary
         planner = CheckedPlanner(planner, *_workspace(sc))
     planner = planner or build_planner(sc, vehicle, scene, source)
+    if sc.obstacles:  # every planner's references kept outside the obstacles' margins
+        planner = KeepOutPlanner(planner, world.obstacles(sc))
     controller = build_controller(sc, vehicle, nmpc_settings)
     plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
     sensing = build_sensing(sc, scene, source) if sc.estimates_jammers and scene.jammers else None
-    return Parts(sc, vehicle, scene, source, planner, controller, plant, sim_settings(sc), sensing)
+    return Parts(sc, vehicle, scene, source, planner, controller, plant, sim_settings(sc), sensing,
+                 world.air(sc, {scene.name_of("relay"): (vehicle, sc.platform)}))
 
 
 SEARCH_MARGIN_M = 10.0  # the default search box: the nodes' box widened by this horizontally, 5 m up, from the ground
@@ -387,7 +398,8 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
     realization = large_scale_realization(scene, noise, sc.seed)
     return BoundProblem(scene, build_source(sc), vehicle or build_vehicle(sc.platform_of(0)), lo, hi, relay_start(sc),
-                        sc.duration_s, bound_resolution(sc), sc.channel.outage, realization if realization.active else None)
+                        sc.duration_s, bound_resolution(sc), sc.channel.outage, realization if realization.active else None,
+                        world.obstacles(sc))
 
 
 def bound_resolution(sc: Scenario) -> BoundResolution:
@@ -401,7 +413,8 @@ def scenario_bound_key(sc: Scenario) -> str:
     """Everything the bound depends on (not the controller, except its workspace box)."""
     sc = one_relay(sc)
     fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
-    data = sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers", "mission", "bound"} | fleet)
+    data = world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers",
+                                                           "mission", "bound"} | fleet))
     data["workspace"] = sc.controller.workspace.model_dump()
     data["duration_s"] = sc.duration_s
     if sc.channel.propagation.random:  # the bound searches the run's own realization
@@ -422,15 +435,15 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
         BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
         next(iter(vehicles.values())).gravity, sc.channel.outage, sc.network.min_separation_m,
-        {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost})
+        {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost}, world.obstacles(sc))
 
 
 def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     """A fleet's network bound, computed once per geometry and cached; with relays lost in flight
     (``relays.lost_at_s``), from each loss on the bound of the smaller fleet (each fleet's bound cached
     on its own: the loss times are not in its key)."""
-    data = sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes", "jammer", "jammers",
-                                  "bound", "platform"})
+    data = world.bound_key_data(sc, sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes",
+                                                           "jammer", "jammers", "bound", "platform"}))
     for r in data.get("relays") or []:
         r.pop("lost_at_s", None)
     data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
@@ -480,11 +493,12 @@ class FleetParts:
     planner: FleetPlanner
     settings: SimSettings
     separation_m: float = 0.0
+    air: Air | None = None  # [wind]: the wind, each relay's plant with drag, its observer
 
     def closed_loop(self) -> FleetLoop:
         return FleetLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
                          settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
-                         replanner=self.replanner)
+                         replanner=self.replanner, air=self.air)
 
     def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
         """The planner of the fleet without the relays ``lost``, its references starting where the
@@ -501,23 +515,31 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
     check_physics(sc)
     fleet_flies(sc)
     scene = build_scene(sc)
-    relays = []
+    relays, platforms = [], {}
     # each relay keeps min_separation_m from every other vehicle (none set: the NMPC of one relay)
     others = len(sc.relay_list) - 1 + len(sc.source_list) if sc.network.min_separation_m > 0 else 0
     for i, r in enumerate(sc.relay_list):
         view = relay_scenario(sc, i)
         vehicle = build_vehicle(view.platform)
+        platforms[r.name] = (vehicle, view.platform)
         controller = build_controller(view, vehicle, nmpc_settings, others, p0_parameter=view.controller.comms_aware)
         relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=controller,
                                  plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
                                  start=np.array(r.start, float)))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
-    return FleetParts(sc, scene, relays, sources, fleet_planner(sc, scene, relays), sim_settings(sc),
-                      sc.network.min_separation_m)
+    planner = fleet_planner(sc, scene, relays)
+    return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc),
+                      sc.network.min_separation_m, world.air(sc, platforms))
 
 
 def fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> FleetPlanner:
-    """The fleet's planner named by ``network.planner``, built from the scene's world view."""
+    """The fleet's planner named by ``network.planner``, built from the scene's world view, its
+    references kept outside the obstacles' margins."""
+    planner = _fleet_planner(sc, scene, relays)
+    return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner
+
+
+def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> FleetPlanner:
     lo, hi = _workspace(sc)
     cap = sc.controller.capacity
     starts = {r.name: r.start for r in relays}

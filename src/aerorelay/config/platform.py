@@ -40,8 +40,19 @@ class PlatformConfig(Strict):
     omega_max_hz: float = Field(100.0, gt=0.0, description="highest motor speed Omega, Hz")
     omega_dot_min_hz_s: float = Field(-300.0, le=-MIN_MOTOR_RATE_HZ_S, description="most negative motor acceleration, Hz/s")
     omega_dot_max_hz_s: float = Field(400.0, ge=MIN_MOTOR_RATE_HZ_S, description="largest motor acceleration, Hz/s")
+    drag_area_m2: Vec3 = Field(default_factory=lambda: [0.05, 0.05, 0.12], description="C_d A along body x, y, z, "
+                               "m^2: the parasitic drag 0.5 rho C_d A |v_air| v_air per body axis (RotorPy's drag model); "
+                               "default an estimate for a 0.7 m hexarotor (frame and arms ~0.05 m^2 side-on, the rotor "
+                               "disks face-on), not a measurement; only [wind] uses it")
     min_hover_margin: float = Field(0.2, ge=0.0, lt=1.0, description="fraction of omega_max_hz every motor keeps "
                                     "above its hover speed (thrust headroom to brake and recover)")
+
+    @field_validator("drag_area_m2")
+    @classmethod
+    def _non_negative_drag(cls, v):
+        if min(v) < 0:
+            raise ValueError(f"every drag area must be >= 0 m^2, got {v}")
+        return v
 
     @field_validator("inertia_kgm2")
     @classmethod

@@ -16,6 +16,8 @@ from typing import Any
 
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
+from ..models.obstacles import obstacle_model
+from .air import WindConfig
 from .base import ScenarioError, Strict
 from .controller import ControllerConfig
 from .errors import format_errors
@@ -29,6 +31,7 @@ from .network import (
     RelayConfig,
     SourceConfig,
 )
+from .obstacles import ObstacleConfig
 from .platform import PlatformConfig
 from .radio import AntennaConfig, ChannelConfig, JammerConfig, NodesConfig
 from .sections import BoundConfig, EstimationConfig, PerturbationConfig, SimConfig, WorldConfig
@@ -70,6 +73,9 @@ class Scenario(Strict):
     sources: list[SourceConfig] | None = Field(None, min_length=1, max_length=16, description="the inspection drones "
                                                "(replaces [mission])")
     network: NetworkConfig = Field(default_factory=NetworkConfig)
+    wind: WindConfig | None = Field(None, description="mean wind and Dryden gusts on every relay (default: still air)")
+    obstacles: list[ObstacleConfig] | None = Field(None, max_length=64, description="boxes and vertical cylinders the "
+                                                   "vehicles fly among (array of tables)")
 
     @model_validator(mode="before")
     @classmethod
@@ -128,6 +134,7 @@ class Scenario(Strict):
             if j.point_at is not None and j.point_at not in nodes:
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
         self._separation_holds()
+        self._obstacles_hold()
         self._one_time_grid()
         self._losses_hold()
         for i in range(len(self.relay_list)):
@@ -284,6 +291,33 @@ class Scenario(Strict):
         for i, s in enumerate(self.source_list):
             if s.name not in used:
                 raise ValueError(f"sources[{i}]: {s.name!r} is on no route of network.routes (its data goes nowhere)")
+
+    @property
+    def obstacle_list(self) -> list[ObstacleConfig]:
+        """The obstacles, each named (``obstacle<i>`` when the file gives no name)."""
+        return [o if o.name else o.model_copy(update={"name": f"obstacle{i + 1}"}) for i, o in enumerate(self.obstacles or [])]
+
+    def _obstacles_hold(self) -> None:
+        """Unique names; every relay starts outside every obstacle and its margin (its NMPC could
+        not keep out from inside); the base station and the jammers outside the obstacles."""
+        names = [str(o.name) for o in self.obstacle_list]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"obstacles: names must be unique, {dup} used more than once")
+        for i, o in enumerate(self.obstacle_list):
+            shape = obstacle_model(o)
+            for j, r in enumerate(self.relay_list):
+                d = float(shape.signed_distance(r.start))
+                if d < 0:
+                    where = self._relay_field(j, "start", legacy="nodes.relay")
+                    raise ValueError(f"{where} {r.start} lies {-d:.2f} m inside obstacles[{i}] ({o.name}) and its "
+                                     f"margin ({o.margin_m} m): start every relay outside")
+            fixed = {"nodes.bs": self.nodes.bs, **{f"{self.jammer_field(k)}.position": j.position
+                                                   for k, j in enumerate(self.jammer_configs)}}
+            bare = obstacle_model(o, margin=False)
+            for where, p in fixed.items():
+                if float(bare.signed_distance(p)) < 0:
+                    raise ValueError(f"{where} {p} lies inside obstacles[{i}] ({o.name})")
 
     def _separation_holds(self) -> None:
         """``network.min_separation_m``: every two vehicles start that far apart, and the workspace

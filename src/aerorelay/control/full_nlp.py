@@ -18,7 +18,7 @@ class FullNlp:
         X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
         W = [ca.MX.sym(f"w{k}", nw) for k in range(N)]
         xs, ws, ps = ca.SX.sym("x", nx), ca.SX.sym("w", nw), spec.params.symbol()
-        F = ca.Function("F", [xs, ws], [spec.discrete_dynamics(xs, ws)])
+        F = ca.Function("F", [xs, ws, ps], [spec.discrete_dynamics(xs, ws, ps)])
         L = ca.Function("L", [xs, ws, ps], [ca.sumsqr(spec.stage_residual(xs, ws, ps))])
         LN = ca.Function("LN", [xs, ps], [ca.sumsqr(spec.terminal_residual(xs, ps))])
         h = ca.Function("h", [xs, ws, ps], [spec.constraint_expr(xs, ws, ps)])
@@ -26,7 +26,7 @@ class FullNlp:
         g, lbg, ubg = [X[0] - xa0], [np.zeros(nx)], [np.zeros(nx)]
         for k in range(N):
             J += L(X[k], W[k], P[:, k])
-            g.append(F(X[k], W[k]) - X[k + 1])
+            g.append(F(X[k], W[k], P[:, k]) - X[k + 1])
             lbg.append(np.zeros(nx))
             ubg.append(np.zeros(nx))
             if ng and k >= 1:

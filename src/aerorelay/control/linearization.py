@@ -22,7 +22,7 @@ def _out(expr, dense: bool):
 def stage_linearization(spec: OcpSpec, dense: bool = False) -> ca.Function:
     xa, w, p = ca.SX.sym("xa", spec.nx), ca.SX.sym("w", spec.nw), spec.params.symbol()
     z = ca.vertcat(xa, w)
-    xn = spec.discrete_dynamics(xa, w)
+    xn = spec.discrete_dynamics(xa, w, p)
     r = spec.stage_residual(xa, w, p)
     J = ca.jacobian(r, z)
     h = spec.constraint_expr(xa, w, p)

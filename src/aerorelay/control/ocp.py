@@ -24,7 +24,7 @@ import numpy as np
 
 from ..models.vehicle import Multirotor
 from .params import StageParams
-from .terms import CONSTRAINTS, COST_TERMS, REFERENCE_SIGNALS, SEPARATION, Constraint, CostTerm, StageVars
+from .terms import CONSTRAINTS, COST_TERMS, KEEP_OUT, REFERENCE_SIGNALS, SEPARATION, Constraint, CostTerm, StageVars
 
 INF = 1e8  # 'unbounded' in the QP's bound vectors
 HESSIAN_REG = 1e-8  # added to the Gauss-Newton Hessian's diagonal (both QP routes)
@@ -65,6 +65,8 @@ class OcpSpec:
     constraints_all: tuple[Constraint, ...] = field(default=CONSTRAINTS)
     neighbours: int = 0  # other vehicles this relay keeps its separation from (a fleet's; 0: none)
     p0_parameter: bool = False  # the node toward the base station is the stage parameter p0 (a fleet's relay), not bs_position
+    disturbance: bool = False  # the model adds the stage parameter a_ext (m/s^2, world): an observer's external acceleration
+    obstacles: int = 0  # obstacles this relay keeps out of: one separating plane each per stage (parameter obstacle_planes)
 
     def __post_init__(self):
         if self.horizon < 1 or self.ts <= 0:
@@ -80,7 +82,7 @@ class OcpSpec:
     @property
     def constraints(self) -> tuple[Constraint, ...]:
         own = tuple(c for c in self.constraints_all if self.constrained or not c.comms_aware)
-        return own + ((SEPARATION,) if self.neighbours else ())
+        return own + ((SEPARATION,) if self.neighbours else ()) + ((KEEP_OUT,) if self.obstacles else ())
 
     @property
     def soft_constraints(self) -> tuple[Constraint, ...]:
@@ -119,6 +121,10 @@ class OcpSpec:
             fields.append(("p0", 3))
         if self.neighbours:  # the other vehicles' predicted positions (m, world) and the separation (m)
             fields += [("p_others", 3 * self.neighbours), ("separation_m", 1)]
+        if self.disturbance:  # the external acceleration the model adds (m/s^2, world)
+            fields.append(("a_ext", 3))
+        if self.obstacles:  # per obstacle (n, c): keep n . p >= c (unit normal, m)
+            fields.append(("obstacle_planes", 4 * self.obstacles))
         fields += [(f"sw_{t.name}", 1) for t in self.terms]
         fields += [(f"sw_slack_{c.name}", 1) for c in self.soft_constraints]
         internal: tuple[str, ...] = ()
@@ -141,6 +147,7 @@ class OcpSpec:
             self.workspace_min, self.workspace_max, self.exact_input_rate, self.params.names,
             [c.name for c in self.constraints], [c.soft for c in self.constraints],
         ] + ([self.neighbours] if self.neighbours else []) + (["p0"] if self.p0_parameter else [])  # a one-relay OCP keeps its cached engine
+        # the disturbance and the obstacles show in params.names and the constraints' names
         return repr(parts)
 
     # -- expressions -------------------------------------------------------------------------
@@ -150,11 +157,29 @@ class OcpSpec:
     def stage_vars(self, xa, w, p) -> StageVars:
         return StageVars(self, xa, w, self.params.unpack(p))
 
-    def discrete_dynamics(self, xa, w):
-        """``xa_next = (RK4(x, u, Ts)[, u])`` (eq. 24)."""
-        nr = self.vehicle.n_rotors
-        x_next = self.vehicle.rk4_step(xa[: self.vehicle.nx], w[:nr], self.ts)
-        return ca.vertcat(x_next, w[:nr]) if self.exact_input_rate else x_next
+    def discrete_dynamics(self, xa, w, p=None):
+        """``xa_next = (RK4(x, u, Ts)[, u])`` (eq. 24); with ``disturbance`` the stage parameter
+        ``a_ext`` is added to the translational acceleration (held over the step)."""
+        nr, veh = self.vehicle.n_rotors, self.vehicle
+        x, u = xa[: veh.nx], w[:nr]
+        if not self.disturbance:
+            x_next = veh.rk4_step(x, u, self.ts)
+        else:
+            if p is None:
+                raise ValueError("discrete_dynamics: this OCP's model adds a_ext: give the stage parameters p")
+            a = self.params.unpack(p)["a_ext"]
+            pad = ca.vertcat(ca.SX(6, 1), a, ca.SX(3 + nr, 1))
+
+            def f(xx):
+                return veh.dynamics(xx, u) + pad
+
+            h = self.ts
+            k1 = f(x)
+            k2 = f(x + 0.5 * h * k1)
+            k3 = f(x + 0.5 * h * k2)
+            k4 = f(x + h * k3)
+            x_next = x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return ca.vertcat(x_next, u) if self.exact_input_rate else x_next
 
     def stage_residual(self, xa, w, p):
         """Stage residual ``r_k`` with ``l_k = |r_k|^2`` (eq. 25 plus the slack penalties q_pi pi^2)."""

@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..models.geometry import constant_acceleration_path, thrust_direction_from_acceleration
+from ..models.obstacles import Obstacle, separating_planes
 from .failsafe import BrakeLaw, Hold
 from .nmpc import NMPC, NmpcSettings, StepInfo
 from .ocp import OcpSpec
@@ -44,8 +45,11 @@ class RelayController:
 
     def __init__(self, spec: OcpSpec, weights: dict[str, np.ndarray], *, mu: float,
                  failsafe: FailsafeSettings = FailsafeSettings(), settings: NmpcSettings | None = None,
-                 envelope: SafetyEnvelope | None = None):
+                 envelope: SafetyEnvelope | None = None, obstacles: tuple[Obstacle, ...] = ()):
+        if len(obstacles) != spec.obstacles:
+            raise ValueError(f"RelayController: the OCP keeps out of {spec.obstacles} obstacles, {len(obstacles)} given")
         self.spec = spec
+        self.obstacles = obstacles  # grown by their margins: the NMPC keeps out of these
         self.envelope = envelope  # None: no supervisor (QP failures alone hand over)
         self.last_violations: list[str] = []
         self.safety_handovers = 0
@@ -66,17 +70,21 @@ class RelayController:
         return self.nmpc.settings
 
     def parameters(self, ref, p2, v2, a2, others: np.ndarray | None = None, separation_m: float = 0.0, *,
-                   p2_path: np.ndarray | None = None, p0_path: np.ndarray | None = None) -> np.ndarray:
+                   p2_path: np.ndarray | None = None, p0_path: np.ndarray | None = None,
+                   a_ext: np.ndarray | None = None) -> np.ndarray:
         """Stage parameters: the governed reference extrapolated at ``v_ref``, ``rho_d`` from
         ``a_ref`` (eq. 20, ``(a_d + g e3)/|a_d + g e3|``), MRAV-2 at constant acceleration (or its
         predicted ``p2_path`` ``(3, N + 1)``, m: a fleet's upstream node), mu, weights; a relay of a
         fleet: the other vehicles' predicted positions ``others`` ``(3 neighbours, N + 1)`` (m, world)
         and the separation to keep (m) (``spec.neighbours``), the next node toward the base station
-        ``p0_path`` ``(3, N + 1)`` (m, world; ``spec.p0_parameter``)."""
+        ``p0_path`` ``(3, N + 1)`` (m, world; ``spec.p0_parameter``); ``a_ext``: the observer's external
+        acceleration (m/s^2, world; ``spec.disturbance``; None: zero), which the thrust direction also
+        counters; with obstacles, one separating plane per obstacle and stage from the previous plan."""
         spec = self.spec
         tk = spec.ts * np.arange(spec.horizon + 1)
-        # rho_d (eq. 20), unless a planner gives the antenna axis itself
-        rho_d = thrust_direction_from_acceleration(ref.a_ref, spec.vehicle.gravity) if ref.axis is None else ref.axis
+        a_ext = np.zeros(3) if a_ext is None else np.asarray(a_ext, float)
+        # rho_d (eq. 20; the thrust also counters the external acceleration), unless a planner gives the antenna axis
+        rho_d = thrust_direction_from_acceleration(ref.a_ref - a_ext, spec.vehicle.gravity) if ref.axis is None else ref.axis
         values = {
             "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
             "v_ref": ref.v_ref,
@@ -91,11 +99,26 @@ class RelayController:
                 raise ValueError(f"parameters: others must be (3 x {spec.neighbours}, {spec.horizon + 1}), got "
                                  f"{None if others is None else np.shape(others)}")
             values["p_others"], values["separation_m"] = others, separation_m
+        if spec.disturbance:
+            values["a_ext"] = a_ext
+        if spec.obstacles:
+            values["obstacle_planes"] = self.obstacle_planes(values["p_ref"])
         if spec.p0_parameter:
             if p0_path is None:
                 raise ValueError(f"parameters: this relay's OCP needs p0_path (3, {spec.horizon + 1}), its next node toward the base station")
             values["p0"] = p0_path
         return spec.params.matrix(spec.horizon + 1, values)
+
+    def obstacle_planes(self, p_ref: np.ndarray) -> np.ndarray:
+        """``(4 obstacles, N + 1)``: per stage and obstacle the separating plane ``(n, c)`` through the
+        grown obstacle's nearest point to the previous plan's position at that stage (before the first
+        plan: to the reference ``p_ref`` ``(3, N + 1)``)."""
+        pos = self.nmpc.plan()[0][0:3] if self.nmpc.initialized else p_ref
+        out = np.empty((4 * len(self.obstacles), pos.shape[1]))
+        for j, o in enumerate(self.obstacles):
+            n, c = separating_planes(o, pos.T)
+            out[4 * j : 4 * j + 3], out[4 * j + 3] = n.T, c
+        return out
 
     def step(self, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool = True) -> StepInfo:
         """One control step: the NMPC's input, or the brake law's while the NMPC cannot fly."""

@@ -2,7 +2,7 @@
 
 A solver can report success while the relay flips or leaves the world (e.g. an alignment
 threshold mu = 0.99 the platform cannot meet). The envelope is the workspace box (plus a
-tolerance), the ground (no tolerance), a body tilt limit, a speed limit, a body-rate limit and the motor speed bounds; a
+tolerance), the ground and the obstacles (no tolerance), a body tilt limit, a speed limit, a body-rate limit and the motor speed bounds; a
 state outside it hands the relay to the fail-safe brake law at once (``control/relay.py``),
 whatever the QP status says; the NMPC takes over again only once the relay is at rest, and after
 ``max_handovers`` hand-overs not at all. The limits sit above what the nominal presets fly (tilt
@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..models.obstacles import Obstacle
 from ..models.vehicle import Multirotor
 
 
@@ -37,6 +38,7 @@ class SafetyEnvelope:
     rest_tilt_deg: float = 20.0  # and tilted less than this
     max_handovers: int = 1  # then the brake law keeps the relay for the rest of the mission
     ground_z_m: float = -math.inf  # the ground's height (m, world): below it is a violation, whatever the tolerance
+    obstacles: tuple[Obstacle, ...] = ()  # the obstacles themselves (no margin): inside one is a violation
     _lo: list[float] = field(init=False, repr=False, compare=False, default_factory=list)
     _hi: list[float] = field(init=False, repr=False, compare=False, default_factory=list)
     _cos_max_tilt: float = field(init=False, repr=False, compare=False, default=1.0)
@@ -70,6 +72,10 @@ class SafetyEnvelope:
             out.append(f"{outside:.2f} m outside the workspace")
         if vals[2] < self.ground_z_m:
             out.append(f"below the ground ({vals[2] - self.ground_z_m:.2f} m)")
+        for i, o in enumerate(self.obstacles):
+            depth = float(o.signed_distance(vals[0:3]))
+            if depth < 0:
+                out.append(f"{-depth:.2f} m inside obstacle {i}")
         cos_tilt = math.cos(vals[3]) * math.cos(vals[4])
         if cos_tilt < self._cos_max_tilt:
             out.append(f"tilt {math.degrees(math.acos(max(-1.0, min(1.0, cos_tilt)))):.0f} deg > {self.max_tilt_deg:g}")

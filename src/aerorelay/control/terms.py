@@ -87,6 +87,13 @@ class StageVars:
         return ca.vertcat(*[ca.dot(e, e) - self.p["separation_m"] ** 2 for e in d])
 
     @cached_property
+    def keep_out_margins(self):
+        """``n_j . p - c_j`` (m) for every obstacle's separating plane ``(n_j, c_j)`` (``obstacle_planes``,
+        4 per obstacle, ``models.obstacles.separating_plane``): >= 0 outside the grown obstacle."""
+        q = self.p["obstacle_planes"]
+        return ca.vertcat(*[ca.dot(q[4 * j : 4 * j + 3], self.pos) - q[4 * j + 3] for j in range(q.shape[0] // 4)])
+
+    @cached_property
     def v10(self):
         """Directional cosine squared toward the base station (eq. 23), or a fleet's next node toward it."""
         return misalignment(self.pos, self.R, self.bs)
@@ -143,6 +150,12 @@ COST_TERMS: tuple[CostTerm, ...] = (
 # whose predicted positions come as the stage parameter ``p_others`` (their latest plans, one step old).
 SEPARATION = Constraint("separation", lambda s: s.separation_margins,
                         "|p - q_j|^2 - d^2 >= -pi for every other vehicle j (network.min_separation_m)", comms_aware=False)
+
+# A relay among obstacles (``OcpSpec.obstacles``) keeps out: one plane per obstacle and stage, chosen from its
+# previous plan (the plane through the grown obstacle's nearest point, normal toward the plan): a linear row
+# whose feasible side never meets the obstacle (convexity).
+KEEP_OUT = Constraint("obstacles", lambda s: s.keep_out_margins,
+                      "n_j . p - c_j >= -pi for every obstacle's separating plane ([[obstacles]] margin_m)", comms_aware=False)
 
 CONSTRAINTS: tuple[Constraint, ...] = (
     Constraint("mutual_alignment", lambda s: mutual_alignment(s.v12, s.v10) - s.p["mu"],

@@ -13,12 +13,14 @@ from pathlib import Path
 import pandas as pd
 
 from ..assembly.parts import build, build_fleet, network_bound, scenario_bound
+from ..assembly.world import obstacles as obstacle_shapes
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
 from ..planning.base import CheckedPlanner, Planner
 from ..planning.bound import CapacityBound
+from ..planning.keep_out import KeepOutPlanner
 from ..planning.network_bound import NetworkBound
 from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
 from ..sim.fleet import column_type
@@ -115,7 +117,8 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
     m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage,
                         mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
                         workspace_min=sc.controller.workspace.min, workspace_max=sc.controller.workspace.max,
-                        box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m)
+                        box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
+                        obstacles=obstacle_shapes(sc, margin=False))
     m["controller"] = mission.controller
     m["fallback_episodes"] = mission.fallback_episodes
     if mission.aborted is not None:  # stopped early: unsafe, whatever the steps flown show
@@ -165,7 +168,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
                             outage_threshold=sc.channel.outage, wall_s=mission.wall_s, sim_s=mission.sim_s,
                             min_separation_m=sc.network.min_separation_m, workspace_min=ws.min, workspace_max=ws.max,
                             box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
-                            losses=sc.losses)
+                            losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
     metrics["controller"] = mission.controller
     metrics["fallback_episodes"] = mission.fallback_episodes
     if mission.aborted is not None:
@@ -236,10 +239,13 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     base = log_columns(parts.vehicle.n_rotors)  # then the random channel terms and the jammer estimate, when any
     df = log_frame(mission.log, base + [c for c in mission.log if c not in base], LOG_COLUMN_TYPES)
     metrics = run_metrics(sc, mission, parts.vehicle, bound)
-    if isinstance(parts.planner, CheckedPlanner):  # a user's planner: how often its position reference was clipped
-        metrics["reference_clipped_steps"] = parts.planner.clipped_steps
-        if parts.planner.first_clip is not None:
-            metrics["reference_clipped_first"] = parts.planner.first_clip
+    checked = parts.planner.planner if isinstance(parts.planner, KeepOutPlanner) else parts.planner
+    if isinstance(checked, CheckedPlanner):  # a user's planner: how often its position reference was clipped
+        metrics["reference_clipped_steps"] = checked.clipped_steps
+        if checked.first_clip is not None:
+            metrics["reference_clipped_first"] = checked.first_clip
+    if isinstance(parts.planner, KeepOutPlanner):  # how often a reference was moved out of an obstacle's margin
+        metrics["reference_kept_out_steps"] = parts.planner.kept_out_steps
     metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit
     metrics["unit_system"] = sc.channel.units
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)

@@ -117,5 +117,50 @@ def separating_plane(obstacle: Obstacle, p) -> tuple[np.ndarray, float]:
     """``(n, c)``: the plane ``n . x = c`` through the grown obstacle's nearest surface point to ``p``
     with the outward unit normal ``n``; the whole obstacle lies in ``n . x <= c`` (convexity), so
     ``n . x >= c`` keeps a point out of it."""
-    _, q, n = obstacle._core(np.asarray(p, float))
-    return n, float(n @ (q + obstacle.margin * n))
+    n, c = separating_planes(obstacle, np.asarray(p, float)[None, :])
+    return n[0], float(c[0])
+
+
+def separating_planes(obstacle: Obstacle, points) -> tuple[np.ndarray, np.ndarray]:
+    """``separating_plane`` for each of ``points`` ``(n, 3)``: normals ``(n, 3)`` and offsets ``(n,)``."""
+    _, q, n = obstacle._core(np.asarray(points, float))
+    return n, np.sum(n * (q + obstacle.margin * n), axis=-1)
+
+
+def obstacle_model(cfg, margin: bool = True) -> Obstacle:
+    """The shape of an ``[[obstacles]]`` table (``config.obstacles.ObstacleConfig``), grown by its
+    margin (``margin=False``: the obstacle itself, what a vehicle must never enter)."""
+    m = cfg.margin_m if margin else 0.0
+    if cfg.kind == "box":
+        return Box(tuple(cfg.min_m), tuple(cfg.max_m), m)
+    return VerticalCylinder(tuple(cfg.centre_m), cfg.radius_m, cfg.z_min_m, cfg.z_max_m, m)
+
+
+def inside_any(obstacles, p) -> np.ndarray:
+    """Whether each point ``p`` ``(..., 3)`` lies inside any of ``obstacles`` (strictly)."""
+    p = np.asarray(p, float)
+    out = np.zeros(p.shape[:-1], bool)
+    for o in obstacles:
+        out |= np.asarray(o.signed_distance(p)) < 0
+    return out
+
+
+def clearance(obstacles, p) -> np.ndarray:
+    """The smallest signed distance (m) from each point ``p`` ``(..., 3)`` to ``obstacles`` (inf: none)."""
+    p = np.asarray(p, float)
+    out = np.full(p.shape[:-1], np.inf)
+    for o in obstacles:
+        out = np.minimum(out, o.signed_distance(p))
+    return out
+
+
+def pushed_out(obstacles, p) -> np.ndarray:
+    """``p`` (3,) moved onto the nearest surface of the grown obstacle it lies in (unchanged outside
+    every obstacle). Repeated a few times for overlapping obstacles."""
+    q = np.asarray(p, float).copy()
+    for _ in range(4):
+        inside = [o for o in obstacles if float(o.signed_distance(q)) < 0]
+        if not inside:
+            break
+        q = np.asarray(inside[0].closest_point(q), float) + 1e-6 * separating_plane(inside[0], q)[0]
+    return q

@@ -18,6 +18,7 @@ PURPOSES: tuple[str, ...] = (
     "shadowing",  # the log-normal shadowing field (models/propagation.ShadowingField)
     "los",  # RMa-AV line-of-sight states, one uniform per link (models/propagation)
     "detector",  # the energy detectors' chi-square readings (models/sensing, sim/jammer_sensing)
+    "wind",  # the Dryden gusts (sim/air, models/wind)
 )
 
 

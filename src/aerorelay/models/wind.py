@@ -88,7 +88,7 @@ class DrydenTurbulence:
     """Gust velocities ``(u, v, w)`` (m/s, along the mean wind, across it, up) every ``dt`` s,
     seeded: ``sample()`` returns the next one. Starts from the stationary distribution."""
 
-    def __init__(self, params: DrydenParameters, airspeed_m_s: float, dt: float, seed: int = 0):
+    def __init__(self, params: DrydenParameters, airspeed_m_s: float, dt: float, seed: int | np.random.SeedSequence = 0):
         if dt <= 0:
             raise ValueError(f"dt must be > 0 s, got {dt}")
         V = max(float(airspeed_m_s), MIN_AIRSPEED_M_S)

@@ -118,6 +118,7 @@ class PlannerContext:
     duration_s: float
     settings: PlannerSettings = PlannerSettings()
     surrogate_g_bar: float = 1.0  # G_bar of the generator's surrogate (eq. 12-13)
+    obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no position inside is a goal
 
 
 class Planner(Protocol):

@@ -46,6 +46,7 @@ from scipy.optimize import minimize
 from ..models.axes import axis_cone, tilted_axes
 from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.mission import SourceTrajectory
+from ..models.obstacles import inside_any
 from ..models.propagation import LargeScaleRealization
 from ..models.radio import NodePose, RadioScene
 from ..models.vehicle import Multirotor
@@ -84,6 +85,7 @@ class BoundProblem:
     resolution: BoundResolution
     outage_threshold: float = 1e-3
     realization: LargeScaleRealization | None = None  # the run's shadowing field / LoS states (None: deterministic)
+    obstacles: tuple = ()  # models.obstacles shapes grown by their margins: the relay is never inside one
 
 
 @dataclass
@@ -144,8 +146,10 @@ class CapacityLandscape:
     before take-off, with every jammer silent)."""
 
     def __init__(self, scene: RadioScene, source: SourceTrajectory, gravity: float, jammer_known: bool = True,
-                 realization: LargeScaleRealization | None = None):
+                 realization: LargeScaleRealization | None = None, keep_out: tuple = ()):
+        """``keep_out``: obstacles (grown by their margins) where the relay may not be: capacity 0 there."""
         self.scene, self.source, self.gravity = scene, source, gravity
+        self.keep_out = keep_out
         self.silent = None if jammer_known else np.zeros(len(scene.jammers))
         self.source_name = scene.name_of("source")
         self.relay_name = scene.name_of("relay")
@@ -159,7 +163,11 @@ class CapacityLandscape:
         """``(M, K)`` for relay positions ``(M, 3)`` x antenna axes ``(K, 3)``."""
         source = self.source_pose(t)
         fading = None if self.realization is None else self._large_scale(t, np.atleast_2d(np.asarray(positions, float)), source)
-        return self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
+        C = self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
+        if not self.keep_out:
+            return C
+        inside = inside_any(self.keep_out, np.atleast_2d(np.asarray(positions, float)))
+        return np.where(inside[:, None], 0.0, C)
 
     def _large_scale(self, t: float, relay: np.ndarray, source: NodePose) -> list:
         """Each link's realized power multiplier at these relay positions: ``(M, 1)`` or a scalar."""
@@ -247,7 +255,7 @@ def best_path(scene: CapacityLandscape, cells: np.ndarray, shape: tuple[int, ...
 def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
     """The static and path bounds of a problem (see the module docstring)."""
     b = pb.resolution
-    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity, realization=pb.realization)
+    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity, realization=pb.realization, keep_out=pb.obstacles)
     max_tilt = pb.vehicle.hover_tilt_limit
     axes = axis_cone(max_tilt, np.radians(b.axis_step_deg))
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)

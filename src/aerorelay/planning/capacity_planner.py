@@ -41,6 +41,7 @@ import numpy as np
 
 from ..models.axes import axis_set
 from ..models.geometry import E3, align_with_thrust, clip_norm, thrust_direction_from_acceleration
+from ..models.obstacles import pushed_out
 from ..models.radio import NodePose
 from .base import PlannerContext, PlannerInput
 from .bound import CapacityLandscape, best_path, position_grid
@@ -76,6 +77,7 @@ class CapacityPlanner:
         self.axis_rate = np.radians(s.axis_rate_deg_s)
         self.gravity = veh.gravity
         self.source_name = ctx.scene.name_of("source")
+        self.obstacles = ctx.obstacles
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(ctx, s.route_grid_m, s.route_dt_s)
         self.grid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes), source=self.source_name)
@@ -111,7 +113,7 @@ class CapacityPlanner:
         dt_s = max(dt_s, grid_m / self.speed)
         times = np.arange(0.0, ctx.duration_s + dt_s, dt_s)
         start = tuple(int(np.argmin(np.abs(grid[i] - np.clip(ctx.relay_start[i], self.lo[i], self.hi[i])))) for i in range(3))
-        landscape = CapacityLandscape(ctx.scene, ctx.source, self.gravity, jammer_known=False)
+        landscape = CapacityLandscape(ctx.scene, ctx.source, self.gravity, jammer_known=False, keep_out=ctx.obstacles)
         route = best_path(landscape, cells, shape, self.axes, times, start, self.speed * dt_s / grid_m)
         return times, route
 
@@ -130,7 +132,10 @@ class CapacityPlanner:
         cand = target + self.offsets
         off = cand - anchor  # stay within the leash of the route
         n = np.linalg.norm(off, axis=1, keepdims=True)
-        return np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
+        cand = np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
+        if self.obstacles:  # a candidate inside an obstacle's margin moves to its surface
+            cand = np.array([pushed_out(self.obstacles, c) for c in cand])
+        return cand
 
     def _replan(self, inp: PlannerInput):
         """One replan: the candidates around the target scored (MRAV-2 predicted ahead) in one

@@ -39,6 +39,7 @@ from ..models.antenna import AntennaPattern
 from ..models.axes import axis_cone, tilted_axes
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
+from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, position_grid
 from .feasible_path import speed_limited
@@ -73,6 +74,7 @@ class NetworkBoundProblem:
     outage_threshold: float = 1e-3
     separation_m: float = 0.0  # every relay at least this far (m) from the fixed nodes and its route neighbours
     starts: Mapping[str, np.ndarray] = field(default_factory=dict)  # each relay's start (m, world): the flyable path's
+    obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no relay inside one
 
 
 @dataclass
@@ -223,6 +225,7 @@ class NetworkBoundSolver:
         res = pb.resolution
         self.lo, self.hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
         grid, self.cells = position_grid(self.lo, self.hi, res.grid_m)
+        self.blocked = inside_any(pb.obstacles, self.cells)  # cells inside an obstacle's margin: no relay there
         self.best = {r: BestGain(pb.scene.node(r).antenna.pattern, pb.tilt_limits[r]) for r in self.relays}
         self.cones = {r: axis_cone(pb.tilt_limits[r], np.radians(res.axis_step_deg)) for r in self.relays}
         self.offsets = OffsetTable([len(g) for g in grid], res.grid_m) if pb.scene.path_gain.distance_only else None
@@ -264,9 +267,10 @@ class NetworkBoundSolver:
             return np.reciprocal(se, out=se) if isinstance(se, np.ndarray) else 1.0 / se
 
     def _too_close(self, poses) -> np.ndarray:
-        """``(M,)``: inf at the cells closer than the separation to a source or the base station, else 0."""
+        """``(M,)``: inf at the cells inside an obstacle's margin or closer than the separation to a source or the
+        base station, else 0."""
         sep = self.pb.separation_m
-        out = np.zeros(len(self.cells))
+        out = np.where(self.blocked, np.inf, 0.0)
         if sep > 0:
             for pose in poses.values():
                 out[np.linalg.norm(self.cells - pose.position, axis=1) < sep] = np.inf
@@ -453,7 +457,8 @@ class NetworkBoundSolver:
                            options={"maxiter": 80})
             if np.min(margins(res.x)) < -1e-6:
                 res.fun = np.inf  # ended outside the separation: keep the start
-        x = res.x if -res.fun >= -neg(x0) else x0
+        better = -res.fun >= -neg(x0) and not np.any(inside_any(self.pb.obstacles, unpack(res.x)[0]))
+        x = res.x if better else x0
         return -neg(x), *unpack(x)
 
 

@@ -21,12 +21,14 @@ import numpy as np
 from ..control.nmpc import StepInfo
 from ..control.relay import RelayController
 from ..models.channel import misalignment, mutual_alignment
+from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
 from ..models.streams import generator
 from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput
+from .air import Air
 from .jammer_sensing import JammerSensing
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
@@ -99,19 +101,23 @@ def steps_flown(log: dict[str, np.ndarray], flown: int) -> dict[str, np.ndarray]
     return {c: v[:flown] for c, v in log.items()}
 
 
-def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float) -> ca.Function:
+def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float, drag: np.ndarray | None = None) -> ca.Function:
     """CasADi function ``(x, u, d) -> x`` advancing one control period with RK4 sub-steps.
 
     ``d = (a_dist (m/s^2, world), alpha_dist (rad/s^2, body))`` is a process disturbance held
-    over the period.
+    over the period. With ``drag`` (``c`` per body axis, kg/m: ``models.drag``) the function is
+    ``(x, u, d, w) -> x`` and the drag in the wind ``w`` (m/s, world, held over the period) acts at
+    every sub-step.
     """
     n_sub = int(round(plant_rate_hz * period_s))
     dt = 1.0 / plant_rate_hz
     x, u, d = ca.SX.sym("x", veh.nx), ca.SX.sym("u", veh.n_rotors), ca.SX.sym("d", 6)
+    wind = ca.SX.sym("w", 3)
 
     def f(xx):
         dx = veh.dynamics(xx, u)
-        return dx + ca.vertcat(ca.SX(3, 1), ca.SX(3, 1), d[:3], d[3:], ca.SX(veh.n_rotors, 1))
+        a = d[:3] if drag is None else d[:3] + drag_acceleration(xx[3:6], xx[6:9], wind, drag, veh.mass)
+        return dx + ca.vertcat(ca.SX(3, 1), ca.SX(3, 1), a, d[3:], ca.SX(veh.n_rotors, 1))
 
     xk = x
     for _ in range(n_sub):
@@ -120,7 +126,7 @@ def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float) 
         k3 = f(xk + 0.5 * dt * k2)
         k4 = f(xk + dt * k3)
         xk = xk + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("plant_step", [x, u, d], [xk])
+    return ca.Function("plant_step", [x, u, d] if drag is None else [x, u, d, wind], [xk])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -184,8 +190,9 @@ class ClosedLoop:
 
     def __init__(self, *, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory, planner: Planner,
                  controller: RelayController, plant: ca.Function, settings: SimSettings,
-                 sensing: JammerSensing | None = None):
+                 sensing: JammerSensing | None = None, air: Air | None = None):
         self.veh, self.scene, self.source, self.planner = vehicle, scene, source, planner
+        self.air = air  # [wind]: the plant steps through it (drag in the wind) and its observer feeds the NMPC
         self.sensing = sensing
         self.controller, self.plant, self.settings = controller, plant, settings
         self.spec = controller.spec
@@ -200,6 +207,8 @@ class ClosedLoop:
         self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
         self._noise_values: dict[str, Any] = {}  # log values of the random terms and the jammer estimate
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
+        if air is not None:
+            self.columns = self.columns + air.wind_columns() + air.columns(self.names["relay"])
         self.timings: list[StepTiming] = []
         self.bench_points: list[BenchPoint] = []
 
@@ -266,7 +275,10 @@ class ClosedLoop:
                                                        jammer_positions=pj_meas, jammer_powers=pj_powers, jammer_std_m=pj_std,
                                                        psi1=float(x[5]), v1=x[6:9].copy()))
                 planner_ms = (time.perf_counter() - t_plan) * 1e3
-                P = self.controller.parameters(ref, p2_meas, src.v, src.a)
+                if self.air is not None:
+                    self.air.begin()
+                P = self.controller.parameters(ref, p2_meas, src.v, src.a,
+                                               a_ext=self.air.estimate(self.names["relay"]) if self.air else None)
                 if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
                     self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
                 info = self.controller.step(x, u, P, shift=shift)
@@ -277,7 +289,7 @@ class ClosedLoop:
                 self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
                 d = np.concatenate([self.process_rng.normal(0.0, st.process_noise_v, 3),
                                     self.process_rng.normal(0.0, st.process_noise_w, 3)])
-                x = np.asarray(self.plant(x, u, d)).ravel()
+                x = self.air.advance(self.names["relay"], x, u, d) if self.air else np.asarray(self.plant(x, u, d)).ravel()
                 if not np.all(np.isfinite(x)):  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"the plant's state became non-finite after t = {t:.3f} s", k + 1
                     break
@@ -308,4 +320,6 @@ class ClosedLoop:
                "safety_violation": bool(self.controller.last_violations), "taylor_rel_err": ref.taylor_rel_err}
         row.update(jammer_values(self.scene, t))
         row.update(self._noise_values)
+        if self.air is not None:
+            row.update(self.air.wind_values() | self.air.values(self.names["relay"], x))
         record_row(log, k, row, self.columns)

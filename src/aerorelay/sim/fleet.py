@@ -25,6 +25,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetInput, FleetPlanner
+from .air import Air
 from .closed_loop import (
     LOG_COLUMN_TYPES,
     MissionResult,
@@ -113,7 +114,8 @@ class FleetLoop:
     def __init__(self, *, scene: RadioScene, relays: list[FleetRelay], sources: dict[str, SourceTrajectory],
                  planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
                  losses: Sequence[tuple[float, frozenset[str]]] = (),
-                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None):
+                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None,
+                 air: Air | None = None):
         """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(lost, positions)``
         builds the planner of the fleet without ``lost`` from the survivors' positions (m, world)."""
         if losses and replanner is None:
@@ -124,6 +126,9 @@ class FleetLoop:
         self.planner_ms: list[float] = []  # the fleet planner's time per step, ms (aerorelay bench)
         later = [h for _, lost in self.losses for h in scene.without(lost).hops]
         self.columns = fleet_columns(relays, list(sources), scene, later)
+        self.air = air  # [wind]: every relay's plant steps through it, its observer feeds its NMPC
+        if air is not None:
+            self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
         self.neighbours_of = route_neighbours(scene)
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
         self._bs_path = np.repeat(self.bs[:, None], relays[0].controller.spec.horizon + 1, axis=1)
@@ -193,10 +198,13 @@ class FleetLoop:
                                                       jammer_positions=known[0], jammer_powers=known[1]))
                 self.planner_ms.append((time.perf_counter() - t0) * 1e3)
                 row: dict[str, object] = {"t": t}
+                if self.air is not None:
+                    self.air.begin()
+                    row |= self.air.wind_values()
                 predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 for r in self.relays:
                     if r.name in lost:
-                        row |= gone_row(r)
+                        row |= gone_row(r) | (dict.fromkeys(self.air.columns(r.name, f"{r.name}."), math.nan) if self.air else {})
                         continue
                     up, down = self.neighbours_of[r.name]
                     others = None
@@ -205,10 +213,13 @@ class FleetLoop:
                         others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
                     zero = np.zeros(3)
                     P = r.controller.parameters(refs[r.name], zero, zero, zero, others, self.separation_m + SEPARATION_MARGIN_M,
-                                                p2_path=predicted[up], p0_path=predicted.get(down, self._bs_path))
+                                                p2_path=predicted[up], p0_path=predicted.get(down, self._bs_path),
+                                                a_ext=self.air.estimate(r.name) if self.air else None)
                     info = r.controller.step(x[r.name], u[r.name], P, shift=period >= r.controller.spec.ts - 1e-12)
                     u[r.name] = info.u
                     xs, n = x[r.name], r.vehicle.n_rotors
+                    if self.air is not None:
+                        row |= self.air.values(r.name, xs, f"{r.name}.")
                     row |= {f"{r.name}.{q}": v for q, v in zip(VEHICLE_STATE, xs[0:12], strict=True)}
                     row |= {f"{r.name}.Omega_{i}": xs[11 + i] for i in range(1, n + 1)}
                     row |= {f"{r.name}.u_{i}": info.u[i - 1] for i in range(1, n + 1)}
@@ -232,7 +243,8 @@ class FleetLoop:
                 record_row(log, k, row, self.columns, "fleet log row")
                 for r in self.relays:
                     if r.name not in lost:
-                        x[r.name] = np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel()
+                        x[r.name] = (self.air.advance(r.name, x[r.name], u[r.name], np.zeros(6)) if self.air
+                                     else np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel())
                 bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
                 if bad:
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from ..control.nmpc import QpStatus
+from ..models.obstacles import clearance
 from ..models.vehicle import Multirotor
 from ..stats import stats_ms
 
@@ -31,12 +33,14 @@ FLIPPED_TILT_DEG = 90.0  # a body tilt beyond this is an inverted vehicle
 
 
 def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, workspace_min, workspace_max,
-                   box_tolerance_m: float, ground_z_m: float = -np.inf) -> dict:
+                   box_tolerance_m: float, ground_z_m: float = -np.inf, obstacles: tuple = ()) -> dict:
     """Whether the relay stayed in its world: ``box_violation_max_m`` (largest distance outside the
     workspace box, 0 inside), ``min_altitude_m``, ``max_tilt_deg``, ``safety_violations`` (steps
     outside the supervisor's envelope) and the verdict ``unsafe`` with its ``unsafe_reason``: a
     run that left the box (beyond the tolerance), went below the ground (``ground_z_m``, m, no
-    tolerance) or flipped is unsafe whatever the QPs reported."""
+    tolerance) or flipped is unsafe whatever the QPs reported. With ``obstacles`` (the shapes
+    themselves, no margin): ``obstacle_clearance_min_m`` (the smallest signed distance to one, negative
+    inside), and a run that entered one is unsafe."""
     outside = np.max(np.c_[np.asarray(workspace_min, float) - p1, p1 - np.asarray(workspace_max, float)], axis=1)
     box = float(max(outside.max(), 0.0))
     reasons = []
@@ -47,8 +51,34 @@ def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, 
         reasons.append(f"went below the ground (z = {lowest:.2f} m, ground at {ground_z_m:g} m)")
     if tilt_deg.max() > FLIPPED_TILT_DEG:
         reasons.append(f"flipped (tilt {tilt_deg.max():.0f} deg)")
+    extra = {}
+    if obstacles:
+        flown = p1[np.all(np.isfinite(p1), axis=1)]
+        worst = float(clearance(obstacles, flown).min()) if len(flown) else math.inf
+        extra["obstacle_clearance_min_m"] = worst
+        if worst < 0:
+            reasons.append(f"entered an obstacle ({-worst:.2f} m deep)")
     return {"unsafe": bool(reasons), "unsafe_reason": "; ".join(reasons), "safety_violations": int(np.sum(violation)),
-            "box_violation_max_m": box, "min_altitude_m": float(p1[:, 2].min()), "max_tilt_deg": float(tilt_deg.max())}
+            "box_violation_max_m": box, "min_altitude_m": float(p1[:, 2].min()), "max_tilt_deg": float(tilt_deg.max()),
+            **extra}
+
+
+def air_metrics(log, prefix: str = "") -> dict:
+    """With wind (``sim/air.py`` columns): the wind's mean speed (m/s), the drag's mean and largest
+    acceleration (m/s^2) and, with the observer, its estimate's mean error against the drag (m/s^2)."""
+    if "wind_x" not in log:
+        return {}
+
+    def vec(name: str) -> np.ndarray:
+        return np.column_stack([np.asarray(log[f"{name}_{a}"], float) for a in "xyz"])
+    wind, drag = vec("wind"), vec(f"{prefix}a_drag")  # the wind is the fleet's, the drag each relay's
+    ok = np.all(np.isfinite(drag), axis=1)
+    out = {"wind_speed_mean_m_s": float(np.linalg.norm(wind, axis=1).mean()),
+           "drag_accel_mean_m_s2": float(np.linalg.norm(drag[ok], axis=1).mean()),
+           "drag_accel_max_m_s2": float(np.linalg.norm(drag[ok], axis=1).max())}
+    if f"{prefix}a_ext_x" in log:
+        out["observer_error_mean_m_s2"] = float(np.linalg.norm(vec(f"{prefix}a_ext")[ok] - drag[ok], axis=1).mean())
+    return out
 
 
 SATURATION_BAND = 0.01  # a motor within 1% (of its bound's magnitude) of a bound is saturated
@@ -121,7 +151,7 @@ def estimation_metrics(log, period_s: float) -> dict:
 
 def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
                     wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
-                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf) -> dict:
+                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf, obstacles: tuple = ()) -> dict:
     """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
     ``outage_threshold``, alignment threshold ``mu``, in the workspace box (m). Capacities
     normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
@@ -159,7 +189,8 @@ def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_thresho
         "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
         "taylor_rel_err_max": float(np.max(log["taylor_rel_err"])),
         "final_z_m": float(p1[-1, 2]),
-        **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m, ground_z_m),
+        **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m, ground_z_m, obstacles),
+        **air_metrics(log),
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
         **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
@@ -180,7 +211,7 @@ def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndar
 def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], period_s: float, outage_threshold: float,
                   wall_s: float, sim_s: float, min_separation_m: float, workspace_min, workspace_max,
                   box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf,
-                  losses: Sequence[tuple[float, frozenset[str]]] = ()) -> dict:
+                  losses: Sequence[tuple[float, frozenset[str]]] = (), obstacles: tuple = ()) -> dict:
     """Metrics of a fleet's flight (``sim.fleet`` log): the network's rate and every route's (minimum,
     mean, outage below ``outage_threshold``), the smallest separation between two vehicles (m),
     per relay its safety, tracking, energy and step times, and the fleet's step time (the relays'
@@ -219,7 +250,7 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
         solve = col("solve_ms").astype(float)
         fleet_ms[flew] += solve
         safety = safety_metrics(p, tilt, col("safety_violation").astype(bool), workspace_min, workspace_max,
-                                box_tolerance_m, ground_z_m)
+                                box_tolerance_m, ground_z_m, obstacles) | air_metrics(log, f"{name}.")
         out["relays"][name] = {
             **safety,
             "position_error_mean_m": float(np.mean(np.linalg.norm(p - pd, axis=1))),

@@ -8,12 +8,13 @@ import math
 
 DIMENSIONLESS = "1"
 # metric-name endings and the unit they carry (longest ending first)
-SUFFIX_UNITS = (("_hz_s", "Hz/s"), ("_fraction", DIMENSIONLESS), ("_ms", "ms"), ("_kJ", "kJ"), ("_deg", "deg"),
+SUFFIX_UNITS = (("_m_s2", "m/s^2"), ("_m_s", "m/s"), ("_hz_s", "Hz/s"), ("_fraction", DIMENSIONLESS), ("_ms", "ms"), ("_kJ", "kJ"), ("_deg", "deg"),
                 ("_hz", "Hz"), ("_m", "m"), ("_s", "s"))
 CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", "c_mean_before_loss", "c_min_after_loss",
                     "c_mean_after_loss")
 SPECTRAL = "bit/s/Hz"
-COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "reference_clipped_steps")
+COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "reference_clipped_steps",
+          "reference_kept_out_steps")
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
                   "aborted", "reference_clipped_first", "bound", "losses")
 

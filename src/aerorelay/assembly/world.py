@@ -1,0 +1,58 @@
+"""The world's parts from ``[wind]`` and ``[[obstacles]]``: each obstacle's shape (grown by its
+margin for the planners and the NMPC; bare for the supervisor and the safety verdict), and the air
+(the wind series, each relay's plant with its platform's drag, its observer)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..config import PlatformConfig, Scenario
+from ..estimation.disturbance import ExternalAccelerationObserver
+from ..models.drag import drag_coefficients
+from ..models.obstacles import Obstacle, obstacle_model
+from ..models.vehicle import Multirotor
+from ..sim.air import Air, AirborneRelay, WindSeries, WindSettings
+from ..sim.closed_loop import plant_step_function
+
+
+def obstacles(sc: Scenario, margin: bool = True) -> tuple[Obstacle, ...]:
+    """Every obstacle's shape, grown by its margin (``margin=False``: the obstacle itself)."""
+    return tuple(obstacle_model(o, margin) for o in sc.obstacle_list)
+
+
+def wind_settings(sc: Scenario) -> WindSettings:
+    """The wind of ``[wind]`` (its altitude: the first relay's start height over the ground by default)."""
+    w = sc.wind
+    assert w is not None
+    altitude = w.altitude_m if w.altitude_m is not None else sc.relay_list[0].start[2] - sc.world.ground_z_m
+    return WindSettings(mean=(w.mean_m_s[0], w.mean_m_s[1], w.mean_m_s[2]), gusts=w.gusts, w20_m_s=w.w20_m_s,
+                        altitude_m=float(altitude))
+
+
+def air(sc: Scenario, relays: Mapping[str, tuple[Multirotor, PlatformConfig]]) -> Air | None:
+    """The air every relay of ``relays`` (name: its vehicle and platform) flies in; None without ``[wind]``."""
+    w = sc.wind
+    if w is None:
+        return None
+    period, rate = sc.control_period_s, sc.sim.plant_rate_hz
+    flying = {}
+    for name, (vehicle, platform) in relays.items():
+        drag = drag_coefficients(platform.drag_area_m2, w.air_density_kg_m3)
+        observer = ExternalAccelerationObserver(plant_step_function(vehicle, rate, period), period,
+                                                w.observer_time_constant_s) if w.observer else None
+        flying[name] = AirborneRelay(plant=plant_step_function(vehicle, rate, period, drag=drag), drag=np.asarray(drag),
+                                     mass=vehicle.mass, observer=observer)
+    return Air(WindSeries(wind_settings(sc), period, sc.seed), flying)
+
+
+def bound_key_data(sc: Scenario, data: dict) -> dict:
+    """A bound's cache-key data without what cannot change a bound (the platforms' drag: the bounds
+    fly no wind), with the obstacles when there are any (a scenario without keeps its key)."""
+    for platform in [data.get("platform"), *(r.get("platform") for r in data.get("relays") or [])]:
+        if isinstance(platform, dict):
+            platform.pop("drag_area_m2", None)
+    if sc.obstacles:
+        data["obstacles"] = [o.model_dump() for o in sc.obstacle_list]
+    return data
