@@ -318,7 +318,7 @@ class Parts:
     def closed_loop(self) -> ClosedLoop:
         return ClosedLoop(vehicle=self.vehicle, scene=self.scene, source=self.source, planner=self.planner,
                           controller=self.controller, plant=self.plant, settings=self.settings, sensing=self.sensing,
-                          air=self.air)
+                          air=self.air, blockage=world.blockage(self.scenario))
 
 
 def one_relay(sc: Scenario) -> Scenario:
@@ -498,7 +498,7 @@ class FleetParts:
     def closed_loop(self) -> FleetLoop:
         return FleetLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
                          settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
-                         replanner=self.replanner, air=self.air)
+                         replanner=self.replanner, air=self.air, blockage=world.blockage(self.scenario))
 
     def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
         """The planner of the fleet without the relays ``lost``, its references starting where the

@@ -14,12 +14,18 @@ from ..models.drag import drag_coefficients
 from ..models.obstacles import Obstacle, obstacle_model
 from ..models.vehicle import Multirotor
 from ..sim.air import Air, AirborneRelay, WindSeries, WindSettings
+from ..sim.blockage import Blockage
 from ..sim.closed_loop import plant_step_function
 
 
 def obstacles(sc: Scenario, margin: bool = True) -> tuple[Obstacle, ...]:
     """Every obstacle's shape, grown by its margin (``margin=False``: the obstacle itself)."""
     return tuple(obstacle_model(o, margin) for o in sc.obstacle_list)
+
+
+def blockage(sc: Scenario) -> Blockage:
+    """The plant's radio blockage by the obstacles that block radio (``nlos_loss_db`` > 0; none: inactive)."""
+    return Blockage(obstacles(sc, margin=False), [o.nlos_loss_db for o in sc.obstacle_list])
 
 
 def wind_settings(sc: Scenario) -> WindSettings:

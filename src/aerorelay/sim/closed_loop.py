@@ -29,6 +29,7 @@ from ..models.streams import generator
 from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput
 from .air import Air
+from .blockage import Blockage
 from .jammer_sensing import JammerSensing
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
@@ -190,7 +191,7 @@ class ClosedLoop:
 
     def __init__(self, *, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory, planner: Planner,
                  controller: RelayController, plant: ca.Function, settings: SimSettings,
-                 sensing: JammerSensing | None = None, air: Air | None = None):
+                 sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None):
         self.veh, self.scene, self.source, self.planner = vehicle, scene, source, planner
         self.air = air  # [wind]: the plant steps through it (drag in the wind) and its observer feeds the NMPC
         self.sensing = sensing
@@ -209,6 +210,9 @@ class ClosedLoop:
         self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
         if air is not None:
             self.columns = self.columns + air.wind_columns() + air.columns(self.names["relay"])
+        self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
+        if self.blockage is not None:
+            self.columns = self.columns + self.blockage.columns(scene)
         self.timings: list[StepTiming] = []
         self.bench_points: list[BenchPoint] = []
 
@@ -229,10 +233,14 @@ class ClosedLoop:
         poses = {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
                  self.names["source"]: self.scene.pose(self.names["source"], p2, rotation_zyx(eta2))}
         fade, self._noise_values = None, {}
+        positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]: self._bs_position}
         if self.perturbations.active:  # the paper's channel has no random term: nothing to build per step
-            positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]: self._bs_position}
             velocities = {self.names["relay"]: x1[6:9], self.names["source"]: v2, self.names["base_station"]: np.zeros(3)}
             fade, self._noise_values = self.perturbations.step(t, positions, velocities)
+        if self.blockage is not None:  # a link through an obstacle that blocks radio loses its nlos_loss_db
+            blocked, values = self.blockage.step(self.scene, t, positions)
+            fade = blocked if fade is None else fade * blocked
+            self._noise_values = {**self._noise_values, **values}
         state = self.scene.evaluate(t, poses, fading=fade)
         if self.sensing is not None:
             bs = self.names["base_station"]

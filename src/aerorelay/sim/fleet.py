@@ -26,6 +26,7 @@ from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetInput, FleetPlanner
 from .air import Air
+from .blockage import Blockage
 from .closed_loop import (
     LOG_COLUMN_TYPES,
     MissionResult,
@@ -115,7 +116,7 @@ class FleetLoop:
                  planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
                  losses: Sequence[tuple[float, frozenset[str]]] = (),
                  replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None,
-                 air: Air | None = None):
+                 air: Air | None = None, blockage: Blockage | None = None):
         """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(lost, positions)``
         builds the planner of the fleet without ``lost`` from the survivors' positions (m, world)."""
         if losses and replanner is None:
@@ -127,6 +128,11 @@ class FleetLoop:
         later = [h for _, lost in self.losses for h in scene.without(lost).hops]
         self.columns = fleet_columns(relays, list(sources), scene, later)
         self.air = air  # [wind]: every relay's plant steps through it, its observer feeds its NMPC
+        self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
+        if self.blockage is not None:
+            self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
+                                                   for c in self.blockage.columns(s)))
+            self.columns += self.nlos_columns
         if air is not None:
             self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
         self.neighbours_of = route_neighbours(scene)
@@ -231,7 +237,11 @@ class FleetLoop:
                 poses = {n: self.scene.pose(n, positions[n], R[n]) for n in R}
                 for name, s in src.items():
                     row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta[name]], strict=True)}
-                state = self.scene.evaluate(t, poses)
+                gains = None
+                if self.blockage is not None:  # a link through an obstacle that blocks radio loses its nlos_loss_db
+                    gains, values = self.blockage.step(self.scene, t, positions)
+                    row |= dict.fromkeys(self.nlos_columns, math.nan) | values
+                state = self.scene.evaluate(t, poses, fading=gains)
                 row |= dict.fromkeys(sinr_columns, math.nan)  # a hop the network does not take now
                 row |= {f"sinr.{tx}.{rx}": float(g) for (tx, rx), g in zip(state.hops, state.sinr, strict=True)}
                 row |= {f"capacity.{route[0]}": float(c) for route, c in zip(self.scene.all_routes, state.route_capacity,
