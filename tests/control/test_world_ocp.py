@@ -60,3 +60,13 @@ def test_an_ocp_without_wind_or_obstacles_keeps_its_layout_and_key():
     assert "a_ext" not in plain.params.names and "obstacle_planes" not in plain.params.names
     assert OcpSpec(**BASE, disturbance=False, obstacles=0).key() == plain.key()
     assert OcpSpec(**BASE, disturbance=True).key() != plain.key()
+
+
+def test_the_supervisor_flags_a_state_inside_an_obstacle_and_not_its_margin():
+    from aerorelay.control.supervisor import SafetyEnvelope
+    from aerorelay.models.obstacles import VerticalCylinder
+
+    pole = VerticalCylinder((0.0, 0.0), 0.5, 0.0, 10.0)  # the obstacle itself: the supervisor's has no margin
+    env = SafetyEnvelope.for_vehicle(VEH, (-10, -10, 0), (10, 10, 20), obstacles=(pole,))
+    assert env.violations(VEH.hover_state([0.3, 0.0, 5.0])) == ["0.20 m inside obstacle 0"]
+    assert env.violations(VEH.hover_state([0.6, 0.0, 5.0])) == []

@@ -556,7 +556,8 @@ def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) ->
                                     FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
                                                           axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
                                                           workspace_min=_vec3(lo), workspace_max=_vec3(hi),
-                                                          separation_m=sc.network.min_separation_m))
+                                                          separation_m=sc.network.min_separation_m,
+                                                          obstacles=world.obstacles(sc)))
     return EquidistantPlanner(sc.route_list, starts, EquidistantSettings(speed_m_s=cap.speed_m_s, margin_m=cap.margin_m,
                                                                          workspace_min=_vec3(lo), workspace_max=_vec3(hi)))
 

@@ -15,6 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
 from .trajectory_generator import Reference
 
@@ -110,6 +111,7 @@ class FleetCapacitySettings:
     workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
     separation_m: float = 0.0  # goals keep this far (m) from every other vehicle's goal or position, plus GOAL_CLEARANCE_M
+    obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no goal inside one
 
 
 GOAL_CLEARANCE_M = 0.5  # a goal's extra clearance over the separation (m): the NMPC's own margin stays unused
@@ -170,6 +172,10 @@ class FleetCapacityPlanner:
                 rate[gap < self.settings.separation_m + GOAL_CLEARANCE_M] = -np.inf  # too close to another vehicle
                 if not np.isfinite(rate).any():
                     continue  # every neighbour too close: the goal stays
+            if self.settings.obstacles:
+                rate[inside_any(self.settings.obstacles, P)] = -np.inf  # a goal inside an obstacle's margin
+                if not np.isfinite(rate).any():
+                    continue
             i, j = np.unravel_index(int(np.argmax(rate)), rate.shape)
             self.goals[name], self.axis_goals[name] = P[i].copy(), B[j].copy()
 
