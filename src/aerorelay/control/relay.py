@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..models.geometry import constant_acceleration_path, thrust_direction_from_acceleration
+from ..models.geometry import constant_acceleration_path, realign_with_thrust, thrust_direction_from_acceleration
 from ..models.obstacles import Obstacle, separating_planes
 from .failsafe import BrakeLaw, Hold
 from .nmpc import NMPC, NmpcSettings, StepInfo
@@ -83,8 +83,15 @@ class RelayController:
         spec = self.spec
         tk = spec.ts * np.arange(spec.horizon + 1)
         a_ext = np.zeros(3) if a_ext is None else np.asarray(a_ext, float)
-        # rho_d (eq. 20; the thrust also counters the external acceleration), unless a planner gives the antenna axis
-        rho_d = thrust_direction_from_acceleration(ref.a_ref - a_ext, spec.vehicle.gravity) if ref.axis is None else ref.axis
+        # rho_d (eq. 20; the thrust also counters the external acceleration), unless a planner gives the antenna axis:
+        # then that axis relative to the thrust a_ref needs, carried with the thrust that also counters a_ext
+        g = spec.vehicle.gravity
+        if ref.axis is None:
+            rho_d = thrust_direction_from_acceleration(ref.a_ref - a_ext, g)
+        elif np.any(a_ext != 0.0):
+            rho_d = realign_with_thrust(ref.axis, ref.a_ref, ref.a_ref - a_ext, g)
+        else:
+            rho_d = ref.axis
         values = {
             "p_ref": ref.p_ref[:, None] + ref.v_ref[:, None] * tk,
             "v_ref": ref.v_ref,

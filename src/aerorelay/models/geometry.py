@@ -63,10 +63,10 @@ def thrust_direction_from_acceleration(acceleration, gravity: float) -> np.ndarr
     return thrust / np.linalg.norm(thrust)
 
 
-def align_with_thrust(axis, acceleration, gravity: float) -> np.ndarray:
+def align_with_thrust(axis, acceleration, gravity: float, inverse: bool = False) -> np.ndarray:
     """``axis`` (unit, world) turned by the rotation that takes ``e3`` to the thrust direction of
     ``acceleration`` (shortest arc): a hover antenna axis carried along when the vehicle tilts to
-    accelerate. Zero acceleration returns ``axis``."""
+    accelerate. Zero acceleration returns ``axis``; ``inverse``: the rotation back (thrust to ``e3``)."""
     axis = np.asarray(axis, float)
     f = thrust_direction_from_acceleration(acceleration, gravity)
     if f[2] <= 0.0:
@@ -77,8 +77,16 @@ def align_with_thrust(axis, acceleration, gravity: float) -> np.ndarray:
     if s < 1e-12:
         return axis.copy()
     k /= s
+    s = -s if inverse else s
     # Rodrigues' formula
     return axis * c + np.cross(k, axis) * s + k * (k @ axis) * (1.0 - c)
+
+
+def realign_with_thrust(axis, acceleration_from, acceleration_to, gravity: float) -> np.ndarray:
+    """An antenna axis carried along with the thrust for ``acceleration_from`` (``align_with_thrust``)
+    carried instead with the thrust for ``acceleration_to`` (m/s^2, world): the same axis relative to
+    the thrust, e.g. a relay leaning into the wind (the thrust counters an external acceleration too)."""
+    return align_with_thrust(align_with_thrust(axis, acceleration_from, gravity, inverse=True), acceleration_to, gravity)
 
 
 def attitude_from_thrust(direction, yaw: float = 0.0) -> np.ndarray:
