@@ -280,8 +280,7 @@ def planner_settings(sc: Scenario) -> PlannerSettings:
             route_grid_m=cap.route_grid_m, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
             excursion_m=cap.excursion_m, excursion_std_m=cap.excursion_std_m, excursion_max_loss=cap.excursion_max_loss,
             yaw_rate_deg_s=cap.yaw_rate_deg_s, tilt_fraction=cap.tilt_fraction, boundary_axes=cap.boundary_axes,
-            tracking_freq_rad_s=cap.tracking_freq_rad_s, scoring=cap.scoring,
-            thrust_reserve=world.thrust_reserve(sc, sc.platform_of(0))))
+            tracking_freq_rad_s=cap.tracking_freq_rad_s, scoring=cap.scoring))
 
 
 def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:
@@ -552,8 +551,7 @@ def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) ->
     if sc.network.planner == "capacity":
         # each relay's antenna axes it can hold at zero yaw toward each azimuth (its own limit there, times
         # tilt_fraction), as the one relay's planner: its best azimuth's limit everywhere was not holdable (3 m tracking errors)
-        axes = {r.name: holdable_axes(r.vehicle, cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes,
-                                      world.thrust_reserve(sc, sc.platform_of(i)))[2] for i, r in enumerate(relays)}
+        axes = {r.name: holdable_axes(r.vehicle, cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes)[2] for r in relays}
         return FleetCapacityPlanner(scene.world_view(), starts, axes,
                                     FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
                                                           axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,

@@ -13,7 +13,6 @@ from ..estimation.disturbance import ExternalAccelerationObserver
 from ..models.drag import drag_coefficients
 from ..models.obstacles import Obstacle, obstacle_model
 from ..models.vehicle import Multirotor
-from ..models.wind import low_altitude_parameters
 from ..sim.air import Air, AirborneRelay, WindSeries, WindSettings
 from ..sim.blockage import Blockage
 from ..sim.closed_loop import plant_step_function
@@ -27,29 +26,6 @@ def obstacles(sc: Scenario, margin: bool = True) -> tuple[Obstacle, ...]:
 def blockage(sc: Scenario) -> Blockage:
     """The plant's radio blockage by the obstacles that block radio (``nlos_loss_db`` > 0; none: inactive)."""
     return Blockage(obstacles(sc, margin=False), [o.nlos_loss_db for o in sc.obstacle_list])
-
-
-GUST_SIGMAS = 3.0  # the thrust reserve covers the mean wind plus this many gust standard deviations
-
-
-def thrust_reserve(sc: Scenario, platform: PlatformConfig) -> float:
-    """How many times the hover thrust a relay on ``platform`` needs in the scenario's wind (1: still
-    air): ``|g e3 - a_D| / g`` with the drag ``a_D`` of a level relay at the mean wind plus ``GUST_SIGMAS``
-    gust standard deviations, horizontally (the larger of its body x and y drag areas) and vertically
-    (its z area); what the capacity planners
-    keep for it when they choose the antenna axes a relay can hold (the operator's forecast, not
-    the gusts the relay will meet)."""
-    w = sc.wind
-    if w is None:
-        return 1.0
-    ws = wind_settings(sc)
-    sigma = low_altitude_parameters(ws.w20_m_s, ws.altitude_m).sigma if ws.gusts else (0.0, 0.0, 0.0)
-    c = drag_coefficients(platform.drag_area_m2, w.air_density_kg_m3)
-    horizontal = float(np.hypot(ws.mean[0], ws.mean[1])) + GUST_SIGMAS * sigma[0]
-    vertical = abs(ws.mean[2]) + GUST_SIGMAS * sigma[2]
-    g = platform.gravity_m_s2
-    a_h, a_v = max(c[0], c[1]) * horizontal**2 / platform.mass_kg, c[2] * vertical**2 / platform.mass_kg
-    return float(np.hypot(a_h, g + a_v) / g)
 
 
 def wind_settings(sc: Scenario) -> WindSettings:

@@ -89,7 +89,6 @@ class CapacityPlannerSettings:
     boundary_axes: bool = True
     tracking_freq_rad_s: float = 1.0
     scoring: str = "joint"
-    thrust_reserve: float = 1.0  # the axes must be holdable with this many times the hover thrust (wind: > 1)
 
     def __post_init__(self):
         checks.one_of("CapacityPlannerSettings", "scoring", self.scoring, ("joint", "decoupled"))

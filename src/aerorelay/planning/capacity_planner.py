@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -51,16 +50,11 @@ from .relay_grid import CompiledRelayGrid
 from .trajectory_generator import Reference
 
 
-def holdable_axes(vehicle, tilt_fraction: float, step_deg: float, boundary: bool,
-                  thrust_reserve: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def holdable_axes(vehicle, tilt_fraction: float, step_deg: float, boundary: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The antenna axes ``vehicle`` can hold in hover at zero yaw: toward each world azimuth (every
     10 deg, rad) a tilt up to ``tilt_fraction`` (a margin of control authority) of its hover tilt
     limit toward that azimuth (rad); and the axis set on tilt rings every ``step_deg``
-    (``models.axes.axis_set``, ``boundary``: also the axes at the limit). ``(azimuths, limits, axes)``.
-    ``thrust_reserve`` > 1: the limits with that many times the hover thrust (a relay leaning into the
-    wind needs more thrust, and the motors have less left for the tilt)."""
-    if thrust_reserve != 1.0:
-        vehicle = replace(vehicle, gravity=vehicle.gravity * thrust_reserve)
+    (``models.axes.axis_set``, ``boundary``: also the axes at the limit). ``(azimuths, limits, axes)``."""
     az = np.radians(np.arange(0.0, 360.0, 10.0))
     limits = tilt_fraction * vehicle.hover_tilt_limits(az)
     return az, limits, axis_set(az, limits, np.radians(step_deg), boundary=boundary)
@@ -74,7 +68,7 @@ class CapacityPlanner:
         veh = ctx.vehicle
         # at zero yaw only the tilts the platform can hold toward each azimuth (times tilt_fraction,
         # a margin of control authority) are axes it can actually fly
-        az, limits, self.axes = holdable_axes(veh, s.tilt_fraction, s.axis_step_deg, s.boundary_axes, s.thrust_reserve)
+        az, limits, self.axes = holdable_axes(veh, s.tilt_fraction, s.axis_step_deg, s.boundary_axes)
         self.tilt_limit = float(limits.max())
         self.lo, self.hi = np.asarray(ctx.workspace_min, float) + s.margin_m, np.asarray(ctx.workspace_max, float) - s.margin_m
         self.offsets = s.step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
