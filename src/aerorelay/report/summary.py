@@ -35,6 +35,9 @@ SCALAR_METRICS = (
     "bound.achieved.mean", "bound.flyable.mean", "bound.flyable.min", "separation_min_m", "fleet_solve_ms.mean",
     "fleet_solve_ms.p99", "c_mean_before_loss", "c_min_before_loss", "c_mean_after_loss", "c_min_after_loss", "capacity_efficiency_mean_before_loss",
     "capacity_efficiency_mean_after_loss", "capacity_efficiency_min_after_loss",
+    # wind and obstacles (sim.metrics.air_metrics, safety_metrics)
+    "wind_speed_mean_m_s", "drag_accel_mean_m_s2", "drag_accel_max_m_s2", "observer_error_mean_m_s2",
+    "obstacle_clearance_min_m", "reference_kept_out_steps",
 )
 
 
