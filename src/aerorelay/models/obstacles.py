@@ -110,7 +110,8 @@ def _normal(p: np.ndarray, nearest: np.ndarray, outside: np.ndarray, on_surface:
     """The outward unit normal at ``nearest``: toward ``p`` when ``p`` is outside (``outside`` > 0, its
     distance), else ``on_surface`` (the face's)."""
     out = (np.asarray(outside) > 1e-12)[..., None]
-    return np.where(out, (p - nearest) / np.where(out, np.asarray(outside)[..., None], 1.0), on_surface)
+    n = np.where(out, p - nearest, on_surface)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)  # normalized again: |p - nearest| / outside loses digits near the surface
 
 
 def separating_plane(obstacle: Obstacle, p) -> tuple[np.ndarray, float]:
