@@ -27,6 +27,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario, parse_scenario
+from .assembly.flight import build_stepper
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import build, build_fleet, build_scene, network_bound, nmpc_settings, scenario_bound
@@ -39,6 +40,7 @@ from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, 
 from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
+from .flight.stepper import RelayStepper, StaleSettings
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
@@ -90,6 +92,14 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     scenario's (see ``experiments.run.simulate``). ``save`` writes the run folder with the figures
     and ``run.mcap`` (``figures=False``: data files only)."""
     return _simulate(sc, with_bound=bound, views=write_fleet_views if sc.is_fleet else write_run_views, **parts)
+
+
+def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None) -> RelayStepper:
+    """The relay's planner and NMPC stepped from outside: ``ctrl.step(t, relay_state, source)`` each
+    control period returns a ``Command`` (rotor speeds and autopilot setpoints, world ENU, body FLU;
+    ``aerorelay.flight.frames`` converts to NED/FRD). Stale inputs hold, then land (``stale``). Stepped
+    over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md)."""
+    return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale)
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:

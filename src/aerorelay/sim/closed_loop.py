@@ -20,6 +20,7 @@ import numpy as np
 
 from ..control.nmpc import StepInfo
 from ..control.relay import RelayController
+from ..flight.stepper import RelayStepper, SourceState
 from ..models.channel import misalignment, mutual_alignment
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
@@ -27,7 +28,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
 from ..models.streams import generator
 from ..models.vehicle import Multirotor
-from ..planning.base import Planner, PlannerInput
+from ..planning.base import Planner
 from .air import Air
 from .blockage import Blockage
 from .jammer_sensing import JammerSensing
@@ -215,6 +216,9 @@ class ClosedLoop:
             self.columns = self.columns + self.blockage.columns(scene)
         self.timings: list[StepTiming] = []
         self.bench_points: list[BenchPoint] = []
+        # the relay's side of each step (planner, stage parameters, NMPC), as ar.controller(sc).step flies it
+        self.stepper = RelayStepper(vehicle=vehicle, planner=planner, controller=controller, period_s=settings.period_s,
+                                    jammers=self._oracle_jammers)
 
     @property
     def nmpc(self):
@@ -248,6 +252,9 @@ class ClosedLoop:
         p0 = self.scene.fixed_pose(self.names["base_station"]).position
         return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
 
+    def _oracle_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray, None]:
+        return self._measured_jammers(t), self._planned_jammer_powers(t), None
+
     def _measured_jammers(self, t: float) -> np.ndarray:
         """Jammer positions ``(nJ, 3)`` as the controller knows them (with CSI noise)."""
         noise = self.settings.csi_noise_m
@@ -258,7 +265,6 @@ class ClosedLoop:
         st, veh = self.settings, self.veh
         period = st.period_s
         n_steps = step_count(st.duration_s, period)
-        shift = period >= self.spec.ts - 1e-12
         x = veh.hover_state(st.relay_start)
         u = np.zeros(veh.n_rotors)
         # flags and the status text recorded by name: their own dtypes (the rest, jammer_on too, float until log_frame)
@@ -278,18 +284,14 @@ class ClosedLoop:
                     pj_std = self.sensing.estimate.position_std_max()
                 else:
                     pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
-                t_plan = time.perf_counter()
-                ref = self.planner.update(PlannerInput(t=t, dt=period, p1=x[0:3].copy(), p2=p2_meas, v2=src.v, a2=src.a,
-                                                       jammer_positions=pj_meas, jammer_powers=pj_powers, jammer_std_m=pj_std,
-                                                       psi1=float(x[5]), v1=x[6:9].copy()))
-                planner_ms = (time.perf_counter() - t_plan) * 1e3
                 if self.air is not None:
                     self.air.begin()
-                P = self.controller.parameters(ref, p2_meas, src.v, src.a,
-                                               a_ext=self.air.estimate(self.names["relay"]) if self.air else None)
+                ref, P = self.stepper.prepare(t, x, SourceState(p2_meas, src.v, src.a), jammers=(pj_meas, pj_powers, pj_std),
+                                              a_ext=self.air.estimate(self.names["relay"]) if self.air else None)
+                planner_ms = self.stepper.planner_ms
                 if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
                     self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
-                info = self.controller.step(x, u, P, shift=shift)
+                info = self.stepper.act(x, P)
                 u = info.u
                 channel, v12, v10 = self._channel(t, x, src.p, eta2, src.v)
                 self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,

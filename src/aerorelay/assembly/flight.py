@@ -1,0 +1,47 @@
+"""The relay controller stepped from outside (``ar.controller``): the same planner and NMPC a
+mission flies, with the jammers as the relay was told them (the oracle after each one's ``tau_E``)
+and, with ``[wind]``, its own external-force observer."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..config import Scenario, ScenarioError
+from ..control.nmpc import NmpcSettings
+from ..estimation.disturbance import ExternalAccelerationObserver
+from ..flight.stepper import RelayStepper, StaleSettings
+from ..models.radio import RadioScene
+from ..sim.closed_loop import plant_step_function
+from .parts import build
+
+
+def oracle_jammers(scene: RadioScene, senses_state: bool):
+    """``t -> (positions (nJ, 3) m, powers W, None)``: every jammer where it is, with the power the
+    planner plans with (0 before its localization; the nominal power, or the radiated one when the
+    controller senses the schedule), as ``ar.simulate`` gives them without CSI noise."""
+    def view(t: float) -> tuple[np.ndarray, np.ndarray, None]:
+        js = scene.jammers
+        positions = np.array([j.position_at(t) for j in js]).reshape(-1, 3)
+        powers = np.array([0.0 if not j.is_localized(t) else float(j.power_at(t)) if senses_state else j.power for j in js])
+        return positions, powers, None
+    return view
+
+
+def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
+                  stale: StaleSettings | None = None) -> RelayStepper:
+    """The stepper of one relay's scenario; a fleet, or jammers estimated from readings, is a named error."""
+    if sc.is_fleet:
+        raise ScenarioError("relays: ar.controller steps one relay; a fleet's relays are stepped by its loop "
+                            "(docs/concepts/networks.md)")
+    if sc.estimates_jammers:
+        raise ScenarioError("jammer.localization: 'estimated' needs the relay's receiver readings, which "
+                            "ar.controller does not take yet; use 'oracle' to step it from outside")
+    parts = build(sc, nmpc_settings=nmpc_settings)
+    w = sc.wind
+    observer = None
+    if w is not None and w.observer:
+        observer = ExternalAccelerationObserver(plant_step_function(parts.vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
+                                                sc.control_period_s, w.observer_time_constant_s)
+    return RelayStepper(vehicle=parts.vehicle, planner=parts.planner, controller=parts.controller,
+                        period_s=sc.control_period_s, jammers=oracle_jammers(parts.scene, sc.controller.senses_jammer_state),
+                        observer=observer, stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))

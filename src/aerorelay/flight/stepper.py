@@ -1,0 +1,188 @@
+"""The relay controller stepped from outside: ``ctrl = ar.controller(sc)``; each control period
+``cmd = ctrl.step(t, relay_state, source)`` with the relay's measured state and what it knows of the
+source, in aerorelay's frames (world ENU, body FLU; ``flight.frames`` converts at an autopilot's
+edge). ``cmd`` carries the rotor speeds and their rates (what aerorelay's plant flies) and the
+setpoints an autopilot accepts: position, velocity and acceleration, the attitude quaternion with the
+collective thrust normalized to hover, the body rates (the relay's state one control period ahead
+under the command, by its own model); the step's computation time and whether it met its deadline.
+
+Inputs that go stale put it in a failsafe, the behaviour autopilots give: a relay state (or source)
+older than ``hold_after_s`` makes the command a position hold where the relay last was (no rotor
+command: the autopilot holds); older than ``land_after_s`` a landing straight down at ``land_speed_m_s``
+to the ground. A fresh state resumes the NMPC.
+
+``ar.simulate`` flies the same steps (``prepare`` then ``act``) on aerorelay's plant: stepping
+``ar.controller(sc)`` over the plant reproduces it bit for bit (tested).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..control.nmpc import StepInfo
+from ..control.relay import RelayController
+from ..estimation.disturbance import ExternalAccelerationObserver
+from ..models.geometry import rotation_zyx
+from ..models.vehicle import Multirotor
+from ..planning.base import Planner, PlannerInput, Reference
+from .frames import quaternion_wxyz
+
+MODES = ("nmpc", "fallback", "hold", "land")  # Command.mode
+
+
+@dataclass(frozen=True)
+class SourceState:
+    """What the relay knows of the source (MRAV-2): position (m), velocity (m/s), acceleration
+    (m/s^2), world ENU, and when it was measured (s, the controller's clock; None: now)."""
+
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    stamp: float | None = None
+
+
+@dataclass(frozen=True)
+class StaleSettings:
+    """When stale inputs hold (s), when they land (s), how fast the landing descends (m/s) and the
+    ground's height (m, world z)."""
+
+    hold_after_s: float = 0.05
+    land_after_s: float = 3.0
+    land_speed_m_s: float = 0.5
+    ground_z_m: float = 0.0
+
+    def __post_init__(self):
+        if not 0 < self.hold_after_s < self.land_after_s or self.land_speed_m_s <= 0:
+            raise ValueError(f"StaleSettings: need 0 < hold_after_s ({self.hold_after_s}) < land_after_s "
+                             f"({self.land_after_s}) and land_speed_m_s > 0 ({self.land_speed_m_s})")
+
+
+@dataclass(frozen=True)
+class Command:
+    """One control step's output (world ENU, body FLU). ``mode``: ``nmpc``, ``fallback`` (the brake
+    law flies), ``hold`` or ``land`` (stale input: setpoints only, ``rotor_speeds_hz`` and
+    ``omega_dot_hz_s`` None). Setpoints are the relay's state one period ahead by its model."""
+
+    t: float
+    mode: str
+    omega_dot_hz_s: np.ndarray | None
+    rotor_speeds_hz: np.ndarray | None
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+    attitude_wxyz: np.ndarray
+    thrust_normalized: float
+    body_rates_rad_s: np.ndarray
+    compute_ms: float
+    deadline_met: bool
+    reference: Reference | None = None
+    info: StepInfo | None = None
+
+
+JammerView = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray | None]]
+
+
+class RelayStepper:
+    """The planner and the NMPC of one relay, stepped from outside (see the module)."""
+
+    def __init__(self, *, vehicle: Multirotor, planner: Planner, controller: RelayController, period_s: float,
+                 jammers: JammerView, observer: ExternalAccelerationObserver | None = None,
+                 stale: StaleSettings = StaleSettings()):
+        """``jammers(t)``: the jammers as the relay knows them at ``t``: positions ``(nJ, 3)`` m, the
+        powers it plans with (W) and the position std (m; None: known exactly)."""
+        self.vehicle, self.planner, self.controller, self.period = vehicle, planner, controller, period_s
+        self.jammers, self.observer, self.stale = jammers, observer, stale
+        self.shift = period_s >= controller.spec.ts - 1e-12
+        self.u = np.zeros(vehicle.n_rotors)  # the input applied last (Hz/s)
+        self.planner_ms = 0.0
+        self._x_prev: np.ndarray | None = None
+        self._last_fresh: tuple[float, np.ndarray, float] | None = None  # (time, position, yaw) of the last fresh state
+        self._land_from: tuple[float, np.ndarray] | None = None
+        F, _ = vehicle.allocation()
+        self._thrust_per_speed2 = F
+
+    # -- the NMPC's step in two phases (ar.simulate calls them with its own measurements) ---------------
+    def prepare(self, t: float, x: np.ndarray, source: SourceState, *, jammers=None,
+                a_ext: np.ndarray | None = None) -> tuple[Reference, np.ndarray]:
+        """The planner's reference and the NMPC's stage parameters for the relay at ``x``; ``jammers``:
+        ``(positions, powers, std)`` measured outside (default ``self.jammers(t)``); ``a_ext``: an
+        external-acceleration estimate made outside (default: this stepper's observer's, if any)."""
+        pj, powers, std = jammers if jammers is not None else self.jammers(t)
+        t0 = time.perf_counter()
+        ref = self.planner.update(PlannerInput(t=t, dt=self.period, p1=x[0:3].copy(), p2=source.p, v2=source.v, a2=source.a,
+                                               jammer_positions=pj, jammer_powers=powers, jammer_std_m=std,
+                                               psi1=float(x[5]), v1=x[6:9].copy()))
+        self.planner_ms = (time.perf_counter() - t0) * 1e3
+        if a_ext is None and self.observer is not None:
+            a_ext = self.observer.estimate
+        P = self.controller.parameters(ref, source.p, source.v, source.a, a_ext=a_ext)
+        return ref, P
+
+    def act(self, x: np.ndarray, P: np.ndarray) -> StepInfo:
+        """The NMPC's (or the fail-safe's) input for the relay at ``x`` with stage parameters ``P``."""
+        info = self.controller.step(x, self.u, P, shift=self.shift)
+        self.u = info.u
+        return info
+
+    # -- the step API -----------------------------------------------------------------------------------
+    def step(self, t: float, relay_state: np.ndarray | None, source: SourceState | None, *,
+             state_stamp: float | None = None, jammers=None) -> Command:
+        """One control step at ``t`` (s): ``relay_state`` the full state ``(p, eta, v, omega, Omega)``
+        (m, rad ZYX, m/s, rad/s FLU, Hz; None: no new state), measured at ``state_stamp`` (None: ``t``)."""
+        t0 = time.perf_counter()
+        stamp = t if state_stamp is None else state_stamp
+        fresh = relay_state is not None and t - stamp <= self.stale.hold_after_s and source is not None and \
+            t - (t if source.stamp is None else source.stamp) <= self.stale.hold_after_s
+        if relay_state is not None:
+            x = np.asarray(relay_state, float)
+            if x.shape != (self.vehicle.nx,):
+                raise ValueError(f"step: relay_state must have {self.vehicle.nx} entries (p, eta, v, omega, Omega), got {x.shape}")
+        if not fresh:
+            return self._stale_command(t, t0)
+        assert relay_state is not None and source is not None
+        if self.observer is not None and self._x_prev is not None:
+            self.observer.update(self._x_prev, self.u, x)
+        self._land_from = None
+        self._last_fresh = (t, x[0:3].copy(), float(x[5]))
+        ref, P = self.prepare(t, x, source, jammers=jammers)
+        info = self.act(x, P)
+        self._x_prev = x.copy()
+        return self._command(t, x, info, ref, t0)
+
+    def _command(self, t: float, x: np.ndarray, info: StepInfo, ref: Reference, t0: float) -> Command:
+        veh = self.vehicle
+        x1 = np.asarray(veh.rk4_step(x, info.u, self.period), float)  # one period ahead under the command
+        a_ext = self.observer.estimate if self.observer is not None else np.zeros(3)
+        acc = np.asarray(veh.dynamics(x1, info.u), float)[6:9] + a_ext
+        thrust = float(np.linalg.norm(self._thrust_per_speed2 @ x1[12:] ** 2)) / (veh.mass * veh.gravity)
+        ms = (time.perf_counter() - t0) * 1e3
+        return Command(t=t, mode="fallback" if info.fallback else "nmpc", omega_dot_hz_s=info.u.copy(),
+                       rotor_speeds_hz=x[12:] + info.u * self.period, position_m=x1[0:3], velocity_m_s=x1[6:9],
+                       acceleration_m_s2=acc, attitude_wxyz=quaternion_wxyz(rotation_zyx(x1[3:6])), thrust_normalized=thrust,
+                       body_rates_rad_s=x1[9:12], compute_ms=ms, deadline_met=ms <= self.period * 1e3, reference=ref, info=info)
+
+    def _stale_command(self, t: float, t0: float) -> Command:
+        """Hold where the relay last was (level, its last yaw); land straight down once the input stays stale."""
+        if self._last_fresh is None:
+            raise ValueError("step: no relay state and source received yet (nothing to hold)")
+        since, p, yaw = self._last_fresh
+        mode, v = "hold", np.zeros(3)
+        target = p.copy()
+        if t - since > self.stale.land_after_s:
+            mode = "land"
+            if self._land_from is None:
+                self._land_from = (t, p.copy())
+            t_land, p_land = self._land_from
+            target[2] = max(self.stale.ground_z_m, p_land[2] - self.stale.land_speed_m_s * (t - t_land))
+            if target[2] > self.stale.ground_z_m:
+                v = np.array([0.0, 0.0, -self.stale.land_speed_m_s])
+        ms = (time.perf_counter() - t0) * 1e3
+        return Command(t=t, mode=mode, omega_dot_hz_s=None, rotor_speeds_hz=None, position_m=target, velocity_m_s=v,
+                       acceleration_m_s2=np.zeros(3), attitude_wxyz=quaternion_wxyz(rotation_zyx([0.0, 0.0, yaw])),
+                       thrust_normalized=1.0,
+                       body_rates_rad_s=np.zeros(3), compute_ms=ms, deadline_met=ms <= self.period * 1e3)
+

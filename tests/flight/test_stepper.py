@@ -1,0 +1,111 @@
+"""The step API (``ar.controller``): stepped over aerorelay's plant it reproduces ``ar.simulate`` bit
+for bit (the paper's controller, the capacity-seeking one, and in gusty wind with its observer);
+stale input holds within one period, then lands, and a fresh state resumes the NMPC; the command's
+setpoints are the model's state one period ahead."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly import world
+from aerorelay.assembly.parts import build
+from aerorelay.sim.closed_loop import plant_step_function, step_count
+
+DURATION = 0.6
+
+
+def _fly_stepped(sc):
+    """``ar.controller(sc)`` stepped over the plant ``ar.simulate`` flies (the same wind series when windy)."""
+    ctrl = ar.controller(sc)
+    parts = build(sc)
+    veh = parts.vehicle
+    plant = plant_step_function(veh, sc.sim.plant_rate_hz, sc.control_period_s)
+    air = world.air(sc, {"relay": (veh, sc.platform)})
+    x = veh.hover_state(sc.nodes.relay)
+    xs, us = [], []
+    for k in range(step_count(sc.duration_s, sc.control_period_s)):
+        t = k * sc.control_period_s
+        s = parts.source.state(t)
+        if air is not None:
+            air.begin()
+        cmd = ctrl.step(t, x, ar.SourceState(s.p, s.v, s.a))
+        xs.append(x.copy())
+        us.append(cmd.omega_dot_hz_s)
+        x = air.advance("relay", x, cmd.omega_dot_hz_s, np.zeros(6)) if air else np.asarray(plant(x, cmd.omega_dot_hz_s, np.zeros(6))).ravel()
+    return np.array(xs), np.array(us)
+
+
+@pytest.mark.parametrize("updates", [
+    {},
+    {"controller.planner": "capacity"},
+    {"controller.planner": "capacity", "wind": {"mean_m_s": [6.0, 0.0, 0.0], "gusts": True}},
+], ids=["paper", "capacity", "capacity-in-gusts"])
+def test_stepping_reproduces_simulate_bit_for_bit(updates):
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": DURATION, **updates})
+    log = ar.simulate(sc).timeseries
+    xs, us = _fly_stepped(sc)
+    cols = ["p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z"]
+    assert np.array_equal(log[cols].to_numpy(), xs[:, :9])
+    assert np.array_equal(log[[f"u_{i}" for i in range(1, 7)]].to_numpy(), us)
+
+
+@pytest.fixture(scope="module")
+def stepped():
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 5.0})
+    ctrl = ar.controller(sc)
+    parts = build(sc)
+    return sc, ctrl, parts
+
+
+def test_stale_input_holds_within_one_period_then_lands_then_resumes(stepped):
+    sc, ctrl, parts = stepped
+    T = sc.control_period_s
+    veh = parts.vehicle
+    x = veh.hover_state(sc.nodes.relay)
+    s = parts.source.state(0.0)
+    src = ar.SourceState(s.p, s.v, s.a)
+    first = ctrl.step(0.0, x, src)
+    assert first.mode == "nmpc" and first.rotor_speeds_hz is not None
+    hold_after = ctrl.stale.hold_after_s
+    # the last state was measured at t = 0; one period after it became too old, the command holds
+    t = hold_after + T
+    held = ctrl.step(t, None, src)
+    assert held.mode == "hold" and held.rotor_speeds_hz is None
+    assert np.array_equal(held.position_m, x[0:3]) and np.array_equal(held.velocity_m_s, np.zeros(3))
+    # a state with an old stamp is stale too
+    assert ctrl.step(t, x, src, state_stamp=0.0).mode == "hold"
+    # longer still: land straight down at the landing speed, never below the ground
+    t_land = ctrl.stale.land_after_s + T
+    a = ctrl.step(t_land, None, src)
+    b = ctrl.step(t_land + 1.0, None, src)
+    assert a.mode == b.mode == "land"
+    assert b.position_m[2] == pytest.approx(a.position_m[2] - ctrl.stale.land_speed_m_s, abs=1e-12)
+    assert np.array_equal(b.position_m[:2], x[0:2]) and b.velocity_m_s[2] == -ctrl.stale.land_speed_m_s
+    late = ctrl.step(t_land + 100.0, None, src)
+    assert late.position_m[2] == sc.world.ground_z_m and np.array_equal(late.velocity_m_s, np.zeros(3))
+    # a fresh state resumes the NMPC
+    assert ctrl.step(t_land + 100.0 + T, x, ar.SourceState(s.p, s.v, s.a)).mode == "nmpc"
+
+
+def test_the_command_is_the_model_one_period_ahead(stepped):
+    sc, _, parts = stepped
+    ctrl = ar.controller(sc)
+    veh = parts.vehicle
+    x = veh.hover_state(sc.nodes.relay)
+    s = parts.source.state(0.0)
+    cmd = ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a))
+    x1 = np.asarray(veh.rk4_step(x, cmd.omega_dot_hz_s, sc.control_period_s))
+    assert np.array_equal(cmd.position_m, x1[0:3]) and np.array_equal(cmd.velocity_m_s, x1[6:9])
+    assert np.allclose(cmd.rotor_speeds_hz, x[12:] + cmd.omega_dot_hz_s * sc.control_period_s)
+    assert abs(np.linalg.norm(cmd.attitude_wxyz) - 1) < 1e-12
+    assert cmd.thrust_normalized == pytest.approx(1.0, abs=0.05)  # from hover, one period later
+    assert cmd.deadline_met == (cmd.compute_ms <= sc.control_period_s * 1e3)
+
+
+def test_a_fleet_or_estimated_jammers_are_named_errors():
+    with pytest.raises(ar.ScenarioError, match="ar.controller steps one relay"):
+        ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml"))
+    with pytest.raises(ar.ScenarioError, match="'estimated' needs the relay's receiver readings"):
+        ar.controller(ar.parse_scenario({"jammer": {"localization": "estimated"}}))
