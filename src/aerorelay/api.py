@@ -30,7 +30,7 @@ from .assembly import load_scenario, parse_scenario
 from .assembly.flight import build_stepper
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
-from .assembly.parts import build, build_fleet, build_scene, network_bound, nmpc_settings, scenario_bound
+from .assembly.parts import build, build_fleet, build_scene, build_source, network_bound, nmpc_settings, scenario_bound
 from .assembly.vehicle import build_vehicle
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop, benchmark_fleet
@@ -40,6 +40,8 @@ from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, 
 from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
+from .flight.mavlink_bridge import OffboardBridge
+from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.stepper import RelayStepper, StaleSettings
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
@@ -100,6 +102,31 @@ def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale
     ``aerorelay.flight.frames`` converts to NED/FRD). Stale inputs hold, then land (``stale``). Stepped
     over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md)."""
     return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale)
+
+
+def sitl(sc: Scenario, url: str, duration_s: float | None = None) -> None:
+    """Run the in-repo MAVLink vehicle (``flight.mavlink_vehicle``: PX4's offboard subset on an ideal
+    point-mass autopilot, not PX4) on ``url`` in real time, starting at the scenario's relay start."""
+    MavlinkVehicle(url, position=sc.relay_list[0].start).run_realtime(duration_s=duration_s)
+
+
+def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position", duration_s: float | None = None,
+        out: Path | None = None) -> pd.DataFrame:
+    """Fly the scenario's relay controller on a MAVLink autopilot at ``url`` in OFFBOARD (``flight.mavlink_bridge``):
+    wait for its heartbeat, stream, arm only with ``arm``, hand back to a hold at the end or on Ctrl-C.
+    Returns the bridge's log (one row per control period); ``out``: also ``flight.parquet`` there."""
+    ctrl = controller(sc)
+    bridge = OffboardBridge(url, ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint)
+    bridge.connect()
+    try:
+        bridge.run(sc.duration_s if duration_s is None else duration_s)
+    finally:
+        df = pd.DataFrame([{k: v for k, v in r.items() if k != "x"} | ({} if r.get("x") is None else
+                           dict(zip(("p_x", "p_y", "p_z"), r["x"][0:3], strict=True))) for r in bridge.log])
+        if out is not None:
+            Path(out).mkdir(parents=True, exist_ok=True)
+            df.to_parquet(Path(out) / "flight.parquet")
+    return df
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:

@@ -530,5 +530,53 @@ def report_cmd(
                   markup=False, highlight=False)
 
 
+@app.command()
+def sitl(
+    scenario: Path = typer.Argument(..., help="scenario TOML file (the vehicle starts at its relay's start)", show_default=False),
+    listen: str = typer.Option("udpin:127.0.0.1:14540", "--listen", help="MAVLink URL the vehicle listens on"),
+    duration: float = typer.Option(None, "--duration", help="stop after this many seconds (default: run until Ctrl-C)",
+                                   show_default=False),
+):
+    """Run the in-repo MAVLink vehicle in real time: PX4's offboard subset (heartbeats, arming, modes, the
+    offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot. For
+    tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
+    sc = _load_or_exit(scenario)
+    console.print(f"vehicle listening on {listen} (Ctrl-C stops)", markup=False, highlight=False)
+    try:
+        api.sitl(sc, listen, duration)
+    except KeyboardInterrupt:
+        pass
+
+
+@app.command()
+def fly(
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    mavlink: str = typer.Option(..., "--mavlink", help="the autopilot's MAVLink URL (e.g. udpout:127.0.0.1:14540)",
+                                show_default=False),
+    arm: bool = typer.Option(False, "--arm", help="arm the vehicle (never without this flag)"),
+    setpoint: str = typer.Option("position", "--setpoint", help="position (SET_POSITION_TARGET_LOCAL_NED with velocity and "
+                                 "acceleration feed-forward) | attitude (SET_ATTITUDE_TARGET)"),
+    duration: float = typer.Option(None, "--duration", help="fly this many seconds (default: the mission's length)",
+                                   show_default=False),
+    out: Path = typer.Option(None, "--out", help="write flight.parquet (one row per control period) here", show_default=False),
+):
+    """Fly the relay's controller on a MAVLink autopilot in OFFBOARD: wait for its heartbeat, stream setpoints,
+    arm only with --arm, ask for OFFBOARD, step the controller every period; hand back to a hold at the end,
+    on stale telemetry or on Ctrl-C."""
+    sc = _load_or_exit(scenario)
+    if setpoint not in ("position", "attitude"):
+        _fail(f"--setpoint must be position or attitude, got {setpoint!r}")
+    try:
+        df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out)
+    except TimeoutError as exc:
+        _fail(str(exc))
+    except KeyboardInterrupt:
+        console.print("interrupted: the vehicle was asked to hold", markup=False, highlight=False)
+        return
+    flown = df[df["mode"] != "stream"] if len(df) else df
+    console.print(f"{len(flown)} control periods flown ({int((flown['mode'] == 'nmpc').sum()) if len(flown) else 0} by the NMPC)"
+                  + (f"; log: {out / 'flight.parquet'}" if out else ""), markup=False, highlight=False)
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

@@ -105,6 +105,11 @@ class RelayStepper:
         F, _ = vehicle.allocation()
         self._thrust_per_speed2 = F
 
+    @property
+    def has_state(self) -> bool:
+        """Whether a fresh relay state has been stepped (a hold needs a place to hold)."""
+        return self._last_fresh is not None
+
     # -- the NMPC's step in two phases (ar.simulate calls them with its own measurements) ---------------
     def prepare(self, t: float, x: np.ndarray, source: SourceState, *, jammers=None,
                 a_ext: np.ndarray | None = None) -> tuple[Reference, np.ndarray]:

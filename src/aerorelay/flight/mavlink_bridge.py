@@ -1,0 +1,222 @@
+"""The MAVLink offboard bridge (``aerorelay fly SCENARIO --mavlink URL``): the relay's controller
+(``flight.stepper``) flying a PX4 vehicle in OFFBOARD.
+
+It waits for the autopilot's heartbeat; streams setpoints before it asks for OFFBOARD (PX4 accepts
+OFFBOARD only after a setpoint stream of >= 2 Hz for 1 s); arms only when told to; then every
+control period reads the vehicle's state (LOCAL_POSITION_NED, ATTITUDE_QUATERNION, NED/FRD on the
+wire, ENU/FLU inside), steps the controller and sends the setpoint it computed in that period
+(never an older one): SET_POSITION_TARGET_LOCAL_NED with velocity and acceleration feed-forward
+(``setpoint = "position"``) or SET_ATTITUDE_TARGET with body rates and thrust (``"attitude"``; PX4's
+thrust is a fraction of full throttle: the controller's thrust over hover times ``hover_throttle``).
+Until the vehicle reports OFFBOARD the bridge streams a hold where the vehicle is (the proof of life
+PX4 wants) and the controller does not run; the mission's clock starts when OFFBOARD is entered.
+When telemetry goes stale the controller's hold setpoint is sent and the vehicle is asked for a hold
+(AUTO.LOITER); ``hand_back()`` (on Ctrl-C) does the same.
+
+The NMPC's state: position and velocity measured; the rotor speeds, which PX4 does not report, the
+ones it last commanded (hover at the start); with position setpoints the attitude and body rates are
+the autopilot's business, so the NMPC's own one-period-ahead attitude and rates stand in for them
+(a generically tilted relay's attitude is not implied by its acceleration); with attitude setpoints
+the measured attitude and rates are used.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pymavlink import mavutil
+
+from ..models.mission import SourceTrajectory
+from .frames import (
+    enu_to_ned,
+    flu_to_frd,
+    frd_to_flu,
+    matrix_from_wxyz,
+    ned_to_enu,
+    quaternion_wxyz,
+    rotation_enu_flu_to_ned_frd,
+    rotation_ned_frd_to_enu_flu,
+)
+from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE
+from .stepper import Command, RelayStepper, SourceState
+
+MAV = mavutil.mavlink
+
+
+def euler_zyx(R: np.ndarray) -> np.ndarray:
+    """ZYX Euler angles (roll, pitch, yaw; rad) of a body-to-world rotation (``models.geometry.rotation_zyx``'s inverse)."""
+    return np.array([math.atan2(R[2, 1], R[2, 2]), -math.asin(max(-1.0, min(1.0, R[2, 0]))), math.atan2(R[1, 0], R[0, 0])])
+
+
+@dataclass
+class BridgeState:
+    """What the bridge knows and did: the latest telemetry (ENU/FLU) with the bridge time it arrived,
+    whether it is armed / in OFFBOARD as the vehicle reports, the acknowledgements it received."""
+
+    position: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+    R: np.ndarray | None = None
+    rates: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    received_at: float = -math.inf
+    armed: bool = False
+    custom_mode: int = 0
+    acks: list[tuple[int, int]] = field(default_factory=list)
+
+
+class OffboardBridge:
+    """``connect()``, then ``tick(t)`` every control period (lockstep: the caller's clock) or
+    ``run(duration_s)`` on the wall clock. ``source``: the inspection drone's path (its mission file)."""
+
+    def __init__(self, url: str, stepper: RelayStepper, source: SourceTrajectory, hover_speeds: np.ndarray, *,
+                 arm: bool = False, setpoint: str = "position", hover_throttle: float = 0.5, system: int = 255):
+        if setpoint not in ("position", "attitude"):
+            raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
+        self.link = mavutil.mavlink_connection(url, source_system=system, source_component=190)
+        self.stepper, self.source, self.arm, self.setpoint, self.hover_throttle = stepper, source, arm, setpoint, hover_throttle
+        self.speeds = np.asarray(hover_speeds, float).copy()  # the rotor speeds last commanded (the NMPC's state)
+        self.state = BridgeState()
+        self.t0: float | None = None  # when streaming began (bridge time)
+        self.mission_t0: float | None = None  # when the vehicle entered OFFBOARD: the mission's clock starts
+        self._plan_attitude = (np.zeros(3), np.zeros(3))  # the controller's last attitude (ZYX) and body rates
+        self.requested: set[str] = set()
+        self.log: list[dict] = []
+        self.target = (1, 1)
+
+    def announce(self) -> None:
+        """A GCS heartbeat (a vehicle listening with ``udpin`` learns where to answer)."""
+        self.link.mav.heartbeat_send(MAV.MAV_TYPE_GCS, MAV.MAV_AUTOPILOT_INVALID, 0, 0, MAV.MAV_STATE_ACTIVE)
+
+    def heard_vehicle(self, wait_s: float = 0.0) -> bool:
+        """Whether an autopilot's heartbeat arrived (waiting up to ``wait_s``); it sets the target system."""
+        msg = self.link.recv_match(type="HEARTBEAT", blocking=wait_s > 0, timeout=wait_s or None)
+        if msg is None or msg.autopilot == MAV.MAV_AUTOPILOT_INVALID:
+            return False
+        self.target = (msg.get_srcSystem(), msg.get_srcComponent())
+        self._heartbeat(msg)
+        return True
+
+    def connect(self, timeout_s: float = 10.0) -> None:
+        """Announce the bridge until the vehicle's heartbeat arrives; TimeoutError after ``timeout_s``."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            self.announce()
+            if self.heard_vehicle(0.1):
+                return
+        raise TimeoutError(f"no autopilot heartbeat within {timeout_s:g} s")
+
+    def _heartbeat(self, msg) -> None:
+        self.state.armed = bool(msg.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
+        self.state.custom_mode = int(msg.custom_mode)
+
+    def _read(self, t: float) -> None:
+        st = self.state
+        while (msg := self.link.recv_match(blocking=False)) is not None:
+            kind = msg.get_type()
+            if kind == "LOCAL_POSITION_NED":
+                st.position, st.velocity = ned_to_enu([msg.x, msg.y, msg.z]), ned_to_enu([msg.vx, msg.vy, msg.vz])
+                st.received_at = t
+            elif kind == "ATTITUDE_QUATERNION":
+                st.R = rotation_ned_frd_to_enu_flu(matrix_from_wxyz([msg.q1, msg.q2, msg.q3, msg.q4]))
+                st.rates = frd_to_flu([msg.rollspeed, msg.pitchspeed, msg.yawspeed])
+            elif kind == "HEARTBEAT" and msg.get_srcSystem() == self.target[0]:
+                self._heartbeat(msg)
+            elif kind == "COMMAND_ACK":
+                st.acks.append((int(msg.command), int(msg.result)))
+
+    def relay_state(self) -> np.ndarray | None:
+        """The relay's state ``(p, eta, v, omega, Omega)`` for the NMPC (see the module; None before telemetry)."""
+        st = self.state
+        if st.position is None or st.R is None or st.velocity is None:
+            return None
+        eta, rates = (euler_zyx(st.R), st.rates) if self.setpoint == "attitude" else self._plan_attitude
+        return np.concatenate([st.position, eta, st.velocity, rates, self.speeds])
+
+    @property
+    def offboard(self) -> bool:
+        """Whether the vehicle's last heartbeat reports OFFBOARD."""
+        return (self.state.custom_mode >> 16) & 0xFF == PX4_MAIN_MODE["OFFBOARD"]
+
+    def _command_long(self, command: int, *params: float) -> None:
+        p = [*params, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][:7]
+        self.link.mav.command_long_send(*self.target, command, 0, *p)
+
+    def request_mode(self, main: str, sub: str | None = None) -> None:
+        self._command_long(MAV.MAV_CMD_DO_SET_MODE, MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, PX4_MAIN_MODE[main],
+                           PX4_AUTO_SUB_MODE[sub] if sub else 0)
+        self.requested.add(main if sub is None else f"{main}.{sub}")
+
+    def hand_back(self) -> None:
+        """Ask the vehicle to hold (AUTO.LOITER): on Ctrl-C, stale telemetry, the end of the run."""
+        self.request_mode("AUTO", "LOITER")
+
+    def tick(self, t: float) -> Command | None:
+        """One control period at bridge time ``t`` (s): read; before OFFBOARD stream a hold where the
+        vehicle is and ask (arm if told, then OFFBOARD) once the stream is 1 s old; in OFFBOARD step the
+        controller and send its setpoint (a hold when telemetry is stale). None while streaming."""
+        self._read(t)
+        if self.state.position is None:
+            raise RuntimeError("tick: no telemetry from the vehicle yet (LOCAL_POSITION_NED)")
+        if self.t0 is None:
+            self.t0 = t
+        if self.mission_t0 is None and self.offboard:
+            self.mission_t0 = t
+        if self.mission_t0 is None:
+            self._send_hold(self.state.position, t)
+            if t - self.t0 >= OFFBOARD_PROOF_S + 0.1:  # PX4's rule: stream first, then ask
+                if self.arm and not self.state.armed and "ARM" not in self.requested:
+                    self._command_long(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+                    self.requested.add("ARM")
+                if "OFFBOARD" not in self.requested and (self.state.armed or not self.arm):
+                    self.request_mode("OFFBOARD")
+            self.log.append({"t": t, "mode": "stream", "x": None, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
+            return None
+        tm = t - self.mission_t0  # the mission's clock
+        x = self.relay_state()
+        s = self.source.state(tm)
+        src = SourceState(np.asarray(s.p, float), np.asarray(s.v, float), np.asarray(s.a, float), stamp=tm)
+        cmd = self.stepper.step(tm, x, src, state_stamp=self.state.received_at - self.mission_t0)
+        if cmd.rotor_speeds_hz is not None:
+            self.speeds = cmd.rotor_speeds_hz
+            self._plan_attitude = (euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz)), cmd.body_rates_rad_s)
+        self._send(cmd, t)
+        if cmd.mode in ("hold", "land") and "AUTO.LOITER" not in self.requested:
+            self.hand_back()
+        self.log.append({"t": t, "mode": cmd.mode, "x": None if x is None else x.copy(), "compute_ms": cmd.compute_ms,
+                         "deadline_met": cmd.deadline_met, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
+        return cmd
+
+    def _send_hold(self, position: np.ndarray, t: float) -> None:
+        p = enu_to_ned(position)
+        self.link.mav.set_position_target_local_ned_send(int(round(t * 1e3)) & 0xFFFFFFFF, *self.target, MAV.MAV_FRAME_LOCAL_NED,
+                                                         POSITION_TARGET_MASK, *p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.pi / 2, 0.0)
+
+    def _send(self, cmd: Command, t: float) -> None:
+        boot_ms = int(round(t * 1e3)) & 0xFFFFFFFF
+        if self.setpoint == "attitude" and cmd.mode in ("nmpc", "fallback"):
+            R = matrix_from_wxyz(cmd.attitude_wxyz)
+            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(R))
+            rates = flu_to_frd(cmd.body_rates_rad_s)
+            self.link.mav.set_attitude_target_send(boot_ms, *self.target, ATTITUDE_TARGET_MASK, q, *rates,
+                                                   min(1.0, cmd.thrust_normalized * self.hover_throttle))
+            return
+        yaw_enu = euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz))[2]
+        p, v, a = enu_to_ned(cmd.position_m), enu_to_ned(cmd.velocity_m_s), enu_to_ned(cmd.acceleration_m_s2)
+        self.link.mav.set_position_target_local_ned_send(boot_ms, *self.target, MAV.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
+                                                         *p, *v, *a, math.pi / 2 - yaw_enu, 0.0)
+
+    def run(self, duration_s: float) -> None:
+        """Tick on the wall clock at the controller's period for ``duration_s``; hand back at the end or on Ctrl-C."""
+        period = self.stepper.period
+        start = time.monotonic()
+        try:
+            k = 0
+            while k * period < duration_s:
+                self.tick(time.monotonic() - start)
+                k += 1
+                time.sleep(max(0.0, start + k * period - time.monotonic()))
+        finally:
+            self.hand_back()
+

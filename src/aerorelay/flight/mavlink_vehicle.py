@@ -1,0 +1,167 @@
+"""An in-repo MAVLink vehicle (``aerorelay sitl``) for tests and demos: it speaks the PX4 subset the
+offboard bridge uses (``flight/px4.py``): heartbeats with PX4's custom modes, arming and mode commands
+with acknowledgements and PX4's refusals (OFFBOARD only after a setpoint stream), the offboard loss
+timeout (to a hold), LOCAL_POSITION_NED and ATTITUDE_QUATERNION telemetry (NED/FRD on the wire).
+
+What it flies is an ideal autopilot on a point mass: in OFFBOARD it tracks a position target with
+its velocity and acceleration feed-forward (``a = a_ff + kp (p - x) + kd (v - x_dot)``) or an attitude
+target's thrust (``a = R e3 g thrust / hover_throttle - g e3``); in a hold it brakes onto where it
+entered it; disarmed it sits. It tests the protocol, the frames, the rates and the timeouts, **not
+PX4** nor a vehicle's dynamics. ``step(dt)`` advances it by ``dt`` (lockstep: the caller owns time);
+``run_realtime`` steps it on the wall clock.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from pymavlink import mavutil
+
+from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
+from .frames import enu_to_ned, flu_to_frd, matrix_from_wxyz, ned_to_enu, quaternion_wxyz, rotation_enu_flu_to_ned_frd, rotation_ned_frd_to_enu_flu
+from .px4 import OFFBOARD_LOSS_S, OFFBOARD_MIN_RATE_HZ, OFFBOARD_PROOF_S, PX4_MAIN_MODE, custom_mode
+
+MAV = mavutil.mavlink
+GRAVITY = 9.81
+
+
+@dataclass
+class VehicleSettings:
+    """The point mass's tracking gains (1/s^2, 1/s), its hover throttle (PX4's ``MPC_THR_HOVER``),
+    the telemetry rate (Hz) and the heartbeat period (s)."""
+
+    kp: float = 4.0
+    kd: float = 4.0
+    hover_throttle: float = 0.5
+    telemetry_hz: float = 50.0
+    heartbeat_s: float = 1.0
+
+
+class MavlinkVehicle:
+    """A PX4-like vehicle on ``url`` (e.g. ``udpin:127.0.0.1:14540``) starting at ``position`` (m, ENU)."""
+
+    def __init__(self, url: str, position=(0.0, 0.0, 0.0), settings: VehicleSettings = VehicleSettings(), system: int = 1):
+        self.link = mavutil.mavlink_connection(url, source_system=system, source_component=1)
+        self.s = settings
+        self.t = 0.0
+        self.p, self.v = np.asarray(position, float).copy(), np.zeros(3)
+        self.yaw = 0.0  # ENU
+        self.R = np.eye(3)
+        self.armed = False
+        self.mode = "POSCTL"
+        self.hold_point = self.p.copy()
+        self.setpoint_times: list[float] = []
+        self.target: dict | None = None
+        self.acks: list[tuple[int, int]] = []  # (command, result) sent, for tests
+        self._next_heartbeat = 0.0
+        self._next_telemetry = 0.0
+        self.heard = False  # a peer has sent something (udpin learns where to answer)
+
+    # -- the protocol -------------------------------------------------------------------------------
+    def _custom(self) -> int:
+        if self.mode == "OFFBOARD":
+            return custom_mode("OFFBOARD")
+        if self.mode == "HOLD":
+            return custom_mode("AUTO", "LOITER")
+        return custom_mode("POSCTL")
+
+    def _proof_of_life(self) -> bool:
+        """Setpoints for the last ``OFFBOARD_PROOF_S`` at >= 2 Hz (no gap longer than 0.5 s)."""
+        ts = [t for t in self.setpoint_times if t >= self.t - OFFBOARD_PROOF_S - 1e-9]
+        if not ts or ts[0] > self.t - OFFBOARD_PROOF_S + 1.0 / OFFBOARD_MIN_RATE_HZ:
+            return False
+        gaps = np.diff([*ts, self.t])
+        return bool(np.all(gaps <= 1.0 / OFFBOARD_MIN_RATE_HZ + 1e-9))
+
+    def _ack(self, command: int, result: int) -> None:
+        self.acks.append((command, result))
+        self.link.mav.command_ack_send(command, result)
+        self._next_heartbeat = self.t  # the new arming state or mode goes out with the next step
+
+    def _command(self, msg) -> None:
+        if msg.command == MAV.MAV_CMD_COMPONENT_ARM_DISARM:
+            self.armed = msg.param1 > 0.5
+            if self.armed:
+                self.hold_point = self.p.copy()
+            self._ack(msg.command, MAV.MAV_RESULT_ACCEPTED)
+        elif msg.command == MAV.MAV_CMD_DO_SET_MODE:
+            main = int(msg.param2)
+            if main == PX4_MAIN_MODE["OFFBOARD"]:
+                if not self._proof_of_life():  # PX4: no OFFBOARD without a setpoint stream
+                    self._ack(msg.command, MAV.MAV_RESULT_DENIED)
+                    return
+                self.mode = "OFFBOARD"
+            elif main == PX4_MAIN_MODE["AUTO"]:
+                self.mode, self.hold_point = "HOLD", self.p.copy()
+            else:
+                self.mode = "POSCTL"
+            self._ack(msg.command, MAV.MAV_RESULT_ACCEPTED)
+        else:
+            self._ack(msg.command, MAV.MAV_RESULT_UNSUPPORTED)
+
+    def _receive(self) -> None:
+        while (msg := self.link.recv_match(blocking=False)) is not None:
+            self.heard = True
+            kind = msg.get_type()
+            if kind == "COMMAND_LONG":
+                self._command(msg)
+            elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+                self.setpoint_times.append(self.t)
+                self.target = {"kind": "position", "p": ned_to_enu([msg.x, msg.y, msg.z]), "v": ned_to_enu([msg.vx, msg.vy, msg.vz]),
+                               "a": ned_to_enu([msg.afx, msg.afy, msg.afz]), "yaw": np.pi / 2 - msg.yaw}
+            elif kind == "SET_ATTITUDE_TARGET":
+                self.setpoint_times.append(self.t)
+                R = rotation_ned_frd_to_enu_flu(matrix_from_wxyz(msg.q))
+                self.target = {"kind": "attitude", "R": R, "thrust": float(msg.thrust)}
+        self.setpoint_times = [t for t in self.setpoint_times if t >= self.t - 2 * OFFBOARD_PROOF_S]
+
+    # -- the flight -----------------------------------------------------------------------------------
+    def _acceleration(self) -> np.ndarray:
+        s = self.s
+        if not self.armed:
+            return np.zeros(3)
+        if self.mode == "OFFBOARD" and self.target is not None:
+            if self.target["kind"] == "position":
+                tg = self.target
+                self.yaw = float(tg["yaw"])
+                return tg["a"] + s.kp * (tg["p"] - self.p) + s.kd * (tg["v"] - self.v)
+            self.R = self.target["R"]
+            return self.R @ E3 * GRAVITY * self.target["thrust"] / s.hover_throttle - GRAVITY * E3
+        return s.kp * (self.hold_point - self.p) - s.kd * self.v  # a hold (also POSCTL with sticks centred)
+
+    def step(self, dt: float) -> None:
+        """Read what arrived, apply PX4's offboard timeout, fly ``dt`` s, send what is due."""
+        self._receive()
+        if self.mode == "OFFBOARD" and (not self.setpoint_times or self.t - self.setpoint_times[-1] > OFFBOARD_LOSS_S):
+            self.mode, self.hold_point = "HOLD", self.p.copy()  # offboard lost: PX4 holds
+        a = self._acceleration()
+        if not (self.target and self.target["kind"] == "attitude" and self.mode == "OFFBOARD"):
+            self.R = rotation_zyx(attitude_from_thrust(a + GRAVITY * E3, self.yaw))
+        self.p = self.p + self.v * dt + 0.5 * a * dt**2
+        self.v = self.v + a * dt
+        self.t += dt
+        self._send_due()
+
+    def _send_due(self) -> None:
+        if not self.heard:
+            return
+        boot_ms = int(round(self.t * 1e3))
+        if self.t >= self._next_heartbeat - 1e-9:
+            base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
+            self.link.mav.heartbeat_send(MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_AUTOPILOT_PX4, base, self._custom(), MAV.MAV_STATE_ACTIVE)
+            self._next_heartbeat = self.t + self.s.heartbeat_s
+        if self.t >= self._next_telemetry - 1e-9:
+            p, v = enu_to_ned(self.p), enu_to_ned(self.v)
+            self.link.mav.local_position_ned_send(boot_ms, *p, *v)
+            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(self.R))
+            self.link.mav.attitude_quaternion_send(boot_ms, *q, *flu_to_frd(np.zeros(3)))
+            self._next_telemetry = self.t + 1.0 / self.s.telemetry_hz
+
+    def run_realtime(self, dt: float = 0.005, duration_s: float | None = None) -> None:
+        """Step on the wall clock (a demo's vehicle) until ``duration_s`` (None: forever)."""
+        start = time.monotonic()
+        while duration_s is None or self.t < duration_s:
+            self.step(dt)
+            time.sleep(max(0.0, start + self.t - time.monotonic()))

@@ -1,0 +1,136 @@
+"""The MAVLink offboard bridge against the in-repo vehicle over UDP on localhost, in lockstep (the
+test owns the clock): offboard refused without a setpoint stream, arming only when told, offboard
+entered after the stream and kept, one fresh setpoint per control period, stale telemetry to a
+hold within one period (and the vehicle asked to hold), the vehicle's own offboard-loss timeout.
+This tests the protocol, frames, rates and timeouts against our PX4 subset, not PX4 itself."""
+
+from __future__ import annotations
+
+import socket
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly.parts import build_source
+from aerorelay.flight.mavlink_bridge import OffboardBridge
+from aerorelay.flight.mavlink_vehicle import MAV, MavlinkVehicle
+from aerorelay.flight.px4 import OFFBOARD_LOSS_S
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture()
+def pair():
+    def make(arm: bool = True, setpoint: str = "position"):
+        sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 20.0})
+        ctrl = ar.controller(sc)
+        port = _free_port()
+        vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", position=sc.nodes.relay)
+        bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm,
+                                setpoint=setpoint)
+        T = ctrl.period
+        for _ in range(5):  # handshake in lockstep: the bridge announces itself, the vehicle answers
+            bridge.announce()
+            vehicle.step(T)
+            if bridge.heard_vehicle(0.05):
+                break
+        assert bridge.target == (1, 1)
+        return sc, ctrl, vehicle, bridge, T
+    return make
+
+
+def _fly(vehicle, bridge, T, t0: float, seconds: float, vehicle_steps: bool = True) -> float:
+    t = t0
+    for _ in range(int(round(seconds / T))):
+        if vehicle_steps:
+            vehicle.step(T)
+        bridge.tick(t)
+        t += T
+    return t
+
+
+def test_offboard_is_refused_without_a_setpoint_stream(pair):
+    _, _, vehicle, bridge, T = pair()
+    bridge.request_mode("OFFBOARD")
+    vehicle.step(T)
+    assert vehicle.acks[-1] == (MAV.MAV_CMD_DO_SET_MODE, MAV.MAV_RESULT_DENIED) and vehicle.mode == "POSCTL"
+
+
+def test_the_bridge_streams_then_arms_and_flies_offboard(pair):
+    _, ctrl, vehicle, bridge, T = pair(arm=True)
+    bridge.announce()
+    vehicle.step(T)  # first telemetry
+    t = _fly(vehicle, bridge, T, 0.0, 0.9)
+    assert not vehicle.armed and vehicle.mode == "POSCTL"  # still streaming: PX4 wants 1 s of setpoints first
+    t = _fly(vehicle, bridge, T, t, 1.0)
+    assert vehicle.armed and vehicle.mode == "OFFBOARD"
+    assert (MAV.MAV_CMD_DO_SET_MODE, MAV.MAV_RESULT_ACCEPTED) in vehicle.acks
+    assert bridge.state.armed and bridge.state.custom_mode == (6 << 16)  # the vehicle's heartbeat says so
+    n = len(vehicle.setpoint_times)
+    t = _fly(vehicle, bridge, T, t, 3.0)
+    assert vehicle.mode == "OFFBOARD"  # kept
+    assert len(vehicle.setpoint_times) >= n  # (the vehicle keeps the last 2 s of them)
+    # one setpoint per control period, each the one computed in that period
+    times = np.array(vehicle.setpoint_times)
+    assert np.allclose(np.diff(times[-50:]), T, atol=1e-9)
+    assert all(r["mode"] == "nmpc" for r in bridge.log[-50:])
+    assert all(r["deadline_met"] in (True, False) for r in bridge.log[-50:])
+    # the vehicle follows the controller's setpoints
+    cmd = bridge.tick(t)
+    assert np.linalg.norm(vehicle.p - cmd.position_m) < 0.5
+
+
+def test_no_arming_unless_told(pair):
+    _, _, vehicle, bridge, T = pair(arm=False)
+    bridge.announce()
+    vehicle.step(T)
+    _fly(vehicle, bridge, T, 0.0, 2.0)
+    assert not vehicle.armed and MAV.MAV_CMD_COMPONENT_ARM_DISARM not in [c for c, _ in vehicle.acks]
+
+
+def test_stale_telemetry_holds_within_one_period_and_hands_back(pair):
+    _, ctrl, vehicle, bridge, T = pair(arm=True)
+    bridge.announce()
+    vehicle.step(T)
+    t = _fly(vehicle, bridge, T, 0.0, 2.5)
+    assert vehicle.mode == "OFFBOARD"
+    last = bridge.state.received_at
+    # telemetry stops (the vehicle is not stepped): the bridge holds once it is older than hold_after_s
+    modes = []
+    while t <= last + ctrl.stale.hold_after_s + 2 * T:
+        modes.append((t - last, bridge.tick(t).mode))
+        t += T
+    first_hold = next(age for age, m in modes if m == "hold")
+    assert ctrl.stale.hold_after_s < first_hold <= ctrl.stale.hold_after_s + T
+    assert all(m == "nmpc" for age, m in modes if age <= ctrl.stale.hold_after_s)
+    assert "AUTO.LOITER" in bridge.requested
+    vehicle.step(T)  # the vehicle reads the hold request
+    assert vehicle.mode == "HOLD"
+
+
+def test_the_vehicle_leaves_offboard_when_setpoints_stop(pair):
+    _, _, vehicle, bridge, T = pair(arm=True)
+    bridge.announce()
+    vehicle.step(T)
+    _fly(vehicle, bridge, T, 0.0, 2.5)
+    assert vehicle.mode == "OFFBOARD"
+    for _ in range(int(OFFBOARD_LOSS_S / T) - 2):
+        vehicle.step(T)
+    assert vehicle.mode == "OFFBOARD"
+    for _ in range(4):
+        vehicle.step(T)
+    assert vehicle.mode == "HOLD"
+
+
+def test_attitude_setpoints_fly_too(pair):
+    _, _, vehicle, bridge, T = pair(arm=True, setpoint="attitude")
+    bridge.announce()
+    vehicle.step(T)
+    _fly(vehicle, bridge, T, 0.0, 2.5)
+    assert vehicle.mode == "OFFBOARD" and vehicle.target["kind"] == "attitude"
+    assert 0.3 < vehicle.target["thrust"] < 0.7  # about hover (0.5 of full throttle)
