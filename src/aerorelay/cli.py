@@ -578,5 +578,29 @@ def fly(
                   + (f"; log: {out / 'flight.parquet'}" if out else ""), markup=False, highlight=False)
 
 
+@app.command()
+def ros(
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    relay: str = typer.Option("relay", "--relay", help="the relay's topic namespace (/<relay>/odom, /<relay>/setpoint, /<relay>/link)"),
+    source: str = typer.Option("source", "--source", help="the source's topic namespace (/<source>/odom)"),
+    duration: float = typer.Option(None, "--duration", help="stop after this many seconds (default: until Ctrl-C)", show_default=False),
+):
+    """Run the relay's controller as a ROS 2 node (the optional extra: pip install 'aerorelay[ros]'): subscribes
+    nav_msgs/Odometry of the relay and the source, publishes trajectory_msgs/MultiDOFJointTrajectory setpoints and
+    the link state every control period."""
+    sc = _load_or_exit(scenario)
+    try:
+        from .flight import ros_node  # the optional extra: imported only here
+    except ImportError as exc:
+        _fail(f"the ROS 2 node needs the ros extra (pip install 'aerorelay[ros]'): {exc}")
+    ctrl = api.controller(sc)
+    console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
+    try:
+        node = ros_node.spin(ctrl, api.build_scene(sc), duration, relay=relay, source=source)
+    except KeyboardInterrupt:
+        return
+    console.print(f"{len(node.commands)} control periods stepped", markup=False, highlight=False)
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

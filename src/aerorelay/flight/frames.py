@@ -8,6 +8,8 @@ world): ``R_ned_frd = T R_enu_flu B``. Quaternions are scalar first ``(w, x, y, 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -59,3 +61,9 @@ def quaternion_xyzw(q_wxyz) -> np.ndarray:
     """Scalar-first to scalar-last (ROS ``geometry_msgs/Quaternion`` order)."""
     w, x, y, z = np.asarray(q_wxyz, float)
     return np.array([x, y, z, w])
+
+
+def euler_zyx(R) -> np.ndarray:
+    """ZYX Euler angles (roll, pitch, yaw; rad) of a body-to-world rotation (``models.geometry.rotation_zyx``'s inverse)."""
+    R = np.asarray(R, float)
+    return np.array([math.atan2(R[2, 1], R[2, 2]), -math.asin(max(-1.0, min(1.0, R[2, 0]))), math.atan2(R[1, 0], R[0, 0])])

@@ -32,6 +32,7 @@ from pymavlink import mavutil
 from ..models.mission import SourceTrajectory
 from .frames import (
     enu_to_ned,
+    euler_zyx,
     flu_to_frd,
     frd_to_flu,
     matrix_from_wxyz,
@@ -44,11 +45,6 @@ from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, P
 from .stepper import Command, RelayStepper, SourceState
 
 MAV = mavutil.mavlink
-
-
-def euler_zyx(R: np.ndarray) -> np.ndarray:
-    """ZYX Euler angles (roll, pitch, yaw; rad) of a body-to-world rotation (``models.geometry.rotation_zyx``'s inverse)."""
-    return np.array([math.atan2(R[2, 1], R[2, 2]), -math.asin(max(-1.0, min(1.0, R[2, 0]))), math.atan2(R[1, 0], R[0, 0])])
 
 
 @dataclass

@@ -1,0 +1,70 @@
+"""The ROS 2 node (``aerorelay ros``) against a second process over localhost: this test publishes
+the relay's and the source's odometry and receives the node's setpoints and link state. It needs the
+optional ros extra (``aerorelay[ros]``); CI installs it (``AERORELAY_REQUIRE_ROS=1`` makes its absence
+a failure there), a default install skips this test."""
+
+from __future__ import annotations
+
+import os
+import random
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+if os.environ.get("AERORELAY_REQUIRE_ROS") != "1":
+    pytest.importorskip("rclpy", reason="the optional ros extra (pip install 'aerorelay[ros]') is not installed")
+
+import aerorelay as ar  # noqa: E402
+
+
+def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
+    import rclpy
+    from nav_msgs.msg import Odometry
+    from rclpy.node import Node
+    from std_msgs.msg import Float64MultiArray
+    from trajectory_msgs.msg import MultiDOFJointTrajectory
+
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml")
+    domain = str(random.randint(1, 200))  # a ROS domain of its own: concurrent runs do not hear each other
+    env = {**os.environ, "ROS_DOMAIN_ID": domain, "PYTHONUNBUFFERED": "1"}
+    node_proc = subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "ros", "scenarios/nominal_tilted.toml", "--duration", "25"],
+                                 env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    os.environ["ROS_DOMAIN_ID"] = domain
+    rclpy.init()
+    probe = Node("aerorelay_test_probe")
+    setpoints, links = [], []
+    probe.create_subscription(MultiDOFJointTrajectory, "/relay/setpoint", setpoints.append, 10)
+    probe.create_subscription(Float64MultiArray, "/relay/link", links.append, 10)
+    relay_pub = probe.create_publisher(Odometry, "/relay/odom", 10)
+    source_pub = probe.create_publisher(Odometry, "/source/odom", 10)
+
+    def odom(p):
+        m = Odometry()
+        m.header.stamp = probe.get_clock().now().to_msg()
+        m.header.frame_id, m.child_frame_id = "map", "base_link"
+        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = (float(v) for v in p)
+        m.pose.pose.orientation.w = 1.0
+        return m
+
+    try:
+        end = time.monotonic() + 60.0
+        while time.monotonic() < end and len(setpoints) < 30:
+            relay_pub.publish(odom(sc.nodes.relay))
+            source_pub.publish(odom(sc.mission.start))
+            rclpy.spin_once(probe, timeout_sec=0.01)
+        assert len(setpoints) >= 30, node_proc.stdout.read1().decode() if node_proc.poll() is not None else "no setpoints"
+        pt = setpoints[-1].points[0]
+        p = np.array([pt.transforms[0].translation.x, pt.transforms[0].translation.y, pt.transforms[0].translation.z])
+        q = pt.transforms[0].rotation
+        assert np.linalg.norm(p - np.array(sc.nodes.relay)) < 0.5  # one period ahead of a relay held at its start
+        assert abs(np.linalg.norm([q.w, q.x, q.y, q.z]) - 1) < 1e-9
+        assert setpoints[-1].joint_names == ["relay"]
+        assert links and links[-1].data[0] > 0 and len(links[-1].data) == 3  # capacity and the two hops' SINR
+    finally:
+        probe.destroy_node()
+        rclpy.shutdown()
+        node_proc.kill()
+        node_proc.wait()
