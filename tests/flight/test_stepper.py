@@ -109,3 +109,26 @@ def test_a_fleet_or_estimated_jammers_are_named_errors():
         ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml"))
     with pytest.raises(ar.ScenarioError, match="'estimated' needs the relay's receiver readings"):
         ar.controller(ar.parse_scenario({"jammer": {"localization": "estimated"}}))
+
+
+def test_the_first_input_keeps_every_motor_within_its_bounds(stepped):
+    # the plan predicts a hover; what is measured is a motor 0.05 Hz above its lower bound and a gust's
+    # velocity, rate and tilt: the sensitivity feedback (the predicted solution's active set) took such a
+    # motor to 11.55 Hz, under its 16 Hz bound (two of these twelve draws, before the first input was clipped)
+    sc, _, parts = stepped
+    veh = parts.vehicle
+    ts = sc.controller.ts_s
+    s = parts.source.state(0.0)
+    rng = np.random.default_rng(0)
+    for trial in range(12):
+        ctrl = ar.controller(sc)
+        x = veh.hover_state(sc.nodes.relay)
+        ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a))
+        x[12 + trial % 6] = veh.omega_min + 0.05
+        x[6:9] += rng.normal(0, 1.5, 3)
+        x[9:12] += rng.normal(0, 1.0, 3)
+        x[3:5] += rng.normal(0, 0.1, 2)
+        cmd = ctrl.step(ts, x, ar.SourceState(s.p, s.v, s.a))
+        nxt = x[12:] + cmd.omega_dot_hz_s * ts
+        assert np.all(nxt >= veh.omega_min - 1e-9) and np.all(nxt <= veh.omega_max + 1e-9), (trial, nxt)
+        assert np.all(cmd.omega_dot_hz_s >= veh.omega_dot_min) and np.all(cmd.omega_dot_hz_s <= veh.omega_dot_max)
