@@ -170,6 +170,9 @@ class OffboardBridge:
             self.log.append({"t": t, "mode": "stream", "x": None, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
             return None
         tm = t - self.mission_t0  # the mission's clock
+        if not self.stepper.has_state and t - self.state.received_at > self.stepper.stale.hold_after_s:
+            self._send_hold(self.state.position, t)  # no fresh telemetry yet: keep the stream alive where it is
+            return None
         x = self.relay_state()
         s = self.source.state(tm)
         src = SourceState(np.asarray(s.p, float), np.asarray(s.v, float), np.asarray(s.a, float), stamp=tm)

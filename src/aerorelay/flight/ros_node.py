@@ -38,8 +38,9 @@ class RelayNode(Node):
         self.names = {role: scene.name_of(role) for role in ("relay", "source")}
         self.speeds = stepper.vehicle.hover_speeds()
         self.odom: dict[str, Odometry] = {}
-        self.create_subscription(Odometry, f"/{relay}/odom", lambda m: self.odom.__setitem__("relay", m), 10)
-        self.create_subscription(Odometry, f"/{source}/odom", lambda m: self.odom.__setitem__("source", m), 10)
+        # depth 1: only the latest odometry matters (a backlog would hand the controller stale states)
+        self.create_subscription(Odometry, f"/{relay}/odom", lambda m: self.odom.__setitem__("relay", m), 1)
+        self.create_subscription(Odometry, f"/{source}/odom", lambda m: self.odom.__setitem__("source", m), 1)
         self.setpoints = self.create_publisher(MultiDOFJointTrajectory, f"/{relay}/setpoint", 10)
         self.link = self.create_publisher(Float64MultiArray, f"/{relay}/link", 10)
         self.t0: float | None = None
@@ -61,11 +62,14 @@ class RelayNode(Node):
         if self.t0 is None:
             self.t0 = now
         t = now - self.t0
+        stamp = _seconds(self.odom["relay"].header.stamp) - self.t0
+        if not self.stepper.has_state and t - stamp > self.stepper.stale.hold_after_s:
+            return  # nothing fresh yet and nothing to hold: wait for a fresh odometry
         p1, R1, vw1 = self._state(self.odom["relay"])
         x = np.concatenate([p1, euler_zyx(R1), vw1, self.speeds])
         p2, R2, vw2 = self._state(self.odom["source"])
         src = SourceState(p2, vw2[0:3], np.zeros(3), stamp=_seconds(self.odom["source"].header.stamp) - self.t0)
-        cmd = self.stepper.step(t, x, src, state_stamp=_seconds(self.odom["relay"].header.stamp) - self.t0)
+        cmd = self.stepper.step(t, x, src, state_stamp=stamp)
         if cmd.rotor_speeds_hz is not None:
             self.speeds = cmd.rotor_speeds_hz
         self.commands.append(cmd)
@@ -101,7 +105,7 @@ def spin(stepper: RelayStepper, scene: RadioScene, duration_s: float | None = No
     try:
         end = None if duration_s is None else node.get_clock().now().nanoseconds * 1e-9 + duration_s
         while rclpy.ok() and (end is None or node.get_clock().now().nanoseconds * 1e-9 < end):
-            rclpy.spin_once(node, timeout_sec=stepper.period)
+            rclpy.spin_once(node, timeout_sec=0.001)  # one callback per call: called often, so none waits
     finally:
         node.destroy_node()
         rclpy.shutdown()

@@ -147,6 +147,7 @@ class RelayStepper:
             if x.shape != (self.vehicle.nx,):
                 raise ValueError(f"step: relay_state must have {self.vehicle.nx} entries (p, eta, v, omega, Omega), got {x.shape}")
         if not fresh:
+            self._x_prev = None  # the observer restarts from the next fresh state (a gap is not one period)
             return self._stale_command(t, t0)
         assert relay_state is not None and source is not None
         if self.observer is not None and self._x_prev is not None:
