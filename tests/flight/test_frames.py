@@ -5,6 +5,7 @@ a right-hand roll in FRD is a left-hand one in FLU; every conversion undone by i
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,6 +19,8 @@ from aerorelay.flight.frames import (
     quaternion_xyzw,
     rotation_enu_flu_to_ned_frd,
     rotation_ned_frd_to_enu_flu,
+    yaw_enu_to_ned,
+    yaw_ned_to_enu,
 )
 from aerorelay.models.geometry import rotation_zyx
 
@@ -63,3 +66,9 @@ def test_round_trips(eta, v):
     # a world vector seen in the body agrees in both conventions
     Rn = rotation_enu_flu_to_ned_frd(R)
     assert np.allclose(flu_to_frd(R.T @ np.asarray(v)), Rn.T @ enu_to_ned(v), atol=1e-9)
+
+
+def test_headings_by_hand():
+    assert yaw_enu_to_ned(0.0) == pytest.approx(np.pi / 2)  # facing east
+    assert yaw_enu_to_ned(np.pi / 2) == pytest.approx(0.0)  # facing north
+    assert yaw_ned_to_enu(yaw_enu_to_ned(0.3)) == pytest.approx(0.3)

@@ -8,10 +8,9 @@ import numpy as np
 
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
-from ..estimation.disturbance import ExternalAccelerationObserver
 from ..flight.stepper import RelayStepper, StaleSettings
 from ..models.radio import RadioScene
-from ..sim.closed_loop import plant_step_function
+from . import world
 from .parts import build
 
 
@@ -22,7 +21,7 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
     def view(t: float) -> tuple[np.ndarray, np.ndarray, None]:
         js = scene.jammers
         positions = np.array([j.position_at(t) for j in js]).reshape(-1, 3)
-        powers = np.array([0.0 if not j.is_localized(t) else float(j.power_at(t)) if senses_state else j.power for j in js])
+        powers = np.array([j.planned_power(t, senses_state) for j in js])
         return positions, powers, None
     return view
 
@@ -37,11 +36,6 @@ def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
         raise ScenarioError("jammer.localization: 'estimated' needs the relay's receiver readings, which "
                             "ar.controller does not take yet; use 'oracle' to step it from outside")
     parts = build(sc, nmpc_settings=nmpc_settings)
-    w = sc.wind
-    observer = None
-    if w is not None and w.observer:
-        observer = ExternalAccelerationObserver(plant_step_function(parts.vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
-                                                sc.control_period_s, w.observer_time_constant_s)
     return RelayStepper(vehicle=parts.vehicle, planner=parts.planner, controller=parts.controller,
                         period_s=sc.control_period_s, jammers=oracle_jammers(parts.scene, sc.controller.senses_jammer_state),
-                        observer=observer, stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))
+                        observer=world.observer(sc, parts.vehicle), stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))

@@ -37,6 +37,16 @@ def wind_settings(sc: Scenario) -> WindSettings:
                         altitude_m=float(altitude))
 
 
+def observer(sc: Scenario, vehicle: Multirotor) -> ExternalAccelerationObserver | None:
+    """A relay's external-force observer on its own model (``[wind] observer``); None without it."""
+    w = sc.wind
+    if w is None or not w.observer:
+        return None
+    period = sc.control_period_s
+    return ExternalAccelerationObserver(plant_step_function(vehicle, sc.sim.plant_rate_hz, period), period,
+                                        w.observer_time_constant_s)
+
+
 def air(sc: Scenario, relays: Mapping[str, tuple[Multirotor, PlatformConfig]]) -> Air | None:
     """The air every relay of ``relays`` (name: its vehicle and platform) flies in; None without ``[wind]``."""
     w = sc.wind
@@ -46,10 +56,8 @@ def air(sc: Scenario, relays: Mapping[str, tuple[Multirotor, PlatformConfig]]) -
     flying = {}
     for name, (vehicle, platform) in relays.items():
         drag = drag_coefficients(platform.drag_area_m2, w.air_density_kg_m3)
-        observer = ExternalAccelerationObserver(plant_step_function(vehicle, rate, period), period,
-                                                w.observer_time_constant_s) if w.observer else None
         flying[name] = AirborneRelay(plant=plant_step_function(vehicle, rate, period, drag=drag), drag=np.asarray(drag),
-                                     mass=vehicle.mass, observer=observer)
+                                     mass=vehicle.mass, observer=observer(sc, vehicle))
     return Air(WindSeries(wind_settings(sc), period, sc.seed), flying)
 
 

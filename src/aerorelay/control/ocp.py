@@ -162,23 +162,12 @@ class OcpSpec:
         ``a_ext`` is added to the translational acceleration (held over the step)."""
         nr, veh = self.vehicle.n_rotors, self.vehicle
         x, u = xa[: veh.nx], w[:nr]
-        if not self.disturbance:
-            x_next = veh.rk4_step(x, u, self.ts)
-        else:
+        a_ext = None
+        if self.disturbance:
             if p is None:
                 raise ValueError("discrete_dynamics: this OCP's model adds a_ext: give the stage parameters p")
-            a = self.params.unpack(p)["a_ext"]
-            pad = ca.vertcat(ca.SX(6, 1), a, ca.SX(3 + nr, 1))
-
-            def f(xx):
-                return veh.dynamics(xx, u) + pad
-
-            h = self.ts
-            k1 = f(x)
-            k2 = f(x + 0.5 * h * k1)
-            k3 = f(x + 0.5 * h * k2)
-            k4 = f(x + h * k3)
-            x_next = x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+            a_ext = self.params.unpack(p)["a_ext"]
+        x_next = veh.rk4_step(x, u, self.ts, a_ext)
         return ca.vertcat(x_next, u) if self.exact_input_rate else x_next
 
     def stage_residual(self, xa, w, p):

@@ -27,6 +27,16 @@ def ned_to_enu(v) -> np.ndarray:
     return np.asarray(v, float) @ ENU_TO_NED.T
 
 
+def yaw_enu_to_ned(yaw: float) -> float:
+    """A heading (rad) from ENU (from east, counter-clockwise) to NED (from north, clockwise); its own inverse."""
+    return math.pi / 2 - yaw
+
+
+def yaw_ned_to_enu(yaw: float) -> float:
+    """A heading (rad) from NED to ENU (the same reflection)."""
+    return yaw_enu_to_ned(yaw)
+
+
 def flu_to_frd(v) -> np.ndarray:
     """A body vector (body rates rad/s, forces) from FLU to FRD; ``(..., 3)``."""
     return np.asarray(v, float) @ FLU_TO_FRD.T

@@ -40,6 +40,7 @@ from .frames import (
     quaternion_wxyz,
     rotation_enu_flu_to_ned_frd,
     rotation_ned_frd_to_enu_flu,
+    yaw_enu_to_ned,
 )
 from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE
 from .stepper import Command, RelayStepper, SourceState
@@ -187,24 +188,25 @@ class OffboardBridge:
                          "deadline_met": cmd.deadline_met, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
         return cmd
 
+    def _send_position(self, t: float, p, v, a, yaw_enu: float) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED from ENU position (m), velocity (m/s), acceleration (m/s^2), yaw (rad)."""
+        self.link.mav.set_position_target_local_ned_send(_boot_ms(t), *self.target, MAV.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
+                                                         *enu_to_ned(p), *enu_to_ned(v), *enu_to_ned(a), yaw_enu_to_ned(yaw_enu), 0.0)
+
     def _send_hold(self, position: np.ndarray, t: float) -> None:
-        p = enu_to_ned(position)
-        self.link.mav.set_position_target_local_ned_send(int(round(t * 1e3)) & 0xFFFFFFFF, *self.target, MAV.MAV_FRAME_LOCAL_NED,
-                                                         POSITION_TARGET_MASK, *p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.pi / 2, 0.0)
+        zero = np.zeros(3)
+        self._send_position(t, position, zero, zero, 0.0)
 
     def _send(self, cmd: Command, t: float) -> None:
-        boot_ms = int(round(t * 1e3)) & 0xFFFFFFFF
         if self.setpoint == "attitude" and cmd.mode in ("nmpc", "fallback"):
             R = matrix_from_wxyz(cmd.attitude_wxyz)
             q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(R))
             rates = flu_to_frd(cmd.body_rates_rad_s)
-            self.link.mav.set_attitude_target_send(boot_ms, *self.target, ATTITUDE_TARGET_MASK, q, *rates,
+            self.link.mav.set_attitude_target_send(_boot_ms(t), *self.target, ATTITUDE_TARGET_MASK, q, *rates,
                                                    min(1.0, cmd.thrust_normalized * self.hover_throttle))
             return
-        yaw_enu = euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz))[2]
-        p, v, a = enu_to_ned(cmd.position_m), enu_to_ned(cmd.velocity_m_s), enu_to_ned(cmd.acceleration_m_s2)
-        self.link.mav.set_position_target_local_ned_send(boot_ms, *self.target, MAV.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
-                                                         *p, *v, *a, math.pi / 2 - yaw_enu, 0.0)
+        self._send_position(t, cmd.position_m, cmd.velocity_m_s, cmd.acceleration_m_s2,
+                            euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz))[2])
 
     def run(self, duration_s: float) -> None:
         """Tick on the wall clock at the controller's period for ``duration_s``; hand back at the end or on Ctrl-C."""
@@ -219,3 +221,7 @@ class OffboardBridge:
         finally:
             self.hand_back()
 
+
+def _boot_ms(t: float) -> int:
+    """MAVLink's ``time_boot_ms`` (uint32, wrapping) from a time in seconds."""
+    return int(round(t * 1e3)) & 0xFFFFFFFF

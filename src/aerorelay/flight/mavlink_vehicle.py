@@ -20,7 +20,16 @@ import numpy as np
 from pymavlink import mavutil
 
 from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
-from .frames import enu_to_ned, flu_to_frd, matrix_from_wxyz, ned_to_enu, quaternion_wxyz, rotation_enu_flu_to_ned_frd, rotation_ned_frd_to_enu_flu
+from .frames import (
+    enu_to_ned,
+    flu_to_frd,
+    matrix_from_wxyz,
+    ned_to_enu,
+    quaternion_wxyz,
+    rotation_enu_flu_to_ned_frd,
+    rotation_ned_frd_to_enu_flu,
+    yaw_ned_to_enu,
+)
 from .px4 import OFFBOARD_LOSS_S, OFFBOARD_MIN_RATE_HZ, OFFBOARD_PROOF_S, PX4_MAIN_MODE, custom_mode
 
 MAV = mavutil.mavlink
@@ -110,7 +119,7 @@ class MavlinkVehicle:
             elif kind == "SET_POSITION_TARGET_LOCAL_NED":
                 self.setpoint_times.append(self.t)
                 self.target = {"kind": "position", "p": ned_to_enu([msg.x, msg.y, msg.z]), "v": ned_to_enu([msg.vx, msg.vy, msg.vz]),
-                               "a": ned_to_enu([msg.afx, msg.afy, msg.afz]), "yaw": np.pi / 2 - msg.yaw}
+                               "a": ned_to_enu([msg.afx, msg.afy, msg.afz]), "yaw": yaw_ned_to_enu(msg.yaw)}
             elif kind == "SET_ATTITUDE_TARGET":
                 self.setpoint_times.append(self.t)
                 R = rotation_ned_frd_to_enu_flu(matrix_from_wxyz(msg.q))

@@ -163,7 +163,7 @@ class RelayStepper:
         veh = self.vehicle
         x1 = np.asarray(veh.rk4_step(x, info.u, self.period), float)  # one period ahead under the command
         a_ext = self.observer.estimate if self.observer is not None else np.zeros(3)
-        acc = np.asarray(veh.dynamics(x1, info.u), float)[6:9] + a_ext
+        acc = np.asarray(veh.dynamics(x1, info.u, a_ext), float)[6:9]
         thrust = float(np.linalg.norm(self._thrust_per_speed2 @ x1[12:] ** 2)) / (veh.mass * veh.gravity)
         ms = (time.perf_counter() - t0) * 1e3
         return Command(t=t, mode="fallback" if info.fallback else "nmpc", omega_dot_hz_s=info.u.copy(),

@@ -102,6 +102,13 @@ class Jammer:
         """Whether the controller knows the jammer position at time ``t`` (``t >= tau_E``)."""
         return bool(t >= self.localization_delay)
 
+    def planned_power(self, t: float, senses_state: bool = False) -> float:
+        """The power (W) a controller told of this jammer plans with at ``t``: 0 before its localization
+        (``tau_E``); afterwards the nominal power, or the power radiated now when it senses the schedule."""
+        if not self.is_localized(t):
+            return 0.0
+        return float(self.power_at(t)) if senses_state else self.power
+
 
 class JammerTruthHidden(LookupError):
     """A planner or controller asked where a jammer truly is, or what it truly radiates: they know

@@ -139,11 +139,7 @@ def obstacle_model(cfg, margin: bool = True) -> Obstacle:
 
 def inside_any(obstacles, p) -> np.ndarray:
     """Whether each point ``p`` ``(..., 3)`` lies inside any of ``obstacles`` (strictly)."""
-    p = np.asarray(p, float)
-    out = np.zeros(p.shape[:-1], bool)
-    for o in obstacles:
-        out |= np.asarray(o.signed_distance(p)) < 0
-    return out
+    return clearance(obstacles, p) < 0
 
 
 def clearance(obstacles, p) -> np.ndarray:

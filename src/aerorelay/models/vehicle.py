@@ -127,8 +127,9 @@ class Multirotor:
         x[12:] = self.hover_speeds()
         return x
 
-    def dynamics(self, x, u):
-        """``x_dot = f(x, u)`` (eq. 1 with ``Omega_dot = u``). *Dual*: numpy arrays or CasADi."""
+    def dynamics(self, x, u, a_ext=None):
+        """``x_dot = f(x, u)`` (eq. 1 with ``Omega_dot = u``); ``a_ext``: an external acceleration
+        (m/s^2, world) added to the translational one. *Dual*: numpy arrays or CasADi."""
         o = ops(x, u)
         sym = is_symbolic(x, u)
         F, M = self.allocation()
@@ -142,19 +143,23 @@ class Multirotor:
             Jw = ca.mtimes(ca.DM(J), w)
             wdot = ca.solve(ca.DM(J), moment_body - o.cross(w, Jw))
             acc = ca.mtimes(R, force_body) / self.mass - self.gravity * ca.DM(E3)
+            if a_ext is not None:
+                acc = acc + a_ext
             return ca.vertcat(v, ca.mtimes(euler_rate_matrix(eta), w), acc, wdot, u)
         x = np.asarray(x, float)
         force_body, moment_body = F @ Om2, M @ Om2
         wdot = np.linalg.solve(J, moment_body - np.cross(w, J @ w))
         acc = R @ force_body / self.mass - self.gravity * E3
+        if a_ext is not None:
+            acc = acc + np.asarray(a_ext, float)
         return np.concatenate([v, euler_rate_matrix(eta) @ w, acc, wdot, np.asarray(u, float)])
 
-    def rk4_step(self, x, u, dt: float):
-        """One classical Runge-Kutta-4 step of length ``dt`` s with ``u`` held. *Dual*."""
-        k1 = self.dynamics(x, u)
-        k2 = self.dynamics(x + 0.5 * dt * k1, u)
-        k3 = self.dynamics(x + 0.5 * dt * k2, u)
-        k4 = self.dynamics(x + dt * k3, u)
+    def rk4_step(self, x, u, dt: float, a_ext=None):
+        """One classical Runge-Kutta-4 step of length ``dt`` s with ``u`` (and ``a_ext``) held. *Dual*."""
+        k1 = self.dynamics(x, u, a_ext)
+        k2 = self.dynamics(x + 0.5 * dt * k1, u, a_ext)
+        k3 = self.dynamics(x + 0.5 * dt * k2, u, a_ext)
+        k4 = self.dynamics(x + dt * k3, u, a_ext)
         return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
 
     def shaft_power(self, speeds) -> np.ndarray:

@@ -227,8 +227,7 @@ class ClosedLoop:
     def _planned_jammer_powers(self, t: float) -> np.ndarray:
         """P_J per jammer the planner plans with: 0 before its localization (tau_E); afterwards the
         nominal power, or the power actually radiated now when the controller senses the schedule."""
-        return np.array([0.0 if not j.is_localized(t) else float(j.power_at(t)) if self.settings.senses_jammer_state
-                         else j.power for j in self.scene.jammers])
+        return np.array([j.planned_power(t, self.settings.senses_jammer_state) for j in self.scene.jammers])
 
     def _channel(self, t, x1, p2, eta2, v2) -> tuple[ChannelState, float, float]:
         """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments;

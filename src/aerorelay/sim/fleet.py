@@ -145,7 +145,7 @@ class FleetLoop:
         loop): positions ``(nJ, 3)`` m, and the nominal powers (0 before localization), W."""
         js = self.scene.jammers
         return (np.array([j.position_at(t) for j in js]).reshape(-1, 3),
-                np.array([j.power if j.is_localized(t) else 0.0 for j in js]))
+                np.array([j.planned_power(t) for j in js]))
 
     def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
         """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
