@@ -18,6 +18,7 @@ import json
 import logging
 import os
 import platform
+import time
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,11 +36,13 @@ from .assembly.vehicle import build_vehicle
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop, benchmark_fleet
 from .control.nmpc import NmpcSettings
+from .experiments import flight as _flight
 from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
 from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
+from .flight.airframes import Airframe
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.stepper import RelayStepper, StaleSettings
@@ -104,29 +107,43 @@ def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale
     return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale)
 
 
-def sitl(sc: Scenario, url: str, duration_s: float | None = None) -> None:
-    """Run the in-repo MAVLink vehicle (``flight.mavlink_vehicle``: PX4's offboard subset on an ideal
-    point-mass autopilot, not PX4) on ``url`` in real time, starting at the scenario's relay start."""
-    MavlinkVehicle(url, position=sc.relay_list[0].start).run_realtime(duration_s=duration_s)
+def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None) -> None:
+    """Run the in-repo MAVLink vehicle (``flight.mavlink_vehicle``: PX4's offboard subset, not PX4) on
+    ``url`` in real time, flying ``airframe`` (default: an ideal point mass at the scenario's relay start;
+    ``flight.airframes.RotorpyQuadrotor``: RotorPy's quadrotor)."""
+    MavlinkVehicle(url, position=sc.relay_list[0].start, airframe=airframe).run_realtime(duration_s=duration_s)
 
 
 def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position", duration_s: float | None = None,
-        out: Path | None = None) -> pd.DataFrame:
+        out: Path | None = None) -> tuple[RunResult | None, pd.DataFrame]:
     """Fly the scenario's relay controller on a MAVLink autopilot at ``url`` in OFFBOARD (``flight.mavlink_bridge``):
     wait for its heartbeat, stream, arm only with ``arm``, hand back to a hold at the end or on Ctrl-C.
-    Returns the bridge's log (one row per control period); ``out``: also ``flight.parquet`` there."""
+    Returns the flight as ``simulate``'s result (None when no period was flown in OFFBOARD) and the
+    bridge's log (one row per control period). ``out``: the run folder ``aerorelay run`` writes (time
+    series, metrics, figures, run.mcap) plus ``flight.parquet``, written even when the flight is
+    interrupted (``experiments.flight``); it is checked before the vehicle is contacted."""
+    if out is not None:
+        check_output_folder(out, "run")
     ctrl = controller(sc)
-    bridge = OffboardBridge(url, ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint)
+    rec, hook = _flight.recorder(sc, ctrl)
+    bridge = OffboardBridge(url, ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint, on_step=hook)
     bridge.connect()
+    wall0, aborted = time.perf_counter(), None
     try:
         bridge.run(sc.duration_s if duration_s is None else duration_s)
+    except KeyboardInterrupt:
+        aborted = "interrupted (Ctrl-C): the vehicle was asked to hold"
+        raise
     finally:
-        df = pd.DataFrame([{k: v for k, v in r.items() if k != "x"} | ({} if r.get("x") is None else
-                           dict(zip(("p_x", "p_y", "p_z"), r["x"][0:3], strict=True))) for r in bridge.log])
-        if out is not None:
-            Path(out).mkdir(parents=True, exist_ok=True)
-            df.to_parquet(Path(out) / "flight.parquet")
-    return df
+        df = _flight.bridge_frame(bridge.log)
+        result = None
+        if rec.rows:
+            wall = time.perf_counter() - wall0
+            result = (_flight.save_flight(sc, Path(out), df, rec, ctrl, wall, aborted=aborted, views=write_run_views)
+                      if out is not None else _flight.flight_result(sc, rec, ctrl, wall, aborted=aborted))
+        elif out is not None:
+            _flight.save_raw(Path(out), df, rec)
+    return result, df
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:

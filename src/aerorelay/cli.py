@@ -536,14 +536,28 @@ def sitl(
     listen: str = typer.Option("udpin:127.0.0.1:14540", "--listen", help="MAVLink URL the vehicle listens on"),
     duration: float = typer.Option(None, "--duration", help="stop after this many seconds (default: run until Ctrl-C)",
                                    show_default=False),
+    airframe: str = typer.Option("pointmass", "--airframe", help="pointmass (an ideal autopilot on a point mass) | rotorpy "
+                                 "(RotorPy's Hummingbird quadrotor with its SE(3) and attitude controllers, in the scenario's "
+                                 "[wind]; pip install 'aerorelay[rotorpy]')"),
 ):
     """Run the in-repo MAVLink vehicle in real time: PX4's offboard subset (heartbeats, arming, modes, the
-    offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot. For
-    tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
+    offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot or RotorPy's
+    quadrotor. For tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
     sc = _load_or_exit(scenario)
-    console.print(f"vehicle listening on {listen} (Ctrl-C stops)", markup=False, highlight=False)
+    if airframe not in ("pointmass", "rotorpy"):
+        _fail(f"--airframe must be pointmass or rotorpy, got {airframe!r}")
+    frame = None
+    if airframe == "rotorpy":
+        try:
+            from .assembly.world import wind_field
+            from .flight.airframes import RotorpyQuadrotor, still_air
+
+            frame = RotorpyQuadrotor(sc.relay_list[0].start, wind=wind_field(sc) or still_air)  # RotorPy: an optional extra
+        except ImportError as exc:
+            _fail(f"--airframe rotorpy needs RotorPy (pip install 'aerorelay[rotorpy]'): {exc}")
+    console.print(f"vehicle ({airframe}) listening on {listen} (Ctrl-C stops)", markup=False, highlight=False)
     try:
-        api.sitl(sc, listen, duration)
+        api.sitl(sc, listen, duration, airframe=frame)
     except KeyboardInterrupt:
         pass
 
@@ -558,7 +572,8 @@ def fly(
                                  "acceleration feed-forward) | attitude (SET_ATTITUDE_TARGET)"),
     duration: float = typer.Option(None, "--duration", help="fly this many seconds (default: the mission's length)",
                                    show_default=False),
-    out: Path = typer.Option(None, "--out", help="write flight.parquet (one row per control period) here", show_default=False),
+    out: Path = typer.Option(None, "--out", help="write the flight's run folder here (timeseries.parquet, metrics.json, "
+                             "figures, run.mcap, flight.parquet: the bridge's log)", show_default=False),
 ):
     """Fly the relay's controller on a MAVLink autopilot in OFFBOARD: wait for its heartbeat, stream setpoints,
     arm only with --arm, ask for OFFBOARD, step the controller every period; hand back to a hold at the end,
@@ -567,15 +582,16 @@ def fly(
     if setpoint not in ("position", "attitude"):
         _fail(f"--setpoint must be position or attitude, got {setpoint!r}")
     try:
-        df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out)
-    except TimeoutError as exc:
+        _, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out)
+    except (TimeoutError, OutputError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
-        console.print("interrupted: the vehicle was asked to hold", markup=False, highlight=False)
+        console.print("interrupted: the vehicle was asked to hold" + (f"; the flight is in {out}" if out else ""),
+                      markup=False, highlight=False)
         return
     flown = df[df["mode"] != "stream"] if len(df) else df
     console.print(f"{len(flown)} control periods flown ({int((flown['mode'] == 'nmpc').sum()) if len(flown) else 0} by the NMPC)"
-                  + (f"; log: {out / 'flight.parquet'}" if out else ""), markup=False, highlight=False)
+                  + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
 
 
 @app.command()

@@ -13,7 +13,7 @@ from ..estimation.disturbance import ExternalAccelerationObserver
 from ..models.drag import drag_coefficients
 from ..models.obstacles import Obstacle, obstacle_model
 from ..models.vehicle import Multirotor
-from ..sim.air import Air, AirborneRelay, WindSeries, WindSettings
+from ..sim.air import Air, AirborneRelay, HeldWind, WindSeries, WindSettings
 from ..sim.blockage import Blockage
 from ..sim.closed_loop import plant_step_function
 
@@ -59,6 +59,14 @@ def air(sc: Scenario, relays: Mapping[str, tuple[Multirotor, PlatformConfig]]) -
         flying[name] = AirborneRelay(plant=plant_step_function(vehicle, rate, period, drag=drag), drag=np.asarray(drag),
                                      mass=vehicle.mass, observer=observer(sc, vehicle))
     return Air(WindSeries(wind_settings(sc), period, sc.seed), flying)
+
+
+def wind_field(sc: Scenario) -> HeldWind | None:
+    """``[wind]`` as a wind field for a simulator outside aerorelay (RotorPy behind ``aerorelay sitl``):
+    the same mean, gusts and seed as ``ar.simulate``'s air; None without ``[wind]``."""
+    if sc.wind is None:
+        return None
+    return HeldWind(WindSeries(wind_settings(sc), sc.control_period_s, sc.seed), sc.control_period_s)
 
 
 def bound_key_data(sc: Scenario, data: dict) -> dict:

@@ -3,12 +3,13 @@ offboard bridge uses (``flight/px4.py``): heartbeats with PX4's custom modes, ar
 with acknowledgements and PX4's refusals (OFFBOARD only after a setpoint stream), the offboard loss
 timeout (to a hold), LOCAL_POSITION_NED and ATTITUDE_QUATERNION telemetry (NED/FRD on the wire).
 
-What it flies is an ideal autopilot on a point mass: in OFFBOARD it tracks a position target with
-its velocity and acceleration feed-forward (``a = a_ff + kp (p - x) + kd (v - x_dot)``) or an attitude
-target's thrust (``a = R e3 g thrust / hover_throttle - g e3``); in a hold it brakes onto where it
-entered it; disarmed it sits. It tests the protocol, the frames, the rates and the timeouts, **not
-PX4** nor a vehicle's dynamics. ``step(dt)`` advances it by ``dt`` (lockstep: the caller owns time);
-``run_realtime`` steps it on the wall clock.
+What flies is an airframe with its own autopilot (``flight.airframes``): an ideal point mass (the
+default: it tests the protocol, the frames, the rates and the timeouts) or RotorPy's quadrotor (an
+independent simulator with its own position and attitude loops). In OFFBOARD it flies the last
+position or attitude target; in a hold (also POSCTL with the sticks centred) it stays where it
+entered it; disarmed it sits. It tests our bridge against our PX4 subset, **not PX4**.
+``step(dt)`` advances it by ``dt`` (lockstep: the caller owns time); ``run_realtime`` steps it on
+the wall clock.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink import mavutil
 
-from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
+from .airframes import Airframe, PointMass, Target
 from .frames import (
     enu_to_ned,
     flu_to_frd,
@@ -33,34 +34,32 @@ from .frames import (
 from .px4 import OFFBOARD_LOSS_S, OFFBOARD_MIN_RATE_HZ, OFFBOARD_PROOF_S, PX4_MAIN_MODE, custom_mode
 
 MAV = mavutil.mavlink
-GRAVITY = 9.81
 
 
 @dataclass
 class VehicleSettings:
-    """The point mass's tracking gains (1/s^2, 1/s), its hover throttle (PX4's ``MPC_THR_HOVER``),
-    the telemetry rate (Hz) and the heartbeat period (s)."""
+    """The vehicle's hover throttle (PX4's ``MPC_THR_HOVER``: an attitude target's thrust over it is
+    the thrust over hover), the telemetry rate (Hz) and the heartbeat period (s)."""
 
-    kp: float = 4.0
-    kd: float = 4.0
     hover_throttle: float = 0.5
     telemetry_hz: float = 50.0
     heartbeat_s: float = 1.0
 
 
 class MavlinkVehicle:
-    """A PX4-like vehicle on ``url`` (e.g. ``udpin:127.0.0.1:14540``) starting at ``position`` (m, ENU)."""
+    """A PX4-like vehicle on ``url`` (e.g. ``udpin:127.0.0.1:14540``) flying ``airframe`` (default: a
+    point mass starting at ``position``, m, ENU)."""
 
-    def __init__(self, url: str, position=(0.0, 0.0, 0.0), settings: VehicleSettings = VehicleSettings(), system: int = 1):
+    def __init__(self, url: str, position=(0.0, 0.0, 0.0), settings: VehicleSettings = VehicleSettings(), system: int = 1,
+                 airframe: Airframe | None = None):
         self.link = mavutil.mavlink_connection(url, source_system=system, source_component=1)
         self.s = settings
         self.t = 0.0
-        self.p, self.v = np.asarray(position, float).copy(), np.zeros(3)
-        self.yaw = 0.0  # ENU
-        self.R = np.eye(3)
+        self.airframe: Airframe = airframe if airframe is not None else PointMass(position)
+        self.yaw = 0.0  # the heading a hold keeps, rad ENU
         self.armed = False
         self.mode = "POSCTL"
-        self.hold_point = self.p.copy()
+        self.hold_point = self.airframe.p.copy()
         self.setpoint_times: list[float] = []
         self.target: dict | None = None
         self.acks: list[tuple[int, int]] = []  # (command, result) sent, for tests
@@ -93,7 +92,7 @@ class MavlinkVehicle:
         if msg.command == MAV.MAV_CMD_COMPONENT_ARM_DISARM:
             self.armed = msg.param1 > 0.5
             if self.armed:
-                self.hold_point = self.p.copy()
+                self.hold_point = self.airframe.p.copy()
             self._ack(msg.command, MAV.MAV_RESULT_ACCEPTED)
         elif msg.command == MAV.MAV_CMD_DO_SET_MODE:
             main = int(msg.param2)
@@ -103,7 +102,7 @@ class MavlinkVehicle:
                     return
                 self.mode = "OFFBOARD"
             elif main == PX4_MAIN_MODE["AUTO"]:
-                self.mode, self.hold_point = "HOLD", self.p.copy()
+                self.mode, self.hold_point = "HOLD", self.airframe.p.copy()
             else:
                 self.mode = "POSCTL"
             self._ack(msg.command, MAV.MAV_RESULT_ACCEPTED)
@@ -127,29 +126,31 @@ class MavlinkVehicle:
         self.setpoint_times = [t for t in self.setpoint_times if t >= self.t - 2 * OFFBOARD_PROOF_S]
 
     # -- the flight -----------------------------------------------------------------------------------
-    def _acceleration(self) -> np.ndarray:
-        s = self.s
+    @property
+    def p(self) -> np.ndarray:
+        return self.airframe.p
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.airframe.v
+
+    def _target(self) -> Target:
         if not self.armed:
-            return np.zeros(3)
-        if self.mode == "OFFBOARD" and self.target is not None:
-            if self.target["kind"] == "position":
-                tg = self.target
+            return Target("idle")
+        tg = self.target
+        if self.mode == "OFFBOARD" and tg is not None:
+            if tg["kind"] == "position":
                 self.yaw = float(tg["yaw"])
-                return tg["a"] + s.kp * (tg["p"] - self.p) + s.kd * (tg["v"] - self.v)
-            self.R = self.target["R"]
-            return self.R @ E3 * GRAVITY * self.target["thrust"] / s.hover_throttle - GRAVITY * E3
-        return s.kp * (self.hold_point - self.p) - s.kd * self.v  # a hold (also POSCTL with sticks centred)
+                return Target("position", p=tg["p"], v=tg["v"], a=tg["a"], yaw=self.yaw)
+            return Target("attitude", R=tg["R"], thrust=tg["thrust"] / self.s.hover_throttle)
+        return Target("hold", p=self.hold_point, yaw=self.yaw)  # a hold (also POSCTL with sticks centred)
 
     def step(self, dt: float) -> None:
         """Read what arrived, apply PX4's offboard timeout, fly ``dt`` s, send what is due."""
         self._receive()
         if self.mode == "OFFBOARD" and (not self.setpoint_times or self.t - self.setpoint_times[-1] > OFFBOARD_LOSS_S):
-            self.mode, self.hold_point = "HOLD", self.p.copy()  # offboard lost: PX4 holds
-        a = self._acceleration()
-        if not (self.target and self.target["kind"] == "attitude" and self.mode == "OFFBOARD"):
-            self.R = rotation_zyx(attitude_from_thrust(a + GRAVITY * E3, self.yaw))
-        self.p = self.p + self.v * dt + 0.5 * a * dt**2
-        self.v = self.v + a * dt
+            self.mode, self.hold_point = "HOLD", self.airframe.p.copy()  # offboard lost: PX4 holds
+        self.airframe.fly(self._target(), self.t, dt)
         self.t += dt
         self._send_due()
 
@@ -159,13 +160,13 @@ class MavlinkVehicle:
         boot_ms = int(round(self.t * 1e3))
         if self.t >= self._next_heartbeat - 1e-9:
             base = MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (MAV.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
-            self.link.mav.heartbeat_send(MAV.MAV_TYPE_HEXAROTOR, MAV.MAV_AUTOPILOT_PX4, base, self._custom(), MAV.MAV_STATE_ACTIVE)
+            self.link.mav.heartbeat_send(self.airframe.mav_type, MAV.MAV_AUTOPILOT_PX4, base, self._custom(), MAV.MAV_STATE_ACTIVE)
             self._next_heartbeat = self.t + self.s.heartbeat_s
         if self.t >= self._next_telemetry - 1e-9:
-            p, v = enu_to_ned(self.p), enu_to_ned(self.v)
-            self.link.mav.local_position_ned_send(boot_ms, *p, *v)
-            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(self.R))
-            self.link.mav.attitude_quaternion_send(boot_ms, *q, *flu_to_frd(np.zeros(3)))
+            af = self.airframe
+            self.link.mav.local_position_ned_send(boot_ms, *enu_to_ned(af.p), *enu_to_ned(af.v))
+            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(af.R))
+            self.link.mav.attitude_quaternion_send(boot_ms, *q, *flu_to_frd(af.rates))
             self._next_telemetry = self.t + 1.0 / self.s.telemetry_hz
 
     def run_realtime(self, dt: float = 0.005, duration_s: float | None = None) -> None:

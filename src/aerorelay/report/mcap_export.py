@@ -121,9 +121,9 @@ def _timeseries_schema(columns: list[str]) -> foxglove.Schema:
 
 
 def numeric_columns(df: pd.DataFrame) -> list[str]:
-    """The time-series columns written to ``/timeseries`` (numbers and flags, not the QP status text:
-    ``qp_status``, a fleet's ``<relay>.qp_status``)."""
-    return [c for c in df.columns if c.rsplit(".", 1)[-1] != "qp_status"]
+    """The time-series columns written to ``/timeseries``: numbers and flags, not text (the QP's status,
+    ``qp_status`` and a fleet's ``<relay>.qp_status``; a flight's ``flight_mode``)."""
+    return [c for c in df.columns if pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c])]
 
 
 @contextmanager

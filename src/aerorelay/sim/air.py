@@ -51,6 +51,22 @@ class WindSeries:
         return self.mean + (self.to_world @ self.gusts.sample() if self.gusts is not None else 0.0)
 
 
+class HeldWind:
+    """A ``WindSeries`` as a wind field ``(t, position) -> wind`` (m/s, world) for a simulator outside
+    aerorelay (``flight.airframes``): the series' value of control period ``floor(t / period_s)``, held
+    over the period as aerorelay's plant holds it; the same everywhere (see the module)."""
+
+    def __init__(self, series: WindSeries, period_s: float):
+        self.series, self.period = series, period_s
+        self.values: list[np.ndarray] = []
+
+    def __call__(self, t: float, position: np.ndarray) -> np.ndarray:
+        k = max(0, int(math.floor(t / self.period + 1e-9)))
+        while len(self.values) <= k:
+            self.values.append(self.series.next())
+        return self.values[k]
+
+
 @dataclass(frozen=True)
 class AirborneRelay:
     """One relay in the wind: its plant ``(x, u, d, w) -> x`` (with drag), its drag coefficients (kg/m

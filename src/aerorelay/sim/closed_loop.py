@@ -28,7 +28,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
 from ..models.streams import generator
 from ..models.vehicle import Multirotor
-from ..planning.base import Planner
+from ..planning.base import Planner, Reference
 from .air import Air
 from .blockage import Blockage
 from .jammer_sensing import JammerSensing
@@ -101,6 +101,37 @@ def record_row(log: dict[str, np.ndarray], k: int, row: dict, columns: list[str]
 def steps_flown(log: dict[str, np.ndarray], flown: int) -> dict[str, np.ndarray]:
     """The log's first ``flown`` steps (a flight ended early keeps what it flew)."""
     return {c: v[:flown] for c, v in log.items()}
+
+
+def relay_source_poses(scene: RadioScene, names: dict[str, str], x1: np.ndarray, p2, eta2) -> dict:
+    """The radio poses of the relay at state ``x1`` and the source at ``p2`` (m) with attitude ``eta2``
+    (rad, ZYX), by the scene's node ``names`` (role -> name)."""
+    return {names["relay"]: scene.pose(names["relay"], x1[0:3], rotation_zyx(x1[3:6])),
+            names["source"]: scene.pose(names["source"], p2, rotation_zyx(eta2))}
+
+
+def mission_row(veh: Multirotor, scene: RadioScene, t: float, x: np.ndarray, u: np.ndarray, p2, eta2, ref: Reference,
+                channel: ChannelState, misalignments: tuple[float, float], info: StepInfo, violation: bool) -> dict:
+    """One control step's log row by column name (``log_columns`` and the jammers' positions): the relay's
+    state ``x`` and input ``u``, the source at ``p2`` / ``eta2``, the planner's reference, the ``channel``
+    and the relay's misalignments ``(v_12, v_10)``, the NMPC's step ``info``, the supervisor's ``violation``."""
+    g21, g10 = (float(g) for g in channel.sinr)
+    jam_on = any(float(j.power_at(t)) > 0 for j in scene.jammers)
+    nr = veh.n_rotors
+    if x.shape != (veh.nx,) or u.shape != (nr,):
+        raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
+    omega, rates = rotor_columns(nr)
+    v12, v10 = misalignments
+    row = {"t": t, **dict(zip(RELAY_STATE_COLUMNS, x[0:12], strict=True)), **dict(zip(omega, x[12 : 12 + nr], strict=True)),
+           **dict(zip(rates, u, strict=True)), **dict(zip(SOURCE_COLUMNS, [*p2, *eta2], strict=True)),
+           **dict(zip(REFERENCE_COLUMNS, ref.p_ref, strict=True)),
+           "jammer_on": float(jam_on), "gamma_21": g21, "gamma_10": g10, "se_21": math.log2(1 + g21),
+           "se_10": math.log2(1 + g10), "capacity": float(channel.capacity), "v_12": v12, "v_10": v10,
+           "mutual_alignment": float(mutual_alignment(v12, v10)), "slack_max": info.slack_max,
+           "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms,
+           "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
+           "safety_violation": violation, "taylor_rel_err": ref.taylor_rel_err}
+    return row | jammer_values(scene, t)
 
 
 def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float, drag: np.ndarray | None = None) -> ca.Function:
@@ -199,7 +230,6 @@ class ClosedLoop:
         self.controller, self.plant, self.settings = controller, plant, settings
         self.spec = controller.spec
         self.columns = log_columns(self.veh.n_rotors)
-        self._rotor_columns = rotor_columns(self.veh.n_rotors)
         self.csi_rng = generator(settings.seed, "csi")  # one stream per purpose (models/streams.py)
         self.process_rng = generator(settings.seed, "process")
         noise = settings.channel_noise or PerturbationSettings()
@@ -233,8 +263,7 @@ class ClosedLoop:
         """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments;
         the relay's jammer readings and estimate when it estimates them."""
         p1, R1 = x1[0:3], rotation_zyx(x1[3:6])
-        poses = {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
-                 self.names["source"]: self.scene.pose(self.names["source"], p2, rotation_zyx(eta2))}
+        poses = relay_source_poses(self.scene, self.names, x1, p2, eta2)
         fade, self._noise_values = None, {}
         positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]: self._bs_position}
         if self.perturbations.active:  # the paper's channel has no random term: nothing to build per step
@@ -248,8 +277,7 @@ class ClosedLoop:
         if self.sensing is not None:
             bs = self.names["base_station"]
             self._noise_values = {**self._noise_values, **self.sensing.step(t, state, {**poses, bs: self.scene.fixed_pose(bs)})}
-        p0 = self.scene.fixed_pose(self.names["base_station"]).position
-        return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, p0))
+        return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, self._bs_position))
 
     def _oracle_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray, None]:
         return self._measured_jammers(t), self._planned_jammer_powers(t), None
@@ -312,22 +340,8 @@ class ClosedLoop:
                              aborted=aborted)
 
     def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, v12: float, v10: float, info: StepInfo):
-        g21, g10 = (float(g) for g in channel.sinr)
-        jam_on = any(float(j.power_at(t)) > 0 for j in self.scene.jammers)
-        nr = self.veh.n_rotors
-        if x.shape != (self.veh.nx,) or u.shape != (nr,):
-            raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
-        omega, rates = self._rotor_columns
-        row = {"t": t, **dict(zip(RELAY_STATE_COLUMNS, x[0:12], strict=True)), **dict(zip(omega, x[12 : 12 + nr], strict=True)),
-               **dict(zip(rates, u, strict=True)), **dict(zip(SOURCE_COLUMNS, [*p2, *eta2], strict=True)),
-               **dict(zip(REFERENCE_COLUMNS, ref.p_ref, strict=True)),
-               "jammer_on": float(jam_on), "gamma_21": g21, "gamma_10": g10, "se_21": math.log2(1 + g21),
-               "se_10": math.log2(1 + g10), "capacity": float(channel.capacity), "v_12": v12, "v_10": v10,
-               "mutual_alignment": float(mutual_alignment(v12, v10)), "slack_max": info.slack_max,
-               "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms,
-               "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
-               "safety_violation": bool(self.controller.last_violations), "taylor_rel_err": ref.taylor_rel_err}
-        row.update(jammer_values(self.scene, t))
+        row = mission_row(self.veh, self.scene, t, x, u, p2, eta2, ref, channel, (v12, v10), info,
+                          bool(self.controller.last_violations))
         row.update(self._noise_values)
         if self.air is not None:
             row.update(self.air.wind_values() | self.air.values(self.names["relay"], x))

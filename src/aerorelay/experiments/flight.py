@@ -1,0 +1,149 @@
+"""A flight's run folder (``aerorelay fly --out``): the rows ``sim.flight_record`` collected each
+control period in OFFBOARD become the time series, metrics, figures and MCAP ``aerorelay run`` writes,
+with the bridge's own log beside them (``flight.parquet``: every period, streaming included)."""
+
+from __future__ import annotations
+
+import logging
+import socket
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..assembly.flight import build_stepper
+from ..assembly.parts import build_scene, build_source
+from ..config import Scenario
+from ..flight.airframes import Airframe
+from ..flight.mavlink_bridge import OffboardBridge, StepHook
+from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
+from ..flight.stepper import Command, RelayStepper, SourceState
+from ..sim.flight_record import FLIGHT_COLUMN_TYPES, FlightRecorder, flight_metrics
+from ..sim.units import metric_units
+from ..store.outputs import new_sibling, swap_in
+from ..store.run_folder import TIMESERIES_FILE, log_frame
+from .run import RunResult, run_metrics
+
+log = logging.getLogger(__name__)
+FLIGHT_LOG = "flight.parquet"
+
+
+def recorder(sc: Scenario, stepper: RelayStepper) -> tuple[FlightRecorder, StepHook]:
+    """A recorder of ``sc``'s flight and the bridge's hook that feeds it (the supervisor's verdict and the
+    observer's estimate read from ``stepper`` each period)."""
+    rec = FlightRecorder(stepper.vehicle, build_scene(sc), observed=stepper.observer is not None)
+
+    def hook(t: float, x, cmd: Command, src: SourceState, age: float) -> None:
+        rec.record(t, x, cmd, src, state_age_s=age, violation=bool(stepper.controller.last_violations),
+                   a_ext=stepper.observer.estimate if stepper.observer is not None else None)
+    return rec, hook
+
+
+def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper, wall_s: float, *, aborted: str | None = None,
+                  views: Callable[[RunResult, Path], None] | None = None) -> RunResult:
+    """The flight as ``ar.simulate``'s result: its time series and metrics (``run_metrics`` plus the
+    flight's own, ``sim.flight_record.flight_metrics``); ``views`` writes figures and MCAP."""
+    mission = rec.mission(wall_s, controller=stepper.controller.nmpc.settings.fingerprint(),
+                          fallback_episodes=stepper.controller.fallback_episodes, aborted=aborted)
+    df = log_frame(mission.log, rec.columns, {c: k for c, k in FLIGHT_COLUMN_TYPES.items() if c in rec.columns})
+    metrics = run_metrics(sc, mission, stepper.vehicle, None) | flight_metrics(mission.log)
+    metrics["outage_threshold"] = sc.channel.outage
+    metrics["unit_system"] = sc.channel.units
+    metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
+    return RunResult(sc, mission, df, metrics, None, views)
+
+
+def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame, rec: FlightRecorder, stepper: RelayStepper, wall_s: float,
+                *, aborted: str | None = None, views: Callable[[RunResult, Path], None] | None = None) -> RunResult | None:
+    """Write the flight's run folder into ``out``; when nothing was flown in OFFBOARD or the metrics
+    fail, a folder with what there is (``flight.parquet`` and the rows recorded, ``timeseries.parquet``)
+    so the flight is never lost; the error is logged and re-raised after it is written."""
+    def with_log(tmp: Path) -> None:
+        bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
+    try:
+        result = flight_result(sc, rec, stepper, wall_s, aborted=aborted, views=views)
+    except Exception:
+        log.exception("the flight's metrics failed: writing its raw logs to %s", out)
+        save_raw(Path(out), bridge_log, rec)
+        raise
+    result.save(out, extra=with_log)
+    return result
+
+
+def save_raw(out: Path, bridge_log: pd.DataFrame, rec: FlightRecorder) -> None:
+    """``flight.parquet`` and the rows recorded (if any) as a run folder ``out``: what a flight leaves
+    when it flew nothing in OFFBOARD or its metrics failed."""
+    tmp = new_sibling(out)
+    bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
+    if rec.rows:
+        pd.DataFrame(rec.rows).to_parquet(tmp / TIMESERIES_FILE, index=False)
+    swap_in(tmp, out, "run")
+
+
+def bridge_frame(rows: list[dict]) -> pd.DataFrame:
+    """The bridge's log (one row per period: time, mode, arming, the vehicle's custom mode, the step's
+    computation and deadline, the relay's position) as a DataFrame."""
+    return pd.DataFrame([{k: v for k, v in r.items() if k != "x"} | ({} if r.get("x") is None else
+                         dict(zip(("p_x", "p_y", "p_z"), r["x"][0:3], strict=True))) for r in rows])
+
+
+LOCKSTEP_OFFBOARD_WITHIN_S = 5.0  # the bridge streams ~1.1 s before it asks; OFFBOARD later than this is an error
+
+
+def free_udp_port() -> int:
+    """A UDP port on localhost nobody listens on now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position", duration_s: float | None = None,
+                 views: Callable[[RunResult, Path], None] | None = None) -> tuple[RunResult, pd.DataFrame]:
+    """Fly ``sc``'s relay controller through the MAVLink bridge on the in-repo vehicle flying ``airframe``,
+    over UDP on localhost, in lockstep (one vehicle step per control period, telemetry every period):
+    the bridge streams, arms, enters OFFBOARD, flies the mission (``duration_s``, default the scenario's)
+    and hands back to a hold. Returns the flight as ``ar.simulate``'s result and the bridge's log. The
+    flight stops early (``aborted``: reported unsafe) when the vehicle goes below the ground or its state
+    stops being finite."""
+    stepper = build_stepper(sc)
+    rec, hook = recorder(sc, stepper)
+    port, T = free_udp_port(), stepper.period
+    vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T), airframe=airframe)
+    bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", stepper, build_source(sc), stepper.vehicle.hover_speeds(), arm=True,
+                            setpoint=setpoint, on_step=hook)
+    duration = sc.duration_s if duration_s is None else duration_s
+    t, aborted = 0.0, None
+    wall0 = time.perf_counter()
+    try:
+        while not bridge.heard_vehicle():  # the handshake: the vehicle answers once it has heard the bridge
+            bridge.announce()
+            vehicle.step(T)
+            t += T
+            if t > LOCKSTEP_OFFBOARD_WITHIN_S:
+                raise TimeoutError("lockstep: the in-repo vehicle did not answer the bridge's heartbeat")
+        while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
+            vehicle.step(T)
+            bridge.tick(t)
+            t += T
+            if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
+                raise TimeoutError(f"lockstep: the vehicle did not enter OFFBOARD within {LOCKSTEP_OFFBOARD_WITHIN_S:g} s")
+            aborted = _left_the_air(airframe, sc.world.ground_z_m)
+            if aborted:
+                break
+    finally:
+        bridge.hand_back()
+        vehicle.step(T)
+        bridge.link.close()
+        vehicle.link.close()
+    log_df = bridge_frame(bridge.log)
+    return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted, views=views), log_df
+
+
+def _left_the_air(airframe: Airframe, ground_z_m: float) -> str | None:
+    if not (np.all(np.isfinite(airframe.p)) and np.all(np.isfinite(airframe.v))):
+        return "the vehicle's state stopped being finite"
+    if airframe.p[2] < ground_z_m:
+        return f"the vehicle went below the ground (z = {airframe.p[2]:.2f} m)"
+    return None

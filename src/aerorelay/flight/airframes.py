@@ -1,0 +1,176 @@
+"""What flies behind the in-repo MAVLink vehicle (``flight.mavlink_vehicle``): an airframe with its
+own low-level autopilot, given a ``Target`` each step (world ENU, body FLU, like the rest of
+aerorelay; the vehicle converts from NED/FRD on the wire).
+
+* ``PointMass``: an ideal autopilot on a point mass. A position target is tracked with its
+  velocity and acceleration feed-forward (``a = a_ff + kp (p - x) + kd (v - x_dot)``), an attitude
+  target's thrust is applied along its body z (``a = R e3 g thrust - g e3``, ``thrust`` normalized to
+  hover); its attitude is the one its acceleration implies. It tests the protocol, not dynamics.
+* ``RotorpyQuadrotor``: RotorPy's multirotor (``rotorpy.vehicles.multirotor.Multirotor``: rigid
+  body, first-order motors, parasitic and rotor drag, translational lift; RotorPy's hummingbird by
+  default), an independent simulator: position targets and holds through RotorPy's geometric SE(3)
+  controller (``SE3Control``, the autopilot's position loop), attitude targets through its
+  ``cmd_ctatt`` attitude loop, each at ``max_step_s``. RotorPy's world and body frames are z-up like
+  ENU/FLU; its quaternions are ``[x, y, z, w]``. ``wind(t, p)`` (m/s, world) is the air it flies in.
+
+Disarmed, an airframe sits where it is (no integration).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
+
+GRAVITY = 9.81
+TARGET_KINDS = ("idle", "hold", "position", "attitude")
+
+
+@dataclass(frozen=True)
+class Target:
+    """What the autopilot flies this step. ``idle``: disarmed; ``hold``: stay at ``p`` (m) with yaw
+    ``yaw`` (rad, ENU); ``position``: ``p`` (m), ``v`` (m/s), ``a`` (m/s^2 feed-forward), ``yaw``;
+    ``attitude``: ``R`` (body FLU to world ENU) and ``thrust`` (collective thrust over the hover thrust)."""
+
+    kind: str
+    p: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    v: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    a: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    yaw: float = 0.0
+    R: np.ndarray = field(default_factory=lambda: np.eye(3))
+    thrust: float = 1.0
+
+    def __post_init__(self):
+        if self.kind not in TARGET_KINDS:
+            raise ValueError(f"Target.kind must be one of {TARGET_KINDS}, got {self.kind!r}")
+
+
+class Airframe(Protocol):
+    """An airframe with its autopilot: position ``p`` (m), velocity ``v`` (m/s), attitude ``R``, body
+    rates ``rates`` (rad/s), ``mav_type`` (MAVLink's MAV_TYPE in its heartbeat); ``fly(target, t, dt)``."""
+
+    mav_type: int
+
+    @property
+    def p(self) -> np.ndarray: ...
+
+    @property
+    def v(self) -> np.ndarray: ...
+
+    @property
+    def R(self) -> np.ndarray: ...
+
+    @property
+    def rates(self) -> np.ndarray: ...
+
+    def fly(self, target: Target, t: float, dt: float) -> None: ...
+
+
+@dataclass
+class PointMassGains:
+    """The point mass's position gain (1/s^2) and velocity gain (1/s)."""
+
+    kp: float = 4.0
+    kd: float = 4.0
+
+
+class PointMass:
+    """An ideal autopilot on a point mass (see the module)."""
+
+    mav_type = 13  # MAV_TYPE_HEXAROTOR: it stands in for aerorelay's relay
+
+    def __init__(self, position, gains: PointMassGains = PointMassGains()):
+        self.p, self.v = np.asarray(position, float).copy(), np.zeros(3)
+        self.R, self.rates, self.gains = np.eye(3), np.zeros(3), gains
+        self.yaw = 0.0
+
+    def _acceleration(self, tg: Target) -> np.ndarray:
+        g = self.gains
+        if tg.kind == "position":
+            return tg.a + g.kp * (tg.p - self.p) + g.kd * (tg.v - self.v)
+        if tg.kind == "attitude":
+            return tg.R @ E3 * GRAVITY * tg.thrust - GRAVITY * E3
+        return g.kp * (tg.p - self.p) - g.kd * self.v
+
+    def fly(self, target: Target, t: float, dt: float) -> None:
+        if target.kind == "idle":
+            return
+        a = self._acceleration(target)
+        if target.kind == "attitude":
+            self.R = target.R
+        else:
+            self.yaw = target.yaw
+            self.R = rotation_zyx(attitude_from_thrust(a + GRAVITY * E3, self.yaw))
+        self.p = self.p + self.v * dt + 0.5 * a * dt**2
+        self.v = self.v + a * dt
+
+
+WindField = Callable[[float, np.ndarray], np.ndarray]  # (t s, position m) -> wind m/s, world
+
+
+def still_air(t: float, p: np.ndarray) -> np.ndarray:
+    return np.zeros(3)
+
+
+class RotorpyQuadrotor:
+    """RotorPy's multirotor and its controllers (see the module); ``params``: a RotorPy parameter dict
+    (default: its hummingbird); ``wind``: the air; ``max_step_s``: the autopilot's period (s)."""
+
+    mav_type = 2  # MAV_TYPE_QUADROTOR
+
+    def __init__(self, position, params: dict | None = None, *, wind: WindField = still_air, max_step_s: float = 0.005):
+        from rotorpy.controllers.quadrotor_control import SE3Control  # noqa: PLC0415 - an optional dependency
+        from rotorpy.vehicles.hummingbird_params import quad_params  # noqa: PLC0415
+        from rotorpy.vehicles.multirotor import Multirotor  # noqa: PLC0415
+
+        self.params = dict(quad_params if params is None else params)
+        hover = math.sqrt(self.params["mass"] * GRAVITY / (self.params["num_rotors"] * self.params["k_eta"]))
+        self.state = {"x": np.asarray(position, float).copy(), "v": np.zeros(3), "q": np.array([0.0, 0.0, 0.0, 1.0]),
+                      "w": np.zeros(3), "wind": np.zeros(3), "rotor_speeds": np.full(self.params["num_rotors"], hover)}
+        self._speeds = Multirotor(self.params, initial_state=self.state, control_abstraction="cmd_motor_speeds")
+        self._attitude = Multirotor(self.params, initial_state=self.state, control_abstraction="cmd_ctatt")
+        self._se3 = SE3Control(self.params)
+        self.wind, self.max_step = wind, max_step_s
+        self.weight_n = self.params["mass"] * GRAVITY
+
+    @property
+    def p(self) -> np.ndarray:
+        return self.state["x"]
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.state["v"]
+
+    @property
+    def R(self) -> np.ndarray:
+        return Rotation.from_quat(self.state["q"]).as_matrix()
+
+    @property
+    def rates(self) -> np.ndarray:
+        return self.state["w"]
+
+    def _flat(self, tg: Target) -> dict:
+        zero = np.zeros(3)
+        v, a = (tg.v, tg.a) if tg.kind == "position" else (zero, zero)
+        return {"x": tg.p, "x_dot": v, "x_ddot": a, "x_dddot": zero, "x_ddddot": zero, "yaw": tg.yaw, "yaw_dot": 0.0,
+                "yaw_ddot": 0.0}
+
+    def fly(self, target: Target, t: float, dt: float) -> None:
+        if target.kind == "idle":
+            return
+        n = max(1, math.ceil(dt / self.max_step - 1e-9))
+        h = dt / n
+        for i in range(n):
+            self.state["wind"] = np.asarray(self.wind(t + i * h, self.state["x"]), float)
+            if target.kind == "attitude":
+                q = Rotation.from_matrix(target.R).as_quat()
+                self.state = self._attitude.step(self.state, {"cmd_thrust": target.thrust * self.weight_n, "cmd_q": q}, h)
+            else:
+                cmd = self._se3.update(t + i * h, self.state, self._flat(target))
+                self.state = self._speeds.step(self.state, {"cmd_motor_speeds": cmd["cmd_motor_speeds"]}, h)

@@ -1,0 +1,96 @@
+"""The record of a flight flown outside aerorelay's plant (``aerorelay fly``: a MAVLink autopilot,
+the in-repo vehicle, RotorPy): one log row per control period in OFFBOARD, with the columns of
+``aerorelay run``'s time series, so the same metrics, figures and MCAP come out of it.
+
+A row holds what the relay's telemetry reported (position, velocity, attitude, body rates; the
+rotor speeds are the ones commanded, which autopilots do not report), the source where the relay
+knew it, the planner's reference and the NMPC's step, and the link **as the scene's model gives it
+at the flown poses** (the relay's measured attitude tilts its antenna): no radio was measured. Steps
+the stale-input failsafe flew (``hold``, ``land``) carry its target as the reference, no QP
+(``qp_status`` is the mode) and zero rotor rates. Flight columns: ``flight_mode`` (nmpc, fallback,
+hold, land), ``compute_ms`` (the step's computation, ms), ``deadline_met``, ``state_age_s`` (how old
+the relay's state was, s); with the observer, ``a_ext_x/y/z`` (its estimate, m/s^2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..control.nmpc import StepInfo
+from ..flight.stepper import Command
+from ..flight.stepper import SourceState as KnownSource
+from ..models.channel import misalignment
+from ..models.geometry import rotation_zyx
+from ..models.mission import SourceState
+from ..models.radio import RadioScene
+from ..models.vehicle import Multirotor
+from ..planning.base import Reference
+from .closed_loop import LOG_COLUMN_TYPES, MissionResult, jammer_columns, log_columns, mission_row, relay_source_poses
+
+FLIGHT_COLUMNS = ("flight_mode", "compute_ms", "deadline_met", "state_age_s")
+FLIGHT_COLUMN_TYPES: dict[str, type] = {**LOG_COLUMN_TYPES, "flight_mode": str, "deadline_met": bool}
+OBSERVER_COLUMNS = ("a_ext_x", "a_ext_y", "a_ext_z")
+
+
+class FlightRecorder:
+    """Collects a flight's rows (``record`` each control period in OFFBOARD); ``mission`` returns them
+    as a ``MissionResult`` like ``ar.simulate``'s. ``observed``: the NMPC has an external-force observer."""
+
+    def __init__(self, vehicle: Multirotor, scene: RadioScene, *, observed: bool = False):
+        self.vehicle, self.scene, self.observed = vehicle, scene, observed
+        self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
+        self._p0 = scene.fixed_pose(self.names["base_station"]).position
+        self.columns = (log_columns(vehicle.n_rotors) + jammer_columns(scene) + list(FLIGHT_COLUMNS)
+                        + (list(OBSERVER_COLUMNS) if observed else []))
+        self.rows: list[dict] = []
+
+    def record(self, t: float, x: np.ndarray, cmd: Command, source: KnownSource, *, state_age_s: float,
+               violation: bool = False, a_ext: np.ndarray | None = None) -> None:
+        """Step ``t`` (s, the mission's clock): the relay's measured state ``x`` (m, rad ZYX, m/s, rad/s,
+        the commanded rotor speeds in Hz), the command, the source as the relay knew it."""
+        src = SourceState(np.asarray(source.p, float), np.asarray(source.v, float), np.asarray(source.a, float))
+        eta2 = src.attitude(self.vehicle.gravity)
+        channel = self.scene.evaluate(t, relay_source_poses(self.scene, self.names, x, src.p, eta2))
+        R1 = rotation_zyx(x[3:6])
+        misalignments = (float(misalignment(x[0:3], R1, src.p)), float(misalignment(x[0:3], R1, self._p0)))
+        ref, info = cmd.reference, cmd.info
+        if ref is None or info is None:  # the failsafe flew: its target is the reference, no QP
+            ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
+            info = StepInfo(u=np.zeros(self.vehicle.n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
+                            feedback_ms=cmd.compute_ms, slack_max=0.0)
+        row = mission_row(self.vehicle, self.scene, t, x, info.u, src.p, eta2, ref, channel, misalignments, info,
+                          violation and cmd.mode in ("nmpc", "fallback"))
+        row |= {"flight_mode": cmd.mode, "compute_ms": cmd.compute_ms, "deadline_met": cmd.deadline_met,
+                "state_age_s": state_age_s}
+        if self.observed:
+            row |= dict(zip(OBSERVER_COLUMNS, np.zeros(3) if a_ext is None else a_ext, strict=True))
+        if not self.rows and set(row) != set(self.columns):
+            raise ValueError(f"flight record: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
+        self.rows.append(row)
+
+    def mission(self, wall_s: float, *, controller: str = "", fallback_episodes: int = 0,
+                aborted: str | None = None) -> MissionResult:
+        """The rows as a ``MissionResult`` (``sim_s`` the mission time flown). Raises ValueError when
+        nothing was flown in OFFBOARD."""
+        if not self.rows:
+            raise ValueError("flight record: no control period was flown in OFFBOARD")
+        log = {c: _column([r[c] for r in self.rows], FLIGHT_COLUMN_TYPES.get(c, float)) for c in self.columns}
+        return MissionResult(log=log, wall_s=wall_s, sim_s=float(log["t"][-1] - log["t"][0]),
+                             qp_failures=int(np.sum(~log["qp_ok"])), controller=controller,
+                             fallback_episodes=fallback_episodes, aborted=aborted)
+
+
+def _column(values: list, kind: type) -> np.ndarray:
+    return np.array(values, dtype=object if kind is str else kind)
+
+
+def flight_metrics(log: dict) -> dict:
+    """A flight's own metrics: the share of control periods the stale-input failsafe held or landed,
+    the share that missed their deadline, the step's computation time (ms) and the relay state's age (s)."""
+    mode = np.asarray(log["flight_mode"], dtype=object)
+    ms = np.asarray(log["compute_ms"], float)
+    age = np.asarray(log["state_age_s"], float)
+    return {"hold_fraction": float(np.mean(mode == "hold")), "land_fraction": float(np.mean(mode == "land")),
+            "deadline_missed_fraction": float(np.mean(~np.asarray(log["deadline_met"], bool))),
+            "compute_ms": {"mean": float(ms.mean()), "p99": float(np.percentile(ms, 99)), "max": float(ms.max())},
+            "state_age_max_s": float(age.max())}
