@@ -33,6 +33,7 @@ from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import build, build_fleet, build_scene, build_source, network_bound, nmpc_settings, scenario_bound
 from .assembly.vehicle import build_vehicle
+from .assembly.world import wind_field
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop, benchmark_fleet
 from .control.nmpc import NmpcSettings
@@ -42,7 +43,7 @@ from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, 
 from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
-from .flight.airframes import Airframe
+from .flight.airframes import Airframe, RotorpyQuadrotor, still_air
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.stepper import RelayStepper, StaleSettings
@@ -99,12 +100,14 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     return _simulate(sc, with_bound=bound, views=write_fleet_views if sc.is_fleet else write_run_views, **parts)
 
 
-def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None) -> RelayStepper:
+def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
+               observer: bool = True) -> RelayStepper:
     """The relay's planner and NMPC stepped from outside: ``ctrl.step(t, relay_state, source)`` each
     control period returns a ``Command`` (rotor speeds and autopilot setpoints, world ENU, body FLU;
     ``aerorelay.flight.frames`` converts to NED/FRD). Stale inputs hold, then land (``stale``). Stepped
-    over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md)."""
-    return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale)
+    over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md). ``observer=False``
+    leaves out ``[wind]``'s external-force observer (for an autopilot's position loop: see the guide)."""
+    return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer)
 
 
 def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None) -> None:
@@ -114,6 +117,26 @@ def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airf
     MavlinkVehicle(url, position=sc.relay_list[0].start, airframe=airframe).run_realtime(duration_s=duration_s)
 
 
+def rotorpy_airframe(sc: Scenario, params: dict | None = None) -> Airframe:
+    """RotorPy's quadrotor (``params``: a RotorPy parameter dict, default its Hummingbird, as
+    ``scenarios/rotorpy_hummingbird.toml`` models it) at the scenario's relay start, in its ``[wind]``
+    (the same mean, gusts and seed as ``simulate``'s); needs ``pip install 'aerorelay[rotorpy]'``."""
+    wind = wind_field(sc)
+    return RotorpyQuadrotor(sc.relay_list[0].start, params, wind=wind if wind is not None else still_air)
+
+
+def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position",
+                 duration_s: float | None = None) -> tuple[RunResult, pd.DataFrame]:
+    """Fly the scenario's relay controller through the MAVLink bridge on the in-repo vehicle flying
+    ``airframe`` (``rotorpy_airframe(sc)``, or ``flight.airframes.PointMass``), over UDP on localhost in
+    lockstep: the flight as ``simulate``'s result (``save`` writes the run folder with figures and MCAP)
+    and the bridge's log (docs/guide/flying.md). With position setpoints the NMPC runs without ``[wind]``'s
+    external-force observer, as ``fly`` does."""
+    if setpoint not in ("position", "attitude"):
+        raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
+    return _flight.fly_lockstep(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views)
+
+
 def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position", duration_s: float | None = None,
         out: Path | None = None) -> tuple[RunResult | None, pd.DataFrame]:
     """Fly the scenario's relay controller on a MAVLink autopilot at ``url`` in OFFBOARD (``flight.mavlink_bridge``):
@@ -121,10 +144,12 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     Returns the flight as ``simulate``'s result (None when no period was flown in OFFBOARD) and the
     bridge's log (one row per control period). ``out``: the run folder ``aerorelay run`` writes (time
     series, metrics, figures, run.mcap) plus ``flight.parquet``, written even when the flight is
-    interrupted (``experiments.flight``); it is checked before the vehicle is contacted."""
+    interrupted (``experiments.flight``); it is checked before the vehicle is contacted. With position
+    setpoints the NMPC runs without ``[wind]``'s external-force observer (beside an autopilot's position
+    loop it lost RotorPy's quadrotor in a 5 m/s wind: docs/decisions.md)."""
     if out is not None:
         check_output_folder(out, "run")
-    ctrl = controller(sc)
+    ctrl = controller(sc, observer=setpoint == "attitude")  # the observer destabilized a position cascade (the guide)
     rec, hook = _flight.recorder(sc, ctrl)
     bridge = OffboardBridge(url, ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint, on_step=hook)
     bridge.connect()

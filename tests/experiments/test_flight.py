@@ -112,3 +112,12 @@ def test_a_flight_that_never_reached_offboard_keeps_the_bridge_log(tmp_path):
     assert {p.name for p in (tmp_path / "run").iterdir()} >= {"flight.parquet"}
     with pytest.raises(ValueError, match="no control period was flown in OFFBOARD"):
         rec.mission(1.0)
+
+
+def test_position_setpoints_fly_without_the_wind_observer_attitude_setpoints_with_it():
+    """Beside an autopilot's position loop the observer lost RotorPy's quadrotor (docs/decisions.md)."""
+    sc = NOMINAL.with_updates({"wind": {"mean_m_s": [3.0, 0.0, 0.0]}})
+    position, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="position", duration_s=1.5)
+    attitude, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="attitude", duration_s=1.5)
+    assert "a_ext_x" not in position.timeseries and "a_ext_x" in attitude.timeseries
+    assert ar.controller(sc, observer=False).observer is None and ar.controller(sc).observer is not None

@@ -27,8 +27,9 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
 
 
 def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
-                  stale: StaleSettings | None = None) -> RelayStepper:
-    """The stepper of one relay's scenario; a fleet, or jammers estimated from readings, is a named error."""
+                  stale: StaleSettings | None = None, observer: bool = True) -> RelayStepper:
+    """The stepper of one relay's scenario (``observer=False``: without ``[wind]``'s external-force
+    observer); a fleet, or jammers estimated from readings, is a named error."""
     if sc.is_fleet:
         raise ScenarioError("relays: ar.controller steps one relay; a fleet's relays are stepped by its loop "
                             "(docs/concepts/networks.md)")
@@ -38,4 +39,5 @@ def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
     parts = build(sc, nmpc_settings=nmpc_settings)
     return RelayStepper(vehicle=parts.vehicle, planner=parts.planner, controller=parts.controller,
                         period_s=sc.control_period_s, jammers=oracle_jammers(parts.scene, sc.controller.senses_jammer_state),
-                        observer=world.observer(sc, parts.vehicle), stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))
+                        observer=world.observer(sc, parts.vehicle) if observer else None,
+                        stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))
