@@ -43,9 +43,10 @@ from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, 
 from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
-from .flight.airframes import Airframe, RotorpyQuadrotor, still_air
+from .flight.airframes import Airframe, MissionFlyer, RotorpyQuadrotor, still_air
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
+from .flight.sources import MavlinkSource
 from .flight.stepper import RelayStepper, StaleSettings
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
@@ -110,10 +111,15 @@ def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale
     return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer)
 
 
-def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None) -> None:
+def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None, *,
+         source: bool = False) -> None:
     """Run the in-repo MAVLink vehicle (``flight.mavlink_vehicle``: PX4's offboard subset, not PX4) on
     ``url`` in real time, flying ``airframe`` (default: an ideal point mass at the scenario's relay start;
-    ``flight.airframes.RotorpyQuadrotor``: RotorPy's quadrotor)."""
+    ``flight.airframes.RotorpyQuadrotor``: RotorPy's quadrotor). ``source``: instead, the inspection drone
+    flying the scenario's mission as MAVLink system 2 (for ``fly``'s ``source_url``)."""
+    if source:
+        MavlinkVehicle(url, system=2, airframe=MissionFlyer(build_source(sc))).run_realtime(duration_s=duration_s)
+        return
     MavlinkVehicle(url, position=sc.relay_list[0].start, airframe=airframe).run_realtime(duration_s=duration_s)
 
 
@@ -138,20 +144,24 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
 
 
 def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position", duration_s: float | None = None,
-        out: Path | None = None) -> tuple[RunResult | None, pd.DataFrame]:
+        out: Path | None = None, source_url: str | None = None, source_system: int | None = None,
+        source_origin: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[RunResult | None, pd.DataFrame]:
     """Fly the scenario's relay controller on a MAVLink autopilot at ``url`` in OFFBOARD (``flight.mavlink_bridge``):
     wait for its heartbeat, stream, arm only with ``arm``, hand back to a hold at the end or on Ctrl-C.
     Returns the flight as ``simulate``'s result (None when no period was flown in OFFBOARD) and the
     bridge's log (one row per control period). ``out``: the run folder ``aerorelay run`` writes (time
     series, metrics, figures, run.mcap) plus ``flight.parquet``, written even when the flight is
-    interrupted (``experiments.flight``); it is checked before the vehicle is contacted. With position
+    interrupted (``experiments.flight``); it is checked before the vehicle is contacted. ``source_url``:
+    the source is a second MAVLink system on that link (``source_system``: its id, None any; its local
+    origin at ``source_origin``, m ENU in the scenario's world); default its mission file. With position
     setpoints the NMPC runs without ``[wind]``'s external-force observer (beside an autopilot's position
     loop it lost RotorPy's quadrotor in a 5 m/s wind: docs/decisions.md)."""
     if out is not None:
         check_output_folder(out, "run")
     ctrl = controller(sc, observer=setpoint == "attitude")  # the observer destabilized a position cascade (the guide)
     rec, hook = _flight.recorder(sc, ctrl)
-    bridge = OffboardBridge(url, ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint, on_step=hook)
+    source = build_source(sc) if source_url is None else MavlinkSource(source_url, system=source_system, origin_enu=source_origin)
+    bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint, on_step=hook)
     bridge.connect()
     wall0, aborted = time.perf_counter(), None
     try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import NoReturn
 
@@ -539,6 +540,8 @@ def sitl(
     airframe: str = typer.Option("pointmass", "--airframe", help="pointmass (an ideal autopilot on a point mass) | rotorpy "
                                  "(RotorPy's Hummingbird quadrotor with its SE(3) and attitude controllers, in the scenario's "
                                  "[wind]; pip install 'aerorelay[rotorpy]')"),
+    source: bool = typer.Option(False, "--source", help="be the inspection drone instead: fly the scenario's source mission "
+                                "as MAVLink system 2 (for aerorelay fly --source-mavlink)"),
 ):
     """Run the in-repo MAVLink vehicle in real time: PX4's offboard subset (heartbeats, arming, modes, the
     offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot or RotorPy's
@@ -555,9 +558,10 @@ def sitl(
             frame = RotorpyQuadrotor(sc.relay_list[0].start, wind=wind_field(sc) or still_air)  # RotorPy: an optional extra
         except ImportError as exc:
             _fail(f"--airframe rotorpy needs RotorPy (pip install 'aerorelay[rotorpy]'): {exc}")
-    console.print(f"vehicle ({airframe}) listening on {listen} (Ctrl-C stops)", markup=False, highlight=False)
+    console.print(f"vehicle ({'the source, system 2' if source else airframe}) listening on {listen} (Ctrl-C stops)",
+                  markup=False, highlight=False)
     try:
-        api.sitl(sc, listen, duration, airframe=frame)
+        api.sitl(sc, listen, duration, airframe=frame, source=source)
     except KeyboardInterrupt:
         pass
 
@@ -574,6 +578,12 @@ def fly(
                                    show_default=False),
     out: Path = typer.Option(None, "--out", help="write the flight's run folder here (timeseries.parquet, metrics.json, "
                              "figures, run.mcap, flight.parquet: the bridge's log)", show_default=False),
+    source_mavlink: str = typer.Option(None, "--source-mavlink", help="read the source (inspection drone) as a second MAVLink "
+                                       "system on this URL (default: its mission file)", show_default=False),
+    source_system: int = typer.Option(None, "--source-system", min=1, max=255, help="the source's MAVLink system id "
+                                      "(default: any on --source-mavlink)", show_default=False),
+    source_origin: str = typer.Option("0,0,0", "--source-origin", help="where the source's local frame's origin lies in the "
+                                      "scenario's world, x,y,z m ENU"),
 ):
     """Fly the relay's controller on a MAVLink autopilot in OFFBOARD: wait for its heartbeat, stream setpoints,
     arm only with --arm, ask for OFFBOARD, step the controller every period; hand back to a hold at the end,
@@ -582,7 +592,14 @@ def fly(
     if setpoint not in ("position", "attitude"):
         _fail(f"--setpoint must be position or attitude, got {setpoint!r}")
     try:
-        _, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out)
+        origin = tuple(float(v) for v in source_origin.split(","))
+    except ValueError:
+        origin = ()
+    if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
+        _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
+    try:
+        _, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
+                        source_system=source_system, source_origin=origin)
     except (TimeoutError, OutputError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:

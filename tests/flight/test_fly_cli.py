@@ -57,3 +57,9 @@ def test_fly_refuses_an_output_folder_it_did_not_write_before_contacting_a_vehic
                                       "--out", str(tmp_path)])
     assert result.exit_code != 0 and "nothing was written" in result.output
     assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_fly_names_a_bad_source_origin_before_contacting_a_vehicle():
+    result = CliRunner().invoke(app, ["fly", "scenarios/nominal_tilted.toml", "--mavlink", "udpout:127.0.0.1:9",
+                                      "--source-mavlink", "udpout:127.0.0.1:10", "--source-origin", "1,2"])
+    assert result.exit_code != 0 and "--source-origin must be three finite numbers" in result.output

@@ -19,7 +19,9 @@ from ..config import Scenario
 from ..flight.airframes import Airframe
 from ..flight.mavlink_bridge import OffboardBridge, StepHook
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
+from ..flight.sources import MavlinkSource
 from ..flight.stepper import Command, RelayStepper, SourceState
+from ..models.mission import SourceTrajectory
 from ..sim.flight_record import FLIGHT_COLUMN_TYPES, FlightRecorder, flight_metrics
 from ..sim.units import metric_units
 from ..store.outputs import new_sibling, swap_in
@@ -100,18 +102,28 @@ def free_udp_port() -> int:
 
 
 def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position", duration_s: float | None = None,
-                 views: Callable[[RunResult, Path], None] | None = None) -> tuple[RunResult, pd.DataFrame]:
+                 views: Callable[[RunResult, Path], None] | None = None,
+                 source_airframe: Airframe | None = None) -> tuple[RunResult, pd.DataFrame]:
     """Fly ``sc``'s relay controller through the MAVLink bridge on the in-repo vehicle flying ``airframe``,
     over UDP on localhost, in lockstep (one vehicle step per control period, telemetry every period):
     the bridge streams, arms, enters OFFBOARD, flies the mission (``duration_s``, default the scenario's)
-    and hands back to a hold. Returns the flight as ``ar.simulate``'s result and the bridge's log. The
-    flight stops early (``aborted``: reported unsafe) when the vehicle goes below the ground or its state
-    stops being finite."""
+    and hands back to a hold. ``source_airframe`` (e.g. ``flight.airframes.MissionFlyer``): the source
+    is a second in-repo vehicle (system 2, its own link), read as a second MAVLink system; default its
+    mission file. Returns the flight as ``ar.simulate``'s result and the bridge's log. The flight stops
+    early (``aborted``: reported unsafe) when the vehicle goes below the ground or its state stops being
+    finite."""
     stepper = build_stepper(sc, observer=setpoint == "attitude")  # as aerorelay fly: see docs/guide/flying.md
     rec, hook = recorder(sc, stepper)
     port, T = free_udp_port(), stepper.period
     vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T), airframe=airframe)
-    bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", stepper, build_source(sc), stepper.vehicle.hover_speeds(), arm=True,
+    vehicles = [vehicle]
+    source: MavlinkSource | SourceTrajectory = build_source(sc)
+    if source_airframe is not None:
+        source_port = free_udp_port()
+        vehicles.append(MavlinkVehicle(f"udpin:127.0.0.1:{source_port}", settings=VehicleSettings(telemetry_hz=1.0 / T),
+                                       system=2, airframe=source_airframe))
+        source = MavlinkSource(f"udpout:127.0.0.1:{source_port}", system=2)
+    bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", stepper, source, stepper.vehicle.hover_speeds(), arm=True,
                             setpoint=setpoint, on_step=hook)
     duration = sc.duration_s if duration_s is None else duration_s
     t, aborted = 0.0, None
@@ -119,12 +131,14 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
     try:
         while not bridge.heard_vehicle():  # the handshake: the vehicle answers once it has heard the bridge
             bridge.announce()
-            vehicle.step(T)
+            for v in vehicles:
+                v.step(T)
             t += T
             if t > LOCKSTEP_OFFBOARD_WITHIN_S:
                 raise TimeoutError("lockstep: the in-repo vehicle did not answer the bridge's heartbeat")
         while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
-            vehicle.step(T)
+            for v in vehicles:
+                v.step(T)
             bridge.tick(t)
             t += T
             if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
@@ -136,7 +150,10 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
         bridge.hand_back()
         vehicle.step(T)
         bridge.link.close()
-        vehicle.link.close()
+        if isinstance(source, MavlinkSource):
+            source.link.close()
+        for v in vehicles:
+            v.link.close()
     log_df = bridge_frame(bridge.log)
     return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted, views=views), log_df
 

@@ -12,6 +12,7 @@ aerorelay; the vehicle converts from NED/FRD on the wire).
   controller (``SE3Control``, the autopilot's position loop), attitude targets through its
   ``cmd_ctatt`` attitude loop, each at ``max_step_s``. RotorPy's world and body frames are z-up like
   ENU/FLU; its quaternions are ``[x, y, z, w]``. ``wind(t, p)`` (m/s, world) is the air it flies in.
+* ``MissionFlyer``: the inspection drone on its mission path, for a second MAVLink system.
 
 Disarmed, an airframe sits where it is (no integration).
 """
@@ -27,6 +28,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
+from ..models.mission import SourceTrajectory
 
 GRAVITY = 9.81
 TARGET_KINDS = ("idle", "hold", "position", "attitude")
@@ -109,6 +111,27 @@ class PointMass:
             self.R = rotation_zyx(attitude_from_thrust(a + GRAVITY * E3, self.yaw))
         self.p = self.p + self.v * dt + 0.5 * a * dt**2
         self.v = self.v + a * dt
+
+
+class MissionFlyer:
+    """The inspection drone flying its own mission (``trajectory``, the scenario's source path) exactly,
+    on the vehicle's clock: its attitude follows its acceleration at zero yaw (aerorelay's source
+    model); the vehicle's arming and modes do not drive it (``aerorelay sitl --source``)."""
+
+    mav_type = 2  # MAV_TYPE_QUADROTOR
+
+    def __init__(self, trajectory: SourceTrajectory):
+        self.trajectory = trajectory
+        self.rates = np.zeros(3)
+        self._at(0.0)
+
+    def _at(self, t: float) -> None:
+        s = self.trajectory.state(t)
+        self.p, self.v = np.asarray(s.p, float), np.asarray(s.v, float)
+        self.R = rotation_zyx(s.attitude(GRAVITY))
+
+    def fly(self, target: Target, t: float, dt: float) -> None:
+        self._at(t + dt)
 
 
 WindField = Callable[[float, np.ndarray], np.ndarray]  # (t s, position m) -> wind m/s, world

@@ -47,6 +47,7 @@ from .frames import (
     yaw_enu_to_ned,
 )
 from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE
+from .sources import MavlinkSource, MissionSource
 from .stepper import Command, RelayStepper, SourceState
 
 MAV = mavutil.mavlink
@@ -72,16 +73,19 @@ class BridgeState:
 
 class OffboardBridge:
     """``connect()``, then ``tick(t)`` every control period (lockstep: the caller's clock) or
-    ``run(duration_s)`` on the wall clock. ``source``: the inspection drone's path (its mission file);
+    ``run(duration_s)`` on the wall clock. ``source``: the inspection drone: its path (its mission file),
+    or a ``flight.sources.MavlinkSource`` (a second MAVLink system);
     ``on_step``: called with every control period flown in OFFBOARD (a ``sim.flight_record`` recorder)."""
 
-    def __init__(self, url: str, stepper: RelayStepper, source: SourceTrajectory, hover_speeds: np.ndarray, *,
+    def __init__(self, url: str, stepper: RelayStepper, source: SourceTrajectory | MissionSource | MavlinkSource,
+                 hover_speeds: np.ndarray, *,
                  arm: bool = False, setpoint: str = "position", hover_throttle: float = 0.5, system: int = 255,
                  on_step: StepHook | None = None, measured_attitude: bool = False):
         if setpoint not in ("position", "attitude"):
             raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
         self.link = mavutil.mavlink_connection(url, source_system=system, source_component=190)
-        self.stepper, self.source, self.arm, self.setpoint, self.hover_throttle = stepper, source, arm, setpoint, hover_throttle
+        self.stepper, self.arm, self.setpoint, self.hover_throttle = stepper, arm, setpoint, hover_throttle
+        self.source = MissionSource(source) if isinstance(source, SourceTrajectory) else source
         self.speeds = np.asarray(hover_speeds, float).copy()  # the rotor speeds last commanded (the NMPC's state)
         self.state = BridgeState()
         self.t0: float | None = None  # when streaming began (bridge time)
@@ -178,6 +182,7 @@ class OffboardBridge:
         if self.mission_t0 is None and self.offboard:
             self.mission_t0 = t
         if self.mission_t0 is None:
+            self.source.known(t, 0.0)  # a second MAVLink system hears the bridge and starts reporting
             self._send_hold(self.state.position, t)
             if t - self.t0 >= OFFBOARD_PROOF_S + 0.1:  # PX4's rule: stream first, then ask
                 if self.arm and not self.state.armed and "ARM" not in self.requested:
@@ -188,14 +193,14 @@ class OffboardBridge:
             self.log.append({"t": t, "mode": "stream", "x": None, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
             return None
         tm = t - self.mission_t0  # the mission's clock
-        if not self.stepper.has_state and t - self.state.received_at > self.stepper.stale.hold_after_s:
-            self._send_hold(self.state.position, t)  # no fresh telemetry yet: keep the stream alive where it is
+        src = self.source.known(t, tm)
+        stale = self.stepper.stale.hold_after_s
+        if not self.stepper.has_state and (t - self.state.received_at > stale or src is None or tm - (src.stamp or tm) > stale):
+            self._send_hold(self.state.position, t)  # no fresh telemetry or source yet: keep the stream alive where it is
             return None
         x, measured = self.relay_state(), self.measured_state()
-        s = self.source.state(tm)
-        src = SourceState(np.asarray(s.p, float), np.asarray(s.v, float), np.asarray(s.a, float), stamp=tm)
         cmd = self.stepper.step(tm, x, src, state_stamp=self.state.received_at - self.mission_t0)
-        if self.on_step is not None and measured is not None:
+        if self.on_step is not None and measured is not None and src is not None:
             self.on_step(tm, measured, cmd, src, t - self.state.received_at)
         if cmd.rotor_speeds_hz is not None:
             self.speeds = cmd.rotor_speeds_hz
