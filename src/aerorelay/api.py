@@ -43,7 +43,7 @@ from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, 
 from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
-from .flight.airframes import Airframe, MissionFlyer, RotorpyQuadrotor, still_air
+from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, RotorpyQuadrotor, still_air
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.sources import MavlinkSource
@@ -123,6 +123,13 @@ def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airf
     MavlinkVehicle(url, position=sc.relay_list[0].start, airframe=airframe).run_realtime(duration_s=duration_s)
 
 
+def plant_airframe(sc: Scenario) -> Airframe:
+    """aerorelay's own plant for the scenario's relay platform (the tilted hexarotor by default) under a
+    multirotor autopilot's cascade at the relay's start (``flight.airframes.MultirotorAirframe``: its
+    thrust stays along body z, as an autopilot flies it)."""
+    return MultirotorAirframe(build_vehicle(sc.platform_of(0)), sc.relay_list[0].start)
+
+
 def rotorpy_airframe(sc: Scenario, params: dict | None = None) -> Airframe:
     """RotorPy's quadrotor (``params``: a RotorPy parameter dict, default its Hummingbird, as
     ``scenarios/rotorpy_hummingbird.toml`` models it) at the scenario's relay start, in its ``[wind]``
@@ -156,6 +163,7 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     origin at ``source_origin``, m ENU in the scenario's world); default its mission file. With position
     setpoints the NMPC runs without ``[wind]``'s external-force observer (beside an autopilot's position
     loop it lost RotorPy's quadrotor in a 5 m/s wind: docs/decisions.md)."""
+    _flight.check_flyable(sc)
     if out is not None:
         check_output_folder(out, "run")
     ctrl = controller(sc, observer=setpoint == "attitude")  # the observer destabilized a position cascade (the guide)

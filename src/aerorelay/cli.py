@@ -537,9 +537,10 @@ def sitl(
     listen: str = typer.Option("udpin:127.0.0.1:14540", "--listen", help="MAVLink URL the vehicle listens on"),
     duration: float = typer.Option(None, "--duration", help="stop after this many seconds (default: run until Ctrl-C)",
                                    show_default=False),
-    airframe: str = typer.Option("pointmass", "--airframe", help="pointmass (an ideal autopilot on a point mass) | rotorpy "
-                                 "(RotorPy's Hummingbird quadrotor with its SE(3) and attitude controllers, in the scenario's "
-                                 "[wind]; pip install 'aerorelay[rotorpy]')"),
+    airframe: str = typer.Option("pointmass", "--airframe", help="pointmass (an ideal autopilot on a point mass) | plant "
+                                 "(aerorelay's own plant for the scenario's platform under a multirotor autopilot's cascade) | "
+                                 "rotorpy (RotorPy's Hummingbird quadrotor with its SE(3) and attitude controllers, in the "
+                                 "scenario's [wind]; pip install 'aerorelay[rotorpy]')"),
     source: bool = typer.Option(False, "--source", help="be the inspection drone instead: fly the scenario's source mission "
                                 "as MAVLink system 2 (for aerorelay fly --source-mavlink)"),
 ):
@@ -547,9 +548,9 @@ def sitl(
     offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot or RotorPy's
     quadrotor. For tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
     sc = _load_or_exit(scenario)
-    if airframe not in ("pointmass", "rotorpy"):
-        _fail(f"--airframe must be pointmass or rotorpy, got {airframe!r}")
-    frame = None
+    if airframe not in ("pointmass", "plant", "rotorpy"):
+        _fail(f"--airframe must be pointmass, plant or rotorpy, got {airframe!r}")
+    frame = api.plant_airframe(sc) if airframe == "plant" else None
     if airframe == "rotorpy":
         try:
             from .assembly.world import wind_field
@@ -600,7 +601,7 @@ def fly(
     try:
         _, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
                         source_system=source_system, source_origin=origin)
-    except (TimeoutError, OutputError) as exc:
+    except (TimeoutError, OutputError, ScenarioError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
         console.print("interrupted: the vehicle was asked to hold" + (f"; the flight is in {out}" if out else ""),

@@ -121,3 +121,11 @@ def test_position_setpoints_fly_without_the_wind_observer_attitude_setpoints_wit
     attitude, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="attitude", duration_s=1.5)
     assert "a_ext_x" not in position.timeseries and "a_ext_x" in attitude.timeseries
     assert ar.controller(sc, observer=False).observer is None and ar.controller(sc).observer is not None
+
+
+def test_estimated_jammers_are_refused_by_the_bridge_before_any_vehicle_is_contacted():
+    sc = NOMINAL.with_updates({"jammer.localization": "estimated"})
+    with pytest.raises(ar.ScenarioError, match="no radio hands the MAVLink bridge"):
+        ar.api.fly(sc, "udpout:127.0.0.1:9")
+    with pytest.raises(ar.ScenarioError, match="no radio hands the MAVLink bridge"):
+        flight.fly_lockstep(sc, PointMass(sc.nodes.relay))

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from aerorelay.flight.airframes import PointMass, RotorpyQuadrotor, Target
+import aerorelay as ar
+from aerorelay.flight.airframes import MultirotorAirframe, PointMass, RotorpyQuadrotor, Target
 from aerorelay.models.geometry import rotation_zyx
 
 START = np.array([0.0, 0.0, 5.0])
@@ -21,9 +22,11 @@ def _fly(af, target: Target, seconds: float, dt: float = 0.01) -> None:
         af.fly(target, k * dt, dt)
 
 
-@pytest.fixture(params=["pointmass", "rotorpy"])
+@pytest.fixture(params=["pointmass", "rotorpy", "hexarotor"])
 def airframe(request):
-    return (lambda: PointMass(START)) if request.param == "pointmass" else (lambda: RotorpyQuadrotor(START))
+    hexarotor = ar.api.vehicle(ar.load_scenario("scenarios/nominal_tilted.toml"))
+    return {"pointmass": lambda: PointMass(START), "rotorpy": lambda: RotorpyQuadrotor(START),
+            "hexarotor": lambda: MultirotorAirframe(hexarotor, START)}[request.param]
 
 
 def test_level_attitude_at_hover_thrust_holds_height(airframe):

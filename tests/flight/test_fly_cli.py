@@ -48,7 +48,7 @@ def test_fly_against_the_sitl_vehicle(tmp_path):
 
 def test_sitl_names_an_unknown_airframe():
     result = CliRunner().invoke(app, ["sitl", "scenarios/nominal_tilted.toml", "--airframe", "px4"])
-    assert result.exit_code != 0 and "--airframe must be pointmass or rotorpy" in result.output
+    assert result.exit_code != 0 and "--airframe must be pointmass, plant or rotorpy" in result.output
 
 
 def test_fly_refuses_an_output_folder_it_did_not_write_before_contacting_a_vehicle(tmp_path):

@@ -104,11 +104,41 @@ def test_the_command_is_the_model_one_period_ahead(stepped):
     assert cmd.deadline_met == (cmd.compute_ms <= sc.control_period_s * 1e3)
 
 
-def test_a_fleet_or_estimated_jammers_are_named_errors():
+def test_a_fleet_is_a_named_error():
     with pytest.raises(ar.ScenarioError, match="ar.controller steps one relay"):
         ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml"))
-    with pytest.raises(ar.ScenarioError, match="'estimated' needs the relay's receiver readings"):
-        ar.controller(ar.parse_scenario({"jammer": {"localization": "estimated"}}))
+
+
+ESTIMATING = {"sim.duration_s": 5.0, "jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0,
+              "estimation.use_bs": True, "estimation.confident_std_m": 7.0}  # confident within the 5 s: the planner uses it
+
+
+def test_stepping_with_the_logged_readings_reproduces_an_estimating_simulate_bit_for_bit():
+    """The readings ar.simulate's receivers took at each step, handed to the next step, give the same
+    estimate, plan and flight: the step API estimates the jammers as the simulation does."""
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(ESTIMATING)
+    log = ar.simulate(sc).mission.log
+    assert np.nanmin(log["est_jammer_std_m"]) < sc.estimation.confident_std_m  # the planner did get the jammer
+    ctrl, parts = ar.controller(sc), build(sc)
+    plant = plant_step_function(parts.vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
+    x = parts.vehicle.hover_state(sc.nodes.relay)
+    for k in range(len(log["t"])):
+        t = k * sc.control_period_s
+        assert np.array_equal(x[0:3], [log["p1_x"][k], log["p1_y"][k], log["p1_z"][k]]), f"step {k}"
+        s = parts.source.state(t)
+        readings = {r: log[f"meas_{r}_w"][k - 1] for r in ("relay", "bs")} if k else None
+        cmd = ctrl.step(t, x, ar.SourceState(s.p, s.v, s.a), readings=readings)
+        x = np.asarray(plant(x, cmd.omega_dot_hz_s, np.zeros(6))).ravel()
+
+
+def test_readings_are_checked_by_receiver():
+    with pytest.raises(ValueError, match="not estimated"):
+        ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml")).step(0.0, None, None, readings={"relay": 1.0})
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"jammer.localization": "estimated"})
+    ctrl = ar.controller(sc)
+    x, s = ctrl.vehicle.hover_state(sc.nodes.relay), build(sc).source.state(0.0)
+    with pytest.raises(ValueError, match=r"readings from \['bs'\]"):
+        ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a), readings={"bs": 1e-9})
 
 
 def test_the_first_input_keeps_every_motor_within_its_bounds(stepped):

@@ -77,7 +77,7 @@ def test_cramer_rao_bound_only_tightens_and_starts_at_the_box_prior(flown):
 def test_planner_gets_no_jammer_before_a_confident_estimate():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(UPDATES)
     parts = build(sc)
-    positions, powers = parts.sensing.planner_view(senses_state=False)
+    positions, powers, _ = parts.sensing.estimate.planner_view(senses_state=False)
     assert powers.tolist() == [0.0] and positions.shape == (1, 3)  # nothing measured yet: the prior, no power
 
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
+from ..flight.readings import JammersFromReadings
 from ..flight.stepper import RelayStepper, StaleSettings
 from ..models.radio import RadioScene
 from . import world
@@ -29,15 +30,16 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
 def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
                   stale: StaleSettings | None = None, observer: bool = True) -> RelayStepper:
     """The stepper of one relay's scenario (``observer=False``: without ``[wind]``'s external-force
-    observer); a fleet, or jammers estimated from readings, is a named error."""
+    observer; with ``jammer.localization = "estimated"`` the jammers come from the readings ``step`` is
+    handed); a fleet is a named error."""
     if sc.is_fleet:
         raise ScenarioError("relays: ar.controller steps one relay; a fleet's relays are stepped by its loop "
                             "(docs/concepts/networks.md)")
-    if sc.estimates_jammers:
-        raise ScenarioError("jammer.localization: 'estimated' needs the relay's receiver readings, which "
-                            "ar.controller does not take yet; use 'oracle' to step it from outside")
     parts = build(sc, nmpc_settings=nmpc_settings)
-    return RelayStepper(vehicle=parts.vehicle, planner=parts.planner, controller=parts.controller,
-                        period_s=sc.control_period_s, jammers=oracle_jammers(parts.scene, sc.controller.senses_jammer_state),
+    senses = sc.controller.senses_jammer_state
+    estimated = None if parts.sensing is None else JammersFromReadings(parts.scene, parts.sensing.estimator,
+                                                                       parts.sensing.receivers, senses)
+    return RelayStepper(vehicle=parts.vehicle, planner=parts.planner, controller=parts.controller, estimated=estimated,
+                        period_s=sc.control_period_s, jammers=estimated.view if estimated else oracle_jammers(parts.scene, senses),
                         observer=world.observer(sc, parts.vehicle) if observer else None,
                         stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))

@@ -45,6 +45,7 @@ onto a wrong point.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
@@ -152,6 +153,15 @@ class JammerEstimate:
     def position_std_max(self) -> np.ndarray:
         """Largest position standard deviation per jammer (m), computed once with the covariance."""
         return self.position_std
+
+    def planner_view(self, senses_state: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(positions (nJ, 3) m, powers (nJ,) W, position std (nJ,) m)`` a planner plans with: a jammer
+        enters with its estimated power once it is confident (0 before), and, when the controller senses
+        the schedule, only while it is more likely ON than OFF."""
+        powers = np.where(self.confident, self.powers, 0.0)
+        if senses_state:
+            powers = np.where(self.on_prob > 0.5, powers, 0.0)
+        return self.positions.copy(), powers, self.position_std_max()
 
 
 class JammerEstimator:
@@ -268,6 +278,14 @@ class JammerEstimator:
         if not (math.isfinite(reading_w) and reading_w > 0):
             raise ValueError(f"estimator: a reading must be a positive finite power (W), got {reading_w!r}")
         self.pending[receiver].add(position, axis, reading_w)
+
+    def add_readings(self, t: float, readings: Sequence[tuple[np.ndarray, np.ndarray, float] | None]) -> JammerEstimate:
+        """One control step's readings, receiver by receiver: ``(position m, antenna axis, reading W)``
+        (None: that receiver read nothing), then ``update(t)``."""
+        for i, r in enumerate(readings):
+            if r is not None:
+                self.add(t, i, *r)
+        return self.update(t)
 
     def update(self, t: float) -> JammerEstimate:
         """Fold in every receiver's averaged measurement once ``aggregate_steps`` readings are in."""

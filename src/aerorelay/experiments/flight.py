@@ -15,7 +15,7 @@ import pandas as pd
 
 from ..assembly.flight import build_stepper
 from ..assembly.parts import build_scene, build_source
-from ..config import Scenario
+from ..config import Scenario, ScenarioError
 from ..flight.airframes import Airframe
 from ..flight.mavlink_bridge import OffboardBridge, StepHook
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
@@ -91,6 +91,14 @@ def bridge_frame(rows: list[dict]) -> pd.DataFrame:
                          dict(zip(("p_x", "p_y", "p_z"), r["x"][0:3], strict=True))) for r in rows])
 
 
+def check_flyable(sc: Scenario) -> None:
+    """A named error, before any vehicle is contacted, for what the MAVLink bridge cannot fly: jammers
+    estimated from readings (no radio reaches the bridge; step ``ar.controller`` with ``readings=``)."""
+    if sc.estimates_jammers:
+        raise ScenarioError("jammer.localization: 'estimated' needs the relay's receiver readings, which no radio "
+                            "hands the MAVLink bridge; step ar.controller(sc) with readings= (docs/guide/flying.md)")
+
+
 LOCKSTEP_OFFBOARD_WITHIN_S = 5.0  # the bridge streams ~1.1 s before it asks; OFFBOARD later than this is an error
 
 
@@ -112,6 +120,7 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
     mission file. Returns the flight as ``ar.simulate``'s result and the bridge's log. The flight stops
     early (``aborted``: reported unsafe) when the vehicle goes below the ground or its state stops being
     finite."""
+    check_flyable(sc)
     stepper = build_stepper(sc, observer=setpoint == "attitude")  # as aerorelay fly: see docs/guide/flying.md
     rec, hook = recorder(sc, stepper)
     port, T = free_udp_port(), stepper.period

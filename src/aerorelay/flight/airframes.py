@@ -12,6 +12,8 @@ aerorelay; the vehicle converts from NED/FRD on the wire).
   controller (``SE3Control``, the autopilot's position loop), attitude targets through its
   ``cmd_ctatt`` attitude loop, each at ``max_step_s``. RotorPy's world and body frames are z-up like
   ENU/FLU; its quaternions are ``[x, y, z, w]``. ``wind(t, p)`` (m/s, world) is the air it flies in.
+* ``MultirotorAirframe``: aerorelay's own plant for the scenario's platform (the tilted hexarotor)
+  under a multirotor autopilot's cascade (position, attitude, allocation, motors), thrust along body z.
 * ``MissionFlyer``: the inspection drone on its mission path, for a second MAVLink system.
 
 Disarmed, an airframe sits where it is (no integration).
@@ -29,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
 from ..models.mission import SourceTrajectory
+from ..models.vehicle import Multirotor
 
 GRAVITY = 9.81
 TARGET_KINDS = ("idle", "hold", "position", "attitude")
@@ -132,6 +135,86 @@ class MissionFlyer:
 
     def fly(self, target: Target, t: float, dt: float) -> None:
         self._at(t + dt)
+
+
+@dataclass
+class AutopilotGains:
+    """A multirotor autopilot's gains: position (1/s^2) and velocity (1/s) per axis, attitude (1/s^2)
+    and body rate (1/s), and the motors' first-order time constant (s). The defaults fly the paper's
+    2.57 kg tilted hexarotor within its motor bounds (a 1 m step settles in ~2 s; RotorPy's gains for
+    its 0.5 kg quadrotor saturate its motors and diverge)."""
+
+    kp_pos: tuple[float, float, float] = (3.0, 3.0, 6.0)
+    kd_pos: tuple[float, float, float] = (3.0, 3.0, 5.0)
+    kp_att: float = 150.0
+    kd_att: float = 25.0
+    motor_time_constant_s: float = 0.02
+
+
+class MultirotorAirframe:
+    """aerorelay's own plant (``models.vehicle.Multirotor``, eq. 1: any rotor layout, the tilted
+    hexarotor by default) under an autopilot of the usual cascade, as PX4 flies a multirotor: a position
+    target (or a hold) becomes a force (``m (a_ff + kp e_p + kd e_v + g e3)``) whose direction the body z
+    axis is turned to (at the target's yaw) and whose component along it is the collective thrust; an
+    attitude target is tracked with its thrust along body z. Attitude by the geometric law
+    ``tau = J (-kp e_R - kd omega) + omega x J omega``; the wrench allocated to squared rotor speeds
+    (least squares, within the speed bounds), each motor following its speed as a first-order lag
+    within its acceleration bounds; the plant integrated by RK4 at ``max_step_s``. Its thrust stays
+    along body z, as an autopilot flies it: the lateral forces a tilted hexarotor's rotors can make,
+    which aerorelay's NMPC plans with, are not used."""
+
+    def __init__(self, vehicle: Multirotor, position, gains: AutopilotGains = AutopilotGains(), *, max_step_s: float = 0.0025):
+        self.vehicle, self.gains, self.max_step = vehicle, gains, max_step_s
+        self.x = vehicle.hover_state(np.asarray(position, float))
+        F, M = vehicle.allocation()
+        self._wrench_to_speeds2 = np.linalg.pinv(np.vstack([F, M]))
+        self._bounds2 = (vehicle.omega_min**2, vehicle.omega_max**2)
+        self.mav_type = 13 if vehicle.n_rotors == 6 else 14 if vehicle.n_rotors == 8 else 2  # hexa, octo, quad
+
+    @property
+    def p(self) -> np.ndarray:
+        return self.x[0:3]
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.x[6:9]
+
+    @property
+    def R(self) -> np.ndarray:
+        return rotation_zyx(self.x[3:6])
+
+    @property
+    def rates(self) -> np.ndarray:
+        return self.x[9:12]
+
+    def _wrench(self, tg: Target) -> np.ndarray:
+        """The body force and torque (N, N m) the autopilot asks for now."""
+        veh, g = self.vehicle, self.gains
+        R, w = self.R, self.rates
+        if tg.kind == "attitude":
+            R_d, thrust = tg.R, tg.thrust * veh.mass * veh.gravity
+        else:
+            v_d, a_d = (tg.v, tg.a) if tg.kind == "position" else (np.zeros(3), np.zeros(3))
+            force = veh.mass * (a_d + np.asarray(g.kp_pos) * (tg.p - self.p) + np.asarray(g.kd_pos) * (v_d - self.v)
+                                + veh.gravity * E3)
+            R_d = rotation_zyx(attitude_from_thrust(force, tg.yaw))
+            thrust = float(force @ (R @ E3))
+        S = 0.5 * (R_d.T @ R - R.T @ R_d)
+        e_R = np.array([S[2, 1], S[0, 2], S[1, 0]])
+        J = veh.inertia
+        torque = J @ (-g.kp_att * e_R - g.kd_att * w) + np.cross(w, J @ w)
+        return np.concatenate([[0.0, 0.0, thrust], torque])
+
+    def fly(self, target: Target, t: float, dt: float) -> None:
+        if target.kind == "idle":
+            return
+        veh = self.vehicle
+        n = max(1, math.ceil(dt / self.max_step - 1e-9))
+        h = dt / n
+        for _ in range(n):
+            speeds2 = np.clip(self._wrench_to_speeds2 @ self._wrench(target), *self._bounds2)
+            u = np.clip((np.sqrt(speeds2) - self.x[12:]) / self.gains.motor_time_constant_s, veh.omega_dot_min, veh.omega_dot_max)
+            self.x = np.asarray(veh.rk4_step(self.x, u, h), float).ravel()
 
 
 WindField = Callable[[float, np.ndarray], np.ndarray]  # (t s, position m) -> wind m/s, world

@@ -18,7 +18,7 @@ to the ground. A fresh state resumes the NMPC.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +30,7 @@ from ..models.geometry import rotation_zyx
 from ..models.vehicle import Multirotor
 from ..planning.base import Planner, PlannerInput, Reference
 from .frames import quaternion_wxyz
+from .readings import JammersFromReadings
 
 MODES = ("nmpc", "fallback", "hold", "land")  # Command.mode
 
@@ -91,11 +92,13 @@ class RelayStepper:
 
     def __init__(self, *, vehicle: Multirotor, planner: Planner, controller: RelayController, period_s: float,
                  jammers: JammerView, observer: ExternalAccelerationObserver | None = None,
-                 stale: StaleSettings = StaleSettings()):
+                 stale: StaleSettings = StaleSettings(), estimated: JammersFromReadings | None = None):
         """``jammers(t)``: the jammers as the relay knows them at ``t``: positions ``(nJ, 3)`` m, the
-        powers it plans with (W) and the position std (m; None: known exactly)."""
+        powers it plans with (W) and the position std (m; None: known exactly). ``estimated``: the
+        jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view)."""
         self.vehicle, self.planner, self.controller, self.period = vehicle, planner, controller, period_s
-        self.jammers, self.observer, self.stale = jammers, observer, stale
+        self.jammers, self.observer, self.stale, self.estimated = jammers, observer, stale, estimated
+        self._last_step: tuple[float, np.ndarray] | None = None  # (time, state) of the last fresh step: where readings were taken
         self.shift = period_s >= controller.spec.ts - 1e-12
         self.u = np.zeros(vehicle.n_rotors)  # the input applied last (Hz/s)
         self.planner_ms = 0.0
@@ -135,10 +138,15 @@ class RelayStepper:
 
     # -- the step API -----------------------------------------------------------------------------------
     def step(self, t: float, relay_state: np.ndarray | None, source: SourceState | None, *,
-             state_stamp: float | None = None, jammers=None) -> Command:
+             state_stamp: float | None = None, jammers=None, readings: Mapping[str, float] | None = None) -> Command:
         """One control step at ``t`` (s): ``relay_state`` the full state ``(p, eta, v, omega, Omega)``
-        (m, rad ZYX, m/s, rad/s FLU, Hz; None: no new state), measured at ``state_stamp`` (None: ``t``)."""
+        (m, rad ZYX, m/s, rad/s FLU, Hz; None: no new state), measured at ``state_stamp`` (None: ``t``).
+        ``readings``: with ``jammer.localization = "estimated"``, what each receiver (by node name: the
+        relay, the base station with ``estimation.use_bs``) measured over the last period, interference
+        plus noise in W, taken where the relay was at its last step (``flight/readings.py``)."""
         t0 = time.perf_counter()
+        if readings:
+            self._fold(t, relay_state, readings)
         stamp = t if state_stamp is None else state_stamp
         fresh = relay_state is not None and t - stamp <= self.stale.hold_after_s and source is not None and \
             t - (t if source.stamp is None else source.stamp) <= self.stale.hold_after_s
@@ -154,10 +162,21 @@ class RelayStepper:
             self.observer.update(self._x_prev, self.u, x)
         self._land_from = None
         self._last_fresh = (t, x[0:3].copy(), float(x[5]))
+        self._last_step = (t, x.copy())
         ref, P = self.prepare(t, x, source, jammers=jammers)
         info = self.act(x, P)
         self._x_prev = x.copy()
         return self._command(t, x, info, ref, t0)
+
+    def _fold(self, t: float, relay_state: np.ndarray | None, readings: Mapping[str, float]) -> None:
+        """Fold readings into the estimate: taken at the last step's time and pose (the current ones at the first)."""
+        if self.estimated is None:
+            raise ValueError("step: readings given, but the scenario's jammers are not estimated "
+                             "(jammer.localization = 'estimated')")
+        if self._last_step is not None:
+            self.estimated.add(*self._last_step, readings)
+        elif relay_state is not None:
+            self.estimated.add(t, np.asarray(relay_state, float), readings)
 
     def _command(self, t: float, x: np.ndarray, info: StepInfo, ref: Reference, t0: float) -> Command:
         veh = self.vehicle

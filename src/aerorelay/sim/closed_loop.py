@@ -307,8 +307,7 @@ class ClosedLoop:
                 p2_meas = src.p + self.csi_rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
                 pj_std = None
                 if self.sensing is not None:  # what the relay estimated from its readings up to the last step
-                    pj_meas, pj_powers = self.sensing.planner_view(st.senses_jammer_state)
-                    pj_std = self.sensing.estimate.position_std_max()
+                    pj_meas, pj_powers, pj_std = self.sensing.estimate.planner_view(st.senses_jammer_state)
                 else:
                     pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
                 if self.air is not None:

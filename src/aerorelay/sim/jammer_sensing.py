@@ -57,14 +57,6 @@ class JammerSensing:
     def estimate(self) -> JammerEstimate:
         return self.estimator.estimate
 
-    def planner_view(self, senses_state: bool) -> tuple[np.ndarray, np.ndarray]:
-        """``(positions (nJ, 3), powers (nJ,))`` for the planner: confident estimates only."""
-        e = self.estimate
-        powers = np.where(e.confident, e.powers, 0.0)
-        if senses_state:
-            powers = np.where(e.on_prob > 0.5, powers, 0.0)
-        return e.positions.copy(), powers
-
     def step(self, t: float, channel: ChannelState, poses: dict[str, NodePose]) -> dict[str, float]:
         """Read every receiver, update the estimator (timed), and the row's log values."""
         values: dict[str, float] = {}
@@ -74,9 +66,7 @@ class JammerSensing:
             readings.append(y)
             values[f"meas_{r}_w"] = y
         t0 = time.perf_counter()
-        for i, (r, y) in enumerate(zip(self.receivers, readings, strict=True)):
-            self.estimator.add(t, i, poses[r].position, poses[r].axis, y)
-        e = self.estimator.update(t)
+        e = self.estimator.add_readings(t, [(poses[r].position, poses[r].axis, y) for r, y in zip(self.receivers, readings, strict=True)])
         self.last_ms = (time.perf_counter() - t0) * 1e3
         values["estimator_ms"] = self.last_ms
         crlb = self.crlb.update(t)
