@@ -102,13 +102,15 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
 
 
 def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
-               observer: bool = True) -> RelayStepper:
+               observer: bool = True, autopilot: bool = False) -> RelayStepper:
     """The relay's planner and NMPC stepped from outside: ``ctrl.step(t, relay_state, source)`` each
     control period returns a ``Command`` (rotor speeds and autopilot setpoints, world ENU, body FLU;
     ``aerorelay.flight.frames`` converts to NED/FRD). Stale inputs hold, then land (``stale``). Stepped
     over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md). ``observer=False``
-    leaves out ``[wind]``'s external-force observer (for an autopilot's position loop: see the guide)."""
-    return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer)
+    leaves out ``[wind]``'s external-force observer (for an autopilot's position loop: see the guide);
+    ``autopilot=True`` plans for the vehicle an autopilot flies (thrust along body z: a tilted platform's
+    rotors untilted in the NMPC's model), for its setpoints."""
+    return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer, autopilot=autopilot)
 
 
 def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None, *,
@@ -166,7 +168,8 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     _flight.check_flyable(sc)
     if out is not None:
         check_output_folder(out, "run")
-    ctrl = controller(sc, observer=setpoint == "attitude")  # the observer destabilized a position cascade (the guide)
+    # the observer destabilized a position cascade; an autopilot's thrust stays along body z (the guide)
+    ctrl = controller(sc, observer=setpoint == "attitude", autopilot=True)
     rec, hook = _flight.recorder(sc, ctrl)
     source = build_source(sc) if source_url is None else MavlinkSource(source_url, system=source_system, origin_enu=source_origin)
     bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint, on_step=hook)

@@ -627,7 +627,7 @@ def ros(
         from .flight import ros_node  # the optional extra: imported only here
     except ImportError as exc:
         _fail(f"the ROS 2 node needs the ros extra (pip install 'aerorelay[ros]'): {exc}")
-    ctrl = api.controller(sc)
+    ctrl = api.controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
     console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
     try:
         node = ros_node.spin(ctrl, api.build_scene(sc), duration, relay=relay, source=source)

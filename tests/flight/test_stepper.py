@@ -10,6 +10,7 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.assembly import world
+from aerorelay.assembly.flight import thrust_along_body_z
 from aerorelay.assembly.parts import build
 from aerorelay.sim.closed_loop import plant_step_function, step_count
 
@@ -162,3 +163,19 @@ def test_the_first_input_keeps_every_motor_within_its_bounds(stepped):
         nxt = x[12:] + cmd.omega_dot_hz_s * ts
         assert np.all(nxt >= veh.omega_min - 1e-9) and np.all(nxt <= veh.omega_max + 1e-9), (trial, nxt)
         assert np.all(cmd.omega_dot_hz_s >= veh.omega_dot_min) and np.all(cmd.omega_dot_hz_s <= veh.omega_dot_max)
+
+
+def test_for_an_autopilot_the_nmpc_models_thrust_along_body_z():
+    """An autopilot keeps its thrust along body z: the NMPC that gives it setpoints plans with the rotors
+    untilted (a tilted hexarotor through the cascade: 0.60 m and unsafe with its tilted model, 0.17 m and
+    safe with this one: docs/decisions.md)."""
+    tilted = ar.load_scenario("scenarios/nominal_tilted.toml")
+    axes = ar.controller(tilted, autopilot=True).vehicle.axes
+    assert np.allclose(axes, [0.0, 0.0, 1.0]) and not np.allclose(ar.controller(tilted).vehicle.axes, [0.0, 0.0, 1.0])
+    quad = ar.load_scenario("scenarios/quad_x.toml")
+    assert thrust_along_body_z(quad).platform == quad.platform  # already along body z
+    outward = [r.model_dump() | {"axis": [0.5 * r.position[0], 0.5 * r.position[1], 1.0]} for r in quad.platform.rotors]
+    tilted_custom = quad.with_updates({"platform.rotors": outward})  # every rotor tilted outward alike: it hovers
+    untilted = thrust_along_body_z(tilted_custom).platform.rotors
+    assert [r.axis for r in untilted] == [[0.0, 0.0, 1.0]] * 4
+    assert [r.position for r in untilted] == [r.position for r in quad.platform.rotors]

@@ -27,15 +27,27 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
     return view
 
 
+def thrust_along_body_z(sc: Scenario) -> Scenario:
+    """``sc`` with its relay's rotors turned to push along body z (a star layout untilted, a custom
+    layout's axes set to body z; positions and spins kept): the vehicle an autopilot flies, whose
+    thrust stays along body z, so the NMPC plans only what the autopilot can fly."""
+    p = sc.platform
+    if p.rotors is not None:
+        rotors = [r.model_dump() | {"axis": [0.0, 0.0, 1.0]} for r in p.rotors]
+        return sc.with_updates({"platform.rotors": rotors})
+    return sc if p.tilt_deg == 0 else sc.with_updates({"platform.tilt_deg": 0.0})
+
+
 def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
-                  stale: StaleSettings | None = None, observer: bool = True) -> RelayStepper:
+                  stale: StaleSettings | None = None, observer: bool = True, autopilot: bool = False) -> RelayStepper:
     """The stepper of one relay's scenario (``observer=False``: without ``[wind]``'s external-force
     observer; with ``jammer.localization = "estimated"`` the jammers come from the readings ``step`` is
-    handed); a fleet is a named error."""
+    handed; ``autopilot``: its NMPC models the vehicle an autopilot flies, ``thrust_along_body_z``); a
+    fleet is a named error."""
     if sc.is_fleet:
         raise ScenarioError("relays: ar.controller steps one relay; a fleet's relays are stepped by its loop "
                             "(docs/concepts/networks.md)")
-    parts = build(sc, nmpc_settings=nmpc_settings)
+    parts = build(thrust_along_body_z(sc) if autopilot else sc, nmpc_settings=nmpc_settings)
     senses = sc.controller.senses_jammer_state
     estimated = None if parts.sensing is None else JammersFromReadings(parts.scene, parts.sensing.estimator,
                                                                        parts.sensing.receivers, senses)

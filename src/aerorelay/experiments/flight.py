@@ -121,7 +121,7 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
     early (``aborted``: reported unsafe) when the vehicle goes below the ground or its state stops being
     finite."""
     check_flyable(sc)
-    stepper = build_stepper(sc, observer=setpoint == "attitude")  # as aerorelay fly: see docs/guide/flying.md
+    stepper = build_stepper(sc, observer=setpoint == "attitude", autopilot=True)  # as aerorelay fly: docs/guide/flying.md
     rec, hook = recorder(sc, stepper)
     port, T = free_udp_port(), stepper.period
     vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T), airframe=airframe)
