@@ -192,6 +192,29 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     return result, df
 
 
+def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: Path | None = None, **names: str):
+    """Run the relay's controller as a ROS 2 node (``spin``: ``flight.ros_node.spin``, the optional extra,
+    imported by the caller) until ``duration_s``; ``out``: the flight's run folder (as ``fly`` writes it,
+    without ``flight.parquet``), written on Ctrl-C too. Returns the node."""
+    if out is not None:
+        check_output_folder(out, "run")
+    ctrl = controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
+    rec, hook = _flight.recorder(sc, ctrl) if out is not None else (None, None)
+    wall0, aborted = time.perf_counter(), None
+    try:
+        return spin(ctrl, build_scene(sc), duration_s, on_step=hook, **names)
+    except KeyboardInterrupt:
+        aborted = "interrupted (Ctrl-C)"
+        raise
+    finally:
+        if rec is not None and out is not None:
+            if rec.rows:
+                _flight.save_flight(sc, Path(out), None, rec, ctrl, time.perf_counter() - wall0, aborted=aborted,
+                                    views=write_run_views)
+            else:
+                _flight.save_raw(Path(out), None, rec)
+
+
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:
     """The scenario's capacity bounds (static and path), computed once per geometry and cached; a
     fleet's network bound (``planning/network_bound.py``: static upper bound and the refined

@@ -618,6 +618,8 @@ def ros(
     relay: str = typer.Option("relay", "--relay", help="the relay's topic namespace (/<relay>/odom, /<relay>/setpoint, /<relay>/link)"),
     source: str = typer.Option("source", "--source", help="the source's topic namespace (/<source>/odom)"),
     duration: float = typer.Option(None, "--duration", help="stop after this many seconds (default: until Ctrl-C)", show_default=False),
+    out: Path = typer.Option(None, "--out", help="write the flight's run folder here (timeseries.parquet, metrics.json, "
+                             "figures, run.mcap)", show_default=False),
 ):
     """Run the relay's controller as a ROS 2 node (the optional extra: pip install 'aerorelay[ros]'): subscribes
     nav_msgs/Odometry of the relay and the source, publishes trajectory_msgs/MultiDOFJointTrajectory setpoints and
@@ -627,13 +629,15 @@ def ros(
         from .flight import ros_node  # the optional extra: imported only here
     except ImportError as exc:
         _fail(f"the ROS 2 node needs the ros extra (pip install 'aerorelay[ros]'): {exc}")
-    ctrl = api.controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
     console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
     try:
-        node = ros_node.spin(ctrl, api.build_scene(sc), duration, relay=relay, source=source)
+        node = api.ros(sc, ros_node.spin, duration, out=out, relay=relay, source=source)
+    except OutputError as exc:
+        _fail(str(exc))
     except KeyboardInterrupt:
         return
-    console.print(f"{len(node.commands)} control periods stepped", markup=False, highlight=False)
+    console.print(f"{len(node.commands)} control periods stepped" + (f"; run folder: {out}" if out else ""),
+                  markup=False, highlight=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import os
 import random
+import signal
 import subprocess
 import sys
 import time
 
 import numpy as np
+import pandas as pd
 import pytest
 
 if os.environ.get("AERORELAY_REQUIRE_ROS") != "1":
@@ -30,8 +32,9 @@ def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
     sc = ar.load_scenario("scenarios/nominal_tilted.toml")
     domain = str(random.randint(1, 200))  # a ROS domain of its own: concurrent runs do not hear each other
     env = {**os.environ, "ROS_DOMAIN_ID": domain, "PYTHONUNBUFFERED": "1"}
-    node_proc = subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "ros", "scenarios/nominal_tilted.toml", "--duration", "300"],
-                                 env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    out = tmp_path / "ros_run"
+    node_proc = subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "ros", "scenarios/nominal_tilted.toml", "--duration", "300",
+                                  "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     os.environ["ROS_DOMAIN_ID"] = domain
     rclpy.init()
     probe = Node("aerorelay_test_probe")
@@ -66,5 +69,13 @@ def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
     finally:
         probe.destroy_node()
         rclpy.shutdown()
-        node_proc.kill()
-        node_proc.wait()
+        node_proc.send_signal(signal.SIGINT)  # Ctrl-C: the node stops and writes its run folder
+        try:
+            node_proc.wait(timeout=120)
+        except subprocess.TimeoutExpired:
+            node_proc.kill()
+            node_proc.wait()
+    # the flight's run folder, written on Ctrl-C: one row per step, the measured relay where it was held
+    df = pd.read_parquet(out / "timeseries.parquet")
+    assert len(df) >= 30 and (out / "metrics.json").is_file()
+    assert np.allclose(df[["p1_x", "p1_y", "p1_z"]].to_numpy(), sc.nodes.relay, atol=1e-6)

@@ -57,13 +57,15 @@ def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper, wall
     return RunResult(sc, mission, df, metrics, None, views)
 
 
-def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame, rec: FlightRecorder, stepper: RelayStepper, wall_s: float,
-                *, aborted: str | None = None, views: Callable[[RunResult, Path], None] | None = None) -> RunResult | None:
-    """Write the flight's run folder into ``out``; when nothing was flown in OFFBOARD or the metrics
-    fail, a folder with what there is (``flight.parquet`` and the rows recorded, ``timeseries.parquet``)
-    so the flight is never lost; the error is logged and re-raised after it is written."""
+def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder, stepper: RelayStepper,
+                wall_s: float, *, aborted: str | None = None,
+                views: Callable[[RunResult, Path], None] | None = None) -> RunResult | None:
+    """Write the flight's run folder into ``out`` (with ``flight.parquet``, the bridge's log, when given);
+    when the metrics fail, a folder with what there is (``flight.parquet`` and the rows recorded,
+    ``timeseries.parquet``) so the flight is never lost; the error is logged and re-raised after it is written."""
     def with_log(tmp: Path) -> None:
-        bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
+        if bridge_log is not None:
+            bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
     try:
         result = flight_result(sc, rec, stepper, wall_s, aborted=aborted, views=views)
     except Exception:
@@ -74,11 +76,12 @@ def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame, rec: FlightRe
     return result
 
 
-def save_raw(out: Path, bridge_log: pd.DataFrame, rec: FlightRecorder) -> None:
-    """``flight.parquet`` and the rows recorded (if any) as a run folder ``out``: what a flight leaves
-    when it flew nothing in OFFBOARD or its metrics failed."""
+def save_raw(out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder) -> None:
+    """``flight.parquet`` (when given) and the rows recorded (if any) as a run folder ``out``: what a
+    flight leaves when it flew nothing in OFFBOARD or its metrics failed."""
     tmp = new_sibling(out)
-    bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
+    if bridge_log is not None:
+        bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
     if rec.rows:
         pd.DataFrame(rec.rows).to_parquet(tmp / TIMESERIES_FILE, index=False)
     swap_in(tmp, out, "run")

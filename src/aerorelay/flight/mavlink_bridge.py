@@ -3,9 +3,10 @@
 
 It waits for the autopilot's heartbeat; streams setpoints before it asks for OFFBOARD (PX4 accepts
 OFFBOARD only after a setpoint stream of >= 2 Hz for 1 s); arms only when told to; then every
-control period reads the vehicle's state (LOCAL_POSITION_NED, ATTITUDE_QUATERNION, NED/FRD on the
-wire, ENU/FLU inside), steps the controller and sends the setpoint it computed in that period
-(never an older one): SET_POSITION_TARGET_LOCAL_NED with velocity and acceleration feed-forward
+control period reads the vehicle's state (LOCAL_POSITION_NED and ATTITUDE_QUATERNION, or ODOMETRY in
+the local NED frame with its velocity in body FRD or local NED; NED/FRD on the wire, ENU/FLU
+inside), steps the controller and sends the setpoint it computed in that period (never an older
+one): SET_POSITION_TARGET_LOCAL_NED with velocity and acceleration feed-forward
 (``setpoint = "position"``) or SET_ATTITUDE_TARGET with body rates and thrust (``"attitude"``; PX4's
 thrust is a fraction of full throttle: the controller's thrust over hover times ``hover_throttle``).
 Until the vehicle reports OFFBOARD the bridge streams a hold where the vehicle is (the proof of life
@@ -13,14 +14,8 @@ PX4 wants) and the controller does not run; the mission's clock starts when OFFB
 When telemetry goes stale the controller's hold setpoint is sent and the vehicle is asked for a hold
 (AUTO.LOITER); ``hand_back()`` (on Ctrl-C) does the same.
 
-The NMPC's state: position and velocity measured; the rotor speeds, which PX4 does not report, the
-ones it last commanded (hover at the start); the attitude and body rates are the autopilot's loop's
-business, so the NMPC's own one-period-ahead attitude and rates stand in for them (a cascade: the
-NMPC closes the position loop through its model, the autopilot the attitude loop). With
-``measured_attitude`` the measured attitude and rates are used instead: beside rotor speeds that
-did not produce them this is an inconsistent state, and on RotorPy's quadrotor with attitude
-setpoints it took the tracking error from 0.23 to 0.96 m over 10 s with 11% of the steps on the
-brake law (docs/guide/flying.md). The log (``on_step``) always has the measured attitude.
+The NMPC's state: ``flight.commanded`` (position and velocity measured, the rotor speeds last
+commanded, the NMPC's own planned attitude standing in for the autopilot's attitude loop).
 """
 
 from __future__ import annotations
@@ -31,9 +26,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from pymavlink import mavutil
 
 from ..models.mission import SourceTrajectory
+from .commanded import CommandedState
 from .frames import (
     enu_to_ned,
     euler_zyx,
@@ -46,11 +41,11 @@ from .frames import (
     rotation_ned_frd_to_enu_flu,
     yaw_enu_to_ned,
 )
+from .mavlink import MAV, connect
 from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE
 from .sources import MavlinkSource, MissionSource
 from .stepper import Command, RelayStepper, SourceState
 
-MAV = mavutil.mavlink
 # called every control period in OFFBOARD: (mission time s, the relay's measured state, the command,
 # the source as the relay knew it, the state's age s)
 StepHook = Callable[[float, np.ndarray, Command, SourceState, float], None]
@@ -83,18 +78,17 @@ class OffboardBridge:
                  on_step: StepHook | None = None, measured_attitude: bool = False):
         if setpoint not in ("position", "attitude"):
             raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
-        self.link = mavutil.mavlink_connection(url, source_system=system, source_component=190)
+        self.link = connect(url, system=system, component=190)
         self.stepper, self.arm, self.setpoint, self.hover_throttle = stepper, arm, setpoint, hover_throttle
         self.source = MissionSource(source) if isinstance(source, SourceTrajectory) else source
-        self.speeds = np.asarray(hover_speeds, float).copy()  # the rotor speeds last commanded (the NMPC's state)
+        self.commanded = CommandedState(hover_speeds, measured_attitude=measured_attitude)  # the NMPC's state
         self.state = BridgeState()
         self.t0: float | None = None  # when streaming began (bridge time)
         self.mission_t0: float | None = None  # when the vehicle entered OFFBOARD: the mission's clock starts
-        self._plan_attitude = (np.zeros(3), np.zeros(3))  # the controller's last attitude (ZYX) and body rates
         self.requested: set[str] = set()
         self.log: list[dict] = []
         self.target = (1, 1)
-        self.on_step, self.measured_attitude = on_step, measured_attitude
+        self.on_step = on_step
 
     def announce(self) -> None:
         """A GCS heartbeat (a vehicle listening with ``udpin`` learns where to answer)."""
@@ -129,6 +123,13 @@ class OffboardBridge:
             if kind == "LOCAL_POSITION_NED":
                 st.position, st.velocity = ned_to_enu([msg.x, msg.y, msg.z]), ned_to_enu([msg.vx, msg.vy, msg.vz])
                 st.received_at = t
+            elif kind == "ODOMETRY" and msg.frame_id == MAV.MAV_FRAME_LOCAL_NED:  # pose and twist in one message
+                R_ned = matrix_from_wxyz(msg.q)  # body FRD to NED
+                v = np.array([msg.vx, msg.vy, msg.vz])
+                st.position, st.R = ned_to_enu([msg.x, msg.y, msg.z]), rotation_ned_frd_to_enu_flu(R_ned)
+                st.velocity = ned_to_enu(R_ned @ v if msg.child_frame_id == MAV.MAV_FRAME_BODY_FRD else v)
+                st.rates = frd_to_flu([msg.rollspeed, msg.pitchspeed, msg.yawspeed])
+                st.received_at = t
             elif kind == "ATTITUDE_QUATERNION":
                 st.R = rotation_ned_frd_to_enu_flu(matrix_from_wxyz([msg.q1, msg.q2, msg.q3, msg.q4]))
                 st.rates = frd_to_flu([msg.rollspeed, msg.pitchspeed, msg.yawspeed])
@@ -143,14 +144,14 @@ class OffboardBridge:
         st = self.state
         if st.position is None or st.R is None or st.velocity is None:
             return None
-        return np.concatenate([st.position, euler_zyx(st.R), st.velocity, st.rates, self.speeds])
+        return self.commanded.measured(st.position, st.R, st.velocity, st.rates)
 
     def relay_state(self) -> np.ndarray | None:
         """The relay's state ``(p, eta, v, omega, Omega)`` for the NMPC (see the module; None before telemetry)."""
-        x = self.measured_state()
-        if x is not None and not self.measured_attitude:  # the autopilot's attitude loop: the NMPC's own plan stands in
-            x[3:6], x[9:12] = self._plan_attitude
-        return x
+        st = self.state
+        if st.position is None or st.R is None or st.velocity is None:
+            return None
+        return self.commanded.for_nmpc(st.position, st.R, st.velocity, st.rates)
 
     @property
     def offboard(self) -> bool:
@@ -202,9 +203,7 @@ class OffboardBridge:
         cmd = self.stepper.step(tm, x, src, state_stamp=self.state.received_at - self.mission_t0)
         if self.on_step is not None and measured is not None and src is not None:
             self.on_step(tm, measured, cmd, src, t - self.state.received_at)
-        if cmd.rotor_speeds_hz is not None:
-            self.speeds = cmd.rotor_speeds_hz
-            self._plan_attitude = (euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz)), cmd.body_rates_rad_s)
+        self.commanded.commanded(cmd)
         self._send(cmd, t)
         if cmd.mode in ("hold", "land") and "AUTO.LOITER" not in self.requested:
             self.hand_back()
@@ -232,8 +231,19 @@ class OffboardBridge:
         self._send_position(t, cmd.position_m, cmd.velocity_m_s, cmd.acceleration_m_s2,
                             euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz))[2])
 
+    def wait_for_telemetry(self, timeout_s: float = 5.0) -> None:
+        """Read until the vehicle's position arrives; TimeoutError naming the messages after ``timeout_s``."""
+        end = time.monotonic() + timeout_s
+        while self.state.position is None:
+            if time.monotonic() > end:
+                raise TimeoutError(f"no LOCAL_POSITION_NED or ODOMETRY from the vehicle within {timeout_s:g} s")
+            self._read(0.0)
+            time.sleep(0.005)
+
     def run(self, duration_s: float) -> None:
-        """Tick on the wall clock at the controller's period for ``duration_s``; hand back at the end or on Ctrl-C."""
+        """Tick on the wall clock at the controller's period for ``duration_s`` once the vehicle's telemetry
+        arrives; hand back at the end or on Ctrl-C."""
+        self.wait_for_telemetry()
         period = self.stepper.period
         start = time.monotonic()
         try:

@@ -1,7 +1,8 @@
 """An in-repo MAVLink vehicle (``aerorelay sitl``) for tests and demos: it speaks the PX4 subset the
 offboard bridge uses (``flight/px4.py``): heartbeats with PX4's custom modes, arming and mode commands
 with acknowledgements and PX4's refusals (OFFBOARD only after a setpoint stream), the offboard loss
-timeout (to a hold), LOCAL_POSITION_NED and ATTITUDE_QUATERNION telemetry (NED/FRD on the wire).
+timeout (to a hold), LOCAL_POSITION_NED and ATTITUDE_QUATERNION telemetry, or ODOMETRY (NED/FRD on the
+wire).
 
 What flies is an airframe with its own autopilot (``flight.airframes``): an ideal point mass (the
 default: it tests the protocol, the frames, the rates and the timeouts) or RotorPy's quadrotor (an
@@ -14,11 +15,11 @@ the wall clock.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
-from pymavlink import mavutil
 
 from .airframes import Airframe, PointMass, Target
 from .frames import (
@@ -31,9 +32,8 @@ from .frames import (
     rotation_ned_frd_to_enu_flu,
     yaw_ned_to_enu,
 )
+from .mavlink import MAV, connect
 from .px4 import OFFBOARD_LOSS_S, OFFBOARD_MIN_RATE_HZ, OFFBOARD_PROOF_S, PX4_MAIN_MODE, custom_mode
-
-MAV = mavutil.mavlink
 
 
 @dataclass
@@ -42,6 +42,7 @@ class VehicleSettings:
     the thrust over hover), the telemetry rate (Hz) and the heartbeat period (s)."""
 
     hover_throttle: float = 0.5
+    telemetry: str = "local_position"  # LOCAL_POSITION_NED + ATTITUDE_QUATERNION, or "odometry" (ODOMETRY, velocity in body FRD)
     telemetry_hz: float = 50.0
     heartbeat_s: float = 1.0
 
@@ -52,7 +53,7 @@ class MavlinkVehicle:
 
     def __init__(self, url: str, position=(0.0, 0.0, 0.0), settings: VehicleSettings = VehicleSettings(), system: int = 1,
                  airframe: Airframe | None = None):
-        self.link = mavutil.mavlink_connection(url, source_system=system, source_component=1)
+        self.link = connect(url, system=system, component=1)
         self.s = settings
         self.t = 0.0
         self.airframe: Airframe = airframe if airframe is not None else PointMass(position)
@@ -164,9 +165,15 @@ class MavlinkVehicle:
             self._next_heartbeat = self.t + self.s.heartbeat_s
         if self.t >= self._next_telemetry - 1e-9:
             af = self.airframe
-            self.link.mav.local_position_ned_send(boot_ms, *enu_to_ned(af.p), *enu_to_ned(af.v))
-            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(af.R))
-            self.link.mav.attitude_quaternion_send(boot_ms, *q, *flu_to_frd(af.rates))
+            R_ned = rotation_enu_flu_to_ned_frd(af.R)
+            q = quaternion_wxyz(R_ned)
+            if self.s.telemetry == "odometry":
+                nan = [math.nan] * 21
+                self.link.mav.odometry_send(int(round(self.t * 1e6)), MAV.MAV_FRAME_LOCAL_NED, MAV.MAV_FRAME_BODY_FRD,
+                                            *enu_to_ned(af.p), q, *(R_ned.T @ enu_to_ned(af.v)), *flu_to_frd(af.rates), nan, nan)
+            else:
+                self.link.mav.local_position_ned_send(boot_ms, *enu_to_ned(af.p), *enu_to_ned(af.v))
+                self.link.mav.attitude_quaternion_send(boot_ms, *q, *flu_to_frd(af.rates))
             self._next_telemetry = self.t + 1.0 / self.s.telemetry_hz
 
     def run_realtime(self, dt: float = 0.005, duration_s: float | None = None) -> None:

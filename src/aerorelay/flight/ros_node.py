@@ -7,7 +7,9 @@ in the child (body) frame as REP 105 has it); every control period steps the con
 one point: the position and attitude one period ahead, the velocity and body rates, the
 acceleration) and ``/<relay>/link`` (``std_msgs/Float64MultiArray``: the end-to-end capacity and each
 hop's SINR at the measured poses, the jammers as the relay was told them). Stale odometry holds, then
-lands, as the step API does; the rotor speeds (not in the odometry) are the ones last commanded.
+lands, as the step API does. The NMPC's state is ``flight.commanded``'s (the rotor speeds last
+commanded, its own planned attitude for the autopilot's attitude loop); ``on_step`` gets every step
+with the measured state (a ``sim.flight_record`` recorder: ``aerorelay ros --out``).
 """
 
 from __future__ import annotations
@@ -21,7 +23,9 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from ..models.radio import RadioScene
-from .frames import euler_zyx, matrix_from_wxyz
+from .commanded import CommandedState
+from .frames import matrix_from_wxyz
+from .mavlink_bridge import StepHook
 from .stepper import Command, RelayStepper, SourceState
 
 
@@ -32,11 +36,12 @@ def _seconds(stamp) -> float:
 class RelayNode(Node):
     """The relay's controller as a ROS 2 node (see the module); ``relay`` / ``source`` name the topics."""
 
-    def __init__(self, stepper: RelayStepper, scene: RadioScene, *, relay: str = "relay", source: str = "source"):
+    def __init__(self, stepper: RelayStepper, scene: RadioScene, *, relay: str = "relay", source: str = "source",
+                 on_step: StepHook | None = None):
         super().__init__(f"aerorelay_{relay}")
-        self.stepper, self.scene, self.relay, self.source = stepper, scene, relay, source
+        self.stepper, self.scene, self.relay, self.source, self.on_step = stepper, scene, relay, source, on_step
         self.names = {role: scene.name_of(role) for role in ("relay", "source")}
-        self.speeds = stepper.vehicle.hover_speeds()
+        self.commanded = CommandedState(stepper.vehicle.hover_speeds())
         self.odom: dict[str, Odometry] = {}
         # depth 1: only the latest odometry matters (a backlog would hand the controller stale states)
         self.create_subscription(Odometry, f"/{relay}/odom", lambda m: self.odom.__setitem__("relay", m), 1)
@@ -66,13 +71,14 @@ class RelayNode(Node):
         if not self.stepper.has_state and t - stamp > self.stepper.stale.hold_after_s:
             return  # nothing fresh yet and nothing to hold: wait for a fresh odometry
         p1, R1, vw1 = self._state(self.odom["relay"])
-        x = np.concatenate([p1, euler_zyx(R1), vw1, self.speeds])
         p2, R2, vw2 = self._state(self.odom["source"])
         src = SourceState(p2, vw2[0:3], np.zeros(3), stamp=_seconds(self.odom["source"].header.stamp) - self.t0)
-        cmd = self.stepper.step(t, x, src, state_stamp=stamp)
-        if cmd.rotor_speeds_hz is not None:
-            self.speeds = cmd.rotor_speeds_hz
+        measured = self.commanded.measured(p1, R1, vw1[0:3], vw1[3:6])
+        cmd = self.stepper.step(t, self.commanded.for_nmpc(p1, R1, vw1[0:3], vw1[3:6]), src, state_stamp=stamp)
+        self.commanded.commanded(cmd)
         self.commands.append(cmd)
+        if self.on_step is not None:
+            self.on_step(t, measured, cmd, src, t - stamp)
         self.setpoints.publish(self._trajectory(cmd))
         state = self.scene.evaluate(t, {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
                                         self.names["source"]: self.scene.pose(self.names["source"], p2, R2)})
@@ -98,10 +104,11 @@ class RelayNode(Node):
         return msg
 
 
-def spin(stepper: RelayStepper, scene: RadioScene, duration_s: float | None = None, **names: str) -> RelayNode:
+def spin(stepper: RelayStepper, scene: RadioScene, duration_s: float | None = None, on_step: StepHook | None = None,
+         **names: str) -> RelayNode:
     """Run the node until ``duration_s`` (None: until Ctrl-C); returns it (its ``commands``)."""
     rclpy.init()
-    node = RelayNode(stepper, scene, **names)
+    node = RelayNode(stepper, scene, on_step=on_step, **names)
     try:
         end = None if duration_s is None else node.get_clock().now().nanoseconds * 1e-9 + duration_s
         while rclpy.ok() and (end is None or node.get_clock().now().nanoseconds * 1e-9 < end):

@@ -16,13 +16,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pymavlink import mavutil
 
 from ..models.mission import SourceTrajectory
 from .frames import ned_to_enu
+from .mavlink import MAV, connect
 from .stepper import SourceState
 
-MAV = mavutil.mavlink
 GCS_HEARTBEAT_S = 1.0  # how often the bridge announces itself on the source's link once it is heard
 
 
@@ -44,7 +43,7 @@ class MavlinkSource:
     def __init__(self, url: str, *, system: int | None = None, origin_enu=(0.0, 0.0, 0.0), accel_time_constant_s: float = 0.1):
         if accel_time_constant_s <= 0:
             raise ValueError(f"accel_time_constant_s must be > 0 s, got {accel_time_constant_s}")
-        self.link = mavutil.mavlink_connection(url, source_system=255, source_component=191)
+        self.link = connect(url, system=255, component=191)
         self.system, self.origin = system, np.asarray(origin_enu, float)
         self.tau = accel_time_constant_s
         self.p: np.ndarray | None = None
