@@ -545,8 +545,9 @@ def sitl(
                                 "as MAVLink system 2 (for aerorelay fly --source-mavlink)"),
 ):
     """Run the in-repo MAVLink vehicle in real time: PX4's offboard subset (heartbeats, arming, modes, the
-    offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot or RotorPy's
-    quadrotor. For tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
+    offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot, aerorelay's own
+    plant under a multirotor autopilot's cascade, or RotorPy's quadrotor; or, with --source, the inspection drone.
+    For tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
     sc = _load_or_exit(scenario)
     if airframe not in ("pointmass", "plant", "rotorpy"):
         _fail(f"--airframe must be pointmass, plant or rotorpy, got {airframe!r}")
