@@ -18,7 +18,6 @@ import json
 import logging
 import os
 import platform
-import time
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -170,11 +169,12 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
         check_output_folder(out, "run")
     # the observer destabilized a position cascade; an autopilot's thrust stays along body z (the guide)
     ctrl = controller(sc, observer=setpoint == "attitude", autopilot=True)
-    rec, hook = _flight.recorder(sc, ctrl)
     source = build_source(sc) if source_url is None else MavlinkSource(source_url, system=source_system, origin_enu=source_origin)
-    bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint, on_step=hook)
+    bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint)
     bridge.connect()
-    wall0, aborted = time.perf_counter(), None
+    recording = _flight.Recording(sc, ctrl, out, views=write_run_views)  # the flight's wall time starts once the vehicle answered
+    bridge.on_step = recording.hook
+    aborted = None
     try:
         bridge.run(sc.duration_s if duration_s is None else duration_s)
     except KeyboardInterrupt:
@@ -182,13 +182,7 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
         raise
     finally:
         df = _flight.bridge_frame(bridge.log)
-        result = None
-        if rec.rows:
-            wall = time.perf_counter() - wall0
-            result = (_flight.save_flight(sc, Path(out), df, rec, ctrl, wall, aborted=aborted, views=write_run_views)
-                      if out is not None else _flight.flight_result(sc, rec, ctrl, wall, aborted=aborted))
-        elif out is not None:
-            _flight.save_raw(Path(out), df, rec)
+        result = recording.finish(df, aborted)
     return result, df
 
 
@@ -199,20 +193,16 @@ def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: P
     if out is not None:
         check_output_folder(out, "run")
     ctrl = controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
-    rec, hook = _flight.recorder(sc, ctrl) if out is not None else (None, None)
-    wall0, aborted = time.perf_counter(), None
+    recording = _flight.Recording(sc, ctrl, out, views=write_run_views) if out is not None else None
+    aborted = None
     try:
-        return spin(ctrl, build_scene(sc), duration_s, on_step=hook, **names)
+        return spin(ctrl, build_scene(sc), duration_s, on_step=recording.hook if recording else None, **names)
     except KeyboardInterrupt:
         aborted = "interrupted (Ctrl-C)"
         raise
     finally:
-        if rec is not None and out is not None:
-            if rec.rows:
-                _flight.save_flight(sc, Path(out), None, rec, ctrl, time.perf_counter() - wall0, aborted=aborted,
-                                    views=write_run_views)
-            else:
-                _flight.save_raw(Path(out), None, rec)
+        if recording is not None:
+            recording.finish(None, aborted)
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:

@@ -554,10 +554,7 @@ def sitl(
     frame = api.plant_airframe(sc) if airframe == "plant" else None
     if airframe == "rotorpy":
         try:
-            from .assembly.world import wind_field
-            from .flight.airframes import RotorpyQuadrotor, still_air
-
-            frame = RotorpyQuadrotor(sc.relay_list[0].start, wind=wind_field(sc) or still_air)  # RotorPy: an optional extra
+            frame = api.rotorpy_airframe(sc)  # RotorPy: an optional extra, imported when the airframe is made
         except ImportError as exc:
             _fail(f"--airframe rotorpy needs RotorPy (pip install 'aerorelay[rotorpy]'): {exc}")
     console.print(f"vehicle ({'the source, system 2' if source else airframe}) listening on {listen} (Ctrl-C stops)",

@@ -4,7 +4,6 @@ the bridge arming it and flying the controller in OFFBOARD for a few seconds, it
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -13,16 +12,11 @@ import pandas as pd
 from typer.testing import CliRunner
 
 from aerorelay.cli import app
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from aerorelay.experiments.flight import free_udp_port
 
 
 def test_fly_against_the_sitl_vehicle(tmp_path):
-    port = _free_port()
+    port = free_udp_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     vehicle = subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "sitl", "scenarios/nominal_tilted.toml",
                                 "--listen", f"udpin:127.0.0.1:{port}", "--duration", "30"], env=env,

@@ -6,13 +6,12 @@ This tests the protocol, frames, rates and timeouts against our PX4 subset, not 
 
 from __future__ import annotations
 
-import socket
-
 import numpy as np
 import pytest
 
 import aerorelay as ar
 from aerorelay.assembly.parts import build_source
+from aerorelay.experiments.flight import free_udp_port
 from aerorelay.flight.airframes import PointMass
 from aerorelay.flight.mavlink_bridge import OffboardBridge
 from aerorelay.flight.mavlink_vehicle import MAV, MavlinkVehicle, VehicleSettings
@@ -20,18 +19,12 @@ from aerorelay.flight.px4 import OFFBOARD_LOSS_S
 from aerorelay.models.geometry import rotation_zyx
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture()
 def pair():
     def make(arm: bool = True, setpoint: str = "position"):
         sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 20.0})
         ctrl = ar.controller(sc)
-        port = _free_port()
+        port = free_udp_port()
         vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", position=sc.nodes.relay)
         bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=arm,
                                 setpoint=setpoint)
@@ -145,7 +138,7 @@ def test_odometry_telemetry_reads_as_position_and_attitude_do():
     ctrl = ar.controller(sc)
     states = []
     for telemetry in ("odometry", "local_position"):
-        port = _free_port()
+        port = free_udp_port()
         af = PointMass([1.0, -2.0, 3.0])
         af.v, af.R, af.rates = np.array([0.5, -1.5, 0.25]), rotation_zyx([0.2, -0.1, 1.0]), np.array([0.1, -0.2, 0.3])
         vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry=telemetry), airframe=af)

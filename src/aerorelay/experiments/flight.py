@@ -87,6 +87,28 @@ def save_raw(out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder) ->
     swap_in(tmp, out, "run")
 
 
+class Recording:
+    """A flight being recorded (``aerorelay fly``, ``aerorelay ros``): ``hook`` feeds the recorder;
+    ``finish(bridge_log, aborted)`` at the end, also on Ctrl-C, writes the run folder to ``out`` (raw logs
+    when nothing was flown in OFFBOARD) and returns the flight's result (None when nothing was flown)."""
+
+    def __init__(self, sc: Scenario, stepper: RelayStepper, out: Path | None, *,
+                 views: Callable[[RunResult, Path], None] | None = None):
+        self.sc, self.stepper, self.out, self.views = sc, stepper, None if out is None else Path(out), views
+        self.rec, self.hook = recorder(sc, stepper)
+        self.wall0 = time.perf_counter()
+
+    def finish(self, bridge_log: pd.DataFrame | None, aborted: str | None = None) -> RunResult | None:
+        wall = time.perf_counter() - self.wall0
+        if not self.rec.rows:
+            if self.out is not None:
+                save_raw(self.out, bridge_log, self.rec)
+            return None
+        if self.out is None:
+            return flight_result(self.sc, self.rec, self.stepper, wall, aborted=aborted)
+        return save_flight(self.sc, self.out, bridge_log, self.rec, self.stepper, wall, aborted=aborted, views=self.views)
+
+
 def bridge_frame(rows: list[dict]) -> pd.DataFrame:
     """The bridge's log (one row per period: time, mode, arming, the vehicle's custom mode, the step's
     computation and deadline, the relay's position) as a DataFrame."""

@@ -56,6 +56,12 @@ class Target:
             raise ValueError(f"Target.kind must be one of {TARGET_KINDS}, got {self.kind!r}")
 
 
+def substeps(dt: float, max_step_s: float) -> tuple[int, float]:
+    """The autopilot's sub-steps over a step of ``dt`` s: how many, none longer than ``max_step_s``, and their length (s)."""
+    n = max(1, math.ceil(dt / max_step_s - 1e-9))
+    return n, dt / n
+
+
 class Airframe(Protocol):
     """An airframe with its autopilot: position ``p`` (m), velocity ``v`` (m/s), attitude ``R``, body
     rates ``rates`` (rad/s), ``mav_type`` (MAVLink's MAV_TYPE in its heartbeat); ``fly(target, t, dt)``."""
@@ -209,8 +215,7 @@ class MultirotorAirframe:
         if target.kind == "idle":
             return
         veh = self.vehicle
-        n = max(1, math.ceil(dt / self.max_step - 1e-9))
-        h = dt / n
+        n, h = substeps(dt, self.max_step)
         for _ in range(n):
             speeds2 = np.clip(self._wrench_to_speeds2 @ self._wrench(target), *self._bounds2)
             u = np.clip((np.sqrt(speeds2) - self.x[12:]) / self.gains.motor_time_constant_s, veh.omega_dot_min, veh.omega_dot_max)
@@ -270,8 +275,7 @@ class RotorpyQuadrotor:
     def fly(self, target: Target, t: float, dt: float) -> None:
         if target.kind == "idle":
             return
-        n = max(1, math.ceil(dt / self.max_step - 1e-9))
-        h = dt / n
+        n, h = substeps(dt, self.max_step)
         for i in range(n):
             self.state["wind"] = np.asarray(self.wind(t + i * h, self.state["x"]), float)
             if target.kind == "attitude":

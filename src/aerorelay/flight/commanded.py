@@ -19,8 +19,8 @@ from .stepper import Command
 
 
 class CommandedState:
-    """``measured(p, R, v, w)`` and ``for_nmpc(p, R, v, w)`` (m, body to world, m/s world, rad/s body)
-    build the state ``(p, eta, v, omega, Omega)``; ``commanded(cmd)`` after every step."""
+    """``measured(p, R, v, w)`` (m, body to world, m/s world, rad/s body) builds the state
+    ``(p, eta, v, omega, Omega)``, ``for_nmpc`` turns it into the NMPC's; ``commanded(cmd)`` after every step."""
 
     def __init__(self, hover_speeds: np.ndarray, *, measured_attitude: bool = False):
         self.speeds = np.asarray(hover_speeds, float).copy()
@@ -31,9 +31,9 @@ class CommandedState:
         """The state as measured (the rotor speeds last commanded)."""
         return np.concatenate([np.asarray(p, float), euler_zyx(R), np.asarray(v, float), np.asarray(w, float), self.speeds])
 
-    def for_nmpc(self, p, R, v, w) -> np.ndarray:
-        """The state the NMPC steps from (see the module)."""
-        x = self.measured(p, R, v, w)
+    def for_nmpc(self, measured: np.ndarray) -> np.ndarray:
+        """The state the NMPC steps from (see the module), from the ``measured`` one."""
+        x = measured.copy()
         if not self.measured_attitude:
             x[3:6], x[9:12] = self.plan
         return x

@@ -146,13 +146,6 @@ class OffboardBridge:
             return None
         return self.commanded.measured(st.position, st.R, st.velocity, st.rates)
 
-    def relay_state(self) -> np.ndarray | None:
-        """The relay's state ``(p, eta, v, omega, Omega)`` for the NMPC (see the module; None before telemetry)."""
-        st = self.state
-        if st.position is None or st.R is None or st.velocity is None:
-            return None
-        return self.commanded.for_nmpc(st.position, st.R, st.velocity, st.rates)
-
     @property
     def offboard(self) -> bool:
         """Whether the vehicle's last heartbeat reports OFFBOARD."""
@@ -177,7 +170,7 @@ class OffboardBridge:
         controller and send its setpoint (a hold when telemetry is stale). None while streaming."""
         self._read(t)
         if self.state.position is None:
-            raise RuntimeError("tick: no telemetry from the vehicle yet (LOCAL_POSITION_NED)")
+            raise RuntimeError("tick: no telemetry from the vehicle yet (LOCAL_POSITION_NED or ODOMETRY)")
         if self.t0 is None:
             self.t0 = t
         if self.mission_t0 is None and self.offboard:
@@ -199,7 +192,8 @@ class OffboardBridge:
         if not self.stepper.has_state and (t - self.state.received_at > stale or src is None or tm - (src.stamp or tm) > stale):
             self._send_hold(self.state.position, t)  # no fresh telemetry or source yet: keep the stream alive where it is
             return None
-        x, measured = self.relay_state(), self.measured_state()
+        measured = self.measured_state()
+        x = None if measured is None else self.commanded.for_nmpc(measured)
         cmd = self.stepper.step(tm, x, src, state_stamp=self.state.received_at - self.mission_t0)
         if self.on_step is not None and measured is not None and src is not None:
             self.on_step(tm, measured, cmd, src, t - self.state.received_at)

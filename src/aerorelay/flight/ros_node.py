@@ -74,7 +74,7 @@ class RelayNode(Node):
         p2, R2, vw2 = self._state(self.odom["source"])
         src = SourceState(p2, vw2[0:3], np.zeros(3), stamp=_seconds(self.odom["source"].header.stamp) - self.t0)
         measured = self.commanded.measured(p1, R1, vw1[0:3], vw1[3:6])
-        cmd = self.stepper.step(t, self.commanded.for_nmpc(p1, R1, vw1[0:3], vw1[3:6]), src, state_stamp=stamp)
+        cmd = self.stepper.step(t, self.commanded.for_nmpc(measured), src, state_stamp=stamp)
         self.commanded.commanded(cmd)
         self.commands.append(cmd)
         if self.on_step is not None:

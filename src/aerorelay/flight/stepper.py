@@ -98,12 +98,12 @@ class RelayStepper:
         jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view)."""
         self.vehicle, self.planner, self.controller, self.period = vehicle, planner, controller, period_s
         self.jammers, self.observer, self.stale, self.estimated = jammers, observer, stale, estimated
-        self._last_step: tuple[float, np.ndarray] | None = None  # (time, state) of the last fresh step: where readings were taken
+        # (time, state) of the last fresh step: where a hold holds and where the next step's readings were taken
+        self._last_step: tuple[float, np.ndarray] | None = None
         self.shift = period_s >= controller.spec.ts - 1e-12
         self.u = np.zeros(vehicle.n_rotors)  # the input applied last (Hz/s)
         self.planner_ms = 0.0
         self._x_prev: np.ndarray | None = None
-        self._last_fresh: tuple[float, np.ndarray, float] | None = None  # (time, position, yaw) of the last fresh state
         self._land_from: tuple[float, np.ndarray] | None = None
         F, _ = vehicle.allocation()
         self._thrust_per_speed2 = F
@@ -111,7 +111,7 @@ class RelayStepper:
     @property
     def has_state(self) -> bool:
         """Whether a fresh relay state has been stepped (a hold needs a place to hold)."""
-        return self._last_fresh is not None
+        return self._last_step is not None
 
     # -- the NMPC's step in two phases (ar.simulate calls them with its own measurements) ---------------
     def prepare(self, t: float, x: np.ndarray, source: SourceState, *, jammers=None,
@@ -161,7 +161,6 @@ class RelayStepper:
         if self.observer is not None and self._x_prev is not None:
             self.observer.update(self._x_prev, self.u, x)
         self._land_from = None
-        self._last_fresh = (t, x[0:3].copy(), float(x[5]))
         self._last_step = (t, x.copy())
         ref, P = self.prepare(t, x, source, jammers=jammers)
         info = self.act(x, P)
@@ -192,9 +191,10 @@ class RelayStepper:
 
     def _stale_command(self, t: float, t0: float) -> Command:
         """Hold where the relay last was (level, its last yaw); land straight down once the input stays stale."""
-        if self._last_fresh is None:
+        if self._last_step is None:
             raise ValueError("step: no relay state and source received yet (nothing to hold)")
-        since, p, yaw = self._last_fresh
+        since, x = self._last_step
+        p, yaw = x[0:3], float(x[5])
         mode, v = "hold", np.zeros(3)
         target = p.copy()
         if t - since > self.stale.land_after_s:

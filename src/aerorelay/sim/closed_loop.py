@@ -111,17 +111,19 @@ def relay_source_poses(scene: RadioScene, names: dict[str, str], x1: np.ndarray,
 
 
 def mission_row(veh: Multirotor, scene: RadioScene, t: float, x: np.ndarray, u: np.ndarray, p2, eta2, ref: Reference,
-                channel: ChannelState, misalignments: tuple[float, float], info: StepInfo, violation: bool) -> dict:
+                channel: ChannelState, p0: np.ndarray, info: StepInfo, violation: bool) -> dict:
     """One control step's log row by column name (``log_columns`` and the jammers' positions): the relay's
     state ``x`` and input ``u``, the source at ``p2`` / ``eta2``, the planner's reference, the ``channel``
-    and the relay's misalignments ``(v_12, v_10)``, the NMPC's step ``info``, the supervisor's ``violation``."""
+    and the relay's misalignments toward the source and the base station at ``p0`` (``v_12``, ``v_10``),
+    the NMPC's step ``info``, the supervisor's ``violation``."""
     g21, g10 = (float(g) for g in channel.sinr)
     jam_on = any(float(j.power_at(t)) > 0 for j in scene.jammers)
     nr = veh.n_rotors
     if x.shape != (veh.nx,) or u.shape != (nr,):
         raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
     omega, rates = rotor_columns(nr)
-    v12, v10 = misalignments
+    R1 = rotation_zyx(x[3:6])
+    v12, v10 = float(misalignment(x[0:3], R1, p2)), float(misalignment(x[0:3], R1, p0))
     row = {"t": t, **dict(zip(RELAY_STATE_COLUMNS, x[0:12], strict=True)), **dict(zip(omega, x[12 : 12 + nr], strict=True)),
            **dict(zip(rates, u, strict=True)), **dict(zip(SOURCE_COLUMNS, [*p2, *eta2], strict=True)),
            **dict(zip(REFERENCE_COLUMNS, ref.p_ref, strict=True)),
@@ -259,10 +261,10 @@ class ClosedLoop:
         nominal power, or the power actually radiated now when the controller senses the schedule."""
         return np.array([j.planned_power(t, self.settings.senses_jammer_state) for j in self.scene.jammers])
 
-    def _channel(self, t, x1, p2, eta2, v2) -> tuple[ChannelState, float, float]:
-        """True channel (the scene's antennas, jammer schedules, fading) and the relay's misalignments;
-        the relay's jammer readings and estimate when it estimates them."""
-        p1, R1 = x1[0:3], rotation_zyx(x1[3:6])
+    def _channel(self, t, x1, p2, eta2, v2) -> ChannelState:
+        """True channel (the scene's antennas, jammer schedules, fading); the relay's jammer readings and
+        estimate when it estimates them."""
+        p1 = x1[0:3]
         poses = relay_source_poses(self.scene, self.names, x1, p2, eta2)
         fade, self._noise_values = None, {}
         positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]: self._bs_position}
@@ -277,7 +279,7 @@ class ClosedLoop:
         if self.sensing is not None:
             bs = self.names["base_station"]
             self._noise_values = {**self._noise_values, **self.sensing.step(t, state, {**poses, bs: self.scene.fixed_pose(bs)})}
-        return state, float(misalignment(p1, R1, p2)), float(misalignment(p1, R1, self._bs_position))
+        return state
 
     def _oracle_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray, None]:
         return self._measured_jammers(t), self._planned_jammer_powers(t), None
@@ -319,10 +321,10 @@ class ClosedLoop:
                     self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
                 info = self.stepper.act(x, P)
                 u = info.u
-                channel, v12, v10 = self._channel(t, x, src.p, eta2, src.v)
+                channel = self._channel(t, x, src.p, eta2, src.v)
                 self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,
                                                self.sensing.last_ms if self.sensing else 0.0))
-                self._record(log, k, t, x, u, src.p, eta2, ref, channel, v12, v10, info)
+                self._record(log, k, t, x, u, src.p, eta2, ref, channel, info)
                 d = np.concatenate([self.process_rng.normal(0.0, st.process_noise_v, 3),
                                     self.process_rng.normal(0.0, st.process_noise_w, 3)])
                 x = self.air.advance(self.names["relay"], x, u, d) if self.air else np.asarray(self.plant(x, u, d)).ravel()
@@ -338,8 +340,8 @@ class ClosedLoop:
                              controller=self.nmpc.settings.fingerprint(), fallback_episodes=self.controller.fallback_episodes,
                              aborted=aborted)
 
-    def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, v12: float, v10: float, info: StepInfo):
-        row = mission_row(self.veh, self.scene, t, x, u, p2, eta2, ref, channel, (v12, v10), info,
+    def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, info: StepInfo):
+        row = mission_row(self.veh, self.scene, t, x, u, p2, eta2, ref, channel, self._bs_position, info,
                           bool(self.controller.last_violations))
         row.update(self._noise_values)
         if self.air is not None:

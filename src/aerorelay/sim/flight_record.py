@@ -19,17 +19,16 @@ import numpy as np
 from ..control.nmpc import StepInfo
 from ..flight.stepper import Command
 from ..flight.stepper import SourceState as KnownSource
-from ..models.channel import misalignment
-from ..models.geometry import rotation_zyx
 from ..models.mission import SourceState
 from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
+from .air import AXES
 from .closed_loop import LOG_COLUMN_TYPES, MissionResult, jammer_columns, log_columns, mission_row, relay_source_poses
 
 FLIGHT_COLUMNS = ("flight_mode", "compute_ms", "deadline_met", "state_age_s")
 FLIGHT_COLUMN_TYPES: dict[str, type] = {**LOG_COLUMN_TYPES, "flight_mode": str, "deadline_met": bool}
-OBSERVER_COLUMNS = ("a_ext_x", "a_ext_y", "a_ext_z")
+OBSERVER_COLUMNS = tuple(f"a_ext_{a}" for a in AXES)  # the observer's estimate, named as sim/air.py logs it
 
 
 class FlightRecorder:
@@ -51,14 +50,12 @@ class FlightRecorder:
         src = SourceState(np.asarray(source.p, float), np.asarray(source.v, float), np.asarray(source.a, float))
         eta2 = src.attitude(self.vehicle.gravity)
         channel = self.scene.evaluate(t, relay_source_poses(self.scene, self.names, x, src.p, eta2))
-        R1 = rotation_zyx(x[3:6])
-        misalignments = (float(misalignment(x[0:3], R1, src.p)), float(misalignment(x[0:3], R1, self._p0)))
         ref, info = cmd.reference, cmd.info
         if ref is None or info is None:  # the failsafe flew: its target is the reference, no QP
             ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
             info = StepInfo(u=np.zeros(self.vehicle.n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
                             feedback_ms=cmd.compute_ms, slack_max=0.0)
-        row = mission_row(self.vehicle, self.scene, t, x, info.u, src.p, eta2, ref, channel, misalignments, info,
+        row = mission_row(self.vehicle, self.scene, t, x, info.u, src.p, eta2, ref, channel, self._p0, info,
                           violation and cmd.mode in ("nmpc", "fallback"))
         row |= {"flight_mode": cmd.mode, "compute_ms": cmd.compute_ms, "deadline_met": cmd.deadline_met,
                 "state_age_s": state_age_s}
