@@ -43,6 +43,7 @@ from .experiments.run import RunResult, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
 from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, RotorpyQuadrotor, still_air
+from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.sources import MavlinkSource
@@ -177,6 +178,7 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     aborted = None
     try:
         bridge.run(sc.duration_s if duration_s is None else duration_s)
+        aborted = bridge.ended
     except KeyboardInterrupt:
         aborted = "interrupted (Ctrl-C): the vehicle was asked to hold"
         raise
@@ -189,20 +191,27 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
 def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: Path | None = None, **names: str):
     """Run the relay's controller as a ROS 2 node (``spin``: ``flight.ros_node.spin``, the optional extra,
     imported by the caller) until ``duration_s``; ``out``: the flight's run folder (as ``fly`` writes it,
-    without ``flight.parquet``), written on Ctrl-C too. Returns the node."""
+    without ``flight.parquet``), written on Ctrl-C too. Returns the node and the flight's result (its
+    metrics say whether it was safe; None when nothing was flown)."""
     if out is not None:
         check_output_folder(out, "run")
     ctrl = controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
-    recording = _flight.Recording(sc, ctrl, out, views=write_run_views) if out is not None else None
-    aborted = None
+    recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
+    aborted, node, result = None, None, None
     try:
-        return spin(ctrl, build_scene(sc), duration_s, on_step=recording.hook if recording else None, **names)
+        node = spin(ctrl, build_scene(sc), duration_s, on_step=recording.hook, **names)
     except KeyboardInterrupt:
         aborted = "interrupted (Ctrl-C)"
         raise
     finally:
-        if recording is not None:
-            recording.finish(None, aborted)
+        result = recording.finish(None, aborted)
+    return node, result
+
+
+def check_mavlink_url(url: str, option: str = "MAVLink URL") -> None:
+    """A named error (ValueError naming ``option``) for a MAVLink URL that cannot be opened as meant
+    (``flight.mavlink.check_url``: its form, the port's range, a port to listen on that is in use)."""
+    check_url(url, option)
 
 
 def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> CapacityBound | NetworkBound:

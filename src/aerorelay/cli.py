@@ -13,6 +13,7 @@ from rich.table import Table
 
 from . import api
 from .api import CampaignBusyError, OutputBusyError, OutputError, Scenario, ScenarioError, StudyError, load_scenario
+from .flight.names import check_ros_namespace
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
 console = Console()
@@ -58,6 +59,22 @@ def _fail(message: str) -> NoReturn:
 
     err_console.print(f"[bold red]error[/] {escape(message)}", highlight=False)
     raise typer.Exit(EXIT_BAD_INPUT)
+
+
+def _check_duration(duration: float | None) -> None:
+    """``--duration`` of a flight or a vehicle: None (the default) or a finite number of seconds > 0."""
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        _fail(f"--duration must be a finite number of seconds > 0, got {duration:g}")
+
+
+def _check_url(url: str | None, option: str) -> None:
+    """A MAVLink URL option checked before anything is contacted (form, port range, a port in use)."""
+    if url is None:
+        return
+    try:
+        api.check_mavlink_url(url, option)
+    except ValueError as exc:
+        _fail(str(exc))
 
 
 SET_HELP = "override a scenario field, e.g. --set controller.mu=0.3 (repeatable; values in TOML syntax)"
@@ -549,6 +566,8 @@ def sitl(
     plant under a multirotor autopilot's cascade, or RotorPy's quadrotor; or, with --source, the inspection drone.
     For tests and demos of `aerorelay fly`: it tests the protocol, not PX4."""
     sc = _load_or_exit(scenario)
+    _check_duration(duration)
+    _check_url(listen, "--listen")
     if airframe not in ("pointmass", "plant", "rotorpy"):
         _fail(f"--airframe must be pointmass, plant or rotorpy, got {airframe!r}")
     frame = api.plant_airframe(sc) if airframe == "plant" else None
@@ -590,6 +609,9 @@ def fly(
     sc = _load_or_exit(scenario)
     if setpoint not in ("position", "attitude"):
         _fail(f"--setpoint must be position or attitude, got {setpoint!r}")
+    _check_duration(duration)
+    _check_url(mavlink, "--mavlink")
+    _check_url(source_mavlink, "--source-mavlink")
     try:
         origin = tuple(float(v) for v in source_origin.split(","))
     except ValueError:
@@ -597,17 +619,25 @@ def fly(
     if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
         _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
     try:
-        _, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
+        result, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
                         source_system=source_system, source_origin=origin)
-    except (TimeoutError, OutputError, ScenarioError) as exc:
+    except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
         console.print("interrupted: the vehicle was asked to hold" + (f"; the flight is in {out}" if out else ""),
                       markup=False, highlight=False)
         return
-    flown = df[df["mode"] != "stream"] if len(df) else df
+    flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
     console.print(f"{len(flown)} control periods flown ({int((flown['mode'] == 'nmpc').sum()) if len(flown) else 0} by the NMPC)"
                   + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
+    _exit_if_unsafe(result)
+
+
+def _exit_if_unsafe(result) -> None:
+    """Exit 3 (as ``run`` does) when a flight's metrics say it was unsafe or ended early, naming why."""
+    if result is not None and result.metrics.get("unsafe"):
+        err_console.print(f"[bold red]unsafe flight[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
+        raise typer.Exit(EXIT_UNSAFE)
 
 
 @app.command()
@@ -624,18 +654,24 @@ def ros(
     the link state every control period."""
     sc = _load_or_exit(scenario)
     try:
+        relay, source = check_ros_namespace(relay, "--relay"), check_ros_namespace(source, "--source")
+    except ValueError as exc:
+        _fail(str(exc))
+    _check_duration(duration)
+    try:
         from .flight import ros_node  # the optional extra: imported only here
     except ImportError as exc:
         _fail(f"the ROS 2 node needs the ros extra (pip install 'aerorelay[ros]'): {exc}")
     console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
     try:
-        node = api.ros(sc, ros_node.spin, duration, out=out, relay=relay, source=source)
+        node, result = api.ros(sc, ros_node.spin, duration, out=out, relay=relay, source=source)
     except OutputError as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
         return
     console.print(f"{len(node.commands)} control periods stepped" + (f"; run folder: {out}" if out else ""),
                   markup=False, highlight=False)
+    _exit_if_unsafe(result)
 
 
 if __name__ == "__main__":  # pragma: no cover

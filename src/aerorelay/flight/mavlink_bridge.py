@@ -11,24 +11,32 @@ one): SET_POSITION_TARGET_LOCAL_NED with velocity and acceleration feed-forward
 thrust is a fraction of full throttle: the controller's thrust over hover times ``hover_throttle``).
 Until the vehicle reports OFFBOARD the bridge streams a hold where the vehicle is (the proof of life
 PX4 wants) and the controller does not run; the mission's clock starts when OFFBOARD is entered.
-When telemetry goes stale the controller's hold setpoint is sent and the vehicle is asked for a hold
-(AUTO.LOITER); ``hand_back()`` (on Ctrl-C) does the same.
+When telemetry goes stale or is not trusted (``flight.stepper.TelemetryCheck``: non-finite, stamped
+ahead of the clock or backwards, a jump no vehicle can make) the controller's hold setpoint is sent and
+the vehicle is asked for a hold (AUTO.LOITER); while it holds the controller does not run and no
+period is logged as flown by it. Once telemetry has been good for PX4's 1 s of streamed setpoints the
+bridge asks for OFFBOARD again (every second, ``OFFBOARD_RETRIES`` times at most, then the flight
+ends). Input that stays bad for ``land_after_s`` asks the vehicle to land (AUTO.LAND) and ends the
+flight; a vehicle that leaves OFFBOARD without the bridge asking (a pilot, a failsafe, another ground
+station) ends it too: the bridge never fights a mode change it did not make. ``ended`` says why a
+flight ended early. ``hand_back()`` (on Ctrl-C) asks for a hold. Only the vehicle's own system and
+component are read (telemetry from any other system on the link is ignored and counted).
 
-The NMPC's state: ``flight.commanded`` (position and velocity measured, the rotor speeds last
-commanded, the NMPC's own planned attitude standing in for the autopilot's attitude loop).
+The NMPC's state, the first step's gating and the telemetry check: ``flight.autopilot_loop`` (shared
+with the ROS 2 node); this module converts messages and keeps PX4's mode rules.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..models.mission import SourceTrajectory
-from .commanded import CommandedState
+from .autopilot_loop import AutopilotLoop, Measured, StepHook, rotation_from_quaternion
 from .frames import (
     enu_to_ned,
     euler_zyx,
@@ -41,14 +49,13 @@ from .frames import (
     rotation_ned_frd_to_enu_flu,
     yaw_enu_to_ned,
 )
-from .mavlink import MAV, connect
-from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE
+from .mavlink import MAV, connect, drain
+from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE, mode_name
 from .sources import MavlinkSource, MissionSource
 from .stepper import Command, RelayStepper, SourceState
 
-# called every control period in OFFBOARD: (mission time s, the relay's measured state, the command,
-# the source as the relay knew it, the state's age s)
-StepHook = Callable[[float, np.ndarray, Command, SourceState, float], None]
+log = logging.getLogger(__name__)
+
 
 
 @dataclass
@@ -64,6 +71,10 @@ class BridgeState:
     armed: bool = False
     custom_mode: int = 0
     acks: list[tuple[int, int]] = field(default_factory=list)
+    foreign: int = 0  # telemetry messages from another system or component, ignored
+
+
+OFFBOARD_RETRIES = 5  # OFFBOARD asked again after a hold at most this many times (once a second) before the flight ends
 
 
 class OffboardBridge:
@@ -81,14 +92,18 @@ class OffboardBridge:
         self.link = connect(url, system=system, component=190)
         self.stepper, self.arm, self.setpoint, self.hover_throttle = stepper, arm, setpoint, hover_throttle
         self.source = MissionSource(source) if isinstance(source, SourceTrajectory) else source
-        self.commanded = CommandedState(hover_speeds, measured_attitude=measured_attitude)  # the NMPC's state
+        # the NMPC's state, the first step's gating, the telemetry check and the recording hook
+        self.loop = AutopilotLoop(stepper, measured_attitude=measured_attitude, on_step=on_step, hover_speeds=hover_speeds)
         self.state = BridgeState()
         self.t0: float | None = None  # when streaming began (bridge time)
         self.mission_t0: float | None = None  # when the vehicle entered OFFBOARD: the mission's clock starts
         self.requested: set[str] = set()
         self.log: list[dict] = []
         self.target = (1, 1)
-        self.on_step = on_step
+        self.phase = "stream"  # stream (before OFFBOARD), offboard, held (the bridge asked for a hold), ended
+        self.ended: str | None = None  # why the flight ended early (None: it did not)
+        self._good_since: float | None = None  # in a hold: since when telemetry has been good (bridge time)
+        self._offboard_asks: list[float] = []  # when OFFBOARD was asked again after a hold (bridge time)
 
     def announce(self) -> None:
         """A GCS heartbeat (a vehicle listening with ``udpin`` learns where to answer)."""
@@ -118,33 +133,46 @@ class OffboardBridge:
 
     def _read(self, t: float) -> None:
         st = self.state
-        while (msg := self.link.recv_match(blocking=False)) is not None:
+        for msg in drain(self.link):
             kind = msg.get_type()
+            if kind in ("LOCAL_POSITION_NED", "ODOMETRY", "ATTITUDE_QUATERNION", "COMMAND_ACK") and \
+                    (msg.get_srcSystem(), msg.get_srcComponent()) != self.target:
+                st.foreign += 1  # another system on the link (a second vehicle, a replayed log): never the relay
+                continue
             if kind == "LOCAL_POSITION_NED":
                 st.position, st.velocity = ned_to_enu([msg.x, msg.y, msg.z]), ned_to_enu([msg.vx, msg.vy, msg.vz])
                 st.received_at = t
             elif kind == "ODOMETRY" and msg.frame_id == MAV.MAV_FRAME_LOCAL_NED:  # pose and twist in one message
-                R_ned = matrix_from_wxyz(msg.q)  # body FRD to NED
+                R_ned = rotation_from_quaternion(msg.q)  # body FRD to NED (NaN for a quaternion that is not one)
                 v = np.array([msg.vx, msg.vy, msg.vz])
                 st.position, st.R = ned_to_enu([msg.x, msg.y, msg.z]), rotation_ned_frd_to_enu_flu(R_ned)
                 st.velocity = ned_to_enu(R_ned @ v if msg.child_frame_id == MAV.MAV_FRAME_BODY_FRD else v)
                 st.rates = frd_to_flu([msg.rollspeed, msg.pitchspeed, msg.yawspeed])
                 st.received_at = t
             elif kind == "ATTITUDE_QUATERNION":
-                st.R = rotation_ned_frd_to_enu_flu(matrix_from_wxyz([msg.q1, msg.q2, msg.q3, msg.q4]))
+                st.R = rotation_ned_frd_to_enu_flu(rotation_from_quaternion([msg.q1, msg.q2, msg.q3, msg.q4]))
                 st.rates = frd_to_flu([msg.rollspeed, msg.pitchspeed, msg.yawspeed])
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == self.target[0]:
                 self._heartbeat(msg)
             elif kind == "COMMAND_ACK":
                 st.acks.append((int(msg.command), int(msg.result)))
 
-    def measured_state(self) -> np.ndarray | None:
-        """The relay's state as its telemetry reports it (attitude and rates measured; the rotor speeds
-        last commanded); None before telemetry."""
+    @property
+    def on_step(self) -> StepHook | None:
+        """Called with every control period flown in OFFBOARD on trusted telemetry (a recorder)."""
+        return self.loop.on_step
+
+    @on_step.setter
+    def on_step(self, hook: StepHook | None) -> None:
+        self.loop.on_step = hook
+
+    def measured(self, clock_offset: float) -> Measured | None:
+        """The relay as its telemetry reports it, stamped on a clock ``clock_offset`` s after the bridge's
+        (the mission's); None before telemetry."""
         st = self.state
         if st.position is None or st.R is None or st.velocity is None:
             return None
-        return self.commanded.measured(st.position, st.R, st.velocity, st.rates)
+        return Measured(st.position, st.R, st.velocity, st.rates, st.received_at - clock_offset)
 
     @property
     def offboard(self) -> bool:
@@ -167,15 +195,24 @@ class OffboardBridge:
     def tick(self, t: float) -> Command | None:
         """One control period at bridge time ``t`` (s): read; before OFFBOARD stream a hold where the
         vehicle is and ask (arm if told, then OFFBOARD) once the stream is 1 s old; in OFFBOARD step the
-        controller and send its setpoint (a hold when telemetry is stale). None while streaming."""
+        controller and send its setpoint (a hold when telemetry is stale or not trusted, and the vehicle
+        asked to hold); in a hold the controller's hold setpoint, OFFBOARD asked again once telemetry is
+        good (see the module). None while streaming and once the flight ended."""
         self._read(t)
+        return self._period(t)
+
+    def _period(self, t: float) -> Command | None:
+        """``tick`` once this period's messages are read."""
         if self.state.position is None:
             raise RuntimeError("tick: no telemetry from the vehicle yet (LOCAL_POSITION_NED or ODOMETRY)")
         if self.t0 is None:
             self.t0 = t
-        if self.mission_t0 is None and self.offboard:
-            self.mission_t0 = t
-        if self.mission_t0 is None:
+        if self.phase == "ended":
+            self._row(t, "ended")
+            return None
+        if self.phase == "stream" and self.offboard:
+            self.mission_t0, self.phase = t, "offboard"
+        if self.phase == "stream":
             self.source.known(t, 0.0)  # a second MAVLink system hears the bridge and starts reporting
             self._send_hold(self.state.position, t)
             if t - self.t0 >= OFFBOARD_PROOF_S + 0.1:  # PX4's rule: stream first, then ask
@@ -184,26 +221,68 @@ class OffboardBridge:
                     self.requested.add("ARM")
                 if "OFFBOARD" not in self.requested and (self.state.armed or not self.arm):
                     self.request_mode("OFFBOARD")
-            self.log.append({"t": t, "mode": "stream", "x": None, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
+            self._row(t, "stream")
             return None
+        assert self.mission_t0 is not None
         tm = t - self.mission_t0  # the mission's clock
         src = self.source.known(t, tm)
-        stale = self.stepper.stale.hold_after_s
-        if not self.stepper.has_state and (t - self.state.received_at > stale or src is None or tm - (src.stamp or tm) > stale):
-            self._send_hold(self.state.position, t)  # no fresh telemetry or source yet: keep the stream alive where it is
+        relay = self.measured(self.mission_t0)
+        if self.phase == "offboard" and not self.offboard:
+            return self._end(t, f"the vehicle left OFFBOARD for {mode_name(self.state.custom_mode)} at mission time {tm:.2f} s "
+                                "without the bridge asking (a pilot, a failsafe or another ground station): the flight ends")
+        if self.phase == "held":
+            return self._held(t, tm, relay, src)
+        cmd = self.loop.tick(tm, relay, src)
+        if cmd is None:
+            self._send_hold(self.state.position, t)  # no trusted telemetry or source yet: keep the stream alive where it is
+            self._row(t, "wait", rejected=self.loop.waiting)
             return None
-        measured = self.measured_state()
-        x = None if measured is None else self.commanded.for_nmpc(measured)
-        cmd = self.stepper.step(tm, x, src, state_stamp=self.state.received_at - self.mission_t0)
-        if self.on_step is not None and measured is not None and src is not None:
-            self.on_step(tm, measured, cmd, src, t - self.state.received_at)
-        self.commanded.commanded(cmd)
         self._send(cmd, t)
-        if cmd.mode in ("hold", "land") and "AUTO.LOITER" not in self.requested:
+        if cmd.mode in ("hold", "land"):
             self.hand_back()
-        self.log.append({"t": t, "mode": cmd.mode, "x": None if x is None else x.copy(), "compute_ms": cmd.compute_ms,
-                         "deadline_met": cmd.deadline_met, "armed": self.state.armed, "custom_mode": self.state.custom_mode})
+            self.phase, self._good_since = "held", None
+        self._row(t, cmd.mode, x=self.loop.states(relay)[1], cmd=cmd)
         return cmd
+
+    def _held(self, t: float, tm: float, relay: Measured | None, src: SourceState | None) -> Command | None:
+        """A period in the hold the bridge asked for: the controller's hold (or landing) setpoint keeps the
+        stream alive; OFFBOARD asked again once telemetry has been good for PX4's proof time; land and end
+        when the input stays bad."""
+        if self.offboard and self._offboard_asks:  # the vehicle took OFFBOARD back: the controller flies again
+            self.phase = "offboard"
+            self.loop.reset()
+            self._offboard_asks.clear()
+            return self._period(t)
+        problem = self.loop.problem(tm, relay, src)
+        self._good_since = (self._good_since if self._good_since is not None else t) if problem is None else None
+        cmd = self.stepper.step(tm, None, None)  # the hold (then the landing) where the relay last was trusted
+        self._send(cmd, t)
+        if cmd.mode == "land":
+            self.request_mode("AUTO", "LAND")
+            return self._end(t, f"telemetry stale or not trusted for {self.stepper.stale.land_after_s:g} s "
+                                f"({problem or 'stale'}): the vehicle was asked to land", cmd)
+        if self._good_since is not None and t - self._good_since >= OFFBOARD_PROOF_S and \
+                (not self._offboard_asks or t - self._offboard_asks[-1] >= 1.0):
+            if len(self._offboard_asks) >= OFFBOARD_RETRIES:
+                return self._end(t, f"the vehicle did not take OFFBOARD back after {OFFBOARD_RETRIES} requests: the flight ends", cmd)
+            self.request_mode("OFFBOARD")
+            self._offboard_asks.append(t)
+        self._row(t, cmd.mode, cmd=cmd, rejected=problem)
+        return cmd
+
+    def _end(self, t: float, why: str, cmd: Command | None = None) -> Command | None:
+        """End the flight (``ended`` says why): logged, and the period's command (if one was sent) returned."""
+        log.warning("flight ended: %s", why)
+        self.phase, self.ended = "ended", why
+        self._row(t, "ended", cmd=cmd)
+        return cmd
+
+    def _row(self, t: float, mode: str, *, x: np.ndarray | None = None, cmd: Command | None = None, rejected: str | None = None) -> None:
+        why = rejected if rejected is not None else (cmd.rejected if cmd is not None else None)
+        self.log.append({"t": t, "mode": mode, "x": None if x is None else x.copy(),
+                         "compute_ms": cmd.compute_ms if cmd is not None else math.nan,
+                         "deadline_met": cmd.deadline_met if cmd is not None else None, "armed": self.state.armed,
+                         "custom_mode": self.state.custom_mode, "rejected": why or ""})
 
     def _send_position(self, t: float, p, v, a, yaw_enu: float) -> None:
         """SET_POSITION_TARGET_LOCAL_NED from ENU position (m), velocity (m/s), acceleration (m/s^2), yaw (rad)."""
@@ -242,7 +321,7 @@ class OffboardBridge:
         start = time.monotonic()
         try:
             k = 0
-            while k * period < duration_s:
+            while k * period < duration_s and self.phase != "ended":
                 self.tick(time.monotonic() - start)
                 k += 1
                 time.sleep(max(0.0, start + k * period - time.monotonic()))

@@ -8,7 +8,7 @@ What flies is an airframe with its own autopilot (``flight.airframes``): an idea
 default: it tests the protocol, the frames, the rates and the timeouts) or RotorPy's quadrotor (an
 independent simulator with its own position and attitude loops). In OFFBOARD it flies the last
 position or attitude target; in a hold (also POSCTL with the sticks centred) it stays where it
-entered it; disarmed it sits. It tests our bridge against our PX4 subset, **not PX4**.
+entered it; in AUTO.LAND it descends from there at 0.5 m/s to z = 0; disarmed it sits. It tests our bridge against our PX4 subset, **not PX4**.
 ``step(dt)`` advances it by ``dt`` (lockstep: the caller owns time); ``run_realtime`` steps it on
 the wall clock.
 """
@@ -32,8 +32,10 @@ from .frames import (
     rotation_ned_frd_to_enu_flu,
     yaw_ned_to_enu,
 )
-from .mavlink import MAV, connect
-from .px4 import OFFBOARD_LOSS_S, OFFBOARD_MIN_RATE_HZ, OFFBOARD_PROOF_S, PX4_MAIN_MODE, custom_mode
+from .mavlink import MAV, connect, drain
+from .px4 import OFFBOARD_LOSS_S, OFFBOARD_MIN_RATE_HZ, OFFBOARD_PROOF_S, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE, custom_mode
+
+LAND_SPEED_M_S = 0.5  # AUTO.LAND's descent (PX4's MPC_LAND_SPEED default)
 
 
 @dataclass
@@ -74,6 +76,8 @@ class MavlinkVehicle:
             return custom_mode("OFFBOARD")
         if self.mode == "HOLD":
             return custom_mode("AUTO", "LOITER")
+        if self.mode == "LAND":
+            return custom_mode("AUTO", "LAND")
         return custom_mode("POSCTL")
 
     def _proof_of_life(self) -> bool:
@@ -103,7 +107,8 @@ class MavlinkVehicle:
                     return
                 self.mode = "OFFBOARD"
             elif main == PX4_MAIN_MODE["AUTO"]:
-                self.mode, self.hold_point = "HOLD", self.airframe.p.copy()
+                land = int(msg.param3) == PX4_AUTO_SUB_MODE["LAND"]
+                self.mode, self.hold_point = "LAND" if land else "HOLD", self.airframe.p.copy()
             else:
                 self.mode = "POSCTL"
             self._ack(msg.command, MAV.MAV_RESULT_ACCEPTED)
@@ -111,7 +116,7 @@ class MavlinkVehicle:
             self._ack(msg.command, MAV.MAV_RESULT_UNSUPPORTED)
 
     def _receive(self) -> None:
-        while (msg := self.link.recv_match(blocking=False)) is not None:
+        for msg in drain(self.link):
             self.heard = True
             kind = msg.get_type()
             if kind == "COMMAND_LONG":
@@ -151,6 +156,8 @@ class MavlinkVehicle:
         self._receive()
         if self.mode == "OFFBOARD" and (not self.setpoint_times or self.t - self.setpoint_times[-1] > OFFBOARD_LOSS_S):
             self.mode, self.hold_point = "HOLD", self.airframe.p.copy()  # offboard lost: PX4 holds
+        if self.mode == "LAND":  # AUTO.LAND: straight down at LAND_SPEED_M_S to z = 0
+            self.hold_point[2] = max(0.0, self.hold_point[2] - LAND_SPEED_M_S * dt)
         self.airframe.fly(self._target(), self.t, dt)
         self.t += dt
         self._send_due()

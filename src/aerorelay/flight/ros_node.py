@@ -6,9 +6,12 @@ in the child (body) frame as REP 105 has it); every control period steps the con
 (``flight.stepper``) and publishes ``/<relay>/setpoint`` (``trajectory_msgs/MultiDOFJointTrajectory``,
 one point: the position and attitude one period ahead, the velocity and body rates, the
 acceleration) and ``/<relay>/link`` (``std_msgs/Float64MultiArray``: the end-to-end capacity and each
-hop's SINR at the measured poses, the jammers as the relay was told them). Stale odometry holds, then
-lands, as the step API does. The NMPC's state is ``flight.commanded``'s (the rotor speeds last
-commanded, its own planned attitude for the autopilot's attitude loop); ``on_step`` gets every step
+hop's SINR at the measured poses in the scenario's radio scene). Stale odometry holds, then lands,
+as the step API does; odometry that cannot be trusted (non-finite, a quaternion far from unit norm,
+stamped ahead of the clock or backwards, a jump no vehicle can make) is held as stale and logged with
+why; unstamped odometry (``header.stamp`` zero) is never fresh, and the node says so. The NMPC's
+state, the first step's gating, the telemetry check and the source's acceleration (from its
+velocity) are ``flight.autopilot_loop``'s, as for the MAVLink bridge; ``on_step`` gets every step
 with the measured state (a ``sim.flight_record`` recorder: ``aerorelay ros --out``).
 """
 
@@ -23,10 +26,11 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from ..models.radio import RadioScene
-from .commanded import CommandedState
-from .frames import matrix_from_wxyz
-from .mavlink_bridge import StepHook
+from .autopilot_loop import AccelerationFilter, AutopilotLoop, Measured, StepHook, rotation_from_quaternion
+from .names import check_ros_namespace
 from .stepper import Command, RelayStepper, SourceState
+
+WARN_EVERY_S = 2.0  # how often the node repeats why it is not flying
 
 
 def _seconds(stamp) -> float:
@@ -38,10 +42,12 @@ class RelayNode(Node):
 
     def __init__(self, stepper: RelayStepper, scene: RadioScene, *, relay: str = "relay", source: str = "source",
                  on_step: StepHook | None = None):
-        super().__init__(f"aerorelay_{relay}")
-        self.stepper, self.scene, self.relay, self.source, self.on_step = stepper, scene, relay, source, on_step
+        relay, source = check_ros_namespace(relay, "--relay"), check_ros_namespace(source, "--source")
+        super().__init__(f"aerorelay_{relay.replace('/', '_')}")
+        self.stepper, self.scene, self.relay, self.source = stepper, scene, relay, source
         self.names = {role: scene.name_of(role) for role in ("relay", "source")}
-        self.commanded = CommandedState(stepper.vehicle.hover_speeds())
+        self.loop = AutopilotLoop(stepper, on_step=on_step)
+        self.source_accel = AccelerationFilter()
         self.odom: dict[str, Odometry] = {}
         # depth 1: only the latest odometry matters (a backlog would hand the controller stale states)
         self.create_subscription(Odometry, f"/{relay}/odom", lambda m: self.odom.__setitem__("relay", m), 1)
@@ -50,39 +56,52 @@ class RelayNode(Node):
         self.link = self.create_publisher(Float64MultiArray, f"/{relay}/link", 10)
         self.t0: float | None = None
         self.commands: list[Command] = []
+        self.rejected: list[tuple[float, str]] = []  # (time s, why) of every step whose odometry was not trusted
+        self._warned_at = -float("inf")
         self.timer = self.create_timer(stepper.period, self.tick)
 
-    def _state(self, m: Odometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (m), rotation body to world, world velocity (m/s) and body rates (rad/s) of an odometry."""
+    def _state(self, m: Odometry, t0: float) -> Measured:
+        """An odometry as aerorelay's measurement: position (m), rotation body to world, world velocity
+        (m/s; REP 105's twist is in the body frame), body rates (rad/s), stamped on the node's clock."""
         p, q = m.pose.pose.position, m.pose.pose.orientation
-        R = matrix_from_wxyz([q.w, q.x, q.y, q.z])
+        R = rotation_from_quaternion([q.w, q.x, q.y, q.z])
         v_body = np.array([m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z])
         w = np.array([m.twist.twist.angular.x, m.twist.twist.angular.y, m.twist.twist.angular.z])
-        return np.array([p.x, p.y, p.z]), R, np.concatenate([R @ v_body, w])
+        stamp = _seconds(m.header.stamp)
+        return Measured(np.array([p.x, p.y, p.z]), R, R @ v_body, w, stamp - t0 if stamp > 0 else -float("inf"))
+
+    def _warn(self, t: float, why: str) -> None:
+        if t - self._warned_at >= WARN_EVERY_S:
+            self.get_logger().warning(why)
+            self._warned_at = t
 
     def tick(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
-        if "relay" not in self.odom or "source" not in self.odom:
-            return
         if self.t0 is None:
             self.t0 = now
         t = now - self.t0
-        stamp = _seconds(self.odom["relay"].header.stamp) - self.t0
-        if not self.stepper.has_state and t - stamp > self.stepper.stale.hold_after_s:
-            return  # nothing fresh yet and nothing to hold: wait for a fresh odometry
-        p1, R1, vw1 = self._state(self.odom["relay"])
-        p2, R2, vw2 = self._state(self.odom["source"])
-        src = SourceState(p2, vw2[0:3], np.zeros(3), stamp=_seconds(self.odom["source"].header.stamp) - self.t0)
-        measured = self.commanded.measured(p1, R1, vw1[0:3], vw1[3:6])
-        cmd = self.stepper.step(t, self.commanded.for_nmpc(measured), src, state_stamp=stamp)
-        self.commanded.commanded(cmd)
+        relay = self._state(self.odom["relay"], self.t0) if "relay" in self.odom else None
+        src_m = self._state(self.odom["source"], self.t0) if "source" in self.odom else None
+        for m, topic in ((relay, self.relay), (src_m, self.source)):
+            if m is not None and m.stamp == -float("inf"):
+                self._warn(t, f"odometry on /{topic}/odom is unstamped (header.stamp = 0): it is never fresh; stamp it "
+                              "with the time it was measured")
+        src = None
+        if src_m is not None:
+            src = SourceState(src_m.p, src_m.v, self.source_accel.update(src_m.stamp, src_m.v), stamp=src_m.stamp)
+        cmd = self.loop.tick(t, relay, src)
+        if cmd is None:
+            self._warn(t, f"not flying yet: {self.loop.waiting} (/{self.relay}/odom, /{self.source}/odom)")
+            return
+        if cmd.rejected is not None:
+            self.rejected.append((t, cmd.rejected))
+            self._warn(t, f"odometry not trusted, holding: {cmd.rejected}")
         self.commands.append(cmd)
-        if self.on_step is not None:
-            self.on_step(t, measured, cmd, src, t - stamp)
         self.setpoints.publish(self._trajectory(cmd))
-        state = self.scene.evaluate(t, {self.names["relay"]: self.scene.pose(self.names["relay"], p1, R1),
-                                        self.names["source"]: self.scene.pose(self.names["source"], p2, R2)})
-        self.link.publish(Float64MultiArray(data=[float(state.capacity), *(float(g) for g in state.sinr)]))
+        if relay is not None and src_m is not None and cmd.rejected is None and np.all(np.isfinite(src_m.R)):
+            state = self.scene.evaluate(t, {self.names["relay"]: self.scene.pose(self.names["relay"], relay.p, relay.R),
+                                            self.names["source"]: self.scene.pose(self.names["source"], src_m.p, src_m.R)})
+            self.link.publish(Float64MultiArray(data=[float(state.capacity), *(float(g) for g in state.sinr)]))
 
     def _trajectory(self, cmd: Command) -> MultiDOFJointTrajectory:
         msg = MultiDOFJointTrajectory()

@@ -18,8 +18,9 @@ import math
 import numpy as np
 
 from ..models.mission import SourceTrajectory
+from .autopilot_loop import AccelerationFilter
 from .frames import ned_to_enu
-from .mavlink import MAV, connect
+from .mavlink import MAV, connect, drain
 from .stepper import SourceState
 
 GCS_HEARTBEAT_S = 1.0  # how often the bridge announces itself on the source's link once it is heard
@@ -41,11 +42,9 @@ class MavlinkSource:
     (None: any system that sends LOCAL_POSITION_NED on that link)."""
 
     def __init__(self, url: str, *, system: int | None = None, origin_enu=(0.0, 0.0, 0.0), accel_time_constant_s: float = 0.1):
-        if accel_time_constant_s <= 0:
-            raise ValueError(f"accel_time_constant_s must be > 0 s, got {accel_time_constant_s}")
+        self.accel = AccelerationFilter(accel_time_constant_s)
         self.link = connect(url, system=255, component=191)
         self.system, self.origin = system, np.asarray(origin_enu, float)
-        self.tau = accel_time_constant_s
         self.p: np.ndarray | None = None
         self.v = np.zeros(3)
         self.a = np.zeros(3)
@@ -61,13 +60,11 @@ class MavlinkSource:
 
     def poll(self, t: float) -> None:
         """Read what arrived by bridge time ``t`` (s)."""
-        while (msg := self.link.recv_match(type="LOCAL_POSITION_NED", blocking=False)) is not None:
+        for msg in drain(self.link, "LOCAL_POSITION_NED"):
             if self.system is not None and msg.get_srcSystem() != self.system:
                 continue
             v = ned_to_enu([msg.vx, msg.vy, msg.vz])
-            if self.p is not None and t > self.received_at:
-                dt = t - self.received_at
-                self.a = self.a + (1.0 - math.exp(-dt / self.tau)) * ((v - self.v) / dt - self.a)
+            self.a = self.accel.update(t, v)
             self.p, self.v, self.received_at = self.origin + ned_to_enu([msg.x, msg.y, msg.z]), v, t
 
     def known(self, t: float, t_mission: float) -> SourceState | None:

@@ -11,6 +11,12 @@ older than ``hold_after_s`` makes the command a position hold where the relay la
 command: the autopilot holds); older than ``land_after_s`` a landing straight down at ``land_speed_m_s``
 to the ground. A fresh state resumes the NMPC.
 
+Inputs are checked before they are flown (``TelemetryCheck``): a relay state or source with a
+non-finite entry, a stamp ahead of the clock or behind the last trusted one, or a jump from the last
+trusted state that no vehicle of this one's thrust can make in the time between them is not trusted:
+the step treats it as stale and says why (``Command.rejected``). A clock ``t`` that goes backwards
+or is not finite, or inputs of the wrong shape, are errors (``ValueError`` naming the argument).
+
 ``ar.simulate`` flies the same steps (``prepare`` then ``act``) on aerorelay's plant: stepping
 ``ar.controller(sc)`` over the plant reproduces it bit for bit (tested).
 """
@@ -19,7 +25,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,11 +61,17 @@ class StaleSettings:
     land_after_s: float = 3.0
     land_speed_m_s: float = 0.5
     ground_z_m: float = 0.0
+    # what a measured state may differ from the kinematic reach of the last trusted one (noise, m and m/s)
+    jump_tolerance_m: float = 0.5
+    jump_tolerance_m_s: float = 5.0
 
     def __post_init__(self):
         if not 0 < self.hold_after_s < self.land_after_s or self.land_speed_m_s <= 0:
             raise ValueError(f"StaleSettings: need 0 < hold_after_s ({self.hold_after_s}) < land_after_s "
                              f"({self.land_after_s}) and land_speed_m_s > 0 ({self.land_speed_m_s})")
+        if not (self.jump_tolerance_m > 0 and self.jump_tolerance_m_s > 0):
+            raise ValueError(f"StaleSettings: need jump_tolerance_m > 0 ({self.jump_tolerance_m}) and "
+                             f"jump_tolerance_m_s > 0 ({self.jump_tolerance_m_s})")
 
 
 @dataclass(frozen=True)
@@ -82,6 +94,72 @@ class Command:
     deadline_met: bool
     reference: Reference | None = None
     info: StepInfo | None = None
+    rejected: str | None = None  # why the step's inputs were not trusted (then mode is hold or land)
+
+
+class TelemetryCheck:
+    """Whether a measured relay state and source can be flown (see the module): ``problem(...)`` says
+    why not, or None. The reach from the last trusted state ``(stamp, p, v)`` over ``dt`` is
+    ``|p - p0 - v0 dt| <= a_max dt^2 / 2 + jump_tolerance_m`` and ``|v - v0| <= a_max dt +
+    jump_tolerance_m_s``, with ``a_max`` the vehicle's full thrust over its mass plus gravity (m/s^2)."""
+
+    def __init__(self, vehicle: Multirotor, stale: StaleSettings):
+        F, _ = vehicle.allocation()
+        full_thrust = float(np.sum(np.linalg.norm(F, axis=0))) * vehicle.omega_max ** 2
+        self.a_max = full_thrust / vehicle.mass + vehicle.gravity
+        self.stale = stale
+        self.trusted: tuple[float, np.ndarray, np.ndarray] | None = None  # (stamp s, p m, v m/s) last trusted
+
+    def problem(self, t: float, x: np.ndarray | None, stamp: float, source: SourceState | None) -> str | None:
+        """Why the relay state ``x`` (stamped ``stamp``) or the ``source`` cannot be trusted at ``t``; None when they can."""
+        ahead = self.stale.hold_after_s  # clocks of two processes may differ this much
+        if x is not None:
+            bad = [name for name, sl in (("position", slice(0, 3)), ("attitude", slice(3, 6)), ("velocity", slice(6, 9)),
+                                         ("body rates", slice(9, 12)), ("rotor speeds", slice(12, None)))
+                   if not np.all(np.isfinite(x[sl]))]
+            if bad:
+                return f"relay state not finite ({', '.join(bad)})"
+            if not np.isfinite(stamp):
+                return "relay state's stamp not finite"
+            if stamp > t + ahead:
+                return f"relay state stamped {stamp - t:.3f} s ahead of the clock"
+            if self.trusted is not None:
+                s0, p0, v0 = self.trusted
+                if stamp < s0:
+                    return f"relay state stamped {s0 - stamp:.3f} s before the last trusted one (time went backwards)"
+                dt = stamp - s0
+                dp = float(np.linalg.norm(x[0:3] - p0 - v0 * dt))
+                dv = float(np.linalg.norm(x[6:9] - v0))
+                if dp > 0.5 * self.a_max * dt ** 2 + self.stale.jump_tolerance_m:
+                    return f"relay position jumped {dp:.2f} m from the last trusted state in {dt:.3f} s (no vehicle reach)"
+                if dv > self.a_max * dt + self.stale.jump_tolerance_m_s:
+                    return f"relay velocity jumped {dv:.2f} m/s from the last trusted state in {dt:.3f} s (no vehicle reach)"
+        if source is not None:
+            if not all(np.all(np.isfinite(v)) for v in (source.p, source.v, source.a)):
+                return "source not finite"
+            if source.stamp is not None and not (np.isfinite(source.stamp) and source.stamp <= t + ahead):
+                return f"source stamped ahead of the clock or not finite ({source.stamp})"
+        return None
+
+    def trust(self, stamp: float, x: np.ndarray) -> None:
+        """Keep ``x`` (stamped ``stamp``) as the last trusted state."""
+        self.trusted = (stamp, x[0:3].copy(), x[6:9].copy())
+
+
+def checked_source(source: SourceState | None) -> SourceState | None:
+    """``source`` with its vectors as float arrays; a ValueError naming the field when one is not three numbers."""
+    if source is None:
+        return None
+    vecs = {}
+    for name in ("p", "v", "a"):
+        try:
+            vecs[name] = np.asarray(getattr(source, name), float)
+        except (TypeError, ValueError):
+            raise ValueError(f"step: source.{name} must be three numbers (m, m/s, m/s^2 ENU), got {getattr(source, name)!r}") from None
+        if vecs[name].shape != (3,):
+            raise ValueError(f"step: source.{name} must be three numbers (m, m/s, m/s^2 ENU), got shape {vecs[name].shape}")
+    stamp = source.stamp if source.stamp is None else float(source.stamp)
+    return SourceState(vecs["p"], vecs["v"], vecs["a"], stamp=stamp)
 
 
 JammerView = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray | None]]
@@ -105,6 +183,8 @@ class RelayStepper:
         self.planner_ms = 0.0
         self._x_prev: np.ndarray | None = None
         self._land_from: tuple[float, np.ndarray] | None = None
+        self.check = TelemetryCheck(vehicle, stale)
+        self._t_last: float | None = None  # the clock of the last step (it must not go backwards)
         F, _ = vehicle.allocation()
         self._thrust_per_speed2 = F
 
@@ -145,19 +225,32 @@ class RelayStepper:
         relay, the base station with ``estimation.use_bs``) measured over the last period, interference
         plus noise in W, taken where the relay was at its last step (``flight/readings.py``)."""
         t0 = time.perf_counter()
-        if readings:
-            self._fold(t, relay_state, readings)
-        stamp = t if state_stamp is None else state_stamp
-        fresh = relay_state is not None and t - stamp <= self.stale.hold_after_s and source is not None and \
-            t - (t if source.stamp is None else source.stamp) <= self.stale.hold_after_s
+        t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f"step: t must be a finite time (s), got {t}")
+        if self._t_last is not None and t < self._t_last:
+            raise ValueError(f"step: t = {t:.6g} s is before the previous step's {self._t_last:.6g} s (the clock went backwards)")
+        x = None
         if relay_state is not None:
             x = np.asarray(relay_state, float)
             if x.shape != (self.vehicle.nx,):
                 raise ValueError(f"step: relay_state must have {self.vehicle.nx} entries (p, eta, v, omega, Omega), got {x.shape}")
+        source = checked_source(source)
+        self._t_last = t
+        stamp = t if state_stamp is None else float(state_stamp)
+        rejected = self.check.problem(t, x, stamp, source)
+        if readings:
+            self._fold(t, x if rejected is None else None, readings)
+        fresh = rejected is None and x is not None and t - stamp <= self.stale.hold_after_s and source is not None and \
+            t - (t if source.stamp is None else source.stamp) <= self.stale.hold_after_s
         if not fresh:
             self._x_prev = None  # the observer restarts from the next fresh state (a gap is not one period)
-            return self._stale_command(t, t0)
-        assert relay_state is not None and source is not None
+            if rejected is not None and self._last_step is None:
+                raise ValueError(f"step: {rejected}, and no trusted relay state yet (nothing to hold)")
+            cmd = self._stale_command(t, t0)
+            return cmd if rejected is None else replace(cmd, rejected=rejected)
+        assert x is not None and source is not None
+        self.check.trust(stamp, x)
         if self.observer is not None and self._x_prev is not None:
             self.observer.update(self._x_prev, self.u, x)
         self._land_from = None
@@ -172,6 +265,9 @@ class RelayStepper:
         if self.estimated is None:
             raise ValueError("step: readings given, but the scenario's jammers are not estimated "
                              "(jammer.localization = 'estimated')")
+        for name, w in readings.items():
+            if not (isinstance(w, int | float | np.floating) and np.isfinite(w) and w >= 0):
+                raise ValueError(f"step: readings[{name!r}] must be a finite power >= 0 W, got {w!r}")
         if self._last_step is not None:
             self.estimated.add(*self._last_step, readings)
         elif relay_state is not None:

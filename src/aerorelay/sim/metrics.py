@@ -40,10 +40,18 @@ def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, 
     run that left the box (beyond the tolerance), went below the ground (``ground_z_m``, m, no
     tolerance) or flipped is unsafe whatever the QPs reported. With ``obstacles`` (the shapes
     themselves, no margin): ``obstacle_clearance_min_m`` (the smallest signed distance to one, negative
-    inside), and a run that entered one is unsafe."""
+    inside), and a run that entered one is unsafe. A log whose positions or tilts are not all finite
+    cannot show the run was safe: it is unsafe, and says at how many steps."""
+    reasons = []
+    bad = ~(np.all(np.isfinite(p1), axis=1) & np.isfinite(tilt_deg))
+    if bad.any():
+        reasons.append(f"its position or attitude is not finite at {int(bad.sum())} logged steps (its safety cannot be shown)")
+        p1, tilt_deg = p1[~bad], tilt_deg[~bad]
+    if not len(p1):
+        return {"unsafe": True, "unsafe_reason": "; ".join(reasons), "safety_violations": int(np.sum(violation)),
+                "box_violation_max_m": math.nan, "min_altitude_m": math.nan, "max_tilt_deg": math.nan}
     outside = np.max(np.c_[np.asarray(workspace_min, float) - p1, p1 - np.asarray(workspace_max, float)], axis=1)
     box = float(max(outside.max(), 0.0))
-    reasons = []
     if box > box_tolerance_m:
         reasons.append(f"left the workspace by {box:.2f} m")
     lowest = float(p1[:, 2].min())

@@ -1,0 +1,135 @@
+"""One loop for every transport that flies the relay on an autopilot (the MAVLink bridge, the ROS 2
+node): what the autopilot measured of the relay and what the relay knows of the source in, the
+controller's command out. It owns what the transports must not each write again:
+
+* the relay's state for the NMPC (``flight.commanded``: position and velocity measured, the rotor
+  speeds last commanded, the NMPC's own attitude for the autopilot's attitude loop);
+* the first step's gating: nothing runs until a fresh, trusted relay state *and* source have
+  arrived (before that there is nothing to hold), and ``waiting`` says why;
+* the telemetry check (``flight.stepper.TelemetryCheck``) and the hold/land failsafe of the stepper;
+* the source's acceleration, when a transport does not measure it, from its velocity through a
+  first-order filter (``AccelerationFilter``), so planners that look ahead see it accelerate;
+* the recording hook, called with every period whose telemetry was trusted.
+
+The transports keep only message conversion (frames, stamps, units).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .commanded import CommandedState
+from .frames import matrix_from_wxyz
+from .stepper import Command, RelayStepper, SourceState
+
+# called every control period flown: (time s, the relay's measured state, the command, the source as the
+# relay knew it, the state's age s)
+StepHook = Callable[[float, np.ndarray, Command, SourceState, float], None]
+
+
+@dataclass(frozen=True)
+class Measured:
+    """What an autopilot reports of the relay, in aerorelay's frames: position (m, world ENU), the
+    rotation body FLU -> world ENU, velocity (m/s, world), body rates (rad/s, FLU), and when it was
+    measured (s, the loop's clock)."""
+
+    p: np.ndarray
+    R: np.ndarray
+    v: np.ndarray
+    w: np.ndarray
+    stamp: float
+
+
+def rotation_from_quaternion(wxyz) -> np.ndarray:
+    """The rotation of a quaternion (w, x, y, z); a quaternion that is not finite or not of unit norm
+    (|q| off by more than 1%: a zero quaternion, a bad message) gives a rotation of NaNs, which the
+    telemetry check names instead of flying it."""
+    q = np.asarray(wxyz, float)
+    n = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else math.nan
+    if not abs(n - 1.0) <= 0.01:
+        return np.full((3, 3), math.nan)
+    return matrix_from_wxyz(q / n)
+
+
+class AccelerationFilter:
+    """An acceleration estimate from velocity samples: the finite difference between samples through
+    a first-order filter of time constant ``tau_s`` (exact discretization for any sample spacing)."""
+
+    def __init__(self, tau_s: float = 0.1):
+        if not tau_s > 0:
+            raise ValueError(f"tau_s must be > 0 s, got {tau_s}")
+        self.tau = tau_s
+        self.a = np.zeros(3)
+        self._last: tuple[float, np.ndarray] | None = None
+
+    def update(self, t: float, v) -> np.ndarray:
+        """The estimate after the velocity ``v`` (m/s) measured at ``t`` (s); a sample not after the last is ignored."""
+        v = np.asarray(v, float)
+        if not np.all(np.isfinite(v)):
+            return self.a.copy()
+        if self._last is not None and t > self._last[0]:
+            t0, v0 = self._last
+            dt = t - t0
+            self.a = self.a + (1.0 - math.exp(-dt / self.tau)) * ((v - v0) / dt - self.a)
+        if self._last is None or t > self._last[0]:
+            self._last = (t, v.copy())
+        return self.a.copy()
+
+
+class AutopilotLoop:
+    """``tick(t, relay, source)`` every control period (see the module); ``reset()`` when the
+    autopilot flew the relay itself for a while (a hold it was asked for) and the controller takes over
+    again. ``measured_attitude``: the NMPC steps from the measured attitude (``flight.commanded``)."""
+
+    def __init__(self, stepper: RelayStepper, *, measured_attitude: bool = False, on_step: StepHook | None = None,
+                 hover_speeds: np.ndarray | None = None):
+        self.stepper, self.on_step = stepper, on_step
+        self.hover = stepper.vehicle.hover_speeds() if hover_speeds is None else np.asarray(hover_speeds, float)
+        self.commanded = CommandedState(self.hover, measured_attitude=measured_attitude)
+        self.waiting: str | None = "no relay state or source yet"  # why no command was given (None: one was)
+
+    def reset(self) -> None:
+        """Forget the rotor speeds and attitude last commanded (the autopilot flew in between)."""
+        self.commanded = CommandedState(self.hover, measured_attitude=self.commanded.measured_attitude)
+
+    def states(self, relay: Measured | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The relay's measured state and the NMPC's state from it (None, None without one)."""
+        if relay is None:
+            return None, None
+        measured = self.commanded.measured(relay.p, relay.R, relay.v, relay.w)
+        x = self.commanded.for_nmpc(measured)
+        bad = ~np.isfinite(measured)
+        x[bad] = measured[bad]  # a measurement the NMPC's state does not use is still checked (a zero quaternion)
+        return measured, x
+
+    def problem(self, t: float, relay: Measured | None, source: SourceState | None) -> str | None:
+        """Why the inputs at ``t`` cannot start or resume the controller (stale, missing or not trusted); None when they can."""
+        hold = self.stepper.stale.hold_after_s
+        if relay is None:
+            return "no relay state"
+        if source is None:
+            return "no source"
+        if t - relay.stamp > hold:
+            return f"relay state {t - relay.stamp:.3f} s old"
+        if source.stamp is not None and t - source.stamp > hold:
+            return f"source {t - source.stamp:.3f} s old"
+        return self.stepper.check.problem(t, self.states(relay)[1], relay.stamp, source)
+
+    def tick(self, t: float, relay: Measured | None, source: SourceState | None) -> Command | None:
+        """One control period at ``t`` (s, the mission's clock): the command, or None while no trusted
+        relay state and source have arrived (``waiting`` says why)."""
+        if not self.stepper.has_state:
+            self.waiting = self.problem(t, relay, source)
+            if self.waiting is not None:
+                return None
+        measured, x = self.states(relay)
+        cmd = self.stepper.step(t, x, source, state_stamp=None if relay is None else relay.stamp)
+        self.waiting = None
+        if self.on_step is not None and measured is not None and source is not None and relay is not None and cmd.rejected is None:
+            self.on_step(t, measured, cmd, source, t - relay.stamp)
+        self.commanded.commanded(cmd)
+        return cmd
