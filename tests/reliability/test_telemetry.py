@@ -298,3 +298,12 @@ def test_fly_exits_3_on_an_unsafe_flight(monkeypatch):
     monkeypatch.setattr(api, "fly", lambda *a, **k: (Flown(), pd.DataFrame({"mode": ["nmpc"]})))
     r = runner.invoke(app, ["fly", SCENARIO, "--mavlink", "udpout:127.0.0.1:14999"])
     assert r.exit_code == 3 and "left the workspace by 490.00 m" in r.output
+
+
+def test_a_lockstep_flight_names_the_telemetry_it_did_not_trust():
+    """flight.parquet's ``rejected`` column and the metrics' count: none on a clean lockstep flight."""
+    sc = ar.load_scenario(SCENARIO)
+    result, log = ar.fly_lockstep(sc, ar.PointMass(sc.nodes.relay), duration_s=1.0)
+    assert "rejected" in log and (log["rejected"] == "").all()
+    assert result.metrics["telemetry_rejected_periods"] == 0 and result.metrics["telemetry_rejected_reason"] == ""
+    assert not result.metrics["unsafe"]

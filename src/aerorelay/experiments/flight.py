@@ -22,7 +22,7 @@ from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
 from ..flight.sources import MavlinkSource
 from ..flight.stepper import Command, RelayStepper, SourceState
 from ..models.mission import SourceTrajectory
-from ..sim.flight_record import FLIGHT_COLUMN_TYPES, FlightRecorder, flight_metrics
+from ..sim.flight_record import FLIGHT_COLUMN_TYPES, FlightRecorder, flight_metrics, telemetry_metrics
 from ..sim.units import metric_units
 from ..store.outputs import new_sibling, swap_in
 from ..store.run_folder import TIMESERIES_FILE, log_frame
@@ -44,13 +44,14 @@ def recorder(sc: Scenario, stepper: RelayStepper) -> tuple[FlightRecorder, StepH
 
 
 def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper, wall_s: float, *, aborted: str | None = None,
-                  views: Callable[[RunResult, Path], None] | None = None) -> RunResult:
+                  views: Callable[[RunResult, Path], None] | None = None, bridge_log: pd.DataFrame | None = None) -> RunResult:
     """The flight as ``ar.simulate``'s result: its time series and metrics (``run_metrics`` plus the
-    flight's own, ``sim.flight_record.flight_metrics``); ``views`` writes figures and MCAP."""
+    flight's own, ``sim.flight_record.flight_metrics``, and the telemetry the bridge did not trust,
+    ``telemetry_metrics``); ``views`` writes figures and MCAP."""
     mission = rec.mission(wall_s, controller=stepper.controller.nmpc.settings.fingerprint(),
                           fallback_episodes=stepper.controller.fallback_episodes, aborted=aborted)
     df = log_frame(mission.log, rec.columns, {c: k for c, k in FLIGHT_COLUMN_TYPES.items() if c in rec.columns})
-    metrics = run_metrics(sc, mission, stepper.vehicle, None) | flight_metrics(mission.log)
+    metrics = run_metrics(sc, mission, stepper.vehicle, None) | flight_metrics(mission.log) | telemetry_metrics(bridge_log)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
@@ -67,7 +68,7 @@ def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame | None, rec: F
         if bridge_log is not None:
             bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
     try:
-        result = flight_result(sc, rec, stepper, wall_s, aborted=aborted, views=views)
+        result = flight_result(sc, rec, stepper, wall_s, aborted=aborted, views=views, bridge_log=bridge_log)
     except Exception:
         log.exception("the flight's metrics failed: writing its raw logs to %s", out)
         save_raw(Path(out), bridge_log, rec)
@@ -105,7 +106,7 @@ class Recording:
                 save_raw(self.out, bridge_log, self.rec)
             return None
         if self.out is None:
-            return flight_result(self.sc, self.rec, self.stepper, wall, aborted=aborted)
+            return flight_result(self.sc, self.rec, self.stepper, wall, aborted=aborted, bridge_log=bridge_log)
         return save_flight(self.sc, self.out, bridge_log, self.rec, self.stepper, wall, aborted=aborted, views=self.views)
 
 
@@ -178,7 +179,7 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
             if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
                 raise TimeoutError(f"lockstep: the vehicle did not enter OFFBOARD within {LOCKSTEP_OFFBOARD_WITHIN_S:g} s")
             aborted = _left_the_air(airframe, sc.world.ground_z_m)
-            if aborted:
+            if aborted or bridge.phase == "ended":
                 break
     finally:
         bridge.hand_back()
@@ -189,7 +190,8 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
         for v in vehicles:
             v.link.close()
     log_df = bridge_frame(bridge.log)
-    return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted, views=views), log_df
+    return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
+                         bridge_log=log_df), log_df
 
 
 def _left_the_air(airframe: Airframe, ground_z_m: float) -> str | None:

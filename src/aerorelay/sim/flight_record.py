@@ -91,3 +91,12 @@ def flight_metrics(log: dict) -> dict:
             "deadline_missed_fraction": float(np.mean(~np.asarray(log["deadline_met"], bool))),
             "compute_ms": {"mean": float(ms.mean()), "p99": float(np.percentile(ms, 99)), "max": float(ms.max())},
             "state_age_max_s": float(age.max())}
+
+
+def telemetry_metrics(bridge_log) -> dict:
+    """From a bridge's log (one row per period with the reason its telemetry was not trusted, empty
+    when it was): ``telemetry_rejected_periods`` and the first ``telemetry_rejected_reason`` (none: "")."""
+    if bridge_log is None or "rejected" not in bridge_log:
+        return {}
+    why = [r for r in bridge_log["rejected"].fillna("") if r]
+    return {"telemetry_rejected_periods": len(why), "telemetry_rejected_reason": why[0] if why else ""}
