@@ -113,7 +113,7 @@ def test_separation_min_and_its_verdict():
     assert m["unsafe"] and "closer than network.min_separation_m" in m["unsafe_reason"]
 
 
-def _converging(separation_m: float):
+def _converging(separation_m: float | None):
     """Two sources 4 m apart, each relayed by its own relay: the equidistant places of r1 and r2 are
     2 m apart, the relays start 8 m apart."""
     return parse_scenario({
@@ -122,7 +122,7 @@ def _converging(separation_m: float):
         "relays": [{"name": "r1", "start": [8.0, -4.0, 3.0]}, {"name": "r2", "start": [8.0, 4.0, 3.0]}],
         "sources": [{"name": "a", "mission": {"waypoints": [[0, 20, -2, 6], [10, 20, -2, 6]]}},
                     {"name": "b", "mission": {"waypoints": [[0, 20, 2, 6], [10, 20, 2, 6]]}}],
-        "network": {"routes": [["a", "r1", "bs"], ["b", "r2", "bs"]], "min_separation_m": separation_m}})
+        "network": {"routes": [["a", "r1", "bs"], ["b", "r2", "bs"]]} | ({} if separation_m is None else {"min_separation_m": separation_m})})
 
 
 def test_each_relays_nmpc_keeps_the_separation():
@@ -130,8 +130,9 @@ def test_each_relays_nmpc_keeps_the_separation():
         df = ar.simulate(sc).timeseries
         return np.linalg.norm(df[["r1.p_x", "r1.p_y", "r1.p_z"]].to_numpy() - df[["r2.p_x", "r2.p_y", "r2.p_z"]].to_numpy(),
                               axis=1)
-    free, kept = gap(_converging(0.0)), gap(_converging(3.0))
-    assert free[-1] < 2.1 and free.min() < 2.1  # the places are 2 m apart: nothing keeps them from meeting there
+    free, kept = gap(_converging(None)), gap(_converging(3.0))
+    # the places are 2 m apart: the default separation (the vehicles' size, 1.05 m) lets them meet there
+    assert free[-1] < 2.1 and free.min() < 2.1 and free.min() > 1.05 - 0.05
     assert kept.min() > 3.0 - 0.05 and kept[-1] > 3.0 - 0.05  # the soft constraint holds (its slack < 5 cm)
 
 

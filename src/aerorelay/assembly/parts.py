@@ -434,7 +434,7 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
         {name: v.hover_tilt_limit for name, v in vehicles.items() if name not in lost}, lo, hi, sc.duration_s,
         BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
-        next(iter(vehicles.values())).gravity, sc.channel.outage, sc.network.min_separation_m,
+        next(iter(vehicles.values())).gravity, sc.channel.outage, sc.separation_m,
         {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost}, world.obstacles(sc))
 
 
@@ -517,7 +517,7 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
     scene = build_scene(sc)
     relays, platforms = [], {}
     # each relay keeps min_separation_m from every other vehicle (none set: the NMPC of one relay)
-    others = len(sc.relay_list) - 1 + len(sc.source_list) if sc.network.min_separation_m > 0 else 0
+    others = len(sc.relay_list) - 1 + len(sc.source_list) if sc.separation_m > 0 else 0
     for i, r in enumerate(sc.relay_list):
         view = relay_scenario(sc, i)
         vehicle = build_vehicle(view.platform)
@@ -529,7 +529,7 @@ def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> F
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
     planner = fleet_planner(sc, scene, relays)
     return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc),
-                      sc.network.min_separation_m, world.air(sc, platforms))
+                      sc.separation_m, world.air(sc, platforms))
 
 
 def fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> FleetPlanner:
@@ -556,7 +556,7 @@ def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) ->
                                     FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
                                                           axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
                                                           workspace_min=_vec3(lo), workspace_max=_vec3(hi),
-                                                          separation_m=sc.network.min_separation_m,
+                                                          separation_m=sc.separation_m,
                                                           obstacles=world.obstacles(sc)))
     return EquidistantPlanner(sc.route_list, starts, EquidistantSettings(speed_m_s=cap.speed_m_s, margin_m=cap.margin_m,
                                                                          workspace_min=_vec3(lo), workspace_max=_vec3(hi)))

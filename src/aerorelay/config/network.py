@@ -64,8 +64,10 @@ class NetworkConfig(Strict):
 
     routes: list[list[str]] | None = Field(None, min_length=1, description="each [source, relay, ..., \"bs\"]; default: "
                                            "one route per source through every relay in order")
-    min_separation_m: float = Field(0.0, ge=0.0, le=100.0, description="between any two vehicles, m (0: no separation "
-                                    "constraint)")
+    min_separation_m: float | None = Field(None, gt=0.0, le=100.0, description="between any two vehicles (relays and "
+                                           "sources), m; default the vehicles' own size: twice the largest footprint radius "
+                                           "of the relays' platforms (1.5 x the farthest rotor centre: the arm plus a rotor "
+                                           "of half its length); a smaller value is refused")
     planner: Literal["equidistant", "capacity", "paper"] = Field(
         "equidistant", description="the fleet's planner: equidistant (each relay evenly spaced on the line from the "
         "base station to its source), capacity (each relay in turn moves its goal and antenna axis to the best of "

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import math
+
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
@@ -21,6 +23,9 @@ class Rotor(Strict):
     spin: Literal[-1, 1] = Field(description="s_i: the sign of the rotor's drag moment about its axis")
 
     _nonzero = field_validator("axis")(lambda v: nonzero_direction(v, "a rotor's thrust axis"))
+
+
+FOOTPRINT_PER_ARM = 1.5  # a vehicle's reach over its farthest rotor centre: the arm plus a rotor of half its length
 
 
 class PlatformConfig(Strict):
@@ -46,6 +51,14 @@ class PlatformConfig(Strict):
                                "disks face-on), not a measurement; only [wind] uses it")
     min_hover_margin: float = Field(0.2, ge=0.0, lt=1.0, description="fraction of omega_max_hz every motor keeps "
                                     "above its hover speed (thrust headroom to brake and recover)")
+
+    @property
+    def footprint_radius_m(self) -> float:
+        """How far the vehicle reaches from its centre of mass, m: its farthest rotor centre times
+        ``FOOTPRINT_PER_ARM`` (the arm plus a rotor disc of half the arm's length; rotor sizes are not
+        modelled, this is a stated allowance)."""
+        arm = self.arm_length_m if self.rotors is None else max(math.hypot(*r.position) for r in self.rotors)
+        return FOOTPRINT_PER_ARM * arm
 
     @field_validator("drag_area_m2")
     @classmethod

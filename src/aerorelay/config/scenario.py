@@ -319,12 +319,27 @@ class Scenario(Strict):
                 if float(bare.signed_distance(p)) < 0:
                     raise ValueError(f"{where} {p} lies inside obstacles[{i}] ({o.name})")
 
+    @property
+    def vehicle_size_m(self) -> float:
+        """The closest two vehicles' centres may come before they touch, m: twice the largest footprint
+        radius of the relays' platforms (``PlatformConfig.footprint_radius_m``; a source's size is taken
+        as a relay's)."""
+        return 2.0 * max(self.platform_of(i).footprint_radius_m for i in range(len(self.relay_list)))
+
+    @property
+    def separation_m(self) -> float:
+        """``network.min_separation_m``, or the vehicles' own size when it is not given (m)."""
+        given = self.network.min_separation_m
+        return self.vehicle_size_m if given is None else given
+
     def _separation_holds(self) -> None:
-        """``network.min_separation_m``: every two vehicles start that far apart, and the workspace
-        holds the relays that far apart (on a cubic lattice of that spacing)."""
-        d = self.network.min_separation_m
-        if d <= 0.0:
-            return
+        """``network.min_separation_m`` (never below the vehicles' size): every two vehicles start that
+        far apart, and the workspace holds the relays that far apart (on a cubic lattice of that spacing)."""
+        d, size = self.separation_m, self.vehicle_size_m
+        if d < size - 1e-9:
+            raise ValueError(f"network.min_separation_m: {d:g} m is closer than two vehicles can be without touching "
+                             f"({size:.3g} m: twice the relays' largest footprint radius); allowed {size:.3g}-100 m, or "
+                             "leave it out for that default")
         ws = self.controller.workspace
         room = math.prod(math.floor((hi - lo) / d + 1e-9) + 1 for lo, hi in zip(ws.min, ws.max, strict=True))
         if room < len(self.relay_list):

@@ -166,7 +166,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
     metrics = fleet_metrics(mission.log, relays={r.name: r.vehicle for r in loop.relays},
                             sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
                             outage_threshold=sc.channel.outage, wall_s=mission.wall_s, sim_s=mission.sim_s,
-                            min_separation_m=sc.network.min_separation_m, workspace_min=ws.min, workspace_max=ws.max,
+                            min_separation_m=sc.separation_m, workspace_min=ws.min, workspace_max=ws.max,
                             box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
                             losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
     metrics["controller"] = mission.controller
