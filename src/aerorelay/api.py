@@ -18,7 +18,6 @@ import json
 import logging
 import os
 import platform
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,7 @@ from pathlib import Path
 import pandas as pd
 
 from ._version import __version__
-from .assembly import load_scenario, parse_scenario
+from .assembly import load_scenario
 from .assembly.flight import build_stepper
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
@@ -53,6 +52,7 @@ from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
 from .report.figures import fig_bound, write_run_figures
 from .report.fleet_figures import fig_network_bound, write_fleet_figures
+from .report.folders import read_metrics, read_scenario, read_timeseries
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_fleet_mcap, write_run_mcap
 from .report.run_report import RUN_REPORT, render_fleet_report, render_run_report
@@ -75,7 +75,7 @@ from .store.outputs import (
     write_atomic,
     writing,
 )
-from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE, write_bound_files
+from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, write_bound_files
 
 Result = RunResult  # the one result class: ``ar.simulate`` attaches the figure and MCAP writer
 
@@ -265,8 +265,9 @@ def export(run_dir: str | Path, fmt: str = "mcap") -> Path:
         raise ValueError(f"--format: only 'mcap' is supported, got {fmt!r}")
     if not is_own_folder(d, "run"):
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
-    sc = parse_scenario(tomllib.loads((d / SCENARIO_FILE).read_text()))
-    df = pd.read_parquet(d / TIMESERIES_FILE)
+    sc, _, df = read_scenario(d), read_metrics(d), read_timeseries(d)
+    if sc.is_fleet:
+        return write_fleet_mcap(df, sc, d / MCAP_FILE)
     bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
     return write_run_mcap(df, sc, d / MCAP_FILE, bound)
 
@@ -327,7 +328,7 @@ def report_run(run_dir: str | Path) -> Path:
     d = Path(run_dir)
     if folder_kind(d) != "run" or not (d / METRICS_FILE).is_file():
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
-    fleet = "relays" in json.loads((d / METRICS_FILE).read_text())
+    fleet = "relays" in read_metrics(d)
     write_atomic(d / RUN_REPORT, render_fleet_report(d) if fleet else render_run_report(d))
     return d / RUN_REPORT
 

@@ -330,20 +330,12 @@ def compare(
     run_b: Path = typer.Argument(..., help="second run folder (B)", show_default=False),
 ):
     """Print the key metrics of two runs side by side, with the ratio B/A."""
-    import json
-
     runs = {}
     for d in (run_a, run_b):
-        f = api.run_metrics_file(d)
-        if not f.exists():
-            err_console.print(f"{d}: no metrics.json (is it an `aerorelay run` output folder?)", markup=False)
-            raise typer.Exit(EXIT_BAD_INPUT)
         try:
-            runs[str(d)] = json.loads(f.read_text())
-        except (OSError, ValueError) as exc:
-            _fail(f"{f}: not a readable metrics file ({type(exc).__name__}: {exc})")
-        if not isinstance(runs[str(d)], dict):
-            _fail(f"{f}: not a metrics object")
+            runs[str(d)] = api.read_metrics(d)
+        except OutputError as exc:
+            _fail(str(exc))
     systems = [unit_system(m) for m in runs.values()]
     if systems[0] != systems[1]:
         _fail(f"{run_a} is in {systems[0]} units (capacity in {'bit/s' if systems[0] == 'physical' else 'bit/s/Hz'}), "

@@ -41,7 +41,7 @@ def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
     study = find_studies(studies_dir)[0]
     specs = expand(study, ROOT)
     out = tmp_path / "campaign"
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cl, Client(cl) as c:
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as cl, Client(cl) as c:
         run_campaign(specs, out, client=c)
     report = out / "report.html"
     report.write_text(render_report(summarize([study], specs, out), [study], specs, out, load_manifest(out)))

@@ -26,6 +26,7 @@ from dask.distributed import Client, LocalCluster, as_completed
 
 from .._version import __version__
 from ..assembly.parts import nmpc_settings
+from ..sim.units import metric_value_problem
 from ..store import strict_json
 from ..store.outputs import check_output_folder, mark, write_atomic
 from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, MISSION_ULOG, SCENARIO_FILE, TIMESERIES_FILE
@@ -35,9 +36,17 @@ from .study import RunSpec, scenario_of
 log = logging.getLogger(__name__)
 
 
+def folder_name(group: str) -> str:
+    """A run group's folder name: the group with ``%``, ``/``, ``\\`` and control characters
+    percent-encoded (``a/b`` -> ``a%2Fb``, never ``a_b``'s), and ``.`` / ``..`` spelled ``%2E``: one
+    folder per group, never outside its study's."""
+    if group in (".", ".."):
+        return group.replace(".", "%2E")
+    return "".join(f"%{ord(c):02X}" if c in "%/\\" or ord(c) < 32 else c for c in group)
+
+
 def run_dir(out: Path, spec: RunSpec) -> Path:
-    safe = spec.group.replace("/", "_")
-    return Path(out) / "runs" / spec.study / safe / f"seed{spec.seed}"
+    return Path(out) / "runs" / spec.study / folder_name(spec.group) / f"seed{spec.seed}"
 
 
 def first_run_per_group(specs: list[RunSpec], out: Path) -> dict[str, RunSpec]:
@@ -68,6 +77,8 @@ def _run_problem(d: Path, spec: RunSpec) -> str | None:
         return f"unreadable: {type(exc).__name__}: {exc}"
     if not isinstance(metrics, dict) or rows != metrics.get("steps"):
         return f"{TIMESERIES_FILE} has {rows} rows, metrics.json says {metrics.get('steps') if isinstance(metrics, dict) else '?'}"
+    if (bad := metric_value_problem(metrics)) is not None:
+        return f"metrics.json edited or damaged: {bad} is not a number"
     if spec.bound and ("capacity_efficiency_mean" not in metrics or not (d / BOUND_JSON).is_file()):
         return "no bound"
     if metrics.get("unsafe", False):
@@ -91,8 +102,6 @@ def execute_run(spec: RunSpec, out: str) -> dict:
     record = {"key": spec.key, "study": spec.study, "group": spec.group, "seed": spec.seed,
               "scenario_hash": spec.scenario_hash, "version": __version__, "pid": os.getpid()}
     try:
-        if os.environ.get("AERORELAY_FAIL_RUN") and os.environ["AERORELAY_FAIL_RUN"] in spec.key:
-            raise RuntimeError(f"failure injected by AERORELAY_FAIL_RUN for {spec.key}")
         result = simulate(scenario_of(spec), with_bound=spec.bound)
         result.save(run_dir(Path(out), spec))
         unsafe = result.metrics["unsafe"]
@@ -161,7 +170,7 @@ def make_client(scheduler: str | None, n_workers: int | None = None):
         except (OSError, TimeoutError) as exc:
             raise CampaignBusyError(f"--scheduler {scheduler}: no dask scheduler answers there ({exc})") from None
     n = n_workers or max(1, os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0")
     return Client(cluster)
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..assembly import load_scenario, parse_scenario, updated
 from ..config import Scenario, ScenarioError
@@ -34,9 +34,18 @@ class RunVariation(BaseModel):
     scenario (path relative to the repository root)."""
 
     model_config = ConfigDict(extra="forbid")
-    id: str = Field(min_length=1)
+    id: str = Field(min_length=1, max_length=100)
     set: dict[str, Any] = Field(default_factory=dict)
     base: str | None = None
+
+    @field_validator("id")
+    @classmethod
+    def _a_folder_name(cls, v: str) -> str:
+        """A run id names its folder: no path separator, control character, or ``.``/``..``."""
+        if v in (".", "..") or any(c in v for c in "/\\") or any(ord(c) < 32 for c in v):
+            raise ValueError(f"run id {v!r} must not be '.' or '..' nor hold '/', '\\' or control characters "
+                             "(it names the run's folder)")
+        return v
 
 
 class PaperValue(BaseModel):
@@ -172,6 +181,17 @@ class Study(BaseModel):
     tradeoffs: list[Tradeoff] = Field(default_factory=list)
     # measured causes of the study's differences from the paper (beside the claims' own)
     why: list[Explanation] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _unique_runs(self):
+        """Two runs with one id would share a folder (the grid cannot make two groups alike: every run but
+        ``base`` carries its own id before the grid's label)."""
+        ids = [r.id for r in self.runs]
+        twice = sorted({i for i in ids if ids.count(i) > 1})
+        if twice:
+            raise ValueError(f"runs: id {twice[0]!r} appears {ids.count(twice[0])} times (each run needs its own id: it names "
+                             "its folder)")
+        return self
 
     @model_validator(mode="after")
     def _references_exist(self):

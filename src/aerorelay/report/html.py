@@ -21,6 +21,7 @@ from ..experiments.campaign import RunStatus, first_run_per_group, run_dir  # no
 from ..experiments.study import RunSpec, Study, groups_of_run, scenario_of  # noqa: E402
 from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
+from .folders import read_timeseries, vehicle_paths
 from .sweeps import sweep_figures  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
@@ -224,10 +225,13 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
         return None
     traces = []
     for i, (g, s) in enumerate(firsts.items()):
-        df = pd.read_parquet(run_dir(out, s) / TIMESERIES_FILE, columns=["p1_x", "p1_y", "p1_z", "p2_x", "p2_y", "p2_z"])
-        traces.append(go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name=f"relay: {g}", line=dict(width=5)))
-        if i == 0:
-            traces.append(go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2",
+        relays, sources = vehicle_paths(read_timeseries(run_dir(out, s)))  # one relay's log or a fleet's
+        for name, p in relays.items():
+            label = f"relay: {g}" if len(relays) == 1 else f"{name}: {g}"
+            traces.append(go.Scatter3d(x=p.iloc[:, 0], y=p.iloc[:, 1], z=p.iloc[:, 2], mode="lines", name=label, line=dict(width=5)))
+        for name, p in sources.items() if i == 0 else ():
+            traces.append(go.Scatter3d(x=p.iloc[:, 0], y=p.iloc[:, 1], z=p.iloc[:, 2], mode="lines",
+                                       name="MRAV-2" if len(sources) == 1 else f"source {name}",
                                        line=dict(color="#7b3fa0", width=4, dash="dash")))
     sc = scenario_of(next(iter(firsts.values())))
     traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",

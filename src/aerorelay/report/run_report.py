@@ -6,17 +6,15 @@ tracking, the 3D path), drawn from the run folder's own files."""
 from __future__ import annotations
 
 import html
-import json
-import tomllib
 from pathlib import Path
 
 import pandas as pd
 
-from ..assembly import parse_scenario
 from ..sim.units import DIMENSIONLESS, fleet_metric_units, si
-from ..store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
+from ..store.run_folder import BOUND_PARQUET
 from .figures import fig_capacity, fig_constraints, fig_tracking, fig_trajectory_3d
 from .fleet_figures import fig_paths, fig_rates, fig_sinr
+from .folders import read_metrics, read_scenario, read_timeseries
 from .html import CSS, _png
 
 RUN_REPORT = "report.html"
@@ -43,9 +41,7 @@ def render_run_report(run: Path) -> str:
     """The HTML of one run folder's report (read from its scenario.toml, metrics.json,
     timeseries.parquet and bound.parquet when there)."""
     run = Path(run)
-    sc = parse_scenario(tomllib.loads((run / SCENARIO_FILE).read_text()))
-    m = json.loads((run / METRICS_FILE).read_text())
-    df = pd.read_parquet(run / TIMESERIES_FILE)
+    sc, m, df = read_scenario(run), read_metrics(run), read_timeseries(run)
     bound = pd.read_parquet(run / BOUND_PARQUET) if (run / BOUND_PARQUET).is_file() else None
     units = m.get("units") or {}
     rows = "".join(f"<tr><td>{k}</td><td>{_value(m, k, units)}</td></tr>" for k in RUN_METRICS if k in m)
@@ -69,9 +65,7 @@ def render_fleet_report(run: Path) -> str:
     """The HTML of a fleet's run folder: the network's, each route's and each relay's metrics with
     their units (``metrics.json``'s ``units``), the safety verdict and the fleet's figures."""
     run = Path(run)
-    sc = parse_scenario(tomllib.loads((run / SCENARIO_FILE).read_text()))
-    m = json.loads((run / METRICS_FILE).read_text())
-    df = pd.read_parquet(run / TIMESERIES_FILE)
+    sc, m, df = read_scenario(run), read_metrics(run), read_timeseries(run)
     units = m.get("units") or fleet_metric_units(m, sc.channel.capacity_unit)  # a folder written before units
 
     def value(key: str) -> str:

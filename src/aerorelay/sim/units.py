@@ -81,3 +81,25 @@ def si(value: float | None, unit: str, digits: int = 4) -> str:
             return f"{value / scale:.{digits}g} {prefix}{unit}"
     scale, prefix = _PREFIXES[-1]
     return f"{value / scale:.{digits}g} {prefix}{unit}"
+
+
+def _number_like(v) -> bool:
+    """A metric's value as written: a number, null, a flag, or a table / list of them (text allowed inside)."""
+    if v is None or isinstance(v, bool | int | float):
+        return True
+    if isinstance(v, dict):
+        return all(_number_like(x) or isinstance(x, str) for x in v.values())
+    if isinstance(v, list):
+        return all(_number_like(x) or isinstance(x, str | list | dict) for x in v)
+    return False
+
+
+def metric_value_problem(metrics: dict) -> str | None:
+    """The first metric in ``metrics`` whose value is not a number (a hand-edited or damaged
+    metrics.json), as ``"key = value"``; None when every quantity is one."""
+    for key, v in metrics.items():
+        if key in NOT_QUANTITIES or key.endswith("_reason") or key.endswith("_first"):
+            continue
+        if not _number_like(v):
+            return f"{key} = {v!r}"
+    return None
