@@ -29,7 +29,16 @@ from .assembly import load_scenario
 from .assembly.flight import build_stepper
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
-from .assembly.parts import build, build_fleet, build_scene, build_source, network_bound, nmpc_settings, scenario_bound
+from .assembly.parts import (
+    build,
+    build_fleet,
+    build_scene,
+    build_source,
+    check_bound_size,
+    network_bound,
+    nmpc_settings,
+    scenario_bound,
+)
 from .assembly.vehicle import build_vehicle
 from .assembly.world import wind_field
 from .config import Scenario, ScenarioError
@@ -409,10 +418,13 @@ def solver_settings(sc: Scenario, **overrides) -> NmpcSettings:
     return nmpc_settings(sc, **overrides)
 
 
-def check_run(sc: Scenario, out: str | Path, *, figures: bool = True) -> None:
-    """Every check a run makes before flying: its log fits the machine's memory (ScenarioError) and
-    ``out`` can take the run folder with room for it (OutputError)."""
+def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: bool = False) -> None:
+    """Every check a run makes before flying: its log fits the machine's memory, with ``bound`` the
+    scenario's bound fits it and ``bound.max_minutes`` (ScenarioError), and ``out`` can take the run
+    folder with room for it (OutputError)."""
     check_run_size(sc)
+    if bound:
+        check_bound_size(sc)
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
 
 

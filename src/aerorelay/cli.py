@@ -163,7 +163,7 @@ def run(
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
     sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
                                                    "sim.duration_s": duration}, set_)
-    _check_run(sc, out, figures=not no_figures)
+    _check_run(sc, out, figures=not no_figures, bound=not no_bound)
     try:
         with api.output_lock(out, wait=wait):  # one writer per folder, from before the flight until it is saved
             _check_run(sc, out, figures=not no_figures)  # again: we may have waited
@@ -180,10 +180,10 @@ def run(
         raise typer.Exit(EXIT_UNSAFE)
 
 
-def _check_run(sc: Scenario, out: Path, *, figures: bool) -> None:
-    """The run's checks before flying (its size, its output folder): exit 2 naming what fails."""
+def _check_run(sc: Scenario, out: Path, *, figures: bool, bound: bool = False) -> None:
+    """The run's checks before flying (its size, its bound's, its output folder): exit 2 naming what fails."""
     try:
-        api.check_run(sc, out, figures=figures)
+        api.check_run(sc, out, figures=figures, bound=bound)
     except (ScenarioError, OutputError) as exc:
         _fail(str(exc))
 

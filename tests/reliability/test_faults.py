@@ -142,7 +142,7 @@ def test_compare_on_a_corrupt_metrics_file(tmp_path):
         (tmp_path / d).mkdir()
         (tmp_path / d / "metrics.json").write_text("{trunc")
     res = run_cli("compare", tmp_path / "a", tmp_path / "b")
-    assert res.exit_code == EXIT_BAD_INPUT and "not a readable metrics file" in res.output
+    assert res.exit_code == EXIT_BAD_INPUT and "metrics.json: not readable JSON" in " ".join(res.output.split())
 
 
 # ---------------------------------------------------------------- caches

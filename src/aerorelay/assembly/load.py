@@ -28,12 +28,26 @@ def parse_sets(items: list[str] | None) -> dict:
     return out
 
 
+SCENARIO_MAX_BYTES = 4 * 2**20  # a scenario is a small TOML file: a larger one is refused before it is read
+
+
+def _scenario_text(path: Path) -> str:
+    """The scenario file's text: a regular file (not a device such as /dev/zero, a FIFO that may never
+    end, or a socket) of at most ``SCENARIO_MAX_BYTES``; ScenarioError naming it otherwise."""
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise ScenarioError(f"{path}: not a regular file (a device, a FIFO or a socket): scenario files are TOML files")
+    if path.is_file() and path.stat().st_size > SCENARIO_MAX_BYTES:
+        raise ScenarioError(f"{path}: {path.stat().st_size:,} bytes, more than a scenario file holds (at most "
+                            f"{SCENARIO_MAX_BYTES // 2**20} MiB of TOML)")
+    return path.read_text(encoding="utf-8")
+
+
 def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scenario:  # noqa: A002 (the API's word)
     """Load and validate a TOML scenario file, then apply ``set`` (dotted keys -> values, or
     ``"key=value"`` strings as on the command line); raises ScenarioError naming each bad field."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(_scenario_text(path))
     except FileNotFoundError:
         raise ScenarioError(f"{path}: no such scenario file") from None
     except IsADirectoryError:
@@ -44,7 +58,8 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
-    missions = [data.get("mission")] + [s.get("mission") for s in data.get("sources") or [] if isinstance(s, dict)]
+    sources = data.get("sources") if isinstance(data.get("sources"), list) else []  # a wrong type is named by validation
+    missions = [data.get("mission")] + [s.get("mission") for s in sources if isinstance(s, dict)]
     for mission in (m for m in missions if isinstance(m, dict)):  # mission files are named relative to the scenario file
         for key in ("trajectory_csv", "trajectory_ulog"):
             f = mission.get(key)

@@ -21,6 +21,7 @@ from ..control.relay import FailsafeSettings, RelayController
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
+from ..models.axes import axis_cone
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
@@ -37,6 +38,7 @@ from ..planning.base import (
     planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
+from ..planning.bound_cost import check_bound_cost, network_bound_cost, single_bound_cost
 from ..planning.capacity_planner import holdable_axes
 from ..planning.fleet import (
     EquidistantPlanner,
@@ -402,6 +404,23 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
                         world.obstacles(sc))
 
 
+def check_bound_size(sc: Scenario) -> None:
+    """``planning.bound_cost``: a named error (BoundTooLarge, a ScenarioError naming the ``[bound]``
+    field) before any work when the scenario's bound (a fleet's network bound) would need more than
+    half of this machine's memory or longer than ``bound.max_minutes``."""
+    lo, hi = _workspace(sc)
+    b = sc.bound
+    if sc.is_fleet:
+        relays = {r.name for r in sc.relay_list}
+        hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
+        cost = network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops))
+        check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.network_grid_m", dt_field="bound.network_dt_s")
+        return
+    axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
+    cost = single_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes)
+    check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.grid_m", dt_field="bound.dt_s")
+
+
 def bound_resolution(sc: Scenario) -> BoundResolution:
     """The bound's typed resolution from ``[bound]``."""
     b = sc.bound
@@ -415,6 +434,7 @@ def scenario_bound_key(sc: Scenario) -> str:
     fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
     data = world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers",
                                                            "mission", "bound"} | fleet))
+    data["bound"].pop("max_minutes", None)  # a limit on the work, not what the bound is
     data["workspace"] = sc.controller.workspace.model_dump()
     data["duration_s"] = sc.duration_s
     if sc.channel.propagation.random:  # the bound searches the run's own realization
@@ -442,11 +462,13 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     """A fleet's network bound, computed once per geometry and cached; with relays lost in flight
     (``relays.lost_at_s``), from each loss on the bound of the smaller fleet (each fleet's bound cached
     on its own: the loss times are not in its key)."""
+    check_bound_size(sc)
     data = world.bound_key_data(sc, sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes",
                                                            "jammer", "jammers", "bound", "platform"}))
     for r in data.get("relays") or []:
         r.pop("lost_at_s", None)
     data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
+    data["bound"].pop("max_minutes", None)  # a limit on the work, not what the bound is
     data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
              "kind": f"network {NETWORK_BOUND_VERSION}"}
     fleets = [(0.0, frozenset[str]()), *sc.losses]
@@ -466,6 +488,7 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:
     """The scenario's capacity bound, computed once per geometry and cached (a scene passed in is
     not part of the cache key: its bound is computed afresh)."""
+    check_bound_size(sc)
     pb = bound_problem(sc, vehicle, scene)
     if scene is not None:
         return compute_bound(pb, progress)

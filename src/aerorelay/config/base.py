@@ -19,7 +19,7 @@ class Strict(BaseModel):
     """A configuration table: unknown fields rejected, no inf / NaN unless a field says so (fading
     K = inf means "no fading"), assignments validated."""
 
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False, strict=True)
 
 
 def nonzero_direction(v: list[float], what: str) -> list[float]:

@@ -213,12 +213,11 @@ class Scenario(Strict):
                                      f"{getattr(c, f)}")
 
     def _losses_hold(self) -> None:
-        """``relays.lost_at_s``: before the mission's end, one relay at least never lost, no jammer aimed at a
-        relay that is lost."""
-        lost = {r.name: (i, r.lost_at_s) for i, r in enumerate(self.relay_list) if r.lost_at_s is not None}
-        for i, t in lost.values():
-            if t >= self.duration_s:
-                raise ValueError(f"relays[{i}].lost_at_s: {t:g} s must be before the mission's end ({self.duration_s:g} s)")
+        """``relays.lost_at_s``: one relay at least never lost, no jammer aimed at a relay that is lost. A
+        loss at or after the flight's end does not happen in it (``--duration 3`` on a scenario that loses
+        a relay at 30 s flies the first 3 s with every relay)."""
+        lost = {r.name: (i, r.lost_at_s) for i, r in enumerate(self.relay_list)
+                if r.lost_at_s is not None and r.lost_at_s < self.duration_s}
         if lost and len(lost) == len(self.relay_list):
             i = max(i for i, _ in lost.values())
             raise ValueError(f"relays[{i}].lost_at_s: every relay would be lost; keep one relay at least (no lost_at_s)")
@@ -230,7 +229,7 @@ class Scenario(Strict):
     @property
     def losses(self) -> list[tuple[float, frozenset[str]]]:
         """When relays are lost: ``(t, every relay lost by then)`` in time order (s); empty: none is."""
-        times = sorted({r.lost_at_s for r in self.relay_list if r.lost_at_s is not None})
+        times = sorted({r.lost_at_s for r in self.relay_list if r.lost_at_s is not None and r.lost_at_s < self.duration_s})
         return [(t, frozenset(r.name for r in self.relay_list if r.lost_at_s is not None and r.lost_at_s <= t))
                 for t in times]
 

@@ -25,6 +25,9 @@ from ..assembly import load_scenario, parse_scenario, updated
 from ..config import Scenario, ScenarioError
 
 
+MAX_RUNS = 10_000  # runs one study may make (a 216,000-run grid spent minutes validating before any output)
+
+
 class StudyError(ValueError):
     """A study file is invalid or names something that does not exist."""
 
@@ -183,6 +186,18 @@ class Study(BaseModel):
     why: list[Explanation] = Field(default_factory=list)
 
     @model_validator(mode="after")
+    def _a_bounded_campaign(self):
+        """Every grid key has values, and the study makes at most ``MAX_RUNS`` runs (counted before any is expanded)."""
+        empty = [k for k, v in self.grid.items() if not v]
+        if empty:
+            raise ValueError(f"grid.{empty[0]}: an empty list makes no runs; give it one value at least (or leave the key out)")
+        n = len(self.runs) * math.prod(len(v) for v in self.grid.values()) * max(self.seeds, self.quick_seeds)
+        if n > MAX_RUNS:
+            raise ValueError(f"runs x grid x seeds make {n:,} runs, more than the {MAX_RUNS:,} a campaign takes (each is "
+                             "validated before the first flies and writes its own folder); split the study or thin its grid")
+        return self
+
+    @model_validator(mode="after")
     def _unique_runs(self):
         """Two runs with one id would share a folder (the grid cannot make two groups alike: every run but
         ``base`` carries its own id before the grid's label)."""
@@ -247,6 +262,8 @@ def load_study(path: Path) -> Study:
 def find_studies(folder: Path, names: list[str] | None = None) -> list[Study]:
     """Studies in ``folder`` (all, or those named), in file-name order."""
     files = sorted(Path(folder).glob("*.toml"))
+    if not files:
+        raise StudyError(f"{folder}: no study files (*.toml) there" + ("" if Path(folder).is_dir() else " (no such folder)"))
     studies = [load_study(f) for f in files]
     if names:
         known = {s.name: s for s in studies}
@@ -347,6 +364,13 @@ def expand(study: Study, root: Path, *, quick: bool = False, notices: list[str] 
             if deterministic and seeds > 1 and notices is not None:
                 notices.append(f"study {study.name}, run {group}: nothing random (no finite-K fading, CSI or process noise, "
                                f"shadowing or estimated jammer), so its {seeds} seeds would be identical: flown once")
+            if quick and study.quick_duration_s is not None and notices is not None:
+                sc = _updated(base, updates, where)
+                end = min(study.quick_duration_s, sc.duration_s)
+                late = [f"{r.name} at {r.lost_at_s:g} s" for r in sc.relay_list if r.lost_at_s is not None and r.lost_at_s >= end]
+                if late:
+                    notices.append(f"study {study.name}, run {group}: quick mode ends it at {end:g} s, before its relay "
+                                   f"loss ({', '.join(late)}): flown without the loss (the full campaign flies it)")
             for s in range(1 if deterministic else seeds):  # more seeds would fly the same run again
                 u = dict(updates)
                 u["seed"] = base.seed + s
