@@ -70,12 +70,25 @@ def test_out_that_is_a_file_or_unwritable_fails_before_flying(tmp_path):
     ro.mkdir()
     ro.chmod(0o500)
     try:
-        if os.access(ro, os.W_OK):  # root ignores permission bits: nothing to test
-            pytest.skip("running as a user who can write anywhere")
-        res = run_cli("run", NOMINAL, "--out", ro / "x", "--duration", "0.3", "--no-bound")
-        assert res.exit_code == EXIT_BAD_INPUT and "not writable" in res.output
+        if not os.access(ro, os.W_OK):  # a user the permission bits hold: the real case
+            res = run_cli("run", NOMINAL, "--out", ro / "x", "--duration", "0.3", "--no-bound")
+            assert res.exit_code == EXIT_BAD_INPUT and "not writable" in res.output
     finally:
         ro.chmod(0o700)
+
+
+def test_an_unwritable_out_fails_before_flying_for_root_too(tmp_path, monkeypatch):
+    """Root ignores permission bits (CI runs as root): the product's own access check answers "no" for
+    that folder, so the branch runs everywhere; nothing is written."""
+    import aerorelay.store.outputs as outputs
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = outputs.os.access
+    monkeypatch.setattr(outputs.os, "access", lambda p, mode: False if Path(p) == ro else real(p, mode))
+    res = run_cli("run", NOMINAL, "--out", ro / "x", "--duration", "0.3", "--no-bound")
+    assert res.exit_code == EXIT_BAD_INPUT and "is not writable (nothing was written)" in " ".join(res.output.split())
+    assert list(ro.iterdir()) == []
 
 
 def test_not_enough_disk_is_a_named_error(tmp_path):

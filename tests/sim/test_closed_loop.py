@@ -99,7 +99,12 @@ def test_cli_run_writes_outputs_and_compare(tmp_path):
 
 def test_control_rate_500hz_keeps_the_prediction_grid():
     sc = SHORT.with_updates({"sim.control_rate_hz": 500.0, "sim.duration_s": 0.2})
-    log = build(sc).closed_loop().run().log
+    parts = build(sc)
+    loop = parts.closed_loop()
+    # the OCP keeps its 15 ms grid (the horizon spans N ts = 0.45 s) and the plan is not shifted every 2 ms
+    assert parts.controller.spec.ts == pytest.approx(0.015) and loop.stepper.shift is False
+    assert parts.controller.spec.horizon * parts.controller.spec.ts == pytest.approx(0.45)
+    log = loop.run().log
     assert len(log["t"]) == 101 and log["t"][1] == pytest.approx(0.002)
     assert np.all(np.isfinite(log["capacity"]))
     p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])

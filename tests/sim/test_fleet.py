@@ -212,3 +212,34 @@ def test_the_papers_fleet_looks_at_each_relays_route_neighbours():
     assert np.linalg.norm(down_r1[:, -1] - down_r1[:, 0]) > 0  # a plan over the horizon, not a point held
     ref_moved = np.hypot(res.log["r1.pd_x"][-1] - res.log["r1.pd_x"][0], res.log["r1.pd_y"][-1] - res.log["r1.pd_y"][0])
     assert ref_moved > 0.05
+
+
+@pytest.mark.parametrize("senses", [False, True])
+def test_a_fleet_plans_with_the_jammer_state_it_senses(senses):
+    """Review T6: the fleet loop planned with the nominal power whatever controller.senses_jammer_state
+    said. An on_off jammer (5 s ON, 5 s OFF, localized at tau_E = 2 s): at t = 7 s it is OFF, so a fleet
+    that senses its state plans with 0 W, one that does not with its nominal power."""
+    from aerorelay.assembly.parts import build_fleet
+
+    sc = parse_scenario(copy.deepcopy(CHAIN) | {"sim": {"duration_s": 7.1}}).with_updates(
+        {"jammer.schedule": "on_off", "controller.senses_jammer_state": senses})
+    parts = build_fleet(sc)
+    seen = {}
+
+    class Recorder:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+        def update(self, inp):
+            seen[round(inp.t, 6)] = np.array(inp.jammer_powers, float)
+            return self.inner.update(inp)
+    parts.planner = Recorder(parts.planner)
+    parts.closed_loop().run()
+    at = {t: p for t, p in seen.items() if 6.9 <= t <= 7.05}
+    assert at
+    for p in at.values():
+        np.testing.assert_allclose(p, [0.0] if senses else [sc.jammer.power_w])
+    assert all(np.allclose(p, [sc.jammer.power_w]) for t, p in seen.items() if 3.0 <= t <= 4.9)  # ON, localized

@@ -142,10 +142,11 @@ class FleetLoop:
 
     def _known_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The jammers as the fleet knows them (the oracle after each one's ``tau_E``, as the one-relay
-        loop): positions ``(nJ, 3)`` m, and the nominal powers (0 before localization), W."""
+        loop): positions ``(nJ, 3)`` m, and the powers planned with (0 before localization; the nominal
+        power, or the one radiated now with ``controller.senses_jammer_state``), W."""
         js = self.scene.jammers
         return (np.array([j.position_at(t) for j in js]).reshape(-1, 3),
-                np.array([j.planned_power(t) for j in js]))
+                np.array([j.planned_power(t, self.settings.senses_jammer_state) for j in js]))
 
     def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
         """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
