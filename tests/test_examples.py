@@ -1,6 +1,8 @@
 """Every script in examples/ runs (a short mission each) and prints what it promises."""
 
+import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -24,3 +26,8 @@ def test_example_runs(script, tmp_path):
     res = subprocess.run([sys.executable, str(script)], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "C_min" in res.stdout or "c_min" in res.stdout.lower(), res.stdout
+    assert not re.search(r"\b(nan|inf)\b", res.stdout, re.IGNORECASE), res.stdout  # every printed number is one
+    values = [float(v) for v in re.findall(r"C_min\s+([-+0-9.]+(?:e[-+]?\d+)?)", res.stdout)]
+    assert all(math.isfinite(v) and v > 0 for v in values), res.stdout
+    if script.name == "fly_nominal.py":  # the regression value of the nominal mission's first second
+        assert values == [pytest.approx(1.294e-2, rel=1e-3)], res.stdout

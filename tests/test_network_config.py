@@ -113,8 +113,11 @@ def test_a_relay_on_an_own_platform_that_cannot_hover_is_named():
         parse_scenario(data)
 
 
-def test_one_relay_written_as_a_network_flies_bit_identically():
-    """The nominal preset with its relay as [[relays]] and its mission as [[sources]] (no separation)."""
+def test_one_relay_written_as_a_network_parses_to_the_same_flight():
+    """The nominal preset with its relay as [[relays]] and its mission as [[sources]]: the two spellings
+    fly the same mission bit for bit. Both go through the one-relay loop (a one-relay network is not
+    ``is_fleet``): this shows the spellings agree, not that the fleet loop flies one relay; that is the
+    next test."""
     data = tomllib.loads(open("scenarios/nominal_tilted.toml").read())
     data.setdefault("sim", {})["duration_s"] = 1.5
     legacy = parse_scenario(data)
@@ -199,3 +202,26 @@ def test_one_relay_written_as_a_network_gets_its_bound_and_its_capacity_planner(
     data["bound"] = {"grid_m": 1.0, "dt_s": 0.5}
     r = ar.simulate(parse_scenario(data), bound=True)
     assert not r.metrics["unsafe"] and 0 < r.metrics["capacity_efficiency_mean"] <= 1.05
+
+
+def test_the_fleet_loop_with_one_relay_flies_the_one_relay_mission():
+    """Review T1: the fleet loop (``build_fleet``) on the nominal mission with the paper's planner,
+    column by column against the one-relay loop over 1.5 s. Measured 2026-12-04: the references agree
+    to 7e-10 m, but the NMPC's first input already differs by 0.13% (rotor 1: 34.83 against 34.87 Hz/s
+    at t = 0: the fleet's stage parameters are not the one relay's), so the relay's position agrees to
+    2.3e-5 relative, its velocity to 3.6e-4 m/s, the hops' SINRs to 8.0e-5 and the capacity to 3.8e-5.
+    Issue 46 makes the two loops one; this test then tightens to round-off."""
+    import numpy as np
+
+    from aerorelay.assembly.parts import build, build_fleet
+
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 1.5, "network.planner": "paper"})
+    one, fleet = build(sc).closed_loop().run().log, build_fleet(sc).closed_loop().run().log
+    assert len(one["t"]) == len(fleet["t"])
+    close = {**{f"pd_{a}": (f"relay.pd_{a}", 0.0, 1e-8) for a in "xyz"},
+             **{f"p1_{a}": (f"relay.p_{a}", 1e-4, 0.0) for a in "xyz"},
+             **{f"v1_{a}": (f"relay.v_{a}", 0.0, 1e-3) for a in "xyz"},
+             "gamma_21": ("sinr.source.relay", 3e-4, 0.0), "gamma_10": ("sinr.relay.bs", 3e-4, 0.0),
+             "capacity": ("capacity", 3e-4, 0.0)}
+    for a, (b, rtol, atol) in close.items():
+        np.testing.assert_allclose(np.asarray(fleet[b], float), np.asarray(one[a], float), rtol=rtol, atol=atol, err_msg=f"{a} / {b}")

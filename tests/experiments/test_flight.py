@@ -62,12 +62,14 @@ def test_the_run_folder_has_what_aerorelay_run_writes(point_mass_flight, tmp_pat
     assert metrics["units"]["hold_fraction"] == "1" and metrics["units"]["state_age_max_s"] == "s"
 
 
-@pytest.mark.parametrize("setpoint", ["position", "attitude"])
-def test_rotorpy_quadrotor_flies_the_capacity_relay_through_the_bridge(setpoint):
+@pytest.mark.parametrize("setpoint,measured_m", [("position", 0.173), ("attitude", 0.215)])
+def test_rotorpy_quadrotor_flies_the_capacity_relay_through_the_bridge(setpoint, measured_m):
+    """Measured on these 4 s (2026-12-04, RotorPy 3.0.0; the start's transient included, so above the
+    47 s means of docs/results/flying.md): the tracking error within 50% of it."""
     sc = HUMMINGBIRD
     result, _ = flight.fly_lockstep(sc, RotorpyQuadrotor(sc.nodes.relay), setpoint=setpoint, duration_s=4.0)
     m = result.metrics
-    assert not m["unsafe"] and m["fallback_fraction"] == 0 and m["position_error_mean_m"] < 0.5, m
+    assert not m["unsafe"] and m["fallback_fraction"] == 0 and m["position_error_mean_m"] < 1.5 * measured_m, m
 
 
 def _stepped(sc, steps: int):
@@ -115,7 +117,9 @@ def test_a_flight_that_never_reached_offboard_keeps_the_bridge_log(tmp_path):
 
 
 def test_position_setpoints_fly_without_the_wind_observer_attitude_setpoints_with_it():
-    """Beside an autopilot's position loop the observer lost RotorPy's quadrotor (docs/decisions.md)."""
+    """The flights build without the observer for position setpoints and with it for attitude ones
+    (beside an autopilot's position loop the observer lost RotorPy's quadrotor, docs/decisions.md:
+    that loss is a measurement, not what this test checks)."""
     sc = NOMINAL.with_updates({"wind": {"mean_m_s": [3.0, 0.0, 0.0]}})
     position, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="position", duration_s=1.5)
     attitude, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="attitude", duration_s=1.5)

@@ -39,9 +39,18 @@ def test_a_roll_about_body_x_accelerates_toward_minus_y(airframe):
     af = airframe()
     phi = math.radians(10.0)
     # thrust / cos(phi): the vertical component still carries the weight
-    _fly(af, Target("attitude", R=rotation_zyx([phi, 0.0, 0.0]), thrust=1.0 / math.cos(phi)), 1.0)
+    target, dt = Target("attitude", R=rotation_zyx([phi, 0.0, 0.0]), thrust=1.0 / math.cos(phi)), 0.01
+    vy = []
+    for k in range(100):
+        af.fly(target, k * dt, dt)
+        vy.append(af.v[1])
     a_expected = 9.81 * math.tan(phi)  # m/s^2 toward -y once the attitude is reached
-    assert af.v[1] < -0.6 * a_expected and abs(af.v[0]) < 0.05 * abs(af.v[1])
+    slope = np.polyfit(np.arange(50, 100) * dt, vy[50:], 1)[0]  # the last 0.5 s: the attitude is reached
+    if isinstance(af, RotorpyQuadrotor):  # RotorPy's rotor drag (not in g tan(phi)) slows it: -1.27 measured at ~1 m/s
+        assert -a_expected < slope < -0.6 * a_expected
+    else:
+        assert slope == pytest.approx(-a_expected, rel=0.05)
+    assert abs(af.v[0]) < 0.05 * abs(af.v[1])
     assert abs(af.p[2] - START[2]) < 0.15
 
 

@@ -3,6 +3,7 @@
 fading's power, K factor and autocorrelation."""
 
 import math
+import os
 
 import casadi as ca
 import numpy as np
@@ -77,7 +78,12 @@ def test_rma_av_validity_range_is_a_named_error():
 
 def test_rma_av_constants_are_the_ones_tr3gpp_prints():
     """Cross-check against the PyPI package tr3gpp (the standard's tables as data), if installed."""
-    tr = pytest.importorskip("tr3gpp.tr36777")
+    try:
+        import tr3gpp.tr36777 as tr
+    except ImportError:
+        if os.environ.get("AERORELAY_REQUIRE_TR3GPP") == "1":
+            pytest.fail("tr3gpp is required here (AERORELAY_REQUIRE_TR3GPP=1; the dev extra installs it) but cannot be imported")
+        pytest.skip("tr3gpp is not installed (the dev extra has it)")
     b = tr.annex("B")
     los = " ".join(e.los_probability for e in b.los_probability(scenario="RMa-AV"))
     assert all(c in los for c in ("15021", "16053", "1350.8", "1602"))

@@ -79,3 +79,5 @@ def test_every_planner_answers_through_one_interface():
         ref = planner.update(inp)
         assert ref.p_ref.shape == (3,) and np.all(np.isfinite(ref.p_ref)), name
         assert hasattr(planner, "generator") == (name != "single_shot"), name
+        if name != "single_shot":  # the reference governor: the first reference at most governor_speed * dt from the relay
+            assert np.linalg.norm(ref.p_ref - inp.p1) <= sc.controller.governor_speed_m_s * inp.dt + 1e-9, name

@@ -79,15 +79,24 @@ def test_logged_capacity_equals_an_independent_recomputation(run):
     assert np.degrees(np.arccos(np.cos(log["phi1"]) * np.cos(log["theta1"]))).max() > 5.0  # it does tilt its antenna
 
 
+def _real_planner(updates: dict) -> CapacityPlanner:
+    """The capacity planner production builds for ``SC`` with ``updates`` (review T15: no stand-in object)."""
+    sc = SC.with_updates(updates)
+    planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), build_source(sc))
+    return getattr(planner, "inner", planner)
+
+
 def test_reference_accelerates_and_brakes_within_its_limit_and_stops_on_the_target():
     """The reference speeds up at <= max_accel, slows down early enough to stop at brake_accel and
     never passes the target (a reference jumping from 3 m/s to rest made the relay overshoot by 3 m
-    over the BS's null)."""
-    planner = SimpleNamespace(speed=3.0, max_accel=4.0, brake_accel=1.5, v_ref=np.zeros(3))
+    over the BS's null). A real planner, its limits from the scenario (brake_accel as it derives it)."""
+    planner = _real_planner({"controller.capacity.speed_m_s": 3.0, "controller.capacity.max_accel_m_s2": 4.0,
+                             "controller.capacity.brake_accel_m_s2": 1.5})
+    assert (planner.speed, planner.max_accel, planner.brake_accel) == (3.0, 4.0, 1.5)
     dt, p, target = 0.015, np.zeros(3), np.array([5.0, 2.0, -1.0])
     vs = [np.zeros(3)]
     for _ in range(1000):
-        v = CapacityPlanner._velocity_toward(planner, target - p, dt)
+        v = planner._velocity_toward(target - p, dt)
         p, planner.v_ref = p + v * dt, v
         vs.append(v)
     vs = np.array(vs)
@@ -152,13 +161,14 @@ def test_a_level_only_relay_is_asked_to_tilt_toward_its_reference():
     was asked to stay vertical and the relay sat 0.66 m off the coplanar corner for 7 s. The
     reference's acceleration now adds the PD law's (w = 1 rad/s: w^2 (p_ref - p) + 2 w (v_ref - v)),
     bounded by max_accel; without a measured velocity it is the reference's own."""
-    planner = SimpleNamespace(tracking_freq=1.0, max_accel=4.0, p_ref=np.array([-6.95, -5.95, 7.6]), v_ref=np.zeros(3))
+    planner = _real_planner({"controller.capacity.tracking_freq_rad_s": 1.0, "controller.capacity.max_accel_m_s2": 4.0})
+    planner.p_ref, planner.v_ref = np.array([-6.95, -5.95, 7.6]), np.zeros(3)
     inp = SimpleNamespace(p1=np.array([-6.95, -5.3, 7.6]), v1=np.array([0.0, 0.1, 0.0]))
-    a = CapacityPlanner._with_tracking(planner, inp, np.zeros(3))
+    a = planner._with_tracking(inp, np.zeros(3))
     np.testing.assert_allclose(a, [0.0, -0.65 - 0.2, 0.0], atol=1e-12)
     far = SimpleNamespace(p1=np.array([0.0, 0.0, 7.6]), v1=np.zeros(3))
-    assert np.linalg.norm(CapacityPlanner._with_tracking(planner, far, np.zeros(3))) == pytest.approx(4.0)
-    np.testing.assert_array_equal(CapacityPlanner._with_tracking(planner, SimpleNamespace(p1=inp.p1, v1=None), np.ones(3)), np.ones(3))
+    assert np.linalg.norm(planner._with_tracking(far, np.zeros(3))) == pytest.approx(4.0)
+    np.testing.assert_array_equal(planner._with_tracking(SimpleNamespace(p1=inp.p1, v1=None), np.ones(3)), np.ones(3))
 
 
 def test_coplanar_relay_holds_its_reference_with_the_tracking_acceleration():

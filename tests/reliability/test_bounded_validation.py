@@ -157,16 +157,14 @@ def _message_ends(data: bytes) -> set[int]:
     return ends
 
 
-@pytest.mark.parametrize("far", [3e38, 1e300, 2e3])
-@pytest.mark.parametrize("kind", ["csv", "ulog"])
+# 1e300 is not representable in a ULog float32 field (inf there is a named error of its own): CSV only
+@pytest.mark.parametrize("far,kind", [(3e38, "csv"), (1e300, "csv"), (2e3, "csv"), (3e38, "ulog"), (2e3, "ulog")])
 def test_samples_far_from_the_workspace_are_named_with_the_file_and_row(tmp_path, far, kind):
     if kind == "csv":
         f = tmp_path / "m.csv"
         f.write_text(f"t,px,py,pz\n0,-3.04,5.79,1.72\n1,-3.0,5.79,2.0\n2,{far:g},5.79,2.5\n3,-2.8,5.79,3.0\n4,-2.8,5.79,3.5\n")
         sets, row = {"mission.trajectory_csv": str(f)}, "sample 3"
     else:
-        if far > 3.4e38:  # beyond float32 (a ULog field): inf, already a named error
-            pytest.skip("not representable in a ULog float")
         f = tmp_path / "m.ulg"
         t, rows = _flight(n=40)
         rows[17, 0] = far

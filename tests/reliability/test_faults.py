@@ -253,7 +253,8 @@ def test_reproduce_refuses_a_file_and_bad_worker_counts(tmp_path):
     res = run_cli("reproduce", "nominal", "--out", f, "--quick")
     assert res.exit_code == EXIT_BAD_INPUT and f.read_text() == "x"
     res = run_cli("reproduce", "nominal", "--out", tmp_path / "c", "--workers", "-1")
-    assert res.exit_code != 0 and not (tmp_path / "c").exists()
+    assert res.exit_code == EXIT_BAD_INPUT and "--workers" in res.output and "x>=1" in res.output
+    assert not (tmp_path / "c").exists()
 
 
 def test_an_unreachable_scheduler_is_a_named_error(tmp_path):

@@ -249,13 +249,14 @@ def test_a_reference_outside_the_workspace_is_clipped_and_counted():
     assert res.timeseries["pd_z"].max() <= sc.controller.workspace.max[2]
 
 
-@pytest.mark.parametrize("change", [("nodes", "relay", [20.0, 0.0, 5.0]), ("controller.workspace", "min", [-7.0, -6.0, -2.0])])
+@pytest.mark.parametrize("change", [("nodes", "relay", [20.0, 0.0, 5.0], r"nodes\.relay \[20\.0, 0\.0, 5\.0\] must lie inside controller\.workspace"),
+                                    ("controller.workspace", "min", [-7.0, -6.0, -2.0], r"controller\.workspace\.min: z = -2 m is below the ground")])
 def test_a_scenario_changed_after_loading_is_validated_again(change):
     sc = load_scenario(NOMINAL, set={"sim.duration_s": 0.3})
-    owner, field, value = change
+    owner, field, value, named = change
     obj = sc
     for part in owner.split("."):
         obj = getattr(obj, part)
     setattr(obj, field, value)  # passes the field's own check, not the scenario's
-    with pytest.raises(ScenarioError):
+    with pytest.raises(ScenarioError, match=named):
         ar.simulate(sc)

@@ -19,9 +19,11 @@ def test_mean_wind_alone_is_constant():
 
 def test_gusts_are_seeded_and_turn_with_the_mean_wind():
     along_y = WindSettings(mean=(0.0, 8.0, 0.0), gusts=True, w20_m_s=8.0, altitude_m=20.0)
-    a = np.array([WindSeries(along_y, 0.05, seed=3).next() for _ in range(1)])
-    b = np.array([WindSeries(along_y, 0.05, seed=3).next() for _ in range(1)])
-    assert np.array_equal(a, b)
+    s3, t3, s4 = WindSeries(along_y, 0.05, seed=3), WindSeries(along_y, 0.05, seed=3), WindSeries(along_y, 0.05, seed=4)
+    a = np.array([s3.next() for _ in range(200)])
+    b = np.array([t3.next() for _ in range(200)])
+    c = np.array([s4.next() for _ in range(200)])
+    assert np.array_equal(a, b) and not np.allclose(a, c)  # one seed, one series; another seed, another
     s = WindSeries(along_y, 0.05, seed=4)
     rec = np.array([s.next() for _ in range(40_000)]) - [0.0, 8.0, 0.0]
     # u (along the mean wind, here world y) and v (across, world -x) share the low-altitude sigma_u = sigma_v

@@ -171,6 +171,8 @@ def test_the_fleets_capacity_planner_finds_the_even_spacing_in_free_space(route,
 
 
 def test_the_fleets_capacity_planner_beats_the_equidistant_chain_under_the_jammer():
+    """Measured on these 10 s (2026-12-04): 84.79 against 83.36 Mbit/s, +1.72% (the +11.5% of
+    docs/results/networks.md is the whole 47 s mission); the test keeps more than half of that gain."""
     means = {}
     for planner in ("equidistant", "capacity"):
         sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": planner, "sim.duration_s": 10.0})
