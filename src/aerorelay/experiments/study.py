@@ -24,7 +24,6 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from ..assembly import load_scenario, parse_scenario, updated
 from ..config import Scenario, ScenarioError
 
-
 MAX_RUNS = 10_000  # runs one study may make (a 216,000-run grid spent minutes validating before any output)
 
 
