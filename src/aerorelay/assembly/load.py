@@ -58,7 +58,8 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
-    sources = data.get("sources") if isinstance(data.get("sources"), list) else []  # a wrong type is named by validation
+    given = data.get("sources")
+    sources: list = given if isinstance(given, list) else []  # a wrong type is named by validation
     missions = [data.get("mission")] + [s.get("mission") for s in sources if isinstance(s, dict)]
     for mission in (m for m in missions if isinstance(m, dict)):  # mission files are named relative to the scenario file
         for key in ("trajectory_csv", "trajectory_ulog"):
