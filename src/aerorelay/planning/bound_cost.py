@@ -4,9 +4,9 @@ take longer than ``[bound] max_minutes`` (issue 45: a K = 4 network bound over a
 at 2.4 GB with nothing printed; a 200 m one-relay bound and the finest network grid ended in
 MemoryError).
 
-The time estimate scales throughputs measured on the project's 2-core VM (2026-12-04, with
-``python /tmp/meas.py``-style timing of ``compute_bound`` / ``compute_network_bound``, see
-docs/results/reliability.md): the one-relay bound evaluates ``cells x axes x instants`` capacities
+The time estimate scales throughputs measured on the project's 2-core VM (2026-12-04, timing
+``compute_bound`` / ``compute_network_bound`` uncached: the command is in docs/results/reliability.md):
+the one-relay bound evaluates ``cells x axes x instants`` capacities
 (the nominal mission: 27,550 x 63 x 95 in 23 s, ``SINGLE_EVALS_PER_S``); the network bound's
 relay-relay hops dominate with ``cells^2`` pair terms per hop and instant (``chain_two_relays``:
 31 x 7,072^2 in 30 s, ``PAIR_EVALS_PER_S``). The memory estimate is the largest arrays the
