@@ -182,3 +182,24 @@ def test_quick_mode_names_a_loss_it_cuts_off():
     notices: list[str] = []
     specs = expand(studies["network"], ROOT, quick=True, notices=notices)
     assert specs and any("before its relay loss" in n and "flown without the loss" in n for n in notices)
+
+
+def test_an_absurd_wind_is_named_before_flying(tmp_path):
+    """Before: a 1e300 m/s wind flew, then its metrics raised and nothing was written."""
+    r = runner.invoke(app, ["run", str(NOMINAL), "--duration", "0.3", "--no-bound", "--no-figures", "--set",
+                            "wind.mean_m_s=[1e300, 0, 0]", "--out", str(tmp_path / "w")])
+    assert r.exit_code == 2 and "wind.mean_m_s: |v| = 1e+300 m/s; allowed 0-40 m/s" in " ".join(r.output.split())
+
+
+def test_metrics_that_fail_after_a_flight_keep_the_flight(tmp_path, monkeypatch):
+    """Nothing computed after a flight may lose it: the time series is saved, the run unsafe (exit 3)."""
+    import aerorelay.experiments.run as run
+
+    def broken(*a, **k):
+        raise ZeroDivisionError("a metric divided by zero")
+    monkeypatch.setattr(run, "compute_metrics", broken)
+    r = runner.invoke(app, ["run", str(NOMINAL), "--duration", "0.3", "--no-bound", "--no-figures", "--out", str(tmp_path / "k")])
+    assert r.exit_code == 3 and "its metrics could not be computed (ZeroDivisionError" in " ".join(r.output.split())
+    import pandas as pd
+
+    assert len(pd.read_parquet(tmp_path / "k" / "timeseries.parquet")) == 21

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import math
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from .base import Strict, Vec3
 
 AIR_DENSITY_KG_M3 = 1.225  # ISA sea level, 15 deg C
+MAX_WIND_M_S = 40.0  # the mean wind's largest speed (as gust_w20_m_s's)
 
 
 class WindConfig(Strict):
@@ -31,6 +32,14 @@ class WindConfig(Strict):
                            "(an external-force observer on its measured velocity; off: the NMPC flies as in still air)")
     observer_time_constant_s: float = Field(0.3, gt=0.0, le=10.0, description="how fast the estimate follows the "
                                             "measured disturbance, s (first order)")
+
+    @field_validator("mean_m_s")
+    @classmethod
+    def _a_wind_a_relay_flies_in(cls, v):
+        speed = math.hypot(*v)
+        if not speed <= MAX_WIND_M_S:
+            raise ValueError(f"|v| = {speed:.4g} m/s; allowed 0-{MAX_WIND_M_S:g} m/s (no multirotor relay flies in more)")
+        return v
 
     @property
     def w20_m_s(self) -> float:

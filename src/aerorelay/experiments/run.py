@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import shutil
@@ -86,6 +87,8 @@ class RunResult:
 
 FIGURES_BYTES = 12_000_000  # the figures of one run (trajectory.html ~5.3 MB, PNGs)
 
+log = logging.getLogger(__name__)
+
 
 def log_bytes(sc: Scenario) -> int:
     """Bytes the mission's per-step log takes in memory (8 per value)."""
@@ -110,6 +113,14 @@ def check_run_size(sc: Scenario) -> None:
         most = (total // 2) / need * sc.duration_s
         raise ScenarioError(f"sim.duration_s: {sc.duration_s:g} s needs {need / 1e9:.1f} GB for its log, more than half of "
                             f"this machine's {total / 1e9:.0f} GB; at most about {most:.0f} s here")
+
+
+def failed_metrics(mission: MissionResult, exc: Exception) -> dict:
+    """The metrics of a flight whose metrics could not be computed: its step count, and unsafe with why
+    (its safety cannot be shown); the run folder still holds its time series."""
+    why = f"its metrics could not be computed ({type(exc).__name__}: {exc}); its time series is kept"
+    return {"steps": len(mission.log["t"]), "unsafe": True, "unsafe_reason": why, "metrics_failed": why,
+            "controller": mission.controller, "aborted": mission.aborted}
 
 
 def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBound | None) -> dict:
@@ -163,12 +174,16 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
     mission = loop.run(progress)
     df = log_frame(mission.log, loop.columns, {c: column_type(c) for c in mission.log if column_type(c) is not float})
     ws = sc.controller.workspace
-    metrics = fleet_metrics(mission.log, relays={r.name: r.vehicle for r in loop.relays},
-                            sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
-                            outage_threshold=sc.channel.outage, wall_s=mission.wall_s, sim_s=mission.sim_s,
-                            min_separation_m=sc.separation_m, workspace_min=ws.min, workspace_max=ws.max,
-                            box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
-                            losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
+    try:
+        metrics = fleet_metrics(mission.log, relays={r.name: r.vehicle for r in loop.relays},
+                                sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
+                                outage_threshold=sc.channel.outage, wall_s=mission.wall_s, sim_s=mission.sim_s,
+                                min_separation_m=sc.separation_m, workspace_min=ws.min, workspace_max=ws.max,
+                                box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
+                                losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
+    except Exception as exc:  # nothing computed after a flight may lose it
+        log.exception("the fleet's metrics failed; its time series is kept")
+        metrics = failed_metrics(mission, exc)
     metrics["controller"] = mission.controller
     metrics["fallback_episodes"] = mission.fallback_episodes
     if mission.aborted is not None:
@@ -176,7 +191,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
         metrics["unsafe_reason"] = "; ".join(r for r in (metrics["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
-    if bound is not None:
+    if bound is not None and "c_mean" in metrics:
         network_efficiency(metrics, bound)
     metrics["units"] = fleet_metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, bound, views)
@@ -238,7 +253,11 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     mission = parts.closed_loop().run(progress)
     base = log_columns(parts.vehicle.n_rotors)  # then the random channel terms and the jammer estimate, when any
     df = log_frame(mission.log, base + [c for c in mission.log if c not in base], LOG_COLUMN_TYPES)
-    metrics = run_metrics(sc, mission, parts.vehicle, bound)
+    try:
+        metrics = run_metrics(sc, mission, parts.vehicle, bound)
+    except Exception as exc:  # nothing computed after a flight may lose it: the time series is kept, the run unsafe
+        log.exception("the run's metrics failed; its time series is kept")
+        metrics = failed_metrics(mission, exc)
     checked = parts.planner.planner if isinstance(parts.planner, KeepOutPlanner) else parts.planner
     if isinstance(checked, CheckedPlanner):  # a user's planner: how often its position reference was clipped
         metrics["reference_clipped_steps"] = checked.clipped_steps

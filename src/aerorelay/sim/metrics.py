@@ -81,6 +81,9 @@ def air_metrics(log, prefix: str = "") -> dict:
         return np.column_stack([np.asarray(log[f"{name}_{a}"], float) for a in "xyz"])
     wind, drag = vec("wind"), vec(f"{prefix}a_drag")  # the wind is the fleet's, the drag each relay's
     ok = np.all(np.isfinite(drag), axis=1)
+    if not ok.any():  # no finite drag logged (a flight cut at its first step): nothing to average
+        return {"wind_speed_mean_m_s": float(np.linalg.norm(wind, axis=1).mean()), "drag_accel_mean_m_s2": math.nan,
+                "drag_accel_max_m_s2": math.nan}
     out = {"wind_speed_mean_m_s": float(np.linalg.norm(wind, axis=1).mean()),
            "drag_accel_mean_m_s2": float(np.linalg.norm(drag[ok], axis=1).mean()),
            "drag_accel_max_m_s2": float(np.linalg.norm(drag[ok], axis=1).max())}
