@@ -204,16 +204,19 @@ def test_one_relay_written_as_a_network_gets_its_bound_and_its_capacity_planner(
     assert not r.metrics["unsafe"] and 0 < r.metrics["capacity_efficiency_mean"] <= 1.05
 
 
-def test_the_fleet_loop_with_one_relay_flies_the_one_relay_mission():
+def test_the_fleet_loop_with_one_relay_flies_the_one_relay_mission(monkeypatch):
     """Review T1: the fleet loop (``build_fleet``) on the nominal mission with the paper's planner,
-    column by column against the one-relay loop over 1.5 s. Measured 2026-12-04: the references agree
-    to 7e-10 m, but the NMPC's first input already differs by 0.13% (rotor 1: 34.83 against 34.87 Hz/s
-    at t = 0: the fleet's stage parameters are not the one relay's), so the relay's position agrees to
-    2.3e-5 relative, its velocity to 3.6e-4 m/s, the hops' SINRs to 8.0e-5 and the capacity to 3.8e-5.
-    Issue 46 makes the two loops one; this test then tightens to round-off."""
+    column by column against the one-relay loop over 1.5 s. Without a separation constraint (the
+    one-relay OCP) it flies it bit for bit. With the default separation (the vehicles' size, 1.05 m)
+    its NMPC keeps a soft separation row from the source, never active here (3.9 m and more), which
+    still moves the interior-point QP's answer: the first input by 0.13% (rotor 1: 34.83 against
+    34.87 Hz/s at t = 0; measured 2026-12-04), the position by 2.3e-5 relative over 1.5 s, the
+    velocity by 3.6e-4 m/s, the SINRs by 8.0e-5, the capacity by 3.8e-5 (the references agree to
+    7e-10 m)."""
     import numpy as np
 
     from aerorelay.assembly.parts import build, build_fleet
+    from aerorelay.config.scenario import Scenario
 
     sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 1.5, "network.planner": "paper"})
     one, fleet = build(sc).closed_loop().run().log, build_fleet(sc).closed_loop().run().log
@@ -225,3 +228,10 @@ def test_the_fleet_loop_with_one_relay_flies_the_one_relay_mission():
              "capacity": ("capacity", 3e-4, 0.0)}
     for a, (b, rtol, atol) in close.items():
         np.testing.assert_allclose(np.asarray(fleet[b], float), np.asarray(one[a], float), rtol=rtol, atol=atol, err_msg=f"{a} / {b}")
+    monkeypatch.setattr(Scenario, "separation_m", property(lambda self: 0.0))  # no separation row: the one-relay OCP
+    exact = build_fleet(sc).closed_loop().run().log
+    same = {**{f"p1_{a}": f"relay.p_{a}" for a in "xyz"}, **{f"v1_{a}": f"relay.v_{a}" for a in "xyz"},
+            **{f"u_{i}": f"relay.u_{i}" for i in range(1, 7)}, "phi1": "relay.phi", "theta1": "relay.theta",
+            "gamma_21": "sinr.source.relay", "gamma_10": "sinr.relay.bs", "capacity": "capacity"}
+    for a, b in same.items():
+        assert np.array_equal(np.asarray(exact[b], float), np.asarray(one[a], float)), (a, b)
