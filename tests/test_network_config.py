@@ -186,8 +186,8 @@ def test_what_a_fleet_does_not_fly_yet_is_named_before_any_work(tmp_path):
 
     f = tmp_path / "chain.toml"
     f.write_text(parse_scenario(chain()).to_toml())
-    noisy = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--set", "perturbations.csi_noise_m=0.1"])
-    assert noisy.exit_code == 2 and "a fleet flies the deterministic channel so far" in noisy.output, noisy.output
+    estimated = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--set", "jammer.localization='estimated'"])
+    assert estimated.exit_code == 2 and "a fleet does not estimate its jammers yet" in estimated.output, estimated.output
     assert not (tmp_path / "r").exists()
 
 

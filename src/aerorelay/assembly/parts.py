@@ -8,6 +8,7 @@ it) and shared by the planner, the controller, the plant and the bound.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import casadi as ca
@@ -157,11 +158,19 @@ def check_buildable(sc: Scenario) -> Scenario:
 
 
 def fleet_flies(sc: Scenario) -> None:
-    """A fleet (more than one relay or source) flies the deterministic channel so far: random channel
-    terms, noise and jammer estimation are a named error."""
-    if sc.is_fleet and (sc.stochastic or sc.estimates_jammers):
-        raise ScenarioError("relays / sources: a fleet flies the deterministic channel so far (no fading, shadowing, "
-                            "CSI or process noise, estimated jammers); docs/concepts/networks.md")
+    """What a fleet (more than one relay or source) does not fly yet, as a named error: jammers
+    estimated from readings, and random channel terms (fading, shadowing) together with relays lost in
+    flight (the network's links change at a loss). Fading, shadowing, CSI and process noise fly."""
+    if not sc.is_fleet:
+        return
+    if sc.estimates_jammers:
+        raise ScenarioError("jammer.localization: a fleet does not estimate its jammers yet ('estimated' flies one relay); "
+                            "docs/concepts/networks.md")
+    random_channel = sc.perturbations.fading_k_db is not None and math.isfinite(sc.perturbations.fading_k_db) or \
+        sc.channel.propagation.random
+    if sc.losses and random_channel:
+        raise ScenarioError("relays.lost_at_s: a fleet with random channel terms (fading, shadowing) does not lose relays "
+                            "in flight yet; docs/concepts/networks.md")
 
 
 def path_gain(ch) -> PathGain:

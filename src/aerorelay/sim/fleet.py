@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -23,6 +23,7 @@ from ..control.relay import RelayController
 from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
+from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetInput, FleetPlanner
 from .air import Air
@@ -38,6 +39,7 @@ from .closed_loop import (
     step_count,
     steps_flown,
 )
+from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
 
 VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
@@ -135,6 +137,18 @@ class FleetLoop:
             self.columns += self.nlos_columns
         if air is not None:
             self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
+        # the plant's random channel terms on every link (each its own draw, shadowing along each link's own
+        # geometry), unknown to the planners and NMPCs; logged per link (sim/perturbations.py)
+        noise = settings.channel_noise or PerturbationSettings()
+        self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
+                                               seed=settings.seed)
+        if self.perturbations.active and self.losses:
+            raise ValueError("FleetLoop: random channel terms with relays lost in flight are not flown yet (the links change)")
+        self.columns += self.perturbations.columns
+        # what the fleet knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
+        self.csi_rng = generator(settings.seed, "csi")
+        self.process_rngs = {r.name: np.random.default_rng(child)
+                             for r, child in zip(relays, stream(settings.seed, "process").spawn(len(relays)), strict=True)}
         self.neighbours_of = route_neighbours(scene)
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
         self._bs_path = np.repeat(self.bs[:, None], relays[0].controller.spec.horizon + 1, axis=1)
@@ -144,9 +158,26 @@ class FleetLoop:
         """The jammers as the fleet knows them (the oracle after each one's ``tau_E``, as the one-relay
         loop): positions ``(nJ, 3)`` m, and the powers planned with (0 before localization; the nominal
         power, or the one radiated now with ``controller.senses_jammer_state``), W."""
-        js = self.scene.jammers
-        return (np.array([j.position_at(t) for j in js]).reshape(-1, 3),
+        js, noise = self.scene.jammers, self.settings.csi_noise_m
+        return (np.array([j.position_at(t) + (self.csi_rng.normal(0.0, noise, 3) if noise > 0 else 0.0) for j in js]).reshape(-1, 3),
                 np.array([j.planned_power(t, self.settings.senses_jammer_state) for j in js]))
+
+    def _known_sources(self, truth: dict) -> dict:
+        """Every source as the fleet knows it over its optical link: its position with CSI noise (m), its
+        velocity and acceleration."""
+        noise = self.settings.csi_noise_m
+        if noise <= 0:
+            return truth
+        return {n: replace(s, p=s.p + self.csi_rng.normal(0.0, noise, 3)) for n, s in truth.items()}
+
+    def _process_noise(self, relay: str) -> np.ndarray:
+        """One relay's process noise for a step: accelerations (m/s^2, world) and angular accelerations
+        (rad/s^2, body), from its own stream."""
+        st = self.settings
+        if st.process_noise_v <= 0 and st.process_noise_w <= 0:
+            return np.zeros(6)
+        rng = self.process_rngs[relay]
+        return np.concatenate([rng.normal(0.0, st.process_noise_v, 3), rng.normal(0.0, st.process_noise_w, 3)])
 
     def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
         """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
@@ -191,7 +222,8 @@ class FleetLoop:
                     lost = pending.pop(0)[1]
                     self._lose(lost, x)
                 flying = {n: xs for n, xs in x.items() if n not in lost}
-                src = {name: path.state(t) for name, path in self.sources.items()}
+                truth = {name: path.state(t) for name, path in self.sources.items()}
+                src = self._known_sources(truth)  # over the optical links, with CSI noise
                 positions = {**{n: xs[0:3].copy() for n, xs in flying.items()}, **{n: s.p for n, s in src.items()},
                              self.scene.name_of("base_station"): self.bs}
                 velocities = {**{n: xs[6:9].copy() for n, xs in flying.items()}, **{n: s.v for n, s in src.items()}}
@@ -235,12 +267,18 @@ class FleetLoop:
                             f"{r.name}.qp_ok": info.ok, f"{r.name}.qp_status": info.status,
                             f"{r.name}.fallback": info.fallback,
                             f"{r.name}.safety_violation": bool(r.controller.last_violations)}
-                poses = {n: self.scene.pose(n, positions[n], R[n]) for n in R}
-                for name, s in src.items():
+                true_positions = positions | {n: s.p for n, s in truth.items()}
+                poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R}
+                for name, s in truth.items():
                     row |= {f"{name}.{q}": v for q, v in zip(SOURCE_STATE, [*s.p, *eta[name]], strict=True)}
                 gains = None
+                if self.perturbations.active:  # fading and shadowing on every link, each its own
+                    true_velocities = velocities | {n: s.v for n, s in truth.items()} | {self.scene.name_of("base_station"): np.zeros(3)}
+                    gains, values = self.perturbations.step(t, true_positions, true_velocities)
+                    row |= values
                 if self.blockage is not None:  # a link through an obstacle that blocks radio loses its nlos_loss_db
-                    gains, values = self.blockage.step(self.scene, t, positions)
+                    blocked, values = self.blockage.step(self.scene, t, true_positions)
+                    gains = blocked if gains is None else gains * blocked
                     row |= dict.fromkeys(self.nlos_columns, math.nan) | values
                 state = self.scene.evaluate(t, poses, fading=gains)
                 row |= dict.fromkeys(sinr_columns, math.nan)  # a hop the network does not take now
@@ -249,13 +287,14 @@ class FleetLoop:
                                                                             strict=True)}
                 row["capacity"] = float(state.capacity)
                 row["jammer_on"] = float(any(float(j.power_at(t)) > 0 for j in self.scene.jammers))
-                row["separation_min"] = separation_min(np.array([positions[n] for n in (*flying, *src)]))
+                row["separation_min"] = separation_min(np.array([true_positions[n] for n in (*flying, *src)]))
                 row |= jammer_values(self.scene, t)
                 record_row(log, k, row, self.columns, "fleet log row")
                 for r in self.relays:
                     if r.name not in lost:
-                        x[r.name] = (self.air.advance(r.name, x[r.name], u[r.name], np.zeros(6)) if self.air
-                                     else np.asarray(r.plant(x[r.name], u[r.name], np.zeros(6))).ravel())
+                        d = self._process_noise(r.name)
+                        x[r.name] = (self.air.advance(r.name, x[r.name], u[r.name], d) if self.air
+                                     else np.asarray(r.plant(x[r.name], u[r.name], d)).ravel())
                 bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
                 if bad:
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1

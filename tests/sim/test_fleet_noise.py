@@ -1,0 +1,144 @@
+"""Random channel terms, CSI and process noise in a fleet (issue 46, every feature in every fleet):
+each link of a chain its own fading draw with the stated K factor, the logged rates equal the link
+equations on the logged poses and fading amplitudes, the fleet knows its sources and jammers with
+CSI noise, each relay its own process noise, a seed reproduces a run."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly import parse_scenario
+from aerorelay.assembly.parts import build_fleet
+from aerorelay.config import ScenarioError
+
+from .test_fleet import CHAIN, _axis, _gain
+
+
+def _noisy(**perturbations) -> ar.Scenario:
+    d = copy.deepcopy(CHAIN)
+    d["sim"] = {"duration_s": 3.0}
+    d["perturbations"] = perturbations
+    return parse_scenario(d)
+
+
+@pytest.fixture(scope="module")
+def faded():
+    sc = _noisy(fading_k_db=6.0)
+    return sc, ar.simulate(sc)
+
+
+def test_each_link_fades_on_its_own_with_the_stated_k_factor(faded):
+    """Rician amplitudes with E[a^2] = 1: E[a^4] / E[a^2]^2 = (K^2 + 4K + 2) / (K + 1)^2 (K linear),
+    1.361 at 6 dB; the six links of the chain (three hops, the jammer at each receiver) uncorrelated."""
+    sc, r = faded
+    cols = [c for c in r.timeseries if c.startswith("fade_amp_")]
+    assert set(cols) == {"fade_amp_inspector_r1", "fade_amp_r1_r2", "fade_amp_r2_bs", "fade_amp_jammer_r1",
+                         "fade_amp_jammer_r2", "fade_amp_jammer_bs"}
+    a = r.timeseries[cols].to_numpy()
+    k = 10 ** (6.0 / 10)
+    assert (a**2).mean() == pytest.approx(1.0, abs=0.05)  # 1206 draws: the mean's std is ~0.02
+    assert (a**4).mean() / (a**2).mean() ** 2 == pytest.approx((k * k + 4 * k + 2) / (k + 1) ** 2, rel=0.05)
+    corr = np.corrcoef(a.T)[np.triu_indices(len(cols), 1)]
+    assert np.abs(corr).max() < 0.25  # 201 draws a link: an independent pair's correlation has std 0.07
+
+
+def test_a_chains_logged_rates_equal_the_link_equations_with_its_fading(faded):
+    """Independent recomputation (P_U = sigma^2 = 1, B = 1, P_J = 4 W): each hop's signal times its
+    amplitude squared over the noise plus the jammer's interference at its receiver times that link's,
+    on the logged poses: Gamma = G a_s^2 / (1 + P_J G_J a_j^2); R = 1 / sum 1/log2(1 + Gamma)."""
+    sc, r = faded
+    df = r.timeseries
+    route = sc.route_list[0]
+    for k in (0, len(df) // 2, len(df) - 1):
+        row = df.iloc[k]
+        pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+        inv = 0.0
+        for tx, rx in zip(route[:-1], route[1:], strict=False):
+            (pt, bt), (pr, br) = _pose(row, tx), _pose(row, rx)
+            jam = 4.0 * _gain(pj, None, pr, br, tx_dipole=False) * row[f"fade_amp_jammer_{rx}"] ** 2
+            g = _gain(pt, bt, pr, br) * row[f"fade_amp_{tx}_{rx}"] ** 2 / (1.0 + jam)
+            assert row[f"sinr.{tx}.{rx}"] == pytest.approx(g, rel=1e-9), (tx, rx)
+            inv += 1.0 / math.log2(1.0 + g)
+        assert row["capacity"] == pytest.approx(1.0 / inv, rel=1e-9)
+
+
+def _pose(row, n):
+    if n == "bs":
+        return np.zeros(3), np.array([0.0, 0.0, 1.0])
+    return (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]), _axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]))
+
+
+def test_the_fleet_knows_its_sources_and_jammers_with_csi_noise():
+    """The fleet planner's inputs: the source's position off the truth by N(0, 0.3 m) per axis, the
+    jammer's too; the channel and the log keep the true positions."""
+    sc = _noisy(csi_noise_m=0.3).with_updates({"sim.duration_s": 2.0})
+    parts = build_fleet(sc)
+    seen = []
+
+    class Recorder:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+        def update(self, inp):
+            seen.append((inp.t, np.array(inp.positions["inspector"]), np.array(inp.jammer_positions[0])))
+            return self.inner.update(inp)
+    parts.planner = Recorder(parts.planner)
+    log = parts.closed_loop().run().log
+    path = parts.sources["inspector"]
+    err = np.array([p - path.state(t).p for t, p, _ in seen])
+    jam = np.array([pj - np.asarray(sc.jammer.position) for _, _, pj in seen])
+    assert err.std() == pytest.approx(0.3, rel=0.1) and abs(err.mean()) < 0.05
+    assert jam.std() == pytest.approx(0.3, rel=0.1)
+    np.testing.assert_allclose(log["inspector.p_x"], [path.state(t).p[0] for t, _, _ in seen], rtol=0, atol=1e-12)
+
+
+def test_each_relay_has_its_own_process_noise_and_a_seed_reproduces_a_run():
+    sc = _noisy(process_noise_v=0.5, process_noise_w=0.2).with_updates({"sim.duration_s": 1.0})
+    a, b = ar.simulate(sc).timeseries, ar.simulate(sc).timeseries
+    c = ar.simulate(sc.with_updates({"seed": 1})).timeseries
+    quiet = ar.simulate(_noisy().with_updates({"sim.duration_s": 1.0})).timeseries
+    cols = ["r1.v_x", "r2.v_x", "r1.omega_y", "r2.omega_y"]
+    assert np.array_equal(a[cols].to_numpy(), b[cols].to_numpy())  # one seed, one run
+    assert not np.allclose(a[cols].to_numpy(), c[cols].to_numpy())  # another seed, another
+    # the noise each relay felt: its deviation from the noiseless run, uncorrelated between the relays
+    d1 = np.diff(a["r1.v_x"] - quiet["r1.v_x"])
+    d2 = np.diff(a["r2.v_x"] - quiet["r2.v_x"])
+    assert np.abs(d1).max() > 1e-4 and np.abs(d2).max() > 1e-4
+    assert not np.allclose(d1, d2)
+
+
+def test_a_three_relay_chain_flies_safe_in_gusty_wind_with_fading():
+    """Three relays, 5 m/s wind with Dryden gusts, Rician fading at 6 dB, CSI noise: safe, every
+    relay in its workspace and apart."""
+    d = copy.deepcopy(CHAIN)
+    d["relays"] = [{"name": "r1", "start": [24.0, 1.0, 5.0]}, {"name": "r2", "start": [16.0, -1.0, 5.0]},
+                   {"name": "r3", "start": [8.0, 0.0, 5.0]}]
+    d["network"] = {"routes": [["inspector", "r1", "r2", "r3", "bs"]], "min_separation_m": 2.0}
+    d["sim"] = {"duration_s": 4.0}
+    d["wind"] = {"mean_m_s": [5.0, 0.0, 0.0], "gusts": True}
+    d["perturbations"] = {"fading_k_db": 6.0, "csi_noise_m": 0.05}
+    r = ar.simulate(parse_scenario(d))
+    m = r.metrics
+    assert not m["unsafe"], m["unsafe_reason"]
+    assert m["separation_min_m"] >= 2.0 and set(m["relays"]) == {"r1", "r2", "r3"}
+    assert {"fade_amp_r3_bs", "fade_amp_jammer_r3", "wind_x"} <= set(r.timeseries)
+
+
+def test_what_a_fleet_does_not_fly_yet_is_named():
+    d = copy.deepcopy(CHAIN)
+    d["jammer"] = d["jammer"] | {"localization": "estimated"}
+    with pytest.raises(ScenarioError, match="jammer.localization: a fleet does not estimate its jammers yet"):
+        ar.simulate(parse_scenario(d))
+    d = copy.deepcopy(CHAIN)
+    d["relays"][0]["lost_at_s"] = 1.0
+    d["perturbations"] = {"fading_k_db": 6.0}
+    with pytest.raises(ScenarioError, match="relays.lost_at_s: a fleet with random channel terms"):
+        ar.simulate(parse_scenario(d))
