@@ -138,3 +138,24 @@ def test_measured_causes_are_computed_from_the_runs(tmp_path):
     change = float(re.search(r"K = 6 dB: ([+-][0-9.]+)%", text).group(1))
     assert -15.0 < change < 0.0  # Jensen: fading can only lower a concave mean, and not by much at low SNR
     assert "has no results" in explain(Explanation(kind="fading", run="gone", k_db=[6.0]), specs, tmp_path)
+
+
+def test_efficiency_keys_name_their_denominator_for_one_relay_and_for_a_fleet():
+    """Issue 46: ``capacity_efficiency_mean`` is C over the path bound for one relay and over the static
+    bound for a fleet; ``efficiency_<stat>_vs_<bound>`` names its denominator for every fleet size,
+    recomputed here from the bound's own arrays."""
+    import aerorelay as ar
+
+    one = ar.simulate(ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 1.0, "bound.grid_m": 1.0}),
+                      bound=True)
+    m, b = one.metrics, one.bound
+    assert m["efficiency_mean_vs_path"] == pytest.approx(m["c_mean"] / b.path_mean.mean(), rel=1e-12)
+    assert m["efficiency_min_vs_path"] == pytest.approx(m["c_min"] / b.path_maxmin.min(), rel=1e-12)
+    assert m["efficiency_mean_vs_static"] == pytest.approx(m["c_mean"] / b.static.mean(), rel=1e-12)
+    assert m["efficiency_mean_vs_flyable"] == pytest.approx(m["c_mean"] / b.flyable_mean.mean(), rel=1e-12)
+    assert m["capacity_efficiency_mean"] == m["efficiency_mean_vs_path"] and m["units"]["efficiency_mean_vs_path"] == "1"
+    fleet = ar.simulate(ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 1.0}), bound=True)
+    f, nb = fleet.metrics, fleet.bound
+    assert f["efficiency_mean_vs_static"] == pytest.approx(f["c_mean"] / nb.static.mean(), rel=1e-12)
+    assert f["efficiency_min_vs_achieved"] == pytest.approx(f["c_min"] / nb.achieved.min(), rel=1e-12)
+    assert f["capacity_efficiency_mean"] == f["efficiency_mean_vs_static"] and "efficiency_mean_vs_path" not in f

@@ -142,8 +142,19 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
             ("capacity_efficiency_min", m["c_min"], bound.path_maxmin.min(), "the best-minimum path's minimum"),
             # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
             ("capacity_efficiency_mean_flyable", m["c_mean"], bound.flyable_mean.mean(), "the flyable mean path's mean"),
-            ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum")))
+            ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum"),
+            # one name per denominator, the same for every fleet size (the legacy keys above keep the studies reading)
+            *efficiency_rows(m, "path", bound.path_mean.mean(), bound.path_maxmin.min(), "the best path's"),
+            *efficiency_rows(m, "static", bound.static.mean(), bound.static.min(), "the static bound's"),
+            *efficiency_rows(m, "flyable", bound.flyable_mean.mean(), bound.flyable_maxmin.min(), "the flyable path's")))
     return m
+
+
+def efficiency_rows(m: dict, bound_name: str, best_mean: float, best_min: float, what: str) -> list[tuple]:
+    """``efficiency_mean_vs_<bound>`` and ``efficiency_min_vs_<bound>``: the run's mean and minimum rate
+    over that bound's mean and minimum (one key per denominator, for one relay and for fleets)."""
+    return [(f"efficiency_mean_vs_{bound_name}", m["c_mean"], best_mean, f"{what} mean"),
+            (f"efficiency_min_vs_{bound_name}", m["c_min"], best_min, f"{what} minimum")]
 
 
 def add_efficiencies(m: dict, summary: dict, rows) -> None:
@@ -207,10 +218,13 @@ def network_efficiency(m: dict, bound: NetworkBound) -> None:
             ("capacity_efficiency_min", m["c_min"], bound.static.min(), "the static bound's minimum"),
             ("capacity_efficiency_mean_achieved", m["c_mean"], bound.achieved.mean(), "the refined configuration's mean"),
             ("capacity_efficiency_min_achieved", m["c_min"], bound.achieved.min(), "the refined configuration's minimum")]
+    rows += [*efficiency_rows(m, "static", bound.static.mean(), bound.static.min(), "the static bound's"),
+             *efficiency_rows(m, "achieved", bound.achieved.mean(), bound.achieved.min(), "the refined configuration's")]
     losses, summary = m.get("losses", []), bound.summary()
     if "flyable" in summary and not losses:  # against the flyable fleet path (a lower estimate of the best path)
         rows += [("capacity_efficiency_mean_flyable", m["c_mean"], summary["flyable"]["mean"], "the flyable fleet path's mean"),
-                 ("capacity_efficiency_min_flyable", m["c_min"], summary["flyable"]["min"], "the flyable fleet path's minimum")]
+                 ("capacity_efficiency_min_flyable", m["c_min"], summary["flyable"]["min"], "the flyable fleet path's minimum"),
+                 *efficiency_rows(m, "flyable", summary["flyable"]["mean"], summary["flyable"]["min"], "the flyable fleet path's")]
     if losses:
         for label, part in loss_phases(bound.t, [loss["t_s"] for loss in losses]).items():
             if f"c_mean_{label}" in m and part.any():

@@ -27,7 +27,7 @@ def metric_unit(key: str, capacity_unit: str) -> str | None:
         return capacity_unit
     if key.startswith("se_"):
         return SPECTRAL
-    if key.startswith("capacity_efficiency") or key in COUNTS or key.endswith("_rel_err_max") or key.startswith("estimation_within"):
+    if key.startswith(("capacity_efficiency", "efficiency_")) or key in COUNTS or key.endswith("_rel_err_max") or key.startswith("estimation_within"):
         return DIMENSIONLESS
     for suffix, unit in SUFFIX_UNITS:
         if key.endswith(suffix):
