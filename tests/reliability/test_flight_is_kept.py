@@ -158,6 +158,7 @@ def test_a_diverging_plant_keeps_the_steps_flown_and_is_unsafe(tmp_path, monkeyp
     assert res.exit_code == EXIT_UNSAFE, res.output
     m = strict_load(tmp_path / "r" / "metrics.json")
     assert m["unsafe"] and "non-finite" in m["unsafe_reason"] and m["steps"] == 7
+    assert m["exit_status"] == "non_finite" and m["exit_sentence"].startswith("a state stopped being finite")
 
 
 def test_run_folders_follow_the_umask(tmp_path):

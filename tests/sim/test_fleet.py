@@ -111,6 +111,7 @@ def test_separation_min_and_its_verdict():
     assert not fleet_metrics(r.mission.log, min_separation_m=sep - 0.1, **common)["unsafe"]
     m = fleet_metrics(r.mission.log, min_separation_m=sep + 0.1, **common)
     assert m["unsafe"] and "closer than network.min_separation_m" in m["unsafe_reason"]
+    assert m["exit_status"] == "too_close" and m["exit_statuses"] == ["too_close"]
 
 
 def _converging(separation_m: float | None):

@@ -24,6 +24,7 @@ from ..planning.bound import CapacityBound
 from ..planning.keep_out import KeepOutPlanner
 from ..planning.network_bound import NetworkBound
 from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
+from ..sim.exit_status import ExitStatus, exit_fields
 from ..sim.fleet import column_type
 from ..sim.metrics import compute_metrics, fleet_metrics, loss_phases
 from ..sim.units import fleet_metric_units, metric_units
@@ -115,12 +116,19 @@ def check_run_size(sc: Scenario) -> None:
                             f"this machine's {total / 1e9:.0f} GB; at most about {most:.0f} s here")
 
 
+def ended_early(m: dict, mission: MissionResult) -> dict:
+    """The exit fields of a mission that stopped before its end: its own status first (``exit_status``
+    of the loop or the flight: a non-finite plant state, or ended early), then the safety verdict's."""
+    first = ExitStatus(mission.exit_status) if mission.exit_status else ExitStatus.ENDED_EARLY
+    return exit_fields([first, *(ExitStatus(v) for v in m.get("exit_statuses", []) if v != ExitStatus.COMPLETE.value)])
+
+
 def failed_metrics(mission: MissionResult, exc: Exception) -> dict:
     """The metrics of a flight whose metrics could not be computed: its step count, and unsafe with why
     (its safety cannot be shown); the run folder still holds its time series."""
     why = f"its metrics could not be computed ({type(exc).__name__}: {exc}); its time series is kept"
     return {"steps": len(mission.log["t"]), "unsafe": True, "unsafe_reason": why, "metrics_failed": why,
-            "controller": mission.controller, "aborted": mission.aborted}
+            "controller": mission.controller, "aborted": mission.aborted, **exit_fields([ExitStatus.METRICS_FAILED])}
 
 
 def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBound | None) -> dict:
@@ -136,6 +144,7 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
         m["aborted"] = mission.aborted
         m["unsafe"] = True
         m["unsafe_reason"] = "; ".join(r for r in (m["unsafe_reason"], f"aborted: {mission.aborted}") if r)
+        m |= ended_early(m, mission)
     if bound is not None:  # how far from what the physics allows (planning/bound.py)
         add_efficiencies(m, bound.summary(), (
             ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
@@ -200,6 +209,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
     if mission.aborted is not None:
         metrics["aborted"], metrics["unsafe"] = mission.aborted, True
         metrics["unsafe_reason"] = "; ".join(r for r in (metrics["unsafe_reason"], f"aborted: {mission.aborted}") if r)
+        metrics |= ended_early(metrics, mission)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
     if bound is not None and "c_mean" in metrics:

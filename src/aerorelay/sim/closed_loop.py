@@ -196,6 +196,7 @@ class MissionResult:
     controller: str = ""  # NmpcSettings.fingerprint() of the controller that flew it
     fallback_episodes: int = 0
     aborted: str | None = None  # why the flight stopped early (the log holds the steps flown), None: flown to the end
+    exit_status: str | None = None  # sim.exit_status.ExitStatus value of an early stop (None: flown to the end)
 
 
 @dataclass(frozen=True)
@@ -299,7 +300,7 @@ class ClosedLoop:
         # flags and the status text recorded by name: their own dtypes (the rest, jammer_on too, float until log_frame)
         log = new_log(self.columns, n_steps, lambda c: LOG_COLUMN_TYPES.get(c, float) if c in RECORDED_BY_NAME else float)
         wall0 = time.perf_counter()
-        aborted, flown = None, n_steps
+        aborted, flown, exit_status = None, n_steps, None
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
             for k in range(n_steps):
                 t = k * period
@@ -330,6 +331,7 @@ class ClosedLoop:
                 x = self.air.advance(self.names["relay"], x, u, d) if self.air else np.asarray(self.plant(x, u, d)).ravel()
                 if not np.all(np.isfinite(x)):  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"the plant's state became non-finite after t = {t:.3f} s", k + 1
+                    exit_status = "non_finite"
                     break
                 if progress is not None:
                     progress(k + 1, n_steps)
@@ -338,7 +340,7 @@ class ClosedLoop:
             log = steps_flown(log, flown)
         return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period, qp_failures=self.nmpc.failures,
                              controller=self.nmpc.settings.fingerprint(), fallback_episodes=self.controller.fallback_episodes,
-                             aborted=aborted)
+                             aborted=aborted, exit_status=exit_status)
 
     def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, info: StepInfo):
         row = mission_row(self.veh, self.scene, t, x, u, p2, eta2, ref, channel, self._bs_position, info,

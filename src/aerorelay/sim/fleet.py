@@ -214,7 +214,7 @@ class FleetLoop:
         sinr_columns = [c for c in self.columns if c.startswith("sinr.")]
         pending, lost = list(self.losses), frozenset[str]()
         wall0 = time.perf_counter()
-        aborted, flown = None, n_steps
+        aborted, flown, exit_status = None, n_steps, None
         with full_collections_paused():
             for k in range(n_steps):
                 t = k * period
@@ -298,6 +298,7 @@ class FleetLoop:
                 bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
                 if bad:
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1
+                    exit_status = "non_finite"
                     break
                 if progress is not None:
                     progress(k + 1, n_steps)
@@ -308,4 +309,5 @@ class FleetLoop:
         return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period,
                              qp_failures=sum(r.controller.nmpc.failures for r in self.relays),
                              controller=first.nmpc.settings.fingerprint(),
-                             fallback_episodes=sum(r.controller.fallback_episodes for r in self.relays), aborted=aborted)
+                             fallback_episodes=sum(r.controller.fallback_episodes for r in self.relays), aborted=aborted,
+                             exit_status=exit_status)

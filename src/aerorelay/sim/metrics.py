@@ -11,6 +11,7 @@ from ..control.nmpc import QpStatus
 from ..models.obstacles import clearance
 from ..models.vehicle import Multirotor
 from ..stats import stats_ms
+from .exit_status import ExitStatus, exit_fields
 
 # A slack below this fraction of mu is the interior-point solver's tolerance (complementarity
 # 1e-4), not a relaxation of the alignment constraint: on the nominal tilted mission the slack
@@ -42,23 +43,27 @@ def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, 
     themselves, no margin): ``obstacle_clearance_min_m`` (the smallest signed distance to one, negative
     inside), and a run that entered one is unsafe. A log whose positions or tilts are not all finite
     cannot show the run was safe: it is unsafe, and says at how many steps."""
-    reasons = []
+    reasons, statuses = [], []
     bad = ~(np.all(np.isfinite(p1), axis=1) & np.isfinite(tilt_deg))
     if bad.any():
         reasons.append(f"its position or attitude is not finite at {int(bad.sum())} logged steps (its safety cannot be shown)")
+        statuses.append(ExitStatus.NON_FINITE)
         p1, tilt_deg = p1[~bad], tilt_deg[~bad]
     if not len(p1):
         return {"unsafe": True, "unsafe_reason": "; ".join(reasons), "safety_violations": int(np.sum(violation)),
-                "box_violation_max_m": math.nan, "min_altitude_m": math.nan, "max_tilt_deg": math.nan}
+                "box_violation_max_m": math.nan, "min_altitude_m": math.nan, "max_tilt_deg": math.nan, **exit_fields(statuses)}
     outside = np.max(np.c_[np.asarray(workspace_min, float) - p1, p1 - np.asarray(workspace_max, float)], axis=1)
     box = float(max(outside.max(), 0.0))
     if box > box_tolerance_m:
         reasons.append(f"left the workspace by {box:.2f} m")
+        statuses.append(ExitStatus.LEFT_WORKSPACE)
     lowest = float(p1[:, 2].min())
     if lowest < ground_z_m:
         reasons.append(f"went below the ground (z = {lowest:.2f} m, ground at {ground_z_m:g} m)")
+        statuses.append(ExitStatus.BELOW_GROUND)
     if tilt_deg.max() > FLIPPED_TILT_DEG:
         reasons.append(f"flipped (tilt {tilt_deg.max():.0f} deg)")
+        statuses.append(ExitStatus.FLIPPED)
     extra = {}
     if obstacles:
         flown = p1[np.all(np.isfinite(p1), axis=1)]
@@ -66,6 +71,8 @@ def safety_metrics(p1: np.ndarray, tilt_deg: np.ndarray, violation: np.ndarray, 
         extra["obstacle_clearance_min_m"] = worst
         if worst < 0:
             reasons.append(f"entered an obstacle ({-worst:.2f} m deep)")
+            statuses.append(ExitStatus.IN_OBSTACLE)
+    extra |= exit_fields(statuses)
     return {"unsafe": bool(reasons), "unsafe_reason": "; ".join(reasons), "safety_violations": int(np.sum(violation)),
             "box_violation_max_m": box, "min_altitude_m": float(p1[:, 2].min()), "max_tilt_deg": float(tilt_deg.max()),
             **extra}
@@ -247,7 +254,8 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
     sep = np.asarray(log["separation_min"], float)
     out["separation_min_m"] = float(sep.min())
     fleet_ms = np.zeros(cap.size)
-    reasons = []
+    reasons: list[str] = []
+    statuses: list[ExitStatus] = []
     for name, veh in relays.items():
         flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))  # a lost relay's steps read NaN
 
@@ -277,12 +285,15 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
             out["relays"][name]["lost_at_s"] = lost_at[0]
         if safety["unsafe"]:
             reasons.append(f"relay {name!r}: {safety['unsafe_reason']}")
+            statuses += [ExitStatus(v) for v in safety["exit_statuses"]]
     if min_separation_m > 0 and sep.min() < min_separation_m:
         k = int(np.argmin(sep))
         reasons.append(f"two vehicles {sep[k]:.2f} m apart at t = {float(log['t'][k]):.2f} s, closer than "
                        f"network.min_separation_m = {min_separation_m:g} m")
+        statuses.append(ExitStatus.TOO_CLOSE)
     out["fleet_solve_ms"] = stats_ms(fleet_ms)
     out["unsafe"] = bool(reasons)
     out["unsafe_reason"] = "; ".join(reasons)
+    out |= exit_fields(statuses)
     out["steps"], out["wall_s"], out["sim_s"] = int(cap.size), float(wall_s), float(sim_s)
     return out
