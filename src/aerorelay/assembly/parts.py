@@ -30,6 +30,7 @@ from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import (
+    PLANNERS,
     CapacityPlannerSettings,
     CheckedPlanner,
     GeneratorSettings,
@@ -154,7 +155,20 @@ def check_buildable(sc: Scenario) -> Scenario:
     returns ``sc``."""
     build_scene(sc)
     fleet_flies(sc)
+    planner_registered(sc)
     return sc
+
+
+def planner_registered(sc: Scenario) -> None:
+    """``controller.planner`` (and each relay's) names a registered planner (``planning.base.PLANNERS``:
+    the built-ins and any registered before loading); a named error listing them otherwise."""
+    named = [("controller.planner", sc.controller.planner)]
+    named += [(f"relays[{i}].controller.planner", r.controller["planner"]) for i, r in enumerate(sc.relay_list)
+              if r.controller and "planner" in r.controller]
+    for field, name in named:
+        if name not in PLANNERS:
+            raise ScenarioError(f"{field}: no planner registered as {name!r}; registered: {', '.join(sorted(PLANNERS))} "
+                                "(register yours with aerorelay.planning.base.register_planner before loading the scenario)")
 
 
 def fleet_flies(sc: Scenario) -> None:
@@ -509,7 +523,7 @@ def relay_scenario(sc: Scenario, i: int) -> Scenario:
     """Relay ``i``'s view of a fleet scenario: its platform and its controller: under the paper's
     generator (``network.planner = "paper"``) the comms-aware NMPC (its alignment terms toward its two
     neighbours on its route), else the tracking NMPC of the capacity planner."""
-    planner = "trajectory_generator" if sc.network.planner == "paper" else "capacity"
+    planner = "trajectory_generator" if sc.network.planner == "trajectory_generator" else "capacity"
     ctrl = sc.controller_of(i).model_copy(update={"planner": planner})
     return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
 
@@ -575,7 +589,7 @@ def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) ->
     lo, hi = _workspace(sc)
     cap = sc.controller.capacity
     starts = {r.name: r.start for r in relays}
-    if sc.network.planner == "paper":
+    if sc.network.planner == "trajectory_generator":
         c = sc.controller
         return NetworkGenerator(SurrogateParams.of_scene(scene.world_view(), c.mu, sc.antenna.g_bar), sc.route_list,
                                 list(starts), _vec3(sc.nodes.bs), governor_speed=c.governor_speed_m_s,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import Field, create_model, model_validator
+from pydantic import Field, create_model, field_validator, model_validator
 
 from ..control.terms import COST_TERMS
 from .base import Strict, Vec3
@@ -138,11 +138,18 @@ class ControllerConfig(Strict):
     variant: Literal["constrained", "unconstrained"] = Field("constrained", description="constrained: the paper's "
                                                              "comms-aware NMPC (misalignment cost, alignment constraint); "
                                                              "unconstrained: the same NMPC without them")
-    planner: Literal["trajectory_generator", "isotropic", "single_shot", "capacity"] = Field(
-        "trajectory_generator",
-        description="the paper's generator; baseline A (isotropic surrogate); baseline B (single-shot plan); "
-        "capacity: the capacity-seeking planner (planning/capacity_planner.py)",
+    planner: str = Field(
+        "trajectory_generator", min_length=1, max_length=64, pattern=r"^[a-z][a-z0-9_]*$",
+        description="a registered planner: trajectory_generator (the paper's generator; 'paper' is read as it), "
+        "isotropic (baseline A: isotropic surrogate), single_shot (baseline B: a single-shot plan), capacity (the "
+        "capacity-seeking planner, planning/capacity_planner.py), or one registered with "
+        "aerorelay.planning.base.register_planner before the scenario is loaded (docs/guide/extending.md)",
     )
+
+    @field_validator("planner", mode="before")
+    @classmethod
+    def _one_name_per_planner(cls, v):
+        return "trajectory_generator" if v == "paper" else v
 
     ts_s: float = Field(0.015, gt=0.0, le=MAX_TS_S, description="NMPC sampling period Ts (one RK4 step per period)")
     horizon: int = Field(30, ge=1, le=200, description="N shooting intervals")

@@ -58,6 +58,9 @@ class SourceConfig(Strict):
     mission: MissionConfig = Field(default_factory=MissionConfig, description="its path, as [mission]")
 
 
+PAPER_PLANNER = "trajectory_generator"  # the paper's generator, one name for one relay and fleets ("paper": read as it)
+
+
 class NetworkConfig(Strict):
     """How data flows: each route from a source through relays to the base station ``bs``; every
     hop of every route has its own time slot (docs/concepts/networks.md)."""
@@ -68,10 +71,16 @@ class NetworkConfig(Strict):
                                            "sources), m; default the vehicles' own size: twice the largest footprint radius "
                                            "of the relays' platforms (1.5 x the farthest rotor centre: the arm plus a rotor "
                                            "of half its length); a smaller value is refused")
-    planner: Literal["equidistant", "capacity", "paper"] = Field(
+    planner: Literal["equidistant", "capacity", "trajectory_generator"] = Field(
         "equidistant", description="the fleet's planner: equidistant (each relay evenly spaced on the line from the "
         "base station to its source), capacity (each relay in turn moves its goal and antenna axis to the best of "
         "its neighbourhood on the network's rate, the others held; [controller.capacity] speed, axes, replanning), "
-        "both tracked by the tracking NMPC of controller.planner = capacity; or paper (the paper's generator over "
-        "every hop of every route, eq. 15-19; controller.mu, governor_speed_m_s, hessian_eig_floor), tracked by the "
-        "comms-aware NMPC with each relay's alignment terms toward its two neighbours on its first route")
+        "both tracked by the tracking NMPC of controller.planner = capacity; or trajectory_generator (the paper's "
+        "generator over every hop of every route, eq. 15-19; controller.mu, governor_speed_m_s, hessian_eig_floor; "
+        "'paper' is read as this name), tracked by the comms-aware NMPC with each relay's alignment terms toward its "
+        "two neighbours on its first route")
+
+    @field_validator("planner", mode="before")
+    @classmethod
+    def _one_name_per_planner(cls, v):
+        return PAPER_PLANNER if v == "paper" else v
