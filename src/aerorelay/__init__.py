@@ -13,6 +13,7 @@ from .assembly import load_scenario, parse_scenario
 from .assembly.parts import build, build_scene
 from .config import Scenario, ScenarioError
 from .flight.airframes import PointMass
+from .flight.autopilot_loop import AutopilotLoop, Measured
 from .flight.stepper import Command, SourceState, StaleSettings
 from .models.antenna import CosinePattern, DipolePattern, IsotropicPattern, SinPowerPattern, TabulatedPattern
 from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
@@ -21,7 +22,8 @@ from .planning.base import PlannerContext, PlannerInput, register_planner
 from .planning.trajectory_generator import Reference
 
 __all__ = [
-    "__version__", "Command", "PointMass", "Result", "SourceState", "StaleSettings", "bench", "bound", "controller", "fly_lockstep", "link_budget",
+    "__version__", "AutopilotLoop", "Measured",
+    "Command", "PointMass", "Result", "SourceState", "StaleSettings", "bench", "bound", "controller", "fly_lockstep", "link_budget",
     "plant_airframe", "reproduce", "rotorpy_airframe", "simulate", "CosinePattern", "DipolePattern", "IsotropicPattern", "SinPowerPattern",
     "TabulatedPattern", "AlwaysOn", "Jammer", "PeriodicOnOff", "Antenna", "LinkBudget", "Node", "NodePose",
     "RadioScene", "route_capacity", "PlannerContext", "PlannerInput", "register_planner", "Reference", "Scenario",

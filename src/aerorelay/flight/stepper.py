@@ -23,6 +23,7 @@ or is not finite, or inputs of the wrong shape, are errors (``ValueError`` namin
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -39,6 +40,7 @@ from .frames import quaternion_wxyz
 from .readings import JammersFromReadings
 
 MODES = ("nmpc", "fallback", "hold", "land")  # Command.mode
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -95,6 +97,44 @@ class Command:
     reference: Reference | None = None
     info: StepInfo | None = None
     rejected: str | None = None  # why the step's inputs were not trusted (then mode is hold or land)
+
+
+class StateSanity:
+    """Warnings (logged once each) for a relay state that can be stepped but not flown as meant, the
+    mistakes of a user's own simulator: body rates held at zero while the attitude turns (a simulator
+    without rates), rotor speeds all zero (the state of a vehicle that reports none: build it with
+    ``flight.autopilot_loop.AutopilotLoop`` or ``CommandedState``), a position below the ground (a
+    NED position passed as ENU)."""
+
+    TURNING_RAD_S = 0.3  # the attitude turning this fast while the rates read zero
+    STEPS = 5  # ... for this many steps in a row
+
+    def __init__(self, ground_z_m: float):
+        self.ground = ground_z_m
+        self.said: set[str] = set()
+        self._still = 0
+        self._last: tuple[float, np.ndarray] | None = None
+
+    def _say(self, kind: str, text: str) -> None:
+        if kind not in self.said:
+            self.said.add(kind)
+            log.warning("step: %s", text)
+
+    def check(self, t: float, x: np.ndarray) -> None:
+        if np.all(x[12:] == 0.0):
+            self._say("rotors", "the relay state's rotor speeds are all zero: the NMPC steps from motors at rest (an "
+                                "autopilot reports none: pass the speeds last commanded, as flight.autopilot_loop does)")
+        if x[2] < self.ground - 0.5:
+            self._say("frame", f"the relay state's z = {x[2]:.2f} m is below the ground ({self.ground:g} m): a NED position "
+                               "passed as ENU? (flight.frames.ned_to_enu)")
+        if self._last is not None and t > self._last[0]:
+            rate = float(np.linalg.norm(x[3:6] - self._last[1])) / (t - self._last[0])
+            self._still = self._still + 1 if rate > self.TURNING_RAD_S and not np.any(x[9:12]) else 0
+            if self._still >= self.STEPS:
+                self._say("rates", f"the relay's attitude turns at {rate:.2f} rad/s while its body rates read zero: the "
+                                   "NMPC's model then disagrees with the vehicle (its QPs fail and the brake law flies); pass "
+                                   "the measured body rates (rad/s, body FLU)")
+        self._last = (t, x[3:6].copy())
 
 
 class TelemetryCheck:
@@ -184,6 +224,7 @@ class RelayStepper:
         self._x_prev: np.ndarray | None = None
         self._land_from: tuple[float, np.ndarray] | None = None
         self.check = TelemetryCheck(vehicle, stale)
+        self.sanity = StateSanity(stale.ground_z_m)
         self._t_last: float | None = None  # the clock of the last step (it must not go backwards)
         F, _ = vehicle.allocation()
         self._thrust_per_speed2 = F
@@ -251,6 +292,7 @@ class RelayStepper:
             return cmd if rejected is None else replace(cmd, rejected=rejected)
         assert x is not None and source is not None
         self.check.trust(stamp, x)
+        self.sanity.check(t, x)
         if self.observer is not None and self._x_prev is not None:
             self.observer.update(self._x_prev, self.u, x)
         self._land_from = None
