@@ -227,7 +227,19 @@ def test_a_fleet_plans_with_the_jammer_state_it_senses(senses):
     sc = parse_scenario(copy.deepcopy(CHAIN) | {"sim": {"duration_s": 7.1}}).with_updates(
         {"jammer.schedule": "on_off", "controller.senses_jammer_state": senses})
     parts = build_fleet(sc)
-    seen = {}
+    inputs = recorded_inputs(parts)
+    parts.closed_loop().run()
+    seen = {round(inp.t, 6): np.array(inp.jammer_powers, float) for inp in inputs}
+    at = {t: p for t, p in seen.items() if 6.9 <= t <= 7.05}
+    assert at
+    for p in at.values():
+        np.testing.assert_allclose(p, [0.0] if senses else [sc.jammer.power_w])
+    assert all(np.allclose(p, [sc.jammer.power_w]) for t, p in seen.items() if 3.0 <= t <= 4.9)  # ON, localized
+
+
+def recorded_inputs(parts) -> list:
+    """Every FleetInput the fleet's planner is handed from now on (the planner wrapped in place)."""
+    seen: list = []
 
     class Recorder:
         def __init__(self, inner):
@@ -237,12 +249,7 @@ def test_a_fleet_plans_with_the_jammer_state_it_senses(senses):
             return getattr(self.inner, name)
 
         def update(self, inp):
-            seen[round(inp.t, 6)] = np.array(inp.jammer_powers, float)
+            seen.append(inp)
             return self.inner.update(inp)
     parts.planner = Recorder(parts.planner)
-    parts.closed_loop().run()
-    at = {t: p for t, p in seen.items() if 6.9 <= t <= 7.05}
-    assert at
-    for p in at.values():
-        np.testing.assert_allclose(p, [0.0] if senses else [sc.jammer.power_w])
-    assert all(np.allclose(p, [sc.jammer.power_w]) for t, p in seen.items() if 3.0 <= t <= 4.9)  # ON, localized
+    return seen

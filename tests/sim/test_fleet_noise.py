@@ -16,7 +16,7 @@ from aerorelay.assembly import parse_scenario
 from aerorelay.assembly.parts import build_fleet
 from aerorelay.config import ScenarioError
 
-from .test_fleet import CHAIN, _axis, _gain
+from .test_fleet import CHAIN, _axis, _gain, recorded_inputs
 
 
 def _noisy(**perturbations) -> ar.Scenario:
@@ -78,20 +78,9 @@ def test_the_fleet_knows_its_sources_and_jammers_with_csi_noise():
     jammer's too; the channel and the log keep the true positions."""
     sc = _noisy(csi_noise_m=0.3).with_updates({"sim.duration_s": 2.0})
     parts = build_fleet(sc)
-    seen = []
-
-    class Recorder:
-        def __init__(self, inner):
-            self.inner = inner
-
-        def __getattr__(self, name):
-            return getattr(self.inner, name)
-
-        def update(self, inp):
-            seen.append((inp.t, np.array(inp.positions["inspector"]), np.array(inp.jammer_positions[0])))
-            return self.inner.update(inp)
-    parts.planner = Recorder(parts.planner)
+    inputs = recorded_inputs(parts)
     log = parts.closed_loop().run().log
+    seen = [(inp.t, np.array(inp.positions["inspector"]), np.array(inp.jammer_positions[0])) for inp in inputs]
     path = parts.sources["inspector"]
     err = np.array([p - path.state(t).p for t, p, _ in seen])
     jam = np.array([pj - np.asarray(sc.jammer.position) for _, _, pj in seen])
