@@ -16,6 +16,7 @@ import numpy as np
 
 from ..config import AntennaConfig, JammerConfig, Scenario, ScenarioError
 from ..config.network import BASE_STATION
+from ..config.radio import NodeAntennaConfig
 from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
@@ -105,6 +106,20 @@ def node_patterns(cfg: AntennaConfig) -> NodePatterns:
                         bs=bs)
 
 
+def own_pattern(cfg: NodeAntennaConfig | None, shared: AntennaConfig) -> AntennaPattern | None:
+    """A vehicle's own pattern (``antenna = {...}`` on its relay or source; None: the shared one),
+    dipoles scaled by ``[antenna] directivity`` as the shared ones are."""
+    if cfg is None:
+        return None
+    if cfg.pattern == "dipole":
+        return DipolePattern(cfg.g_bar * shared.directivity)
+    if cfg.pattern == "sin_power":
+        return SinPowerPattern(cfg.exponent, cfg.g_bar)
+    if cfg.pattern == "isotropic":
+        return IsotropicPattern(cfg.g_bar)
+    return CosinePattern(cfg.g_bar, cfg.exponent, cfg.back_lobe)
+
+
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
     """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_antenna_axis()``), source
     'source' (MRAV-2) and relay 'relay' (MRAV-1) or the fleet's sources and relays by name, antennas along
@@ -113,8 +128,8 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
     bs_axis = np.array(sc.antenna.bs_antenna_axis(), float)
     bs_axis = bs_axis / np.linalg.norm(bs_axis)
     nodes = (Node(BASE_STATION, "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
-             *(Node(s.name, "source", Antenna(pat.source)) for s in sc.source_list),
-             *(Node(r.name, "relay", Antenna(pat.relay)) for r in sc.relay_list))
+             *(Node(s.name, "source", Antenna(own_pattern(s.antenna, sc.antenna) or pat.source)) for s in sc.source_list),
+             *(Node(r.name, "relay", Antenna(own_pattern(r.antenna, sc.antenna) or pat.relay)) for r in sc.relay_list))
     ch = sc.channel
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
     routes = tuple(tuple(r) for r in sc.route_list)
@@ -156,7 +171,20 @@ def check_buildable(sc: Scenario) -> Scenario:
     build_scene(sc)
     fleet_flies(sc)
     planner_registered(sc)
+    comms_aware_antennas(sc)
     return sc
+
+
+def comms_aware_antennas(sc: Scenario) -> None:
+    """The paper's comms-aware NMPC keeps each link off its relay's antenna axis (the misalignment terms,
+    eq. 21-22): right for a doughnut (dipole, sin^n), wrong for a cosine or isotropic antenna; a relay
+    with one of those is a named error there (it flies the capacity planner or the unconstrained NMPC)."""
+    for i, r in enumerate(sc.relay_list):
+        flown = relay_scenario(sc, i).controller if sc.is_fleet else sc.controller_of(i)
+        if r.antenna is not None and not r.antenna.doughnut and flown.comms_aware:
+            raise ScenarioError(f"relays[{i}].antenna: a {r.antenna.pattern} antenna on relay {r.name!r} with the paper's "
+                                "comms-aware NMPC, whose misalignment terms keep links off a doughnut antenna's axis; fly it "
+                                "with controller.planner = 'capacity' or controller.variant = 'unconstrained'")
 
 
 def planner_registered(sc: Scenario) -> None:
@@ -521,7 +549,7 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 
 def relay_scenario(sc: Scenario, i: int) -> Scenario:
     """Relay ``i``'s view of a fleet scenario: its platform and its controller: under the paper's
-    generator (``network.planner = "paper"``) the comms-aware NMPC (its alignment terms toward its two
+    generator (``network.planner = "trajectory_generator"``) the comms-aware NMPC (its alignment terms toward its two
     neighbours on its route), else the tracking NMPC of the capacity planner."""
     planner = "trajectory_generator" if sc.network.planner == "trajectory_generator" else "capacity"
     ctrl = sc.controller_of(i).model_copy(update={"planner": planner})

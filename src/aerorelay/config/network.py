@@ -12,6 +12,7 @@ from pydantic import Field, field_validator
 from .base import Strict, Vec3
 from .mission import MissionConfig
 from .platform import PlatformConfig
+from .radio import NodeAntennaConfig
 
 BASE_STATION = "bs"  # the base station's name in routes ([nodes] bs)
 LEGACY_RELAY, LEGACY_SOURCE = "relay", "source"  # the one relay and source of a file with [nodes] relay and [mission]
@@ -38,6 +39,8 @@ class RelayConfig(Strict):
                                                   "octo_tilted, quad_x) or an inline [platform] table; default: [platform]")
     controller: dict[str, Any] | None = Field(None, description="fields of [controller] this relay flies with instead "
                                               "of the shared ones (e.g. planner, mu, weights)")
+    antenna: NodeAntennaConfig | None = Field(None, description="this relay's own antenna about its body z; default: "
+                                              "[antenna]'s")
     lost_at_s: float | None = Field(None, gt=0.0, description="the relay is lost at this time, s (battery, fault): from "
                                     "then on it is gone, every route through it skips it and the others re-plan; "
                                     "before the mission's end; default: never")
@@ -56,6 +59,8 @@ class SourceConfig(Strict):
     name: str = Field(min_length=1, max_length=32, pattern=NAME_PATTERN, description="names the source in routes, logs "
                       "and reports")
     mission: MissionConfig = Field(default_factory=MissionConfig, description="its path, as [mission]")
+    antenna: NodeAntennaConfig | None = Field(None, description="this source's own antenna about its body z; default: "
+                                              "[antenna]'s (source_pattern)")
 
 
 PAPER_PLANNER = "trajectory_generator"  # the paper's generator, one name for one relay and fleets ("paper": read as it)

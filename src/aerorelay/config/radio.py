@@ -15,6 +15,24 @@ LOOP_CLOSURE_M = 0.01  # a repeating jammer path's last waypoint within this of 
 OUTAGE_SPECTRAL_EFFICIENCY = 1e-3  # bit/s/Hz: the paper's outage threshold (B = 1); times the bandwidth in physical units
 
 
+class NodeAntennaConfig(Strict):
+    """One vehicle's own antenna (``[[relays]] antenna = {...}``, ``[[sources]] antenna = {...}``), its
+    axis along the vehicle's body z: a half-wave dipole, sin(theta)^exponent, isotropic, or cosine (a
+    patch or panel: ``G = g_bar max(max(cos psi, 0)^exponent, back_lobe)``, boresight body z). Default:
+    ``[antenna]``'s."""
+
+    pattern: Literal["dipole", "sin_power", "isotropic", "cosine"] = Field(description="the pattern about body z")
+    g_bar: float = Field(1.0, gt=0.0, le=1e4, description="peak gain (linear): broadside for dipole and sin_power, "
+                         "boresight for cosine, everywhere for isotropic")
+    exponent: float = Field(2.0, ge=0.0, le=100.0, description="n of sin^n, or of the cosine pattern's cos^n")
+    back_lobe: float = Field(0.01, ge=0.0, le=1.0, description="cosine: the gain floor relative to g_bar")
+
+    @property
+    def doughnut(self) -> bool:
+        """Whether its gain has a null along its axis and a peak across it (what the paper's misalignment terms assume)."""
+        return self.pattern in ("dipole", "sin_power")
+
+
 class AntennaConfig(Strict):
     """Antenna pattern shared by every node (dipole along body z by default)."""
 

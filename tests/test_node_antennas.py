@@ -1,0 +1,76 @@
+"""Antennas per node in the scenario file (issue 46): ``[[relays]] antenna = {...}`` and
+``[[sources]] antenna = {...}`` give a vehicle its own pattern about its body z, ``[antenna]`` stays
+the default; the scene carries it, the logged SINR is the link equation with that pattern, the run
+folder's scenario.toml keeps it (the folder flies again as it flew), and the paper's comms-aware NMPC
+refuses a pattern its misalignment terms do not fit."""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly import parse_scenario
+from aerorelay.config import ScenarioError
+from aerorelay.models.antenna import CosinePattern, DipolePattern, SinPowerPattern
+
+from .sim.test_fleet import CHAIN, _axis, _dipole
+
+PATCH = {"pattern": "cosine", "g_bar": 4.0, "exponent": 2.0, "back_lobe": 0.05}
+
+
+def _chain(**relay_antennas):
+    d = copy.deepcopy(CHAIN)
+    d["sim"] = {"duration_s": 0.6}
+    d["network"]["planner"] = "capacity"
+    for r in d["relays"]:
+        if r["name"] in relay_antennas:
+            r["antenna"] = relay_antennas[r["name"]]
+    return d
+
+
+def test_each_vehicle_gets_its_own_pattern():
+    d = _chain(r1=PATCH)
+    d["sources"][0]["antenna"] = {"pattern": "sin_power", "exponent": 4.0, "g_bar": 2.0}
+    scene = ar.build_scene(parse_scenario(d))
+    assert scene.node("r1").antenna.pattern == CosinePattern(4.0, 2.0, 0.05)
+    assert isinstance(scene.node("r2").antenna.pattern, DipolePattern)  # [antenna]'s
+    assert scene.node("inspector").antenna.pattern == SinPowerPattern(4.0, 2.0)
+
+
+def test_the_logged_sinr_is_the_link_equation_with_the_patch(tmp_path):
+    """r1 -> r2 with r1's patch: Gamma = G_r1 G_r2 / d^2 / (1 + P_J G_J / d_J^2), the patch's
+    G = 4 max(max(cos psi, 0)^2, 0.05) off r1's body z (written here, not from models.antenna)."""
+    sc = parse_scenario(_chain(r1=PATCH))
+    r = ar.simulate(sc)
+    row = r.timeseries.iloc[len(r.timeseries) // 2]
+    p1, p2 = (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]) for n in ("r1", "r2"))
+    b1, b2 = (_axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]) for n in ("r1", "r2"))
+    d = p2 - p1
+    n = float(np.linalg.norm(d))
+    g1 = 4.0 * max(max(float(d @ b1) / n, 0.0) ** 2, 0.05)
+    g2 = _dipole(float(-d @ b2) / n)
+    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+    dj = p2 - pj
+    nj = float(np.linalg.norm(dj))
+    interference = 4.0 * _dipole(float(-dj @ b2) / nj) / nj**2  # P_J = 4 W, the jammer isotropic
+    assert row["sinr.r1.r2"] == pytest.approx(g1 * g2 / n**2 / (1.0 + interference), rel=1e-9)
+    # the run folder's scenario.toml keeps the antenna: flown again from it, the same run
+    r.save(tmp_path / "run")
+    again = ar.load_scenario(tmp_path / "run" / "scenario.toml")
+    assert tomllib.loads((tmp_path / "run" / "scenario.toml").read_text())["relays"][0]["antenna"]["pattern"] == "cosine"
+    assert np.array_equal(ar.simulate(again).timeseries["sinr.r1.r2"].to_numpy(), r.timeseries["sinr.r1.r2"].to_numpy())
+
+
+def test_the_comms_aware_nmpc_refuses_an_antenna_it_does_not_fit():
+    d = _chain(r1=PATCH)
+    d["network"]["planner"] = "trajectory_generator"
+    with pytest.raises(ScenarioError, match=r"relays\[0\]\.antenna: a cosine antenna on relay 'r1' with the paper's comms-aware NMPC"):
+        ar.api.updated(parse_scenario(d), {"seed": 1})  # the checks a loaded scenario gets
+    d["controller"] |= {"variant": "unconstrained"}
+    assert ar.api.updated(parse_scenario(d), {"seed": 1}).relay_list[0].antenna.pattern == "cosine"
+    assert math.isfinite(parse_scenario(_chain(r1={"pattern": "sin_power", "exponent": 3.0})).relay_list[0].antenna.exponent)
