@@ -74,3 +74,32 @@ def test_the_comms_aware_nmpc_refuses_an_antenna_it_does_not_fit():
     d["controller"] |= {"variant": "unconstrained"}
     assert ar.api.updated(parse_scenario(d), {"seed": 1}).relay_list[0].antenna.pattern == "cosine"
     assert math.isfinite(parse_scenario(_chain(r1={"pattern": "sin_power", "exponent": 3.0})).relay_list[0].antenna.exponent)
+
+
+def test_a_run_with_parts_passed_from_python_names_them_and_its_folder_does_not_fly_another_run(tmp_path):
+    """Issue 46: a planner passed to ar.simulate is named in metrics.json and in the run folder's
+    scenario.toml (``injected``); that file alone is refused by name (aerorelay run exits 2), with the
+    part given again it flies."""
+    from typer.testing import CliRunner
+
+    from aerorelay.cli import app
+
+    class Hold:
+        def __init__(self):
+            self.p = None
+
+        def update(self, inp):
+            self.p = inp.p1.copy() if self.p is None else self.p
+            return ar.Reference(p_opt=self.p, p_ref=self.p.copy(), v_ref=np.zeros(3), a_ref=np.zeros(3))
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 0.3, "controller.variant": "unconstrained"})
+    r = ar.simulate(sc, planner=Hold())
+    assert r.metrics["injected"] == ["planner: Hold"]
+    r.save(tmp_path / "run")
+    again = ar.load_scenario(tmp_path / "run" / "scenario.toml")
+    assert again.injected == ["planner: Hold"]
+    with pytest.raises(ScenarioError, match=r"injected: this scenario was flown with parts passed from Python \(planner: Hold\)"):
+        ar.simulate(again)
+    res = CliRunner().invoke(app, ["run", str(tmp_path / "run" / "scenario.toml"), "--out", str(tmp_path / "x"), "--no-bound"])
+    assert res.exit_code == 2 and "injected: this scenario was flown with parts passed from Python" in " ".join(res.output.split())
+    assert ar.simulate(again, planner=Hold()).metrics["steps"] == r.metrics["steps"]
+    assert "injected" not in sc.to_toml()  # a scenario flown from its file alone says nothing of it

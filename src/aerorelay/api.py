@@ -47,7 +47,7 @@ from .control.nmpc import NmpcSettings
 from .experiments import flight as _flight
 from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
-from .experiments.run import RunResult, check_run_size, output_bytes
+from .experiments.run import RunResult, check_not_injected, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies
 from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, RotorpyQuadrotor, still_air
@@ -423,6 +423,7 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
     scenario's bound fits it and ``bound.max_minutes`` (ScenarioError), and ``out`` can take the run
     folder with room for it (OutputError)."""
     check_run_size(sc)
+    check_not_injected(sc)
     if bound:
         check_bound_size(sc)
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))

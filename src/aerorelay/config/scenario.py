@@ -55,6 +55,9 @@ class Scenario(Strict):
     name: str = Field("scenario", description="names the scenario in outputs and reports")
     description: str = Field("", description="free text, shown in reports")
     seed: int = Field(0, ge=0, description="seeds every random element (noise, fading, shadowing, the energy detector)")
+    injected: list[str] = Field(default_factory=list, description="written by a run flown with parts passed from Python "
+                                "(a planner object, a radio scene, jammers) that this file cannot say: what they were; such a "
+                                "file does not fly again without them (ar.simulate(sc, planner=...))")
     platform: PlatformConfig = Field(default_factory=PlatformConfig)
     antenna: AntennaConfig = Field(default_factory=AntennaConfig)
     channel: ChannelConfig = Field(default_factory=ChannelConfig)
@@ -399,6 +402,8 @@ class Scenario(Strict):
             data.pop("mission", None)
         if not self.is_network_file and self.network == NetworkConfig():
             data.pop("network", None)
+        if not self.injected:  # said only by a run flown with parts passed from Python
+            data.pop("injected", None)
         return data
 
     def with_updates(self, updates: dict) -> Scenario:

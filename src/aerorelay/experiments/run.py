@@ -266,6 +266,8 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     own checks, e.g. an ``inr_db_at_relay_start`` jammer in a null, raise when ``build`` makes them)."""
     sc.with_updates({})  # validated as data and with physics again (the parts' own checks raise when built)
     check_run_size(sc)
+    given = {k: v for k, v in (("planner", planner), ("scene", scene), ("jammers", jammers)) if v is not None}
+    check_not_injected(sc, given)
     if sc.is_fleet:
         return _simulate_fleet(sc, with_bound=with_bound, nmpc_settings=nmpc_settings, progress=progress,
                                given=dict(planner=planner, scene=scene, jammers=jammers), views=views,
@@ -291,5 +293,31 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
         metrics["reference_kept_out_steps"] = parts.planner.kept_out_steps
     metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit
     metrics["unit_system"] = sc.channel.units
+    if given:  # what the scenario file cannot say: named in it and in the metrics, so the folder does not fly another run
+        metrics["injected"] = injected_parts(given)
+        sc = sc.model_copy(update={"injected": metrics["injected"]})
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, bound, views)
+
+
+def injected_parts(given: dict) -> list[str]:
+    """What parts passed from Python were (``planner: MidpointPlanner``, ``jammers: j1, j2``, ``scene: ...``)."""
+    out = []
+    for kind, part in given.items():
+        if kind == "jammers":
+            out.append("jammers: " + ", ".join(j.name for j in part))
+        elif kind == "scene":
+            out.append(f"scene: a RadioScene with nodes {', '.join(n.name for n in part.nodes)} and jammers "
+                       f"{', '.join(j.name for j in part.jammers) or 'none'}")
+        else:
+            out.append(f"{kind}: {type(part).__name__}")
+    return out
+
+
+def check_not_injected(sc: Scenario, given: dict | None = None) -> None:
+    """A scenario written by a run flown with parts passed from Python (``injected``) does not fly again
+    from its file alone: a named error unless parts are given again."""
+    if sc.injected and not given:
+        raise ScenarioError(f"injected: this scenario was flown with parts passed from Python ({'; '.join(sc.injected)}) that "
+                            "its file cannot say; flying the file alone would fly another run: pass them again "
+                            "(ar.simulate(sc, planner=..., scene=..., jammers=...)) or remove the injected field")
