@@ -28,7 +28,7 @@ def test_every_metric_carries_its_unit(preset, sets, physical):
     sc = load_scenario(ROOT / "scenarios" / f"{preset}.toml", set={"sim.duration_s": 0.5, **sets})
     m = ar.simulate(sc).metrics
     quantities = {k for k, v in m.items() if isinstance(v, int | float | dict | list) and not isinstance(v, bool)
-                  and k not in ("units", "null_reasons", "optional_outputs_failed", "bound")}
+                  and k not in ("units", "null_reasons", "optional_outputs_failed", "bound", "exit_statuses")}  # names, not quantities
     assert quantities <= set(m["units"]), quantities - set(m["units"])
     assert m["unit_system"] == ("physical" if physical else "normalized")
     assert m["units"]["c_min"] == ("bit/s" if physical else "bit/s/Hz") and m["units"]["se_21_mean"] == "bit/s/Hz"
