@@ -24,9 +24,12 @@ EXIT_UNSAFE = 3  # the run finished but the relay left its workspace or flipped 
 QUICK_BUDGET_MIN = 5.0  # reproduce --quick: minutes of estimated wall time (experiments/budget.py)
 
 
-def _load_or_exit(path: Path) -> Scenario:
+def _load_or_exit(path: Path, sets: list[str] | None = None, unsets: list[str] | None = None) -> Scenario:
+    """The scenario file with the ``--set`` items applied and the ``--unset`` keys removed before it is
+    validated (as ``load_scenario(set=..., unset=...)``): exit 2 naming what is wrong."""
+    updates = parse_sets(sets)
     try:
-        return load_scenario(path)
+        return load_scenario(path, set=updates, unset=list(unsets or []))
     except ScenarioError as exc:
         err_console.print(f"[bold red]invalid scenario[/] {path}:")
         for line in str(exc).splitlines():
@@ -77,7 +80,9 @@ def _check_url(url: str | None, option: str) -> None:
         _fail(str(exc))
 
 
-SET_HELP = "override a scenario field, e.g. --set controller.mu=0.3 (repeatable; values in TOML syntax)"
+SET_HELP = ("override a scenario field, e.g. --set controller.mu=0.3 (repeatable; values in TOML syntax; applied before "
+            "the file is validated)")
+UNSET_HELP = "remove a field of the file, e.g. --unset jammer.position (repeatable; before the file is validated)"
 
 
 def parse_sets(items: list[str] | None) -> dict:
@@ -92,9 +97,10 @@ def parse_sets(items: list[str] | None) -> dict:
 def validate(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
     """Validate a scenario and print it fully resolved (every default spelled out)."""
-    sc = _with_overrides(_load_or_exit(scenario), {}, set_)
+    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {})
     print(f"# {scenario}: valid")
     if sc.channel.outage_threshold is None:
         print(f"# channel.outage_threshold (unset) resolves to {sc.channel.outage:g} {sc.channel.capacity_unit}")
@@ -134,9 +140,10 @@ def model_summary(sc: Scenario) -> Table:
 def info(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
     """Print the scenario's derived model quantities: hover, allocation rank, initial link budget."""
-    sc = _with_overrides(_load_or_exit(scenario), {}, set_)
+    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {})
     console.print(model_summary(sc))
     t = Table(title=f"link budget at t=0 ({sc.channel.units} units, level attitudes, jammers at peak)", show_header=True)
     t.add_column("quantity")
@@ -157,12 +164,13 @@ def run(
     no_figures: bool = typer.Option(False, "--no-figures", help="skip PNG/HTML figures"),
     no_bound: bool = typer.Option(False, "--no-bound", help="skip the capacity bound (computed once per scenario geometry, cached)"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
     wait: bool = typer.Option(False, "--wait", help="wait for another run writing the same --out instead of refusing"),
 ):
     """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json, the
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
-    sc = _with_overrides(_load_or_exit(scenario), {"controller.variant": variant, "controller.planner": planner,
-                                                   "sim.duration_s": duration}, set_)
+    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {"controller.variant": variant, "controller.planner": planner,
+                                                                "sim.duration_s": duration})
     _check_run(sc, out, figures=not no_figures, bound=not no_bound)
     try:
         with api.output_lock(out, wait=wait):  # one writer per folder, from before the flight until it is saved
@@ -219,13 +227,14 @@ def bound(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
     out: Path = typer.Option(..., "--out", help="output folder: bound.json, bound.parquet, bound.png", show_default=False),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
     """The best link the physics allows on this scenario: static and path capacity bounds."""
     import json
 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    sc = _with_overrides(_load_or_exit(scenario), {}, set_)
+    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {})
     _check_out(out, "bound")
     try:
         with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
@@ -369,13 +378,14 @@ def bench(
     feedback: str = typer.Option(None, "--feedback", show_default=False,
                                  help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
 
 
-    sc = _with_overrides(_load_or_exit(scenario), {"sim.duration_s": duration, "controller.variant": variant,
-                                                   "controller.planner": planner,
-                                                   "sim.control_rate_hz": control_rate_hz}, set_)
+    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {"sim.duration_s": duration, "controller.variant": variant,
+                                                                "controller.planner": planner,
+                                                                "sim.control_rate_hz": control_rate_hz})
     try:
         settings = api.solver_settings(sc, backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
                                  warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,

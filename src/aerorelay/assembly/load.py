@@ -42,9 +42,48 @@ def _scenario_text(path: Path) -> str:
     return path.read_text(encoding="utf-8")
 
 
-def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scenario:  # noqa: A002 (the API's word)
-    """Load and validate a TOML scenario file, then apply ``set`` (dotted keys -> values, or
-    ``"key=value"`` strings as on the command line); raises ScenarioError naming each bad field."""
+def _apply_to_data(data: dict, updates: dict, unset: list[str]) -> None:
+    """Dotted-key ``updates`` set and ``unset`` keys removed in a file's raw tables, before validation
+    (a file that is invalid alone may be made valid by them); a key that walks into a value that is not
+    a table (or a list index out of range) is a ScenarioError naming it."""
+    def walk(key: str, create: bool):
+        node: object = data
+        parts = key.split(".")
+        for depth, part in enumerate(parts[:-1]):
+            if isinstance(node, list) and part.isdigit() and int(part) < len(node):
+                node = node[int(part)]
+            elif isinstance(node, dict):
+                if part not in node:
+                    if not create:
+                        return None, parts[-1]
+                    node[part] = {}
+                node = node[part]
+            else:
+                raise ScenarioError(f"{key}: {parts[depth - 1]!r} is not a table of the scenario here")
+        if not isinstance(node, dict | list):
+            raise ScenarioError(f"{key}: {parts[-2]!r} is not a table of the scenario here")
+        return node, parts[-1]
+    for key in unset:
+        node, last = walk(key, create=False)
+        if isinstance(node, dict):
+            node.pop(last, None)
+        elif isinstance(node, list) and last.isdigit() and int(last) < len(node):
+            node.pop(int(last))
+    for key, value in updates.items():
+        node, last = walk(key, create=True)
+        if isinstance(node, list) and last.isdigit() and int(last) < len(node):
+            node[int(last)] = value
+        elif isinstance(node, dict):
+            node[last] = value
+        else:
+            raise ScenarioError(f"{key}: not a field of the scenario here")
+
+
+def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa: A002 (the API's word)
+                  unset: list[str] | None = None) -> Scenario:
+    """Load a TOML scenario file with ``set`` (dotted keys -> values, or ``"key=value"`` strings as on
+    the command line) applied and ``unset`` keys removed (e.g. ``["jammer.position"]``), then validate
+    it once: updates can make a file valid that is not alone. Raises ScenarioError naming each bad field."""
     path = Path(path)
     try:
         data = tomllib.loads(_scenario_text(path))
@@ -66,13 +105,12 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None) -> Scen
             f = mission.get(key)
             if isinstance(f, str) and f and not Path(f).is_absolute():
                 mission[key] = str((path.parent / f).resolve())
+    updates = parse_sets(set) if isinstance(set, list) else dict(set or {})
+    _apply_to_data(data, updates, list(unset or []))
     try:
         sc = validate_config(data)
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
-    updates = parse_sets(set) if isinstance(set, list) else (set or {})
-    if updates:
-        sc = sc.with_updates(updates)
     return check_buildable(check_physics(sc))
 
 

@@ -1,0 +1,46 @@
+"""``--set`` as ``set=`` and ``--unset`` (issue 48, item 2): the updates apply to the file before it is
+validated, so a file invalid alone can be made valid by them, on the command line as from Python; a
+field can be removed (a preset's fixed jammer turned into a moving one)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import aerorelay as ar
+from aerorelay.cli import app
+from aerorelay.config import ScenarioError
+
+ROOT = Path(__file__).resolve().parents[1]
+NOMINAL = ROOT / "scenarios" / "nominal_tilted.toml"
+runner = CliRunner()
+
+
+def test_a_file_invalid_alone_is_rescued_by_set_on_the_command_line_as_from_python(tmp_path):
+    f = tmp_path / "outside.toml"
+    text = NOMINAL.read_text()
+    assert "relay = [-6.95, 5.79, 1.72]" in text
+    f.write_text(text.replace("relay = [-6.95, 5.79, 1.72]", "relay = [20.0, 0.0, 5.0]", 1))  # outside the workspace
+    with pytest.raises(ScenarioError, match="nodes.relay"):
+        ar.load_scenario(f)
+    fixed = {"nodes.relay": [-6.95, 5.79, 1.72]}
+    assert ar.load_scenario(f, set=fixed).nodes.relay == [-6.95, 5.79, 1.72]
+    r = runner.invoke(app, ["validate", str(f), "--set", "nodes.relay=[-6.95, 5.79, 1.72]"])
+    assert r.exit_code == 0, r.output
+
+
+def test_unset_turns_a_fixed_jammer_into_a_moving_one():
+    wps = [[0.0, 0.0, -5.0, 1.72], [20.0, 5.0, -5.0, 1.72]]
+    with pytest.raises(ScenarioError):  # before: a position and waypoints both given
+        ar.load_scenario(NOMINAL, set={"jammer.waypoints": wps})
+    sc = ar.load_scenario(NOMINAL, set={"jammer.waypoints": wps}, unset=["jammer.position"])
+    assert sc.jammer.waypoints == wps and sc.jammer.position == wps[0][1:]  # a moving jammer starts at its first waypoint
+    r = runner.invoke(app, ["validate", str(NOMINAL), "--unset", "jammer.position", "--set", f"jammer.waypoints={wps}"])
+    assert r.exit_code == 0, r.output
+
+
+def test_a_key_that_walks_into_a_value_is_named():
+    with pytest.raises(ScenarioError, match=r"seed\.x\.y: 'seed' is not a table"):
+        ar.load_scenario(NOMINAL, set={"seed.x.y": 1})
