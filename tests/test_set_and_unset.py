@@ -44,3 +44,15 @@ def test_unset_turns_a_fixed_jammer_into_a_moving_one():
 def test_a_key_that_walks_into_a_value_is_named():
     with pytest.raises(ScenarioError, match=r"seed\.x\.y: 'seed' is not a table"):
         ar.load_scenario(NOMINAL, set={"seed.x.y": 1})
+
+
+def test_reproduce_lists_its_studies_without_a_campaign_folder(tmp_path):
+    """Issue 48 (item 3): ``aerorelay reproduce --list`` names every study with its title and run count."""
+    d = tmp_path / "studies"
+    d.mkdir()
+    (d / "tiny.toml").write_text(f'name = "tiny"\ntitle = "two short runs"\nbase = "{NOMINAL}"\n'
+                                 '[[runs]]\nid = "a"\n[[runs]]\nid = "b"\nset = { seed = 1 }\n')
+    r = runner.invoke(app, ["reproduce", "--list", "--studies-dir", str(d)])
+    assert r.exit_code == 0 and "tiny" in r.output and "two short runs" in r.output and " 2 " in r.output
+    r = runner.invoke(app, ["reproduce", "--studies-dir", str(d)])
+    assert r.exit_code == 2 and "--out: a campaign folder is required" in r.output

@@ -217,6 +217,12 @@ def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: P
     return node, result
 
 
+def list_studies(folder: str | Path, *, quick: bool = False) -> list[tuple[str, str, int]]:
+    """``(name, title, runs)`` of every study in ``folder`` (runs as ``reproduce`` would make them)."""
+    folder = Path(folder)
+    return [(st.name, st.title, len(expand(st, folder.resolve().parent, quick=quick))) for st in find_studies(folder)]
+
+
 def check_mavlink_url(url: str, option: str = "MAVLink URL") -> None:
     """A named error (ValueError naming ``option``) for a MAVLink URL that cannot be opened as meant
     (``flight.mavlink.check_url``: its form, the port's range, a port to listen on that is in use)."""

@@ -454,8 +454,11 @@ def _print_fleet_bench(res: dict) -> None:
 @app.command()
 def reproduce(
     studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)", show_default=False),
-    out: Path = typer.Option(..., "--out", help="campaign folder (re-running the same command resumes it)", show_default=False),
+    out: Path = typer.Option(None, "--out", help="campaign folder (re-running the same command resumes it); required "
+                             "unless --list", show_default=False),
     quick: bool = typer.Option(False, "--quick", help="fewer Monte Carlo seeds, shorter missions where the study allows"),
+    list_: bool = typer.Option(False, "--list", help="print every study of the studies folder with its title and run count, "
+                               "then exit"),
     scheduler: str = typer.Option(None, "--scheduler", help="address of an existing dask scheduler (default: local cluster)", show_default=False),
     studies_dir: Path = typer.Option(None, "--studies-dir", help="folder of study TOML files (default: experiments/)", show_default=False),
     workers: int = typer.Option(None, "--workers", min=1, help="local cluster size (default: one per core)", show_default=False),
@@ -464,12 +467,27 @@ def reproduce(
                                      help="keep only the runs whose estimated wall time fits in this many minutes (default with "
                                           "--quick: 5; 0: no budget); what is left out is listed"),
 ):
-    """Run the paper's experiments as a campaign on dask, then write report.html and summary.json."""
+    """Run the paper's experiments as a campaign on dask, then write report.html and summary.json
+    (`aerorelay reproduce --list` names the studies)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    folder = studies_dir or api.default_studies_dir()
+    if list_:
+        try:
+            listed = api.list_studies(folder, quick=quick)
+        except StudyError as exc:
+            _fail(str(exc))
+        t = Table(title=f"studies in {folder}" + (" (--quick)" if quick else ""))
+        for c in ("study", "runs", "title"):
+            t.add_column(c, justify="right" if c == "runs" else "left")
+        for name, title, runs in listed:
+            t.add_row(name, str(runs), title)
+        console.print(t)
+        return
+    if out is None:
+        _fail("--out: a campaign folder is required (or --list)")
     _check_out(out, "campaign")
 
-    folder = studies_dir or api.default_studies_dir()
     cols = (TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
     try:
         with Progress(*cols, console=err_console) as prog:
