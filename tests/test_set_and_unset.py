@@ -56,3 +56,15 @@ def test_reproduce_lists_its_studies_without_a_campaign_folder(tmp_path):
     assert r.exit_code == 0 and "tiny" in r.output and "two short runs" in r.output and " 2 " in r.output
     r = runner.invoke(app, ["reproduce", "--studies-dir", str(d)])
     assert r.exit_code == 2 and "--out: a campaign folder is required" in r.output
+
+
+def test_settings_that_would_do_nothing_are_named_and_derived_values_shown():
+    """Issue 48 (item 6): a Doppler fading model without its K factor drew no fading, silently; a jammer
+    power set from an INR printed the file's unused power_w in ``validate``."""
+    with pytest.raises(ScenarioError, match=r"channel\.fading\.model: 'doppler' needs perturbations\.fading_k_db"):
+        ar.load_scenario(NOMINAL, set={"channel.fading.model": "doppler"})
+    assert ar.load_scenario(NOMINAL, set={"channel.fading.model": "doppler", "perturbations.fading_k_db": 6.0})
+    chain = ROOT / "scenarios" / "chain_two_relays.toml"
+    r = runner.invoke(app, ["validate", str(chain)])
+    power = ar.build_scene(ar.load_scenario(chain)).jammers[0].power
+    assert r.exit_code == 0 and f"# jammer.power_w: {power:.6g} W" in r.output and "derived from inr_db_at_relay_start = 10 dB" in r.output

@@ -16,6 +16,7 @@ from __future__ import annotations
 import datetime
 import json
 import logging
+import math
 import os
 import platform
 from collections.abc import Callable
@@ -215,6 +216,18 @@ def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: P
     finally:
         result = recording.finish(None, aborted)
     return node, result
+
+
+def derived_values(sc: Scenario) -> list[str]:
+    """Values the scenario derives rather than states, one line each beside the field they replace:
+    a jammer's power set from ``inr_db_at_relay_start`` (the file's ``power_w`` is then not used)."""
+    scene = build_scene(sc)
+    out = []
+    for i, (cfg, jam) in enumerate(zip(sc.jammer_configs, scene.jammers, strict=True)):
+        if cfg.inr_db_at_relay_start is not None:
+            out.append(f"{sc.jammer_field(i)}.power_w: {jam.power:.6g} W ({10 * math.log10(jam.power):.1f} dBW), derived from "
+                       f"inr_db_at_relay_start = {cfg.inr_db_at_relay_start:g} dB (the power_w below is not used)")
+    return out
 
 
 def list_studies(folder: str | Path, *, quick: bool = False) -> list[tuple[str, str, int]]:

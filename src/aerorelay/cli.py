@@ -104,6 +104,8 @@ def validate(
     print(f"# {scenario}: valid")
     if sc.channel.outage_threshold is None:
         print(f"# channel.outage_threshold (unset) resolves to {sc.channel.outage:g} {sc.channel.capacity_unit}")
+    for line in api.derived_values(sc):
+        print(f"# {line}")
     print(sc.to_toml())
 
 

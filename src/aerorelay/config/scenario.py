@@ -137,6 +137,7 @@ class Scenario(Strict):
             if j.point_at is not None and j.point_at not in nodes:
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
         self._separation_holds()
+        self._fading_has_its_strength()
         self._obstacles_hold()
         self._one_time_grid()
         self._losses_hold()
@@ -320,6 +321,14 @@ class Scenario(Strict):
             for where, p in fixed.items():
                 if float(bare.signed_distance(p)) < 0:
                     raise ValueError(f"{where} {p} lies inside obstacles[{i}] ({o.name})")
+
+    def _fading_has_its_strength(self) -> None:
+        """``[channel.fading] model = "doppler"`` without a finite ``perturbations.fading_k_db`` draws no
+        fading: a setting that does nothing is named, not kept silently."""
+        k = self.perturbations.fading_k_db
+        if self.channel.fading.model != "iid" and (k is None or not math.isfinite(k)):
+            raise ValueError(f"channel.fading.model: {self.channel.fading.model!r} needs perturbations.fading_k_db, the "
+                             f"Rician K in dB (0 for Rayleigh); without it (got {k}) no fading is drawn")
 
     @property
     def vehicle_size_m(self) -> float:
