@@ -113,7 +113,7 @@ def _above_ground(sc: Scenario) -> None:
         z = _flight_columns(field, m)["pz"]
         k = int(np.argmin(z))
         if z[k] < g:
-            key = "trajectory_ulog" if m.trajectory_ulog else "trajectory_csv"
+            key = m.flown_field
             fix = "; shift it with ulog_offset_m" if m.trajectory_ulog else ""
             raise ValueError(f"{field}.{key}: MRAV-2's path goes below ground (z = {z[k]:.2f} m at sample {k + 1}{fix})"
                              if g == 0.0 else f"{field}.{key}: MRAV-2's path goes below {where} (z = {z[k]:.2f} m at "
@@ -161,7 +161,7 @@ def _mission_near_workspace(sc: Scenario) -> None:
         else:
             c = _flight_columns(field, m)
             pts = np.column_stack([c["px"], c["py"], c["pz"]])
-            what = f"{field}.{'trajectory_ulog' if m.trajectory_ulog else 'trajectory_csv'} sample {{k1}}"
+            what = f"{field}.{m.flown_field} sample {{k1}}"
         d = _box_distance(pts, ws.min, ws.max)
         k = int(np.argmax(d))
         if d[k] > most:

@@ -8,21 +8,32 @@ from pathlib import Path
 
 from pydantic import Field, field_validator, model_validator
 
-from ..models.mission import CsvPath, UlogPath
+from ..models.mission import CsvPath, GpxPath, PlanPath, UlogPath
 from .base import Strict, Vec3, Waypoint, check_waypoint_times
 
 
 @functools.lru_cache(maxsize=16)
-def _flight_file_path(kind: str, file: str, stamp: tuple, yaw_deg: float, offset: tuple):
-    """A CSV or ULog path, cached by file, modification stamp and frame (read-only objects)."""
-    return UlogPath(file, yaw_deg=yaw_deg, offset=list(offset)) if kind == "ulog" else CsvPath(file)
+def _flight_file_path(kind: str, file: str, stamp: tuple, yaw_deg: float, offset: tuple, origin: tuple | None):
+    """A CSV, ULog, QGroundControl plan or GPX path, cached by file, modification stamp and frame (read-only objects)."""
+    if kind == "ulog":
+        return UlogPath(file, yaw_deg=yaw_deg, offset=list(offset))
+    if kind == "plan":
+        return PlanPath(file, origin)
+    if kind == "gpx":
+        return GpxPath(file, origin)
+    return CsvPath(file)
 
 
-def flight_path(kind: str, file: str, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0)):
-    """A mission file's path (``kind`` ``csv`` or ``ulog``), read once per content: every check of a
-    load and the path itself share it. ValueError names a file that cannot be read."""
+def flight_path(kind: str, file: str, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.0), origin=None):
+    """A mission file's path (``kind`` ``csv``, ``ulog``, ``plan`` or ``gpx``), read once per content:
+    every check of a load and the path itself share it. ValueError names a file that cannot be read."""
     st = Path(file).stat()
-    return _flight_file_path(kind, file, (st.st_mtime_ns, st.st_size), float(yaw_deg), tuple(offset))
+    return _flight_file_path(kind, file, (st.st_mtime_ns, st.st_size), float(yaw_deg), tuple(offset),
+                             None if origin is None else tuple(origin))
+
+
+FILE_KINDS = {"trajectory_csv": "csv", "trajectory_ulog": "ulog", "trajectory_plan": "plan", "trajectory_gpx": "gpx"}
+COPY_NAMES = {"csv": "mission.csv", "ulog": "mission.ulg", "plan": "mission.plan", "gpx": "mission.gpx"}  # a run folder's copy
 
 
 class MissionConfig(Strict):
@@ -44,6 +55,13 @@ class MissionConfig(Strict):
     trajectory_ulog: str | None = Field(None, description="PX4 flight log (ULog): vehicle_local_position, NED")
     ulog_yaw_deg: float = Field(0.0, ge=-360.0, le=360.0, description="turns the ULog's east-north frame about z, deg")
     ulog_offset_m: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="shifts the ULog's path, m (world)")
+    trajectory_plan: str | None = Field(None, description="a QGroundControl .plan (MAVLink mission items, WGS84): its "
+                                        "waypoints, loiters and speeds timed into minimum-jerk segments in the local frame at "
+                                        "geo_origin (default the plan's home)")
+    trajectory_gpx: str | None = Field(None, description="a GPX track (timed points with elevation, WGS84) in the local "
+                                       "frame at geo_origin (default its first point)")
+    geo_origin: Vec3 | None = Field(None, description="where the scenario's local frame sits: [lat_deg, lon_deg, alt_m] "
+                                    "(WGS84; x east, y north, z up, m); default [geo] origin, else the file's home / first point")
 
     @field_validator("waypoints")
     @classmethod
@@ -62,6 +80,25 @@ class MissionConfig(Strict):
         return v
 
     @model_validator(mode="after")
+    def _readable_geo_file(self):
+        given = [f for f in FILE_KINDS if getattr(self, f) is not None]
+        if len(given) > 1:
+            raise ValueError(f"give one of {', '.join(FILE_KINDS)}, not {' and '.join(given)}")
+        if self.geo_origin is not None and not (-90 <= self.geo_origin[0] <= 90 and -180 <= self.geo_origin[1] <= 180):
+            raise ValueError(f"geo_origin: [lat_deg, lon_deg, alt_m] with lat in [-90, 90] and lon in [-180, 180], got {self.geo_origin}")
+        for field in ("trajectory_plan", "trajectory_gpx"):
+            f = getattr(self, field)
+            if f is None:
+                continue
+            if not Path(f).is_file():
+                raise ValueError(f"{field}: no such file {f}")
+            try:
+                flight_path(FILE_KINDS[field], f, origin=self.geo_origin)
+            except ValueError as exc:
+                raise ValueError(f"{field}: {exc}") from None
+        return self
+
+    @model_validator(mode="after")
     def _readable_ulog(self):
         if self.trajectory_ulog is None:
             return self
@@ -76,11 +113,24 @@ class MissionConfig(Strict):
         return self
 
     @property
-    def flown_file(self) -> str | None:
-        """The mission file that flies (ULog or CSV), if any."""
-        return self.trajectory_ulog or self.trajectory_csv
+    def flown_field(self) -> str | None:
+        """The field of the mission file that flies (``trajectory_csv`` / ``_ulog`` / ``_plan`` / ``_gpx``), if any."""
+        return next((f for f in ("trajectory_ulog", "trajectory_csv", "trajectory_plan", "trajectory_gpx")
+                     if getattr(self, f) is not None), None)
 
-    def flight(self) -> CsvPath | UlogPath | None:
+    @property
+    def flown_file(self) -> str | None:
+        """The mission file that flies (ULog, CSV, plan or GPX), if any."""
+        field = self.flown_field
+        return None if field is None else getattr(self, field)
+
+    @property
+    def copy_name(self) -> str | None:
+        """The name of the flown file's copy in a run folder (``mission.csv``, ``.ulg``, ``.plan``, ``.gpx``)."""
+        field = self.flown_field
+        return None if field is None else COPY_NAMES[FILE_KINDS[field]]
+
+    def flight(self) -> CsvPath | UlogPath | PlanPath | GpxPath | None:
         """The flight file's reading (``models.mission``), read once per content stamp (the checks
         of a load ask for it several times); None for a waypoint mission or a file that is gone."""
         f = self.flown_file
@@ -88,7 +138,8 @@ class MissionConfig(Strict):
             return None
         if self.trajectory_ulog:
             return flight_path("ulog", f, self.ulog_yaw_deg, self.ulog_offset_m)
-        return flight_path("csv", f)
+        kind = FILE_KINDS[self.flown_field or "trajectory_csv"]
+        return flight_path(kind, f, origin=self.geo_origin if kind in ("plan", "gpx") else None)
 
     @property
     def duration_s(self) -> float:

@@ -10,15 +10,16 @@ empty ``[section]`` is valid.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
 from typing import Any
 
-from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .base import ScenarioError, Strict
+from .base import ScenarioError, Strict, Vec3
 from .controller import ControllerConfig
 from .errors import format_errors
 from .mission import MissionConfig
@@ -49,6 +50,20 @@ def _numbered(jammer: Any, i: int) -> Any:
     return jammer
 
 
+class GeoConfig(Strict):
+    """``[geo]``: the scenario's local frame on the earth, for geographic mission files."""
+
+    origin: Vec3 = Field(description="[lat_deg, lon_deg, alt_m] (WGS84) of the local frame's origin: x east, y north, "
+                         "z up (m); every trajectory_plan / trajectory_gpx mission without its own geo_origin uses it")
+
+    @field_validator("origin")
+    @classmethod
+    def _on_the_earth(cls, v):
+        if not (-90 <= v[0] <= 90 and -180 <= v[1] <= 180):
+            raise ValueError(f"lat must be in [-90, 90] deg and lon in [-180, 180] deg, got {v}")
+        return v
+
+
 class Scenario(Strict):
     """A complete, validated relay scenario."""
 
@@ -71,6 +86,7 @@ class Scenario(Strict):
     bound: BoundConfig = Field(default_factory=BoundConfig)
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
     world: WorldConfig = Field(default_factory=WorldConfig)
+    geo: GeoConfig | None = Field(None, description="where the scenario's local frame sits on the earth (geographic mission files)")
     relays: list[RelayConfig] | None = Field(None, min_length=1, max_length=16, description="the relays of a network "
                                              "(replaces nodes.relay)")
     sources: list[SourceConfig] | None = Field(None, min_length=1, max_length=16, description="the inspection drones "
@@ -421,8 +437,8 @@ class Scenario(Strict):
         checks of ``assembly.checks``)."""
         data = self._plain_data()
         if self.mission.flown_file and "mission.waypoints" in updates:  # waypoints given: they fly, not the file
-            data["mission"].pop("trajectory_csv", None)
-            data["mission"].pop("trajectory_ulog", None)
+            for f in ("trajectory_csv", "trajectory_ulog", "trajectory_plan", "trajectory_gpx"):
+                data["mission"].pop(f, None)
         for key, value in updates.items():
             node: Any = data
             *parents, leaf = key.split(".")
@@ -463,7 +479,7 @@ def _only_what_flies(m: dict, cfg: MissionConfig, file: str | None) -> None:
     if cfg.flown_file:
         m.pop("waypoints", None)
         if file is not None:
-            m["trajectory_ulog" if cfg.trajectory_ulog else "trajectory_csv"] = file
+            m[cfg.flown_field] = file
     if not cfg.trajectory_ulog:
         m.pop("ulog_yaw_deg", None)
         m.pop("ulog_offset_m", None)
@@ -477,9 +493,26 @@ def _merged(base: dict, override: dict) -> dict:
     return out
 
 
+def geo_origin_to_missions(data: dict) -> None:
+    """``[geo] origin`` (where the scenario's local frame sits, WGS84) for every mission that reads a
+    geographic file (``trajectory_plan`` / ``trajectory_gpx``) without its own ``geo_origin``."""
+    geo = data.get("geo")
+    origin = geo.get("origin") if isinstance(geo, dict) else None
+    if origin is None:
+        return
+    given = data.get("sources")
+    sources: list = given if isinstance(given, list) else []
+    for m in [data.get("mission"), *(s.get("mission") for s in sources if isinstance(s, dict))]:
+        if isinstance(m, dict) and (m.get("trajectory_plan") or m.get("trajectory_gpx")) and m.get("geo_origin") is None:
+            m["geo_origin"] = origin
+
+
 def validate_config(data: dict) -> Scenario:
     """The scenario ``data`` validated as data (fields, ranges, cheap cross-field checks); raises
     ScenarioError with one line per problem. ``assembly.parse_scenario`` adds the physics checks."""
+    if isinstance(data, dict):
+        data = copy.deepcopy(data)
+        geo_origin_to_missions(data)
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:

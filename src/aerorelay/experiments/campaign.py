@@ -29,7 +29,7 @@ from ..assembly.parts import nmpc_settings
 from ..sim.units import metric_value_problem
 from ..store import strict_json
 from ..store.outputs import check_output_folder, mark, write_atomic
-from ..store.run_folder import BOUND_JSON, METRICS_FILE, MISSION_CSV, MISSION_ULOG, SCENARIO_FILE, TIMESERIES_FILE
+from ..store.run_folder import BOUND_JSON, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
 from .run import simulate
 from .study import RunSpec, scenario_of
 
@@ -66,9 +66,9 @@ def _run_problem(d: Path, spec: RunSpec) -> str | None:
             return f"{name} missing or empty"
     try:
         expected = spec.scenario_toml
-        if "trajectory_csv" in expected or "trajectory_ulog" in expected:  # the run folder names its own copy
-            sc = scenario_of(spec)
-            expected = sc.to_toml(MISSION_ULOG if sc.mission.trajectory_ulog else MISSION_CSV)
+        if any(f in expected for f in ("trajectory_csv", "trajectory_ulog", "trajectory_plan", "trajectory_gpx")):
+            sc = scenario_of(spec)  # the run folder names its own copy
+            expected = sc.to_toml(sc.mission.copy_name)
         if (d / SCENARIO_FILE).read_text() != expected:
             return "another scenario"
         metrics = json.loads((d / METRICS_FILE).read_text())

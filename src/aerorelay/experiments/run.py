@@ -29,7 +29,7 @@ from ..sim.fleet import column_type
 from ..sim.metrics import compute_metrics, fleet_metrics, loss_phases
 from ..sim.units import fleet_metric_units, metric_units
 from ..store.outputs import writing
-from ..store.run_folder import MISSION_CSV, MISSION_ULOG, add_optional, log_frame, publish_run, write_bound_files
+from ..store.run_folder import MISSION_CSV, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
 
 
@@ -57,8 +57,8 @@ class RunResult:
         that fails is named in metrics.json (``optional_outputs_failed``) and logged, and the run
         stays. One writer per folder (``store.outputs.writing``: OutputBusyError, or ``wait``)."""
         m = self.scenario.mission
-        copy = MISSION_ULOG if m.trajectory_ulog else MISSION_CSV if m.trajectory_csv else None
-        sources = {s.name: (s.mission.flown_file, f"mission_{s.name}{Path(MISSION_ULOG if s.mission.trajectory_ulog else MISSION_CSV).suffix}")
+        copy = m.copy_name  # mission.csv / .ulg / .plan / .gpx: the run folder flies again from its own copy
+        sources = {s.name: (s.mission.flown_file, f"mission_{s.name}{Path(s.mission.copy_name or MISSION_CSV).suffix}")
                    for s in self.scenario.sources or [] if s.mission.flown_file}  # a fleet's: one copy per source
 
         def with_mission(tmp: Path) -> None:

@@ -252,10 +252,47 @@ class UlogPath(SampledPath):
         super().__init__(t, p, turn(cols["vx"], cols["vy"], cols["vz"]), turn(cols["ax"], cols["ay"], cols["az"]))
 
 
+class PlanPath(MinimumJerkPath):
+    """MRAV-2's path from a QGroundControl ``.plan`` (``models.geo.read_plan``): its position items as
+    timed waypoints in the local frame at ``origin`` (default the plan's home), minimum-jerk segments."""
+
+    def __init__(self, path: str | Path, origin=None):
+        from .geo import GeoFrame, local_samples, read_plan
+
+        home, points = read_plan(path)
+        t, enu = local_samples(points, GeoFrame(origin if origin is not None else home))
+        keep = np.concatenate([[True], np.diff(t) > 1e-9])  # two items at one place without a hold: one waypoint
+        super().__init__(np.column_stack([t[keep], enu[keep]]))
+        self.cols = {"px": self.p[:, 0], "py": self.p[:, 1], "pz": self.p[:, 2]}  # its samples, as a sampled path's
+
+
+class GpxPath(SampledPath):
+    """MRAV-2's path from a GPX track (``models.geo.read_gpx``) in the local frame at ``origin``
+    (default its first point), velocity and acceleration from a smoothing spline (as a positions-only CSV)."""
+
+    def __init__(self, path: str | Path, origin=None):
+        from .geo import GeoFrame, local_samples, read_gpx
+
+        points = read_gpx(path)
+        first = (points[0].lat, points[0].lon, points[0].alt)
+        t, p = local_samples(points, GeoFrame(origin if origin is not None else first))
+        if t.size < 5:
+            raise ValueError(f"{path}: needs at least 5 timed points (the smoothing spline of its velocity), has {t.size}")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            v, a = smooth_derivatives(t, p)
+        super().__init__(t, p, v, a)
+
+
 def source_trajectory(mission) -> SourceTrajectory:
     """Build MRAV-2's path from a ``MissionConfig``: a ULog, a CSV, or waypoints."""
     if getattr(mission, "trajectory_ulog", None):
         return UlogPath(mission.trajectory_ulog, yaw_deg=mission.ulog_yaw_deg, offset=mission.ulog_offset_m)
+    if getattr(mission, "trajectory_plan", None) or getattr(mission, "trajectory_gpx", None):
+        flight = mission.flight()
+        if flight is None:
+            raise ValueError(f"{mission.flown_file}: no such file")
+        return flight
     if mission.trajectory_csv:
         return CsvPath(mission.trajectory_csv)
     return MinimumJerkPath(mission.waypoints)
