@@ -123,7 +123,7 @@ def test_a_gpx_track_in_the_local_frame_of_its_first_point(tmp_path):
     pts = [(k * 2.0, HOME[0] + _north(3.0 * k), HOME[1], HOME[2] + 0.5 * k) for k in range(8)]
     path = GpxPath(_gpx(tmp_path, pts))
     assert path.duration == pytest.approx(14.0)
-    for k, (t, lat, lon, ele) in enumerate(pts):
+    for t, lat, lon, ele in pts:
         np.testing.assert_allclose(path.state(t).p, _enu(pts[0][1:], lat, lon, ele), atol=1e-3)
     np.testing.assert_allclose(path.state(7.0).v, [0.0, 1.5, 0.25], atol=0.02)  # 3 m north and 0.5 m up every 2 s
     with pytest.raises(ValueError, match=r"track 0 segment 0 point 0: no <time>"):
