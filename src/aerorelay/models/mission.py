@@ -16,6 +16,7 @@ import numpy as np
 from pyulog import ULog
 from scipy.interpolate import make_smoothing_spline
 
+from .geo import GeoFrame, local_samples, read_gpx, read_plan
 from .geometry import E3, attitude_from_thrust
 
 CSV_COLUMNS = ("t", "px", "py", "pz", "vx", "vy", "vz", "ax", "ay", "az")
@@ -257,8 +258,6 @@ class PlanPath(MinimumJerkPath):
     timed waypoints in the local frame at ``origin`` (default the plan's home), minimum-jerk segments."""
 
     def __init__(self, path: str | Path, origin=None):
-        from .geo import GeoFrame, local_samples, read_plan
-
         home, points = read_plan(path)
         t, enu = local_samples(points, GeoFrame(origin if origin is not None else home))
         keep = np.concatenate([[True], np.diff(t) > 1e-9])  # two items at one place without a hold: one waypoint
@@ -271,8 +270,6 @@ class GpxPath(SampledPath):
     (default its first point), velocity and acceleration from a smoothing spline (as a positions-only CSV)."""
 
     def __init__(self, path: str | Path, origin=None):
-        from .geo import GeoFrame, local_samples, read_gpx
-
         points = read_gpx(path)
         first = (points[0].lat, points[0].lon, points[0].alt)
         t, p = local_samples(points, GeoFrame(origin if origin is not None else first))
