@@ -25,7 +25,7 @@ from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Re
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
-from ..models.mission import LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
+from ..models.mission import CirclePath, LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
 from ..models.vehicle import Multirotor
@@ -76,7 +76,10 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
     """A jammer from its ``[jammer]`` / ``[[jammers]]`` table."""
     sched = AlwaysOn() if cfg.schedule == "always_on" else PeriodicOnOff(cfg.on_s, cfg.off_s)
     path: SourceTrajectory | None = None
-    if cfg.waypoints is not None:
+    if cfg.path == "circle":
+        assert cfg.center_m is not None and cfg.radius_m is not None and cfg.period_s is not None  # validated
+        path = CirclePath(cfg.center_m, cfg.radius_m, cfg.period_s, cfg.clockwise)
+    elif cfg.waypoints is not None:
         leg = LinearPath(cfg.waypoints) if cfg.path == "linear" else MinimumJerkPath(cfg.waypoints)
         path = RepeatingPath(leg) if cfg.repeat else leg
     pattern: AntennaPattern = IsotropicPattern(1.0)

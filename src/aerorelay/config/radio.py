@@ -200,7 +200,13 @@ class JammerConfig(Strict):
     name: str = Field("jammer", min_length=1, description="names the jammer in logs and reports")
     position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72], description="m, world (the start when moving)")
     waypoints: list[Waypoint] | None = Field(None, min_length=2, description="timed path [[t_s, x, y, z], ...]")
-    path: Literal["linear", "minimum_jerk"] = Field("linear", description="how the jammer moves between waypoints")
+    path: Literal["linear", "minimum_jerk", "circle"] = Field("linear", description="how the jammer moves between "
+                                                               "waypoints, or circle: around center_m at radius_m, one lap "
+                                                               "every period_s (from due east of the center)")
+    center_m: Vec3 | None = Field(None, description="circle: the center, m (world; the circle is horizontal at its height)")
+    radius_m: float | None = Field(None, gt=0.0, le=10_000.0, description="circle: the radius, m")
+    period_s: float | None = Field(None, gt=0.0, le=1e6, description="circle: the time of one lap, s")
+    clockwise: bool = Field(False, description="circle: seen from above, clockwise (default counter-clockwise)")
     repeat: bool = Field(False, description="fly the waypoints again and again (a loop: the last waypoint at the first "
                          "one's position); false: hold the last one")
     power_w: float = Field(1.0, ge=0.0, description="peak radiated power P_J, W (the paper's 1 W adds ~1% to its 1 W "
@@ -235,6 +241,16 @@ class JammerConfig(Strict):
     @classmethod
     def _starts_at_first_waypoint(cls, data):
         """A moving jammer's ``position`` is its first waypoint's (given, it must be that)."""
+        if isinstance(data, dict) and data.get("path") == "circle":
+            try:
+                c, r = [float(v) for v in data["center_m"]], float(data["radius_m"])
+            except (TypeError, ValueError, KeyError):
+                return data  # the circle's own checks name the problem
+            start = [c[0] + r, c[1], c[2]]
+            if "position" in data and [float(v) for v in data["position"]] != start:
+                raise ValueError(f"position {data['position']} is not the circle's start {start} (due east of center_m): "
+                                 "omit position for a circling jammer")
+            return {**data, "position": start}
         if not isinstance(data, dict) or not data.get("waypoints"):
             return data
         try:
@@ -263,6 +279,15 @@ class JammerConfig(Strict):
                                  f"one's position {start} (within {LOOP_CLOSURE_M} m)")
         elif self.repeat:
             raise ValueError("repeat = true needs waypoints (a fixed jammer has nothing to repeat)")
+        circle = [f for f in ("center_m", "radius_m", "period_s") if getattr(self, f) is not None]
+        if self.path == "circle":
+            if self.waypoints is not None:
+                raise ValueError("path = \"circle\" takes center_m, radius_m and period_s, not waypoints")
+            missing = [f for f in ("center_m", "radius_m", "period_s") if getattr(self, f) is None]
+            if missing:
+                raise ValueError(f"path = \"circle\" needs {', '.join(missing)}")
+        elif circle:
+            raise ValueError(f"{', '.join(circle)} apply to path = \"circle\" only")
         if self.pattern == "cosine" and (self.point_at is None) == (self.boresight is None):
             raise ValueError("a cosine jammer needs exactly one of point_at (a node) and boresight (a direction)")
         if self.pattern == "isotropic" and (self.point_at is not None or self.boresight is not None):

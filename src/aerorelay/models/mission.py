@@ -8,6 +8,7 @@ zero yaw), so its antenna tilts with it.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -251,6 +252,27 @@ class UlogPath(SampledPath):
         turn = (lambda x, y, z: ned_to_world(np.column_stack([x, y, z]), yaw_deg))
         p = ned_to_world(np.column_stack([cols["x"], cols["y"], cols["z"]]), yaw_deg, offset)
         super().__init__(t, p, turn(cols["vx"], cols["vy"], cols["vz"]), turn(cols["ax"], cols["ay"], cols["az"]))
+
+
+class CirclePath(SourceTrajectory):
+    """Horizontal circles about ``center`` (m, world) of ``radius`` (m), one lap every ``period`` (s),
+    from due east of the center, counter-clockwise seen from above unless ``clockwise``; analytic
+    velocity and (centripetal) acceleration. Its ``duration`` is infinite."""
+
+    def __init__(self, center, radius: float, period: float, clockwise: bool = False):
+        self.center, self.r = np.asarray(center, float), float(radius)
+        self.w = (-1.0 if clockwise else 1.0) * 2.0 * np.pi / float(period)
+
+    @property
+    def duration(self) -> float:
+        return math.inf
+
+    def state(self, t: float) -> SourceState:
+        c, s = math.cos(self.w * t), math.sin(self.w * t)
+        p = self.center + self.r * np.array([c, s, 0.0])
+        v = self.r * self.w * np.array([-s, c, 0.0])
+        a = -self.r * self.w**2 * np.array([c, s, 0.0])
+        return SourceState(p, v, a)
 
 
 class PlanPath(MinimumJerkPath):
