@@ -22,7 +22,7 @@ from ..experiments.study import RunSpec, Study, groups_of_run, scenario_of  # no
 from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
 from .figures import jammer_traces  # noqa: E402
 from .folders import read_timeseries, vehicle_paths
-from .sweeps import sweep_figures  # noqa: E402
+from .sweeps import box_figure, sweep_figures  # noqa: E402
 
 # the runs table shows these first; the rest of TABLE_METRICS opens on demand (<details>)
 MAIN_METRICS = ("c_min", "c_mean", "outage_fraction", "outage_duration_mean_s", "outage_duration_max_s")
@@ -94,7 +94,8 @@ def _capacity_figure(study: Study, specs: list[RunSpec], out: Path) -> str | Non
         ax.set_xlabel("t (s)")
         ax.set_ylabel(f"end-to-end C, 1 s mean ({unit})")
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
-    axes[0, 0].set_title(f"{study.title} (seed 0 of each run)", fontsize=9, wrap=True)
+    axes[0, 0].set_title(f"{study.title}: capacity over time of each run's first seed (1 s means; the spread over seeds "
+                         "is the box plot's)", fontsize=9, wrap=True)
     fig.tight_layout()
     return _png(fig)
 
@@ -321,7 +322,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                                                       f"</summary>{table}</details>")
     if study_sum.get("ranking"):
         parts.append(_ranking_table(study_sum["ranking"]))
-    for fig in (*sweep_figures(study, study_sum, capacity_unit(specs), _png), *_tradeoff_figures(study, study_sum),
+    for fig in (*sweep_figures(study, study_sum, capacity_unit(specs), _png), box_figure(study, study_sum, capacity_unit(specs), _png),
+                *_tradeoff_figures(study, study_sum),
                 *_bound_figures(study, specs, out),
                 *_estimation_figures(study, specs, out), _capacity_figure(study, specs, out),
                 _bars_figure(study_sum),

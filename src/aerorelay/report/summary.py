@@ -70,6 +70,22 @@ def _trajectory(out: Path, spec: RunSpec) -> np.ndarray:
     return df.to_numpy()
 
 
+QUANTILES = {"p05": 5, "p25": 25, "median": 50, "p75": 75, "p95": 95}  # the spread over seeds (summary.json)
+KEPT_VALUES = ("c_min", "c_mean")  # whose per-seed values summary.json keeps (box plots)
+
+
+def distribution(key: str, vals: np.ndarray) -> dict:
+    """The spread of one metric over a group's seeds: ``<key>.p05`` ... ``<key>.p95`` (numpy's linear
+    percentiles) and, for ``KEPT_VALUES``, every seed's value (``<key>.values``)."""
+    finite = vals[np.isfinite(vals)]
+    if not finite.size:
+        return {}
+    out: dict[str, float | list[float]] = {f"{key}.{name}": float(np.percentile(finite, q)) for name, q in QUANTILES.items()}
+    if key in KEPT_VALUES:
+        out[f"{key}.values"] = [float(v) for v in vals]
+    return out
+
+
 def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
     """Group metrics (mean, std, n over seeds), paper comparisons and derived quantities of one study."""
     groups: dict[str, list[RunSpec]] = {}
@@ -95,6 +111,7 @@ def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
             entry[key] = float(vals.mean())
             if len(vals) > 1:
                 entry[key + ".std"] = float(vals.std(ddof=1))
+                entry |= distribution(key, vals)
         gsum[g] = entry
     for a, b in study.compare_trajectories:
         if a in groups and b in groups and a in gsum and b in gsum:
