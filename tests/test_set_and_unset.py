@@ -68,3 +68,14 @@ def test_settings_that_would_do_nothing_are_named_and_derived_values_shown():
     r = runner.invoke(app, ["validate", str(chain)])
     power = ar.build_scene(ar.load_scenario(chain)).jammers[0].power
     assert r.exit_code == 0 and f"# jammer.power_w: {power:.6g} W" in r.output and "derived from inr_db_at_relay_start = 10 dB" in r.output
+
+
+def test_the_run_summary_shows_the_features_a_run_has(tmp_path):
+    """Issue 48 (item 5): no rows of dashes for a bound or losses a run does not have; its wind's rows
+    when it has one."""
+    base = ["run", str(NOMINAL), "--duration", "0.3", "--no-figures", "--no-bound"]
+    plain = runner.invoke(app, [*base, "--out", str(tmp_path / "a")])
+    assert plain.exit_code == 0 and "c_min" in plain.output and "exit_status" in plain.output
+    assert "capacity_efficiency" not in plain.output and "after_loss" not in plain.output and "wind_speed" not in plain.output
+    windy = runner.invoke(app, [*base, "--out", str(tmp_path / "b"), "--set", "wind.mean_m_s=[3.0, 0.0, 0.0]"])
+    assert windy.exit_code == 0 and "wind_speed_mean_m_s" in windy.output and "drag_accel_mean_m_s2" in windy.output

@@ -271,6 +271,10 @@ KEY_METRICS = (
     "bound.path_mean.outage_fraction", "bound.static.mean", "capacity_efficiency_mean_flyable",
     "capacity_efficiency_min_flyable", "bound.flyable_mean.mean", "bound.flyable_maxmin.min",
     "bound.flyable.mean", "c_mean_before_loss", "c_mean_after_loss", "capacity_efficiency_mean_after_loss",
+    # what a scenario's own features add (shown only where a run has them)
+    "wind_speed_mean_m_s", "drag_accel_mean_m_s2", "observer_error_mean_m_s2", "obstacle_clearance_min_m",
+    "estimation_error_final_m", "estimation_first_within_1m_s", "separation_min_m", "telemetry_rejected_periods",
+    "hold_fraction", "land_fraction", "exit_status",
 )
 
 
@@ -322,6 +326,11 @@ def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
         t.add_column("ratio B/A", justify="right")
     for key in _fleet_keys(runs) or KEY_METRICS:
         vals = [_lookup(m, key) for m in runs.values()]
+        if all(v is None for v in vals):
+            continue  # a feature no run has (a bound, wind, losses, ...): no row of dashes
+        if any(isinstance(v, str) for v in vals):
+            t.add_row(key, *["-" if v is None else str(v) for v in vals], *(["-"] if ratio else []))
+            continue
         generic = key.split(".", 2)[2] if key.startswith(("routes.", "relays.")) else key  # a node's metric: its quantity's unit
         unit = _unit_of(generic, capacity_unit)
         row = [key, *["-" if v is None else si(float(v), unit) for v in vals]]
