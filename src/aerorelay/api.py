@@ -63,6 +63,7 @@ from .planning.network_bound import NetworkBound
 from .report.figures import fig_bound, write_run_figures
 from .report.fleet_figures import fig_network_bound, write_fleet_figures
 from .report.folders import read_metrics, read_scenario, read_timeseries
+from .report.foxglove import LAYOUT_FILE, write_layout
 from .report.html import render_report
 from .report.mcap_export import MCAP_FILE, write_fleet_mcap, write_run_mcap
 from .report.run_report import RUN_REPORT, render_fleet_report, render_run_report
@@ -95,12 +96,14 @@ def write_run_views(result: RunResult, tmp: Path) -> None:
     bound = result.bound.frame() if result.bound is not None else None
     write_run_figures(result.timeseries, result.scenario, tmp, bound)
     write_run_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE, bound)
+    write_layout(result.timeseries.columns, result.scenario.channel.capacity_unit, tmp / LAYOUT_FILE)
 
 
 def write_fleet_views(result: RunResult, tmp: Path) -> None:
     """A fleet's figures (the rates, every hop's SINR, the paths) and ``run.mcap`` into the run folder ``tmp``."""
     write_fleet_figures(result.timeseries, result.scenario, tmp)
     write_fleet_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE)
+    write_layout(result.timeseries.columns, result.scenario.channel.capacity_unit, tmp / LAYOUT_FILE)
 
 
 def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
@@ -294,6 +297,7 @@ def export(run_dir: str | Path, fmt: str = "mcap") -> Path:
     if not is_own_folder(d, "run"):
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
     sc, _, df = read_scenario(d), read_metrics(d), read_timeseries(d)
+    write_layout(df.columns, sc.channel.capacity_unit, d / LAYOUT_FILE)  # the panels name this run's series
     if sc.is_fleet:
         return write_fleet_mcap(df, sc, d / MCAP_FILE)
     bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None

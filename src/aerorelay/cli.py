@@ -551,7 +551,8 @@ def export(
         path = api.export(run_dir, fmt)
     except (OutputError, ValueError) as exc:
         _fail(str(exc))
-    console.print(f"wrote {path} (open it in Foxglove; docs/foxglove_layout.json arranges the panels)", markup=False, highlight=False)
+    console.print(f"wrote {path} (open it in Foxglove and import the folder's foxglove_layout.json: its panels name this "
+                  "run's series)", markup=False, highlight=False)
 
 
 @app.command("report")
