@@ -44,4 +44,4 @@ bench: $(VENV)/.installed
 	$(BIN)/aerorelay bench scenarios/nominal_tilted.toml
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis docs/_build docs/tutorials docs/reference/scenario.md
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis docs/_build docs/tutorials

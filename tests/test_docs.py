@@ -33,6 +33,15 @@ def test_every_schema_field_is_in_the_reference_with_its_description():
             assert " ".join(info.description.split())[:40].replace("|", "\\|") in text, key
 
 
+def test_the_committed_scenario_reference_is_the_schemas():
+    """The reference is in the repository (its links work in a clone before any docs build) and is
+    what the schema renders: a field changed without regenerating it fails here."""
+    committed = (ROOT / "docs" / "reference" / "scenario.md").read_text()
+    assert committed == scenario_reference.render(), (
+        "docs/reference/scenario.md is stale: make docs (or python -c \"import sys; sys.path.insert(0, 'docs/_ext'); "
+        "import scenario_reference as s; open('docs/reference/scenario.md', 'w').write(s.render())\") rewrites it")
+
+
 def test_a_field_without_a_description_fails_the_build(monkeypatch):
     from sphinx.errors import ExtensionError
 

@@ -13,6 +13,11 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 
 
+def test_the_python_api_guide_names_every_example():
+    guide = (ROOT / "docs" / "guide" / "python-api.md").read_text()
+    assert [p.name for p in EXAMPLES if f"`{p.name}`" not in guide] == []
+
+
 def test_every_example_is_tested():
     assert {p.name for p in EXAMPLES} >= {"fly_nominal.py", "two_jammers_one_moving.py", "directional_jammer.py",
                                           "own_planner.py", "dask_sweep.py", "estimator_batch.py",

@@ -193,7 +193,7 @@ class NodesConfig(Strict):
 
 
 class JammerConfig(Strict):
-    """A ground jammer: fixed at ``position`` or moving along timed ``waypoints``; isotropic
+    """A jammer: fixed at ``position``, moving along timed ``waypoints`` or circling (``path = "circle"``); isotropic
     (the paper's) or ``cosine``: ``G(psi) = g_max max(max(cos psi, 0)^exponent, back_lobe)``,
     ``psi`` off boresight, pointed at a node (``point_at``, tracking it) or along ``boresight``."""
 
