@@ -1,6 +1,7 @@
 """A study: a base scenario plus a declarative set of variations, expanded into runs.
 
-A study TOML names a ``base`` scenario (path relative to the repository root), a list of
+A study TOML names a ``base`` scenario (a path relative to the folder above the studies folder: the
+repository root for ``experiments/``; an absolute path as it is), a list of
 ``[[runs]]`` (an id and dotted-key ``set`` updates), an optional ``[grid]`` whose cartesian
 product multiplies the runs, ``seeds`` Monte Carlo repetitions, and ``[[paper]]`` reference
 numbers, and ``[[claims]]``: the paper's qualitative claims as conditions on the study's
@@ -33,7 +34,7 @@ class StudyError(ValueError):
 
 class RunVariation(BaseModel):
     """One run group: ``set`` dotted-key updates on the study's base, or on its own ``base``
-    scenario (path relative to the repository root)."""
+    scenario (relative to the folder above the studies folder, as the study's own ``base``)."""
 
     model_config = ConfigDict(extra="forbid")
     id: str = Field(min_length=1, max_length=100)
