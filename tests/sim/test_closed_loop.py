@@ -10,7 +10,7 @@ from aerorelay.assembly.parts import build
 from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.cli import app
 from aerorelay.models.geometry import rotation_batch
-from aerorelay.sim.closed_loop import log_columns
+from aerorelay.sim.closed_loop import known_jammers, log_columns
 from aerorelay.sim.metrics import compute_metrics
 from tests.reference_channel import end_to_end_capacity, link_sinr
 
@@ -129,9 +129,10 @@ def test_generator_jammer_power_before_and_after_localization(senses):
     pw = sc.jammer.power_w
     jam = loop.scene.jammers[0]
     assert jam.power_at(7.0) == 0.0 and jam.power_at(3.0) == pw  # OFF at 7 s, ON at 3 s
-    assert loop._planned_jammer_powers(1.0) == [0.0]  # not localized yet: BS-only planning
-    assert loop._planned_jammer_powers(3.0) == [pw]
-    assert loop._planned_jammer_powers(7.0) == [0.0 if senses else pw]
+    planned = lambda t: known_jammers(loop.scene, t, loop.settings.senses_jammer_state)[1]  # what the loop plans with
+    assert planned(1.0) == [0.0]  # not localized yet: BS-only planning
+    assert planned(3.0) == [pw]
+    assert planned(7.0) == [0.0 if senses else pw]
 
 
 def test_logged_capacity_follows_the_antenna_options():

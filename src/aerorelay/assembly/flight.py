@@ -11,6 +11,7 @@ from ..control.nmpc import NmpcSettings
 from ..flight.readings import JammersFromReadings
 from ..flight.stepper import RelayStepper, StaleSettings
 from ..models.radio import RadioScene
+from ..sim.closed_loop import known_jammers
 from . import world
 from .parts import build
 
@@ -20,9 +21,7 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
     planner plans with (0 before its localization; the nominal power, or the radiated one when the
     controller senses the schedule), as ``ar.simulate`` gives them without CSI noise."""
     def view(t: float) -> tuple[np.ndarray, np.ndarray, None]:
-        js = scene.jammers
-        positions = np.array([j.position_at(t) for j in js]).reshape(-1, 3)
-        powers = np.array([j.planned_power(t, senses_state) for j in js])
+        positions, powers = known_jammers(scene, t, senses_state)
         return positions, powers, None
     return view
 

@@ -22,6 +22,22 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False, strict=True)
 
 
+PAPER_PLANNER = "trajectory_generator"  # the paper's generator: one name for one relay and fleets ("paper" is read as it)
+
+
+def papers_generator_named(v):
+    """A planner name as given, ``"paper"`` read as ``PAPER_PLANNER``."""
+    return PAPER_PLANNER if v == "paper" else v
+
+
+def on_the_earth(v: list[float]) -> list[float]:
+    """A geodetic ``[lat_deg, lon_deg, alt_m]`` unchanged; ValueError unless lat is in [-90, 90] deg and
+    lon in [-180, 180] deg."""
+    if not (-90 <= v[0] <= 90 and -180 <= v[1] <= 180):
+        raise ValueError("[lat_deg, lon_deg, alt_m] needs lat in [-90, 90] deg and lon in [-180, 180] deg")
+    return v
+
+
 def nonzero_direction(v: list[float], what: str) -> list[float]:
     """``v`` unchanged; ValueError when it has no direction (norm below 1e-9)."""
     if math.hypot(*v) < 1e-9:

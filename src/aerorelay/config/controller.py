@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field, create_model, field_validator, model_validator
 
 from ..control.terms import COST_TERMS
-from .base import Strict, Vec3
+from .base import Strict, Vec3, papers_generator_named
 
 MIN_PREDICTION_S = 0.3  # horizon x Ts: shorter predictions cannot plan a stop inside the workspace
 MAX_TS_S = 0.05  # one RK4 step per Ts: longer periods do not resolve the attitude dynamics
@@ -146,10 +146,7 @@ class ControllerConfig(Strict):
         "aerorelay.planning.base.register_planner before the scenario is loaded (docs/guide/extending.md)",
     )
 
-    @field_validator("planner", mode="before")
-    @classmethod
-    def _one_name_per_planner(cls, v):
-        return "trajectory_generator" if v == "paper" else v
+    _one_name_per_planner = field_validator("planner", mode="before")(papers_generator_named)
 
     ts_s: float = Field(0.015, gt=0.0, le=MAX_TS_S, description="NMPC sampling period Ts (one RK4 step per period)")
     horizon: int = Field(30, ge=1, le=200, description="N shooting intervals")

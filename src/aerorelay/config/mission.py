@@ -9,7 +9,7 @@ from pathlib import Path
 from pydantic import Field, field_validator, model_validator
 
 from ..models.mission import CsvPath, GpxPath, PlanPath, UlogPath
-from .base import Strict, Vec3, Waypoint, check_waypoint_times
+from .base import Strict, Vec3, Waypoint, check_waypoint_times, on_the_earth
 
 
 @functools.lru_cache(maxsize=16)
@@ -79,13 +79,13 @@ class MissionConfig(Strict):
         flight_path("csv", v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
         return v
 
+    _geo_origin_on_the_earth = field_validator("geo_origin")(lambda v: v if v is None else on_the_earth(v))
+
     @model_validator(mode="after")
     def _readable_geo_file(self):
         given = [f for f in FILE_KINDS if getattr(self, f) is not None]
         if len(given) > 1:
             raise ValueError(f"give one of {', '.join(FILE_KINDS)}, not {' and '.join(given)}")
-        if self.geo_origin is not None and not (-90 <= self.geo_origin[0] <= 90 and -180 <= self.geo_origin[1] <= 180):
-            raise ValueError(f"geo_origin: [lat_deg, lon_deg, alt_m] with lat in [-90, 90] and lon in [-180, 180], got {self.geo_origin}")
         for field in ("trajectory_plan", "trajectory_gpx"):
             f = getattr(self, field)
             if f is None:

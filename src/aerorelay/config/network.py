@@ -9,7 +9,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
-from .base import Strict, Vec3
+from .base import Strict, Vec3, papers_generator_named
 from .mission import MissionConfig
 from .platform import PlatformConfig
 from .radio import NodeAntennaConfig
@@ -63,9 +63,6 @@ class SourceConfig(Strict):
                                               "[antenna]'s (source_pattern)")
 
 
-PAPER_PLANNER = "trajectory_generator"  # the paper's generator, one name for one relay and fleets ("paper": read as it)
-
-
 class NetworkConfig(Strict):
     """How data flows: each route from a source through relays to the base station ``bs``; every
     hop of every route has its own time slot (docs/concepts/networks.md)."""
@@ -85,7 +82,4 @@ class NetworkConfig(Strict):
         "'paper' is read as this name), tracked by the comms-aware NMPC with each relay's alignment terms toward its "
         "two neighbours on its first route")
 
-    @field_validator("planner", mode="before")
-    @classmethod
-    def _one_name_per_planner(cls, v):
-        return PAPER_PLANNER if v == "paper" else v
+    _one_name_per_planner = field_validator("planner", mode="before")(papers_generator_named)

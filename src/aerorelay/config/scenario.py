@@ -19,7 +19,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .base import ScenarioError, Strict, Vec3
+from .base import ScenarioError, Strict, Vec3, on_the_earth
 from .controller import ControllerConfig
 from .errors import format_errors
 from .mission import MissionConfig
@@ -56,12 +56,7 @@ class GeoConfig(Strict):
     origin: Vec3 = Field(description="[lat_deg, lon_deg, alt_m] (WGS84) of the local frame's origin: x east, y north, "
                          "z up (m); every trajectory_plan / trajectory_gpx mission without its own geo_origin uses it")
 
-    @field_validator("origin")
-    @classmethod
-    def _on_the_earth(cls, v):
-        if not (-90 <= v[0] <= 90 and -180 <= v[1] <= 180):
-            raise ValueError(f"lat must be in [-90, 90] deg and lon in [-180, 180] deg, got {v}")
-        return v
+    _on_the_earth = field_validator("origin")(on_the_earth)
 
 
 class Scenario(Strict):
@@ -510,7 +505,7 @@ def geo_origin_to_missions(data: dict) -> None:
 def validate_config(data: dict) -> Scenario:
     """The scenario ``data`` validated as data (fields, ranges, cheap cross-field checks); raises
     ScenarioError with one line per problem. ``assembly.parse_scenario`` adds the physics checks."""
-    if isinstance(data, dict):
+    if isinstance(data, dict) and isinstance(data.get("geo"), dict):  # copied only when there is an origin to hand on
         data = copy.deepcopy(data)
         geo_origin_to_missions(data)
     try:

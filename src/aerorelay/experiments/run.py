@@ -116,11 +116,16 @@ def check_run_size(sc: Scenario) -> None:
                             f"this machine's {total / 1e9:.0f} GB; at most about {most:.0f} s here")
 
 
-def ended_early(m: dict, mission: MissionResult) -> dict:
-    """The exit fields of a mission that stopped before its end: its own status first (``exit_status``
-    of the loop or the flight: a non-finite plant state, or ended early), then the safety verdict's."""
+def mark_aborted(m: dict, mission: MissionResult) -> None:
+    """A mission that stopped before its end is unsafe whatever the steps flown show: ``aborted`` and the
+    reason added to ``m``, its exit fields with its own status first (``exit_status`` of the loop or the
+    flight: a non-finite plant state, or ended early), then the safety verdict's."""
+    if mission.aborted is None:
+        return
+    m["aborted"], m["unsafe"] = mission.aborted, True
+    m["unsafe_reason"] = "; ".join(r for r in (m["unsafe_reason"], f"aborted: {mission.aborted}") if r)
     first = ExitStatus(mission.exit_status) if mission.exit_status else ExitStatus.ENDED_EARLY
-    return exit_fields([first, *(ExitStatus(v) for v in m.get("exit_statuses", []) if v != ExitStatus.COMPLETE.value)])
+    m |= exit_fields([first, *(ExitStatus(v) for v in m.get("exit_statuses", []) if v != ExitStatus.COMPLETE.value)])
 
 
 def failed_metrics(mission: MissionResult, exc: Exception) -> dict:
@@ -140,11 +145,7 @@ def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBo
                         obstacles=obstacle_shapes(sc, margin=False))
     m["controller"] = mission.controller
     m["fallback_episodes"] = mission.fallback_episodes
-    if mission.aborted is not None:  # stopped early: unsafe, whatever the steps flown show
-        m["aborted"] = mission.aborted
-        m["unsafe"] = True
-        m["unsafe_reason"] = "; ".join(r for r in (m["unsafe_reason"], f"aborted: {mission.aborted}") if r)
-        m |= ended_early(m, mission)
+    mark_aborted(m, mission)
     if bound is not None:  # how far from what the physics allows (planning/bound.py)
         add_efficiencies(m, bound.summary(), (
             ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
@@ -186,9 +187,8 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
     """Fly a fleet (``assembly.parts.build_fleet``); its log and metrics (``sim.metrics.fleet_metrics``),
     with the network bound (``with_bound``: computed before the flight, cached) and the efficiency
     against it. Parts passed in are not taken for fleets yet: named."""
-    passed = [k for k, v in given.items() if v is not None]
-    if passed:
-        raise ScenarioError(f"relays / sources: a fleet flies its scenario's own parts so far ({', '.join(passed)} given)")
+    if given:  # the parts passed from Python (None left out)
+        raise ScenarioError(f"relays / sources: a fleet flies its scenario's own parts so far ({', '.join(given)} given)")
     bound = network_bound(sc, bound_progress) if with_bound else None
     loop = build_fleet(sc, nmpc_settings=nmpc_settings).closed_loop()
     mission = loop.run(progress)
@@ -206,10 +206,7 @@ def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettin
         metrics = failed_metrics(mission, exc)
     metrics["controller"] = mission.controller
     metrics["fallback_episodes"] = mission.fallback_episodes
-    if mission.aborted is not None:
-        metrics["aborted"], metrics["unsafe"] = mission.aborted, True
-        metrics["unsafe_reason"] = "; ".join(r for r in (metrics["unsafe_reason"], f"aborted: {mission.aborted}") if r)
-        metrics |= ended_early(metrics, mission)
+    mark_aborted(metrics, mission)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
     if bound is not None and "c_mean" in metrics:
@@ -270,7 +267,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     check_not_injected(sc, given)
     if sc.is_fleet:
         return _simulate_fleet(sc, with_bound=with_bound, nmpc_settings=nmpc_settings, progress=progress,
-                               given=dict(planner=planner, scene=scene, jammers=jammers), views=views,
+                               given=given, views=views,
                                bound_progress=bound_progress)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None

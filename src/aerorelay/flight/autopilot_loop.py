@@ -91,6 +91,7 @@ class AutopilotLoop:
         self.hover = stepper.vehicle.hover_speeds() if hover_speeds is None else np.asarray(hover_speeds, float)
         self.commanded = CommandedState(self.hover, measured_attitude=measured_attitude)
         self.waiting: str | None = "no relay state or source yet"  # why no command was given (None: one was)
+        self.x: np.ndarray | None = None  # the NMPC's state the last command was stepped from (None: none)
 
     def reset(self) -> None:
         """Forget the rotor speeds and attitude last commanded (the autopilot flew in between)."""
@@ -108,16 +109,9 @@ class AutopilotLoop:
 
     def problem(self, t: float, relay: Measured | None, source: SourceState | None) -> str | None:
         """Why the inputs at ``t`` cannot start or resume the controller (stale, missing or not trusted); None when they can."""
-        hold = self.stepper.stale.hold_after_s
-        if relay is None:
-            return "no relay state"
-        if source is None:
-            return "no source"
-        if t - relay.stamp > hold:
-            return f"relay state {t - relay.stamp:.3f} s old"
-        if source.stamp is not None and t - source.stamp > hold:
-            return f"source {t - source.stamp:.3f} s old"
-        return self.stepper.check.problem(t, self.states(relay)[1], relay.stamp, source)
+        x = self.states(relay)[1]
+        stamp = t if relay is None else relay.stamp
+        return self.stepper.stale_reason(t, x, stamp, source) or self.stepper.check.problem(t, x, stamp, source)
 
     def tick(self, t: float, relay: Measured | None, source: SourceState | None) -> Command | None:
         """One control period at ``t`` (s, the mission's clock): the command, or None while no trusted
@@ -127,6 +121,7 @@ class AutopilotLoop:
             if self.waiting is not None:
                 return None
         measured, x = self.states(relay)
+        self.x = x
         cmd = self.stepper.step(t, x, source, state_stamp=None if relay is None else relay.stamp)
         self.waiting = None
         if self.on_step is not None and measured is not None and source is not None and relay is not None and cmd.rejected is None:

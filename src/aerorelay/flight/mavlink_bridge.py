@@ -199,10 +199,6 @@ class OffboardBridge:
         asked to hold); in a hold the controller's hold setpoint, OFFBOARD asked again once telemetry is
         good (see the module). None while streaming and once the flight ended."""
         self._read(t)
-        return self._period(t)
-
-    def _period(self, t: float) -> Command | None:
-        """``tick`` once this period's messages are read."""
         if self.state.position is None:
             raise RuntimeError("tick: no telemetry from the vehicle yet (LOCAL_POSITION_NED or ODOMETRY)")
         if self.t0 is None:
@@ -227,6 +223,10 @@ class OffboardBridge:
         tm = t - self.mission_t0  # the mission's clock
         src = self.source.known(t, tm)
         relay = self.measured(self.mission_t0)
+        if self.phase == "held" and self.offboard and self._offboard_asks:  # it took OFFBOARD back: the controller flies again
+            self.phase = "offboard"
+            self.loop.reset()
+            self._offboard_asks.clear()
         if self.phase == "offboard" and not self.offboard:
             return self._end(t, f"the vehicle left OFFBOARD for {mode_name(self.state.custom_mode)} at mission time {tm:.2f} s "
                                 "without the bridge asking (a pilot, a failsafe or another ground station): the flight ends")
@@ -241,18 +241,13 @@ class OffboardBridge:
         if cmd.mode in ("hold", "land"):
             self.hand_back()
             self.phase, self._good_since = "held", None
-        self._row(t, cmd.mode, x=self.loop.states(relay)[1], cmd=cmd)
+        self._row(t, cmd.mode, x=self.loop.x, cmd=cmd)
         return cmd
 
     def _held(self, t: float, tm: float, relay: Measured | None, src: SourceState | None) -> Command | None:
-        """A period in the hold the bridge asked for: the controller's hold (or landing) setpoint keeps the
-        stream alive; OFFBOARD asked again once telemetry has been good for PX4's proof time; land and end
-        when the input stays bad."""
-        if self.offboard and self._offboard_asks:  # the vehicle took OFFBOARD back: the controller flies again
-            self.phase = "offboard"
-            self.loop.reset()
-            self._offboard_asks.clear()
-            return self._period(t)
+        """A period in the hold the bridge asked for (the vehicle has not taken OFFBOARD back): the
+        controller's hold (or landing) setpoint keeps the stream alive; OFFBOARD asked again once telemetry
+        has been good for PX4's proof time; land and end when the input stays bad."""
         problem = self.loop.problem(tm, relay, src)
         self._good_since = (self._good_since if self._good_since is not None else t) if problem is None else None
         cmd = self.stepper.step(tm, None, None)  # the hold (then the landing) where the relay last was trusted

@@ -282,9 +282,7 @@ class RelayStepper:
         rejected = self.check.problem(t, x, stamp, source)
         if readings:
             self._fold(t, x if rejected is None else None, readings)
-        fresh = rejected is None and x is not None and t - stamp <= self.stale.hold_after_s and source is not None and \
-            t - (t if source.stamp is None else source.stamp) <= self.stale.hold_after_s
-        if not fresh:
+        if rejected is not None or self.stale_reason(t, x, stamp, source) is not None:
             self._x_prev = None  # the observer restarts from the next fresh state (a gap is not one period)
             if rejected is not None and self._last_step is None:
                 raise ValueError(f"step: {rejected}, and no trusted relay state yet (nothing to hold)")
@@ -301,6 +299,20 @@ class RelayStepper:
         info = self.act(x, P)
         self._x_prev = x.copy()
         return self._command(t, x, info, ref, t0)
+
+    def stale_reason(self, t: float, x: np.ndarray | None, stamp: float, source: SourceState | None) -> str | None:
+        """Why the relay state ``x`` (stamped ``stamp``) and ``source`` are not fresh at ``t`` (missing, or
+        older than ``hold_after_s``); None when both are."""
+        hold = self.stale.hold_after_s
+        if x is None:
+            return "no relay state"
+        if source is None:
+            return "no source"
+        if t - stamp > hold:
+            return f"relay state {t - stamp:.3f} s old"
+        if source.stamp is not None and t - source.stamp > hold:
+            return f"source {t - source.stamp:.3f} s old"
+        return None
 
     def _fold(self, t: float, relay_state: np.ndarray | None, readings: Mapping[str, float]) -> None:
         """Fold readings into the estimate: taken at the last step's time and pose (the current ones at the first)."""

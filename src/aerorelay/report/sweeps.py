@@ -81,10 +81,10 @@ def sweep_figures(study: Study, study_sum: dict, unit: str, png) -> list[str]:
         if not drawn:
             plt.close(fig)
             continue
-        xs_all = sorted({x for _, points in series for x, _ in points})
+        log_x = log_spaced([x for _, points in series for x, _ in points])
         for ax, name in zip(axes, ("C_min", "mean C"), strict=True):
-            ax.set_xlabel(key + (" (log scale)" if log_spaced(xs_all) else ""))
-            if log_spaced(xs_all):
+            ax.set_xlabel(key + (" (log scale)" if log_x else ""))
+            if log_x:
                 ax.set_xscale("log")
             ax.set_ylabel(f"{name} ({unit})")
             ax.grid(alpha=0.3)

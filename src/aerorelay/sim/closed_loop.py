@@ -31,6 +31,7 @@ from ..models.vehicle import Multirotor
 from ..planning.base import Planner, Reference
 from .air import Air
 from .blockage import Blockage
+from .exit_status import ExitStatus
 from .jammer_sensing import JammerSensing
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
@@ -184,6 +185,11 @@ class SimSettings:
     # fading model, shadowing and carrier of the plant's random channel terms (sim/perturbations.py)
     channel_noise: PerturbationSettings | None = None
 
+    def link_perturbations(self, scene: RadioScene) -> LinkPerturbations:
+        """The plant's random channel terms on ``scene``'s links (the fading's K from ``fading_k_db``)."""
+        noise = self.channel_noise or PerturbationSettings()
+        return LinkPerturbations(scene, replace(noise, k_db=self.fading_k_db), period_s=self.period_s, seed=self.seed)
+
 
 @dataclass(kw_only=True)
 class MissionResult:
@@ -220,6 +226,18 @@ class BenchPoint:
     guess: np.ndarray | None
 
 
+def known_jammers(scene: RadioScene, t: float, senses_state: bool, csi_noise_m: float = 0.0,
+                  rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The jammers as a relay (or a fleet) told of them knows them at ``t``: positions ``(nJ, 3)`` (m,
+    world; with ``csi_noise_m`` of noise per axis from ``rng``) and the powers it plans with (W: 0
+    before a jammer's localization ``tau_E``, then the nominal power, or the one radiated now when the
+    controller senses the schedule). One view for the one-relay loop, the fleet loop and the step API."""
+    noise = [rng.normal(0.0, csi_noise_m, 3) for _ in scene.jammers] if csi_noise_m > 0 and rng is not None else None
+    positions = np.array([j.position_at(t) + (noise[i] if noise is not None else 0.0)
+                          for i, j in enumerate(scene.jammers)]).reshape(-1, 3)
+    return positions, np.array([j.planned_power(t, senses_state) for j in scene.jammers])
+
+
 class ClosedLoop:
     """Flies one mission from its parts (``assembly.parts`` makes them from a scenario):
     ``run(progress)`` returns a MissionResult."""
@@ -235,9 +253,7 @@ class ClosedLoop:
         self.columns = log_columns(self.veh.n_rotors)
         self.csi_rng = generator(settings.seed, "csi")  # one stream per purpose (models/streams.py)
         self.process_rng = generator(settings.seed, "process")
-        noise = settings.channel_noise or PerturbationSettings()
-        self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
-                                               seed=settings.seed)
+        self.perturbations = settings.link_perturbations(scene)
         self.columns = self.columns + jammer_columns(scene) + self.perturbations.columns + (sensing.columns if sensing else [])
         self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
         self._noise_values: dict[str, Any] = {}  # log values of the random terms and the jammer estimate
@@ -256,11 +272,6 @@ class ClosedLoop:
     @property
     def nmpc(self):
         return self.controller.nmpc
-
-    def _planned_jammer_powers(self, t: float) -> np.ndarray:
-        """P_J per jammer the planner plans with: 0 before its localization (tau_E); afterwards the
-        nominal power, or the power actually radiated now when the controller senses the schedule."""
-        return np.array([j.planned_power(t, self.settings.senses_jammer_state) for j in self.scene.jammers])
 
     def _channel(self, t, x1, p2, eta2, v2) -> ChannelState:
         """True channel (the scene's antennas, jammer schedules, fading); the relay's jammer readings and
@@ -283,13 +294,8 @@ class ClosedLoop:
         return state
 
     def _oracle_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray, None]:
-        return self._measured_jammers(t), self._planned_jammer_powers(t), None
-
-    def _measured_jammers(self, t: float) -> np.ndarray:
-        """Jammer positions ``(nJ, 3)`` as the controller knows them (with CSI noise)."""
-        noise = self.settings.csi_noise_m
-        return np.array([j.position_at(t) + (self.csi_rng.normal(0.0, noise, 3) if noise > 0 else 0.0)
-                         for j in self.scene.jammers]).reshape(-1, 3)
+        st = self.settings
+        return (*known_jammers(self.scene, t, st.senses_jammer_state, st.csi_noise_m, self.csi_rng), None)
 
     def run(self, progress=None) -> MissionResult:
         st, veh = self.settings, self.veh
@@ -312,7 +318,7 @@ class ClosedLoop:
                 if self.sensing is not None:  # what the relay estimated from its readings up to the last step
                     pj_meas, pj_powers, pj_std = self.sensing.estimate.planner_view(st.senses_jammer_state)
                 else:
-                    pj_meas, pj_powers = self._measured_jammers(t), self._planned_jammer_powers(t)
+                    pj_meas, pj_powers = known_jammers(self.scene, t, st.senses_jammer_state, st.csi_noise_m, self.csi_rng)
                 if self.air is not None:
                     self.air.begin()
                 ref, P = self.stepper.prepare(t, x, SourceState(p2_meas, src.v, src.a), jammers=(pj_meas, pj_powers, pj_std),
@@ -331,7 +337,7 @@ class ClosedLoop:
                 x = self.air.advance(self.names["relay"], x, u, d) if self.air else np.asarray(self.plant(x, u, d)).ravel()
                 if not np.all(np.isfinite(x)):  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"the plant's state became non-finite after t = {t:.3f} s", k + 1
-                    exit_status = "non_finite"
+                    exit_status = ExitStatus.NON_FINITE.value
                     break
                 if progress is not None:
                     progress(k + 1, n_steps)

@@ -34,12 +34,13 @@ from .closed_loop import (
     SimSettings,
     jammer_columns,
     jammer_values,
+    known_jammers,
     new_log,
     record_row,
     step_count,
     steps_flown,
 )
-from .perturbations import LinkPerturbations, PerturbationSettings
+from .exit_status import ExitStatus
 from .realtime import full_collections_paused
 
 VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
@@ -139,9 +140,7 @@ class FleetLoop:
             self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
         # the plant's random channel terms on every link (each its own draw, shadowing along each link's own
         # geometry), unknown to the planners and NMPCs; logged per link (sim/perturbations.py)
-        noise = settings.channel_noise or PerturbationSettings()
-        self.perturbations = LinkPerturbations(scene, replace(noise, k_db=settings.fading_k_db), period_s=settings.period_s,
-                                               seed=settings.seed)
+        self.perturbations = settings.link_perturbations(scene)
         if self.perturbations.active and self.losses:
             raise ValueError("FleetLoop: random channel terms with relays lost in flight are not flown yet (the links change)")
         self.columns += self.perturbations.columns
@@ -153,14 +152,6 @@ class FleetLoop:
         self.bs = scene.fixed_pose(scene.name_of("base_station")).position
         self._bs_path = np.repeat(self.bs[:, None], relays[0].controller.spec.horizon + 1, axis=1)
         self.gravity = relays[0].vehicle.gravity
-
-    def _known_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """The jammers as the fleet knows them (the oracle after each one's ``tau_E``, as the one-relay
-        loop): positions ``(nJ, 3)`` m, and the powers planned with (0 before localization; the nominal
-        power, or the one radiated now with ``controller.senses_jammer_state``), W."""
-        js, noise = self.scene.jammers, self.settings.csi_noise_m
-        return (np.array([j.position_at(t) + (self.csi_rng.normal(0.0, noise, 3) if noise > 0 else 0.0) for j in js]).reshape(-1, 3),
-                np.array([j.planned_power(t, self.settings.senses_jammer_state) for j in js]))
 
     def _known_sources(self, truth: dict) -> dict:
         """Every source as the fleet knows it over its optical link: its position with CSI noise (m), its
@@ -230,7 +221,7 @@ class FleetLoop:
                 eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in src.items()}}
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
                 axes = {n: Rn[:, 2] for n, Rn in R.items()}
-                known = self._known_jammers(t)
+                known = known_jammers(self.scene, t, st.senses_jammer_state, st.csi_noise_m, self.csi_rng)
                 t0 = time.perf_counter()
                 refs = self.planner.update(FleetInput(t=t, dt=period, positions=positions, velocities=velocities, axes=axes,
                                                       accelerations={n: s.a for n, s in src.items()},
@@ -298,7 +289,7 @@ class FleetLoop:
                 bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
                 if bad:
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1
-                    exit_status = "non_finite"
+                    exit_status = ExitStatus.NON_FINITE.value
                     break
                 if progress is not None:
                     progress(k + 1, n_steps)
