@@ -1,0 +1,36 @@
+"""Records the logs the regression test of issue 46 (one machinery) compares against: each case
+flown by the code before the one-relay loop and the fleet loop became one loop (commit 05e1bca), its
+timeseries written to ``tests/data/before_one_machinery/<case>.parquet``. Run from the repository
+root: ``.venv/bin/python tests/data/record_before_one_machinery.py``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import aerorelay as ar
+
+OUT = Path(__file__).parent / "before_one_machinery"
+
+CASES = {  # case -> (scenario file, dotted updates)
+    "nominal_paper": ("scenarios/nominal_tilted.toml", {"sim.duration_s": 3.0}),
+    "nominal_capacity": ("scenarios/nominal_tilted.toml", {"sim.duration_s": 3.0, "controller.planner": "capacity"}),
+    "nominal_noisy": ("scenarios/nominal_tilted.toml", {
+        "sim.duration_s": 2.0, "perturbations.fading_k_db": 3.0, "perturbations.csi_noise_m": 0.05,
+        "perturbations.process_noise_v": 0.05, "perturbations.process_noise_w": 0.05,
+        "wind.mean_m_s": [3.0, 0.0, 0.0], "wind.gusts": True}),
+    "nominal_estimated": ("scenarios/nominal_tilted.toml", {"sim.duration_s": 2.0, "jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0}),
+    "chain": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 2.0}),
+    "two_sources": ("scenarios/two_sources.toml", {"sim.duration_s": 2.0}),
+}
+
+
+def main() -> None:
+    OUT.mkdir(exist_ok=True)
+    for case, (path, updates) in CASES.items():
+        r = ar.simulate(ar.load_scenario(path, set=updates))
+        r.timeseries.to_parquet(OUT / f"{case}.parquet")
+        print(case, len(r.timeseries), "rows", len(r.timeseries.columns), "columns")
+
+
+if __name__ == "__main__":
+    main()
