@@ -32,7 +32,7 @@ from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
     build,
-    build_fleet,
+    is_network,
     build_scene,
     build_source,
     check_bound_size,
@@ -111,7 +111,7 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     Keyword parts (``planner``, ``jammers``, ``scene``, ``nmpc_settings``, ``progress``) replace the
     scenario's (see ``experiments.run.simulate``). ``save`` writes the run folder with the figures
     and ``run.mcap`` (``figures=False``: data files only)."""
-    return _simulate(sc, with_bound=bound, views=write_fleet_views if sc.is_fleet else write_run_views, **parts)
+    return _simulate(sc, with_bound=bound, views=write_fleet_views if is_network(sc) else write_run_views, **parts)
 
 
 def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
@@ -249,7 +249,7 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
     """The scenario's capacity bounds (static and path), computed once per geometry and cached; a
     fleet's network bound (``planning/network_bound.py``: static upper bound and the refined
     configuration) for a fleet."""
-    return network_bound(sc, progress) if sc.is_fleet else scenario_bound(sc, progress)
+    return network_bound(sc, progress) if is_network(sc) else scenario_bound(sc, progress)
 
 
 def vehicle(sc: Scenario) -> Multirotor:
@@ -260,7 +260,7 @@ def vehicle(sc: Scenario) -> Multirotor:
 def link_budget(sc: Scenario) -> dict[str, float]:
     """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry (one relay
     and one source: a network's budget is ``link_budget_lines``)."""
-    if sc.is_fleet:
+    if is_network(sc):
         raise ScenarioError("link_budget: a network's start is given hop by hop by link_budget_lines")
     return initial_link_budget(build_scene(sc), sc.relay_list[0].start, sc.source_list[0].mission.start)
 
@@ -273,10 +273,10 @@ def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
     """Time the controller on a mission (preparation, feedback, planner; IPOPT at a few states); a
     fleet's per relay, its planner's and the fleet's step (``control.bench.benchmark_fleet``)."""
-    if sc.is_fleet:
+    if is_network(sc):
         warm = sc.without_relays(frozenset()).with_updates({"sim.duration_s": 0.1})  # compile / load first (no loss in 0.1 s)
-        build_fleet(warm, nmpc_settings=settings).closed_loop().run()
-        res = benchmark_fleet(build_fleet(sc, nmpc_settings=settings).closed_loop())
+        build(warm, nmpc_settings=settings).closed_loop().run()
+        res = benchmark_fleet(build(sc, nmpc_settings=settings).closed_loop())
         res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
         res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.network.planner} fleet planner)"
         return res
@@ -298,7 +298,7 @@ def export(run_dir: str | Path, fmt: str = "mcap") -> Path:
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
     sc, _, df = read_scenario(d), read_metrics(d), read_timeseries(d)
     write_layout(df.columns, sc.channel.capacity_unit, d / LAYOUT_FILE)  # the panels name this run's series
-    if sc.is_fleet:
+    if is_network(sc):
         return write_fleet_mcap(df, sc, d / MCAP_FILE)
     bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
     return write_run_mcap(df, sc, d / MCAP_FILE, bound)
@@ -464,7 +464,7 @@ def write_bound(sc: Scenario, out: str | Path, progress: Callable[[int, int], No
         b = bound(sc, progress)
         tmp = new_sibling(folder)
         summary = write_bound_files(b, tmp)
-        (fig_network_bound if sc.is_fleet else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+        (fig_network_bound if is_network(sc) else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
         swap_in(tmp, folder, "bound")
     return summary
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import casadi as ca
 import numpy as np
 
 from ..config import AntennaConfig, JammerConfig, Scenario, ScenarioError
@@ -22,6 +21,7 @@ from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
+from ..flight.stepper import RelayStepper
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
@@ -49,6 +49,7 @@ from ..planning.fleet import (
     FleetCapacityPlanner,
     FleetCapacitySettings,
     FleetPlanner,
+    OneRelayPlanner,
 )
 from ..planning.keep_out import KeepOutFleetPlanner, KeepOutPlanner
 from ..planning.network_bound import (
@@ -61,8 +62,7 @@ from ..planning.network_bound import (
 from ..planning.network_generator import NetworkGenerator
 from ..planning.trajectory_generator import SurrogateParams
 from ..sim.air import Air
-from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
-from ..sim.fleet import FleetLoop, FleetRelay
+from ..sim.closed_loop import ClosedLoop, LoopRelay, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from . import world
@@ -183,7 +183,7 @@ def comms_aware_antennas(sc: Scenario) -> None:
     eq. 21-22): right for a doughnut (dipole, sin^n), wrong for a cosine or isotropic antenna; a relay
     with one of those is a named error there (it flies the capacity planner or the unconstrained NMPC)."""
     for i, r in enumerate(sc.relay_list):
-        flown = relay_scenario(sc, i).controller if sc.is_fleet else sc.controller_of(i)
+        flown = relay_view(sc, i).controller
         if r.antenna is not None and not r.antenna.doughnut and flown.comms_aware:
             raise ScenarioError(f"relays[{i}].antenna: a {r.antenna.pattern} antenna on relay {r.name!r} with the paper's "
                                 "comms-aware NMPC, whose misalignment terms keep links off a doughnut antenna's axis; fly it "
@@ -203,14 +203,8 @@ def planner_registered(sc: Scenario) -> None:
 
 
 def fleet_flies(sc: Scenario) -> None:
-    """What a fleet (more than one relay or source) does not fly yet, as a named error: jammers
-    estimated from readings, and random channel terms (fading, shadowing) together with relays lost in
-    flight (the network's links change at a loss). Fading, shadowing, CSI and process noise fly."""
-    if not sc.is_fleet:
-        return
-    if sc.estimates_jammers:
-        raise ScenarioError("jammer.localization: a fleet does not estimate its jammers yet ('estimated' flies one relay); "
-                            "docs/concepts/networks.md")
+    """What a network does not fly yet, as a named error: random channel terms (fading, shadowing)
+    together with relays lost in flight (the network's links change at a loss)."""
     random_channel = sc.perturbations.fading_k_db is not None and math.isfinite(sc.perturbations.fading_k_db) or \
         sc.channel.propagation.random
     if sc.losses and random_channel:
@@ -356,87 +350,150 @@ def sim_settings(sc: Scenario) -> SimSettings:
                        senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise)
 
 
+def is_network(sc: Scenario) -> bool:
+    """Whether ``sc`` has more than its one relay and one source: then its planner is the network's
+    (``network.planner``), and each relay's NMPC looks at its route neighbours (a stage parameter) and
+    keeps ``network.min_separation_m`` from every other vehicle. The paper's one relay and its MRAV-2
+    fly the one-relay planner (``controller.planner``) and the paper's NMPC, whose base station is fixed
+    (a separation row there moved the nominal QP by 0.13% while inactive: the separation of one relay and
+    its source is checked in its metrics, ``separation_min_m``)."""
+    return len(sc.relay_list) + len(sc.source_list) > 2
+
+
+def relay_view(sc: Scenario, i: int) -> Scenario:
+    """Relay ``i``'s view of the scenario: its own platform and controller (``[[relays]]``) as the scenario's,
+    so every part reads them where a file with ``nodes.relay`` has them; in a network, its controller is the
+    one its planner needs: under the paper's generator (``network.planner = "trajectory_generator"``) the
+    comms-aware NMPC (its alignment terms toward its two neighbours on its route), else the tracking NMPC of
+    the capacity planner."""
+    ctrl = sc.controller_of(i)
+    if is_network(sc):
+        planner = "trajectory_generator" if sc.network.planner == "trajectory_generator" else "capacity"
+        ctrl = ctrl.model_copy(update={"planner": planner})
+    elif sc.relays is None or (sc.relays[i].platform is None and not sc.relays[i].controller):
+        return sc
+    return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
+
+
 @dataclass
 class Parts:
-    """Everything a mission is made of, built once from a scenario."""
+    """Everything a mission is made of, built once from a scenario: the radio scene, every relay (its
+    vehicle, stepper, plant), every source's path, the network's planner, the simulation's settings, the
+    jammer estimator, the air; ``relay_planner``: the one-relay planner the network's flies, if any."""
 
     scenario: Scenario
-    vehicle: Multirotor
     scene: RadioScene
-    source: SourceTrajectory
-    planner: Planner
-    controller: RelayController
-    plant: ca.Function
+    relays: list[LoopRelay]
+    sources: dict[str, SourceTrajectory]
+    planner: FleetPlanner
     settings: SimSettings
+    separation_m: float = 0.0
     sensing: JammerSensing | None = None
-    air: Air | None = None  # [wind]: the wind, the relay's plant with drag, its observer
+    air: Air | None = None  # [wind]: the wind, each relay's plant with drag, its observer
+    relay_planner: Planner | None = None
+
+    @property
+    def vehicle(self) -> Multirotor:
+        """The first relay's vehicle (the one relay's)."""
+        return self.relays[0].vehicle
+
+    @property
+    def controller(self) -> RelayController:
+        """The first relay's controller (the one relay's)."""
+        return self.relays[0].controller
+
+    @property
+    def source(self) -> SourceTrajectory:
+        """The first source's path (the one relay's MRAV-2)."""
+        return next(iter(self.sources.values()))
 
     def closed_loop(self) -> ClosedLoop:
-        return ClosedLoop(vehicle=self.vehicle, scene=self.scene, source=self.source, planner=self.planner,
-                          controller=self.controller, plant=self.plant, settings=self.settings, sensing=self.sensing,
-                          air=self.air, blockage=world.blockage(self.scenario))
+        return ClosedLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
+                          settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
+                          replanner=self.replanner, sensing=self.sensing, air=self.air,
+                          blockage=world.blockage(self.scenario))
 
-
-def one_relay(sc: Scenario) -> Scenario:
-    """A one-relay scenario with its relay's own ``platform`` and ``controller`` (``[[relays]]``) as
-    the scenario's, so every part reads them where a file with ``nodes.relay`` has them. A fleet
-    (more than one relay or source) is a named error: its parts are ``build_fleet``'s, its bound
-    ``network_bound``'s."""
-    if sc.is_fleet:
-        raise ScenarioError(f"relays / sources: this scenario is a network of {len(sc.relay_list)} relays and "
-                            f"{len(sc.source_list)} sources: a fleet flies with build_fleet and its bound is network_bound "
-                            "(docs/concepts/networks.md)")
-    if sc.relays is None or (sc.relays[0].platform is None and not sc.relays[0].controller):
-        return sc
-    return sc.model_copy(update={"platform": sc.platform_of(0), "controller": sc.controller_of(0)})
+    def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
+        """The planner of the network without the relays ``lost``, its references starting where the
+        others are (``positions``, m, world)."""
+        sc = self.scenario.without_relays(lost)
+        kept = {r.name: np.asarray(positions[r.name], float) for r in self.relays if r.name not in lost}
+        return network_planner(sc, self.scene.without(lost), self.relays, kept)
 
 
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
           jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None) -> Parts:
-    """The parts of ``sc``; ``planner``, ``scene`` or ``jammers`` given here replace the ones the
-    scenario names (objects with the same interface: see ``planning.base``, ``models.radio``).
-    The scenario's physics checks run first (once per content: ``assembly.checks``)."""
+    """The parts of ``sc``, for any number of relays and sources; ``planner``, ``scene`` or ``jammers``
+    given here replace the ones the scenario names (objects with the same interface: see
+    ``planning.base``, ``models.radio``; a planner given for a network plans its first relay, the others
+    holding their starts). The scenario's physics checks run first (once per content: ``assembly.checks``)."""
     check_physics(sc)
-    sc = one_relay(sc)
-    vehicle = build_vehicle(sc.platform)
+    fleet_flies(sc)
     scene = scene or build_scene(sc, jammers)
-    source = build_source(sc)
-    if planner is not None:  # a user's planner: its references are checked at the boundary
-        planner = CheckedPlanner(planner, *_workspace(sc))
-    planner = planner or build_planner(sc, vehicle, scene, source)
-    if sc.obstacles:  # every planner's references kept outside the obstacles' margins
-        planner = KeepOutPlanner(planner, world.obstacles(sc))
-    controller = build_controller(sc, vehicle, nmpc_settings)
-    plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
-    sensing = build_sensing(sc, scene, source) if sc.estimates_jammers and scene.jammers else None
-    return Parts(sc, vehicle, scene, source, planner, controller, plant, sim_settings(sc), sensing,
-                 world.air(sc, {scene.name_of("relay"): (vehicle, sc.platform)}))
+    network = is_network(sc)
+    # each relay of a network keeps min_separation_m from every other vehicle (none set: no separation row)
+    others = len(sc.relay_list) - 1 + len(sc.source_list) if network and sc.separation_m > 0 else 0
+    relays, platforms = [], {}
+    for i, r in enumerate(sc.relay_list):
+        view = relay_view(sc, i)
+        vehicle = build_vehicle(view.platform)
+        platforms[r.name] = (vehicle, view.platform)
+        controller = build_controller(view, vehicle, nmpc_settings, others,
+                                      p0_parameter=network and view.controller.comms_aware)
+        stepper = RelayStepper(vehicle=vehicle, planner=None, controller=controller, period_s=sc.control_period_s,
+                               jammers=_no_jammer_view)
+        relays.append(LoopRelay(name=r.name, vehicle=vehicle, stepper=stepper, start=np.array(r.start, float),
+                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)))
+    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    starts = {r.name: r.start for r in relays}
+    relay_planner = None
+    if planner is not None or not network:  # a one-relay planner: the user's (checked at the boundary) or the scenario's
+        first, source = relays[0], sc.route_list[0][-3]
+        view = relay_view(sc, 0)
+        if planner is not None:
+            relay_planner = CheckedPlanner(planner, *_workspace(sc))
+        else:
+            relay_planner = build_planner(view, first.vehicle, scene, sources[source])
+        if sc.obstacles:  # every planner's references kept outside the obstacles' margins
+            relay_planner = KeepOutPlanner(relay_planner, world.obstacles(sc))
+        fleet: FleetPlanner = OneRelayPlanner(relay_planner, first.name, source,
+                                              {n: p for n, p in starts.items() if n != first.name})
+    else:
+        fleet = network_planner(sc, scene, relays, starts)
+    sensing = build_sensing(sc, scene, sources) if sc.estimates_jammers and scene.jammers else None
+    return Parts(sc, scene, relays, sources, fleet, sim_settings(sc), sc.separation_m, sensing, world.air(sc, platforms),
+                 relay_planner)
+
+
+def _no_jammer_view(t: float):
+    raise AssertionError("a relay in the closed loop is handed the jammers its network knows")
 
 
 SEARCH_MARGIN_M = 10.0  # the default search box: the nodes' box widened by this horizontally, 5 m up, from the ground
 
 
-def search_box(sc: Scenario, source: SourceTrajectory) -> tuple[np.ndarray, np.ndarray]:
+def search_box(sc: Scenario, sources: dict[str, SourceTrajectory]) -> tuple[np.ndarray, np.ndarray]:
     """Where the estimator looks for jammers (m, world): ``[estimation] search_min_m/max_m``, or the
-    box around the base station, the relay's start and MRAV-2's path widened by 10 m (5 m up, z >= 0)."""
+    box around the base station, the relays' starts and the sources' paths widened by 10 m (5 m up, z >= 0)."""
     est = sc.estimation
     if est.search_min_m is not None:
         return np.array(est.search_min_m, float), np.array(est.search_max_m, float)
-    rows: list[np.ndarray] = [np.asarray(sc.nodes.bs, float), relay_start(sc)]
-    pts = np.vstack(rows + [source.state(t).p for t in np.linspace(0.0, sc.duration_s, 50)])
+    rows: list[np.ndarray] = [np.asarray(sc.nodes.bs, float), *(np.array(r.start, float) for r in sc.relay_list)]
+    pts = np.vstack(rows + [path.state(t).p for path in sources.values() for t in np.linspace(0.0, sc.duration_s, 50)])
     lo, hi = pts.min(axis=0) - SEARCH_MARGIN_M, pts.max(axis=0) + SEARCH_MARGIN_M
     lo[2], hi[2] = max(0.0, pts[:, 2].min() - SEARCH_MARGIN_M), pts[:, 2].max() + 0.5 * SEARCH_MARGIN_M
     return lo, hi
 
 
-def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> JammerSensing:
-    """The relay's (and the base station's, with ``use_bs``) energy detectors and the jammer estimator."""
+def build_sensing(sc: Scenario, scene: RadioScene, sources: dict[str, SourceTrajectory]) -> JammerSensing:
+    """Every relay's (and the base station's, with ``use_bs``) energy detector and the one jammer
+    estimator their readings feed, whose estimate every planner shares."""
     est = sc.estimation
-    names = [scene.name_of("relay")] + (["bs"] if est.use_bs else [])
+    names = [r.name for r in sc.relay_list] + ([BASE_STATION] if est.use_bs else [])
     receivers = [Receiver(name=n, pattern=scene.node(n).antenna.pattern, noise_w=scene.budget.noise_power,
                           fixed=scene.node(n).position is not None)
                  for n in names]
-    lo, hi = search_box(sc, source)
+    lo, hi = search_box(sc, sources)
     settings = EstimatorSettings(search_min=lo, search_max=hi, n_samples=est.n_samples, aggregate_steps=est.aggregate_steps,
                                  grid_m=est.grid_m, forget_s=est.forget_s, model_error_db=est.model_error_db,
                                  axis_error_deg=est.axis_error_deg, jammer_speed_m_s=est.jammer_speed_m_s,
@@ -448,7 +505,7 @@ def build_sensing(sc: Scenario, scene: RadioScene, source: SourceTrajectory) -> 
 def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> BoundProblem:
     """The bound of the run: its scene, and the run's own large-scale realization (shadowing field,
     LoS states) where the channel has one, the same the plant flies through (same seed)."""
-    sc = one_relay(sc)
+    sc = relay_view(sc, 0)
     lo, hi = _workspace(sc)
     scene = scene or build_scene(sc)
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
@@ -464,7 +521,7 @@ def check_bound_size(sc: Scenario) -> None:
     half of this machine's memory or longer than ``bound.max_minutes``."""
     lo, hi = _workspace(sc)
     b = sc.bound
-    if sc.is_fleet:
+    if is_network(sc):
         relays = {r.name for r in sc.relay_list}
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
         cost = network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops))
@@ -484,7 +541,7 @@ def bound_resolution(sc: Scenario) -> BoundResolution:
 
 def scenario_bound_key(sc: Scenario) -> str:
     """Everything the bound depends on (not the controller, except its workspace box)."""
-    sc = one_relay(sc)
+    sc = relay_view(sc, 0)
     fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
     data = world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers",
                                                            "mission", "bound"} | fleet))
@@ -550,76 +607,17 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 
 
 
-def relay_scenario(sc: Scenario, i: int) -> Scenario:
-    """Relay ``i``'s view of a fleet scenario: its platform and its controller: under the paper's
-    generator (``network.planner = "trajectory_generator"``) the comms-aware NMPC (its alignment terms toward its two
-    neighbours on its route), else the tracking NMPC of the capacity planner."""
-    planner = "trajectory_generator" if sc.network.planner == "trajectory_generator" else "capacity"
-    ctrl = sc.controller_of(i).model_copy(update={"planner": planner})
-    return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
-
-
-@dataclass
-class FleetParts:
-    """Everything a fleet's mission is made of."""
-
-    scenario: Scenario
-    scene: RadioScene
-    relays: list[FleetRelay]
-    sources: dict[str, SourceTrajectory]
-    planner: FleetPlanner
-    settings: SimSettings
-    separation_m: float = 0.0
-    air: Air | None = None  # [wind]: the wind, each relay's plant with drag, its observer
-
-    def closed_loop(self) -> FleetLoop:
-        return FleetLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
-                         settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
-                         replanner=self.replanner, air=self.air, blockage=world.blockage(self.scenario))
-
-    def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
-        """The planner of the fleet without the relays ``lost``, its references starting where the
-        others are (``positions``, m, world)."""
-        sc = self.scenario.without_relays(lost)
-        kept = [replace(r, start=np.asarray(positions[r.name], float)) for r in self.relays if r.name not in lost]
-        return fleet_planner(sc, self.scene.without(lost), kept)
-
-
-def build_fleet(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> FleetParts:
-    """The parts of a fleet (more than one relay or source): each relay's vehicle, tracking NMPC with
-    its supervisor, plant; each source's path; the fleet planner (``network.planner``). Random
-    channel terms, noise and jammer estimation are not built for fleets yet: a named error."""
-    check_physics(sc)
-    fleet_flies(sc)
-    scene = build_scene(sc)
-    relays, platforms = [], {}
-    # each relay keeps min_separation_m from every other vehicle (none set: the NMPC of one relay)
-    others = len(sc.relay_list) - 1 + len(sc.source_list) if sc.separation_m > 0 else 0
-    for i, r in enumerate(sc.relay_list):
-        view = relay_scenario(sc, i)
-        vehicle = build_vehicle(view.platform)
-        platforms[r.name] = (vehicle, view.platform)
-        controller = build_controller(view, vehicle, nmpc_settings, others, p0_parameter=view.controller.comms_aware)
-        relays.append(FleetRelay(name=r.name, vehicle=vehicle, controller=controller,
-                                 plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s),
-                                 start=np.array(r.start, float)))
-    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
-    planner = fleet_planner(sc, scene, relays)
-    return FleetParts(sc, scene, relays, sources, planner, sim_settings(sc),
-                      sc.separation_m, world.air(sc, platforms))
-
-
-def fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> FleetPlanner:
-    """The fleet's planner named by ``network.planner``, built from the scene's world view, its
-    references kept outside the obstacles' margins."""
-    planner = _fleet_planner(sc, scene, relays)
+def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray]) -> FleetPlanner:
+    """The network's planner named by ``network.planner``, built from the scene's world view, its
+    references starting at ``starts`` (m, world) and kept outside the obstacles' margins."""
+    planner = _fleet_planner(sc, scene, relays, starts)
     return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner
 
 
-def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[FleetRelay]) -> FleetPlanner:
+def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray]) -> FleetPlanner:
     lo, hi = _workspace(sc)
     cap = sc.controller.capacity
-    starts = {r.name: r.start for r in relays}
+    relays = [r for r in relays if r.name in starts]
     if sc.network.planner == "trajectory_generator":
         c = sc.controller
         return NetworkGenerator(SurrogateParams.of_scene(scene.world_view(), c.mu, sc.antenna.g_bar), sc.route_list,

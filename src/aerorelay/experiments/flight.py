@@ -22,7 +22,7 @@ from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
 from ..flight.sources import MavlinkSource
 from ..flight.stepper import Command, RelayStepper, SourceState
 from ..models.mission import SourceTrajectory
-from ..sim.flight_record import FLIGHT_COLUMN_TYPES, FlightRecorder, flight_metrics, telemetry_metrics
+from ..sim.flight_record import FlightRecorder, flight_column_type, flight_metrics, telemetry_metrics
 from ..sim.units import metric_units
 from ..store.outputs import new_sibling, swap_in
 from ..store.run_folder import TIMESERIES_FILE, log_frame
@@ -50,8 +50,8 @@ def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper, wall
     ``telemetry_metrics``); ``views`` writes figures and MCAP."""
     mission = rec.mission(wall_s, controller=stepper.controller.nmpc.settings.fingerprint(),
                           fallback_episodes=stepper.controller.fallback_episodes, aborted=aborted)
-    df = log_frame(mission.log, rec.columns, {c: k for c, k in FLIGHT_COLUMN_TYPES.items() if c in rec.columns})
-    metrics = run_metrics(sc, mission, stepper.vehicle, None) | flight_metrics(mission.log) | telemetry_metrics(bridge_log)
+    df = log_frame(mission.log, rec.columns, {c: flight_column_type(c) for c in rec.columns if flight_column_type(c) is not float})
+    metrics = run_metrics(sc, mission, {rec.relay: stepper.vehicle}, None) | flight_metrics(mission.log) | telemetry_metrics(bridge_log)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..assembly.parts import build, build_fleet, network_bound, scenario_bound
+from ..assembly.parts import build, is_network, network_bound, scenario_bound
 from ..assembly.world import obstacles as obstacle_shapes
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
@@ -23,11 +23,11 @@ from ..planning.base import CheckedPlanner, Planner
 from ..planning.bound import CapacityBound
 from ..planning.keep_out import KeepOutPlanner
 from ..planning.network_bound import NetworkBound
-from ..sim.closed_loop import LOG_COLUMN_TYPES, MissionResult, log_columns
+from ..sim.closed_loop import MissionResult
 from ..sim.exit_status import ExitStatus, exit_fields
-from ..sim.fleet import column_type
-from ..sim.metrics import compute_metrics, fleet_metrics, loss_phases
-from ..sim.units import fleet_metric_units, metric_units
+from ..sim.log_schema import RELAY_STEP, SOURCE_STATE, VEHICLE_STATE, column_type
+from ..sim.metrics import compute_metrics, loss_phases
+from ..sim.units import metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
@@ -92,10 +92,15 @@ log = logging.getLogger(__name__)
 
 
 def log_bytes(sc: Scenario) -> int:
-    """Bytes the mission's per-step log takes in memory (8 per value)."""
+    """Bytes the mission's per-step log takes in memory (8 per value): every relay's, source's, hop's
+    and route's columns (``sim.log_schema``)."""
     steps = int(sc.duration_s / sc.control_period_s) + 1
-    n_rotors = sc.platform.rotor_count if sc.platform.rotors is None else len(sc.platform.rotors)
-    return steps * len(log_columns(n_rotors)) * 8
+    columns = 1 + 3 + 3 * len(sc.jammer_configs)
+    for i in range(len(sc.relay_list)):
+        p = sc.platform_of(i)
+        columns += len(VEHICLE_STATE) + len(RELAY_STEP) + 2 * (p.rotor_count if p.rotors is None else len(p.rotors))
+    columns += len(SOURCE_STATE) * len(sc.source_list) + sum(2 * (len(r) - 1) + 1 for r in sc.route_list)
+    return steps * columns * 8
 
 
 def output_bytes(sc: Scenario, *, figures: bool) -> int:
@@ -136,28 +141,38 @@ def failed_metrics(mission: MissionResult, exc: Exception) -> dict:
             "controller": mission.controller, "aborted": mission.aborted, **exit_fields([ExitStatus.METRICS_FAILED])}
 
 
-def run_metrics(sc: Scenario, mission: MissionResult, vehicle, bound: CapacityBound | None) -> dict:
-    """``metrics.json`` of a mission (with its efficiency against the bound, when given)."""
-    m = compute_metrics(mission.log, vehicle=vehicle, period_s=sc.control_period_s, outage_threshold=sc.channel.outage,
-                        mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
-                        workspace_min=sc.controller.workspace.min, workspace_max=sc.controller.workspace.max,
+def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: CapacityBound | NetworkBound | None) -> dict:
+    """``metrics.json`` of a mission flown by ``relays`` (name -> vehicle), with its efficiency against the
+    bound when given (``single_efficiency``, ``network_efficiency``)."""
+    ws = sc.controller.workspace
+    m = compute_metrics(mission.log, relays=relays, sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
+                        outage_threshold=sc.channel.outage, mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
+                        min_separation_m=sc.separation_m, workspace_min=ws.min, workspace_max=ws.max,
                         box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
-                        obstacles=obstacle_shapes(sc, margin=False))
+                        losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
     m["controller"] = mission.controller
     m["fallback_episodes"] = mission.fallback_episodes
     mark_aborted(m, mission)
-    if bound is not None:  # how far from what the physics allows (planning/bound.py)
-        add_efficiencies(m, bound.summary(), (
-            ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
-            ("capacity_efficiency_min", m["c_min"], bound.path_maxmin.min(), "the best-minimum path's minimum"),
-            # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
-            ("capacity_efficiency_mean_flyable", m["c_mean"], bound.flyable_mean.mean(), "the flyable mean path's mean"),
-            ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum"),
-            # one name per denominator, the same for every fleet size (the legacy keys above keep the studies reading)
-            *efficiency_rows(m, "path", bound.path_mean.mean(), bound.path_maxmin.min(), "the best path's"),
-            *efficiency_rows(m, "static", bound.static.mean(), bound.static.min(), "the static bound's"),
-            *efficiency_rows(m, "flyable", bound.flyable_mean.mean(), bound.flyable_maxmin.min(), "the flyable path's")))
+    if isinstance(bound, NetworkBound):
+        network_efficiency(m, bound)
+    elif bound is not None:
+        single_efficiency(m, bound)
     return m
+
+
+def single_efficiency(m: dict, bound: CapacityBound) -> None:
+    """One relay's efficiency against its capacity bound (``planning/bound.py``): against the best path's
+    (``capacity_efficiency_*``, the studies' keys), the flyable path's, and one key per denominator."""
+    add_efficiencies(m, bound.summary(), (
+        ("capacity_efficiency_mean", m["c_mean"], bound.path_mean.mean(), "the best-mean path's mean"),
+        ("capacity_efficiency_min", m["c_min"], bound.path_maxmin.min(), "the best-minimum path's minimum"),
+        # against the flyable path (exactly <= max_speed; a lower estimate of the best path)
+        ("capacity_efficiency_mean_flyable", m["c_mean"], bound.flyable_mean.mean(), "the flyable mean path's mean"),
+        ("capacity_efficiency_min_flyable", m["c_min"], bound.flyable_maxmin.min(), "the flyable max-min path's minimum"),
+        # one name per denominator, the same for every fleet size (the legacy keys above keep the studies reading)
+        *efficiency_rows(m, "path", bound.path_mean.mean(), bound.path_maxmin.min(), "the best path's"),
+        *efficiency_rows(m, "static", bound.static.mean(), bound.static.min(), "the static bound's"),
+        *efficiency_rows(m, "flyable", bound.flyable_mean.mean(), bound.flyable_maxmin.min(), "the flyable path's")))
 
 
 def efficiency_rows(m: dict, bound_name: str, best_mean: float, best_min: float, what: str) -> list[tuple]:
@@ -178,41 +193,6 @@ def add_efficiencies(m: dict, summary: dict, rows) -> None:
     m["bound"] = summary
     if reasons:
         m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
-
-
-def _simulate_fleet(sc: Scenario, *, with_bound: bool, nmpc_settings: NmpcSettings | None,
-                    progress: Callable[[int, int], None] | None, given: dict,
-                    bound_progress: Callable[[int, int], None] | None,
-                    views: Callable[[RunResult, Path], None] | None) -> RunResult:
-    """Fly a fleet (``assembly.parts.build_fleet``); its log and metrics (``sim.metrics.fleet_metrics``),
-    with the network bound (``with_bound``: computed before the flight, cached) and the efficiency
-    against it. Parts passed in are not taken for fleets yet: named."""
-    if given:  # the parts passed from Python (None left out)
-        raise ScenarioError(f"relays / sources: a fleet flies its scenario's own parts so far ({', '.join(given)} given)")
-    bound = network_bound(sc, bound_progress) if with_bound else None
-    loop = build_fleet(sc, nmpc_settings=nmpc_settings).closed_loop()
-    mission = loop.run(progress)
-    df = log_frame(mission.log, loop.columns, {c: column_type(c) for c in mission.log if column_type(c) is not float})
-    ws = sc.controller.workspace
-    try:
-        metrics = fleet_metrics(mission.log, relays={r.name: r.vehicle for r in loop.relays},
-                                sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
-                                outage_threshold=sc.channel.outage, wall_s=mission.wall_s, sim_s=mission.sim_s,
-                                min_separation_m=sc.separation_m, workspace_min=ws.min, workspace_max=ws.max,
-                                box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
-                                losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
-    except Exception as exc:  # nothing computed after a flight may lose it
-        log.exception("the fleet's metrics failed; its time series is kept")
-        metrics = failed_metrics(mission, exc)
-    metrics["controller"] = mission.controller
-    metrics["fallback_episodes"] = mission.fallback_episodes
-    mark_aborted(metrics, mission)
-    metrics["outage_threshold"] = sc.channel.outage
-    metrics["unit_system"] = sc.channel.units
-    if bound is not None and "c_mean" in metrics:
-        network_efficiency(metrics, bound)
-    metrics["units"] = fleet_metric_units(metrics, sc.channel.capacity_unit)
-    return RunResult(sc, mission, df, metrics, bound, views)
 
 
 def network_efficiency(m: dict, bound: NetworkBound) -> None:
@@ -265,29 +245,29 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     check_run_size(sc)
     given = {k: v for k, v in (("planner", planner), ("scene", scene), ("jammers", jammers)) if v is not None}
     check_not_injected(sc, given)
-    if sc.is_fleet:
-        return _simulate_fleet(sc, with_bound=with_bound, nmpc_settings=nmpc_settings, progress=progress,
-                               given=given, views=views,
-                               bound_progress=bound_progress)
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)
-    bound = scenario_bound(sc, bound_progress, parts.vehicle, injected) if with_bound else None
-    mission = parts.closed_loop().run(progress)
-    base = log_columns(parts.vehicle.n_rotors)  # then the random channel terms and the jammer estimate, when any
-    df = log_frame(mission.log, base + [c for c in mission.log if c not in base], LOG_COLUMN_TYPES)
+    bound: CapacityBound | NetworkBound | None = None
+    if with_bound:
+        bound = network_bound(sc, bound_progress) if is_network(sc) else \
+            scenario_bound(sc, bound_progress, parts.vehicle, injected)
+    loop = parts.closed_loop()
+    mission = loop.run(progress)
+    df = log_frame(mission.log, loop.columns + [c for c in mission.log if c not in loop.columns],
+                   {c: column_type(c) for c in mission.log if column_type(c) is not float})
     try:
-        metrics = run_metrics(sc, mission, parts.vehicle, bound)
+        metrics = run_metrics(sc, mission, {r.name: r.vehicle for r in parts.relays}, bound)
     except Exception as exc:  # nothing computed after a flight may lose it: the time series is kept, the run unsafe
         log.exception("the run's metrics failed; its time series is kept")
         metrics = failed_metrics(mission, exc)
-    checked = parts.planner.planner if isinstance(parts.planner, KeepOutPlanner) else parts.planner
+    checked = parts.relay_planner.planner if isinstance(parts.relay_planner, KeepOutPlanner) else parts.relay_planner
     if isinstance(checked, CheckedPlanner):  # a user's planner: how often its position reference was clipped
         metrics["reference_clipped_steps"] = checked.clipped_steps
         if checked.first_clip is not None:
             metrics["reference_clipped_first"] = checked.first_clip
-    if isinstance(parts.planner, KeepOutPlanner):  # how often a reference was moved out of an obstacle's margin
-        metrics["reference_kept_out_steps"] = parts.planner.kept_out_steps
+    if isinstance(parts.relay_planner, KeepOutPlanner):  # how often a reference was moved out of an obstacle's margin
+        metrics["reference_kept_out_steps"] = parts.relay_planner.kept_out_steps
     metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit
     metrics["unit_system"] = sc.channel.units
     if given:  # what the scenario file cannot say: named in it and in the metrics, so the folder does not fly another run

@@ -208,12 +208,13 @@ JammerView = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray | None]]
 class RelayStepper:
     """The planner and the NMPC of one relay, stepped from outside (see the module)."""
 
-    def __init__(self, *, vehicle: Multirotor, planner: Planner, controller: RelayController, period_s: float,
+    def __init__(self, *, vehicle: Multirotor, planner: Planner | None, controller: RelayController, period_s: float,
                  jammers: JammerView, observer: ExternalAccelerationObserver | None = None,
                  stale: StaleSettings = StaleSettings(), estimated: JammersFromReadings | None = None):
         """``jammers(t)``: the jammers as the relay knows them at ``t``: positions ``(nJ, 3)`` m, the
         powers it plans with (W) and the position std (m; None: known exactly). ``estimated``: the
-        jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view)."""
+        jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view).
+        ``planner`` None: a relay of a network whose planner plans every relay (``parameters``)."""
         self.vehicle, self.planner, self.controller, self.period = vehicle, planner, controller, period_s
         self.jammers, self.observer, self.stale, self.estimated = jammers, observer, stale, estimated
         # (time, state) of the last fresh step: where a hold holds and where the next step's readings were taken
@@ -240,16 +241,34 @@ class RelayStepper:
         """The planner's reference and the NMPC's stage parameters for the relay at ``x``; ``jammers``:
         ``(positions, powers, std)`` measured outside (default ``self.jammers(t)``); ``a_ext``: an
         external-acceleration estimate made outside (default: this stepper's observer's, if any)."""
+        ref = self.plan(t, x, source, jammers=jammers)
+        if a_ext is None and self.observer is not None:
+            a_ext = self.observer.estimate
+        return ref, self.controller.parameters(ref, source.p, source.v, source.a, a_ext=a_ext)
+
+    def plan(self, t: float, x: np.ndarray, source: SourceState, *, jammers=None) -> Reference:
+        """This relay's planner's reference for the relay at ``x`` (its time in ``planner_ms``)."""
+        if self.planner is None:
+            raise ValueError("step: this relay's references come from its network's planner (it has none of its own)")
         pj, powers, std = jammers if jammers is not None else self.jammers(t)
         t0 = time.perf_counter()
         ref = self.planner.update(PlannerInput(t=t, dt=self.period, p1=x[0:3].copy(), p2=source.p, v2=source.v, a2=source.a,
                                                jammer_positions=pj, jammer_powers=powers, jammer_std_m=std,
                                                psi1=float(x[5]), v1=x[6:9].copy()))
         self.planner_ms = (time.perf_counter() - t0) * 1e3
+        return ref
+
+    def parameters(self, ref: Reference, *, p2_path: np.ndarray, p0_path: np.ndarray | None = None,
+                   others: np.ndarray | None = None, separation_m: float = 0.0,
+                   a_ext: np.ndarray | None = None) -> np.ndarray:
+        """The NMPC's stage parameters for the reference ``ref`` of a relay in a network: its upstream node's
+        predicted positions ``p2_path`` ``(3, N + 1)`` (m, world), its downstream node's ``p0_path`` (when its
+        OCP takes it), the other vehicles' ``others`` and the separation to keep (m), ``a_ext`` (m/s^2)."""
         if a_ext is None and self.observer is not None:
             a_ext = self.observer.estimate
-        P = self.controller.parameters(ref, source.p, source.v, source.a, a_ext=a_ext)
-        return ref, P
+        zero = np.zeros(3)
+        return self.controller.parameters(ref, zero, zero, zero, others, separation_m, p2_path=p2_path, p0_path=p0_path,
+                                          a_ext=a_ext)
 
     def act(self, x: np.ndarray, P: np.ndarray) -> StepInfo:
         """The NMPC's (or the fail-safe's) input for the relay at ``x`` with stage parameters ``P``."""

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
+from .base import Planner, PlannerInput
 from .trajectory_generator import Reference
 
 
@@ -35,10 +36,44 @@ class FleetInput:
     accelerations: Mapping[str, np.ndarray] = field(default_factory=dict)
     jammer_positions: np.ndarray | None = None
     jammer_powers: np.ndarray | None = None
+    jammer_std_m: np.ndarray | None = None  # an estimate's largest position std per jammer (m; None: the oracle's)
+    yaws: Mapping[str, float] = field(default_factory=dict)  # every relay's measured yaw (rad)
 
 
 class FleetPlanner(Protocol):
     def update(self, inp: FleetInput) -> dict[str, Reference]: ...
+
+
+def held_reference(position: np.ndarray) -> Reference:
+    """A reference that holds ``position`` (m, world): at rest, no antenna axis asked."""
+    p = np.asarray(position, float)
+    return Reference(p_opt=p.copy(), p_ref=p.copy(), v_ref=np.zeros(3), a_ref=np.zeros(3))
+
+
+class OneRelayPlanner:
+    """A one-relay planner (``planning.base.Planner``: the registry's or a user's) as a network's planner:
+    it plans ``relay`` with ``source`` as its MRAV-2 (for the paper's one relay, the only ones); every
+    relay in ``held`` (name -> position, m) holds there. Its input is the network's, read for the one
+    relay: its measured position, velocity and yaw, the source's position over its optical link, the
+    jammers as known (``FleetInput``)."""
+
+    def __init__(self, planner: Planner, relay: str, source: str, held: Mapping[str, np.ndarray] | None = None):
+        self.planner, self.relay, self.source = planner, relay, source
+        self.held = {n: held_reference(p) for n, p in (held or {}).items()}
+
+    def __getattr__(self, name: str):  # the wrapped planner's own attributes (preflight_s for the bench, counters)
+        if name == "planner":
+            raise AttributeError(name)
+        return getattr(self.planner, name)
+
+    def update(self, inp: FleetInput) -> dict[str, Reference]:
+        r, s = self.relay, self.source
+        assert inp.jammer_positions is not None and inp.jammer_powers is not None  # the loop always tells them
+        ref = self.planner.update(PlannerInput(
+            t=inp.t, dt=inp.dt, p1=inp.positions[r], p2=inp.positions[s], v2=inp.velocities[s], a2=inp.accelerations[s],
+            jammer_positions=inp.jammer_positions, jammer_powers=inp.jammer_powers, jammer_std_m=inp.jammer_std_m,
+            psi1=float(inp.yaws.get(r, 0.0)), v1=inp.velocities.get(r)))
+        return {r: ref, **self.held}
 
 
 @dataclass(frozen=True, kw_only=True)

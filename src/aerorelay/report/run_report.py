@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..sim.units import DIMENSIONLESS, fleet_metric_units, si
+from ..sim.units import DIMENSIONLESS, metric_units, si
 from ..store.run_folder import BOUND_PARQUET
 from .figures import fig_capacity, fig_constraints, fig_tracking, fig_trajectory_3d
 from .fleet_figures import fig_paths, fig_rates, fig_sinr
@@ -66,7 +66,7 @@ def render_fleet_report(run: Path) -> str:
     their units (``metrics.json``'s ``units``), the safety verdict and the fleet's figures."""
     run = Path(run)
     sc, m, df = read_scenario(run), read_metrics(run), read_timeseries(run)
-    units = m.get("units") or fleet_metric_units(m, sc.channel.capacity_unit)  # a folder written before units
+    units = m.get("units") or metric_units(m, sc.channel.capacity_unit)  # a folder written before units
 
     def value(key: str) -> str:
         node: object = m

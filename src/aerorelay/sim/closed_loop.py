@@ -1,140 +1,63 @@
-"""Closed-loop relay mission: planner + relay controller + RK4 plant + the radio scene's true channel.
+"""The closed loop of a relay network, for any number of relays and sources (one relay is a network
+of one): every relay steps through its ``RelayStepper`` (stage parameters, NMPC, supervisor,
+fail-safe) on the references of the network's planner (a one-relay planner flies through
+``planning.fleet.OneRelayPlanner``), every source flies its mission, and one world step follows:
+each relay's RK4 plant (``plant_step_function``, input held over the control period, drag in the
+wind), the radio scene's true channel with every vehicle's attitude (a source's follows its
+acceleration), the random channel terms, blockage and the jammer estimator's readings.
 
-The plant (MRAV-1) is integrated by RK4 at ``sim.plant_rate_hz`` with the controller's input
-held over each control period. At every control step the true channel (``models.radio``) is
-evaluated with the scene's antennas, both vehicles' attitudes (MRAV-2's follows its
-acceleration) and every jammer, with Rician fading when configured. One log row per control step; the columns follow the vehicle's rotor
-count (``log_columns``).
+A relay lost in flight (``losses``) is gone from then on: every route through it skips it, the
+planner is rebuilt for the smaller network from where the others are, and its columns read NaN
+(``qp_status`` "lost"). One log row per control step in the one vocabulary (``sim.log_schema``).
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ..control.nmpc import StepInfo
-from ..control.relay import RelayController
-from ..flight.stepper import RelayStepper, SourceState
+from ..flight.stepper import RelayStepper
 from ..models.channel import misalignment, mutual_alignment
 from ..models.drag import drag_acceleration
-from ..models.geometry import rotation_zyx
+from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceTrajectory
-from ..models.radio import ChannelState, RadioScene
-from ..models.streams import generator
+from ..models.radio import RadioScene
+from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
-from ..planning.base import Planner, Reference
+from ..planning.fleet import FleetInput, FleetPlanner
 from .air import Air
 from .blockage import Blockage
 from .exit_status import ExitStatus
 from .jammer_sensing import JammerSensing
+from .log_schema import (
+    gone_row,
+    link_row,
+    log_columns,
+    new_log,
+    record_row,
+    relay_row,
+    separation_min,
+    source_row,
+    steps_flown,
+)
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
 
 BENCH_POINT_EVERY = 500  # control steps between two states kept for `aerorelay bench`'s full IPOPT solves
 BENCH_POINT_OFFSET = 250  # the first one kept, mid-way into the first interval
-
-
-# the log's columns that are not floats, with their types (flags and the QP's status text)
-LOG_COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool, "safety_violation": bool}
-# the columns a step records by name, after the numeric row (written in log_columns' order)
-RECORDED_BY_NAME = ("qp_ok", "qp_status", "fallback", "safety_violation", "taylor_rel_err")
-
-
-# the log's columns by group, in order (one row per control step; units in guide/run-folders)
-RELAY_STATE_COLUMNS = ("p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z", "omega1_x", "omega1_y",
-                       "omega1_z")  # the plant's state x[0:12]: m, rad, m/s, rad/s (world; ZYX Euler; body rates)
-SOURCE_COLUMNS = ("p2_x", "p2_y", "p2_z", "phi2", "theta2", "psi2")  # MRAV-2's position (m) and attitude (rad)
-REFERENCE_COLUMNS = ("pd_x", "pd_y", "pd_z")  # the planner's position reference, m
-LINK_COLUMNS = ("jammer_on", "gamma_21", "gamma_10", "se_21", "se_10", "capacity", "v_12", "v_10", "mutual_alignment")
-STEP_COLUMNS = ("slack_max", "solve_ms", "feedback_ms")
-
-
-def rotor_columns(n_rotors: int) -> tuple[list[str], list[str]]:
-    """The motor speeds' (``Omega_i``, Hz) and their rates' (``u_i``, Hz/s) columns."""
-    return [f"Omega_{i}" for i in range(1, n_rotors + 1)], [f"u_{i}" for i in range(1, n_rotors + 1)]
-
-
-def log_columns(n_rotors: int) -> list[str]:
-    """The per-step log's columns, in order, for a relay with ``n_rotors`` rotors."""
-    omega, rates = rotor_columns(n_rotors)
-    return ["t", *RELAY_STATE_COLUMNS, *omega, *rates, *SOURCE_COLUMNS, *REFERENCE_COLUMNS, *LINK_COLUMNS, *STEP_COLUMNS,
-            *RECORDED_BY_NAME]
+SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
+GONE_CLEARANCE_M = 10.0  # a lost relay in another's separation constraint: the separation plus this below that relay's own
+# plan, never reached within a step (a fixed point 100 m or 1 km away scaled the constraint until the QP stopped converging)
 
 
 def step_count(duration_s: float, period_s: float) -> int:
     """Control steps of a mission of ``duration_s`` at ``period_s`` (both ends included)."""
     return int(math.floor(duration_s / period_s + 1e-9)) + 1
-
-
-def jammer_columns(scene: RadioScene) -> list[str]:
-    """The true jammer positions' columns ``jam_<name>_x/y/z`` (m, world)."""
-    return [f"jam_{j.name}_{a}" for j in scene.jammers for a in "xyz"]
-
-
-def jammer_values(scene: RadioScene, t: float) -> dict[str, float]:
-    """Every jammer's true position at ``t`` by its ``jammer_columns`` names."""
-    return dict(zip(jammer_columns(scene), [float(v) for j in scene.jammers for v in j.position_at(t)], strict=True))
-
-
-def new_log(columns: list[str], n_steps: int, kind_of: Callable[[str], type]) -> dict[str, np.ndarray]:
-    """An empty per-step log: a float, bool or object (text) array per column, by ``kind_of``."""
-    def empty(kind: type) -> np.ndarray:
-        return np.zeros(n_steps, dtype=bool) if kind is bool else np.empty(n_steps, dtype=object) if kind is str \
-            else np.empty(n_steps)
-    return {c: empty(kind_of(c)) for c in columns}
-
-
-def record_row(log: dict[str, np.ndarray], k: int, row: dict, columns: list[str], who: str = "log row") -> None:
-    """Write step ``k``'s ``row`` (by column name) into ``log``; at the first step, a column declared
-    but not recorded, or recorded but not declared, is an error."""
-    if k == 0 and set(row) != set(columns):
-        raise ValueError(f"{who}: columns {sorted(set(columns) ^ set(row))} not both declared and recorded")
-    for name, val in row.items():
-        log[name][k] = val
-
-
-def steps_flown(log: dict[str, np.ndarray], flown: int) -> dict[str, np.ndarray]:
-    """The log's first ``flown`` steps (a flight ended early keeps what it flew)."""
-    return {c: v[:flown] for c, v in log.items()}
-
-
-def relay_source_poses(scene: RadioScene, names: dict[str, str], x1: np.ndarray, p2, eta2) -> dict:
-    """The radio poses of the relay at state ``x1`` and the source at ``p2`` (m) with attitude ``eta2``
-    (rad, ZYX), by the scene's node ``names`` (role -> name)."""
-    return {names["relay"]: scene.pose(names["relay"], x1[0:3], rotation_zyx(x1[3:6])),
-            names["source"]: scene.pose(names["source"], p2, rotation_zyx(eta2))}
-
-
-def mission_row(veh: Multirotor, scene: RadioScene, t: float, x: np.ndarray, u: np.ndarray, p2, eta2, ref: Reference,
-                channel: ChannelState, p0: np.ndarray, info: StepInfo, violation: bool) -> dict:
-    """One control step's log row by column name (``log_columns`` and the jammers' positions): the relay's
-    state ``x`` and input ``u``, the source at ``p2`` / ``eta2``, the planner's reference, the ``channel``
-    and the relay's misalignments toward the source and the base station at ``p0`` (``v_12``, ``v_10``),
-    the NMPC's step ``info``, the supervisor's ``violation``."""
-    g21, g10 = (float(g) for g in channel.sinr)
-    jam_on = any(float(j.power_at(t)) > 0 for j in scene.jammers)
-    nr = veh.n_rotors
-    if x.shape != (veh.nx,) or u.shape != (nr,):
-        raise ValueError(f"log row: state {x.shape} / input {u.shape} do not match the {nr}-rotor vehicle")
-    omega, rates = rotor_columns(nr)
-    R1 = rotation_zyx(x[3:6])
-    v12, v10 = float(misalignment(x[0:3], R1, p2)), float(misalignment(x[0:3], R1, p0))
-    row = {"t": t, **dict(zip(RELAY_STATE_COLUMNS, x[0:12], strict=True)), **dict(zip(omega, x[12 : 12 + nr], strict=True)),
-           **dict(zip(rates, u, strict=True)), **dict(zip(SOURCE_COLUMNS, [*p2, *eta2], strict=True)),
-           **dict(zip(REFERENCE_COLUMNS, ref.p_ref, strict=True)),
-           "jammer_on": float(jam_on), "gamma_21": g21, "gamma_10": g10, "se_21": math.log2(1 + g21),
-           "se_10": math.log2(1 + g10), "capacity": float(channel.capacity), "v_12": v12, "v_10": v10,
-           "mutual_alignment": float(mutual_alignment(v12, v10)), "slack_max": info.slack_max,
-           "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms,
-           "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
-           "safety_violation": violation, "taylor_rel_err": ref.taylor_rel_err}
-    return row | jammer_values(scene, t)
 
 
 def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float, drag: np.ndarray | None = None) -> ca.Function:
@@ -238,105 +161,244 @@ def known_jammers(scene: RadioScene, t: float, senses_state: bool, csi_noise_m: 
     return positions, np.array([j.planned_power(t, senses_state) for j in scene.jammers])
 
 
-class ClosedLoop:
-    """Flies one mission from its parts (``assembly.parts`` makes them from a scenario):
-    ``run(progress)`` returns a MissionResult."""
 
-    def __init__(self, *, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory, planner: Planner,
-                 controller: RelayController, plant: ca.Function, settings: SimSettings,
-                 sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None):
-        self.veh, self.scene, self.source, self.planner = vehicle, scene, source, planner
-        self.air = air  # [wind]: the plant steps through it (drag in the wind) and its observer feeds the NMPC
-        self.sensing = sensing
-        self.controller, self.plant, self.settings = controller, plant, settings
-        self.spec = controller.spec
-        self.columns = log_columns(self.veh.n_rotors)
-        self.csi_rng = generator(settings.seed, "csi")  # one stream per purpose (models/streams.py)
-        self.process_rng = generator(settings.seed, "process")
-        self.perturbations = settings.link_perturbations(scene)
-        self.columns = self.columns + jammer_columns(scene) + self.perturbations.columns + (sensing.columns if sensing else [])
-        self._bs_position = scene.fixed_pose(scene.name_of("base_station")).position
-        self._noise_values: dict[str, Any] = {}  # log values of the random terms and the jammer estimate
-        self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
-        if air is not None:
-            self.columns = self.columns + air.wind_columns() + air.columns(self.names["relay"])
-        self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
-        if self.blockage is not None:
-            self.columns = self.columns + self.blockage.columns(scene)
-        self.timings: list[StepTiming] = []
-        self.bench_points: list[BenchPoint] = []
-        # the relay's side of each step (planner, stage parameters, NMPC), as ar.controller(sc).step flies it
-        self.stepper = RelayStepper(vehicle=vehicle, planner=planner, controller=controller, period_s=settings.period_s,
-                                    jammers=self._oracle_jammers)
+def process_streams(seed: int, relays: Sequence[str]) -> dict[str, np.random.Generator]:
+    """Each relay's process-noise stream: the first relay draws the run's ``process`` stream (the one
+    relay's since streams were named), each further relay a child of it of its own."""
+    children = stream(seed, "process").spawn(max(len(relays) - 1, 0))
+    return {name: generator(seed, "process") if i == 0 else np.random.default_rng(children[i - 1])
+            for i, name in enumerate(relays)}
+
+
+def route_neighbours(scene: RadioScene) -> dict[str, tuple[str, str]]:
+    """Each relay's two neighbours on its first route: (upstream, toward the base station), the nodes
+    its NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)."""
+    out: dict[str, tuple[str, str]] = {}
+    for route in scene.all_routes:
+        for i in range(1, len(route) - 1):
+            out.setdefault(route[i], (route[i - 1], route[i + 1]))
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoopRelay:
+    """One relay of the network: its name, vehicle, stepper (its controller, without a planner of its
+    own), plant step ``(x, u, d) -> x`` and start (m, world)."""
+
+    name: str
+    vehicle: Multirotor
+    stepper: RelayStepper
+    plant: ca.Function
+    start: np.ndarray
 
     @property
-    def nmpc(self):
-        return self.controller.nmpc
+    def controller(self):
+        return self.stepper.controller
 
-    def _channel(self, t, x1, p2, eta2, v2) -> ChannelState:
-        """True channel (the scene's antennas, jammer schedules, fading); the relay's jammer readings and
-        estimate when it estimates them."""
-        p1 = x1[0:3]
-        poses = relay_source_poses(self.scene, self.names, x1, p2, eta2)
-        fade, self._noise_values = None, {}
-        positions = {self.names["relay"]: p1, self.names["source"]: p2, self.names["base_station"]: self._bs_position}
-        if self.perturbations.active:  # the paper's channel has no random term: nothing to build per step
-            velocities = {self.names["relay"]: x1[6:9], self.names["source"]: v2, self.names["base_station"]: np.zeros(3)}
-            fade, self._noise_values = self.perturbations.step(t, positions, velocities)
-        if self.blockage is not None:  # a link through an obstacle that blocks radio loses its nlos_loss_db
-            blocked, values = self.blockage.step(self.scene, t, positions)
-            fade = blocked if fade is None else fade * blocked
-            self._noise_values = {**self._noise_values, **values}
-        state = self.scene.evaluate(t, poses, fading=fade)
-        if self.sensing is not None:
-            bs = self.names["base_station"]
-            self._noise_values = {**self._noise_values, **self.sensing.step(t, state, {**poses, bs: self.scene.fixed_pose(bs)})}
-        return state
 
-    def _oracle_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray, None]:
+class ClosedLoop:
+    """Flies a network (one relay and one source, or a fleet): ``run(progress)`` returns a MissionResult."""
+
+    def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], sources: dict[str, SourceTrajectory],
+                 planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
+                 losses: Sequence[tuple[float, frozenset[str]]] = (),
+                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None,
+                 sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None):
+        """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(lost, positions)``
+        builds the planner of the network without ``lost`` from the survivors' positions (m, world);
+        ``sensing``: the jammers estimated from the receivers' readings, one estimate every planner shares."""
+        if losses and replanner is None:
+            raise ValueError("ClosedLoop: relays are lost in flight (losses) but no replanner builds the smaller network's planner")
+        self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
+        self.separation_m = separation_m
+        self.losses, self.replanner = list(losses), replanner
+        self.sensing, self.air = sensing, air
+        self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
+        later = [h for _, lost in self.losses for h in scene.without(lost).hops]
+        self.columns = log_columns({r.name: r.vehicle.n_rotors for r in relays}, list(sources), scene, later)
+        # the plant's random channel terms on every link (each its own draw, shadowing along each link's own
+        # geometry), unknown to the planners and NMPCs; logged per link (sim/perturbations.py)
+        self.perturbations = settings.link_perturbations(scene)
+        if self.perturbations.active and self.losses:
+            raise ValueError("ClosedLoop: random channel terms with relays lost in flight are not flown yet (the links change)")
+        self.columns += self.perturbations.columns
+        if self.blockage is not None:
+            self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
+                                                   for c in self.blockage.columns(s)))
+            self.columns += self.nlos_columns
+        if sensing is not None:
+            self.columns += sensing.columns
+        if air is not None:
+            self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
+        # what the network knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
+        self.csi_rng = generator(settings.seed, "csi")
+        self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
+        self.neighbours_of = route_neighbours(scene)
+        self.bs_name = scene.name_of("base_station")
+        self.bs = scene.fixed_pose(self.bs_name).position
+        spec = relays[0].controller.spec
+        self._tk = spec.ts * np.arange(spec.horizon + 1)
+        self._bs_path = np.repeat(self.bs[:, None], spec.horizon + 1, axis=1)
+        self.gravity = relays[0].vehicle.gravity
+        # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
+        self.planner_ms: list[float] = []
+        self.timings: dict[str, list[StepTiming]] = {r.name: [] for r in relays}
+        self.bench_points: dict[str, list[BenchPoint]] = {r.name: [] for r in relays}
+
+    def _known_sources(self, truth: dict) -> dict:
+        """Every source as the network knows it over its optical link: its position with CSI noise (m),
+        its velocity and acceleration."""
+        noise = self.settings.csi_noise_m
+        if noise <= 0:
+            return truth
+        return {n: replace(s, p=s.p + self.csi_rng.normal(0.0, noise, 3)) for n, s in truth.items()}
+
+    def _known_jammers(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The jammers as the network knows them: its estimate (from the readings up to the last step) or
+        the oracle's after tau_E with CSI noise; positions (m), powers to plan with (W), std (m or None)."""
         st = self.settings
+        if self.sensing is not None:
+            return self.sensing.estimate.planner_view(st.senses_jammer_state)
         return (*known_jammers(self.scene, t, st.senses_jammer_state, st.csi_noise_m, self.csi_rng), None)
 
+    def _process_noise(self, relay: str) -> np.ndarray:
+        """One relay's process noise for a step: accelerations (m/s^2, world) and angular accelerations
+        (rad/s^2, body), from its own stream."""
+        st = self.settings
+        rng = self.process_rngs[relay]
+        return np.concatenate([rng.normal(0.0, st.process_noise_v, 3), rng.normal(0.0, st.process_noise_w, 3)])
+
+    def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
+        """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
+        plan, shifted by the step flown since (one step old; its current position held before its
+        first plan), a source at constant acceleration."""
+        out = {}
+        for r in self.relays:
+            nmpc = r.controller.nmpc
+            if nmpc.initialized:
+                out[r.name] = nmpc.plan()[0][0:3].copy()
+            else:
+                out[r.name] = np.repeat(x[r.name][0:3, None], len(self._tk), axis=1)
+        for name, s in src.items():
+            out[name] = constant_acceleration_path(s.p, s.v, s.a, self._tk)
+        return out
+
+    def _lose(self, lost: frozenset[str], x: dict[str, np.ndarray]) -> None:
+        """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
+        others from where they are."""
+        assert self.replanner is not None  # checked in __init__
+        self.scene = self.scene.without(lost)
+        self.planner = self.replanner(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
+        self.neighbours_of = route_neighbours(self.scene)
+
+    def _relay_step(self, k: int, r: LoopRelay, x: np.ndarray, ref, predicted: dict, lost: frozenset[str], row: dict):
+        """Relay ``r``'s control step at ``x`` on the reference ``ref``: its stage parameters (its neighbours
+        on its route, the other vehicles' plans), its NMPC's input; its step's values into ``row``."""
+        up, down = self.neighbours_of[r.name]
+        others = None
+        if r.controller.spec.neighbours:
+            gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
+            others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
+        a_ext = self.air.estimate(r.name) if self.air else None
+        P = r.stepper.parameters(ref, p2_path=predicted[up], p0_path=predicted.get(down, self._bs_path), others=others,
+                                 separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
+        if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
+            nmpc = r.controller.nmpc
+            self.bench_points[r.name].append(BenchPoint(x.copy(), r.stepper.u.copy(), P.copy(),
+                                                        nmpc.guess() if nmpc.initialized else None))
+        info = r.stepper.act(x, P)
+        self.timings[r.name].append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, self.planner_ms[-1],
+                                               self.sensing.last_ms if self.sensing else 0.0))
+        return info
+
     def run(self, progress=None) -> MissionResult:
-        st, veh = self.settings, self.veh
+        st = self.settings
         period = st.period_s
         n_steps = step_count(st.duration_s, period)
-        x = veh.hover_state(st.relay_start)
-        u = np.zeros(veh.n_rotors)
-        # flags and the status text recorded by name: their own dtypes (the rest, jammer_on too, float until log_frame)
-        log = new_log(self.columns, n_steps, lambda c: LOG_COLUMN_TYPES.get(c, float) if c in RECORDED_BY_NAME else float)
+        x = {r.name: r.vehicle.hover_state(r.start) for r in self.relays}
+        log = new_log(self.columns, n_steps)
+        sinr_columns = [c for c in self.columns if c.startswith(("sinr.", "se."))]
+        pending, lost = list(self.losses), frozenset[str]()
         wall0 = time.perf_counter()
         aborted, flown, exit_status = None, n_steps, None
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
             for k in range(n_steps):
                 t = k * period
-                src = self.source.state(t)
-                eta2 = src.attitude(veh.gravity)
-                # what the controller knows: MRAV-2 over the optical link, the jammers after tau_E (with CSI noise)
-                p2_meas = src.p + self.csi_rng.normal(0.0, st.csi_noise_m, 3) if st.csi_noise_m > 0 else src.p
-                pj_std = None
-                if self.sensing is not None:  # what the relay estimated from its readings up to the last step
-                    pj_meas, pj_powers, pj_std = self.sensing.estimate.planner_view(st.senses_jammer_state)
-                else:
-                    pj_meas, pj_powers = known_jammers(self.scene, t, st.senses_jammer_state, st.csi_noise_m, self.csi_rng)
+                while pending and t >= pending[0][0] - 1e-9:
+                    lost = pending.pop(0)[1]
+                    self._lose(lost, x)
+                flying = {n: xs for n, xs in x.items() if n not in lost}
+                truth = {name: path.state(t) for name, path in self.sources.items()}
+                src = self._known_sources(truth)  # over the optical links, with CSI noise
+                pj, powers, std = self._known_jammers(t)
                 if self.air is not None:
                     self.air.begin()
-                ref, P = self.stepper.prepare(t, x, SourceState(p2_meas, src.v, src.a), jammers=(pj_meas, pj_powers, pj_std),
-                                              a_ext=self.air.estimate(self.names["relay"]) if self.air else None)
-                planner_ms = self.stepper.planner_ms
-                if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
-                    self.bench_points.append(BenchPoint(x.copy(), u.copy(), P.copy(), self.nmpc.guess() if self.nmpc.initialized else None))
-                info = self.stepper.act(x, P)
-                u = info.u
-                channel = self._channel(t, x, src.p, eta2, src.v)
-                self.timings.append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, planner_ms,
-                                               self.sensing.last_ms if self.sensing else 0.0))
-                self._record(log, k, t, x, u, src.p, eta2, ref, channel, info)
-                d = np.concatenate([self.process_rng.normal(0.0, st.process_noise_v, 3),
-                                    self.process_rng.normal(0.0, st.process_noise_w, 3)])
-                x = self.air.advance(self.names["relay"], x, u, d) if self.air else np.asarray(self.plant(x, u, d)).ravel()
-                if not np.all(np.isfinite(x)):  # the steps flown are kept; the run is reported unsafe
-                    aborted, flown = f"the plant's state became non-finite after t = {t:.3f} s", k + 1
+                eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in truth.items()}}
+                R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
+                t0 = time.perf_counter()
+                refs = self.planner.update(FleetInput(
+                    t=t, dt=period, positions={**{n: xs[0:3].copy() for n, xs in flying.items()}, **{n: s.p for n, s in src.items()},
+                                               self.bs_name: self.bs},
+                    velocities={**{n: xs[6:9].copy() for n, xs in flying.items()}, **{n: s.v for n, s in src.items()}},
+                    axes={n: R[n][:, 2] for n in R}, yaws={n: float(xs[5]) for n, xs in flying.items()},
+                    accelerations={n: s.a for n, s in src.items()}, jammer_positions=pj, jammer_powers=powers,
+                    jammer_std_m=std))
+                self.planner_ms.append((time.perf_counter() - t0) * 1e3)
+                row: dict[str, object] = {"t": t}
+                predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
+                true_positions = {**{n: xs[0:3] for n, xs in flying.items()}, **{n: s.p for n, s in truth.items()},
+                                  self.bs_name: self.bs}
+                inputs = {}
+                for r in self.relays:
+                    if r.name in lost:
+                        row |= gone_row(r.name, r.vehicle.n_rotors)
+                        if self.air is not None:
+                            row |= dict.fromkeys(self.air.columns(r.name, f"{r.name}."), math.nan)
+                        continue
+                    info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, lost, row)
+                    inputs[r.name] = info.u
+                    up, down = self.neighbours_of[r.name]
+                    p, Rr = x[r.name][0:3], R[r.name]
+                    v_up, v_down = float(misalignment(p, Rr, true_positions[up])), float(misalignment(p, Rr, true_positions[down]))
+                    ref = refs[r.name]
+                    row |= relay_row(r.name, x[r.name], info.u, {
+                        "pd_x": ref.p_ref[0], "pd_y": ref.p_ref[1], "pd_z": ref.p_ref[2], "v_up": v_up, "v_down": v_down,
+                        "mutual_alignment": float(mutual_alignment(v_up, v_down)), "slack_max": info.slack_max,
+                        "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms, "qp_ok": info.ok, "qp_status": info.status,
+                        "fallback": info.fallback, "safety_violation": bool(r.controller.last_violations),
+                        "taylor_rel_err": ref.taylor_rel_err})
+                    if self.air is not None:
+                        row |= self.air.values(r.name, x[r.name], f"{r.name}.")
+                for name, s in truth.items():
+                    row |= source_row(name, s.p, eta[name])
+                poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R}
+                gains = None
+                if self.perturbations.active:  # fading and shadowing on every link, each its own
+                    velocities = {**{n: xs[6:9] for n, xs in flying.items()}, **{n: s.v for n, s in truth.items()},
+                                  self.bs_name: np.zeros(3)}
+                    gains, values = self.perturbations.step(t, true_positions, velocities)
+                    row |= values
+                if self.blockage is not None:  # a link through an obstacle that blocks radio loses its nlos_loss_db
+                    blocked, values = self.blockage.step(self.scene, t, true_positions)
+                    gains = blocked if gains is None else gains * blocked
+                    row |= dict.fromkeys(self.nlos_columns, math.nan) | values
+                state = self.scene.evaluate(t, poses, fading=gains)
+                if self.sensing is not None:  # the receivers read this step's interference; the estimate is the next step's
+                    row |= self.sensing.step(t, state, {**poses, self.bs_name: self.scene.fixed_pose(self.bs_name)})
+                row |= dict.fromkeys(sinr_columns, math.nan)  # a hop the network does not take now
+                row |= link_row(self.scene, t, state)
+                row["separation_min"] = separation_min(np.array([true_positions[n] for n in (*flying, *truth)]))
+                if self.air is not None:
+                    row |= self.air.wind_values()
+                record_row(log, k, row, self.columns)
+                for r in self.relays:
+                    if r.name not in lost:
+                        d = self._process_noise(r.name)
+                        x[r.name] = (self.air.advance(r.name, x[r.name], inputs[r.name], d) if self.air
+                                     else np.asarray(r.plant(x[r.name], inputs[r.name], d)).ravel())
+                bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
+                if bad:  # the steps flown are kept; the run is reported unsafe
+                    aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1
                     exit_status = ExitStatus.NON_FINITE.value
                     break
                 if progress is not None:
@@ -344,14 +406,9 @@ class ClosedLoop:
         wall = time.perf_counter() - wall0
         if flown < n_steps:
             log = steps_flown(log, flown)
-        return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period, qp_failures=self.nmpc.failures,
-                             controller=self.nmpc.settings.fingerprint(), fallback_episodes=self.controller.fallback_episodes,
-                             aborted=aborted, exit_status=exit_status)
-
-    def _record(self, log, k, t, x, u, p2, eta2, ref, channel: ChannelState, info: StepInfo):
-        row = mission_row(self.veh, self.scene, t, x, u, p2, eta2, ref, channel, self._bs_position, info,
-                          bool(self.controller.last_violations))
-        row.update(self._noise_values)
-        if self.air is not None:
-            row.update(self.air.wind_values() | self.air.values(self.names["relay"], x))
-        record_row(log, k, row, self.columns)
+        first = self.relays[0].controller
+        return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period,
+                             qp_failures=sum(r.controller.nmpc.failures for r in self.relays),
+                             controller=first.nmpc.settings.fingerprint(),
+                             fallback_episodes=sum(r.controller.fallback_episodes for r in self.relays), aborted=aborted,
+                             exit_status=exit_status)

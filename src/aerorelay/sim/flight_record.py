@@ -19,16 +19,23 @@ import numpy as np
 from ..control.nmpc import StepInfo
 from ..flight.stepper import Command
 from ..flight.stepper import SourceState as KnownSource
+from ..models.channel import misalignment, mutual_alignment
+from ..models.geometry import rotation_zyx
 from ..models.mission import SourceState
 from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from .air import AXES
-from .closed_loop import LOG_COLUMN_TYPES, MissionResult, jammer_columns, log_columns, mission_row, relay_source_poses
+from .closed_loop import MissionResult
+from .log_schema import column_type, link_row, log_columns, relay_row, separation_min, source_row
 
 FLIGHT_COLUMNS = ("flight_mode", "compute_ms", "deadline_met", "state_age_s")
-FLIGHT_COLUMN_TYPES: dict[str, type] = {**LOG_COLUMN_TYPES, "flight_mode": str, "deadline_met": bool}
-OBSERVER_COLUMNS = tuple(f"a_ext_{a}" for a in AXES)  # the observer's estimate, named as sim/air.py logs it
+FLIGHT_COLUMN_TYPES: dict[str, type] = {"flight_mode": str, "deadline_met": bool}
+
+
+def flight_column_type(name: str) -> type:
+    """A flight record's column's type: the flight's own columns', else the run log's (``sim.log_schema``)."""
+    return FLIGHT_COLUMN_TYPES.get(name, column_type(name))
 
 
 class FlightRecorder:
@@ -37,10 +44,11 @@ class FlightRecorder:
 
     def __init__(self, vehicle: Multirotor, scene: RadioScene, *, observed: bool = False):
         self.vehicle, self.scene, self.observed = vehicle, scene, observed
-        self.names = {role: scene.name_of(role) for role in ("base_station", "source", "relay")}
-        self._p0 = scene.fixed_pose(self.names["base_station"]).position
-        self.columns = (log_columns(vehicle.n_rotors) + jammer_columns(scene) + list(FLIGHT_COLUMNS)
-                        + (list(OBSERVER_COLUMNS) if observed else []))
+        self.relay, self.source, bs = (scene.name_of(role) for role in ("relay", "source", "base_station"))
+        self._p0 = scene.fixed_pose(bs).position
+        self.observer_columns = [f"{self.relay}.a_ext_{a}" for a in AXES]  # the observer's estimate, as sim/air.py logs it
+        self.columns = (log_columns({self.relay: vehicle.n_rotors}, [self.source], scene) + list(FLIGHT_COLUMNS)
+                        + (self.observer_columns if observed else []))
         self.rows: list[dict] = []
 
     def record(self, t: float, x: np.ndarray, cmd: Command, source: KnownSource, *, state_age_s: float,
@@ -49,18 +57,26 @@ class FlightRecorder:
         the commanded rotor speeds in Hz), the command, the source as the relay knew it."""
         src = SourceState(np.asarray(source.p, float), np.asarray(source.v, float), np.asarray(source.a, float))
         eta2 = src.attitude(self.vehicle.gravity)
-        channel = self.scene.evaluate(t, relay_source_poses(self.scene, self.names, x, src.p, eta2))
+        R1 = rotation_zyx(x[3:6])
+        channel = self.scene.evaluate(t, {self.relay: self.scene.pose(self.relay, x[0:3], R1),
+                                          self.source: self.scene.pose(self.source, src.p, rotation_zyx(eta2))})
         ref, info = cmd.reference, cmd.info
         if ref is None or info is None:  # the failsafe flew: its target is the reference, no QP
             ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
             info = StepInfo(u=np.zeros(self.vehicle.n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
                             feedback_ms=cmd.compute_ms, slack_max=0.0)
-        row = mission_row(self.vehicle, self.scene, t, x, info.u, src.p, eta2, ref, channel, self._p0, info,
-                          violation and cmd.mode in ("nmpc", "fallback"))
+        v_up, v_down = float(misalignment(x[0:3], R1, src.p)), float(misalignment(x[0:3], R1, self._p0))
+        row = {"t": t, **relay_row(self.relay, x, info.u, {
+            "pd_x": ref.p_ref[0], "pd_y": ref.p_ref[1], "pd_z": ref.p_ref[2], "v_up": v_up, "v_down": v_down,
+            "mutual_alignment": float(mutual_alignment(v_up, v_down)), "slack_max": info.slack_max, "solve_ms": info.solve_ms,
+            "feedback_ms": info.feedback_ms, "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
+            "safety_violation": violation and cmd.mode in ("nmpc", "fallback"), "taylor_rel_err": ref.taylor_rel_err})}
+        row |= source_row(self.source, src.p, eta2) | link_row(self.scene, t, channel)
+        row["separation_min"] = separation_min(np.array([x[0:3], src.p]))
         row |= {"flight_mode": cmd.mode, "compute_ms": cmd.compute_ms, "deadline_met": cmd.deadline_met,
                 "state_age_s": state_age_s}
         if self.observed:
-            row |= dict(zip(OBSERVER_COLUMNS, np.zeros(3) if a_ext is None else a_ext, strict=True))
+            row |= dict(zip(self.observer_columns, np.zeros(3) if a_ext is None else a_ext, strict=True))
         if not self.rows and set(row) != set(self.columns):
             raise ValueError(f"flight record: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
         self.rows.append(row)
@@ -71,9 +87,9 @@ class FlightRecorder:
         nothing was flown in OFFBOARD."""
         if not self.rows:
             raise ValueError("flight record: no control period was flown in OFFBOARD")
-        log = {c: _column([r[c] for r in self.rows], FLIGHT_COLUMN_TYPES.get(c, float)) for c in self.columns}
+        log = {c: _column([r[c] for r in self.rows], flight_column_type(c)) for c in self.columns}
         return MissionResult(log=log, wall_s=wall_s, sim_s=float(log["t"][-1] - log["t"][0]),
-                             qp_failures=int(np.sum(~log["qp_ok"])), controller=controller,
+                             qp_failures=int(np.sum(~log[f"{self.relay}.qp_ok"])), controller=controller,
                              fallback_episodes=fallback_episodes, aborted=aborted)
 
 

@@ -167,56 +167,51 @@ def estimation_metrics(log, period_s: float) -> dict:
     return out
 
 
-def compute_metrics(log, *, vehicle: Multirotor, period_s: float, outage_threshold: float, mu: float,
-                    wall_s: float, sim_s: float, workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3,
-                    box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf, obstacles: tuple = ()) -> dict:
-    """Metrics of one mission flown by ``vehicle`` at control period ``period_s`` (s), outage below
-    ``outage_threshold``, alignment threshold ``mu``, in the workspace box (m). Capacities
-    normalized (B = 1 gives bit/s/Hz); energy is shaft energy."""
-    veh = vehicle
-    cap = np.asarray(log["capacity"], float)
-    period = period_s
-    failed = ~np.asarray(log["qp_ok"], bool)
-    solve = np.asarray(log["solve_ms"], float)
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
-    pd = np.column_stack([log["pd_x"], log["pd_y"], log["pd_z"]])
-    speeds, inputs = _rotor_columns(log, "Omega_", veh.n_rotors), _rotor_columns(log, "u_", veh.n_rotors)
-    fallback = np.asarray(log["fallback"], bool) if "fallback" in log else np.zeros(cap.size, bool)
-    slack = np.nan_to_num(np.asarray(log["slack_max"], float), nan=np.inf)
-    tilt = np.degrees(np.arccos(np.clip(np.cos(log["phi1"]) * np.cos(log["theta1"]), -1, 1)))
-    violation = np.asarray(log["safety_violation"], bool) if "safety_violation" in log else np.zeros(cap.size, bool)
+def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float, workspace_min, workspace_max,
+                  box_tolerance_m: float, ground_z_m: float, obstacles: tuple) -> dict:
+    """One relay's metrics over the steps it flew (a lost relay's steps read NaN): its safety (``safety_metrics``),
+    alignment (``mutual_alignment >= mu``, within ``ALIGNMENT_TOLERANCE``), slack, QP and fallback shares,
+    step times (ms), tracking error (m), distance (m), shaft energy (kJ), rotor ranges and saturation, wind."""
+    flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))
+
+    def col(q: str, kind=float) -> np.ndarray:
+        return np.asarray(log[f"{name}.{q}"])[flew].astype(kind)
+
+    p = np.column_stack([col("p_x"), col("p_y"), col("p_z")])
+    pd = np.column_stack([col("pd_x"), col("pd_y"), col("pd_z")])
+    speeds = np.column_stack([col(f"Omega_{i}") for i in range(1, veh.n_rotors + 1)])
+    inputs = np.column_stack([col(f"u_{i}") for i in range(1, veh.n_rotors + 1)])
+    have = sum(1 for c in log if c.startswith(f"{name}.Omega_"))
+    if have != veh.n_rotors:
+        raise ValueError(f"the log has {have} '{name}.Omega_*' columns, the vehicle has {veh.n_rotors} rotors")
+    tilt = np.degrees(np.arccos(np.clip(np.cos(col("phi")) * np.cos(col("theta")), -1, 1)))
+    solve, align = col("solve_ms"), col("mutual_alignment")
+    slack = np.nan_to_num(col("slack_max"), nan=np.inf)
     return {
-        "c_min": float(cap.min()),
-        "c_mean": float(cap.mean()),
-        "se_21_mean": float(np.mean(log["se_21"])),
-        "se_10_mean": float(np.mean(log["se_10"])),
-        "outage_fraction": float(np.mean(cap < outage_threshold)),
-        **outage_durations(cap < outage_threshold, period),
-        "alignment_ok_fraction": float(np.mean(np.asarray(log["mutual_alignment"]) >= mu)),
-        "alignment_within_slack_fraction": float(np.mean(np.asarray(log["mutual_alignment"])
-                                                         >= mu - ALIGNMENT_TOLERANCE)),
+        "alignment_ok_fraction": float(np.mean(align >= mu)),
+        "alignment_within_slack_fraction": float(np.mean(align >= mu - ALIGNMENT_TOLERANCE)),
         "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(mu, 1e-9))),
-        "infeasible_fraction": float(np.mean(failed)),
+        "infeasible_fraction": float(np.mean(~col("qp_ok", bool))),
         # QPs the iteration cap stopped on a primal-feasible iterate (NmpcSettings.accept_tol)
-        "qp_capped_fraction": float(np.mean(np.asarray(log["qp_status"]) == QpStatus.CAPPED)) if "qp_status" in log else 0.0,
-        "fallback_fraction": float(np.mean(fallback)),
+        "qp_capped_fraction": float(np.mean(col("qp_status", object) == QpStatus.CAPPED)),
+        "fallback_fraction": float(np.mean(col("fallback", bool))),
         "solve_ms": {**stats_ms(solve), "std": float(solve.std())},
-        "feedback_ms": stats_ms(np.asarray(log["feedback_ms"], float)) if "feedback_ms" in log else None,
-        "position_error_mean_m": float(np.mean(np.linalg.norm(p1 - pd, axis=1))),
-        "distance_m": float(np.sum(np.linalg.norm(np.diff(p1, axis=0), axis=1))),
-        "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period / 1e3),
-        "taylor_rel_err_max": float(np.max(log["taylor_rel_err"])),
-        "final_z_m": float(p1[-1, 2]),
-        **safety_metrics(p1, tilt, violation, workspace_min, workspace_max, box_tolerance_m, ground_z_m, obstacles),
-        **air_metrics(log),
+        "feedback_ms": stats_ms(col("feedback_ms")),
+        "position_error_mean_m": float(np.mean(np.linalg.norm(p - pd, axis=1))),
+        "distance_m": float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))),
+        "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period_s / 1e3),
+        "taylor_rel_err_max": float(np.max(col("taylor_rel_err"))),
+        "final_z_m": float(p[-1, 2]),
+        **safety_metrics(p, tilt, col("safety_violation", bool), workspace_min, workspace_max, box_tolerance_m, ground_z_m,
+                         obstacles),
+        **air_metrics(log, f"{name}."),
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
         **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
-        **estimation_metrics(log, period),
-        "steps": int(cap.size),
-        "wall_s": float(wall_s),
-        "sim_s": float(sim_s),
     }
+
+
+NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses")  # the network's, not a relay's
 
 
 def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndarray]:
@@ -226,25 +221,26 @@ def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndar
     return {"before_loss": t < loss_times[0] - 1e-9, "after_loss": t >= loss_times[-1] - 1e-9}
 
 
-def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], period_s: float, outage_threshold: float,
-                  wall_s: float, sim_s: float, min_separation_m: float, workspace_min, workspace_max,
-                  box_tolerance_m: float = 0.05, ground_z_m: float = -np.inf,
-                  losses: Sequence[tuple[float, frozenset[str]]] = (), obstacles: tuple = ()) -> dict:
-    """Metrics of a fleet's flight (``sim.fleet`` log): the network's rate and every route's (minimum,
-    mean, outage below ``outage_threshold``), the smallest separation between two vehicles (m),
-    per relay its safety, tracking, energy and step times, and the fleet's step time (the relays'
-    solve times summed per step, ms). Unsafe when a relay is, or two vehicles came closer than
-    ``min_separation_m`` (> 0). With relays lost in flight (``losses``: ``(t, every relay lost by
-    then)``), a relay's metrics cover the steps it flew, and the rate before the first loss and from
-    the last one on is given (``c_mean_before_loss``, ``c_mean_after_loss``, ...)."""
+def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str], period_s: float,
+                    outage_threshold: float, mu: float, wall_s: float, sim_s: float, min_separation_m: float = 0.0,
+                    workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3, box_tolerance_m: float = 0.05,
+                    ground_z_m: float = -np.inf, losses: Sequence[tuple[float, frozenset[str]]] = (),
+                    obstacles: tuple = ()) -> dict:
+    """Metrics of a run (``sim.log_schema`` log) of any network: the network's rate (``c_min``, ``c_mean``,
+    outage below ``outage_threshold``), every route's (``routes``), every hop's mean spectral efficiency
+    (``se_mean``, by ``<tx>-><rx>``), the smallest separation between two vehicles (m), per relay
+    ``relay_metrics`` (``relays``), the relays' solve times summed per step (``fleet_solve_ms``, ms), the
+    jammer estimate's; unsafe when a relay is, or two vehicles came closer than ``min_separation_m`` (> 0).
+    A network of one relay also has its relay's metrics at the top level (and its hops' spectral
+    efficiencies as ``se_21_mean``, ``se_10_mean``, the paper's names). With relays lost in flight
+    (``losses``: ``(t, every relay lost by then)``), a relay's metrics cover the steps it flew, and the rate
+    before the first loss and from the last one on is given (``c_mean_before_loss``, ``c_mean_after_loss``, ...)."""
     cap = np.asarray(log["capacity"], float)
     out: dict = {"c_min": float(cap.min()), "c_mean": float(cap.mean()),
                  "outage_fraction": float(np.mean(cap < outage_threshold)), **outage_durations(cap < outage_threshold, period_s)}
-    out["routes"], out["relays"] = {}, {}
-    for s in sources:
-        c = np.asarray(log[f"capacity.{s}"], float)
-        out["routes"][s] = {"c_min": float(c.min()), "c_mean": float(c.mean()),
-                             "outage_fraction": float(np.mean(c < outage_threshold))}
+    out["routes"] = {s: {"c_min": float(c.min()), "c_mean": float(c.mean()), "outage_fraction": float(np.mean(c < outage_threshold))}
+                     for s in sources for c in [np.asarray(log[f"capacity.{s}"], float)]}
+    out["se_mean"] = {c[3:].replace(".", "->", 1): float(np.nanmean(np.asarray(log[c], float))) for c in log if c.startswith("se.")}
     if losses:
         t = np.asarray(log["t"], float)
         out["losses"] = [{"t_s": float(tl), "relays": sorted(lost)} for tl, lost in losses]
@@ -256,42 +252,32 @@ def fleet_metrics(log, *, relays: dict[str, Multirotor], sources: list[str], per
     fleet_ms = np.zeros(cap.size)
     reasons: list[str] = []
     statuses: list[ExitStatus] = []
+    out["relays"] = {}
     for name, veh in relays.items():
-        flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))  # a lost relay's steps read NaN
-
-        def col(q, name=name, flew=flew):
-            return np.asarray(log[f"{name}.{q}"])[flew]
-        p = np.column_stack([col("p_x"), col("p_y"), col("p_z")]).astype(float)
-        pd = np.column_stack([col("pd_x"), col("pd_y"), col("pd_z")]).astype(float)
-        speeds = np.column_stack([col(f"Omega_{i}") for i in range(1, veh.n_rotors + 1)]).astype(float)
-        inputs = np.column_stack([col(f"u_{i}") for i in range(1, veh.n_rotors + 1)]).astype(float)
-        tilt = np.degrees(np.arccos(np.clip(np.cos(col("phi").astype(float)) * np.cos(col("theta").astype(float)), -1, 1)))
-        solve = col("solve_ms").astype(float)
-        fleet_ms[flew] += solve
-        safety = safety_metrics(p, tilt, col("safety_violation").astype(bool), workspace_min, workspace_max,
-                                box_tolerance_m, ground_z_m, obstacles) | air_metrics(log, f"{name}.")
-        out["relays"][name] = {
-            **safety,
-            "position_error_mean_m": float(np.mean(np.linalg.norm(p - pd, axis=1))),
-            "distance_m": float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))),
-            "energy_kJ": float(np.sum(veh.shaft_power(speeds)) * period_s / 1e3),
-            "infeasible_fraction": float(np.mean(~col("qp_ok").astype(bool))),
-            "fallback_fraction": float(np.mean(col("fallback").astype(bool))),
-            "solve_ms": stats_ms(solve),
-            **saturation_metrics(speeds, inputs, veh),
-        }
+        m = relay_metrics(log, name, veh, period_s=period_s, mu=mu, workspace_min=workspace_min, workspace_max=workspace_max,
+                          box_tolerance_m=box_tolerance_m, ground_z_m=ground_z_m, obstacles=obstacles)
+        solve = np.asarray(log[f"{name}.solve_ms"], float)
+        fleet_ms += np.nan_to_num(solve, nan=0.0)
         lost_at = [tl for tl, lost in losses if name in lost]
         if lost_at:
-            out["relays"][name]["lost_at_s"] = lost_at[0]
-        if safety["unsafe"]:
-            reasons.append(f"relay {name!r}: {safety['unsafe_reason']}")
-            statuses += [ExitStatus(v) for v in safety["exit_statuses"]]
+            m["lost_at_s"] = lost_at[0]
+        if m["unsafe"]:
+            reasons.append(m["unsafe_reason"] if len(relays) == 1 else f"relay {name!r}: {m['unsafe_reason']}")
+            statuses += [ExitStatus(v) for v in m["exit_statuses"]]
+        out["relays"][name] = m
     if min_separation_m > 0 and sep.min() < min_separation_m:
         k = int(np.argmin(sep))
         reasons.append(f"two vehicles {sep[k]:.2f} m apart at t = {float(log['t'][k]):.2f} s, closer than "
                        f"network.min_separation_m = {min_separation_m:g} m")
         statuses.append(ExitStatus.TOO_CLOSE)
     out["fleet_solve_ms"] = stats_ms(fleet_ms)
+    if len(relays) == 1:  # the one relay's metrics where its runs always had them
+        only = next(iter(out["relays"].values()))
+        out |= {k: v for k, v in only.items() if k not in NETWORK_VERDICT}
+        hops = [c for c in log if c.startswith("se.")]
+        if len(sources) == 1 and len(hops) == 2:  # the paper's two hops: source -> relay (2 -> 1), relay -> bs (1 -> 0)
+            out["se_21_mean"], out["se_10_mean"] = (float(np.mean(np.asarray(log[c], float))) for c in hops)
+    out |= estimation_metrics(log, period_s)
     out["unsafe"] = bool(reasons)
     out["unsafe_reason"] = "; ".join(reasons)
     out |= exit_fields(statuses)

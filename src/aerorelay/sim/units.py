@@ -36,10 +36,24 @@ def metric_unit(key: str, capacity_unit: str) -> str | None:
     return None
 
 
+GROUPS = ("routes", "relays")  # a run's metrics per route (by source) and per relay
+SPECTRAL_TABLES = ("se_mean",)  # per hop, bit/s/Hz
+
+
 def metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
-    """``{metric: unit}`` for every quantity in ``metrics`` (dicts of statistics such as
-    ``solve_ms`` take the unit of their name). Raises KeyError naming a metric without a unit, so
-    a new metric cannot be written without one."""
+    """``{metric: unit}`` for every quantity in ``metrics`` (dicts of statistics such as ``solve_ms`` take
+    the unit of their name): the network's at the top, each route's and each relay's as
+    ``routes.<source>.<metric>`` and ``relays.<name>.<metric>``. Raises KeyError naming a metric without
+    a unit, so a new metric cannot be written without one."""
+    out = _units({k: v for k, v in metrics.items() if k not in GROUPS and k not in SPECTRAL_TABLES}, capacity_unit)
+    out |= {k: SPECTRAL for k in SPECTRAL_TABLES if k in metrics}
+    for group in GROUPS:
+        for node, node_metrics in metrics.get(group, {}).items():
+            out |= {f"{group}.{node}.{k}": u for k, u in _units(node_metrics, capacity_unit).items()}
+    return out
+
+
+def _units(metrics: dict, capacity_unit: str) -> dict[str, str]:
     out = {}
     for key in metrics:
         unit = metric_unit(key, capacity_unit)
@@ -47,19 +61,6 @@ def metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
             raise KeyError(f"metric {key!r} has no unit: add it to sim/units.py")
         if unit is not None:
             out[key] = unit
-    return out
-
-
-FLEET_GROUPS = ("routes", "relays")  # a fleet's metrics per route (by source) and per relay
-
-
-def fleet_metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
-    """``metric_units`` of a fleet's metrics: the network's at the top, each route's and each relay's
-    as ``routes.<source>.<metric>`` and ``relays.<name>.<metric>``."""
-    out = metric_units({k: v for k, v in metrics.items() if k not in FLEET_GROUPS}, capacity_unit)
-    for group in FLEET_GROUPS:
-        for node, node_metrics in metrics.get(group, {}).items():
-            out |= {f"{group}.{node}.{k}": u for k, u in metric_units(node_metrics, capacity_unit).items()}
     return out
 
 
