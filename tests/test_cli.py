@@ -52,17 +52,19 @@ def test_any_rotor_count_end_to_end(tmp_path):
 
     import pandas as pd
 
-    from aerorelay.sim.closed_loop import log_columns
+    from aerorelay.assembly import load_scenario
+    from aerorelay.assembly.parts import build_scene
+    from aerorelay.sim.log_schema import log_columns
 
     for preset, n in (("quad_x", 4), ("octo_tilted", 8)):
         out = tmp_path / preset
         res = runner.invoke(app, ["run", str(ROOT / "scenarios" / f"{preset}.toml"), "--out", str(out), "--duration", "1.0"])
         assert res.exit_code == 0, res.output
         df = pd.read_parquet(out / "timeseries.parquet")
-        assert list(df.columns)[: len(log_columns(n))] == log_columns(n)  # then each jammer's true position
-        assert [c for c in df.columns[len(log_columns(n)):] if not c.startswith("jam_")] == []
-        assert f"Omega_{n}" in df and f"Omega_{n + 1}" not in df
-        assert df["p2_x"].iloc[0] == -3.04  # MRAV-2's start, not a motor speed shifted into it
+        columns = log_columns({"relay": n}, ["source"], build_scene(load_scenario(ROOT / "scenarios" / f"{preset}.toml")))
+        assert list(df.columns) == columns  # the relay's, the source's, the links', the jammers' true positions
+        assert f"relay.Omega_{n}" in df and f"relay.Omega_{n + 1}" not in df
+        assert df["source.p_x"].iloc[0] == -3.04  # MRAV-2's start, not a motor speed shifted into it
         m = json.loads((out / "metrics.json").read_text())
         assert m["infeasible_fraction"] == 0 and m["fallback_fraction"] == 0
         assert (out / "constraints.png").stat().st_size > 0

@@ -36,7 +36,7 @@ def test_a_chain_reads_and_builds_its_scene():
 def test_a_file_with_nodes_relay_is_one_relay_and_one_source():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml")
     assert [r.name for r in sc.relay_list] == ["relay"] and [s.name for s in sc.source_list] == ["source"]
-    assert sc.route_list == [["source", "relay", "bs"]] and not sc.is_fleet and "[network]" not in sc.to_toml()
+    assert sc.route_list == [["source", "relay", "bs"]] and not sc.is_network and "[network]" not in sc.to_toml()
 
 
 def test_default_routes_go_through_every_relay_in_order():
@@ -100,12 +100,6 @@ def test_a_relay_flies_its_own_platform_and_controller():
     assert sc.controller_of(0).weights.position == sc.controller.weights.position and sc.controller_of(1) == sc.controller
 
 
-def test_the_one_relay_parts_refuse_a_fleet_with_its_reason():
-    with pytest.raises(ScenarioError, match="network of 2 relays and 1 sources: a fleet flies with build_fleet and its "
-                                            "bound is network_bound"):
-        ar.build(parse_scenario(chain()))
-
-
 def test_a_relay_on_an_own_platform_that_cannot_hover_is_named():
     data = chain()
     data["relays"][1]["platform"] = {"mass_kg": 30.0}
@@ -115,9 +109,7 @@ def test_a_relay_on_an_own_platform_that_cannot_hover_is_named():
 
 def test_one_relay_written_as_a_network_parses_to_the_same_flight():
     """The nominal preset with its relay as [[relays]] and its mission as [[sources]]: the two spellings
-    fly the same mission bit for bit. Both go through the one-relay loop (a one-relay network is not
-    ``is_fleet``): this shows the spellings agree, not that the fleet loop flies one relay; that is the
-    next test."""
+    fly the same mission bit for bit, each vehicle's columns under its own name (``relay`` / ``r1``)."""
     data = tomllib.loads(open("scenarios/nominal_tilted.toml").read())
     data.setdefault("sim", {})["duration_s"] = 1.5
     legacy = parse_scenario(data)
@@ -127,6 +119,7 @@ def test_one_relay_written_as_a_network_parses_to_the_same_flight():
     net.get("nodes", {}).pop("relay", None)
     net["network"] = {"routes": [["inspector", "r1", "bs"]]}
     a, b = ar.simulate(legacy).timeseries, ar.simulate(parse_scenario(net)).timeseries
+    b.columns = [c.replace("inspector", "source").replace("r1", "relay") for c in b.columns]
     assert list(a.columns) == list(b.columns)
     for c in a.columns:
         if not c.endswith("_ms"):
@@ -179,18 +172,6 @@ def test_a_sources_mission_file_is_named_relative_to_the_scenario_file(tmp_path)
     assert again.source_list[0].mission.trajectory_csv == str((tmp_path / "run" / "mission_inspector.csv").resolve())
 
 
-def test_what_a_fleet_does_not_fly_yet_is_named_before_any_work(tmp_path):
-    from typer.testing import CliRunner
-
-    from aerorelay.cli import app
-
-    f = tmp_path / "chain.toml"
-    f.write_text(parse_scenario(chain()).to_toml())
-    estimated = CliRunner().invoke(app, ["run", str(f), "--out", str(tmp_path / "r"), "--set", "jammer.localization='estimated'"])
-    assert estimated.exit_code == 2 and "a fleet does not estimate its jammers yet" in estimated.output, estimated.output
-    assert not (tmp_path / "r").exists()
-
-
 def test_one_relay_written_as_a_network_gets_its_bound_and_its_capacity_planner():
     """A one-relay network file names its relay (r1), not 'relay': the single-relay bound's grid and the
     capacity planner's compiled grid place that node (they looked for 'relay': a KeyError)."""
@@ -202,36 +183,3 @@ def test_one_relay_written_as_a_network_gets_its_bound_and_its_capacity_planner(
     data["bound"] = {"grid_m": 1.0, "dt_s": 0.5}
     r = ar.simulate(parse_scenario(data), bound=True)
     assert not r.metrics["unsafe"] and 0 < r.metrics["capacity_efficiency_mean"] <= 1.05
-
-
-def test_the_fleet_loop_with_one_relay_flies_the_one_relay_mission(monkeypatch):
-    """Review T1: the fleet loop (``build_fleet``) on the nominal mission with the paper's planner,
-    column by column against the one-relay loop over 1.5 s. Without a separation constraint (the
-    one-relay OCP) it flies it bit for bit. With the default separation (the vehicles' size, 1.05 m)
-    its NMPC keeps a soft separation row from the source, never active here (3.9 m and more), which
-    still moves the interior-point QP's answer: the first input by 0.13% (rotor 1: 34.83 against
-    34.87 Hz/s at t = 0; measured 2026-12-04), the position by 2.3e-5 relative over 1.5 s, the
-    velocity by 3.6e-4 m/s, the SINRs by 8.0e-5, the capacity by 3.8e-5 (the references agree to
-    7e-10 m)."""
-    import numpy as np
-
-    from aerorelay.assembly.parts import build, build_fleet
-    from aerorelay.config.scenario import Scenario
-
-    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 1.5, "network.planner": "paper"})
-    one, fleet = build(sc).closed_loop().run().log, build_fleet(sc).closed_loop().run().log
-    assert len(one["t"]) == len(fleet["t"])
-    close = {**{f"pd_{a}": (f"relay.pd_{a}", 0.0, 1e-8) for a in "xyz"},
-             **{f"p1_{a}": (f"relay.p_{a}", 1e-4, 0.0) for a in "xyz"},
-             **{f"v1_{a}": (f"relay.v_{a}", 0.0, 1e-3) for a in "xyz"},
-             "gamma_21": ("sinr.source.relay", 3e-4, 0.0), "gamma_10": ("sinr.relay.bs", 3e-4, 0.0),
-             "capacity": ("capacity", 3e-4, 0.0)}
-    for a, (b, rtol, atol) in close.items():
-        np.testing.assert_allclose(np.asarray(fleet[b], float), np.asarray(one[a], float), rtol=rtol, atol=atol, err_msg=f"{a} / {b}")
-    monkeypatch.setattr(Scenario, "separation_m", property(lambda self: 0.0))  # no separation row: the one-relay OCP
-    exact = build_fleet(sc).closed_loop().run().log
-    same = {**{f"p1_{a}": f"relay.p_{a}" for a in "xyz"}, **{f"v1_{a}": f"relay.v_{a}" for a in "xyz"},
-            **{f"u_{i}": f"relay.u_{i}" for i in range(1, 7)}, "phi1": "relay.phi", "theta1": "relay.theta",
-            "gamma_21": "sinr.source.relay", "gamma_10": "sinr.relay.bs", "capacity": "capacity"}
-    for a, b in same.items():
-        assert np.array_equal(np.asarray(exact[b], float), np.asarray(one[a], float)), (a, b)

@@ -32,7 +32,6 @@ from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
     build,
-    is_network,
     build_scene,
     build_source,
     check_bound_size,
@@ -43,7 +42,7 @@ from .assembly.parts import (
 from .assembly.vehicle import build_vehicle
 from .assembly.world import wind_field
 from .config import Scenario, ScenarioError
-from .control.bench import benchmark_closed_loop, benchmark_fleet
+from .control.bench import benchmark_closed_loop
 from .control.nmpc import NmpcSettings
 from .experiments import flight as _flight
 from .experiments.budget import left_out_notices, within_budget
@@ -60,13 +59,12 @@ from .flight.stepper import RelayStepper, StaleSettings
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
-from .report.figures import fig_bound, write_run_figures
-from .report.fleet_figures import fig_network_bound, write_fleet_figures
+from .report.figures import fig_bound, fig_network_bound, write_run_figures
 from .report.folders import read_metrics, read_scenario, read_timeseries
 from .report.foxglove import LAYOUT_FILE, write_layout
 from .report.html import render_report
-from .report.mcap_export import MCAP_FILE, write_fleet_mcap, write_run_mcap
-from .report.run_report import RUN_REPORT, render_fleet_report, render_run_report
+from .report.mcap_export import MCAP_FILE, write_run_mcap
+from .report.run_report import RUN_REPORT, render_run_report
 from .report.summary import metric as _metric
 from .report.summary import summarize
 from .sim.initial import initial_link_budget
@@ -92,17 +90,10 @@ Result = RunResult  # the one result class: ``ar.simulate`` attaches the figure 
 
 
 def write_run_views(result: RunResult, tmp: Path) -> None:
-    """The run's figures and ``run.mcap`` for Foxglove, written into the run folder ``tmp``."""
+    """The run's figures, ``run.mcap`` for Foxglove and its layout, written into the run folder ``tmp``."""
     bound = result.bound.frame() if result.bound is not None else None
     write_run_figures(result.timeseries, result.scenario, tmp, bound)
     write_run_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE, bound)
-    write_layout(result.timeseries.columns, result.scenario.channel.capacity_unit, tmp / LAYOUT_FILE)
-
-
-def write_fleet_views(result: RunResult, tmp: Path) -> None:
-    """A fleet's figures (the rates, every hop's SINR, the paths) and ``run.mcap`` into the run folder ``tmp``."""
-    write_fleet_figures(result.timeseries, result.scenario, tmp)
-    write_fleet_mcap(result.timeseries, result.scenario, tmp / MCAP_FILE)
     write_layout(result.timeseries.columns, result.scenario.channel.capacity_unit, tmp / LAYOUT_FILE)
 
 
@@ -111,7 +102,7 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
     Keyword parts (``planner``, ``jammers``, ``scene``, ``nmpc_settings``, ``progress``) replace the
     scenario's (see ``experiments.run.simulate``). ``save`` writes the run folder with the figures
     and ``run.mcap`` (``figures=False``: data files only)."""
-    return _simulate(sc, with_bound=bound, views=write_fleet_views if is_network(sc) else write_run_views, **parts)
+    return _simulate(sc, with_bound=bound, views=write_run_views, **parts)
 
 
 def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
@@ -249,7 +240,7 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
     """The scenario's capacity bounds (static and path), computed once per geometry and cached; a
     fleet's network bound (``planning/network_bound.py``: static upper bound and the refined
     configuration) for a fleet."""
-    return network_bound(sc, progress) if is_network(sc) else scenario_bound(sc, progress)
+    return network_bound(sc, progress) if sc.is_network else scenario_bound(sc, progress)
 
 
 def vehicle(sc: Scenario) -> Multirotor:
@@ -258,9 +249,9 @@ def vehicle(sc: Scenario) -> Multirotor:
 
 
 def link_budget(sc: Scenario) -> dict[str, float]:
-    """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry (one relay
-    and one source: a network's budget is ``link_budget_lines``)."""
-    if is_network(sc):
+    """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry of the paper's
+    two hops (``Scenario.has_two_hops``; a network's budget, hop by hop, is ``link_budget_lines``)."""
+    if not sc.has_two_hops:
         raise ScenarioError("link_budget: a network's start is given hop by hop by link_budget_lines")
     return initial_link_budget(build_scene(sc), sc.relay_list[0].start, sc.source_list[0].mission.start)
 
@@ -271,21 +262,17 @@ def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
 
 
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
-    """Time the controller on a mission (preparation, feedback, planner; IPOPT at a few states); a
-    fleet's per relay, its planner's and the fleet's step (``control.bench.benchmark_fleet``)."""
-    if is_network(sc):
-        warm = sc.without_relays(frozenset()).with_updates({"sim.duration_s": 0.1})  # compile / load first (no loss in 0.1 s)
-        build(warm, nmpc_settings=settings).closed_loop().run()
-        res = benchmark_fleet(build(sc, nmpc_settings=settings).closed_loop())
-        res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-        res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.network.planner} fleet planner)"
-        return res
-    build(sc.with_updates({"sim.duration_s": 0.1}), nmpc_settings=settings).closed_loop().run()  # compile / load first
-    parts = build(sc, nmpc_settings=settings)
-    res = benchmark_closed_loop(parts.closed_loop(), ipopt_points=ipopt_points)
+    """Time the controller on a mission (``control.bench.benchmark_closed_loop``): each relay's preparation,
+    feedback and IPOPT at a few states, the planner's step and the network's."""
+    warm = (sc.without_relays(frozenset()) if sc.losses else sc).with_updates({"sim.duration_s": 0.1})  # compile / load first
+    build(warm, nmpc_settings=settings).closed_loop().run()
+    res = benchmark_closed_loop(build(sc, nmpc_settings=settings).closed_loop(), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-    nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
-    res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
+    if sc.is_network:
+        res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.network.planner} fleet planner)"
+    else:
+        nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
+        res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
     return res
 
 
@@ -298,8 +285,6 @@ def export(run_dir: str | Path, fmt: str = "mcap") -> Path:
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
     sc, _, df = read_scenario(d), read_metrics(d), read_timeseries(d)
     write_layout(df.columns, sc.channel.capacity_unit, d / LAYOUT_FILE)  # the panels name this run's series
-    if is_network(sc):
-        return write_fleet_mcap(df, sc, d / MCAP_FILE)
     bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
     return write_run_mcap(df, sc, d / MCAP_FILE, bound)
 
@@ -360,8 +345,7 @@ def report_run(run_dir: str | Path) -> Path:
     d = Path(run_dir)
     if folder_kind(d) != "run" or not (d / METRICS_FILE).is_file():
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
-    fleet = "relays" in read_metrics(d)
-    write_atomic(d / RUN_REPORT, render_fleet_report(d) if fleet else render_run_report(d))
+    write_atomic(d / RUN_REPORT, render_run_report(d))
     return d / RUN_REPORT
 
 
@@ -464,7 +448,7 @@ def write_bound(sc: Scenario, out: str | Path, progress: Callable[[int, int], No
         b = bound(sc, progress)
         tmp = new_sibling(folder)
         summary = write_bound_files(b, tmp)
-        (fig_network_bound if is_network(sc) else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+        (fig_network_bound if sc.is_network else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
         swap_in(tmp, folder, "bound")
     return summary
 

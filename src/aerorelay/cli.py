@@ -114,7 +114,7 @@ def model_summary(sc: Scenario) -> Table:
     veh = api.vehicle(sc)
     F, M = veh.allocation()
     hover = veh.hover_speeds()
-    budget = None if sc.is_fleet else api.link_budget(sc)
+    budget = api.link_budget(sc) if sc.has_two_hops else None  # the paper's Gamma_21, Gamma_10
     t = Table(title=f"model summary: {sc.name}", show_header=True)
     t.add_column("quantity")
     t.add_column("value", justify="right")
@@ -249,8 +249,7 @@ def bound(
     for c in ("bound", "mean C", "min C", "outage"):
         t.add_column(c, justify="right" if c != "bound" else "left")
     si = api.si
-    names = ("static", "achieved", "flyable") if sc.is_fleet else ("static", "path_mean", "path_maxmin", "flyable_mean",
-                                                                    "flyable_maxmin")
+    names = ("static", "path_mean", "path_maxmin", "flyable_mean", "flyable_maxmin", "achieved", "flyable")  # those it has
     for name in (n for n in names if n in summary):
         s = summary[name]
         t.add_row(name, si(s["mean"], sc.channel.capacity_unit), si(s["min"], sc.channel.capacity_unit), f"{s['outage_fraction']:.1%}")
@@ -404,7 +403,7 @@ def bench(
     except ValueError as exc:
         _fail(str(exc))
     res = api.bench(sc, settings, ipopt_points=ipopt_points)
-    if sc.is_fleet:
+    if len(res["relays"]) > 1:
         _print_fleet_bench(res)
         if json_out is not None:
             json_out.write_text(api.strict_json_text(res))

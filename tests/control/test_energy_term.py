@@ -37,6 +37,6 @@ def test_a_shaft_power_weight_lowers_the_flights_energy():
     energy = {}
     for w in (0.0, 0.1):
         res = build(base.with_updates({"controller.weights.shaft_power": w})).closed_loop().run()
-        speeds = np.column_stack([res.log[f"Omega_{i}"] for i in range(1, 7)])
+        speeds = np.column_stack([res.log[f"relay.Omega_{i}"] for i in range(1, 7)])
         energy[w] = float(np.sum(SPEC.vehicle.shaft_power(speeds)) * base.control_period_s)
     assert energy[0.1] < energy[0.0]

@@ -125,13 +125,13 @@ def test_injected_failures_hand_over_to_the_brake_law_and_back():
     loop = build(sc).closed_loop()
     _failing_engine(loop, set(range(60, 260)))  # every QP fails from 0.9 s to 3.9 s
     res = loop.run()
-    fb = res.log["fallback"]
+    fb = res.log["relay.fallback"]
     t = res.log["t"]
     assert res.fallback_episodes == 1
     assert not fb[:60].any() and fb[62:260].all()  # hand-over after the third consecutive failure
     assert not fb[-50:].any()  # the NMPC resumed
     ws = sc.controller.workspace
-    p1 = np.column_stack([res.log[f"p1_{a}"] for a in "xyz"])
+    p1 = np.column_stack([res.log[f"relay.p_{a}"] for a in "xyz"])
     assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)
     assert np.all(np.isfinite(p1)) and t[-1] == pytest.approx(6.0)
 
@@ -141,8 +141,8 @@ def test_non_finite_input_hands_over_at_once():
     loop = build(sc).closed_loop()
     _failing_engine(loop, {30})
     res = loop.run()
-    assert res.log["fallback"][30]  # a NaN input is not applied, not even once
-    assert res.fallback_episodes == 1 and not res.log["fallback"][-1]
+    assert res.log["relay.fallback"][30]  # a NaN input is not applied, not even once
+    assert res.fallback_episodes == 1 and not res.log["relay.fallback"][-1]
 
 
 @pytest.mark.slow
@@ -157,5 +157,5 @@ def test_weights_that_break_the_qp_never_take_the_relay_out_of_the_workspace():
     res = build(sc).closed_loop().run()
     assert res.qp_failures > 0 and res.fallback_episodes > 0
     ws = sc.controller.workspace
-    p1 = np.column_stack([res.log[f"p1_{a}"] for a in "xyz"])
+    p1 = np.column_stack([res.log[f"relay.p_{a}"] for a in "xyz"])
     assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)

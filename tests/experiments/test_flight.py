@@ -41,15 +41,15 @@ def test_lockstep_flight_logs_every_period_in_offboard(point_mass_flight):
 
 def test_the_logged_link_is_the_reference_channel_at_the_logged_poses(point_mass_flight):
     df = point_mass_flight[0].timeseries
-    p1, p2 = df[["p1_x", "p1_y", "p1_z"]].to_numpy(), df[["p2_x", "p2_y", "p2_z"]].to_numpy()
-    R1 = rotation_batch(df[["phi1", "theta1", "psi1"]].to_numpy())
-    R2 = rotation_batch(df[["phi2", "theta2", "psi2"]].to_numpy())
+    p1, p2 = df[["relay.p_x", "relay.p_y", "relay.p_z"]].to_numpy(), df[["source.p_x", "source.p_y", "source.p_z"]].to_numpy()
+    R1 = rotation_batch(df[["relay.phi", "relay.theta", "relay.psi"]].to_numpy())
+    R2 = rotation_batch(df[["source.phi", "source.theta", "source.psi"]].to_numpy())
     kw = dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)
     pj = np.array(NOMINAL.jammer.position)
     g21, g10 = link_sinr(p2, R2, p1, R1, pj, **kw), link_sinr(p1, R1, np.zeros(3), np.eye(3), pj, **kw)
     np.testing.assert_allclose(df["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
     # the attitude logged is the one measured: the point mass leans with its acceleration, not as the NMPC planned
-    assert df["phi1"].abs().max() > 0 and not np.allclose(df["phi1"], 0.0)
+    assert df["relay.phi"].abs().max() > 0 and not np.allclose(df["relay.phi"], 0.0)
 
 
 def test_the_run_folder_has_what_aerorelay_run_writes(point_mass_flight, tmp_path):
@@ -92,9 +92,9 @@ def test_the_failsafe_rows_carry_its_target_and_no_rotor_rates():
     stepper, rec = _stepped(NOMINAL, 3)
     result = flight.flight_result(NOMINAL, rec, stepper, 1.0)
     last = result.timeseries.iloc[-1]
-    assert last["flight_mode"] == "hold" and last["qp_status"] == "hold" and bool(last["qp_ok"])
-    assert all(last[f"u_{i}"] == 0 for i in range(1, 7))
-    np.testing.assert_allclose(last[["pd_x", "pd_y", "pd_z"]].to_numpy(float), NOMINAL.nodes.relay)
+    assert last["flight_mode"] == "hold" and last["relay.qp_status"] == "hold" and bool(last["relay.qp_ok"])
+    assert all(last[f"relay.u_{i}"] == 0 for i in range(1, 7))
+    np.testing.assert_allclose(last[["relay.pd_x", "relay.pd_y", "relay.pd_z"]].to_numpy(float), NOMINAL.nodes.relay)
     assert result.metrics["hold_fraction"] == pytest.approx(0.25)
 
 
@@ -123,7 +123,7 @@ def test_position_setpoints_fly_without_the_wind_observer_attitude_setpoints_wit
     sc = NOMINAL.with_updates({"wind": {"mean_m_s": [3.0, 0.0, 0.0]}})
     position, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="position", duration_s=1.5)
     attitude, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="attitude", duration_s=1.5)
-    assert "a_ext_x" not in position.timeseries and "a_ext_x" in attitude.timeseries
+    assert "relay.a_ext_x" not in position.timeseries and "relay.a_ext_x" in attitude.timeseries
     assert ar.controller(sc, observer=False).observer is None and ar.controller(sc).observer is not None
 
 

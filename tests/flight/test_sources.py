@@ -53,7 +53,7 @@ def test_the_relay_flies_on_the_second_systems_reports():
     path = build_source(SC)
     # the source vehicle's clock is the bridge's; its report at bridge time t is where it was one step on
     want = np.array([path.state(tm + t0 + T).p for tm in df["t"]])
-    np.testing.assert_allclose(df[["p2_x", "p2_y", "p2_z"]].to_numpy(), want, atol=1e-4)
+    np.testing.assert_allclose(df[["source.p_x", "source.p_y", "source.p_z"]].to_numpy(), want, atol=1e-4)
 
 
 def test_a_silent_source_makes_the_relay_hold_within_one_period():

@@ -47,9 +47,9 @@ def test_stepping_reproduces_simulate_bit_for_bit(updates):
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": DURATION, **updates})
     log = ar.simulate(sc).timeseries
     xs, us = _fly_stepped(sc)
-    cols = ["p1_x", "p1_y", "p1_z", "phi1", "theta1", "psi1", "v1_x", "v1_y", "v1_z"]
+    cols = ["relay.p_x", "relay.p_y", "relay.p_z", "relay.phi", "relay.theta", "relay.psi", "relay.v_x", "relay.v_y", "relay.v_z"]
     assert np.array_equal(log[cols].to_numpy(), xs[:, :9])
-    assert np.array_equal(log[[f"u_{i}" for i in range(1, 7)]].to_numpy(), us)
+    assert np.array_equal(log[[f"relay.u_{i}" for i in range(1, 7)]].to_numpy(), us)
 
 
 @pytest.fixture(scope="module")
@@ -125,7 +125,7 @@ def test_stepping_with_the_logged_readings_reproduces_an_estimating_simulate_bit
     x = parts.vehicle.hover_state(sc.nodes.relay)
     for k in range(len(log["t"])):
         t = k * sc.control_period_s
-        assert np.array_equal(x[0:3], [log["p1_x"][k], log["p1_y"][k], log["p1_z"][k]]), f"step {k}"
+        assert np.array_equal(x[0:3], [log["relay.p_x"][k], log["relay.p_y"][k], log["relay.p_z"][k]]), f"step {k}"
         s = parts.source.state(t)
         readings = {r: log[f"meas_{r}_w"][k - 1] for r in ("relay", "bs")} if k else None
         cmd = ctrl.step(t, x, ar.SourceState(s.p, s.v, s.a), readings=readings)

@@ -26,16 +26,16 @@ def run():
 def test_capacity_planner_flies_smoothly_inside_the_box(run):
     loop, res = run
     log = res.log
-    assert res.qp_failures == 0 and not log["fallback"].any()
-    pd = np.column_stack([log["pd_x"], log["pd_y"], log["pd_z"]])
+    assert res.qp_failures == 0 and not log["relay.fallback"].any()
+    pd = np.column_stack([log["relay.pd_x"], log["relay.pd_y"], log["relay.pd_z"]])
     speed = np.linalg.norm(np.diff(pd, axis=0), axis=1) / SC.control_period_s
     assert speed.max() <= SC.controller.capacity.speed_m_s + 1e-9  # the reference never jumps
     ws = SC.controller.workspace
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
     assert np.all(p1 >= np.array(ws.min) - 1e-3) and np.all(p1 <= np.array(ws.max) + 1e-3)
     veh = build_vehicle(SC.platform)
-    speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
-    rates = np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
+    speeds = np.column_stack([log[f"relay.Omega_{i}"] for i in range(1, 7)])
+    rates = np.column_stack([log[f"relay.u_{i}"] for i in range(1, 7)])
     assert speeds.min() >= veh.omega_min - 1e-3 and speeds.max() <= veh.omega_max + 1e-3
     assert rates.min() >= veh.omega_dot_min - 1e-9 and rates.max() <= veh.omega_dot_max + 1e-9
 
@@ -49,7 +49,7 @@ def test_capacity_planner_beats_the_papers_generator_early_in_the_mission(run):
 def test_capacity_planner_is_deterministic(run):
     _, res = run
     again = build(SC).closed_loop().run()
-    np.testing.assert_array_equal(res.log["p1_x"], again.log["p1_x"])
+    np.testing.assert_array_equal(res.log["relay.p_x"], again.log["relay.p_x"])
     np.testing.assert_array_equal(res.log["capacity"], again.log["capacity"])
 
 
@@ -68,15 +68,15 @@ def test_logged_capacity_equals_an_independent_recomputation(run):
     from tests.reference_channel import end_to_end_capacity, link_sinr
 
     log = run[1].log
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
-    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
-    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
-    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
+    p2 = np.column_stack([log["source.p_x"], log["source.p_y"], log["source.p_z"]])
+    R1 = rotation_batch(np.column_stack([log["relay.phi"], log["relay.theta"], log["relay.psi"]]))
+    R2 = rotation_batch(np.column_stack([log["source.phi"], log["source.theta"], log["source.psi"]]))
     kw = dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)
     g21 = link_sinr(p2, R2, p1, R1, np.array(SC.jammer.position), **kw)
     g10 = link_sinr(p1, R1, np.zeros(3), np.eye(3), np.array(SC.jammer.position), **kw)
     np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
-    assert np.degrees(np.arccos(np.cos(log["phi1"]) * np.cos(log["theta1"]))).max() > 5.0  # it does tilt its antenna
+    assert np.degrees(np.arccos(np.cos(log["relay.phi"]) * np.cos(log["relay.theta"]))).max() > 5.0  # it does tilt its antenna
 
 
 def _real_planner(updates: dict) -> CapacityPlanner:
@@ -177,7 +177,7 @@ def test_coplanar_relay_holds_its_reference_with_the_tracking_acceleration():
     sc = load_scenario("scenarios/nominal_coplanar.toml").with_updates({"controller.planner": "capacity", "sim.duration_s": 31.0})
     log = build(sc).closed_loop().run().log
     late = log["t"] >= 24.0
-    err = np.hypot(np.hypot(log["p1_x"] - log["pd_x"], log["p1_y"] - log["pd_y"]), log["p1_z"] - log["pd_z"])[late]
+    err = np.hypot(np.hypot(log["relay.p_x"] - log["relay.pd_x"], log["relay.p_y"] - log["relay.pd_y"]), log["relay.p_z"] - log["relay.pd_z"])[late]
     assert err.max() < 0.2
 
 

@@ -68,10 +68,10 @@ def test_yawing_relay_stays_on_its_reference_and_inside_its_limits():
         {"controller.planner": "capacity", "sim.duration_s": 12.0, "controller.capacity.yaw_rate_deg_s": 10.0})
     res = build(sc).closed_loop().run()
     log = res.log
-    assert np.ptp(log["psi1"]) > np.radians(30.0)  # it does turn
-    err = np.hypot(np.hypot(log["p1_x"] - log["pd_x"], log["p1_y"] - log["pd_y"]), log["p1_z"] - log["pd_z"])
+    assert np.ptp(log["relay.psi"]) > np.radians(30.0)  # it does turn
+    err = np.hypot(np.hypot(log["relay.p_x"] - log["relay.pd_x"], log["relay.p_y"] - log["relay.pd_y"]), log["relay.p_z"] - log["relay.pd_z"])
     assert err.max() < 1.0
-    assert res.qp_failures == 0 and not log["fallback"].any() and not log["safety_violation"].any()
+    assert res.qp_failures == 0 and not log["relay.fallback"].any() and not log["relay.safety_violation"].any()
     veh = build_vehicle(sc.platform)
-    speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
+    speeds = np.column_stack([log[f"relay.Omega_{i}"] for i in range(1, 7)])
     assert speeds.min() >= veh.omega_min - 1e-3 and speeds.max() <= veh.omega_max + 1e-3

@@ -34,7 +34,7 @@ def test_a_registered_planner_is_named_in_the_scenario_and_flies():
     r = ar.simulate(sc)
     assert not r.metrics["unsafe"]
     start = np.array(sc.nodes.relay)
-    assert np.allclose(r.timeseries[["pd_x", "pd_y", "pd_z"]].to_numpy(), start)  # its reference, flown
+    assert np.allclose(r.timeseries[["relay.pd_x", "relay.pd_y", "relay.pd_z"]].to_numpy(), start)  # its reference, flown
 
 
 def test_an_unknown_planner_is_named_with_the_registered_ones():

@@ -300,9 +300,9 @@ def test_the_supervisor_hands_over_at_once_and_the_brake_law_recovers_the_attitu
     sc = load_scenario(NOMINAL, set={"controller.mu": 0.99, "sim.duration_s": 20.0})
     r = ar.simulate(sc)
     df, m = r.timeseries, r.metrics
-    assert m["safety_violations"] > 0 and df["fallback"].any()
-    first = int(np.argmax(df["safety_violation"].to_numpy()))
-    assert df["fallback"].iloc[first]  # the same step, not after 3 failed QPs
+    assert m["safety_violations"] > 0 and df["relay.fallback"].any()
+    first = int(np.argmax(df["relay.safety_violation"].to_numpy()))
+    assert df["relay.fallback"].iloc[first]  # the same step, not after 3 failed QPs
     assert m["min_altitude_m"] > 0.5 and m["max_tilt_deg"] < 90.0  # never flipped, never below the floor
 
 

@@ -246,7 +246,7 @@ def test_a_reference_outside_the_workspace_is_clipped_and_counted():
     res = ar.simulate(sc, planner=_Planner(make))
     assert res.metrics["reference_clipped_steps"] == res.metrics["steps"]
     assert "outside the workspace" in res.metrics["reference_clipped_first"]
-    assert res.timeseries["pd_z"].max() <= sc.controller.workspace.max[2]
+    assert res.timeseries["relay.pd_z"].max() <= sc.controller.workspace.max[2]
 
 
 @pytest.mark.parametrize("change", [("nodes", "relay", [20.0, 0.0, 5.0], r"nodes\.relay \[20\.0, 0\.0, 5\.0\] must lie inside controller\.workspace"),

@@ -35,11 +35,11 @@ def test_rejected_or_safe_or_reported_unsafe(updates):
         return  # rejected at validation, with a named error
     r = ar.simulate(sc)
     m, df = r.metrics, r.timeseries
-    p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
+    p1 = df[["relay.p_x", "relay.p_y", "relay.p_z"]].to_numpy()
     ws = sc.controller.workspace
     outside = max(float(np.max(np.array(ws.min) - p1)), float(np.max(p1 - np.array(ws.max))), 0.0)
-    tilt = np.degrees(np.arccos(np.clip(np.cos(df["phi1"]) * np.cos(df["theta1"]), -1, 1))).max()
+    tilt = np.degrees(np.arccos(np.clip(np.cos(df["relay.phi"]) * np.cos(df["relay.theta"]), -1, 1))).max()
     left_its_world = outside > sc.controller.failsafe.box_tolerance_m or tilt > 90.0
     assert m["unsafe"] == left_its_world, (updates, m["unsafe_reason"], outside, tilt)
     if not m["unsafe"]:
-        assert m["safety_violations"] == 0 or df["fallback"][df["safety_violation"]].all()  # every violation handed over
+        assert m["safety_violations"] == 0 or df["relay.fallback"][df["relay.safety_violation"]].all()  # every violation handed over

@@ -55,5 +55,5 @@ def test_a_flight_logs_its_blocked_links():
     clear = ar.simulate(ar.parse_scenario({"obstacles": [WALL], "sim": {"duration_s": 0.3}}))
     df, df0 = r.timeseries, clear.timeseries
     assert df["nlos_relay_bs"].iloc[0] == 1.0 and df["nlos_source_relay"].iloc[0] == 0.0
-    assert df["gamma_10"].iloc[0] == pytest.approx(df0["gamma_10"].iloc[0] * 10 ** (-20 / 10), rel=1e-9)
-    assert df["gamma_21"].iloc[0] == pytest.approx(df0["gamma_21"].iloc[0], rel=1e-9)
+    assert df["sinr.relay.bs"].iloc[0] == pytest.approx(df0["sinr.relay.bs"].iloc[0] * 10 ** (-20 / 10), rel=1e-9)
+    assert df["sinr.source.relay"].iloc[0] == pytest.approx(df0["sinr.source.relay"].iloc[0], rel=1e-9)

@@ -10,13 +10,13 @@ from aerorelay.assembly.parts import build
 from aerorelay.assembly.vehicle import build_vehicle
 from aerorelay.cli import app
 from aerorelay.models.geometry import rotation_batch
-from aerorelay.sim.closed_loop import known_jammers, log_columns
+from aerorelay.sim.closed_loop import known_jammers
+from aerorelay.sim.log_schema import log_columns
 from aerorelay.sim.metrics import compute_metrics
 from tests.reference_channel import end_to_end_capacity, link_sinr
 
-LOG_COLUMNS = log_columns(6)
-
 SHORT = parse_scenario({}).with_updates({"sim.duration_s": 3.0})
+LOG_COLUMNS = log_columns({"relay": 6}, ["source"], build(SHORT).scene)
 
 
 @pytest.fixture(scope="module")
@@ -29,33 +29,33 @@ def test_short_mission_runs_without_failures(short_run):
     assert len(log["t"]) == int(3.0 / 0.015) + 1
     assert short_run.qp_failures == 0
     for c in LOG_COLUMNS:
-        if c not in ("qp_ok", "qp_status", "fallback"):
+        if c not in ("relay.qp_ok", "relay.qp_status", "relay.fallback", "jammer_on"):
             assert np.all(np.isfinite(log[c])), c
 
 
 def test_bounds_never_violated(short_run):
     log, veh = short_run.log, build_vehicle(SHORT.platform)
-    speeds = np.column_stack([log[f"Omega_{i}"] for i in range(1, 7)])
-    rates = np.column_stack([log[f"u_{i}"] for i in range(1, 7)])
+    speeds = np.column_stack([log[f"relay.Omega_{i}"] for i in range(1, 7)])
+    rates = np.column_stack([log[f"relay.u_{i}"] for i in range(1, 7)])
     assert speeds.min() >= veh.omega_min - 1e-6 and speeds.max() <= veh.omega_max + 1e-6
     assert rates.min() >= veh.omega_dot_min - 1e-9 and rates.max() <= veh.omega_dot_max + 1e-9
     ws = SHORT.controller.workspace
     for i, a in enumerate("xyz"):
-        assert ws.min[i] - 1e-3 <= log[f"p1_{a}"].min() and log[f"p1_{a}"].max() <= ws.max[i] + 1e-3
+        assert ws.min[i] - 1e-3 <= log[f"relay.p_{a}"].min() and log[f"relay.p_{a}"].max() <= ws.max[i] + 1e-3
 
 
 def test_logged_capacity_equals_recomputation_from_logged_states(short_run):
     log = short_run.log
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
-    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
-    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
-    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
+    p2 = np.column_stack([log["source.p_x"], log["source.p_y"], log["source.p_z"]])
+    R1 = rotation_batch(np.column_stack([log["relay.phi"], log["relay.theta"], log["relay.psi"]]))
+    R2 = rotation_batch(np.column_stack([log["source.phi"], log["source.theta"], log["source.psi"]]))
     pj = np.array(SHORT.jammer.position)
     kw = dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)  # always-on jammer, P_J = 1 W
     g21 = link_sinr(p2, R2, p1, R1, pj, **kw)
     g10 = link_sinr(p1, R1, np.zeros(3), np.eye(3), pj, **kw)
-    np.testing.assert_allclose(log["gamma_21"], g21, rtol=1e-9)
-    np.testing.assert_allclose(log["gamma_10"], g10, rtol=1e-9)
+    np.testing.assert_allclose(log["sinr.source.relay"], g21, rtol=1e-9)
+    np.testing.assert_allclose(log["sinr.relay.bs"], g10, rtol=1e-9)
     np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10), rtol=1e-9)
 
 
@@ -72,8 +72,8 @@ def test_metrics_from_log(short_run):
 def test_fading_changes_channel_not_controller():
     sc = SHORT.with_updates({"perturbations.fading_k_db": 6.0, "sim.duration_s": 0.3})
     a, b = build(sc).closed_loop().run().log, build(SHORT.with_updates({"sim.duration_s": 0.3})).closed_loop().run().log
-    np.testing.assert_allclose(a["p1_x"], b["p1_x"])  # the controller never sees the fading
-    assert not np.allclose(a["gamma_21"], b["gamma_21"])
+    np.testing.assert_allclose(a["relay.p_x"], b["relay.p_x"])  # the controller never sees the fading
+    assert not np.allclose(a["sinr.source.relay"], b["sinr.source.relay"])
 
 
 def test_cli_run_writes_outputs_and_compare(tmp_path):
@@ -102,12 +102,12 @@ def test_control_rate_500hz_keeps_the_prediction_grid():
     parts = build(sc)
     loop = parts.closed_loop()
     # the OCP keeps its 15 ms grid (the horizon spans N ts = 0.45 s) and the plan is not shifted every 2 ms
-    assert parts.controller.spec.ts == pytest.approx(0.015) and loop.stepper.shift is False
+    assert parts.controller.spec.ts == pytest.approx(0.015) and loop.relays[0].stepper.shift is False
     assert parts.controller.spec.horizon * parts.controller.spec.ts == pytest.approx(0.45)
     log = loop.run().log
     assert len(log["t"]) == 101 and log["t"][1] == pytest.approx(0.002)
     assert np.all(np.isfinite(log["capacity"]))
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
     assert np.linalg.norm(p1[-1] - p1[0]) < 0.05
 
 
@@ -116,9 +116,9 @@ def test_disturbances_are_seeded_and_leave_the_true_source_path_alone():
     noisy = base.with_updates({"perturbations.process_noise_v": 0.5, "perturbations.process_noise_w": 0.2,
                                "perturbations.csi_noise_m": 0.1})
     a, b, c = (build(s).closed_loop().run().log for s in (noisy, noisy, base))
-    np.testing.assert_array_equal(a["p1_x"], b["p1_x"])  # same seed, same run
-    assert not np.allclose(a["p1_x"], c["p1_x"])
-    np.testing.assert_allclose(a["p2_x"], c["p2_x"])  # the true MRAV-2 path is untouched by CSI noise
+    np.testing.assert_array_equal(a["relay.p_x"], b["relay.p_x"])  # same seed, same run
+    assert not np.allclose(a["relay.p_x"], c["relay.p_x"])
+    np.testing.assert_allclose(a["source.p_x"], c["source.p_x"])  # the true MRAV-2 path is untouched by CSI noise
 
 
 @pytest.mark.parametrize("senses", [False, True])
@@ -144,11 +144,11 @@ def test_logged_capacity_follows_the_antenna_options():
                              "antenna.directivity": 1.64})
     log = build(sc).closed_loop().run().log
     base = build(SHORT.with_updates({"sim.duration_s": 0.6})).closed_loop().run().log
-    np.testing.assert_array_equal(log["p1_x"], base["p1_x"])
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
-    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
-    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
-    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    np.testing.assert_array_equal(log["relay.p_x"], base["relay.p_x"])
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
+    p2 = np.column_stack([log["source.p_x"], log["source.p_y"], log["source.p_z"]])
+    R1 = rotation_batch(np.column_stack([log["relay.phi"], log["relay.theta"], log["relay.psi"]]))
+    R2 = rotation_batch(np.column_stack([log["source.phi"], log["source.theta"], log["source.psi"]]))
     pj, kw = np.array(SHORT.jammer.position), dict(tx_power=1.0, jam_power=1.0, noise_power=1.0)
     relay, iso = DipolePattern(1.64), IsotropicPattern(1.0)
     g21 = link_sinr(p2, R2, p1, R1, pj, pattern=iso, pattern_rx=relay, **kw)

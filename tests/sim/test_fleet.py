@@ -13,8 +13,8 @@ import pytest
 import aerorelay as ar
 from aerorelay.assembly import parse_scenario
 from aerorelay.planning.fleet import equidistant_targets
-from aerorelay.sim.fleet import separation_min
-from aerorelay.sim.metrics import fleet_metrics
+from aerorelay.sim.log_schema import separation_min
+from aerorelay.sim.metrics import compute_metrics
 
 WS = {"min": [-5.0, -10.0, 0.5], "max": [45.0, 12.0, 20.0]}
 CHAIN = {"sim": {"duration_s": 2.0},
@@ -108,8 +108,8 @@ def test_separation_min_and_its_verdict():
     common = dict(relays=relays, sources=["inspector"], period_s=sc.control_period_s, outage_threshold=1e-3, wall_s=1.0,
                   sim_s=1.0, workspace_min=WS["min"], workspace_max=WS["max"])
     sep = float(r.timeseries["separation_min"].min())
-    assert not fleet_metrics(r.mission.log, min_separation_m=sep - 0.1, **common)["unsafe"]
-    m = fleet_metrics(r.mission.log, min_separation_m=sep + 0.1, **common)
+    assert not compute_metrics(r.mission.log, min_separation_m=sep - 0.1, **common)["unsafe"]
+    m = compute_metrics(r.mission.log, min_separation_m=sep + 0.1, **common)
     assert m["unsafe"] and "closer than network.min_separation_m" in m["unsafe_reason"]
     assert m["exit_status"] == "too_close" and m["exit_statuses"] == ["too_close"]
 
@@ -187,10 +187,10 @@ def test_the_papers_fleet_looks_at_each_relays_route_neighbours():
     """network.planner = "paper": every relay flies the comms-aware NMPC whose alignment terms look upstream at
     the previous node of its route and downstream at the next (the next relay's latest plan or the base
     station); the generator moves the references; the flight is safe."""
-    from aerorelay.assembly.parts import build_fleet
+    from aerorelay.assembly.parts import build
 
     sc = parse_scenario({**CHAIN, "network": {**CHAIN["network"], "planner": "paper"}})
-    parts = build_fleet(sc)
+    parts = build(sc)
     seen: dict[str, list] = {}
     for r in parts.relays:
         assert r.controller.spec.constrained and r.controller.spec.p0_parameter
@@ -222,11 +222,11 @@ def test_a_fleet_plans_with_the_jammer_state_it_senses(senses):
     """Review T6: the fleet loop planned with the nominal power whatever controller.senses_jammer_state
     said. An on_off jammer (5 s ON, 5 s OFF, localized at tau_E = 2 s): at t = 7 s it is OFF, so a fleet
     that senses its state plans with 0 W, one that does not with its nominal power."""
-    from aerorelay.assembly.parts import build_fleet
+    from aerorelay.assembly.parts import build
 
     sc = parse_scenario(copy.deepcopy(CHAIN) | {"sim": {"duration_s": 7.1}}).with_updates(
         {"jammer.schedule": "on_off", "controller.senses_jammer_state": senses})
-    parts = build_fleet(sc)
+    parts = build(sc)
     inputs = recorded_inputs(parts)
     parts.closed_loop().run()
     seen = {round(inp.t, 6): np.array(inp.jammer_powers, float) for inp in inputs}

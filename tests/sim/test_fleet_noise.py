@@ -13,7 +13,7 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.assembly import parse_scenario
-from aerorelay.assembly.parts import build_fleet
+from aerorelay.assembly.parts import build
 from aerorelay.config import ScenarioError
 
 from .test_fleet import CHAIN, _axis, _gain, recorded_inputs
@@ -77,7 +77,7 @@ def test_the_fleet_knows_its_sources_and_jammers_with_csi_noise():
     """The fleet planner's inputs: the source's position off the truth by N(0, 0.3 m) per axis, the
     jammer's too; the channel and the log keep the true positions."""
     sc = _noisy(csi_noise_m=0.3).with_updates({"sim.duration_s": 2.0})
-    parts = build_fleet(sc)
+    parts = build(sc)
     inputs = recorded_inputs(parts)
     log = parts.closed_loop().run().log
     seen = [(inp.t, np.array(inp.positions["inspector"]), np.array(inp.jammer_positions[0])) for inp in inputs]

@@ -54,8 +54,8 @@ def test_logged_capacity_equals_an_independent_recomputation(preset, planner):
     nodes = {"bs": p0, "relay": p1, "source": p2}
     g21 = legitimate_gain_sq(p2, R2, p1, R1) / (received_interference(sc, t, p1, R1, nodes) + 1.0)
     g10 = legitimate_gain_sq(p1, R1, p0, I) / (received_interference(sc, t, p0, I, nodes) + 1.0)
-    np.testing.assert_allclose(df["gamma_21"], g21, rtol=1e-9)
-    np.testing.assert_allclose(df["gamma_10"], g10, rtol=1e-9)
+    np.testing.assert_allclose(df["sinr.source.relay"], g21, rtol=1e-9)
+    np.testing.assert_allclose(df["sinr.relay.bs"], g10, rtol=1e-9)
     a, b = np.log2(1 + g21), np.log2(1 + g10)
     np.testing.assert_allclose(df["capacity"], a * b / (a + b), rtol=1e-9)
     ws = sc.controller.workspace

@@ -35,8 +35,8 @@ def test_readings_are_the_true_interference_through_the_detector(flown):
     sc, res = flown
     df = res.timeseries
     power = 10.0 * float(np.sum((np.array(sc.nodes.relay) - np.array(sc.jammer.position)) ** 2))
-    p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
-    axis = rotation_batch(df[["phi1", "theta1", "psi1"]].to_numpy())[:, :, 2]
+    p1 = df[["relay.p_x", "relay.p_y", "relay.p_z"]].to_numpy()
+    axis = rotation_batch(df[["relay.phi", "relay.theta", "relay.psi"]].to_numpy())[:, :, 2]
     d = np.array(sc.jammer.position) - p1
     n2 = np.sum(d * d, axis=1)
     expected = 1.0 + power * DIPOLE.gain_from_cos(np.sum(d * axis, axis=1) / np.sqrt(n2)) / n2

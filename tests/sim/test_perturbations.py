@@ -48,10 +48,10 @@ def test_logged_capacity_is_recomputed_from_the_logged_poses_and_random_terms(ph
     log = physical_run.log
     lam = 299_792_458.0 / 2.4e9
     K, n = (lam / (4 * math.pi)) ** 2, 2.7  # Friis at d0 = 1 m, then exponent 2.7
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
-    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
-    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
-    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
+    p2 = np.column_stack([log["source.p_x"], log["source.p_y"], log["source.p_z"]])
+    R1 = rotation_batch(np.column_stack([log["relay.phi"], log["relay.theta"], log["relay.psi"]]))
+    R2 = rotation_batch(np.column_stack([log["source.phi"], log["source.theta"], log["source.psi"]]))
     pj, p0 = np.array(PHYSICAL.jammer_configs[0].position), np.zeros(3)
 
     def path(a, b):  # K d^-n instead of the reference's 1/d^2
@@ -68,8 +68,8 @@ def test_logged_capacity_is_recomputed_from_the_logged_poses_and_random_terms(ph
     h10 = legitimate_gain_sq(p1, R1, p0, np.eye(3)) * path(p1, p0) * rnd("relay_bs")
     f0 = jammer_gain_sq(pj, p0, np.eye(3)) * path(pj, p0) * rnd("jammer_bs")
     g21, g10 = h21 * P_U / (f1 * P_J + N), h10 * P_U / (f0 * P_J + N)
-    np.testing.assert_allclose(log["gamma_21"], g21, rtol=1e-9)
-    np.testing.assert_allclose(log["gamma_10"], g10, rtol=1e-9)
+    np.testing.assert_allclose(log["sinr.source.relay"], g21, rtol=1e-9)
+    np.testing.assert_allclose(log["sinr.relay.bs"], g10, rtol=1e-9)
     np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10, 20e6), rtol=1e-9)  # bit/s
 
 
@@ -94,7 +94,7 @@ def test_default_runs_log_no_random_terms_and_the_controller_never_sees_them():
     plain = build(BASE.with_updates({"sim.duration_s": 0.3})).closed_loop().run().log
     assert not any(c.startswith(("fade_amp_", "shadow_db_")) for c in plain)
     noisy = build(BASE.with_updates({"sim.duration_s": 0.3, "channel.propagation.shadowing_std_db": 6.0})).closed_loop().run().log
-    np.testing.assert_array_equal(plain["p1_x"], noisy["p1_x"])
+    np.testing.assert_array_equal(plain["relay.p_x"], noisy["relay.p_x"])
     assert not np.allclose(plain["capacity"], noisy["capacity"])
 
 
@@ -104,14 +104,14 @@ def test_info_prints_the_link_budget_in_the_chosen_units():
     lines = dict(ar.api.link_budget_lines(PHYSICAL))
     assert lines["noise power"] == "-94.0 dBm" and lines["transmit power"] == "20.0 dBm"
     g = ar.link_budget(PHYSICAL)
-    assert lines["source -> relay: SINR"] == f"{10 * math.log10(g['gamma_21']):.1f} dB"
+    assert lines["source -> relay: SINR"] == f"{10 * math.log10(g['sinr.source.relay']):.1f} dB"
     assert lines["end-to-end capacity"].endswith("Mbit/s")
     # the paper's units: dBW, bit/s/Hz, and the same SINR as the model summary
     paper = dict(ar.api.link_budget_lines(BASE))
     assert paper["noise power"] == "0.0 dBW" and paper["end-to-end capacity"].endswith("bit/s/Hz")
     # received power - (interference + noise) = SINR, line by line
     rx = float(paper["relay -> bs: received power"].split()[0])
-    assert rx - 0.0 == pytest.approx(10 * math.log10(ar.link_budget(BASE)["gamma_10"]), abs=0.3)
+    assert rx - 0.0 == pytest.approx(10 * math.log10(ar.link_budget(BASE)["sinr.relay.bs"]), abs=0.3)
 
 
 # ---------------------------------------------------------------- 3GPP TR 36.777 RMa-AV as the scene's channel
@@ -130,10 +130,10 @@ def _tr36777_loss_db(d3, h, fc_ghz, los):
 def test_rma_av_logged_capacity_is_recomputed_from_the_logged_poses_los_states_and_shadowing():
     log = build(RMA).closed_loop().run().log
     scene = build_scene(RMA)
-    p1 = np.column_stack([log["p1_x"], log["p1_y"], log["p1_z"]])
-    p2 = np.column_stack([log["p2_x"], log["p2_y"], log["p2_z"]])
-    R1 = rotation_batch(np.column_stack([log["phi1"], log["theta1"], log["psi1"]]))
-    R2 = rotation_batch(np.column_stack([log["phi2"], log["theta2"], log["psi2"]]))
+    p1 = np.column_stack([log["relay.p_x"], log["relay.p_y"], log["relay.p_z"]])
+    p2 = np.column_stack([log["source.p_x"], log["source.p_y"], log["source.p_z"]])
+    R1 = rotation_batch(np.column_stack([log["relay.phi"], log["relay.theta"], log["relay.psi"]]))
+    R2 = rotation_batch(np.column_stack([log["source.phi"], log["source.theta"], log["source.psi"]]))
     pj, p0 = np.array(RMA.jammer_configs[0].position), np.zeros(3)
 
     def path(a, b, link):  # the logged state's loss and shadowing, times d^2 (the reference divides by it)
@@ -150,8 +150,8 @@ def test_rma_av_logged_capacity_is_recomputed_from_the_logged_poses_los_states_a
     h10 = legitimate_gain_sq(p1, R1, p0, np.eye(3)) * path(p1, p0, "relay_bs")
     f0 = jammer_gain_sq(pj, p0, np.eye(3)) * path(pj, p0, "jammer_bs")
     g21, g10 = h21 * P_U / (f1 * P_J + N), h10 * P_U / (f0 * P_J + N)
-    np.testing.assert_allclose(log["gamma_21"], g21, rtol=1e-9)
-    np.testing.assert_allclose(log["gamma_10"], g10, rtol=1e-9)
+    np.testing.assert_allclose(log["sinr.source.relay"], g21, rtol=1e-9)
+    np.testing.assert_allclose(log["sinr.relay.bs"], g10, rtol=1e-9)
     np.testing.assert_allclose(log["capacity"], end_to_end_capacity(g21, g10, 20e6), rtol=1e-9)
     # LoS within d1 = 18 m (h <= ~23 m): every link of this geometry; the LoS shadowing std 4.2 exp(-0.0046 h)
     assert all(np.all(log[f"los_{lk}"] == 1.0) for lk in ("source_relay", "relay_bs", "jammer_relay", "jammer_bs"))

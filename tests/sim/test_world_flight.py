@@ -27,7 +27,7 @@ def test_a_pole_in_the_way_is_kept_out_of(nominal):
     m = r.metrics
     assert not m["unsafe"] and m["safety_violations"] == 0
     assert m["reference_kept_out_steps"] > 0  # the pole was in the way
-    p = r.timeseries[["p1_x", "p1_y", "p1_z"]].to_numpy()
+    p = r.timeseries[["relay.p_x", "relay.p_y", "relay.p_z"]].to_numpy()
     bare = VerticalCylinder((-5.0, 4.2), 0.4, 0.0, 20.0)
     assert np.min(bare.signed_distance(p)) == pytest.approx(m["obstacle_clearance_min_m"])
     assert m["obstacle_clearance_min_m"] > 0.25  # outside the pole, most of the margin kept (soft constraint)
@@ -45,7 +45,7 @@ def test_the_observer_tracks_better_in_a_steady_wind(nominal):
     assert on.metrics["wind_speed_mean_m_s"] == pytest.approx(8.0)  # computed from the logged wind series (steady: 8 m/s)
     df = on.timeseries
     late = df[df.t > 4.0]
-    est = late[["a_ext_x", "a_ext_y", "a_ext_z"]].to_numpy()
-    drag = late[["a_drag_x", "a_drag_y", "a_drag_z"]].to_numpy()
+    est = late[["relay.a_ext_x", "relay.a_ext_y", "relay.a_ext_z"]].to_numpy()
+    drag = late[["relay.a_drag_x", "relay.a_drag_y", "relay.a_drag_z"]].to_numpy()
     assert np.mean(np.linalg.norm(est - drag, axis=1)) < 0.1 * np.mean(np.linalg.norm(drag, axis=1))
-    assert "a_ext_x" not in off.timeseries and "a_drag_x" in off.timeseries
+    assert "relay.a_ext_x" not in off.timeseries and "relay.a_drag_x" in off.timeseries

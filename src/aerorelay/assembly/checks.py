@@ -217,7 +217,7 @@ def _mu_reachable(sc: Scenario) -> None:
     for alignment (measured on the nominal missions, supervisor on: mu = 0.9 flips the tilted
     hexarotor (109 deg) and sends it 3.8 m out of the box, mu = 0.7 the coplanar one 12.5 m;
     mu = 0.7 tilted and 0.5 coplanar, just above their reach, fly inside it)."""
-    if sc.is_fleet:  # a relay of a chain aligns with its route neighbours, not with the base station and MRAV-2
+    if not sc.has_two_hops:  # a relay of a chain aligns with its route neighbours, not with the base station and MRAV-2
         return
     c, platform, mission = sc.controller_of(0), sc.platform_of(0), sc.source_list[0].mission
     if not c.comms_aware or c.mu <= 0.0:

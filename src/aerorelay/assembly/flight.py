@@ -43,14 +43,14 @@ def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
     observer; with ``jammer.localization = "estimated"`` the jammers come from the readings ``step`` is
     handed; ``autopilot``: its NMPC models the vehicle an autopilot flies, ``thrust_along_body_z``); a
     fleet is a named error."""
-    if sc.is_fleet:
+    if sc.is_network:
         raise ScenarioError("relays: ar.controller steps one relay; a fleet's relays are stepped by its loop "
                             "(docs/concepts/networks.md)")
     parts = build(thrust_along_body_z(sc) if autopilot else sc, nmpc_settings=nmpc_settings)
     senses = sc.controller.senses_jammer_state
     estimated = None if parts.sensing is None else JammersFromReadings(parts.scene, parts.sensing.estimator,
                                                                        parts.sensing.receivers, senses)
-    return RelayStepper(vehicle=parts.vehicle, planner=parts.planner, controller=parts.controller, estimated=estimated,
+    return RelayStepper(vehicle=parts.vehicle, planner=parts.relay_planner, controller=parts.controller, estimated=estimated,
                         period_s=sc.control_period_s, jammers=estimated.view if estimated else oracle_jammers(parts.scene, senses),
                         observer=world.observer(sc, parts.vehicle) if observer else None,
                         stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))

@@ -350,16 +350,6 @@ def sim_settings(sc: Scenario) -> SimSettings:
                        senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise)
 
 
-def is_network(sc: Scenario) -> bool:
-    """Whether ``sc`` has more than its one relay and one source: then its planner is the network's
-    (``network.planner``), and each relay's NMPC looks at its route neighbours (a stage parameter) and
-    keeps ``network.min_separation_m`` from every other vehicle. The paper's one relay and its MRAV-2
-    fly the one-relay planner (``controller.planner``) and the paper's NMPC, whose base station is fixed
-    (a separation row there moved the nominal QP by 0.13% while inactive: the separation of one relay and
-    its source is checked in its metrics, ``separation_min_m``)."""
-    return len(sc.relay_list) + len(sc.source_list) > 2
-
-
 def relay_view(sc: Scenario, i: int) -> Scenario:
     """Relay ``i``'s view of the scenario: its own platform and controller (``[[relays]]``) as the scenario's,
     so every part reads them where a file with ``nodes.relay`` has them; in a network, its controller is the
@@ -367,7 +357,8 @@ def relay_view(sc: Scenario, i: int) -> Scenario:
     comms-aware NMPC (its alignment terms toward its two neighbours on its route), else the tracking NMPC of
     the capacity planner."""
     ctrl = sc.controller_of(i)
-    if is_network(sc):
+    if sc.is_network:  # (a separation row in the paper's NMPC moved the nominal QP by 0.13% while inactive: one relay
+        # and its source keep theirs in the metrics, separation_min_m, not in the NMPC)
         planner = "trajectory_generator" if sc.network.planner == "trajectory_generator" else "capacity"
         ctrl = ctrl.model_copy(update={"planner": planner})
     elif sc.relays is None or (sc.relays[i].platform is None and not sc.relays[i].controller):
@@ -430,7 +421,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     check_physics(sc)
     fleet_flies(sc)
     scene = scene or build_scene(sc, jammers)
-    network = is_network(sc)
+    network = sc.is_network
     # each relay of a network keeps min_separation_m from every other vehicle (none set: no separation row)
     others = len(sc.relay_list) - 1 + len(sc.source_list) if network and sc.separation_m > 0 else 0
     relays, platforms = [], {}
@@ -450,13 +441,12 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     if planner is not None or not network:  # a one-relay planner: the user's (checked at the boundary) or the scenario's
         first, source = relays[0], sc.route_list[0][-3]
         view = relay_view(sc, 0)
-        if planner is not None:
-            relay_planner = CheckedPlanner(planner, *_workspace(sc))
-        else:
-            relay_planner = build_planner(view, first.vehicle, scene, sources[source])
+        one: Planner = CheckedPlanner(planner, *_workspace(sc)) if planner is not None else \
+            build_planner(view, first.vehicle, scene, sources[source])
         if sc.obstacles:  # every planner's references kept outside the obstacles' margins
-            relay_planner = KeepOutPlanner(relay_planner, world.obstacles(sc))
-        fleet: FleetPlanner = OneRelayPlanner(relay_planner, first.name, source,
+            one = KeepOutPlanner(one, world.obstacles(sc))
+        relay_planner = one
+        fleet: FleetPlanner = OneRelayPlanner(one, first.name, source,
                                               {n: p for n, p in starts.items() if n != first.name})
     else:
         fleet = network_planner(sc, scene, relays, starts)
@@ -521,7 +511,7 @@ def check_bound_size(sc: Scenario) -> None:
     half of this machine's memory or longer than ``bound.max_minutes``."""
     lo, hi = _workspace(sc)
     b = sc.bound
-    if is_network(sc):
+    if sc.is_network:
         relays = {r.name for r in sc.relay_list}
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
         cost = network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops))

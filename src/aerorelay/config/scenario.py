@@ -194,9 +194,15 @@ class Scenario(Strict):
         return {r.name: r.start for r in self.relay_list} | {s.name: s.mission.start for s in self.source_list}
 
     @property
-    def is_fleet(self) -> bool:
-        """More than one relay or more than one source."""
-        return len(self.relay_list) > 1 or len(self.source_list) > 1
+    def is_network(self) -> bool:
+        """More than the paper's one relay and one source: a network's planner (``network.planner``) plans
+        it, and each relay's NMPC looks at its route neighbours (``assembly.parts.build``)."""
+        return len(self.relay_list) + len(self.source_list) > 2
+
+    @property
+    def has_two_hops(self) -> bool:
+        """One route of two hops, the paper's (source -> relay -> base station)."""
+        return len(self.route_list) == 1 and len(self.route_list[0]) == 3
 
     def platform_of(self, i: int) -> PlatformConfig:
         """Relay ``i``'s platform: its own (a preset or a table), else ``[platform]``."""

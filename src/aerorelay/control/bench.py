@@ -38,51 +38,40 @@ def collections_counted(out: dict):
         out.update(collections=counts, max_ms=longest)
 
 
-def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
-    """Fly ``loop`` (a ClosedLoop) and time its controller; time IPOPT at a few visited states."""
-    collections: dict = {}
-    wall0 = time.perf_counter()
-    with collections_counted(collections):
-        result = loop.run()
-    wall = time.perf_counter() - wall0
-    prep, feedback, iters, planner = (np.array([getattr(s, f) for s in loop.timings], float)
+def relay_timing(loop, relay, period_ms: float, *, ipopt_points: int) -> dict:
+    """One relay's controller timing over the steps it flew: preparation and feedback phases, the whole
+    step and with the network planner's step, deadline misses, QP iterations and caps; IPOPT at up to
+    ``ipopt_points`` of the states it met (``BenchPoint``)."""
+    timings = loop.timings[relay.name]
+    prep, feedback, iters, planner = (np.array([getattr(s, f) for s in timings], float)
                                       for f in ("prep_ms", "feedback_ms", "qp_iters", "planner_ms"))
     whole = prep + feedback
-    period_ms = loop.settings.period_s * 1e3
+    nmpc = relay.controller.nmpc
     out = {
         "steps": int(len(prep)),
-        "sim_s": result.sim_s,
-        "wall_s": wall,
-        "real_time_factor": result.sim_s / wall,
         "preparation_ms": stats_ms(prep),
         "feedback_ms": stats_ms(feedback),
         "step_ms": stats_ms(whole),
         "planner_ms": stats_ms(planner),
         "step_with_planner_ms": stats_ms(whole + planner),
-        "planner_preflight_s": float(getattr(loop.planner, "preflight_s", 0.0)),
-        "control_period_ms": period_ms,
         "deadline_misses": int(np.sum(whole > period_ms)),
         "misses_at_500Hz": int(np.sum(whole > 2.0)),
-        "qp_failures": result.qp_failures,
-        "fallback_episodes": result.fallback_episodes,
+        "qp_failures": nmpc.failures,
         "qp_iterations": {"mean": float(iters.mean()), "p99": float(np.percentile(iters, 99)), "max": int(iters.max())},
-        "qp_capped": int(np.sum(np.asarray(result.log["qp_status"]) == QpStatus.CAPPED)),
         "step_p99_over_p50": float(np.percentile(whole + planner, 99) / np.percentile(whole + planner, 50)),
-        "c_min": float(np.min(result.log["capacity"])),
-        "route": loop.nmpc.route(),
-        "garbage_collections": collections,
+        "route": nmpc.route(),
     }
-    if getattr(loop, "sensing", None) is not None:  # jammer.localization = "estimated": the estimator's update per step
-        estimator = np.array([s.estimator_ms for s in loop.timings], float)
+    if loop.sensing is not None:  # jammer.localization = "estimated": the estimator's update per step
+        estimator = np.array([s.estimator_ms for s in timings], float)
         out["estimator_ms"] = stats_ms(estimator)
         out["step_with_planner_and_estimator_ms"] = stats_ms(whole + planner + estimator)
-    points = [(p.x, p.u_prev, p.P, p.guess) for p in loop.bench_points if p.guess is not None][:ipopt_points]
+    points = [(p.x, p.u_prev, p.P, p.guess) for p in loop.bench_points[relay.name] if p.guess is not None][:ipopt_points]
     if points:
-        nlp = FullNlp(loop.nmpc.spec)
-        lbz, ubz = loop.nmpc.absolute_bounds()
+        nlp = FullNlp(nmpc.spec)
+        lbz, ubz = nmpc.absolute_bounds()
         times, ok = [], 0
         for x, u, P, guess in points:
-            xa0, P = loop.nmpc.ocp_data(x, u, P, unpack_plan(loop.nmpc.spec, guess)[1])
+            xa0, P = nmpc.ocp_data(x, u, P, unpack_plan(nmpc.spec, guess)[1])
             t0 = time.perf_counter()
             _, success = nlp.solve(xa0, P, guess, lbz, ubz)
             times.append((time.perf_counter() - t0) * 1e3)
@@ -93,11 +82,12 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
     return out
 
 
-def benchmark_fleet(loop) -> dict:
-    """Fly ``loop`` (a FleetLoop) and time it: each relay's controller step (preparation, feedback,
-    deadline misses, over the steps it flew), the fleet planner's step, and the fleet's step two ways:
-    one computer flying every relay in turn (the relays' steps and the planner's summed) and each
-    relay on its own computer (the slowest relay's step plus the planner's). Times in ms."""
+def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
+    """Fly ``loop`` (a ``sim.closed_loop.ClosedLoop``, any network) and time it: each relay's controller
+    (``relay_timing``, under ``relays``), the network planner's step, and the network's step two ways:
+    one computer flying every relay in turn (the relays' steps and the planner's summed) and each relay
+    on its own computer (the slowest relay's step plus the planner's). Times in ms. A network of one relay
+    also has its relay's timing at the top level (the keys ``aerorelay bench`` prints)."""
     collections: dict = {}
     wall0 = time.perf_counter()
     with collections_counted(collections):
@@ -108,22 +98,22 @@ def benchmark_fleet(loop) -> dict:
     summed, slowest = planner.copy(), np.zeros_like(planner)
     relays = {}
     for r in loop.relays:
-        step = np.asarray(log[f"{r.name}.solve_ms"], float)
-        feedback = np.asarray(log[f"{r.name}.feedback_ms"], float)
-        flew = np.isfinite(step)  # a relay lost in flight times nothing after
-        summed[flew] += step[flew]
-        slowest = np.maximum(slowest, np.where(flew, step, 0.0))
-        relays[r.name] = {"preparation_ms": stats_ms(step[flew] - feedback[flew]), "feedback_ms": stats_ms(feedback[flew]),
-                          "step_ms": stats_ms(step[flew]), "deadline_misses": int(np.sum(step[flew] > period_ms)),
-                          "qp_failures": r.controller.nmpc.failures, "steps": int(flew.sum())}
+        timings = loop.timings[r.name]
+        step = np.full(len(planner), np.nan)
+        step[: len(timings)] = [s.prep_ms + s.feedback_ms for s in timings] if timings else []
+        flew = np.isfinite(np.asarray(log[f"{r.name}.solve_ms"], float))  # a relay lost in flight times nothing after
+        summed[flew] += np.asarray(log[f"{r.name}.solve_ms"], float)[flew]
+        slowest = np.maximum(slowest, np.where(flew, np.asarray(log[f"{r.name}.solve_ms"], float), 0.0))
+        relays[r.name] = relay_timing(loop, r, period_ms, ipopt_points=ipopt_points)
     own = slowest + planner
-    return {
+    out = {
         "steps": int(len(planner)),
         "sim_s": result.sim_s,
         "wall_s": wall,
         "real_time_factor": result.sim_s / wall,
         "relays": relays,
         "planner_ms": stats_ms(planner),
+        "planner_preflight_s": float(getattr(loop.planner, "preflight_s", 0.0)),
         "fleet_step_one_computer_ms": stats_ms(summed),
         "fleet_step_own_computers_ms": stats_ms(own),
         "control_period_ms": period_ms,
@@ -131,6 +121,10 @@ def benchmark_fleet(loop) -> dict:
         "deadline_misses_own_computers": int(np.sum(own > period_ms)),
         "qp_failures": result.qp_failures,
         "fallback_episodes": result.fallback_episodes,
+        "qp_capped": int(sum(np.sum(np.asarray(log[f"{r.name}.qp_status"]) == QpStatus.CAPPED) for r in loop.relays)),
         "c_min": float(np.min(log["capacity"])),
         "garbage_collections": collections,
     }
+    if len(relays) == 1:  # the one relay's timing where aerorelay bench always printed it
+        out |= {k: v for k, v in next(iter(relays.values())).items() if k not in ("steps", "qp_failures")}
+    return out

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..assembly.parts import build, is_network, network_bound, scenario_bound
+from ..assembly.parts import build, network_bound, scenario_bound
 from ..assembly.world import obstacles as obstacle_shapes
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
@@ -250,7 +250,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)
     bound: CapacityBound | NetworkBound | None = None
     if with_bound:
-        bound = network_bound(sc, bound_progress) if is_network(sc) else \
+        bound = network_bound(sc, bound_progress) if sc.is_network else \
             scenario_bound(sc, bound_progress, parts.vehicle, injected)
     loop = parts.closed_loop()
     mission = loop.run(progress)

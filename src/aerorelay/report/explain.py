@@ -10,7 +10,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ..assembly.parts import build_scene, scenario_bound
 from ..experiments.campaign import first_run_per_group, run_dir
@@ -18,7 +17,8 @@ from ..experiments.study import Explanation, RunSpec, scenario_of
 from ..models.channel import end_to_end_capacity
 from ..models.fading import RicianFading
 from ..models.geometry import rotation_batch
-from ..store.run_folder import TIMESERIES_FILE
+from ..sim.log_schema import relays_in
+from .folders import read_timeseries
 
 
 def ceiling(spec: RunSpec, out: Path, paper: float | None) -> str:
@@ -38,12 +38,13 @@ def jammer_noise(spec: RunSpec, out: Path) -> str:
     """Every jammer's interference against the noise, at the BS and along the run's relay path
     (the scene's channel, ``RadioScene.interference``)."""
     sc = scenario_of(spec)
-    df = pd.read_parquet(run_dir(out, spec) / TIMESERIES_FILE)
+    df = read_timeseries(run_dir(out, spec))
     scene = build_scene(sc)
     noise = scene.budget.noise_power
-    p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
+    r = relays_in(df.columns)[0]  # the (first) relay's path
+    p1 = df[[f"{r}.p_x", f"{r}.p_y", f"{r}.p_z"]].to_numpy()
     t = df["t"].to_numpy()
-    R1 = rotation_batch(df[["phi1", "theta1", "psi1"]].to_numpy())
+    R1 = rotation_batch(df[[f"{r}.phi", f"{r}.theta", f"{r}.psi"]].to_numpy())
     peak = np.array([j.power for j in scene.jammers])
     relay, bs = scene.node("relay"), scene.fixed_pose("bs")
     at_relay, at_bs = np.empty(len(t)), np.empty(len(t))
@@ -61,8 +62,11 @@ def jammer_noise(spec: RunSpec, out: Path) -> str:
 
 def fading(spec: RunSpec, out: Path, k_db: list[float]) -> str:
     """Mean capacity under unit-mean Rician fading of every link, at the run's SNRs (its unfaded log)."""
-    df = pd.read_parquet(run_dir(out, spec) / TIMESERIES_FILE, columns=["gamma_21", "gamma_10", "capacity"])
-    g21, g10 = df["gamma_21"].to_numpy(), df["gamma_10"].to_numpy()
+    df = read_timeseries(run_dir(out, spec))
+    hops = [c for c in df.columns if c.startswith("sinr.")]
+    if len(hops) != 2:
+        return f"fading: run '{spec.group}' has {len(hops)} hops; this estimate is the one relay's two (eq. 9)"
+    g21, g10 = df[hops[0]].to_numpy(float), df[hops[1]].to_numpy(float)
     c0 = float(np.mean(end_to_end_capacity(g21, g10)))
     parts = []
     for k in k_db:

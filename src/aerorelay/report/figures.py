@@ -1,4 +1,5 @@
-"""Paper-style figures of one mission (matplotlib PNG) and an interactive 3D view (plotly HTML)."""
+"""A run's figures, for any network (matplotlib PNG) and an interactive 3D view (plotly HTML), read from
+its log in the one vocabulary (``sim.log_schema``)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import plotly.graph_objects as go  # noqa: E402
 
 from ..assembly.parts import build_jammer  # noqa: E402
 from ..config import Scenario  # noqa: E402
+from ..sim.log_schema import relays_in, rotor_count, sources_in  # noqa: E402
 
 RELAY, SOURCE = "#d4a017", "#7b3fa0"
 
@@ -41,122 +43,188 @@ def _shade_jammer_off(ax, df):
                         label="jammer OFF", step="mid")
 
 
+def _relays(df: pd.DataFrame) -> list[str]:
+    return relays_in(df.columns)
+
+
+def _xyz(df: pd.DataFrame, node: str, q: str = "p") -> list[pd.Series]:
+    return [df[f"{node}.{q}_{a}"] for a in "xyz"]
+
+
 def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
+    """Every relay's path (its reference dotted) and every source's in 3D, the base station, the jammers."""
     fig = plt.figure(figsize=(6, 5))
     ax = fig.add_subplot(projection="3d")
-    ax.plot(df["p1_x"], df["p1_y"], df["p1_z"], color=RELAY, label="MRAV-1 (relay)")
-    ax.plot(df["p2_x"], df["p2_y"], df["p2_z"], color=SOURCE, label="MRAV-2 (source)")
-    ax.plot(df["pd_x"], df["pd_y"], df["pd_z"], color=RELAY, ls=":", lw=1, label="relay reference")
+    relays, sources = _relays(df), sources_in(df.columns)
+    one = len(relays) == 1 and len(sources) == 1
+    for i, r in enumerate(relays):
+        colour = RELAY if i == 0 else f"C{i}"
+        ax.plot(*_xyz(df, r), color=colour, label="MRAV-1 (relay)" if one else f"relay {r}")
+        ax.plot(*_xyz(df, r, "pd"), color=colour, ls=":", lw=1, label=f"{'relay' if one else r} reference")
+    for i, s in enumerate(sources):
+        ax.plot(*_xyz(df, s), color=SOURCE if i == 0 else f"C{i + len(relays)}", label="MRAV-2 (source)" if one else f"source {s}")
     ax.scatter(*sc.nodes.bs, color="k", s=30, label="BS")
     for i, (name, P) in enumerate(jammer_tracks(sc, df["t"].to_numpy())):
         ax.scatter(*P[0], color="r", s=30, label="jammer" if i == 0 else None)
         if np.ptp(P, axis=0).max() > 1e-9:
             ax.plot(P[:, 0], P[:, 1], P[:, 2], color="r", lw=1, label=f"{name} (moving)")
-    for i, (c, col) in enumerate(((("p1_x", "p1_y", "p1_z"), RELAY), (("p2_x", "p2_y", "p2_z"), SOURCE))):
-        ax.scatter(*[df[k].iloc[0] for k in c], color=col, marker="o", s=15, label="start (o)" if i == 0 else None)
-        ax.scatter(*[df[k].iloc[-1] for k in c], color=col, marker="^", s=25, label="end (^)" if i == 0 else None)
+    for i, node in enumerate(relays + sources):
+        finite = df[f"{node}.p_x"].notna().to_numpy()  # a relay lost in flight ends where it was lost
+        xs = [c[finite] for c in _xyz(df, node)]
+        ax.scatter(*[c.iloc[0] for c in xs], color="k", marker="o", s=15, label="start (o)" if i == 0 else None)
+        ax.scatter(*[c.iloc[-1] for c in xs], color="k", marker="^", s=25, label="end (^)" if i == 0 else None)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
     ax.legend(loc="upper left", fontsize=7)
-    ax.set_title(_run_title(sc), fontsize=9)
+    ax.set_title(run_title(sc), fontsize=9)
     return fig
 
 
-def _run_title(sc: Scenario) -> str:
-    """Scenario, planner and NMPC variant: what flew."""
+def run_title(sc: Scenario) -> str:
+    """Scenario, planner and NMPC variant (a network's: its relays, sources and planner): what flew."""
+    if len(sc.relay_list) + len(sc.source_list) > 2:
+        return f"{sc.name} ({len(sc.relay_list)} relays, {len(sc.source_list)} sources, {sc.network.planner} planner)"
     return f"{sc.name} ({sc.controller.planner} planner, {sc.controller.variant} NMPC)"
 
 
 def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = None):
+    """The network's rate (the one relay's end-to-end capacity) with each route's alone when there are
+    several, the bound behind it when given, the outage threshold; every hop's spectral efficiency."""
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     ax = axes[0]
     if bound is not None:  # what the physics allows, behind the run
-        ax.semilogy(bound["t"], bound["static"], color="0.6", lw=1, ls="--", label="static bound (best pose per instant)")
-        ax.semilogy(bound["t"], bound["path_maxmin"], color="C1", lw=2.4, alpha=0.6, label="path bound (best minimum)")
-        ax.semilogy(bound["t"], bound["path_mean"], color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound (best mean, <= v_max)")
-        if "flyable_mean" in bound:
-            ax.semilogy(bound["t"], bound["flyable_mean"], color="C4", lw=1.0, ls=":", label="flyable path (best mean found, exactly <= v_max)")
-    ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C")
+        for column, style in BOUND_SERIES:
+            if column in bound:
+                ax.semilogy(bound["t"], bound[column], **style)
+    routes = [c for c in df.columns if c.startswith("capacity.")]
+    if len(routes) > 1:
+        for c in routes:
+            ax.semilogy(df["t"], np.maximum(df[c], 1e-12), lw=0.8, label=f"route of {c[9:]} alone")
+    ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C" if len(routes) <= 1 else "network rate")
     ax.axhline(sc.channel.outage, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
     ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
     ax.legend(fontsize=7)
     ax = axes[1]
-    ax.semilogy(df["t"], np.maximum(df["se_21"], 1e-12), label=r"$\log_2(1+\Gamma_{21})$")
-    ax.semilogy(df["t"], np.maximum(df["se_10"], 1e-12), label=r"$\log_2(1+\Gamma_{10})$")
+    for c in [c for c in df.columns if c.startswith("se.")]:
+        _, tx, rx = c.split(".")
+        ax.semilogy(df["t"], np.maximum(df[c], 1e-12), lw=0.9, label=f"{tx} -> {rx}")
     _shade_jammer_off(ax, df)
-    ax.set_ylabel("spectral efficiency (bit/s/Hz)")
+    ax.set_ylabel(r"$\log_2(1+\Gamma)$ per hop (bit/s/Hz)")
     ax.set_xlabel("t (s)")
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
 
 
-def fig_constraints(df: pd.DataFrame, sc: Scenario):
-    p = sc.platform
+# the bounds' series behind a run's capacity: one relay's (planning/bound.py) and a network's (planning/network_bound.py)
+BOUND_SERIES: tuple[tuple[str, dict], ...] = (
+    ("static", dict(color="0.6", lw=1, ls="--", label="static bound (best pose per instant)")),
+    ("path_maxmin", dict(color="C1", lw=2.4, alpha=0.6, label="path bound (best minimum)")),
+    ("path_mean", dict(color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound (best mean, <= v_max)")),
+    ("flyable_mean", dict(color="C4", lw=1.0, ls=":", label="flyable path (best mean found, exactly <= v_max)")),
+    ("achieved", dict(color="C2", lw=1.2, label="refined configuration (one axis per relay)")),
+    ("flyable", dict(color="C0", lw=1.0, ls=":", label="flyable fleet path (from the starts, speed-limited)")))
+
+
+def fig_constraints(df: pd.DataFrame, sc: Scenario, relay: str | None = None):
+    """A relay's rotor speeds and their rates against its platform's bounds, its NMPC's slack and its
+    mutual alignment against mu."""
+    relays = _relays(df)
+    relay = relay or relays[0]
+    p = sc.platform_of(relays.index(relay)) if relay in relays and len(sc.relay_list) == len(relays) else sc.platform
     fig, axes = plt.subplots(4, 1, figsize=(7, 8), sharex=True)
-    for i in range(1, sum(1 for c in df.columns if c.removeprefix("Omega_").isdigit()) + 1):
-        axes[0].plot(df["t"], df[f"Omega_{i}"], lw=0.8, label=f"rotor {i}")
-        axes[1].plot(df["t"], df[f"u_{i}"], lw=0.6, label=f"rotor {i}")
+    for i in range(1, rotor_count(df.columns, relay) + 1):
+        axes[0].plot(df["t"], df[f"{relay}.Omega_{i}"], lw=0.8, label=f"rotor {i}")
+        axes[1].plot(df["t"], df[f"{relay}.u_{i}"], lw=0.6, label=f"rotor {i}")
     for ax, lo, hi, lab in ((axes[0], p.omega_min_hz, p.omega_max_hz, r"$\Omega$ (Hz)"),
                             (axes[1], p.omega_dot_min_hz_s, p.omega_dot_max_hz_s, r"$\dot\Omega$ (Hz/s)")):
         ax.axhline(lo, color="r", ls="--", lw=1, label="bounds")
         ax.axhline(hi, color="r", ls="--", lw=1)
         ax.set_ylabel(lab)
         ax.legend(fontsize=6, ncol=4, loc="upper right")
-    axes[2].plot(df["t"], df["slack_max"], color="C3")
+    axes[2].plot(df["t"], df[f"{relay}.slack_max"], color="C3")
     axes[2].set_ylabel(r"slack $\pi$ (-)")
-    axes[3].plot(df["t"], df["mutual_alignment"], color="C2", label=r"$(1-v_{12})(1-v_{10})$")
+    axes[3].plot(df["t"], df[f"{relay}.mutual_alignment"], color="C2", label=r"$(1-v_{up})(1-v_{down})$")
     axes[3].axhline(sc.controller.mu, color="r", ls="--", lw=1, label=r"$\mu$")
     axes[3].set_ylabel("mutual alignment (-)")
     axes[3].set_xlabel("t (s)")
     axes[3].legend(fontsize=7)
+    axes[0].set_title(f"relay {relay}", fontsize=9)
     fig.tight_layout()
     return fig
 
 
-def fig_tracking(df: pd.DataFrame, sc: Scenario):
+def fig_tracking(df: pd.DataFrame, sc: Scenario, relay: str | None = None):
+    """A relay's position error against its reference, its attitude, its misalignment toward its
+    upstream and downstream nodes."""
+    relay = relay or _relays(df)[0]
     fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
-    for _i, ax_name in enumerate("xyz"):
-        axes[0].plot(df["t"], df[f"p1_{ax_name}"] - df[f"pd_{ax_name}"], label=f"e_p{ax_name}")
+    for a in "xyz":
+        axes[0].plot(df["t"], df[f"{relay}.p_{a}"] - df[f"{relay}.pd_{a}"], label=f"e_p{a}")
     axes[0].set_ylabel("position error (m)")
     axes[0].legend(fontsize=7)
-    for name in ("phi1", "theta1", "psi1"):
-        axes[1].plot(df["t"], np.degrees(df[name]), label=name)
-    axes[1].set_ylabel("relay attitude (deg)")
+    for q in ("phi", "theta", "psi"):
+        axes[1].plot(df["t"], np.degrees(df[f"{relay}.{q}"]), label=q)
+    axes[1].set_ylabel("attitude (deg)")
     axes[1].legend(fontsize=7)
-    axes[2].plot(df["t"], df["v_12"], label=r"$v_{12}$")
-    axes[2].plot(df["t"], df["v_10"], label=r"$v_{10}$")
+    axes[2].plot(df["t"], df[f"{relay}.v_up"], label=r"$v_{up}$ (toward the source side, $v_{12}$)")
+    axes[2].plot(df["t"], df[f"{relay}.v_down"], label=r"$v_{down}$ (toward the base station side, $v_{10}$)")
     axes[2].set_ylabel("misalignment (-)")
     axes[2].set_xlabel("t (s)")
     axes[2].legend(fontsize=7)
+    axes[0].set_title(f"relay {relay}", fontsize=9)
     fig.tight_layout()
     return fig
 
 
-def trajectory_html(df: pd.DataFrame, sc: Scenario, *, include_plotlyjs=True) -> str:
-    """A self-contained interactive 3D view of both vehicles, the BS and the jammers."""
-    hover = [f"t={t:.2f}s C={c:.2e}" for t, c in zip(df["t"], df["capacity"], strict=False)]
-    fig = go.Figure([
-        go.Scatter3d(x=df["p1_x"], y=df["p1_y"], z=df["p1_z"], mode="lines", name="MRAV-1 (relay)",
-                     line=dict(color=df["capacity"], colorscale="Viridis", width=6,
-                               colorbar=dict(title=dict(text=f"C ({sc.channel.capacity_unit})", side="right"), x=1.0, len=0.6, y=0.35)),
-                     text=hover),
-        go.Scatter3d(x=df["p2_x"], y=df["p2_y"], z=df["p2_z"], mode="lines", name="MRAV-2 (source)",
-                     line=dict(color=SOURCE, width=4)),
-        go.Scatter3d(x=df["pd_x"], y=df["pd_y"], z=df["pd_z"], mode="lines", name="relay reference",
-                     line=dict(color=RELAY, width=2, dash="dot")),
-        go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",
-                     marker=dict(color="black", size=5)),
-        *jammer_traces(sc, df["t"].to_numpy()),
-    ])
-    fig.update_layout(title=_run_title(sc), height=720,
-                      scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)",
-                                 camera=dict(eye=dict(x=1.5, y=1.5, z=0.8))),
+def fig_paths(df: pd.DataFrame, sc: Scenario):
+    """Every vehicle's path from above (x, y) and from the side (x, z); the base station and the jammers."""
+    fig, (top, side) = plt.subplots(1, 2, figsize=(10, 4))
+    for name in _relays(df) + sources_in(df.columns):
+        x, y, z = (df[f"{name}.p_{a}"].to_numpy(float) for a in "xyz")
+        for ax, v in ((top, y), (side, z)):
+            ax.plot(x, v, lw=1.0, label=name)
+            ax.plot(x[0], v[0], "o", ms=3, color=ax.lines[-1].get_color())
+    for ax, i in ((top, 1), (side, 2)):
+        ax.plot(sc.nodes.bs[0], sc.nodes.bs[i], "k^", label="bs")
+        for j in sc.jammer_configs:
+            ax.plot(df[f"jam_{j.name}_x"], df[f"jam_{j.name}_{'yz'[i - 1]}"], "rx", ms=4, label=f"jammer {j.name!r}")
+        ax.set_xlabel("x (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+    top.set_ylabel("y (m)")
+    side.set_ylabel("z (m)")
+    top.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def trajectory_html(df: pd.DataFrame, sc: Scenario) -> str:
+    """A self-contained interactive 3D view of every vehicle (a relay's path coloured by the network's
+    rate), each relay's reference, the base station and the jammers."""
+    unit = sc.channel.capacity_unit
+    traces = []
+    for i, name in enumerate(_relays(df)):
+        bar = dict(title=dict(text=f"network rate ({unit})", side="right"), x=1.0, len=0.6, y=0.35) if i == 0 else None
+        traces.append(go.Scatter3d(x=df[f"{name}.p_x"], y=df[f"{name}.p_y"], z=df[f"{name}.p_z"], mode="lines",
+                                   name=f"relay {name}", text=[f"t={t:.2f}s R={c:.3g}" for t, c in zip(df["t"], df["capacity"],
+                                                                                                        strict=True)],
+                                   line=dict(color=df["capacity"], colorscale="Viridis", width=6, colorbar=bar)))
+        traces.append(go.Scatter3d(x=df[f"{name}.pd_x"], y=df[f"{name}.pd_y"], z=df[f"{name}.pd_z"], mode="lines",
+                                   name=f"{name} reference", line=dict(width=2, dash="dot")))
+    for s in sources_in(df.columns):
+        traces.append(go.Scatter3d(x=df[f"{s}.p_x"], y=df[f"{s}.p_y"], z=df[f"{s}.p_z"], mode="lines",
+                                   name=f"source {s}", line=dict(width=4)))
+    traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="bs",
+                               marker=dict(color="black", size=5)))
+    fig = go.Figure([*traces, *jammer_traces(sc, df["t"].to_numpy())])
+    routes = "; ".join(" -> ".join(r) for r in sc.route_list)
+    fig.update_layout(title=f"{sc.name}: {routes}", height=720,
+                      scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),
                       legend=dict(x=0.0, y=1.0, xanchor="left", yanchor="top", bgcolor="rgba(255,255,255,0.7)"),
                       margin=dict(l=10, r=80, t=50, b=10))
-    return fig.to_html(include_plotlyjs=include_plotlyjs, full_html=True)
+    return fig.to_html(include_plotlyjs=True, full_html=True)
 
 
 def bound_figure(bound: pd.DataFrame, sc: Scenario, series: list[tuple[str, dict]], ylabel: str, title: str):
@@ -184,18 +252,27 @@ def fig_bound(bound: pd.DataFrame, sc: Scenario):
     ], "C", "capacity bounds")
 
 
-FIGURES = {
-    "trajectory_3d.png": fig_trajectory_3d,
-    "capacity.png": fig_capacity,
-    "constraints.png": fig_constraints,
-    "tracking.png": fig_tracking,
-}
+def fig_network_bound(bound: pd.DataFrame, sc: Scenario):
+    """A fleet's network bound over time: the static upper bound, the refined configuration's rate and
+    the flyable fleet path's (``aerorelay bound`` on a fleet)."""
+    series: list[tuple[str, dict]] = [("static", dict(color="0.4", ls="--", label="static upper bound (relaxed axes, grid)")),
+                                      ("achieved", dict(color="C2", lw=1.6, label="refined configuration (one axis per relay)"))]
+    if "flyable" in bound:
+        series.append(("flyable", dict(color="C0", lw=1.2, label="flyable fleet path (from the starts, speed-limited)")))
+    return bound_figure(bound, sc, series, "network rate", "network bound")
 
 
 def write_run_figures(df: pd.DataFrame, sc: Scenario, out: Path, bound: pd.DataFrame | None = None) -> None:
-    """Write every PNG figure and ``trajectory.html`` into ``out`` (``capacity.png`` with the bound behind)."""
-    for name, make in FIGURES.items():
-        fig = fig_capacity(df, sc, bound) if name == "capacity.png" else make(df, sc)
-        fig.savefig(out / name, dpi=110)
+    """Write every figure of a run into ``out``: ``capacity.png`` (the bound behind), ``trajectory_3d.png``,
+    ``paths.png``, ``trajectory.html`` and per relay ``constraints.png`` and ``tracking.png``
+    (``constraints_<relay>.png`` ... when the run has several relays)."""
+    relays = _relays(df)
+    figures = [("capacity.png", fig_capacity(df, sc, bound)), ("trajectory_3d.png", fig_trajectory_3d(df, sc)),
+               ("paths.png", fig_paths(df, sc))]
+    for r in relays:
+        tail = "" if len(relays) == 1 else f"_{r}"
+        figures += [(f"constraints{tail}.png", fig_constraints(df, sc, r)), (f"tracking{tail}.png", fig_tracking(df, sc, r))]
+    for name, fig in figures:
+        fig.savefig(Path(out) / name, dpi=110)
         plt.close(fig)
-    (out / "trajectory.html").write_text(trajectory_html(df, sc))
+    (Path(out) / "trajectory.html").write_text(trajectory_html(df, sc))

@@ -8,10 +8,13 @@ import json
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from ..assembly import parse_scenario
 from ..config import Scenario, ScenarioError
+from ..sim.log_schema import modern_columns, relays_in, sources_in
 from ..sim.units import metric_value_problem
 from ..store.outputs import OutputError
 from ..store.run_folder import METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE
@@ -41,17 +44,36 @@ def read_metrics(folder: str | Path) -> dict:
 
 
 def read_timeseries(folder: str | Path, columns: list[str] | None = None) -> pd.DataFrame:
-    """``timeseries.parquet`` of a run folder (``columns`` only, when given); OutputError naming the
-    file when it is missing, damaged or lacks a column."""
+    """``timeseries.parquet`` of a run folder (``columns`` only, when given) in the one log vocabulary
+    (``sim.log_schema``): a folder written before it (one relay's ``p1_x``, ``gamma_21``...) is read
+    through ``modern_columns``, its route's ``capacity.source`` and its ``separation_min`` (the relay to
+    the source, m) derived; OutputError naming the file when it is missing, damaged or lacks a column."""
     folder = Path(folder)
     f = folder / TIMESERIES_FILE
     if not f.is_file():
         raise OutputError(f"{f}: missing: the run's time series is not there; {_again(folder)}")
     try:
-        return pd.read_parquet(f, columns=columns)
+        names = pq.read_schema(f).names
+        rename = modern_columns(names)
+        if not rename:
+            return pd.read_parquet(f, columns=columns)
+        back = {new: old for old, new in rename.items()}
+        derived = {"capacity.source", "separation_min"}
+        wanted = None if columns is None else list(dict.fromkeys(
+            [back.get(c, c) for c in columns if c not in derived]
+            + (["capacity"] if "capacity.source" in columns else [])
+            + ([f"p{i}_{a}" for i in (1, 2) for a in "xyz"] if "separation_min" in columns else [])))
+        df = pd.read_parquet(f, columns=wanted)
     except Exception as exc:  # pyarrow raises many kinds for a damaged file or a missing column
         raise OutputError(f"{f}: not readable as the run's time series ({type(exc).__name__}: {str(exc)[:200]}); "
                           f"{_again(folder)}") from None
+    if "capacity" in df:
+        df["capacity.source"] = df["capacity"]
+    if "p1_x" in df and "p2_x" in df:
+        df["separation_min"] = np.linalg.norm(df[[f"p1_{a}" for a in "xyz"]].to_numpy() - df[[f"p2_{a}" for a in "xyz"]].to_numpy(),
+                                              axis=1)
+    df = df.rename(columns=rename)
+    return df if columns is None else df[columns]
 
 
 def read_scenario(folder: str | Path) -> Scenario:
@@ -67,13 +89,8 @@ def read_scenario(folder: str | Path) -> Scenario:
 
 
 def vehicle_paths(df: pd.DataFrame) -> tuple[dict[str, pd.DataFrame], dict[str, pd.DataFrame]]:
-    """The relays' and the sources' paths in a run's time series, ``({name: x, y, z}, {name: x, y, z})``,
-    whichever log vocabulary it has: one relay's (``p1_*`` the relay, ``p2_*`` the source) or a fleet's
-    (``<node>.p_*``; a relay also logs ``<node>.qp_ok``)."""
+    """The relays' and the sources' paths in a run's time series (``read_timeseries``'s vocabulary),
+    ``({name: x, y, z}, {name: x, y, z})``."""
     xyz = ("x", "y", "z")
-    if "p1_x" in df:
-        return {"relay": df[[f"p1_{a}" for a in xyz]]}, {"source": df[[f"p2_{a}" for a in xyz]]}
-    names = [c[: -len(".p_x")] for c in df.columns if c.endswith(".p_x")]
-    relays = {n: df[[f"{n}.p_{a}" for a in xyz]] for n in names if f"{n}.qp_ok" in df}
-    sources = {n: df[[f"{n}.p_{a}" for a in xyz]] for n in names if f"{n}.qp_ok" not in df}
-    return relays, sources
+    return ({n: df[[f"{n}.p_{a}" for a in xyz]] for n in relays_in(df.columns)},
+            {n: df[[f"{n}.p_{a}" for a in xyz]] for n in sources_in(df.columns)})

@@ -1,7 +1,7 @@
-"""A Foxglove layout for one run's ``run.mcap``, generated from the run's own columns (one relay or a
-fleet), so every panel names a series the file has: the 3D scene, the capacity (the network's and
-each route's), every hop's SINR (and the mutual alignment where logged), the relays' motor speeds
-and solve times. Written as ``foxglove_layout.json`` into a run folder beside ``run.mcap``."""
+"""A Foxglove layout for one run's ``run.mcap``, generated from the run's own columns (any network),
+so every panel names a series the file has: the 3D scene, the capacity (the network's and each
+route's), every hop's SINR and every relay's mutual alignment, the relays' motor speeds and solve
+times. Written as ``foxglove_layout.json`` into a run folder beside ``run.mcap``."""
 
 from __future__ import annotations
 
@@ -22,8 +22,9 @@ def layout_for(columns: Iterable[str], capacity_unit: str) -> dict:
     """The layout for a run whose ``/timeseries`` has ``columns`` (see the module)."""
     cols = list(columns)
     capacity = [c for c in cols if c == "capacity" or c.startswith("capacity.")]
-    sinr = [c for c in cols if c.startswith("sinr.") or c in ("gamma_21", "gamma_10", "mutual_alignment")]
-    motors = [c for c in cols if c.startswith("Omega_") or (".Omega_" in c)] + [c for c in cols if c.endswith("solve_ms")]
+    alignment = [c for c in cols if c.endswith(".mutual_alignment")]
+    sinr = [c for c in cols if c.startswith("sinr.")] + alignment
+    motors = [c for c in cols if ".Omega_" in c] + [c for c in cols if c.endswith("solve_ms")]
     return {
         "configById": {
             "3D!relay": {"followTf": "world", "scene": {"transforms": {"showLabel": True}},
@@ -31,7 +32,7 @@ def layout_for(columns: Iterable[str], capacity_unit: str) -> dict:
                          "cameraState": {"distance": 40, "perspective": True, "phi": 55, "thetaOffset": 45,
                                          "targetOffset": [0, 0, 8]}},
             "Plot!capacity": _plot(f"capacity ({capacity_unit})", capacity),
-            "Plot!sinr": _plot("SINR per hop" + (" and mutual alignment" if "mutual_alignment" in sinr else ""), sinr),
+            "Plot!sinr": _plot("SINR per hop" + (" and mutual alignment" if alignment else ""), sinr),
             "Plot!motors": _plot("motor speeds (Hz) and solve time (ms)", motors),
         },
         "globalVariables": {}, "userNodes": {},

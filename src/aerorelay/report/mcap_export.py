@@ -2,12 +2,13 @@
 
 Written with the official ``foxglove-sdk`` (Foxglove's well-known schemas, protobuf-encoded):
 
-- ``/tf`` (``foxglove.FrameTransforms``), every control step: ``world -> relay`` and
-  ``world -> mrav2`` (positions m, attitudes from the logged ZYX Euler angles);
-- ``/scene`` (``foxglove.SceneUpdate``), every ``scene_every`` steps: both vehicles with their
-  antenna axes (body z arrows), the base station, every jammer (moving ones follow their path),
-  the relay's reference, the bound's best position (when the run has a bound), and each link
-  (source -> relay, relay -> BS) drawn coloured by its SINR (red 0 ... green >= ``SINR_GREEN``);
+- ``/tf`` (``foxglove.FrameTransforms``), every control step: ``world -> <node>`` for every relay and
+  source by its node name (``relay``, ``source`` for one relay; positions m, attitudes from the logged
+  ZYX Euler angles);
+- ``/scene`` (``foxglove.SceneUpdate``), every ``scene_every`` steps: every vehicle with its antenna
+  axis (body z arrows), the base station, every jammer (moving ones follow their path), each relay's
+  reference, one relay's bound's best position (when the run has a bound), and every hop of every
+  route drawn coloured by its SINR (red 0 ... green >= ``SINR_GREEN``);
 - ``/scene/static`` once: the workspace box;
 - ``/timeseries`` (JSON with a JSON schema), every step: every numeric column of
   ``timeseries.parquet`` (capacity, SINRs, alignment, motor speeds, solve times, ...), plottable
@@ -46,6 +47,7 @@ from foxglove.messages import (
 )
 
 from ..config import Scenario
+from ..sim.log_schema import relays_in, sources_in
 from .figures import jammer_tracks
 
 MCAP_FILE = "run.mcap"
@@ -122,7 +124,7 @@ def _timeseries_schema(columns: list[str]) -> foxglove.Schema:
 
 def numeric_columns(df: pd.DataFrame) -> list[str]:
     """The time-series columns written to ``/timeseries``: numbers and flags, not text (the QP's status,
-    ``qp_status`` and a fleet's ``<relay>.qp_status``; a flight's ``flight_mode``)."""
+    ``<relay>.qp_status``; a flight's ``flight_mode``)."""
     return [c for c in df.columns if pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c])]
 
 
@@ -154,52 +156,14 @@ def _base_station(t: float, p0: np.ndarray) -> SceneEntity:
                                                     bottom_scale=1.0, top_scale=1.0, color=Color(r=0.1, g=0.1, b=0.1, a=1))])
 
 
-def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFrame | None = None, *,
-                   scene_every: int = 5) -> Path:
-    """``run.mcap`` of one run (see the module docstring); returns its path."""
-    t = df["t"].to_numpy()
-    p1 = df[["p1_x", "p1_y", "p1_z"]].to_numpy()
-    p2 = df[["p2_x", "p2_y", "p2_z"]].to_numpy()
-    pd_ = df[["pd_x", "pd_y", "pd_z"]].to_numpy()
-    e1 = df[["phi1", "theta1", "psi1"]].to_numpy()
-    e2 = df[["phi2", "theta2", "psi2"]].to_numpy()
-    tracks = jammer_tracks(sc, t)
-    p0 = np.array(sc.nodes.bs, float)
-    cols = numeric_columns(df)
-    values = df[cols].astype(float).to_numpy()
-    best = None
-    if bound is not None:
-        best = np.column_stack([np.interp(t, bound["t"], bound[f"static_position_{a}"]) for a in "xyz"])
-    with _mcap_channels(path, sc, cols) as (tf, scene, series):
-        for k in range(len(t)):
-            ns = _ns(t[k])
-            tf.log(FrameTransforms(transforms=[_frame("relay", t[k], p1[k], e1[k]), _frame("mrav2", t[k], p2[k], e2[k])]),
-                   log_time=ns)
-            series.log({c: float(v) for c, v in zip(cols, values[k], strict=True)}, log_time=ns)
-            if k % scene_every:
-                continue
-            ents = [_vehicle("relay", t[k], (0.83, 0.63, 0.09)), _vehicle("mrav2", t[k], (0.48, 0.25, 0.63)),
-                    _base_station(t[k], p0),
-                    _marker("reference", t[k], pd_[k], (0.83, 0.63, 0.09), 0.2),
-                    _link("link_source_relay", t[k], p2[k], p1[k], float(df["gamma_21"].iloc[k])),
-                    _link("link_relay_bs", t[k], p1[k], p0, float(df["gamma_10"].iloc[k]))]
-            ents += [_marker(f"jammer_{name}", t[k], P[k], (0.9, 0.1, 0.1), 0.4) for name, P in tracks]
-            if best is not None:
-                ents.append(_marker("bound_best_position", t[k], best[k], (0.1, 0.7, 0.2), 0.25))
-            scene.log(SceneUpdate(entities=ents), log_time=ns)
-    return Path(path)
-
-
 FLEET_COLOURS = ((0.83, 0.63, 0.09), (0.2, 0.55, 0.85), (0.3, 0.7, 0.3), (0.85, 0.4, 0.6), (0.5, 0.5, 0.5))
 
 
-def write_fleet_mcap(df: pd.DataFrame, sc: Scenario, path: Path, *, scene_every: int = 5) -> Path:
-    """``run.mcap`` of a fleet's run (``sim.fleet`` log): ``/tf`` ``world -> <node>`` for every relay
-    and source each step; ``/scene`` every ``scene_every`` steps: every vehicle with its antenna axis,
-    each relay's reference, the base station, every jammer, and every hop of every route coloured by
-    its SINR; ``/scene/static`` the workspace box; ``/timeseries`` every numeric column."""
+def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFrame | None = None, *,
+                   scene_every: int = 5) -> Path:
+    """``run.mcap`` of a run (``sim.log_schema`` log; see the module docstring); returns its path."""
     t = df["t"].to_numpy()
-    relays, sources = [r.name for r in sc.relay_list], [s.name for s in sc.source_list]
+    relays, sources = relays_in(df.columns), sources_in(df.columns)
     pos = {n: df[[f"{n}.p_x", f"{n}.p_y", f"{n}.p_z"]].to_numpy() for n in relays + sources}
     eul = {n: df[[f"{n}.phi", f"{n}.theta", f"{n}.psi"]].to_numpy() for n in relays + sources}
     ref = {n: df[[f"{n}.pd_x", f"{n}.pd_y", f"{n}.pd_z"]].to_numpy() for n in relays}
@@ -210,6 +174,9 @@ def write_fleet_mcap(df: pd.DataFrame, sc: Scenario, path: Path, *, scene_every:
     cols = numeric_columns(df)
     values = df[cols].astype(float).to_numpy()
     colour = {n: FLEET_COLOURS[i % len(FLEET_COLOURS)] for i, n in enumerate(relays + sources)}
+    best = None
+    if bound is not None and "static_position_x" in bound:  # one relay's bound: its best position per instant
+        best = np.column_stack([np.interp(t, bound["t"], bound[f"static_position_{a}"]) for a in "xyz"])
     with _mcap_channels(path, sc, cols) as (tf, scene, series):
         for k in range(len(t)):
             ns = _ns(t[k])
@@ -223,5 +190,7 @@ def write_fleet_mcap(df: pd.DataFrame, sc: Scenario, path: Path, *, scene_every:
             ents += [_link(f"link_{tx}_{rx}", t[k], pos[tx][k], pos[rx][k], float(df[f"sinr.{tx}.{rx}"].iloc[k]))
                      for tx, rx in hops]
             ents += [_marker(f"jammer_{name}", t[k], P[k], (0.9, 0.1, 0.1), 0.4) for name, P in tracks]
+            if best is not None:
+                ents.append(_marker("bound_best_position", t[k], best[k], (0.1, 0.7, 0.2), 0.25))
             scene.log(SceneUpdate(entities=ents), log_time=ns)
     return Path(path)

@@ -1,4 +1,4 @@
-"""One run's report (a fleet's too: ``render_fleet_report``): ``aerorelay report RUN_DIR`` writes ``RUN_DIR/report.html``, one self-contained
+"""One run's report, for any network: ``aerorelay report RUN_DIR`` writes ``RUN_DIR/report.html``, one self-contained
 file (figures embedded) with the run's scenario, its key metrics with their units, its safety
 verdict, what is null and why, and its figures (capacity over the bound, alignment and slack,
 tracking, the 3D path), drawn from the run folder's own files."""
@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..sim.log_schema import relays_in
 from ..sim.units import DIMENSIONLESS, metric_units, si
 from ..store.run_folder import BOUND_PARQUET
-from .figures import fig_capacity, fig_constraints, fig_tracking, fig_trajectory_3d
-from .fleet_figures import fig_paths, fig_rates, fig_sinr
+from .figures import fig_capacity, fig_constraints, fig_paths, fig_tracking, fig_trajectory_3d, run_title
 from .folders import read_metrics, read_scenario, read_timeseries
 from .html import CSS, _png
 
@@ -38,52 +38,39 @@ def _value(m: dict, key: str, units: dict) -> str:
 
 
 def render_run_report(run: Path) -> str:
-    """The HTML of one run folder's report (read from its scenario.toml, metrics.json,
-    timeseries.parquet and bound.parquet when there)."""
+    """The HTML of one run folder's report, for any network (read from its scenario.toml, metrics.json,
+    timeseries.parquet and bound.parquet when there): the key metrics with their units, a network's
+    routes' and relays' metrics, the safety verdict, what is null and why, the figures."""
     run = Path(run)
     sc, m, df = read_scenario(run), read_metrics(run), read_timeseries(run)
     bound = pd.read_parquet(run / BOUND_PARQUET) if (run / BOUND_PARQUET).is_file() else None
-    units = m.get("units") or {}
-    rows = "".join(f"<tr><td>{k}</td><td>{_value(m, k, units)}</td></tr>" for k in RUN_METRICS if k in m)
-    verdict = (f'<p class="no">unsafe: {html.escape(str(m.get("unsafe_reason", "")))}</p>' if m.get("unsafe")
-               else '<p class="yes">safe: the relay stayed in its workspace, above the ground, upright</p>')
-    missing = m.get("optional_outputs_failed") or {}
-    warn = "".join(f'<p class="warn">{html.escape(k)} not written: {html.escape(v)}</p>' for k, v in missing.items())
-    figs = [_png(fig_capacity(df, sc, bound), "capacity"), _png(fig_constraints(df, sc), "alignment and slack"),
-            _png(fig_tracking(df, sc), "tracking"), _png(fig_trajectory_3d(df, sc), "3D path")]
-    title = html.escape(f"{sc.name}: {sc.controller.planner} planner, {sc.controller.variant}")
-    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title><style>{CSS}</style></head><body>"
-            f"<h1>{title}</h1><p>{html.escape(sc.description)}</p>{verdict}{warn}"
-            f"<p>capacities in {html.escape(sc.channel.capacity_unit)} ({html.escape(sc.channel.units)} units); outage below "
-            f"{si(sc.channel.outage, sc.channel.capacity_unit)}</p>"
-            f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
-            + "".join(figs) + f"<details><summary>scenario.toml</summary><pre>{html.escape(sc.to_toml())}</pre></details>"
-            "</body></html>")
-
-
-def render_fleet_report(run: Path) -> str:
-    """The HTML of a fleet's run folder: the network's, each route's and each relay's metrics with
-    their units (``metrics.json``'s ``units``), the safety verdict and the fleet's figures."""
-    run = Path(run)
-    sc, m, df = read_scenario(run), read_metrics(run), read_timeseries(run)
     units = m.get("units") or metric_units(m, sc.channel.capacity_unit)  # a folder written before units
+    relays = relays_in(df.columns)
 
     def value(key: str) -> str:
         node: object = m
         for part in key.split("."):
             node = node.get(part) if isinstance(node, dict) else None
-        return _value({"v": node}, "v", {"v": units.get(key, "")})
+        return _value({"v": node, "null_reasons": m.get("null_reasons")}, "v", {"v": units.get(key, "")})
 
-    rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{value(k)}</td></tr>" for k in units)
+    keys = [k for k in (*RUN_METRICS, "separation_min_m", "fleet_solve_ms") if k in m]
+    if len(relays) > 1 or len(sc.route_list) > 1:  # a network's routes and relays, each its own rows
+        keys += [k for k in units if k.startswith(("routes.", "relays."))]
+    rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{value(k)}</td></tr>" for k in keys)
     verdict = (f'<p class="no">unsafe: {html.escape(str(m.get("unsafe_reason", "")))}</p>' if m.get("unsafe")
                else '<p class="yes">safe: every relay stayed in its workspace, above the ground, upright, and no two '
                     'vehicles came closer than network.min_separation_m</p>')
-    figs = [_png(fig_rates(df, sc), "rates"), _png(fig_sinr(df, sc), "SINR per hop"), _png(fig_paths(df, sc), "paths")]
+    missing = m.get("optional_outputs_failed") or {}
+    warn = "".join(f'<p class="warn">{html.escape(k)} not written: {html.escape(v)}</p>' for k, v in missing.items())
+    figs = [_png(fig_capacity(df, sc, bound), "capacity"), _png(fig_paths(df, sc), "paths")]
+    for r in relays:
+        figs += [_png(fig_constraints(df, sc, r), f"{r}: alignment and slack"), _png(fig_tracking(df, sc, r), f"{r}: tracking")]
+    figs.append(_png(fig_trajectory_3d(df, sc), "3D path"))
     routes = "; ".join(" -> ".join(r) for r in sc.route_list)
-    title = html.escape(f"{sc.name}: {len(sc.relay_list)} relays, {len(sc.source_list)} sources, {sc.network.planner} planner")
+    title = html.escape(run_title(sc))
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title><style>{CSS}</style></head><body>"
-            f"<h1>{title}</h1><p>{html.escape(sc.description)}</p><p>routes: {html.escape(routes)}</p>{verdict}"
-            f"<p>rates in {html.escape(sc.channel.capacity_unit)} ({html.escape(sc.channel.units)} units); the network's "
+            f"<h1>{title}</h1><p>{html.escape(sc.description)}</p><p>routes: {html.escape(routes)}</p>{verdict}{warn}"
+            f"<p>capacities in {html.escape(sc.channel.capacity_unit)} ({html.escape(sc.channel.units)} units); a network's "
             f"rate is every source's (each hop its own slot); outage below {si(sc.channel.outage, sc.channel.capacity_unit)}</p>"
             f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
             + "".join(figs) + f"<details><summary>scenario.toml</summary><pre>{html.escape(sc.to_toml())}</pre></details>"

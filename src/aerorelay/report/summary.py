@@ -10,12 +10,12 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ..experiments.campaign import is_finished, run_dir
 from ..experiments.study import Claim, RunSpec, Study, combinations, parse_term
-from ..store.run_folder import METRICS_FILE, TIMESERIES_FILE
+from ..store.run_folder import METRICS_FILE
 from .explain import explain
+from .folders import read_timeseries, vehicle_paths
 
 SCALAR_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "outage_events", "outage_duration_mean_s",
@@ -66,8 +66,8 @@ def _load_metrics(out: Path, spec: RunSpec) -> dict | None:
 
 
 def _trajectory(out: Path, spec: RunSpec) -> np.ndarray:
-    df = pd.read_parquet(run_dir(out, spec) / TIMESERIES_FILE, columns=["p1_x", "p1_y", "p1_z"])
-    return df.to_numpy()
+    relays, _ = vehicle_paths(read_timeseries(run_dir(out, spec)))
+    return next(iter(relays.values())).to_numpy()  # the (first) relay's path
 
 
 QUANTILES = {"p05": 5, "p25": 25, "median": 50, "p75": 75, "p95": 95}  # the spread over seeds (summary.json)
