@@ -142,14 +142,15 @@ def test_a_fleet_runs_from_the_command_line_with_its_network_bound(tmp_path):
     import json
     m = json.loads((tmp_path / "r" / "metrics.json").read_text())
     assert 0 < m["capacity_efficiency_mean"] <= m["capacity_efficiency_mean_achieved"] and m["bound"]["relays"] == ["r1", "r2"]
-    assert {"scenario.toml", "timeseries.parquet", "metrics.json", "rates.png", "sinr.png", "paths.png", "trajectory.html"} <= {
+    assert {"scenario.toml", "timeseries.parquet", "metrics.json", "capacity.png", "paths.png", "trajectory.html",
+            "constraints_r1.png", "tracking_r2.png"} <= {
         p.name for p in (tmp_path / "r").iterdir()}
     res = CliRunner().invoke(app, ["report", str(tmp_path / "r")])
     assert res.exit_code == 0, res.output
     view = (tmp_path / "r" / "trajectory.html").read_text()
     assert all(f'"name":"{n}' in view.replace(": ", ":") for n in ("relay r1", "relay r2", "source inspector", "bs"))
     page = (tmp_path / "r" / "report.html").read_text()
-    assert "relays.r2.position_error_mean_m" in page and "routes.inspector.c_mean" in page and page.count("<img") == 3
+    assert "relays.r2.position_error_mean_m" in page and "routes.inspector.c_mean" in page and page.count("<img") == 7  # capacity, paths, 3D, each relay its two
     res = CliRunner().invoke(app, ["info", str(f)])
     assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output
 

@@ -300,7 +300,7 @@ def _unit_of(key: str, capacity_unit: str) -> str:
 def _fleet_keys(runs: dict[str, dict]) -> list[str]:
     """A fleet's key metrics (the network's rate and separation, each route's, each relay's), or []
     when every run flew one relay."""
-    fleets = [m for m in runs.values() if "relays" in m]
+    fleets = [m for m in runs.values() if len(m.get("relays", {})) > 1 or len(m.get("routes", {})) > 1]
     if not fleets:
         return []
     routes = sorted({s for m in fleets for s in m.get("routes", {})})
@@ -310,7 +310,7 @@ def _fleet_keys(runs: dict[str, dict]) -> list[str]:
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
                                                           "solve_ms.mean", "solve_ms.p99")]
             + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "wall_s", "sim_s", "bound.static.mean", "bound.achieved.mean",
-               "capacity_efficiency_mean", "capacity_efficiency_mean_achieved"])
+               "capacity_efficiency_mean", "capacity_efficiency_mean_achieved", "exit_status"])
 
 
 def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:

@@ -19,11 +19,12 @@ def loop_mid_mission(request):
     sc = parse_scenario({}).with_updates({"controller.variant": request.param, "sim.duration_s": 9.0})
     loop = build(sc).closed_loop()
     loop.run()
+    loop.nmpc = loop.relays[0].controller.nmpc  # the one relay's NMPC, as it stopped mid-mission
     return loop
 
 
 def test_bench_rti_step(benchmark, loop_mid_mission):
-    bp = loop_mid_mission.bench_points[0]
+    bp = loop_mid_mission.bench_points["relay"][0]
     x, u, P = bp.x, bp.u_prev, bp.P
     nmpc = loop_mid_mission.nmpc
     info = benchmark(nmpc.step, x, u, P, False)
@@ -32,7 +33,7 @@ def test_bench_rti_step(benchmark, loop_mid_mission):
 
 def test_bench_feedback_phase(benchmark, loop_mid_mission):
     """The latency that matters on hardware: measurement in, input out (preparation done before)."""
-    bp = loop_mid_mission.bench_points[0]
+    bp = loop_mid_mission.bench_points["relay"][0]
     x, u, P = bp.x, bp.u_prev, bp.P
     nmpc = loop_mid_mission.nmpc
 
@@ -46,10 +47,10 @@ def test_bench_feedback_phase(benchmark, loop_mid_mission):
 
 def test_bench_trajectory_generator(benchmark, loop_mid_mission):
     loop = loop_mid_mission
-    src = loop.source.state(9.0)
+    src = loop.sources["source"].state(9.0)
     inp = PlannerInput(t=9.0, dt=0.015, p1=src.p + 1.0, p2=src.p, v2=src.v, a2=src.a,
                        jammer_positions=loop.scene.jammers[0].position[None], jammer_powers=np.ones(1))
-    ref = benchmark(loop.planner.update, inp)
+    ref = benchmark(loop.planner.planner.update, inp)  # the one relay's planner inside the network's
     assert np.all(np.isfinite(ref.p_ref))
 
 
@@ -57,7 +58,7 @@ def test_bench_trajectory_generator(benchmark, loop_mid_mission):
 def capacity_planner():
     sc = parse_scenario({}).with_updates({"controller.planner": "capacity"})
     parts = build(sc)
-    return parts.planner, parts.scene
+    return parts.relay_planner, parts.scene
 
 
 @pytest.mark.parametrize("route", ["compiled", "numpy"])

@@ -105,7 +105,7 @@ def test_hold_point_is_inside_the_shrunk_workspace():
 
 def _failing_engine(loop, fail_steps):
     """Make the NMPC engine's feedback fail on the given step numbers (as a broken QP would)."""
-    engine = loop.nmpc.engine
+    engine = loop.relays[0].controller.nmpc.engine
     real = engine.feedback
     count = {"k": 0}
 

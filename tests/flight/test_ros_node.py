@@ -67,7 +67,7 @@ def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
         assert setpoints[-1].joint_names == ["relay"]
         # capacity and the two hops' SINR at the held poses: the spec's sanity geometry, from the link budget
         budget = ar.link_budget(sc)
-        np.testing.assert_allclose(links[-1].data, [budget["capacity"], budget["sinr.source.relay"], budget["sinr.relay.bs"]], rtol=1e-9)
+        np.testing.assert_allclose(links[-1].data, [budget["capacity"], budget["gamma_21"], budget["gamma_10"]], rtol=1e-9)
         np.testing.assert_allclose(links[-1].data, [0.0129, 0.0649, 0.0105], atol=5e-4)  # SPEC.md's values
     finally:
         probe.destroy_node()

@@ -64,7 +64,7 @@ def test_metrics_survive_a_bound_whose_best_is_zero_or_undefined(flown, zero, va
     arrays = {k: np.full(3, 2e-3) for k in ("path_maxmin", "path_mean", "flyable_maxmin", "flyable_mean")}
     arrays[zero] = np.full(3, value)
     bound = SimpleNamespace(**arrays, static=np.full(3, 3e-3), summary=lambda: {"static": {"min": value}})
-    m = run_metrics(sc, res.mission, build_vehicle(sc.platform), bound)
+    m = run_metrics(sc, res.mission, {"relay": build_vehicle(sc.platform)}, bound)
     nulls = [k for k in m if k.startswith("capacity_efficiency") and m[k] is None]
     assert len(nulls) == 1 and nulls[0] in m["null_reasons"]
     named = "efficiency_" + ("min" if "maxmin" in zero else "mean") + "_vs_" + zero.split("_")[0]  # the same ratio, named

@@ -60,7 +60,7 @@ def test_logged_capacity_equals_recomputation_from_logged_states(short_run):
 
 
 def test_metrics_from_log(short_run):
-    m = compute_metrics(short_run.log, vehicle=build_vehicle(SHORT.platform), period_s=SHORT.control_period_s,
+    m = compute_metrics(short_run.log, relays={"relay": build_vehicle(SHORT.platform)}, sources=["source"], period_s=SHORT.control_period_s,
                         outage_threshold=SHORT.channel.outage, mu=SHORT.controller.mu, wall_s=1.0, sim_s=3.0)
     assert m["c_min"] == pytest.approx(np.min(short_run.log["capacity"]))
     assert 0 <= m["outage_fraction"] <= 1 and m["infeasible_fraction"] == 0
@@ -88,7 +88,7 @@ def test_cli_run_writes_outputs_and_compare(tmp_path):
               "constraints.png", "tracking.png", "trajectory.html"):
         assert (out / f).stat().st_size > 0, f
     df = pd.read_parquet(out / "timeseries.parquet")
-    assert list(df.columns) == LOG_COLUMNS + ["jam_jammer_x", "jam_jammer_y", "jam_jammer_z"]  # then each jammer's true position
+    assert list(df.columns) == LOG_COLUMNS  # the relay's, the source's, the links', each jammer's true position last
     m = json.loads((out / "metrics.json").read_text())
     assert set(m["solve_ms"]) == {"mean", "p50", "p95", "p99", "max", "std"}
     res = runner.invoke(app, ["compare", str(tmp_path / "unconstrained"), str(out)])

@@ -105,7 +105,7 @@ def test_separation_min_and_its_verdict():
     sc = parse_scenario(CHAIN)
     r = ar.simulate(sc)
     relays = {"r1": ar.api.vehicle(sc), "r2": ar.api.vehicle(sc)}
-    common = dict(relays=relays, sources=["inspector"], period_s=sc.control_period_s, outage_threshold=1e-3, wall_s=1.0,
+    common = dict(relays=relays, sources=["inspector"], period_s=sc.control_period_s, outage_threshold=1e-3, mu=0.0, wall_s=1.0,
                   sim_s=1.0, workspace_min=WS["min"], workspace_max=WS["max"])
     sep = float(r.timeseries["separation_min"].min())
     assert not compute_metrics(r.mission.log, min_separation_m=sep - 0.1, **common)["unsafe"]

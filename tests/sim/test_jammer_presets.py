@@ -48,8 +48,8 @@ def test_logged_capacity_equals_an_independent_recomputation(preset, planner):
     sc = ar.load_scenario(f"scenarios/{preset}.toml", set={"sim.duration_s": 3.0, "controller.planner": planner})
     df = ar.simulate(sc).timeseries
     t = df["t"].to_numpy()
-    p1, p2 = (df[[f"{n}_x", f"{n}_y", f"{n}_z"]].to_numpy() for n in ("p1", "p2"))
-    R1, R2 = (rotation_batch(df[[f"phi{i}", f"theta{i}", f"psi{i}"]].to_numpy()) for i in (1, 2))
+    p1, p2 = (df[[f"{n}.p_x", f"{n}.p_y", f"{n}.p_z"]].to_numpy() for n in ("relay", "source"))
+    R1, R2 = (rotation_batch(df[[f"{n}.phi", f"{n}.theta", f"{n}.psi"]].to_numpy()) for n in ("relay", "source"))
     p0, I = np.zeros((len(t), 3)), np.tile(np.eye(3), (len(t), 1, 1))
     nodes = {"bs": p0, "relay": p1, "source": p2}
     g21 = legitimate_gain_sq(p2, R2, p1, R1) / (received_interference(sc, t, p1, R1, nodes) + 1.0)

@@ -104,14 +104,14 @@ def test_info_prints_the_link_budget_in_the_chosen_units():
     lines = dict(ar.api.link_budget_lines(PHYSICAL))
     assert lines["noise power"] == "-94.0 dBm" and lines["transmit power"] == "20.0 dBm"
     g = ar.link_budget(PHYSICAL)
-    assert lines["source -> relay: SINR"] == f"{10 * math.log10(g['sinr.source.relay']):.1f} dB"
+    assert lines["source -> relay: SINR"] == f"{10 * math.log10(g['gamma_21']):.1f} dB"
     assert lines["end-to-end capacity"].endswith("Mbit/s")
     # the paper's units: dBW, bit/s/Hz, and the same SINR as the model summary
     paper = dict(ar.api.link_budget_lines(BASE))
     assert paper["noise power"] == "0.0 dBW" and paper["end-to-end capacity"].endswith("bit/s/Hz")
     # received power - (interference + noise) = SINR, line by line
     rx = float(paper["relay -> bs: received power"].split()[0])
-    assert rx - 0.0 == pytest.approx(10 * math.log10(ar.link_budget(BASE)["sinr.relay.bs"]), abs=0.3)
+    assert rx - 0.0 == pytest.approx(10 * math.log10(ar.link_budget(BASE)["gamma_10"]), abs=0.3)
 
 
 # ---------------------------------------------------------------- 3GPP TR 36.777 RMa-AV as the scene's channel

@@ -29,7 +29,13 @@ def test_every_metric_carries_its_unit(preset, sets, physical):
     m = ar.simulate(sc).metrics
     quantities = {k for k, v in m.items() if isinstance(v, int | float | dict | list) and not isinstance(v, bool)
                   and k not in ("units", "null_reasons", "optional_outputs_failed", "bound", "exit_statuses")}  # names, not quantities
-    assert quantities <= set(m["units"]), quantities - set(m["units"])
+    groups = {"routes", "relays"}  # a table per route and per relay: each of their metrics has its unit, by its path
+    assert quantities - groups <= set(m["units"]), quantities - groups - set(m["units"])
+    for group in groups:
+        for node, node_metrics in m[group].items():
+            named = {f"{group}.{node}.{k}" for k, v in node_metrics.items() if isinstance(v, int | float | dict | list)
+                     and not isinstance(v, bool) and k != "exit_statuses"}
+            assert named <= set(m["units"]), named - set(m["units"])
     assert m["unit_system"] == ("physical" if physical else "normalized")
     assert m["units"]["c_min"] == ("bit/s" if physical else "bit/s/Hz") and m["units"]["se_21_mean"] == "bit/s/Hz"
     assert m["units"]["energy_kJ"] == "kJ" and m["units"]["solve_ms"] == "ms" and m["units"]["outage_fraction"] == "1"

@@ -32,8 +32,10 @@ def _value(m: dict, key: str, units: dict) -> str:
     if v is None:
         why = (m.get("null_reasons") or {}).get(key)
         return f"- ({html.escape(why)})" if why else "-"
-    if isinstance(v, bool):
-        return str(v)
+    if isinstance(v, bool | str):
+        return html.escape(str(v))
+    if isinstance(v, list):  # a range or a list of names
+        return ", ".join(_value({"v": x}, "v", {"v": unit}) for x in v)
     return si(float(v), unit) if unit != DIMENSIONLESS else f"{float(v):.4g}"
 
 

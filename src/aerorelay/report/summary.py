@@ -30,7 +30,7 @@ SCALAR_METRICS = (
     "estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimation_err_mean_m", "estimation_err_final_m",
     "estimation_std_final_m", "estimator_ms.mean", "estimator_ms.p99", "estimation_crlb_first_1m_s", "estimation_crlb_10s_m",
     "estimation_within_1m_after_bound",
-    # fleets (sim.metrics.fleet_metrics): the network bound, the closest two vehicles, a relay lost in flight
+    # networks (sim.metrics.compute_metrics): the network bound, the closest two vehicles, a relay lost in flight
     "capacity_efficiency_mean_achieved", "capacity_efficiency_min_achieved", "bound.static.mean", "bound.static.min",
     "bound.achieved.mean", "bound.flyable.mean", "bound.flyable.min", "separation_min_m", "fleet_solve_ms.mean",
     "fleet_solve_ms.p99", "c_mean_before_loss", "c_min_before_loss", "c_mean_after_loss", "c_min_after_loss", "capacity_efficiency_mean_before_loss",
