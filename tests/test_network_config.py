@@ -150,7 +150,7 @@ def test_a_fleet_runs_from_the_command_line_with_its_network_bound(tmp_path):
     view = (tmp_path / "r" / "trajectory.html").read_text()
     assert all(f'"name":"{n}' in view.replace(": ", ":") for n in ("relay r1", "relay r2", "source inspector", "bs"))
     page = (tmp_path / "r" / "report.html").read_text()
-    assert "relays.r2.position_error_mean_m" in page and "routes.inspector.c_mean" in page and page.count("<img") == 7  # capacity, paths, 3D, each relay its two
+    assert "relays.r2.position_error_mean_m" in page and "routes.inspector.c_mean" in page and page.count("<img") == 7
     res = CliRunner().invoke(app, ["info", str(f)])
     assert res.exit_code == 0 and "r1 -> r2: SINR" in res.output and "end-to-end capacity" in res.output, res.output
 

@@ -18,7 +18,8 @@ CASES = {  # case -> (scenario file, dotted updates)
         "sim.duration_s": 2.0, "perturbations.fading_k_db": 3.0, "perturbations.csi_noise_m": 0.05,
         "perturbations.process_noise_v": 0.05, "perturbations.process_noise_w": 0.05,
         "wind.mean_m_s": [3.0, 0.0, 0.0], "wind.gusts": True}),
-    "nominal_estimated": ("scenarios/nominal_tilted.toml", {"sim.duration_s": 2.0, "jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0}),
+    "nominal_estimated": ("scenarios/nominal_tilted.toml", {"sim.duration_s": 2.0, "jammer.localization": "estimated",
+                                                            "jammer.inr_db_at_relay_start": 10.0}),
     "chain": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 2.0}),
     "two_sources": ("scenarios/two_sources.toml", {"sim.duration_s": 2.0}),
 }

@@ -70,7 +70,7 @@ def test_report_of_one_run_folder(tmp_path):
     res = runner.invoke(app, ["report", str(run)])
     assert res.exit_code == 0, res.output
     page = (run / "report.html").read_text()
-    assert "c_min" in page and "bit/s/Hz" in page and "safe:" in page and page.count("data:image/png;base64,") == 5  # capacity, paths, constraints, tracking, 3D
+    assert "c_min" in page and "bit/s/Hz" in page and "safe:" in page and page.count("data:image/png;base64,") == 5
     assert "nominal_tilted" in page and "<pre>" in page
 
 

@@ -51,3 +51,38 @@ def test_every_old_one_relay_column_has_its_new_name():
     assert len(set(rename.values())) == len(rename)  # no two old columns on one new name
     assert rename["p1_x"] == "relay.p_x" and rename["gamma_21"] == "sinr.source.relay" and rename["Omega_6"] == "relay.Omega_6"
     assert LEGACY_COLUMNS["v_12"] == "relay.v_up" and LEGACY_COLUMNS["v_10"] == "relay.v_down"
+
+
+class TowardPoint:
+    """A user's one-relay planner: the reference moves toward ``goal`` (m) at ``speed`` (m/s)."""
+
+    def __init__(self, goal, speed=1.0):
+        self.goal, self.speed, self.p_ref = np.asarray(goal, float), speed, None
+        self.seen: list[np.ndarray] = []
+
+    def update(self, inp: ar.PlannerInput) -> ar.Reference:
+        self.seen.append(inp.p2.copy())
+        if self.p_ref is None:
+            self.p_ref = inp.p1.copy()
+        step = self.goal - self.p_ref
+        step *= min(1.0, self.speed * inp.dt / max(float(np.linalg.norm(step)), 1e-12))
+        self.p_ref = self.p_ref + step
+        return ar.Reference(p_opt=self.goal, p_ref=self.p_ref.copy(), v_ref=step / inp.dt, a_ref=np.zeros(3))
+
+
+def test_a_users_one_relay_planner_flies_the_first_relay_of_a_chain_with_the_others_held():
+    """Issue 46 (item 2): a one-relay planner passed to ``ar.simulate`` plans the chain's first relay (its
+    source the route's upstream node, ``inspector``); the second relay's reference holds its start; the
+    run names the part it was flown with."""
+    sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 2.0})
+    r1, r2 = (np.array(r.start, float) for r in sc.relay_list)
+    planner = TowardPoint(r1 + [0.0, 0.0, 1.0], speed=0.5)
+    r = ar.simulate(sc, planner=planner)
+    df = r.timeseries
+    assert not r.metrics["unsafe"], r.metrics["unsafe_reason"]
+    np.testing.assert_allclose(df[["r2.pd_x", "r2.pd_y", "r2.pd_z"]].to_numpy(), np.tile(r2, (len(df), 1)))
+    assert df["r1.pd_z"].iloc[-1] == pytest.approx(r1[2] + 1.0)  # 1 m at 0.5 m/s: reached within 2 s
+    assert df["r1.p_z"].iloc[-1] - r1[2] > 0.5  # and flown toward
+    inspector = np.array([df[f"inspector.p_{a}"].iloc[0] for a in "xyz"])
+    np.testing.assert_allclose(planner.seen[0], inspector)  # its MRAV-2 is the chain's source (no CSI noise here)
+    assert r.metrics["injected"] == ["planner: TowardPoint"]

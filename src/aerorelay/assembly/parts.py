@@ -439,7 +439,13 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     starts = {r.name: r.start for r in relays}
     relay_planner = None
     if planner is not None or not network:  # a one-relay planner: the user's (checked at the boundary) or the scenario's
-        first, source = relays[0], sc.route_list[0][-3]
+        first = relays[0]
+        route = next(r for r in sc.route_list if first.name in r)
+        source = route[route.index(first.name) - 1]  # its upstream node: the paper's MRAV-2 for one relay
+        if source not in sources:
+            raise ScenarioError(f"relays[0]: a one-relay planner flies the first relay, {first.name!r}, as the paper's relay "
+                                f"between a source and the base station; its upstream node {source!r} is a relay: list a "
+                                "relay next to a source first")
         view = relay_view(sc, 0)
         one: Planner = CheckedPlanner(planner, *_workspace(sc)) if planner is not None else \
             build_planner(view, first.vehicle, scene, sources[source])
