@@ -1,15 +1,17 @@
 """Records the logs the regression test of issue 46 (one machinery) compares against: each case
 flown by the code before the one-relay loop and the fleet loop became one loop (commit 05e1bca), its
 timeseries written to ``tests/data/before_one_machinery/<case>.parquet``. Run from the repository
-root: ``.venv/bin/python tests/data/record_before_one_machinery.py``."""
+root at that commit (``git worktree add /tmp/old 05e1bca``, then from /tmp/old ``PYTHONPATH=src python
+/path/to/this/script``; cases already recorded are kept unless ``--all``)."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import aerorelay as ar
 
-OUT = Path(__file__).parent / "before_one_machinery"
+OUT = Path(__file__).resolve().parent / "before_one_machinery"
 
 CASES = {  # case -> (scenario file, dotted updates)
     "nominal_paper": ("scenarios/nominal_tilted.toml", {"sim.duration_s": 3.0}),
@@ -22,12 +24,16 @@ CASES = {  # case -> (scenario file, dotted updates)
                                                             "jammer.inr_db_at_relay_start": 10.0}),
     "chain": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 2.0}),
     "two_sources": ("scenarios/two_sources.toml", {"sim.duration_s": 2.0}),
+    "chain_capacity": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 1.5, "network.planner": "capacity"}),
+    "two_sources_paper": ("scenarios/two_sources.toml", {"sim.duration_s": 1.5, "network.planner": "paper"}),
 }
 
 
 def main() -> None:
     OUT.mkdir(exist_ok=True)
     for case, (path, updates) in CASES.items():
+        if (OUT / f"{case}.parquet").exists() and "--all" not in sys.argv:
+            continue
         r = ar.simulate(ar.load_scenario(path, set=updates))
         r.timeseries.to_parquet(OUT / f"{case}.parquet")
         print(case, len(r.timeseries), "rows", len(r.timeseries.columns), "columns")

@@ -86,3 +86,28 @@ def test_a_users_one_relay_planner_flies_the_first_relay_of_a_chain_with_the_oth
     inspector = np.array([df[f"inspector.p_{a}"].iloc[0] for a in "xyz"])
     np.testing.assert_allclose(planner.seen[0], inspector)  # its MRAV-2 is the chain's source (no CSI noise here)
     assert r.metrics["injected"] == ["planner: TowardPoint"]
+
+
+def test_a_registered_network_planner_is_named_from_the_scenario_file():
+    """``network.planner`` names any registered network planner (no list to edit); an unknown name is an
+    error naming the field and the registered ones, before any work."""
+    from aerorelay.config import ScenarioError
+    from aerorelay.planning.fleet import NETWORK_PLANNERS, held_reference, register_network_planner
+
+    @register_network_planner("test_hold_all")
+    def _hold_all(ctx):
+        class HoldAll:
+            def update(self, inp):
+                return {name: held_reference(p) for name, p in ctx.starts.items()}
+        return HoldAll()
+
+    try:
+        sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 0.3, "network.planner": "test_hold_all"})
+        df = ar.simulate(sc).timeseries
+        for r in sc.relay_list:
+            np.testing.assert_allclose(df[[f"{r.name}.pd_{a}" for a in "xyz"]].to_numpy(), np.tile(r.start, (len(df), 1)))
+    finally:
+        NETWORK_PLANNERS.pop("test_hold_all")
+    with pytest.raises(ScenarioError, match=r"network.planner: no network planner registered as 'nope'; registered: capacity, "
+                                            r"equidistant, trajectory_generator"):
+        ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": "nope"})

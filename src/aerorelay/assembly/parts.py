@@ -42,15 +42,7 @@ from ..planning.base import (
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
 from ..planning.bound_cost import check_bound_cost, network_bound_cost, single_bound_cost
-from ..planning.capacity_planner import holdable_axes
-from ..planning.fleet import (
-    EquidistantPlanner,
-    EquidistantSettings,
-    FleetCapacityPlanner,
-    FleetCapacitySettings,
-    FleetPlanner,
-    OneRelayPlanner,
-)
+from ..planning.fleet import NETWORK_PLANNERS, FleetPlanner, NetworkPlannerContext, OneRelayPlanner
 from ..planning.keep_out import KeepOutFleetPlanner, KeepOutPlanner
 from ..planning.network_bound import (
     NETWORK_BOUND_VERSION,
@@ -59,8 +51,6 @@ from ..planning.network_bound import (
     compute_network_bound,
     spliced,
 )
-from ..planning.network_generator import NetworkGenerator
-from ..planning.trajectory_generator import SurrogateParams
 from ..sim.air import Air
 from ..sim.closed_loop import ClosedLoop, LoopRelay, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
@@ -192,7 +182,8 @@ def comms_aware_antennas(sc: Scenario) -> None:
 
 def planner_registered(sc: Scenario) -> None:
     """``controller.planner`` (and each relay's) names a registered planner (``planning.base.PLANNERS``:
-    the built-ins and any registered before loading); a named error listing them otherwise."""
+    the built-ins and any registered before loading), ``network.planner`` a registered network planner
+    (``planning.fleet.NETWORK_PLANNERS``); a named error listing them otherwise."""
     named = [("controller.planner", sc.controller.planner)]
     named += [(f"relays[{i}].controller.planner", r.controller["planner"]) for i, r in enumerate(sc.relay_list)
               if r.controller and "planner" in r.controller]
@@ -200,6 +191,10 @@ def planner_registered(sc: Scenario) -> None:
         if name not in PLANNERS:
             raise ScenarioError(f"{field}: no planner registered as {name!r}; registered: {', '.join(sorted(PLANNERS))} "
                                 "(register yours with aerorelay.planning.base.register_planner before loading the scenario)")
+    if sc.network.planner not in NETWORK_PLANNERS:
+        raise ScenarioError(f"network.planner: no network planner registered as {sc.network.planner!r}; registered: "
+                            f"{', '.join(sorted(NETWORK_PLANNERS))} (register yours with "
+                            "aerorelay.planning.fleet.register_network_planner before loading the scenario)")
 
 
 def fleet_flies(sc: Scenario) -> None:
@@ -606,29 +601,11 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray]) -> FleetPlanner:
     """The network's planner named by ``network.planner``, built from the scene's world view, its
     references starting at ``starts`` (m, world) and kept outside the obstacles' margins."""
-    planner = _fleet_planner(sc, scene, relays, starts)
-    return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner
-
-
-def _fleet_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray]) -> FleetPlanner:
     lo, hi = _workspace(sc)
-    cap = sc.controller.capacity
-    relays = [r for r in relays if r.name in starts]
-    if sc.network.planner == "trajectory_generator":
-        c = sc.controller
-        return NetworkGenerator(SurrogateParams.of_scene(scene.world_view(), c.mu, sc.antenna.g_bar), sc.route_list,
-                                list(starts), _vec3(sc.nodes.bs), governor_speed=c.governor_speed_m_s,
-                                eig_floor=c.hessian_eig_floor, workspace_min=lo, workspace_max=hi)
-    if sc.network.planner == "capacity":
-        # each relay's antenna axes it can hold at zero yaw toward each azimuth (its own limit there, times
-        # tilt_fraction), as the one relay's planner: its best azimuth's limit everywhere was not holdable (3 m tracking errors)
-        axes = {r.name: holdable_axes(r.vehicle, cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes)[2] for r in relays}
-        return FleetCapacityPlanner(scene.world_view(), starts, axes,
-                                    FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
-                                                          axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
-                                                          workspace_min=_vec3(lo), workspace_max=_vec3(hi),
-                                                          separation_m=sc.separation_m,
-                                                          obstacles=world.obstacles(sc)))
-    return EquidistantPlanner(sc.route_list, starts, EquidistantSettings(speed_m_s=cap.speed_m_s, margin_m=cap.margin_m,
-                                                                         workspace_min=_vec3(lo), workspace_max=_vec3(hi)))
-
+    ctx = NetworkPlannerContext(scene=scene.world_view(), routes=sc.route_list, starts=starts,
+                                vehicles={r.name: r.vehicle for r in relays if r.name in starts},
+                                bs_position=np.asarray(sc.nodes.bs, float), workspace_min=lo, workspace_max=hi,
+                                settings=planner_settings(sc), surrogate_g_bar=sc.antenna.g_bar, separation_m=sc.separation_m,
+                                obstacles=world.obstacles(sc))
+    planner = NETWORK_PLANNERS[sc.network.planner](ctx)
+    return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner

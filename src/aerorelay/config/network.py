@@ -5,7 +5,7 @@ and ``[mission]`` is one relay named ``relay`` and one source named ``source``."
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import Field, field_validator
 
@@ -73,9 +73,10 @@ class NetworkConfig(Strict):
                                            "sources), m; default the vehicles' own size: twice the largest footprint radius "
                                            "of the relays' platforms (1.5 x the farthest rotor centre: the arm plus a rotor "
                                            "of half its length); a smaller value is refused")
-    planner: Literal["equidistant", "capacity", "trajectory_generator"] = Field(
-        "equidistant", description="the fleet's planner: equidistant (each relay evenly spaced on the line from the "
-        "base station to its source), capacity (each relay in turn moves its goal and antenna axis to the best of "
+    planner: str = Field(
+        "equidistant", description="the fleet's planner, a registered network planner (yours with "
+        "aerorelay.planning.fleet.register_network_planner, tracked by the tracking NMPC): equidistant (each relay "
+        "evenly spaced on the line from the base station to its source), capacity (each relay in turn moves its goal and antenna axis to the best of "
         "its neighbourhood on the network's rate, the others held; [controller.capacity] speed, axes, replanning), "
         "both tracked by the tracking NMPC of controller.planner = capacity; or trajectory_generator (the paper's "
         "generator over every hop of every route, eq. 15-19; controller.mu, governor_speed_m_s, hessian_eig_floor; "

@@ -9,7 +9,7 @@ source, evenly spaced.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -17,7 +17,8 @@ import numpy as np
 
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
-from .base import Planner, PlannerInput
+from ..models.vehicle import Multirotor
+from .base import Planner, PlannerInput, PlannerSettings
 from .trajectory_generator import Reference
 
 
@@ -42,6 +43,41 @@ class FleetInput:
 
 class FleetPlanner(Protocol):
     def update(self, inp: FleetInput) -> dict[str, Reference]: ...
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkPlannerContext:
+    """What a network's planner is built from: the network's world view of the radio scene (no true
+    jammer), its routes (``[source, relay, ..., bs]``), every relay's start (m, world) and vehicle, the
+    base station's position (m), the workspace box (m), the planners' typed settings, the surrogate's
+    ``G_bar``, the separation to keep (m) and the obstacles grown by their margins."""
+
+    scene: RadioScene
+    routes: Sequence[Sequence[str]]
+    starts: Mapping[str, np.ndarray]
+    vehicles: Mapping[str, Multirotor]
+    bs_position: np.ndarray
+    workspace_min: np.ndarray
+    workspace_max: np.ndarray
+    settings: PlannerSettings = PlannerSettings()
+    surrogate_g_bar: float = 1.0
+    separation_m: float = 0.0
+    obstacles: tuple = ()
+
+
+NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]
+NETWORK_PLANNERS: dict[str, NetworkPlannerFactory] = {}
+
+
+def register_network_planner(name: str) -> Callable[[NetworkPlannerFactory], NetworkPlannerFactory]:
+    """Register a network planner's factory under ``name`` for ``network.planner`` (the built-ins:
+    ``planning/registry.py``; register yours before loading the scenario that names it)."""
+    def deco(factory: NetworkPlannerFactory) -> NetworkPlannerFactory:
+        if name in NETWORK_PLANNERS:
+            raise ValueError(f"network planner {name!r} is registered twice")
+        NETWORK_PLANNERS[name] = factory
+        return factory
+    return deco
 
 
 def held_reference(position: np.ndarray) -> Reference:
