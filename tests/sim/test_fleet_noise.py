@@ -16,7 +16,7 @@ from aerorelay.assembly import parse_scenario
 from aerorelay.assembly.parts import build
 from aerorelay.config import ScenarioError
 
-from .test_fleet import CHAIN, _axis, _gain, recorded_inputs
+from .test_fleet import CHAIN, _axis, _gain, recorded_inputs, two_sources
 
 
 def _noisy(**perturbations) -> ar.Scenario:
@@ -142,9 +142,47 @@ def test_a_three_relay_chain_estimates_its_jammer_in_gusty_wind_with_fading():
     assert df.loc[late, "est_jammer_err_m"].max() < 2.0
 
 
-def test_what_a_fleet_does_not_fly_yet_is_named():
+def test_a_relay_lost_in_flight_under_fading_leaves_its_links_and_the_new_hop_fades_on_its_own():
+    """A chain under Rician fading (6 dB) losing r2 at 1 s: from then on the route is inspector -> r1 -> bs,
+    its new hop r1 -> bs fades with its own draw (``fade_amp_r1_bs``), and the logged rates equal the link
+    equations on the logged poses and amplitudes before and after the loss (rel. 1e-9)."""
     d = copy.deepcopy(CHAIN)
-    d["relays"][0]["lost_at_s"] = 1.0
+    d["sim"] = {"duration_s": 2.0}
+    d["relays"][1]["lost_at_s"] = 1.0
     d["perturbations"] = {"fading_k_db": 6.0}
-    with pytest.raises(ScenarioError, match="relays.lost_at_s: a fleet with random channel terms"):
-        ar.simulate(parse_scenario(d))
+    r = ar.simulate(parse_scenario(d))
+    df = r.timeseries
+    assert not r.metrics["unsafe"], r.metrics["unsafe_reason"]
+    after = df["t"] >= 1.0
+    assert df.loc[after, "r2.p_x"].isna().all() and df.loc[after, "sinr.r1.bs"].notna().all()
+    assert df.loc[~after, "sinr.r1.bs"].isna().all()
+    assert df.loc[after, "fade_amp_r1_bs"].std() > 0.1  # drawn: Rician amplitudes at 6 dB spread by ~0.4
+    for k, route in ((10, ["inspector", "r1", "r2", "bs"]), (len(df) - 1, ["inspector", "r1", "bs"])):
+        row = df.iloc[k]
+        pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+        inv = 0.0
+        for tx, rx in zip(route[:-1], route[1:], strict=False):
+            (pt, bt), (pr, br) = _pose(row, tx), _pose(row, rx)
+            jam = 4.0 * _gain(pj, None, pr, br, tx_dipole=False) * row[f"fade_amp_jammer_{rx}"] ** 2
+            g = _gain(pt, bt, pr, br) * row[f"fade_amp_{tx}_{rx}"] ** 2 / (1.0 + jam)
+            assert row[f"sinr.{tx}.{rx}"] == pytest.approx(g, rel=1e-9), (k, tx, rx)
+            inv += 1.0 / math.log2(1.0 + g)
+        assert row["capacity"] == pytest.approx(1.0 / inv, rel=1e-9)
+
+
+def test_two_hops_into_one_receiver_share_its_jammer_links_draw():
+    """Two sources sharing r1: the jammer -> r1 path is one radio path, one fading draw for both hops into
+    r1 (``fade_amp_jammer_r1`` once), and each hop's logged SINR is its link equation with it (rel. 1e-9)."""
+    d = two_sources()
+    d["perturbations"] = {"fading_k_db": 6.0}
+    sc = parse_scenario(d)
+    df = ar.simulate(sc).timeseries
+    assert len(set(df.columns)) == len(df.columns) and list(df.columns).count("fade_amp_jammer_r1") == 1
+    row = df.iloc[len(df) // 2]
+    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+    (pr, br) = _pose(row, "r1")
+    jam = 4.0 * _gain(pj, None, pr, br, tx_dipole=False) * row["fade_amp_jammer_r1"] ** 2
+    for tx in ("inspector", "second"):
+        (pt, bt) = _pose(row, tx)
+        g = _gain(pt, bt, pr, br) * row[f"fade_amp_{tx}_r1"] ** 2 / (1.0 + jam)
+        assert row[f"sinr.{tx}.r1"] == pytest.approx(g, rel=1e-9), tx

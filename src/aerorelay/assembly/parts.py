@@ -8,7 +8,6 @@ it) and shared by the planner, the controller, the plant and the bound.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -162,7 +161,6 @@ def check_buildable(sc: Scenario) -> Scenario:
     start), and a fleet asks only for what a fleet flies. Raises ScenarioError naming the field;
     returns ``sc``."""
     build_scene(sc)
-    fleet_flies(sc)
     planner_registered(sc)
     comms_aware_antennas(sc)
     return sc
@@ -195,16 +193,6 @@ def planner_registered(sc: Scenario) -> None:
         raise ScenarioError(f"network.planner: no network planner registered as {sc.network.planner!r}; registered: "
                             f"{', '.join(sorted(NETWORK_PLANNERS))} (register yours with "
                             "aerorelay.planning.fleet.register_network_planner before loading the scenario)")
-
-
-def fleet_flies(sc: Scenario) -> None:
-    """What a network does not fly yet, as a named error: random channel terms (fading, shadowing)
-    together with relays lost in flight (the network's links change at a loss)."""
-    random_channel = sc.perturbations.fading_k_db is not None and math.isfinite(sc.perturbations.fading_k_db) or \
-        sc.channel.propagation.random
-    if sc.losses and random_channel:
-        raise ScenarioError("relays.lost_at_s: a fleet with random channel terms (fading, shadowing) does not lose relays "
-                            "in flight yet; docs/concepts/networks.md")
 
 
 def path_gain(ch) -> PathGain:
@@ -414,7 +402,6 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     ``planning.base``, ``models.radio``; a planner given for a network plans its first relay, the others
     holding their starts). The scenario's physics checks run first (once per content: ``assembly.checks``)."""
     check_physics(sc)
-    fleet_flies(sc)
     scene = scene or build_scene(sc, jammers)
     network = sc.is_network
     # each relay of a network keeps min_separation_m from every other vehicle (none set: no separation row)

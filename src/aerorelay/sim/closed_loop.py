@@ -170,6 +170,16 @@ def process_streams(seed: int, relays: Sequence[str]) -> dict[str, np.random.Gen
             for i, name in enumerate(relays)}
 
 
+def every_link(scene: RadioScene, losses: Sequence[frozenset[str]]) -> RadioScene:
+    """``scene`` with every route the network takes, before and after each of ``losses`` (the relays lost
+    by then): its links are every link the network ever takes, the scene's own first (``scene`` itself
+    when nothing is lost)."""
+    routes = list(scene.all_routes)
+    for lost in losses:
+        routes += [r for r in scene.without(lost).all_routes if r not in routes]
+    return scene if len(routes) == len(scene.all_routes) else replace(scene, routes=tuple(routes))
+
+
 def route_neighbours(scene: RadioScene) -> dict[str, tuple[str, str]]:
     """Each relay's two neighbours on its first route: (upstream, toward the base station), the nodes
     its NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)."""
@@ -216,11 +226,11 @@ class ClosedLoop:
         self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
         later = [h for _, lost in self.losses for h in scene.without(lost).hops]
         self.columns = log_columns({r.name: r.vehicle.n_rotors for r in relays}, list(sources), scene, later)
-        # the plant's random channel terms on every link (each its own draw, shadowing along each link's own
-        # geometry), unknown to the planners and NMPCs; logged per link (sim/perturbations.py)
-        self.perturbations = settings.link_perturbations(scene)
-        if self.perturbations.active and self.losses:
-            raise ValueError("ClosedLoop: random channel terms with relays lost in flight are not flown yet (the links change)")
+        # the plant's random channel terms on every link the network takes, before and after each loss (each its
+        # own draw, shadowing along each link's own geometry), unknown to the planners and NMPCs; logged per link
+        # (sim/perturbations.py); each step the links of the network flying then are applied
+        self.perturbations = settings.link_perturbations(every_link(scene, [lost for _, lost in self.losses]))
+        self._links_now = self._link_rows(scene)
         self.columns += self.perturbations.columns
         if self.blockage is not None:
             self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
@@ -290,6 +300,11 @@ class ClosedLoop:
         self.scene = self.scene.without(lost)
         self.planner = self.replanner(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
         self.neighbours_of = route_neighbours(self.scene)
+        self._links_now = self._link_rows(self.scene)
+
+    def _link_rows(self, scene: RadioScene) -> np.ndarray:
+        """Where each of ``scene``'s fading links sits among the perturbations' links (every link taken)."""
+        return self.perturbations.layout(scene)
 
     def _relay_step(self, k: int, r: LoopRelay, x: np.ndarray, ref, predicted: dict, lost: frozenset[str], row: dict):
         """Relay ``r``'s control step at ``x`` on the reference ``ref``: its stage parameters (its neighbours
@@ -374,9 +389,11 @@ class ClosedLoop:
                 poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R}
                 gains = None
                 if self.perturbations.active:  # fading and shadowing on every link, each its own
-                    velocities = {**{n: xs[6:9] for n, xs in flying.items()}, **{n: s.v for n, s in truth.items()},
-                                  self.bs_name: np.zeros(3)}
-                    gains, values = self.perturbations.step(t, true_positions, velocities)
+                    velocities = {**{n: xs[6:9] if n in flying else np.zeros(3) for n, xs in x.items()},
+                                  **{n: s.v for n, s in truth.items()}, self.bs_name: np.zeros(3)}
+                    every, values = self.perturbations.step(t, {**{n: xs[0:3] for n, xs in x.items()}, **true_positions},
+                                                            velocities)  # a lost relay's links at where it was lost
+                    gains = None if every is None else every[self._links_now]
                     row |= values
                 if self.blockage is not None:  # a link through an obstacle that blocks radio loses its nlos_loss_db
                     blocked, values = self.blockage.step(self.scene, t, true_positions)

@@ -6,8 +6,9 @@ logged, so a run's capacity can be recomputed from its log alone. The large-scal
 shadowing field, and with 3GPP RMa-AV each link's LoS state) are a ``LargeScaleRealization``
 fixed by the run's seed over every geometry: the bound searches the same one.
 
-Links are in ``RadioScene.fading_links`` order: every hop of the route, then every (hop
-receiver, jammer) pair. Log columns: ``fade_amp_<tx>_<rx>`` (amplitude |h|) and
+Links are the scene's distinct radio paths: every hop, then every (receiver, jammer) pair once
+(``layout`` spreads them over ``RadioScene.fading_links``, where two hops into one receiver each
+carry its jammer links). Log columns: ``fade_amp_<tx>_<rx>`` (amplitude |h|) and
 ``shadow_db_<tx>_<rx>`` (dB), ``los_<tx>_<rx>`` (1 LoS, 0 NLoS; RMa-AV); the power gain of a link
 is ``fade_amp^2 10^(shadow_db / 10)`` times, with RMa-AV, its state's gain over the expected one.
 """
@@ -38,9 +39,16 @@ class PerturbationSettings:
     carrier_hz: float = 2.4e9
 
 
+def distinct_links(scene: RadioScene) -> list[tuple[str, str, int | None]]:
+    """``scene.link_ends()`` with each link once: two hops into one receiver share its jammers' links
+    (one radio path each, one draw)."""
+    return list(dict.fromkeys(scene.link_ends()))
+
+
 def large_scale_realization(scene: RadioScene, settings: PerturbationSettings, seed: int) -> LargeScaleRealization:
-    """The run's shadowing field and LoS states: the plant's, and the bound's for the same seed."""
-    return LargeScaleRealization(scene.path_gain, scene.fading_links, std_db=settings.shadow_std_db,
+    """The run's shadowing field and LoS states over the scene's distinct links: the plant's, and the
+    bound's for the same seed."""
+    return LargeScaleRealization(scene.path_gain, len(distinct_links(scene)), std_db=settings.shadow_std_db,
                                  decorrelation_m=settings.decorrelation_m, seed=seed)
 
 
@@ -50,7 +58,7 @@ class LinkPerturbations:
 
     def __init__(self, scene: RadioScene, settings: PerturbationSettings, *, period_s: float, seed: int):
         self.scene, self.period = scene, period_s
-        self.links = scene.link_ends()
+        self.links = distinct_links(scene)  # one draw per radio path; ``expand`` lays them out as the scene's links
         n = len(self.links)
         fading_on = settings.k_db is not None and not math.isinf(settings.k_db)
         k = float(settings.k_db) if settings.k_db is not None else math.inf
@@ -63,6 +71,11 @@ class LinkPerturbations:
         self.fade_columns = [f"fade_amp_{lb}" for lb in labels] if fading_on else []
         self.shadow_columns = [f"shadow_db_{lb}" for lb in labels] if self.large_scale.active else []
         self.los_columns = [f"los_{lb}" for lb in labels] if self.large_scale.has_los else []
+
+    def layout(self, scene: RadioScene) -> np.ndarray:
+        """Where each of ``scene``'s fading links (``link_ends`` order, a shared receiver's jammer links once
+        per hop) sits among this object's links: ``gains[layout(scene)]`` is what ``scene.evaluate`` takes."""
+        return np.array([self.links.index(link) for link in scene.link_ends()], dtype=int)
 
     @property
     def columns(self) -> list[str]:
