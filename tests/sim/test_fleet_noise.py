@@ -14,7 +14,6 @@ import pytest
 import aerorelay as ar
 from aerorelay.assembly import parse_scenario
 from aerorelay.assembly.parts import build
-from aerorelay.config import ScenarioError
 
 from .test_fleet import CHAIN, _axis, _gain, recorded_inputs, two_sources
 
