@@ -250,6 +250,9 @@ class ClosedLoop:
         self._tk = spec.ts * np.arange(spec.horizon + 1)
         self._bs_path = np.repeat(self.bs[:, None], spec.horizon + 1, axis=1)
         self.gravity = relays[0].vehicle.gravity
+        # the relays' plans enter another relay's stage parameters: a relay next to another on a route (a route of
+        # more than one relay), the separation rows
+        self._plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
         self.planner_ms: list[float] = []
         self.timings: dict[str, list[StepTiming]] = {r.name: [] for r in relays}
@@ -283,7 +286,7 @@ class ClosedLoop:
         plan, shifted by the step flown since (one step old; its current position held before its
         first plan), a source at constant acceleration."""
         out = {}
-        for r in self.relays:
+        for r in self.relays if self._plans_needed else ():
             nmpc = r.controller.nmpc
             if nmpc.initialized:
                 out[r.name] = nmpc.plan()[0][0:3].copy()

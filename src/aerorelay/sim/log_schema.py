@@ -127,10 +127,14 @@ def link_row(scene: RadioScene, t: float, state: ChannelState) -> dict[str, floa
 
 def separation_min(points: np.ndarray) -> float:
     """The smallest distance (m) between two of ``points`` ``(n, 3)``; inf for fewer than two."""
-    if len(points) < 2:
+    n = len(points)
+    if n < 2:
         return math.inf
+    if n <= 8:  # a few vehicles: pairwise in Python (numpy's broadcast cost 70 us a step for two)
+        rows = [tuple(map(float, p)) for p in points]
+        return min(math.dist(rows[i], rows[j]) for i in range(n) for j in range(i + 1, n))
     d = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)
-    return float(d[np.triu_indices(len(points), 1)].min())
+    return float(d[np.triu_indices(n, 1)].min())
 
 
 def new_log(columns: list[str], n_steps: int, kind_of: Callable[[str], type] = column_type) -> dict[str, np.ndarray]:
