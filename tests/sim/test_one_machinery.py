@@ -111,3 +111,28 @@ def test_a_registered_network_planner_is_named_from_the_scenario_file():
     with pytest.raises(ScenarioError, match=r"network.planner: no network planner registered as 'nope'; registered: capacity, "
                                             r"equidistant, trajectory_generator"):
         ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": "nope"})
+
+
+def test_a_run_folder_written_before_the_one_vocabulary_still_reports_and_exports(tmp_path):
+    """A one-relay folder with the old column names (``p1_x``, ``gamma_21``...): ``report`` and ``export``
+    read it under the new names (its route's capacity and the relay-to-source distance derived)."""
+    from typer.testing import CliRunner
+
+    from aerorelay.cli import app
+    from aerorelay.report.folders import read_timeseries
+
+    r = ar.simulate(ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 0.3}))
+    run = r.save(tmp_path / "run", figures=False)
+    now = pd.read_parquet(run / "timeseries.parquet")
+    back = {new: old for old, new in modern_columns(pd.read_parquet(DATA / "before_one_machinery" / "nominal_paper.parquet")
+                                                    .columns).items()}
+    now.drop(columns=["capacity.source", "separation_min"]).rename(columns=back).to_parquet(run / "timeseries.parquet")
+    assert "p1_x" in pd.read_parquet(run / "timeseries.parquet")
+    df = read_timeseries(run)
+    assert set(df.columns) == set(now.columns)
+    np.testing.assert_array_equal(df["capacity.source"], now["capacity"])
+    np.testing.assert_allclose(df["separation_min"], now["separation_min"], rtol=1e-12)
+    for command in (["report", str(run)], ["export", str(run)]):
+        res = CliRunner().invoke(app, command)
+        assert res.exit_code == 0, res.output
+    assert (run / "report.html").stat().st_size > 0 and (run / "run.mcap").stat().st_size > 0
