@@ -75,7 +75,7 @@ def main():
     w, c = np.array(warm_n), np.array(cold_n)
     heavy = np.zeros(len(iters), bool)
     heavy[list(kept)] = True
-    omega = np.stack([res.log[f"Omega_{i + 1}"] for i in range(spec.n_rotors)], 1)
+    omega = np.stack([res.log[f"relay.Omega_{i + 1}"] for i in range(spec.n_rotors)], 1)
     u = np.stack([res.log[f"u_{i + 1}"] for i in range(spec.n_rotors)], 1)
     v = spec.vehicle
     events = {"alignment slack > 1e-4": res.log["slack_max"] > 1e-4,

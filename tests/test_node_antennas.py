@@ -103,3 +103,47 @@ def test_a_run_with_parts_passed_from_python_names_them_and_its_folder_does_not_
     assert res.exit_code == 2 and "injected: this scenario was flown with parts passed from Python" in " ".join(res.output.split())
     assert ar.simulate(again, planner=Hold()).metrics["steps"] == r.metrics["steps"]
     assert "injected" not in sc.to_toml()  # a scenario flown from its file alone says nothing of it
+
+
+def test_jammers_passed_from_python_are_written_as_tables_and_the_folder_flies_them_again(tmp_path):
+    """Issue 46 (item 3): jammers a table can say (static or on a circle or waypoints, always-on or on-off,
+    isotropic or cosine) passed to ``ar.simulate`` become the run folder's ``[[jammers]]``: its
+    ``scenario.toml`` flies the same run bit for bit, and nothing is named as injected."""
+    import numpy as np
+
+    from aerorelay.assembly.parts import build_jammer, jammer_table
+    from aerorelay.config import JammerConfig
+    from aerorelay.models.antenna import CosinePattern
+    from aerorelay.models.jammer import Jammer, PeriodicOnOff
+    from aerorelay.models.mission import CirclePath, LinearPath, RepeatingPath
+
+    jams = [Jammer(position=np.array([-3.0, -2.0, 1.5]), power=2.0, schedule=PeriodicOnOff(0.2, 0.1), name="pulsed",
+                   path=CirclePath([-5.0, -2.0, 1.5], 2.0, 7.0, clockwise=True)),
+            Jammer(position=np.array([3.0, -6.0, 2.0]), power=0.5, pattern=CosinePattern(4.0, 2.0, 0.05), point_at="relay",
+                   name="panel", path=RepeatingPath(LinearPath([[0.0, 3.0, -6.0, 2.0], [1.0, 4.0, -6.0, 2.0],
+                                                               [2.0, 3.0, -6.0, 2.0]])))]
+    for j in jams:  # a table builds the jammer again
+        again = build_jammer(JammerConfig(**jammer_table(j)))
+        for t in (0.0, 0.37, 1.9, 5.3):
+            np.testing.assert_allclose(again.position_at(t), j.position_at(t), rtol=0, atol=1e-12)
+            assert again.power_at(t) == j.power_at(t)
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 0.6})
+    r = ar.simulate(sc, jammers=jams)
+    assert "injected" not in r.metrics and [j.name for j in r.scenario.jammer_configs] == ["pulsed", "panel"]
+    run = r.save(tmp_path / "run", figures=False)
+    flown = ar.simulate(ar.load_scenario(run / "scenario.toml")).timeseries
+    for c in r.timeseries.columns:
+        if not c.endswith("_ms"):
+            assert flown[c].equals(r.timeseries[c]), c
+
+
+def test_a_jammer_a_table_cannot_say_is_named_as_injected():
+    import numpy as np
+
+    from aerorelay.assembly.parts import jammer_table
+    from aerorelay.models.jammer import Jammer, PeriodicOnOff
+
+    odd = Jammer(position=np.array([-5.0, -4.0, 1.5]), power=1.0, schedule=PeriodicOnOff(1.0, 1.0, phase_s=0.3))
+    assert jammer_table(odd) is None
+    r = ar.simulate(ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 0.15}), jammers=[odd])
+    assert r.metrics["injected"] == ["jammers: jammer"]

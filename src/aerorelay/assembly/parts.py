@@ -80,6 +80,36 @@ def build_jammer(cfg: JammerConfig) -> Jammer:
                   boresight=boresight, name=cfg.name)
 
 
+def jammer_table(j: Jammer) -> dict | None:
+    """The ``[[jammers]]`` table that builds ``j`` again (``build_jammer``), or None when a table cannot say
+    it (a schedule, path or pattern of a user's own class, a phase-shifted schedule, a scaled isotropic
+    antenna): what a run flown with jammers passed from Python writes into its ``scenario.toml``."""
+    t: dict = {"name": j.name, "position": [float(v) for v in j.position], "power_w": float(j.power),
+               "localization_delay_s": float(j.localization_delay)}
+    if isinstance(j.schedule, PeriodicOnOff) and j.schedule.phase_s == 0.0:
+        t |= {"schedule": "on_off", "on_s": float(j.schedule.on_s), "off_s": float(j.schedule.off_s)}
+    elif not isinstance(j.schedule, AlwaysOn):
+        return None
+    path, repeat = j.path, False
+    if isinstance(path, RepeatingPath):
+        path, repeat = path.path, True
+    if isinstance(path, CirclePath) and not repeat:
+        t |= {"path": "circle", "center_m": [float(v) for v in path.center], "radius_m": path.r, "period_s": path.period,
+              "clockwise": path.clockwise}
+    elif type(path) in (LinearPath, MinimumJerkPath):
+        assert isinstance(path, LinearPath | MinimumJerkPath)
+        t |= {"path": "linear" if isinstance(path, LinearPath) else "minimum_jerk", "repeat": repeat,
+              "waypoints": [[float(tk), *map(float, pk)] for tk, pk in zip(path.t, path.p, strict=True)]}
+    elif path is not None:
+        return None
+    if isinstance(j.pattern, CosinePattern):
+        t |= {"pattern": "cosine", "g_max": j.pattern.g_max, "exponent": j.pattern.exponent, "back_lobe": j.pattern.back_lobe}
+        t |= {"point_at": j.point_at} if j.point_at else {"boresight": [float(v) for v in j.boresight]}
+    elif not (isinstance(j.pattern, IsotropicPattern) and j.pattern.g_bar == 1.0):
+        return None
+    return t
+
+
 def relay_pattern(cfg: AntennaConfig) -> AntennaPattern:
     """The relay's pattern: a dipole (or sin^n) scaled by the directivity."""
     g = cfg.g_bar * cfg.directivity

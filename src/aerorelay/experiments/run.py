@@ -12,10 +12,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
+from pydantic import ValidationError
 
-from ..assembly.parts import build, network_bound, scenario_bound
+from ..assembly.parts import build, jammer_table, network_bound, scenario_bound
 from ..assembly.world import obstacles as obstacle_shapes
-from ..config import Scenario, ScenarioError
+from ..config import JammerConfig, Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
@@ -245,6 +246,10 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     check_run_size(sc)
     given = {k: v for k, v in (("planner", planner), ("scene", scene), ("jammers", jammers)) if v is not None}
     check_not_injected(sc, given)
+    said = jammers_said(sc, jammers) if jammers is not None and scene is None else None
+    if said is not None:  # the jammers as [[jammers]] tables: the run folder's scenario.toml flies them again
+        sc, jammers = said, None
+        given.pop("jammers")
     parts = build(sc, planner=planner, scene=scene, jammers=jammers, nmpc_settings=nmpc_settings)
     injected = parts.scene if (scene is not None or jammers is not None) else None
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)
@@ -275,6 +280,23 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
         sc = sc.model_copy(update={"injected": metrics["injected"]})
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, bound, views)
+
+
+def jammers_said(sc: Scenario, jammers: list[Jammer]) -> Scenario | None:
+    """``sc`` with ``jammers`` (objects passed from Python) as its ``[[jammers]]`` tables (``jammer_table``; each
+    keeps the scenario's ``localization``), validated; None when a table cannot say one of them (they are then
+    named as injected)."""
+    tables = [jammer_table(j) for j in jammers]
+    if not tables or any(t is None for t in tables):
+        return None
+    localization = sc.jammer_configs[0].localization if sc.jammer_configs else "oracle"
+    try:
+        configs = [JammerConfig(**(t | {"localization": localization})) for t in tables if t is not None]
+        out = sc.model_copy(update={"jammer": None, "jammers": configs})
+        out.with_updates({})  # every cross-field check, as a file would get
+    except (ValidationError, ScenarioError):
+        return None
+    return out
 
 
 def injected_parts(given: dict) -> list[str]:

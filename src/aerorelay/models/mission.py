@@ -261,6 +261,7 @@ class CirclePath(SourceTrajectory):
 
     def __init__(self, center, radius: float, period: float, clockwise: bool = False):
         self.center, self.r = np.asarray(center, float), float(radius)
+        self.period, self.clockwise = float(period), bool(clockwise)
         self.w = (-1.0 if clockwise else 1.0) * 2.0 * np.pi / float(period)
 
     @property
