@@ -37,6 +37,26 @@ class AntennaPattern(Protocol):
         ...
 
 
+def _doughnut_bounds(pattern, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """A gain even in ``c`` and non-increasing in ``|c|``: its least at the largest ``|c|`` of ``[lo, hi]``,
+    its largest at the smallest."""
+    lo, hi = np.clip(np.asarray(lo, float), -1.0, 1.0), np.clip(np.asarray(hi, float), -1.0, 1.0)
+    nearest = np.where((lo <= 0.0) & (hi >= 0.0), 0.0, np.minimum(np.abs(lo), np.abs(hi)))
+    farthest = np.maximum(np.abs(lo), np.abs(hi))
+    return pattern.gain_from_cos(farthest), pattern.gain_from_cos(nearest)
+
+
+def gain_bounds(pattern: AntennaPattern, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """The least and the largest gain of ``pattern`` over the cosines ``[lo, hi]`` (arrays, broadcast):
+    exact for the built-in patterns (each one's ``gain_bounds``); a pattern without it is a ValueError
+    (a bound over it cannot be certified)."""
+    bounds = getattr(pattern, "gain_bounds", None)
+    if bounds is None:
+        raise ValueError(f"{type(pattern).__name__}: no gain_bounds(lo, hi): its least and largest gain over an interval "
+                         "of cosines are not known exactly")
+    return bounds(lo, hi)
+
+
 def dipole_gain(theta, g_bar: float = 1.0):
     """Half-wave dipole gain ``G = g_bar (cos(pi/2 cos th) / sin th)^2`` (paper App. A).
 
@@ -61,6 +81,10 @@ class DipolePattern:
     def symbolic_gain_from_cos(self, c):
         return self.g_bar * (ca.cos(0.5 * np.pi * c) ** 2 / (1.0 - c * c + SYMBOLIC_AXIS_EPS))
 
+    def gain_bounds(self, lo, hi):
+        """Least and largest gain over the cosines ``[lo, hi]``: even in ``c``, non-increasing in ``|c|``."""
+        return _doughnut_bounds(self, lo, hi)
+
 
 @dataclass(frozen=True)
 class SinPowerPattern:
@@ -76,6 +100,10 @@ class SinPowerPattern:
     def symbolic_gain_from_cos(self, c):
         return self.g_bar * (1.0 - c * c + SYMBOLIC_AXIS_EPS) ** (0.5 * self.exponent)
 
+    def gain_bounds(self, lo, hi):
+        """Least and largest gain over the cosines ``[lo, hi]``: even in ``c``, non-increasing in ``|c|``."""
+        return _doughnut_bounds(self, lo, hi)
+
 
 @dataclass(frozen=True)
 class IsotropicPattern:
@@ -89,6 +117,10 @@ class IsotropicPattern:
 
     def symbolic_gain_from_cos(self, c):
         return self.g_bar
+
+    def gain_bounds(self, lo, hi):
+        g = np.full(np.broadcast(np.asarray(lo), np.asarray(hi)).shape, self.g_bar, dtype=float)
+        return g, g
 
 
 @dataclass(frozen=True)
@@ -111,6 +143,10 @@ class CosinePattern:
 
     def symbolic_gain_from_cos(self, c):
         return self.g_max * ca.fmax(ca.fmax(c, 0.0) ** self.exponent, self.back_lobe)
+
+    def gain_bounds(self, lo, hi):
+        """Least and largest gain over the cosines ``[lo, hi]``: non-decreasing in ``c``."""
+        return self.gain_from_cos(lo), self.gain_from_cos(hi)
 
 
 @dataclass(frozen=True)
@@ -140,6 +176,19 @@ class TabulatedPattern:
     def symbolic_gain_from_cos(self, c):
         lut = ca.interpolant("pattern", "linear", [list(self.theta_deg)], list(self.gain))
         return lut(ca.acos(ca.fmin(ca.fmax(c, -1.0), 1.0)) * (180.0 / np.pi))
+
+    def gain_bounds(self, lo, hi):
+        """Least and largest gain over the cosines ``[lo, hi]``: linear in the angle between nodes, so the
+        extremes are at the interval's ends or at a tabulated angle inside it."""
+        lo, hi = np.broadcast_arrays(np.clip(np.asarray(lo, float), -1.0, 1.0), np.clip(np.asarray(hi, float), -1.0, 1.0))
+        t_lo, t_hi = np.degrees(np.arccos(hi)), np.degrees(np.arccos(lo))  # the angles' interval
+        ends = np.stack([np.interp(t_lo, self.theta_deg, self.gain), np.interp(t_hi, self.theta_deg, self.gain)])
+        nodes, gains = np.asarray(self.theta_deg, float), np.asarray(self.gain, float)
+        inside = (nodes[:, None] >= t_lo.ravel()[None, :]) & (nodes[:, None] <= t_hi.ravel()[None, :])
+        g = gains[:, None]
+        least = np.minimum(ends.min(axis=0).ravel(), np.where(inside, g, np.inf).min(axis=0)).reshape(lo.shape)
+        most = np.maximum(ends.max(axis=0).ravel(), np.where(inside, g, -np.inf).max(axis=0)).reshape(lo.shape)
+        return least, most
 
 
 def link_direction_cos(p_from, R_from, p_to):
