@@ -16,7 +16,6 @@ from aerorelay.models.mission import LinearPath
 from aerorelay.models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene
 from aerorelay.planning.bound import BoundResolution
 from aerorelay.planning.network_bound import (
-    BestGain,
     NetworkBoundProblem,
     NetworkBoundSolver,
     compute_network_bound,
@@ -43,20 +42,37 @@ def still(p):
     return LinearPath(np.array([[0.0, *p], [10.0, *p]]))
 
 
-@pytest.mark.parametrize("k", [1, 2, 3])
-def test_k_relays_between_isotropic_nodes_lie_evenly_spaced_at_the_formulas_rate(k):
+@pytest.mark.parametrize(("k", "gap"), [(1, 0.01), (2, 0.12), (3, 0.35)])
+def test_k_relays_between_isotropic_nodes_the_bound_is_above_the_formulas_optimum(k, gap):
     """Free space, no jammer, SNR 1/d^2 (low: each hop's term is convex in its length): the best chain of
-    K relays over a d = 24 m link is evenly spaced with R = B / ((K + 1) / log2(1 + SNR(d / (K + 1))))."""
+    K relays over a d = 24 m link is evenly spaced with R = B / ((K + 1) / log2(1 + SNR(d / (K + 1)))). The
+    certified bound is above it (it bounds every configuration of the cells, not only their centres), by at
+    most the gap its branch and bound reaches within its work cap (measured 2026-12-04 on 1 m cells: 0.5%,
+    8.7%, 29% for K = 1, 2, 3); the refined configuration reaches the optimum, evenly spaced."""
     names = [f"r{i}" for i in range(1, k + 1)]
     src = np.array([24.0, 0.0, 2.0])
     sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
     b = compute_network_bound(problem(sc, {"s": still(src)}, names, [-2, -3, 0], [26, 3, 4], 1.0))
     hop = 24.0 / (k + 1)
     want = 1.0 / ((k + 1) / np.log2(1.0 + 1.0 / hop**2))
-    assert b.static[0] == pytest.approx(want, rel=1e-9)
-    assert b.achieved[0] == pytest.approx(want, rel=1e-6)
+    assert want <= b.static[0] <= want * (1 + gap)
+    assert b.achieved[0] == pytest.approx(want, rel=1e-4)  # L-BFGS-B from the bound's best cells (5e-5 measured)
     even = [BS + (src - BS) * (k - i) / (k + 1) for i in range(k)]  # r1 nearest the source
-    np.testing.assert_allclose(b.static_positions[0], even, atol=1e-9)
+    np.testing.assert_allclose(b.achieved_positions[0], even, atol=0.05)
+
+
+def test_an_optimum_off_the_grid_is_below_the_bound():
+    """Two relays between a source and the base station 21 m apart on 2 m cells: the even places (7 m and 14 m)
+    are no cell's centre, and the bound (before 2026-12-04, 1.1% below the optimum there: it bounded the
+    centres only) is above the formula's optimum."""
+    names = ["r1", "r2"]
+    src = np.array([21.0, 0.3, 2.7])
+    sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
+    b = compute_network_bound(problem(sc, {"s": still(src)}, names, [-1, -2, 0], [23, 2, 4], 2.0))
+    hop = float(np.linalg.norm(src - BS)) / 3
+    want = 1.0 / (3 / np.log2(1.0 + 1.0 / hop**2))
+    assert b.static[0] >= want
+    assert b.achieved[0] == pytest.approx(want, rel=1e-4)
 
 
 def _relaxed_sums(solver, t):
@@ -85,11 +101,14 @@ def test_dynamic_programming_equals_brute_force_on_a_small_grid(routes):
     assert sums[cells[0], cells[1]] == pytest.approx(total, rel=1e-12)  # the cells it names reach it
 
 
-def test_no_random_configuration_beats_the_bound():
+@pytest.mark.parametrize("jammer", [[10.0, -8.0, 1.0], [9.0, 0.5, 0.5]], ids=["beside", "below_the_relays"])
+def test_no_random_configuration_beats_the_bound(jammer):
     """5000 random chains (positions in the box, axes within the tilt limit, any yaw) under a jammer: none
-    above the static bound by more than the stated grid tolerance (1%: the refined configuration never
-    beat the grid's value by more on this geometry)."""
-    sc = scene(["r1", "r2"], DipolePattern(), [["s", "r1", "r2", "bs"]], jammer=[10.0, -8.0, 1.0])
+    above the static bound, with no tolerance (it bounds whole cells and takes the jammer's least
+    interference from below). ``below_the_relays``: the jammer under the relays' places, inside their tilt
+    cones at the cells around it, where the relays can put their dipoles' nulls on it (before, the sampled
+    cone's least interference was above the true least)."""
+    sc = scene(["r1", "r2"], DipolePattern(), [["s", "r1", "r2", "bs"]], jammer=jammer)
     src = still([20.0, 3.0, 5.0])
     lo, hi = np.array([0.0, -4.0, 1.0]), np.array([20.0, 4.0, 7.0])
     pb = problem(sc, {"s": src}, ["r1", "r2"], lo, hi, 1.0)
@@ -98,11 +117,13 @@ def test_no_random_configuration_beats_the_bound():
     poses = solver.fixed_poses(0.0)
     rng = np.random.default_rng(7)
     P = lo + (hi - lo) * rng.random((5000, 2, 3))
+    P[:2500, :, :2] = np.array(jammer[:2]) + rng.normal(0.0, 1.0, (2500, 2, 2))  # half of them near the jammer
+    P = np.clip(P, lo, hi)
     A = tilted_axes(0.35 * np.sqrt(rng.random((5000, 2))), 2 * np.pi * rng.random((5000, 2)))
+    A[:2500] = [0.0, 0.0, 1.0]  # upright: the dipole's null straight down, on a jammer below
     rates = np.array([solver.rate(0.0, P[i], A[i], poses) for i in range(5000)])
-    assert b.resolution["grid_excess"] < 0.01
-    assert rates.max() <= b.static[0] * 1.01, (rates.max(), b.static[0])
-    assert rates.max() <= b.achieved[0] * 1.01  # and the refined configuration is about the best found
+    assert rates.max() <= b.static[0], (rates.max(), b.static[0])
+    assert b.achieved[0] <= b.static[0]
 
 
 def test_one_relay_matches_the_single_relay_bound():
@@ -121,17 +142,17 @@ def test_one_relay_matches_the_single_relay_bound():
     assert net.static[0] >= single.static[0] * (1 - 1e-3)
 
 
-def test_best_gain_reads_the_reachable_cosines():
-    """A dipole's best gain toward a link at elevation e over axes tilted up to tau: broadside (peak 1)
-    when |e| <= tau, else at the cosine sin(|e| - tau)."""
-    best = BestGain(DipolePattern(), np.radians(20.0))
-    assert best(np.sin(np.radians(15.0))) == pytest.approx(1.0)
-    within = np.sin(np.radians(np.linspace(-19.9, 19.9, 999)))
-    assert np.all(best(within) >= 1.0)  # the peak itself wherever an axis reaches broadside, not a sample near it
-    c = np.sin(np.radians(40.0))
-    want = np.cos(0.5 * np.pi * c) ** 2 / (1 - c * c)
-    assert best(np.sin(np.radians(60.0))) == pytest.approx(want, rel=2e-3)
-    assert best(np.sin(np.radians(60.0))) >= want
+def test_a_relays_best_gain_over_its_cone_is_broadside_where_an_axis_reaches_it():
+    """A dipole's best gain toward links at elevations up to 15 deg over axes tilted up to 20 deg is its
+    broadside peak; toward links at 40-50 deg, its gain at the cosine sin(40 deg - 20 deg) (the nearest to
+    broadside any axis reaches)."""
+    sc = scene(["r1"], DipolePattern(), [["s", "r1", "bs"]])
+    solver = NetworkBoundSolver(problem(sc, {"s": still([10.0, 0.0, 2.0])}, ["r1"], [0, -2, 1], [10, 2, 4], 1.0, tilt=np.radians(20.0)))
+    flat = np.array([10.0, 0.0, 0.0])
+    up = flat + [0.0, 0.0, 10.0 * np.tan(np.radians(15.0))]
+    assert solver.relay_gains("r1", flat, up)[1] == pytest.approx(1.0)
+    lo, hi = (np.array([10.0, 0.0, 10.0 * np.tan(np.radians(a))]) for a in (40.0, 50.0))
+    assert solver.relay_gains("r1", lo, hi)[1] == pytest.approx(DipolePattern().gain_from_cos(np.sin(np.radians(20.0))))
 
 
 def test_a_cycle_of_relay_hops_is_named():
@@ -165,33 +186,35 @@ def test_the_separation_keeps_relays_off_the_nodes_where_high_snr_would_collapse
     assert min(gaps(free.achieved_positions[0])) < 1.0  # collapsed onto the ends
     pb = problem(sc, {"s": still(src)}, names, [-2, -2, 0], [22, 2, 4], 1.0)
     kept = compute_network_bound(NetworkBoundProblem(**{**pb.__dict__, "separation_m": 3.0}))
-    assert min(gaps(kept.static_positions[0])) >= 3.0 - 1e-9 and min(gaps(kept.achieved_positions[0])) >= 3.0 - 1e-6
+    assert min(gaps(kept.achieved_positions[0])) >= 3.0 - 1e-6
     assert kept.static[0] < free.static[0]
 
 
-def test_the_offset_table_gives_every_pairs_term_as_its_link_computed_alone():
-    """A path gain of the length alone: each relay-relay link's term read from the grid's table of
-    displacements equals the formula on the two cells, 1 / log2(1 + P g_tx(sin e) g_rx(-sin e) / d^2 / (I + N))
-    (each end's best holdable gain), both directions; and the per-link route gives the same numbers."""
+def test_the_offset_table_gives_every_pairs_term_as_its_two_cells_computed_alone():
+    """Each relay-relay link's bounded term read from the grid's table of displacements equals the bound on
+    the two cells' own displacement box (``signal_bound`` of their centres' difference, 2 half-sides), both
+    directions; and that bound holds the link's SINR at random points of the two cells with random axes."""
     sc = scene(["r1", "r2"], DipolePattern(), [["s", "r1", "r2", "bs"]], jammer=[6.0, -6.0, 1.0])
     solver = NetworkBoundSolver(problem(sc, {"s": still([14.0, 2.0, 4.0])}, ["r1", "r2"], [0, -3, 1], [12, 3, 5], 2.0))
-    assert solver.offsets is not None and not solver.offsets.vectors[len(solver.offsets.vectors) // 2].any()
     poses = solver.fixed_poses(0.0)
     interference = {r: solver.least_interference(0.0, r, poses) for r in solver.relays}
-    table = solver.pair_terms("r1", "r2", slice(3, 40), interference)
-    back = solver.pair_terms("r1", "r2", slice(3, 40), interference, rows_are_tx=False)
+    M = len(solver.cells)
+    table = solver.pair_terms("r1", "r2", slice(3, M), interference)
+    back = solver.pair_terms("r1", "r2", slice(3, M), interference, rows_are_tx=False)
     rng = np.random.default_rng(3)
-    for i, j in zip(rng.integers(3, 40, 200), rng.integers(0, len(solver.cells), 200), strict=True):
+    h = solver.half
+    for i, j in zip(rng.integers(3, M, 200), rng.integers(0, M, 200), strict=True):
         for tx, rx, got in ((i, j, table[i - 3, j]), (j, i, back[i - 3, j])):
-            d = solver.cells[rx] - solver.cells[tx]
-            n = np.linalg.norm(d)
-            if n == 0:
-                assert got == np.inf  # one cell: no link
-                continue
-            g = solver.best["r1"](d[2] / n) * solver.best["r2"](-d[2] / n)
-            assert got == pytest.approx(1.0 / np.log2(1.0 + g / n**2 / (interference["r2"][rx] + 1.0)), rel=1e-12)
-    solver.offsets = None  # the per-link route: every link from its two cells
-    np.testing.assert_allclose(solver.pair_terms("r1", "r2", slice(3, 40), interference), table, rtol=1e-12)
+            s_bound = solver.signal_bound("r1", "r2", solver.cells[rx] - solver.cells[tx], 2 * h)
+            assert got == pytest.approx(1.0 / np.log2(1.0 + s_bound / (interference["r2"][rx] + 1.0)), rel=1e-12)
+            for _ in range(3):  # the true link from random points of the cells, random axes in the cones
+                p_tx = solver.cells[tx] + rng.uniform(-h, h, 3)
+                p_rx = solver.cells[rx] + rng.uniform(-h, h, 3)
+                a_tx, a_rx = tilted_axes(0.35 * rng.random(2), 2 * np.pi * rng.random(2))
+                d = p_rx - p_tx
+                n = np.linalg.norm(d)
+                g = DipolePattern().gain_from_cos(d @ a_tx / n) * DipolePattern().gain_from_cos(-d @ a_rx / n) / n**2
+                assert g <= s_bound * (1 + 1e-12)
 
 
 def test_a_path_gain_of_the_ends_heights_is_not_read_from_the_offset_table():

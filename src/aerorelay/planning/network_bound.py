@@ -35,16 +35,17 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize
 
-from ..models.antenna import AntennaPattern
+from ..models.antenna import gain_bounds
 from ..models.axes import axis_cone, tilted_axes
 from ..models.geometry import rotation_zyx
+from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, elevation_range
 from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
-from .bound import BoundResolution, position_grid
+from .bound import BoundResolution
 from .feasible_path import speed_limited
 
-NETWORK_BOUND_VERSION = "4"  # bump when the computation changes: cached network bounds are recomputed
+NETWORK_BOUND_VERSION = "5"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
 ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere on the position grid of the workspace box at least the "
@@ -136,31 +137,6 @@ class NetworkBound:
         return pd.DataFrame(cols)
 
 
-class BestGain:
-    """A pattern's best gain toward a link at elevation ``e`` over every axis within ``max_tilt`` of
-    vertical with free yaw: ``max g(c)`` for ``c`` in ``[sin(e - max_tilt), sin(e + max_tilt)]``
-    (every cosine in between is reached by some such axis), tabulated over ``sin e`` and read as the
-    larger of the two neighbouring entries (an upper reading)."""
-
-    def __init__(self, pattern: AntennaPattern, max_tilt: float, n: int = 4001, samples: int = 401):
-        s = np.linspace(-1.0, 1.0, n)
-        e = np.arcsin(s)
-        lo, hi = np.sin(np.clip(e - max_tilt, -np.pi / 2, np.pi / 2)), np.sin(np.clip(e + max_tilt, -np.pi / 2, np.pi / 2))
-        c = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, samples)[None, :]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            g = np.nan_to_num(np.asarray(pattern.gain_from_cos(np.clip(c, -1.0, 1.0)), float), nan=0.0)
-        table = np.broadcast_to(g, c.shape).max(axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):  # a dipole's peak is broadside (c = 0): read it
-            g0 = float(np.nan_to_num(np.asarray(pattern.gain_from_cos(0.0), float), nan=0.0))  # where the interval holds it
-        table = np.where((lo <= 0.0) & (hi >= 0.0), np.maximum(table, g0), table)
-        self.table = np.maximum(table, np.r_[table[1:], table[-1]])
-        self.n = n
-
-    def __call__(self, sin_e: np.ndarray) -> np.ndarray:
-        i = np.clip(np.floor((np.asarray(sin_e) + 1.0) * 0.5 * (self.n - 1)).astype(np.int64), 0, self.n - 1)
-        return self.table[i]
-
-
 def relay_forest(routes: Sequence[Sequence[str]], relays: Sequence[str]) -> tuple[list, dict]:
     """The hops as terms: ``unary`` ``[(relay, other node, relay is tx, count)]`` for hops between a relay
     and a fixed node, ``pairs`` ``{(tx, rx): count}`` between two relays; ``ValueError`` when the
@@ -212,28 +188,102 @@ class OffsetTable:
         return (there - here if rows_are_tx else here - there) + self.centre
 
 
-class NetworkBoundSolver:
-    """The per-instant bound on a fixed grid (one instance per problem)."""
+def cell_grid(lo, hi, step: float) -> tuple[list[np.ndarray], np.ndarray]:
+    """Grid axes and ``(M, 3)`` centres of cubes of side ``step`` (m) that cover the box ``[lo, hi]``: the first
+    cube's corner at ``lo``, as many along each axis as reach ``hi`` (the last may reach past it)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    n = np.maximum(1, np.ceil((hi - lo) / step - 1e-9).astype(int))
+    grid = [lo[i] + step * (0.5 + np.arange(n[i])) for i in range(3)]
+    X, Y, Z = np.meshgrid(*grid, indexing="ij")
+    return grid, np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
 
-    def __init__(self, pb: NetworkBoundProblem):
+
+def forest_min_marginals(nodes: Sequence[str], unary: Mapping[str, np.ndarray], neighbours: Mapping[str, set],
+                         block) -> tuple[float, dict[str, np.ndarray]]:
+    """The min-sum of ``unary`` terms and pair terms over a forest (``neighbours``), exactly, and each node's
+    min-marginal (the least total with that node at each of its states): messages up from the leaves and
+    back down. ``block(a, b, rows)``: the pair terms ``(len(rows), n_b)`` of ``a``'s states ``rows`` against
+    every state of ``b``."""
+    remaining, order = set(nodes), []
+    parent: dict[str, str | None] = {}
+    while remaining:
+        leaf = next(n for n in nodes if n in remaining and len(neighbours[n] & remaining) <= 1)
+        remaining.discard(leaf)
+        order.append(leaf)
+        rest = neighbours[leaf] & remaining
+        parent[leaf] = next(iter(rest)) if rest else None
+    msgs: dict[tuple[str, str], np.ndarray] = {}
+
+    def belief(a: str, without: str | None) -> np.ndarray:
+        v = np.array(unary[a], float)
+        for c in neighbours[a]:
+            if c != without and (c, a) in msgs:
+                v = v + msgs[c, a]
+        return v
+
+    def message(a: str, b: str) -> np.ndarray:
+        v, n_a = belief(a, b), len(unary[a])
+        out = np.full(len(unary[b]), np.inf)
+        for start in range(0, n_a, CHUNK):
+            rows = slice(start, min(start + CHUNK, n_a))
+            out = np.minimum(out, (v[rows][:, None] + block(a, b, rows)).min(axis=0))
+        return out
+
+    for a in order:
+        p = parent[a]
+        if p is not None:
+            msgs[a, p] = message(a, p)
+    for a in reversed(order):
+        p = parent[a]
+        if p is not None:
+            msgs[p, a] = message(p, a)
+    marginals = {n: belief(n, None) for n in nodes}
+    return float(sum(marginals[n].min() for n in nodes if parent[n] is None)), marginals
+
+
+@dataclass
+class CellSets:
+    """Each relay's cells at one level of the search: centres ``(n_r, 3)`` (m) of cubes of half-side ``half`` (m)."""
+
+    centres: dict[str, np.ndarray]
+    half: float
+
+
+class NetworkBoundSolver:
+    """The per-instant certified bound (one instance per problem): every hop's term bounded from below over
+    whole cells (cubes of side ``bound.network_grid_m`` covering the workspace box), a min-sum over the
+    relays' cells, then branch and bound (cells that cannot hold the optimum dropped, the others split in
+    eight) until the bound is within ``tolerance`` of a configuration the physics allows."""
+
+    def __init__(self, pb: NetworkBoundProblem, tolerance: float = 0.01, max_levels: int = 4, max_pairs: float = 4e6):
         self.pb, self.scene = pb, pb.scene
+        self.tolerance, self.max_levels, self.max_pairs = tolerance, max_levels, max_pairs
         self.relays = [n.name for n in pb.scene.nodes if n.role == "relay"]
         self.unary, self.pairs = relay_forest(pb.scene.all_routes, self.relays)
         aimed = [j.name for j in pb.scene.jammers if j.point_at in self.relays]
         if aimed:
             raise ValueError(f"network bound: jammer(s) {aimed} aim at a relay, whose place the bound searches; not supported")
+        unbounded = [n.name for n in pb.scene.nodes if not hasattr(n.antenna.pattern, "gain_bounds")]
+        unbounded += [j.name for j in pb.scene.jammers if not hasattr(j.pattern, "gain_bounds")]
+        if unbounded:
+            raise ValueError(f"network bound: the antennas of {unbounded} have no gain_bounds (their least and largest gain "
+                             "over an interval of directions): no certified bound")
         res = pb.resolution
         self.lo, self.hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
-        grid, self.cells = position_grid(self.lo, self.hi, res.grid_m)
-        self.blocked = inside_any(pb.obstacles, self.cells)  # cells inside an obstacle's margin: no relay there
-        self.best = {r: BestGain(pb.scene.node(r).antenna.pattern, pb.tilt_limits[r]) for r in self.relays}
+        grid, self.cells = cell_grid(self.lo, self.hi, res.grid_m)
+        self.half = 0.5 * res.grid_m
         self.cones = {r: axis_cone(pb.tilt_limits[r], np.radians(res.axis_step_deg)) for r in self.relays}
-        self.offsets = OffsetTable([len(g) for g in grid], res.grid_m) if pb.scene.path_gain.distance_only else None
-        zero = np.zeros(3)
-        self.signal = {} if self.offsets is None else {(tx, rx): self._signal(tx, rx, zero, self.offsets.vectors)
-                                                       for tx, rx in self.pairs}
+        self.offsets = OffsetTable([len(g) for g in grid], res.grid_m)
+        self.signal = {(tx, rx): self.signal_bound(tx, rx, self.offsets.vectors, 2.0 * self.half) for tx, rx in self.pairs}
+        self.edges: dict[tuple, list[tuple[str, str, int]]] = {tuple(sorted(p)): [] for p in self.pairs}
+        for (tx, rx), count in self.pairs.items():
+            self.edges[tuple(sorted((tx, rx)))].append((tx, rx, count))
+        self.neighbours: dict[str, set] = {r: set() for r in self.relays}
+        for a, b in self.edges:
+            self.neighbours[a].add(b)
+            self.neighbours[b].add(a)
 
-    # -- channel pieces -------------------------------------------------------------------
+    # -- channel pieces, bounded over cubes ----------------------------------------------------
     def fixed_poses(self, t: float) -> dict[str, NodePose]:
         """Every source at its pose on its mission at ``t``, the fixed nodes as placed."""
         poses = {n.name: self.scene.fixed_pose(n.name) for n in self.scene.nodes if n.position is not None}
@@ -242,143 +292,173 @@ class NetworkBoundSolver:
             poses[name] = self.scene.pose(name, s.p, rotation_zyx(s.attitude(self.pb.gravity)))
         return poses
 
-    def _path(self, p_tx, p_rx):
-        d = p_rx - p_tx
-        d2 = np.einsum("...i,...i->...", d, d)
-        pg = self.scene.path_gain
-        with np.errstate(divide="ignore"):  # two relays in one cell: no link between them (term inf)
-            return d, d2, (1.0 / d2 if pg.is_paper else pg.gain_between(p_tx, p_rx, d2))
+    def _path_most(self, r_min: np.ndarray) -> np.ndarray:
+        """The largest path gain of a link at least ``r_min`` m long (and at least the separation): the gain
+        falls with the length (RMa-AV: its upper bound over aerial heights, ``gain_from_d2``)."""
+        r = np.maximum(r_min, self.pb.separation_m)
+        with np.errstate(divide="ignore"):
+            return np.asarray(self.scene.path_gain.gain_from_d2(r * r), float)
 
-    def least_interference(self, t: float, relay: str, poses: Mapping[str, NodePose]) -> np.ndarray:
-        """``(M,)`` W: each cell's jammer interference at ``relay``'s receiver, least over its axis cone."""
-        if not self.scene.jammers:
-            return np.zeros(len(self.cells))
-        P, B = self.cells[:, None, :], self.cones[relay][None, :, :]
-        emitters = self.scene.emitters(t, {**poses, relay: NodePose(P, B)})
-        with np.errstate(divide="ignore", invalid="ignore"):
-            i = self.scene.interference(emitters, NodePose(P, B), self.scene.node(relay).antenna.pattern)
-        i = np.nan_to_num(np.broadcast_to(np.asarray(i, float), (len(self.cells), B.shape[1])), nan=np.inf)
-        return i.min(axis=1)
+    def _path_least(self, r_max: np.ndarray) -> np.ndarray:
+        """The least path gain of a link at most ``r_max`` m long: a length-only gain at ``r_max``; 0 for a gain
+        that depends on where the ends are (no lower bound taken)."""
+        pg = self.scene.path_gain
+        return np.asarray(pg.gain_from_d2(r_max * r_max), float) if pg.distance_only else np.zeros(np.shape(r_max))
+
+    def relay_gains(self, relay: str, to_lo, to_hi) -> tuple[np.ndarray, np.ndarray]:
+        """Least and largest gain of ``relay``'s antenna toward the boxes of directions ``[to_lo, to_hi]`` over
+        every axis it can hold (tilt up to its hover limit, any yaw)."""
+        s_lo, s_hi = elevation_range(to_lo, to_hi)
+        return gain_bounds(self.scene.node(relay).antenna.pattern, *cone_cos_range(s_lo, s_hi, self.pb.tilt_limits[relay]))
+
+    def least_interference(self, t: float, relay: str, poses: Mapping[str, NodePose], centres=None, half=None) -> np.ndarray:
+        """``(n,)`` W: a lower bound of the jammers' interference at ``relay``'s receiver anywhere in each cube
+        (``centres``, half-side ``half``; default the grid's) with any axis of its cone."""
+        centres = self.cells if centres is None else centres
+        half = self.half if half is None else half
+        out = np.zeros(len(centres))
+        for e in self.scene.emitters(t, poses):
+            if e.power == 0.0:
+                continue
+            lo, hi = centres - half - e.position, centres + half - e.position  # jammer -> cube
+            _, r_max = distance_range(lo, hi)
+            g_j = gain_bounds(e.pattern, *axis_cos_range(lo, hi, e.axis))[0]
+            g_r = self.relay_gains(relay, -hi, -lo)[0]  # the relay toward the jammer
+            out = out + e.power * g_j * g_r * self._path_least(r_max)
+        return out
 
     def _term(self, gamma):
-        """``1 / log2(1 + Gamma)``, inf for a dead hop (Gamma = 0)."""
+        """``1 / log2(1 + Gamma)``, inf for a dead hop (Gamma = 0), 0 for an unbounded one."""
         se = spectral_efficiency(gamma)
         with np.errstate(divide="ignore"):
             return np.reciprocal(se, out=se) if isinstance(se, np.ndarray) else 1.0 / se
 
-    def _too_close(self, poses) -> np.ndarray:
-        """``(M,)``: inf at the cells inside an obstacle's margin or closer than the separation to a source or the
-        base station, else 0."""
+    def _excluded(self, poses, centres, half) -> np.ndarray:
+        """``(n,)``: inf at the cubes no relay may be anywhere in (wholly inside one obstacle's margin, or
+        wholly closer than the separation to a source or the base station), else 0."""
+        out = np.zeros(len(centres))
+        corners = centres[:, None, :] + half * np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+        for o in self.pb.obstacles:  # convex: a cube whose corners are all inside is inside
+            out[np.all(o.signed_distance(corners) < 0, axis=1)] = np.inf
         sep = self.pb.separation_m
-        out = np.where(self.blocked, np.inf, 0.0)
         if sep > 0:
             for pose in poses.values():
-                out[np.linalg.norm(self.cells - pose.position, axis=1) < sep] = np.inf
+                _, r_max = distance_range(centres - half - pose.position, centres + half - pose.position)
+                out[r_max < sep] = np.inf
         return out
 
-    def unary_terms(self, t: float, poses, interference) -> dict[str, np.ndarray]:
-        """Each relay's terms ``(M,)`` from its hops with fixed nodes (relaxed relay axis); inf where it
-        would be closer than the separation to one of them."""
+    def unary_terms(self, t: float, poses, interference, centres=None, half=None, only: str | None = None) -> dict[str, np.ndarray]:
+        """Each relay's terms ``(n,)`` from its hops with fixed nodes, bounded from below over each cube (its
+        axis relaxed: its best over the cone toward each node); inf at the cubes it may not be in. ``only``:
+        that relay's alone."""
+        centres = self.cells if centres is None else centres
+        half = self.half if half is None else half
         b = self.scene.budget
-        out = {r: self._too_close(poses) for r in self.relays}
+        excluded = self._excluded(poses, centres, half)
+        out = {r: excluded.copy() for r in self.relays if only is None or r == only}
         for r, other, is_tx, count in self.unary:
+            if r not in out:
+                continue
             o = poses[other]
             pat_o = self.scene.node(other).antenna.pattern
-            p_tx, p_rx = (self.cells, o.position) if is_tx else (o.position, self.cells)
-            d, d2, path = self._path(p_tx, p_rx)
-            n = np.sqrt(d2)
+            lo, hi = centres - half - o.position, centres + half - o.position  # the node -> the cube
+            r_min, _ = distance_range(lo, hi)
+            g = gain_bounds(pat_o, *axis_cos_range(lo, hi, o.axis))[1] * self.relay_gains(r, -hi, -lo)[1]
+            if is_tx:  # relay -> fixed node: the node's own interference
+                i_rx = self.scene.interference(self.scene.emitters(t, poses), o, pat_o) if self.scene.jammers else 0.0
+            else:
+                i_rx = interference[r]
             with np.errstate(divide="ignore", invalid="ignore"):
-                if is_tx:  # relay -> fixed node: the relay's best gain toward it, the node's own axis
-                    g = self.best[r](d[:, 2] / n) * pat_o.gain_from_cos(-(d @ o.axis) / n)
-                    i_rx = self.scene.interference(self.scene.emitters(t, poses), o, pat_o) if self.scene.jammers else 0.0
-                else:  # fixed node -> relay
-                    g = pat_o.gain_from_cos((d @ o.axis) / n) * self.best[r](-d[:, 2] / n)
-                    i_rx = interference[r]
-                gamma = np.nan_to_num(g * path * b.tx_power / (np.asarray(i_rx, float) + b.noise_power), nan=0.0)
+                gamma = np.nan_to_num(g * self._path_most(r_min) * b.tx_power / (np.asarray(i_rx, float) + b.noise_power),
+                                      nan=np.inf)
             out[r] = out[r] + count * self._term(gamma)
         return out
 
-    def _signal(self, tx: str, rx: str, p_tx: np.ndarray, p_rx: np.ndarray) -> np.ndarray:
-        """The relaxed received power of the hop ``tx -> rx`` between ``p_tx`` and ``p_rx`` (m, world,
-        broadcast), W: ``P_U g_tx g_rx h``, each end's best holdable gain toward the other; 0 for a link
-        shorter than the separation (not a place the pair may take) or of zero length (one cell)."""
-        d, d2, path = self._path(p_tx, p_rx)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sin_e = d[..., 2] / np.sqrt(d2)
-            s = np.nan_to_num(self.best[tx](sin_e) * self.best[rx](-sin_e) * path * self.scene.budget.tx_power, nan=0.0,
-                              posinf=0.0)
+    def signal_bound(self, tx: str, rx: str, d_centre: np.ndarray, spread: float) -> np.ndarray:
+        """The largest received power (W) of the hop ``tx -> rx`` with its displacement anywhere in the cubes
+        ``d_centre +- spread`` (m; two cells' half-sides summed): each end's best holdable gain over the
+        directions, the path gain at the least length (at least the separation); 0 where the two relays
+        would be closer than the separation everywhere."""
+        lo, hi = d_centre - spread, d_centre + spread
+        r_min, r_max = distance_range(lo, hi)
+        g = self.relay_gains(tx, lo, hi)[1] * self.relay_gains(rx, -hi, -lo)[1]
+        with np.errstate(invalid="ignore"):
+            s = np.nan_to_num(g * self._path_most(r_min) * self.scene.budget.tx_power, nan=np.inf)
         if self.pb.separation_m > 0:
-            s = np.where(d2 < self.pb.separation_m**2, 0.0, s)
+            s = np.where(r_max < self.pb.separation_m, 0.0, s)
         return s
 
     def pair_terms(self, tx: str, rx: str, rows: slice, interference, rows_are_tx: bool = True) -> np.ndarray:
-        """``(rows, M)``: the relaxed term of the hop ``tx -> rx`` with the cells of ``rows`` for ``tx``
-        (``rows_are_tx``) or for ``rx``, and every cell for the other end. A path gain of the length
-        alone reads each link's signal from the grid's offset table (computed once), else per link."""
-        b = self.scene.budget
+        """``(rows, M)``: the hop ``tx -> rx``'s term bounded over the grid's cells, ``rows`` for ``tx``
+        (``rows_are_tx``) or for ``rx``, every cell for the other end (the signal read from the offset table)."""
         i_rx = interference[rx][None, :] if rows_are_tx else interference[rx][rows][:, None]
-        if self.offsets is not None:
-            s = self.signal[tx, rx][self.offsets.between(rows, rows_are_tx)]
-        else:
-            here, there = self.cells[rows][:, None, :], self.cells[None, :, :]
-            s = self._signal(tx, rx, *((here, there) if rows_are_tx else (there, here)))
+        s = self.signal[tx, rx][self.offsets.between(rows, rows_are_tx)]
         with np.errstate(divide="ignore", invalid="ignore"):
-            gamma = s / (i_rx + b.noise_power)
-        return self._term(gamma)
+            return self._term(s / (i_rx + self.scene.budget.noise_power))
 
-    # -- min-sum on the forest ----------------------------------------------------------------
+    # -- min-sum on the forest, branch and bound ------------------------------------------------
+    def _grid_block(self, interference):
+        def block(a: str, b: str, rows: slice) -> np.ndarray:
+            out: np.ndarray | float = 0.0
+            for tx, rx, count in self.edges[tuple(sorted((a, b)))]:
+                out = out + count * self.pair_terms(tx, rx, rows, interference, rows_are_tx=tx == a)
+            return np.asarray(out)
+        return block
+
+    def _sets_block(self, sets: CellSets, interference):
+        def block(a: str, b: str, rows: slice) -> np.ndarray:
+            out: np.ndarray | float = 0.0
+            for tx, rx, count in self.edges[tuple(sorted((a, b)))]:
+                ca, cb = sets.centres[a][rows], sets.centres[b]
+                d = cb[None, :, :] - ca[:, None, :]  # a -> b
+                d = d if tx == a else -d  # tx -> rx
+                s = self.signal_bound(tx, rx, d, 2.0 * sets.half)
+                i_rx = interference[rx][None, :] if rx == b else interference[rx][rows][:, None]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    out = out + count * self._term(s / (i_rx + self.scene.budget.noise_power))
+            return np.asarray(out)
+        return block
+
+    def solve_level(self, t: float, poses, sets: CellSets | None) -> tuple[float, dict[str, np.ndarray]]:
+        """The certified min-sum over the cells of ``sets`` (None: the whole grid) and each relay's min-marginals."""
+        centres = (lambda r: self.cells) if sets is None else (lambda r: sets.centres[r])
+        half = self.half if sets is None else sets.half
+        interference = {r: self.least_interference(t, r, poses, centres(r), half) for r in self.relays}
+        if sets is None:
+            unary = self.unary_terms(t, poses, interference)
+            block = self._grid_block(interference)
+        else:
+            unary = {r: self.unary_terms(t, poses, interference, centres(r), half, only=r)[r] for r in self.relays}
+            block = self._sets_block(sets, interference)
+        return forest_min_marginals(self.relays, unary, self.neighbours, block)
+
     def solve(self, t: float) -> tuple[float, np.ndarray]:
-        """The smallest sum of hop terms on the grid and each relay's cell index (``(K,)``)."""
-        poses = self.fixed_poses(t)
-        interference = {r: self.least_interference(t, r, poses) for r in self.relays}
-        local = self.unary_terms(t, poses, interference)
-        edges: dict[tuple, list[tuple[str, str, int]]] = {tuple(sorted(p)): [] for p in self.pairs}
-        for (tx, rx), count in self.pairs.items():
-            edges[tuple(sorted((tx, rx)))].append((tx, rx, count))
-        neighbours: dict[str, set] = {r: set() for r in self.relays}
-        for a, b in edges:
-            neighbours[a].add(b)
-            neighbours[b].add(a)
-        argbest: dict[str, tuple[str, np.ndarray]] = {}  # eliminated relay -> (its neighbour, its best cell per neighbour cell)
-        alive = set(self.relays)
-        order = []
-        while len(alive) > 0:
-            leaf = next((r for r in self.relays if r in alive and len(neighbours[r] & alive) <= 1), None)
-            assert leaf is not None  # a forest always has a leaf
-            alive.discard(leaf)
-            order.append(leaf)
-            rest = neighbours[leaf] & alive
-            if not rest:
-                continue
-            other = rest.pop()
-            M = len(self.cells)
-            best_val, best_idx = np.full(M, np.inf), np.zeros(M, dtype=np.int64)
-            for start in range(0, M, CHUNK):  # rows: the leaf's cells; columns: the neighbour's
-                rows = slice(start, min(start + CHUNK, M))
-                block = local[leaf][rows][:, None] + self._pair_block(leaf, other, rows, interference, edges)
-                i = np.argmin(block, axis=0)
-                v = block[i, np.arange(M)]
-                better = v < best_val
-                best_val[better], best_idx[better] = v[better], i[better] + start
-            local[other] = local[other] + best_val
-            argbest[leaf] = (other, best_idx)
-        cells: dict[str, int] = {}
-        total = 0.0
-        for r in reversed(order):
-            if r not in argbest:
-                cells[r] = int(np.argmin(local[r]))
-                total += float(local[r][cells[r]])
-            else:
-                other, idx = argbest[r]
-                cells[r] = int(idx[cells[other]])
-        return total, np.array([cells[r] for r in self.relays])
+        """The certified smallest sum of hop terms on the grid's cells and each relay's best cell index ``(K,)``."""
+        total, marginals = self.solve_level(t, self.fixed_poses(t), None)
+        return total, np.array([int(np.argmin(marginals[r])) for r in self.relays])
 
-    def _pair_block(self, leaf: str, other: str, rows: slice, interference, edges) -> np.ndarray:
-        """Every hop between ``leaf`` (its cells ``rows``) and ``other`` (every cell), summed with their counts."""
-        out = 0.0
-        for tx, rx, count in edges[tuple(sorted((leaf, other)))]:
-            out = out + count * self.pair_terms(tx, rx, rows, interference, rows_are_tx=tx == leaf)
-        return np.asarray(out)
+    def certify(self, t: float, total: float, marginals: dict[str, np.ndarray], feasible_sum: float) -> tuple[float, dict]:
+        """Branch and bound from the grid's certified ``total``: cells whose min-marginal exceeds ``feasible_sum``
+        (the terms' sum of a configuration the physics allows, which the optimum's cannot exceed) cannot hold
+        the optimum and are dropped; the others are split in eight and bounded again, until the bound is within
+        ``tolerance`` of ``feasible_sum``, ``max_levels`` splits, or ``max_pairs`` pair terms a level. Returns the
+        certified sum (a lower bound of every configuration's) and what the search did."""
+        poses = self.fixed_poses(t)
+        sets, kept = None, {r: marginals[r] <= feasible_sum * (1 + 1e-12) for r in self.relays}
+        levels = 0
+        children = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+        while feasible_sum / total - 1.0 > self.tolerance and levels < self.max_levels:
+            current = {r: (self.cells if sets is None else sets.centres[r])[kept[r]] for r in self.relays}
+            half = (self.half if sets is None else sets.half) / 2.0
+            nxt = CellSets({r: (c[:, None, :] + half * children[None]).reshape(-1, 3) for r, c in current.items()}, half)
+            work = sum(len(nxt.centres[a]) * len(nxt.centres[b]) for a, b in self.edges)
+            if work > self.max_pairs or any(len(c) == 0 for c in nxt.centres.values()):
+                break
+            level_total, marginals = self.solve_level(t, poses, nxt)
+            total, sets, levels = max(total, level_total), nxt, levels + 1  # every level's sum is a lower bound
+            kept = {r: marginals[r] <= feasible_sum * (1 + 1e-12) for r in self.relays}
+        cells = {r: int((self.cells if sets is None else sets.centres[r]).shape[0]) for r in self.relays}
+        return total, {"levels": levels, "cells": cells, "half_m": self.half if sets is None else sets.half}
 
     # -- refinement ---------------------------------------------------------------------------
     def rate(self, t: float, positions: np.ndarray, axes: np.ndarray, poses) -> float:
@@ -426,7 +506,7 @@ class NetworkBoundSolver:
         """The grid chain refined on the true rate: each relay's best cone axis there (one at a time),
         then L-BFGS-B over every position and (tilt, azimuth) jointly inside the box and tilt limits."""
         poses = self.fixed_poses(t)
-        P = self.cells[cells].copy()
+        P = np.clip(self.cells[cells], self.lo, self.hi)  # a cell may reach past the box: its centre brought in
         A = self.best_axes(t, P, poses)
         limits = [self.pb.tilt_limits[r] for r in self.relays]
         tilt0 = np.arccos(np.clip(A[:, 2], -1, 1))
@@ -470,20 +550,30 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     K = len(solver.relays)
     static, achieved = np.empty(len(times)), np.empty(len(times))
     sp, ap, ax = np.empty((len(times), K, 3)), np.empty((len(times), K, 3)), np.empty((len(times), K, 3))
+    searches = []
     for k, t in enumerate(times):
-        total, cells = solver.solve(float(t))
-        static[k] = bw / total if np.isfinite(total) and total > 0 else 0.0
+        poses = solver.fixed_poses(float(t))
+        total, marginals = solver.solve_level(float(t), poses, None)
+        cells = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
         sp[k] = solver.cells[cells]
         achieved[k], ap[k], ax[k] = solver.refine(float(t), cells)
+        if np.isfinite(total) and total > 0 and achieved[k] > 0:
+            total, search = solver.certify(float(t), total, marginals, bw / achieved[k])
+            searches.append(search)
+        static[k] = bw / total if np.isfinite(total) and total > 0 else np.inf
         if progress is not None:
             progress(k + 1, len(times))
     excess = float(np.max(achieved / np.where(static > 0, static, np.inf) - 1.0, initial=0.0))
-    static = np.maximum(static, achieved)  # where the refined configuration beats the grid, the grid missed that much
+    gap = static / np.where(achieved > 0, achieved, np.nan) - 1.0  # how far above a configuration the physics allows
     method = "chain" if len(pb.scene.all_routes) == 1 else "tree"
     resolution = {"grid_m": res.grid_m, "dt_s": res.dt_s, "axis_step_deg": res.axis_step_deg, "cells": int(len(solver.cells)),
-                  "times": int(len(times)), "method": f"min-sum dynamic programming on the relays' {method}",
+                  "times": int(len(times)), "method": f"certified min-sum dynamic programming on the relays' {method}, "
+                  f"branch and bound to {solver.tolerance:.0%} of the refined configuration",
                   "tilt_limits_deg": {r: float(np.degrees(v)) for r, v in pb.tilt_limits.items()},
-                  "separation_m": pb.separation_m, "grid_excess": max(excess, 0.0)}
+                  "separation_m": pb.separation_m, "grid_excess": max(excess, 0.0),
+                  "certified_gap_max": float(np.nanmax(gap, initial=0.0)),
+                  "certified_gap_mean": float(np.nanmean(gap)) if np.isfinite(gap).any() else None,
+                  "branch_levels_max": max((s["levels"] for s in searches), default=0)}
     fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
     if set(pb.starts) >= set(solver.relays):
         fr, fp, fa, closest = solver.flyable(times, ap)
