@@ -214,7 +214,7 @@ def test_the_offset_table_gives_every_pairs_term_as_its_two_cells_computed_alone
                 d = p_rx - p_tx
                 n = np.linalg.norm(d)
                 g = DipolePattern().gain_from_cos(d @ a_tx / n) * DipolePattern().gain_from_cos(-d @ a_rx / n) / n**2
-                assert g <= s_bound * (1 + 1e-12)
+                assert s_bound == np.inf or g <= s_bound * (1 + 1e-12)
 
 
 def test_a_path_gain_of_the_ends_heights_is_not_read_from_the_offset_table():
