@@ -100,7 +100,8 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
     given = data.get("sources")
     sources: list = given if isinstance(given, list) else []  # a wrong type is named by validation
     missions = [data.get("mission")] + [s.get("mission") for s in sources if isinstance(s, dict)]
-    for mission in (m for m in missions if isinstance(m, dict)):  # mission files are named relative to the scenario file
+    jammers = [data.get("jammer")] + (data["jammers"] if isinstance(data.get("jammers"), list) else [])
+    for mission in (m for m in missions + jammers if isinstance(m, dict)):  # files are named relative to the scenario file
         for key in ("trajectory_csv", "trajectory_ulog", "trajectory_plan", "trajectory_gpx"):
             f = mission.get(key)
             if isinstance(f, str) and f and not Path(f).is_absolute():

@@ -64,11 +64,11 @@ ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
 def build_jammer(cfg: JammerConfig) -> Jammer:
     """A jammer from its ``[jammer]`` / ``[[jammers]]`` table."""
     sched = AlwaysOn() if cfg.schedule == "always_on" else PeriodicOnOff(cfg.on_s, cfg.off_s)
-    path: SourceTrajectory | None = None
-    if cfg.path == "circle":
+    path: SourceTrajectory | None = cfg.track()  # a track file (CSV, .plan, GPX), else its circle or waypoints
+    if path is None and cfg.path == "circle":
         assert cfg.center_m is not None and cfg.radius_m is not None and cfg.period_s is not None  # validated
         path = CirclePath(cfg.center_m, cfg.radius_m, cfg.period_s, cfg.clockwise)
-    elif cfg.waypoints is not None:
+    elif path is None and cfg.waypoints is not None:
         leg = LinearPath(cfg.waypoints) if cfg.path == "linear" else MinimumJerkPath(cfg.waypoints)
         path = RepeatingPath(leg) if cfg.repeat else leg
     pattern: AntennaPattern = IsotropicPattern(1.0)

@@ -5,11 +5,13 @@ jammers are built from them in ``assembly.parts``."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from .base import Strict, Vec3, Waypoint, check_waypoint_times, dbm_to_w, nonzero_direction
+from .base import Strict, Vec3, Waypoint, check_waypoint_times, dbm_to_w, nonzero_direction, on_the_earth
+from .mission import flight_path
 
 LOOP_CLOSURE_M = 0.01  # a repeating jammer path's last waypoint within this of its first (m)
 OUTAGE_SPECTRAL_EFFICIENCY = 1e-3  # bit/s/Hz: the paper's outage threshold (B = 1); times the bandwidth in physical units
@@ -192,6 +194,15 @@ class NodesConfig(Strict):
                         "hovering; inside controller.workspace")
 
 
+JAMMER_TRACK_KINDS = {"trajectory_csv": "csv", "trajectory_plan": "plan", "trajectory_gpx": "gpx"}
+
+
+def jammer_track(field: str, file: str, origin=None):
+    """A jammer's track file (``field`` one of ``JAMMER_TRACK_KINDS``) read as a path (m, local ENU)."""
+    kind = JAMMER_TRACK_KINDS[field]
+    return flight_path(kind, file, origin=None if kind == "csv" or origin is None else tuple(float(v) for v in origin))
+
+
 class JammerConfig(Strict):
     """A jammer: fixed at ``position``, moving along timed ``waypoints`` or circling (``path = "circle"``); isotropic
     (the paper's) or ``cosine``: ``G(psi) = g_max max(max(cos psi, 0)^exponent, back_lobe)``,
@@ -207,6 +218,14 @@ class JammerConfig(Strict):
     radius_m: float | None = Field(None, gt=0.0, le=10_000.0, description="circle: the radius, m")
     period_s: float | None = Field(None, gt=0.0, le=1e6, description="circle: the time of one lap, s")
     clockwise: bool = Field(False, description="circle: seen from above, clockwise (default counter-clockwise)")
+    trajectory_csv: str | None = Field(None, description="the jammer's track as a CSV with columns t,px,py,pz[,vx,vy,vz,ax,ay,az] "
+                                       "(s, m local ENU; a truck along a road), named relative to the scenario file")
+    trajectory_plan: str | None = Field(None, description="the jammer's track as a QGroundControl .plan (WGS84), in the local "
+                                        "frame at geo_origin (default [geo] origin, else the plan's home)")
+    trajectory_gpx: str | None = Field(None, description="the jammer's track as a GPX track (timed points, WGS84), in the local "
+                                       "frame at geo_origin (default [geo] origin, else its first point)")
+    geo_origin: Vec3 | None = Field(None, description="the local frame's origin for the jammer's .plan / GPX track: "
+                                    "[lat_deg, lon_deg, alt_m] (WGS84)")
     repeat: bool = Field(False, description="fly the waypoints again and again (a loop: the last waypoint at the first "
                          "one's position); false: hold the last one")
     power_w: float = Field(1.0, ge=0.0, description="peak radiated power P_J, W (the paper's 1 W adds ~1% to its 1 W "
@@ -240,7 +259,22 @@ class JammerConfig(Strict):
     @model_validator(mode="before")
     @classmethod
     def _starts_at_first_waypoint(cls, data):
-        """A moving jammer's ``position`` is its first waypoint's (given, it must be that)."""
+        """A moving jammer's ``position`` is its first waypoint's, its circle's start or its track's first point
+        (given, it must be that)."""
+        files = [f for f in JAMMER_TRACK_KINDS if isinstance(data, dict) and data.get(f)]
+        if len(files) == 1:
+            try:
+                start = [float(v) for v in jammer_track(files[0], data[files[0]], data.get("geo_origin")).state(0.0).p]
+            except (OSError, ValueError, TypeError):
+                return data  # the file's own check names the problem
+            if "position" in data:
+                try:
+                    given = [float(v) for v in data["position"]]
+                except (TypeError, ValueError):
+                    return data
+                if math.dist(given, start) > 1e-6:
+                    raise ValueError(f"position {given} is not {files[0]}'s start {start}: omit position for a jammer on a track")
+            return {**data, "position": start}
         if isinstance(data, dict) and data.get("path") == "circle":
             try:
                 c, r = [float(v) for v in data["center_m"]], float(data["radius_m"])
@@ -265,6 +299,37 @@ class JammerConfig(Strict):
             if given != start:
                 raise ValueError(f"position {given} differs from waypoints[0] {start}: omit position for a moving jammer")
         return {**data, "position": start}
+
+    _geo_origin_on_the_earth = field_validator("geo_origin")(lambda v: v if v is None else on_the_earth(v))
+
+    @model_validator(mode="after")
+    def _readable_track(self):
+        given = [f for f in JAMMER_TRACK_KINDS if getattr(self, f) is not None]
+        if len(given) > 1:
+            raise ValueError(f"give one of {', '.join(JAMMER_TRACK_KINDS)}, not {' and '.join(given)}")
+        if given and (self.waypoints is not None or self.path == "circle" or self.repeat):
+            raise ValueError(f"{given[0]} is the jammer's path: not with waypoints, path = \"circle\" or repeat")
+        if self.geo_origin is not None and not any(getattr(self, f) for f in ("trajectory_plan", "trajectory_gpx")):
+            raise ValueError("geo_origin applies to trajectory_plan / trajectory_gpx only")
+        for field in given:
+            f = getattr(self, field)
+            if not Path(f).is_file():
+                raise ValueError(f"{field}: no such file {f}")
+            try:
+                jammer_track(field, f, self.geo_origin)
+            except ValueError as exc:
+                raise ValueError(f"{field}: {exc}") from None
+        return self
+
+    @property
+    def track_field(self) -> str | None:
+        """The field of the jammer's track file (``trajectory_csv`` / ``_plan`` / ``_gpx``), if any."""
+        return next((f for f in JAMMER_TRACK_KINDS if getattr(self, f) is not None), None)
+
+    def track(self):
+        """The jammer's track read from its file (``models.mission`` path, m, local ENU), None without one."""
+        field = self.track_field
+        return None if field is None else jammer_track(field, getattr(self, field), self.geo_origin)
 
     @model_validator(mode="after")
     def _path_and_pointing(self):

@@ -405,16 +405,21 @@ class Scenario(Strict):
             return self.sim.duration_s
         return max(s.mission.duration_s for s in self.source_list)  # every source's mission
 
-    def to_toml(self, mission_file: str | None = None, source_files: dict[str, str] | None = None) -> str:
+    def to_toml(self, mission_file: str | None = None, source_files: dict[str, str] | None = None,
+                jammer_files: dict[str, str] | None = None) -> str:
         """The resolved scenario as TOML text (every default spelled out), arrays on one line, with
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
-        the CSV's path, ``source_files`` (source name -> file) each ``[[sources]]`` mission's (a run
-        folder holds its own copies)."""
+        the CSV's path, ``source_files`` (source name -> file) each ``[[sources]]`` mission's,
+        ``jammer_files`` (jammer name -> file) each jammer's track (a run folder holds its own copies)."""
         data = self._plain_data()
         if "mission" in data:
             _only_what_flies(data["mission"], self.mission, mission_file)
         for cfg, m in zip(self.sources or [], data.get("sources", []), strict=True):
             _only_what_flies(m["mission"], cfg.mission, (source_files or {}).get(cfg.name))
+        tables = data.get("jammers") or ([data["jammer"]] if "jammer" in data else [])
+        for jam, t in zip(self.jammer_configs, tables, strict=True):
+            if jam.track_field and jam.name in (jammer_files or {}):
+                t[jam.track_field] = (jammer_files or {})[jam.name]
         return compact_toml(data)
 
     def _plain_data(self) -> dict:
@@ -496,14 +501,15 @@ def _merged(base: dict, override: dict) -> dict:
 
 def geo_origin_to_missions(data: dict) -> None:
     """``[geo] origin`` (where the scenario's local frame sits, WGS84) for every mission that reads a
-    geographic file (``trajectory_plan`` / ``trajectory_gpx``) without its own ``geo_origin``."""
+    geographic file (``trajectory_plan`` / ``trajectory_gpx``) without its own ``geo_origin``, and every jammer's."""
     geo = data.get("geo")
     origin = geo.get("origin") if isinstance(geo, dict) else None
     if origin is None:
         return
     given = data.get("sources")
     sources: list = given if isinstance(given, list) else []
-    for m in [data.get("mission"), *(s.get("mission") for s in sources if isinstance(s, dict))]:
+    jammers = [data.get("jammer")] + (data["jammers"] if isinstance(data.get("jammers"), list) else [])
+    for m in [data.get("mission"), *(s.get("mission") for s in sources if isinstance(s, dict)), *jammers]:
         if isinstance(m, dict) and (m.get("trajectory_plan") or m.get("trajectory_gpx")) and m.get("geo_origin") is None:
             m["geo_origin"] = origin
 

@@ -61,11 +61,13 @@ class RunResult:
         copy = m.copy_name  # mission.csv / .ulg / .plan / .gpx: the run folder flies again from its own copy
         sources = {s.name: (s.mission.flown_file, f"mission_{s.name}{Path(s.mission.copy_name or MISSION_CSV).suffix}")
                    for s in self.scenario.sources or [] if s.mission.flown_file}  # a fleet's: one copy per source
+        tracks = {j.name: (getattr(j, j.track_field), f"jammer_{j.name}{Path(getattr(j, j.track_field)).suffix}")
+                  for j in self.scenario.jammer_configs if j.track_field}  # each jammer's track file
 
         def with_mission(tmp: Path) -> None:
             if copy is not None and m.flown_file is not None:
                 shutil.copyfile(m.flown_file, tmp / copy)
-            for src, name in sources.values():
+            for src, name in (*sources.values(), *tracks.values()):
                 shutil.copyfile(src, tmp / name)
 
         def views(tmp: Path) -> None:
@@ -74,7 +76,7 @@ class RunResult:
             if extra is not None:
                 extra(tmp)
 
-        toml = self.scenario.to_toml(copy, {n: name for n, (_, name) in sources.items()})
+        toml = self.scenario.to_toml(copy, {n: name for n, (_, name) in sources.items()}, {n: name for n, (_, name) in tracks.items()})
         with writing(folder, wait=wait) as out:
             publish_run(out, toml, self.timeseries, self.metrics, extra=with_mission)
             optional: dict[str, Callable[[Path], object]] = {}

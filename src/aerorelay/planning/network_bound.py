@@ -275,6 +275,8 @@ class NetworkBoundSolver:
         self.cones = {r: axis_cone(pb.tilt_limits[r], np.radians(res.axis_step_deg)) for r in self.relays}
         self.offsets = OffsetTable([len(g) for g in grid], res.grid_m)
         self.signal = {(tx, rx): self.signal_bound(tx, rx, self.offsets.vectors, 2.0 * self.half) for tx, rx in self.pairs}
+        # at the cubes' centres alone (the relaxed terms of the grid's points): where the refinement starts from
+        self.signal_at_centres = {(tx, rx): self.signal_bound(tx, rx, self.offsets.vectors, 0.0) for tx, rx in self.pairs}
         self.edges: dict[tuple, list[tuple[str, str, int]]] = {tuple(sorted(p)): [] for p in self.pairs}
         for (tx, rx), count in self.pairs.items():
             self.edges[tuple(sorted((tx, rx)))].append((tx, rx, count))
@@ -388,22 +390,33 @@ class NetworkBoundSolver:
             s = np.where(r_max < self.pb.separation_m, 0.0, s)
         return s
 
-    def pair_terms(self, tx: str, rx: str, rows: slice, interference, rows_are_tx: bool = True) -> np.ndarray:
-        """``(rows, M)``: the hop ``tx -> rx``'s term bounded over the grid's cells, ``rows`` for ``tx``
-        (``rows_are_tx``) or for ``rx``, every cell for the other end (the signal read from the offset table)."""
+    def pair_terms(self, tx: str, rx: str, rows: slice, interference, rows_are_tx: bool = True,
+                   at_centres: bool = False) -> np.ndarray:
+        """``(rows, M)``: the hop ``tx -> rx``'s term bounded over the grid's cells (``at_centres``: at their
+        centres), ``rows`` for ``tx`` (``rows_are_tx``) or for ``rx``, every cell for the other end (the signal
+        read from the offset table)."""
         i_rx = interference[rx][None, :] if rows_are_tx else interference[rx][rows][:, None]
-        s = self.signal[tx, rx][self.offsets.between(rows, rows_are_tx)]
+        table = self.signal_at_centres if at_centres else self.signal
+        s = table[tx, rx][self.offsets.between(rows, rows_are_tx)]
         with np.errstate(divide="ignore", invalid="ignore"):
             return self._term(s / (i_rx + self.scene.budget.noise_power))
 
     # -- min-sum on the forest, branch and bound ------------------------------------------------
-    def _grid_block(self, interference):
+    def _grid_block(self, interference, at_centres: bool = False):
         def block(a: str, b: str, rows: slice) -> np.ndarray:
             out: np.ndarray | float = 0.0
             for tx, rx, count in self.edges[tuple(sorted((a, b)))]:
-                out = out + count * self.pair_terms(tx, rx, rows, interference, rows_are_tx=tx == a)
+                out = out + count * self.pair_terms(tx, rx, rows, interference, rows_are_tx=tx == a, at_centres=at_centres)
             return np.asarray(out)
         return block
+
+    def centres_optimum(self, t: float, poses) -> np.ndarray:
+        """Each relay's cell ``(K,)`` of the relaxed min-sum at the cubes' centres (not a bound: the terms at the
+        grid's points), where the refinement starts."""
+        interference = {r: self.least_interference(t, r, poses, self.cells, 0.0) for r in self.relays}
+        unary = self.unary_terms(t, poses, interference, self.cells, 0.0)
+        _, marginals = forest_min_marginals(self.relays, unary, self.neighbours, self._grid_block(interference, True))
+        return np.array([int(np.argmin(marginals[r])) for r in self.relays])
 
     def _sets_block(self, sets: CellSets, interference):
         def block(a: str, b: str, rows: slice) -> np.ndarray:
@@ -554,8 +567,8 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     for k, t in enumerate(times):
         poses = solver.fixed_poses(float(t))
         total, marginals = solver.solve_level(float(t), poses, None)
-        cells = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
-        sp[k] = solver.cells[cells]
+        sp[k] = solver.cells[[int(np.argmin(marginals[r])) for r in solver.relays]]
+        cells = solver.centres_optimum(float(t), poses)
         achieved[k], ap[k], ax[k] = solver.refine(float(t), cells)
         if np.isfinite(total) and total > 0 and achieved[k] > 0:
             total, search = solver.certify(float(t), total, marginals, bw / achieved[k])
