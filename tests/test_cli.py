@@ -108,3 +108,15 @@ def test_set_overrides_are_validated_and_recorded(tmp_path):
     assert res.exit_code == 0, res.output
     recorded = tomllib.loads((tmp_path / "r" / "scenario.toml").read_text())
     assert recorded["controller"]["mu"] == 0.25 and recorded["sim"]["duration_s"] == 0.3
+
+
+def test_reproduce_help_names_every_study_with_its_title():
+    """Issue 48 (item 3): ``aerorelay reproduce --help`` lists the studies there are (``--list`` also counts runs)."""
+    import tomllib
+
+    res = runner.invoke(app, ["reproduce", "--help"], terminal_width=200)
+    assert res.exit_code == 0
+    text = " ".join(res.output.split())
+    for f in sorted((ROOT / "experiments").glob("*.toml")):
+        data = tomllib.loads(f.read_text())
+        assert f"{data['name']}: {' '.join(data['title'].split())[:40]}" in text, data["name"]

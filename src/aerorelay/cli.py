@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tomllib
 from pathlib import Path
 from typing import NoReturn
 
@@ -461,7 +462,22 @@ def _print_fleet_bench(res: dict) -> None:
                   f"QP failures: {res['qp_failures']}; fail-safe episodes: {res['fallback_episodes']}", markup=False, highlight=False)
 
 
-@app.command()
+def _studies_epilog() -> str:
+    """The studies of the default studies folder, one per line with its title (read as TOML, not validated:
+    ``--list`` validates and counts their runs)."""
+    folder = api.default_studies_dir()
+    lines = []
+    for f in sorted(folder.glob("*.toml")) if folder.is_dir() else []:
+        try:
+            data = tomllib.loads(f.read_text())
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            continue
+        if isinstance(data.get("name"), str):
+            lines.append(f"{data['name']}: {data.get('title', '')}")
+    return ("Studies in " + str(folder) + ":\n\n" + "\n\n".join(lines)) if lines else ""
+
+
+@app.command(epilog=_studies_epilog())
 def reproduce(
     studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)", show_default=False),
     out: Path = typer.Option(None, "--out", help="campaign folder (re-running the same command resumes it); required "
