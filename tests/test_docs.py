@@ -42,6 +42,16 @@ def test_the_committed_scenario_reference_is_the_schemas():
         "import scenario_reference as s; open('docs/reference/scenario.md', 'w').write(s.render())\") rewrites it")
 
 
+def test_the_committed_study_reference_is_the_schemas():
+    """Issue 48 (item 3): the study files' reference, generated like the scenario's, committed and current."""
+    committed = (ROOT / "docs" / "reference" / "study.md").read_text()
+    assert committed == scenario_reference.render_study(), (
+        "docs/reference/study.md is stale: python -c \"import sys; sys.path.insert(0, 'docs/_ext'); import scenario_reference "
+        "as s; open('docs/reference/study.md', 'w').write(s.render_study())\" rewrites it")
+    for name in ("base", "grid", "seeds", "claims", "ranking"):
+        assert f"| `{name}` |" in committed
+
+
 def test_a_field_without_a_description_fails_the_build(monkeypatch):
     from sphinx.errors import ExtensionError
 

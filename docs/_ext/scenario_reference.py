@@ -94,9 +94,11 @@ def _submodel(ann):
     return None
 
 
-def render() -> str:
+def render(model: type[BaseModel] | None = None, head: str | None = None) -> str:
+    """The reference of ``model`` (default the scenario's) under ``head`` (default the scenario reference's)."""
     from aerorelay.config import Scenario
 
+    model = model or Scenario
     missing: list[str] = []
     sections: list[str] = []
 
@@ -128,21 +130,35 @@ def render() -> str:
         for sub, key in subs:
             walk(sub, key + ".")
 
-    walk(Scenario, "")
+    walk(model, "")
     if missing:
-        raise ExtensionError(f"scenario fields without a description ({len(missing)}): {', '.join(missing)}")
-    head = ("# Scenario reference\n\nGenerated from the schema (`aerorelay.config`) at every docs build. "
+        raise ExtensionError(f"{model.__name__} fields without a description ({len(missing)}): {', '.join(missing)}")
+    head = head or ("# Scenario reference\n\nGenerated from the schema (`aerorelay.config`) at every docs build. "
             "A scenario file states only what differs from these defaults; `aerorelay validate FILE` prints it "
             "fully resolved. Lists of tables (`[[jammers]]`, `[[platform.rotors]]`) repeat the table's fields per item. "
             "Ranges: `[` / `]` include the bound, `(` / `)` exclude it.\n\n")
     return head + "\n".join(sections)
 
 
+STUDY_OUT = "reference/study.md"
+STUDY_HEAD = ("# Study reference\n\nGenerated from the schema (`aerorelay.experiments.study.Study`) at every docs build: "
+              "the fields of a study file (`experiments/*.toml`, `aerorelay reproduce`). A study's `base` and a run "
+              "group's own `base` are named relative to the folder above the studies folder (the repository for "
+              "`experiments/`); absolute paths are taken as they are. `aerorelay reproduce --list` names the studies "
+              "with their run counts. Lists of tables (`[[runs]]`, `[[claims]]`) repeat the table's fields per item.\n\n")
+
+
+def render_study() -> str:
+    from aerorelay.experiments.study import Study
+
+    return render(Study, STUDY_HEAD)
+
+
 def _write(app) -> None:
-    path = Path(app.srcdir) / OUT
-    text = render()
-    if not path.exists() or path.read_text() != text:
-        path.write_text(text)
+    for out, text in ((OUT, render()), (STUDY_OUT, render_study())):
+        path = Path(app.srcdir) / out
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
 
 
 def setup(app):

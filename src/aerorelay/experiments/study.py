@@ -37,9 +37,10 @@ class RunVariation(BaseModel):
     scenario (relative to the folder above the studies folder, as the study's own ``base``)."""
 
     model_config = ConfigDict(extra="forbid")
-    id: str = Field(min_length=1, max_length=100)
-    set: dict[str, Any] = Field(default_factory=dict)
-    base: str | None = None
+    id: str = Field(min_length=1, max_length=100, description="the group's name: its runs' folders and the claims' metric@id")
+    set: dict[str, Any] = Field(default_factory=dict, description="dotted-key updates on the scenario, as --set")
+    base: str | None = Field(None, description="this group's own scenario file (default the study's base), relative to "
+                             "the folder above the studies folder")
 
     @field_validator("id")
     @classmethod
@@ -52,11 +53,13 @@ class RunVariation(BaseModel):
 
 
 class PaperValue(BaseModel):
+    """A number the paper reports, shown beside the run's in the report."""
+
     model_config = ConfigDict(extra="forbid")
-    run: str
-    metric: str
-    value: float
-    note: str = ""
+    run: str = Field(description="the run group (its id) the number compares with")
+    metric: str = Field(description="the metric of metrics.json (dotted for a table's entry)")
+    value: float = Field(description="the paper's value, in the metric's unit")
+    note: str = Field("", description="where it comes from or what differs")
 
 
 def parse_term(text: str) -> list[tuple[str, str]]:
@@ -72,12 +75,12 @@ class Condition(BaseModel):
     ``metric@run / metric@run``; ``value`` replaces ``right`` by a number."""
 
     model_config = ConfigDict(extra="forbid")
-    left: str
-    op: Literal["<", "<=", ">", ">="]
-    right: str | None = None
-    value: float | None = None
-    factor: float = 1.0
-    tol: float = 0.0
+    left: str = Field(description="metric@run, or metric@run / metric@run")
+    op: Literal["<", "<=", ">", ">="] = Field(description="the comparison")
+    right: str | None = Field(None, description="metric@run or a ratio (or give value)")
+    value: float | None = Field(None, description="a number in place of right")
+    factor: float = Field(1.0, description="right is multiplied by this")
+    tol: float = Field(0.0, description="then this is added to right")
 
     @model_validator(mode="after")
     def _one_right_side(self):
@@ -100,11 +103,11 @@ class Explanation(BaseModel):
     ``fading`` (the fading arithmetic at the run's SNRs for each of ``k_db``)."""
 
     model_config = ConfigDict(extra="forbid")
-    kind: Literal["ceiling", "jammer_noise", "fading"]
-    run: str
-    paper: float | None = None
-    k_db: list[float] = Field(default_factory=list)
-    note: str = ""
+    kind: Literal["ceiling", "jammer_noise", "fading"] = Field(description="which cause is measured")
+    run: str = Field(description="the run group it is measured on")
+    paper: float | None = Field(None, description="ceiling: the paper's number the best pose is compared with")
+    k_db: list[float] = Field(default_factory=list, description="fading: the Rician K factors (dB) evaluated")
+    note: str = Field("", description="text added after the measured sentence")
 
 
 class Claim(BaseModel):
@@ -113,10 +116,10 @@ class Claim(BaseModel):
     numbers, as text)."""
 
     model_config = ConfigDict(extra="forbid")
-    text: str = Field(min_length=1)
-    all: list[Condition] = Field(min_length=1)
-    why: list[Explanation] = Field(default_factory=list)
-    contradiction: str = ""
+    text: str = Field(min_length=1, description="the claim as the paper makes it")
+    all: list[Condition] = Field(min_length=1, description="the conditions that must all hold")
+    why: list[Explanation] = Field(default_factory=list, description="measured causes shown when it does not hold")
+    contradiction: str = Field("", description="where the paper's own numbers disagree (both numbers, as text)")
 
 
 class RankingTerm(BaseModel):
@@ -125,11 +128,11 @@ class RankingTerm(BaseModel):
     paper), rel: (ours - paper) / paper, abs: ours - paper."""
 
     model_config = ConfigDict(extra="forbid")
-    metric: str
-    at: str
-    over: str | None = None
-    paper: float
-    scale: Literal["log", "rel", "abs"] = "log"
+    metric: str = Field(description="the metric compared")
+    at: str = Field(description="the pairing key's value of the run it is read from")
+    over: str | None = Field(None, description="the pairing key's value of the run it is divided by, if any")
+    paper: float = Field(description="the paper's value")
+    scale: Literal["log", "rel", "abs"] = Field("log", description="log10(ours / paper), relative or absolute difference")
 
 
 class Ranking(BaseModel):
@@ -137,8 +140,8 @@ class Ranking(BaseModel):
     paper's numbers."""
 
     model_config = ConfigDict(extra="forbid")
-    pair_key: str
-    terms: list[RankingTerm] = Field(min_length=1)
+    pair_key: str = Field(description="the grid key whose values pair runs within a combination")
+    terms: list[RankingTerm] = Field(min_length=1, description="the distance's terms")
 
 
 class Tradeoff(BaseModel):
@@ -147,10 +150,12 @@ class Tradeoff(BaseModel):
     drawn as a dashed line in the series' colour: the front a user picks a point from."""
 
     model_config = ConfigDict(extra="forbid")
-    x: str = "energy_kJ"
-    y: list[str] = Field(default_factory=lambda: ["c_mean", "c_min"], min_length=1)
-    bounds: list[str | None] = Field(default_factory=list)
-    title: str = ""
+    x: str = Field("energy_kJ", description="the metric along x")
+    y: list[str] = Field(default_factory=lambda: ["c_mean", "c_min"], min_length=1, description="the metrics along y, one "
+                         "panel each")
+    bounds: list[str | None] = Field(default_factory=list, description="per y, the bound summary's entry drawn dashed "
+                                     "(or null)")
+    title: str = Field("", description="the figure's title")
 
     @model_validator(mode="after")
     def _one_bound_per_y(self):
@@ -160,30 +165,35 @@ class Tradeoff(BaseModel):
 
 
 class Study(BaseModel):
+    """A study file (``experiments/*.toml``): run groups on a base scenario, a grid, seeds, the paper's numbers
+    and claims to check, figures."""
+
     model_config = ConfigDict(extra="forbid")
-    name: str = Field(pattern=r"^[a-z0-9_]+$")
-    title: str
-    description: str = ""
-    base: str
-    quick_duration_s: float | None = Field(None, gt=0)
-    runs: list[RunVariation] = Field(default_factory=lambda: [RunVariation(id="base")])
-    grid: dict[str, list[Any]] = Field(default_factory=dict)
-    seeds: int = Field(1, ge=1)
-    quick_seeds: int = Field(1, ge=1)
-    paper: list[PaperValue] = Field(default_factory=list)
-    compare_trajectories: list[tuple[str, str]] = Field(default_factory=list)
-    claims: list[Claim] = Field(default_factory=list)
-    # compute each run's capacity bound (planning/bound.py): efficiency metrics and bound figures
-    bound: bool = False
-    # groups drawn together with the bound of the first one's scenario, one figure each
-    bound_figures: list[list[str]] = Field(default_factory=list)
-    # [estimated group, oracle group] pairs: the estimate's error over time with its 2-sigma band, and
-    # both runs' capacity (jammer estimation, ``jammer.localization``)
-    estimation_figures: list[tuple[str, str]] = Field(default_factory=list)
-    ranking: Ranking | None = None
-    tradeoffs: list[Tradeoff] = Field(default_factory=list)
-    # measured causes of the study's differences from the paper (beside the claims' own)
-    why: list[Explanation] = Field(default_factory=list)
+    name: str = Field(pattern=r"^[a-z0-9_]+$", description="the study's name (aerorelay reproduce NAME)")
+    title: str = Field(description="one line: what the study asks")
+    description: str = Field("", description="what it does, for the report")
+    base: str = Field(description="the scenario file every run starts from, relative to the folder above the studies "
+                      "folder (absolute paths as they are)")
+    quick_duration_s: float | None = Field(None, gt=0, description="--quick: the missions' length, s")
+    runs: list[RunVariation] = Field(default_factory=lambda: [RunVariation(id="base")], description="the run groups")
+    grid: dict[str, list[Any]] = Field(default_factory=dict, description="dotted keys and their values: every run group at "
+                                       "every combination")
+    seeds: int = Field(1, ge=1, description="Monte Carlo seeds per run (scenario seed 0, 1, ...)")
+    quick_seeds: int = Field(1, ge=1, description="--quick: seeds per run")
+    paper: list[PaperValue] = Field(default_factory=list, description="the paper's numbers shown beside the runs'")
+    compare_trajectories: list[tuple[str, str]] = Field(default_factory=list, description="[group, group] pairs drawn in "
+                                                        "one interactive 3D view")
+    claims: list[Claim] = Field(default_factory=list, description="the paper's claims, checked on the runs")
+    bound: bool = Field(False, description="compute each run's capacity bound: efficiency metrics and bound figures")
+    bound_figures: list[list[str]] = Field(default_factory=list, description="groups drawn together with the bound of the "
+                                           "first one's scenario, one figure each")
+    estimation_figures: list[tuple[str, str]] = Field(default_factory=list, description="[estimated group, oracle group] "
+                                                      "pairs: the estimate's error over time with its 2-sigma band, and "
+                                                      "both runs' capacity")
+    ranking: Ranking | None = Field(None, description="rank the grid's combinations by their distance to the paper")
+    tradeoffs: list[Tradeoff] = Field(default_factory=list, description="trade-off figures")
+    why: list[Explanation] = Field(default_factory=list, description="measured causes of the study's differences from "
+                                   "the paper (beside the claims' own)")
 
     @model_validator(mode="after")
     def _a_bounded_campaign(self):

@@ -26,6 +26,9 @@ from ..config import ScenarioError
 
 SINGLE_EVALS_PER_S = 7.1e6  # capacities per second, one-relay bound (measured, see the module)
 PAIR_EVALS_PER_S = 5.1e7  # pair terms per second, network bound (measured, see the module)
+DP_PASSES = 4  # the network bound's passes over every pair of cells an instant: up and down, certified and at the centres
+BOX_PAIRS_PER_S = 2.3e6  # pair terms per second of its branch and bound's cubes (measured 2026-12-04: 5.5e6 in 2.4 s)
+BRANCH_LEVELS, BRANCH_PAIRS = 3, 3e6  # planning.network_bound.NetworkBoundSolver's defaults: its worst case an instant
 TEMPORARIES = 4  # arrays of one instant's (cells x axes) numpy holds at once in the capacity landscape
 CHUNK = 256  # rows of a network bound's pair-term block (planning.network_bound.CHUNK)
 
@@ -53,6 +56,11 @@ def grid_cells(lo, hi, step: float) -> int:
     return math.prod(len(np.arange(lo[i], hi[i] + 1e-9, step)) for i in range(3))
 
 
+def cube_cells(lo, hi, step: float) -> int:
+    """Cubes of side ``step`` m covering the box ``[lo, hi]`` (as ``planning.network_bound.cell_grid``)."""
+    return math.prod(max(1, math.ceil((hi[i] - lo[i]) / step - 1e-9)) for i in range(3))
+
+
 def single_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, axes: int) -> BoundCost:
     """The one-relay bound's cost (``planning.bound.compute_bound``)."""
     cells, instants = grid_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
@@ -61,10 +69,13 @@ def single_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, axe
 
 
 def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int) -> BoundCost:
-    """A fleet's network bound's cost (``planning.network_bound.compute_network_bound``)."""
-    cells, instants = grid_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
+    """A fleet's network bound's cost (``planning.network_bound.compute_network_bound``): its passes over every pair
+    of cubes and its branch and bound's worst case, each instant."""
+    cells, instants = cube_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
     held = CHUNK * cells * 8 * 3 + relays * cells * 8 * 8
-    seconds = instants * (pair_hops * float(cells) ** 2 / PAIR_EVALS_PER_S + relays * cells * 64 / SINGLE_EVALS_PER_S)
+    branch = (2 * BRANCH_LEVELS * BRANCH_PAIRS / BOX_PAIRS_PER_S) if pair_hops else 0.0
+    seconds = instants * (DP_PASSES * pair_hops * float(cells) ** 2 / PAIR_EVALS_PER_S + relays * cells * 64 / SINGLE_EVALS_PER_S
+                          + branch)
     return BoundCost(cells, 0, instants, relays, pair_hops, float(held), seconds)
 
 

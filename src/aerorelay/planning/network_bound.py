@@ -43,6 +43,7 @@ from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution
+from .bound_cost import BRANCH_LEVELS, BRANCH_PAIRS
 from .feasible_path import speed_limited
 
 NETWORK_BOUND_VERSION = "5"  # bump when the computation changes: cached network bounds are recomputed
@@ -255,7 +256,8 @@ class NetworkBoundSolver:
     relays' cells, then branch and bound (cells that cannot hold the optimum dropped, the others split in
     eight) until the bound is within ``tolerance`` of a configuration the physics allows."""
 
-    def __init__(self, pb: NetworkBoundProblem, tolerance: float = 0.01, max_levels: int = 4, max_pairs: float = 4e6):
+    def __init__(self, pb: NetworkBoundProblem, tolerance: float = 0.01, max_levels: int = BRANCH_LEVELS,
+                 max_pairs: float = BRANCH_PAIRS):
         self.pb, self.scene = pb, pb.scene
         self.tolerance, self.max_levels, self.max_pairs = tolerance, max_levels, max_pairs
         self.relays = [n.name for n in pb.scene.nodes if n.role == "relay"]
