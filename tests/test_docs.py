@@ -2,6 +2,7 @@
 schema (every field with its type, default, unit, range and description; a field without a
 description fails the build) and the README stays a front door."""
 
+import re
 import sys
 from pathlib import Path
 
@@ -78,3 +79,37 @@ def test_the_readme_is_a_front_door():
     for link in [part.split(")")[0] for part in "\n".join(lines).split("](")[1:]]:
         if not link.startswith("http"):
             assert (ROOT / link.split("#")[0]).exists(), link
+
+
+LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def _anchors(md: Path) -> set[str]:
+    """The heading anchors MyST makes (``myst_heading_anchors = 3``: levels 1-3), GitHub's slug rule."""
+    out = set()
+    for line in md.read_text().splitlines():
+        m = re.match(r"^(#{1,3})\s+(.*)$", line)
+        if m:
+            text = re.sub(r"[`*_]", "", m.group(2)).strip().lower()
+            out.add(re.sub(r"\s", "-", re.sub(r"[^\w\s-]", "", text)))
+    return out
+
+
+def test_every_relative_link_in_the_docs_and_the_readme_resolves():
+    """Issue 48 (item 7): every relative link in docs/ and the README names a file that exists (in a clone,
+    before any docs build) and, with ``#anchor``, a heading of that page."""
+    pages = [p for p in (ROOT / "docs").rglob("*.md") if "_build" not in p.parts] + [ROOT / "README.md"]
+    broken = []
+    for page in pages:
+        for target in LINK.findall(page.read_text()):
+            if re.match(r"^[a-z]+:", target) or target.startswith("#") and not target[1:]:
+                continue  # a web address, mailto
+            path, _, anchor = target.partition("#")
+            dest = page if not path else (page.parent / path).resolve()
+            if not dest.exists():
+                broken.append(f"{page.relative_to(ROOT)}: {target} (no such file)")
+            elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest):
+                broken.append(f"{page.relative_to(ROOT)}: {target} (no such heading)")
+    assert not broken, "\n".join(broken)
+    anchors = _anchors(ROOT / "docs" / "results" / "networks.md")  # the checker sees headings, and only them
+    assert {"the-network-bound", "timing-a-fleet"} <= anchors and "the-network-bounds" not in anchors

@@ -37,12 +37,17 @@ def browser():
         b.close()
 
 
-def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
+@pytest.mark.parametrize("seeds", [1, 3])
+def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser, seeds):
+    """One seed: the 3D view of the runs renders. Three seeds of a run with CSI noise (a deterministic run
+    flies one seed): the distribution over seeds is drawn (issue 48, item 4)."""
     from dask.distributed import Client, LocalCluster
 
     studies_dir = tmp_path / "studies"
     studies_dir.mkdir()
-    (studies_dir / "tiny.toml").write_text(TINY)
+    tiny = TINY if seeds == 1 else TINY.replace("[[runs]]", f"seeds = {seeds}\n\n[[runs]]", 1).replace(
+        '"sim.duration_s" = 0.3', '"sim.duration_s" = 0.3, "perturbations.csi_noise_m" = 0.05')
+    (studies_dir / "tiny.toml").write_text(tiny)
     study = find_studies(studies_dir)[0]
     specs = expand(study, ROOT)
     out = tmp_path / "campaign"
@@ -61,7 +66,9 @@ def test_report_opens_cleanly_in_headless_chromium(tmp_path, browser):
     assert len(images) >= 2
     assert all(done and width > 0 for done, width in images), images
     assert "two short runs" in page.inner_text("body")
-    assert page.eval_on_selector_all(".js-plotly-plot", "els => els.length") == 1  # the 3D view rendered
+    spread = page.eval_on_selector_all("img[alt='C_min and mean C over seeds, per run']", "els => els.map(e => e.naturalWidth)")
+    assert len(spread) == (seeds >= 3) and all(w > 0 for w in spread)  # the distribution over seeds drawn
+    assert page.eval_on_selector_all(".js-plotly-plot", "els => els.length") == (seeds == 1)  # the 3D view rendered
     assert errors == []
     # a reader at 1280 px never scrolls sideways: not the page, not a table inside it
     scroll, width = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
