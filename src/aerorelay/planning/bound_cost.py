@@ -28,7 +28,8 @@ SINGLE_EVALS_PER_S = 7.1e6  # capacities per second, one-relay bound (measured, 
 PAIR_EVALS_PER_S = 5.1e7  # pair terms per second, network bound (measured, see the module)
 DP_PASSES = 4  # the network bound's passes over every pair of cells an instant: up and down, certified and at the centres
 BOX_PAIRS_PER_S = 2.3e6  # pair terms per second of its branch and bound's cubes (measured 2026-12-04: 5.5e6 in 2.4 s)
-BRANCH_LEVELS, BRANCH_PAIRS = 3, 3e6  # planning.network_bound.NetworkBoundSolver's defaults: its worst case an instant
+BRANCH_LEVELS, BRANCH_PAIRS = 6, 3e6  # planning.network_bound.NetworkBoundSolver's defaults: its worst case an instant
+BRANCH_CELLS = 200_000  # ... and the most cubes a relay may have at a level (one relay alone has no pair terms)
 TEMPORARIES = 4  # arrays of one instant's (cells x axes) numpy holds at once in the capacity landscape
 CHUNK = 256  # rows of a network bound's pair-term block (planning.network_bound.CHUNK)
 

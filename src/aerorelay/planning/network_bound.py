@@ -43,7 +43,7 @@ from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution
-from .bound_cost import BRANCH_LEVELS, BRANCH_PAIRS
+from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .feasible_path import speed_limited
 
 NETWORK_BOUND_VERSION = "5"  # bump when the computation changes: cached network bounds are recomputed
@@ -467,7 +467,7 @@ class NetworkBoundSolver:
             half = (self.half if sets is None else sets.half) / 2.0
             nxt = CellSets({r: (c[:, None, :] + half * children[None]).reshape(-1, 3) for r, c in current.items()}, half)
             work = sum(len(nxt.centres[a]) * len(nxt.centres[b]) for a, b in self.edges)
-            if work > self.max_pairs or any(len(c) == 0 for c in nxt.centres.values()):
+            if work > self.max_pairs or any(len(c) == 0 or len(c) > BRANCH_CELLS for c in nxt.centres.values()):
                 break
             level_total, marginals = self.solve_level(t, poses, nxt)
             total, sets, levels = max(total, level_total), nxt, levels + 1  # every level's sum is a lower bound
@@ -569,9 +569,11 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     for k, t in enumerate(times):
         poses = solver.fixed_poses(float(t))
         total, marginals = solver.solve_level(float(t), poses, None)
-        sp[k] = solver.cells[[int(np.argmin(marginals[r])) for r in solver.relays]]
-        cells = solver.centres_optimum(float(t), poses)
-        achieved[k], ap[k], ax[k] = solver.refine(float(t), cells)
+        bounded = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
+        sp[k] = solver.cells[bounded]
+        # refined from the relaxed optimum at the cubes' centres and from the bound's best cubes: the better one
+        achieved[k], ap[k], ax[k] = max((solver.refine(float(t), c) for c in (solver.centres_optimum(float(t), poses), bounded)),
+                                        key=lambda r: r[0])
         if np.isfinite(total) and total > 0 and achieved[k] > 0:
             total, search = solver.certify(float(t), total, marginals, bw / achieved[k])
             searches.append(search)
