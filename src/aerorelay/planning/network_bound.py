@@ -517,11 +517,13 @@ class NetworkBoundSolver:
             closest = min(closest, float(min(gaps)))
         return rate, P, A, closest
 
-    def refine(self, t: float, cells: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """The grid chain refined on the true rate: each relay's best cone axis there (one at a time),
-        then L-BFGS-B over every position and (tilt, azimuth) jointly inside the box and tilt limits."""
+    def refine(self, t: float, cells: np.ndarray | None = None, start: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
+        """The chain at the grid's ``cells`` (or at the positions ``start`` ``(K, 3)``, m) refined on the true rate:
+        each relay's best cone axis there (one at a time), then L-BFGS-B over every position and (tilt, azimuth)
+        jointly inside the box and tilt limits."""
         poses = self.fixed_poses(t)
-        P = np.clip(self.cells[cells], self.lo, self.hi)  # a cell may reach past the box: its centre brought in
+        first = self.cells[cells] if start is None else np.asarray(start, float)
+        P = np.clip(first, self.lo, self.hi)  # a cell may reach past the box: its centre brought in
         A = self.best_axes(t, P, poses)
         limits = [self.pb.tilt_limits[r] for r in self.relays]
         tilt0 = np.arccos(np.clip(A[:, 2], -1, 1))
@@ -571,9 +573,12 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
         total, marginals = solver.solve_level(float(t), poses, None)
         bounded = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
         sp[k] = solver.cells[bounded]
-        # refined from the relaxed optimum at the cubes' centres and from the bound's best cubes: the better one
-        achieved[k], ap[k], ax[k] = max((solver.refine(float(t), c) for c in (solver.centres_optimum(float(t), poses), bounded)),
-                                        key=lambda r: r[0])
+        # refined from the relaxed optimum at the cubes' centres, from the bound's best cubes and from the last instant's
+        # refined configuration (the best one moves with the sources): the best of them
+        tries = [solver.refine(float(t), c) for c in (solver.centres_optimum(float(t), poses), bounded)]
+        if k > 0 and np.all(np.isfinite(ap[k - 1])):
+            tries.append(solver.refine(float(t), start=ap[k - 1]))
+        achieved[k], ap[k], ax[k] = max(tries, key=lambda r: r[0])
         if np.isfinite(total) and total > 0 and achieved[k] > 0:
             total, search = solver.certify(float(t), total, marginals, bw / achieved[k])
             searches.append(search)
