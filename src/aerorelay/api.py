@@ -27,7 +27,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
-from .assembly.flight import build_stepper
+from .assembly.flight import build_stepper, network_stepper
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
@@ -54,6 +54,7 @@ from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, Rotorp
 from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
+from .flight.network_controller import NetworkStepper
 from .flight.sources import MavlinkSource
 from .flight.stepper import RelayStepper, StaleSettings
 from .models.vehicle import Multirotor
@@ -106,14 +107,19 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
 
 
 def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
-               observer: bool = True, autopilot: bool = False) -> RelayStepper:
+               observer: bool = True, autopilot: bool = False) -> RelayStepper | NetworkStepper:
     """The relay's planner and NMPC stepped from outside: ``ctrl.step(t, relay_state, source)`` each
     control period returns a ``Command`` (rotor speeds and autopilot setpoints, world ENU, body FLU;
     ``aerorelay.flight.frames`` converts to NED/FRD). Stale inputs hold, then land (``stale``). Stepped
     over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md). ``observer=False``
     leaves out ``[wind]``'s external-force observer (for an autopilot's position loop: see the guide);
     ``autopilot=True`` plans for the vehicle an autopilot flies (thrust along body z: a tilted platform's
-    rotors untilted in the NMPC's model), for its setpoints."""
+    rotors untilted in the NMPC's model), for its setpoints. A network (more than one relay and one source)
+    gives a ``flight.network_controller.NetworkStepper``: ``ctrl.step(t, {relay: state}, {source: SourceState})``
+    returns ``{relay: Command}``, the relays' plans exchanged inside (over aerorelay's plant it flies what
+    ``simulate`` flies, tested)."""
+    if sc.is_network:
+        return network_stepper(sc, nmpc_settings=nmpc_settings)
     return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer, autopilot=autopilot)
 
 
@@ -173,7 +179,7 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     if out is not None:
         check_output_folder(out, "run")
     # the observer destabilized a position cascade; an autopilot's thrust stays along body z (the guide)
-    ctrl = controller(sc, observer=setpoint == "attitude", autopilot=True)
+    ctrl = build_stepper(sc, observer=setpoint == "attitude", autopilot=True)  # one relay: a bridge flies one
     source = build_source(sc) if source_url is None else MavlinkSource(source_url, system=source_system, origin_enu=source_origin)
     bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint)
     bridge.connect()
@@ -199,7 +205,7 @@ def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: P
     metrics say whether it was safe; None when nothing was flown)."""
     if out is not None:
         check_output_folder(out, "run")
-    ctrl = controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
+    ctrl = build_stepper(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z (one relay)
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
     aborted, node, result = None, None, None
     try:

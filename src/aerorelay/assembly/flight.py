@@ -8,6 +8,7 @@ import numpy as np
 
 from ..config import Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
+from ..flight.network_controller import NetworkController, NetworkStepper
 from ..flight.readings import JammersFromReadings
 from ..flight.stepper import RelayStepper, StaleSettings
 from ..models.radio import RadioScene
@@ -37,15 +38,28 @@ def thrust_along_body_z(sc: Scenario) -> Scenario:
     return sc if p.tilt_deg == 0 else sc.with_updates({"platform.tilt_deg": 0.0})
 
 
-def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
-                  stale: StaleSettings | None = None, observer: bool = True, autopilot: bool = False) -> RelayStepper:
+def network_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> NetworkStepper:
+    """The step API of a network (``ar.controller`` on more than one relay and one source): its planner and every
+    relay's NMPC as ``ar.simulate`` flies them, the jammers as the network was told them. Jammers estimated from
+    readings and a relay's own hold are the one-relay step API's so far (a named error / not held)."""
+    if sc.estimates_jammers:
+        raise ScenarioError("jammer.localization: a network's step API takes the jammers as told ('oracle') so far; "
+                            "'estimated' steps one relay (ar.simulate estimates them for a fleet)")
+    parts = build(sc, nmpc_settings=nmpc_settings)
+    control = NetworkController(scene=parts.scene, relays=parts.relays, planner=parts.planner, period_s=sc.control_period_s,
+                                separation_m=parts.separation_m, replanner=parts.replanner)
+    return NetworkStepper(control, oracle_jammers(parts.scene, sc.controller.senses_jammer_state))
+
+
+def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
+                  observer: bool = True, autopilot: bool = False) -> RelayStepper:
     """The stepper of one relay's scenario (``observer=False``: without ``[wind]``'s external-force
     observer; with ``jammer.localization = "estimated"`` the jammers come from the readings ``step`` is
-    handed; ``autopilot``: its NMPC models the vehicle an autopilot flies, ``thrust_along_body_z``); a
-    fleet is a named error."""
+    handed; ``autopilot``: its NMPC models the vehicle an autopilot flies, ``thrust_along_body_z``); a network is
+    ``network_stepper``'s (a named error here: the bridges fly one relay)."""
     if sc.is_network:
-        raise ScenarioError("relays: ar.controller steps one relay; a fleet's relays are stepped by its loop "
-                            "(docs/concepts/networks.md)")
+        raise ScenarioError("relays: a MAVLink or ROS 2 bridge flies one relay so far; a network is stepped from Python by "
+                            "ar.controller (docs/guide/flying.md)")
     parts = build(thrust_along_body_z(sc) if autopilot else sc, nmpc_settings=nmpc_settings)
     senses = sc.controller.senses_jammer_state
     estimated = None if parts.sensing is None else JammersFromReadings(parts.scene, parts.sensing.estimator,

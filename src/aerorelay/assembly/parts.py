@@ -20,6 +20,7 @@ from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
+from ..flight.network_controller import LoopRelay
 from ..flight.stepper import RelayStepper
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
@@ -51,7 +52,7 @@ from ..planning.network_bound import (
     spliced,
 )
 from ..sim.air import Air
-from ..sim.closed_loop import ClosedLoop, LoopRelay, SimSettings, plant_step_function
+from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from . import world

@@ -317,7 +317,7 @@ class RelayStepper:
         ref, P = self.prepare(t, x, source, jammers=jammers)
         info = self.act(x, P)
         self._x_prev = x.copy()
-        return self._command(t, x, info, ref, t0)
+        return self.command(t, x, info, ref, t0)
 
     def stale_reason(self, t: float, x: np.ndarray | None, stamp: float, source: SourceState | None) -> str | None:
         """Why the relay state ``x`` (stamped ``stamp``) and ``source`` are not fresh at ``t`` (missing, or
@@ -346,7 +346,9 @@ class RelayStepper:
         elif relay_state is not None:
             self.estimated.add(t, np.asarray(relay_state, float), readings)
 
-    def _command(self, t: float, x: np.ndarray, info: StepInfo, ref: Reference, t0: float) -> Command:
+    def command(self, t: float, x: np.ndarray, info: StepInfo, ref: Reference, t0: float) -> Command:
+        """The ``Command`` of a step flown at ``x`` with ``info`` on ``ref`` (setpoints one period ahead by the model);
+        ``t0``: when the step began (``time.perf_counter``), for its compute time."""
         veh = self.vehicle
         x1 = np.asarray(veh.rk4_step(x, info.u, self.period), float)  # one period ahead under the command
         a_ext = self.observer.estimate if self.observer is not None else np.zeros(3)

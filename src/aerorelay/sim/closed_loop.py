@@ -21,15 +21,15 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from ..flight.stepper import RelayStepper
+from ..flight.network_controller import LoopRelay, NetworkController
 from ..models.channel import misalignment, mutual_alignment
 from ..models.drag import drag_acceleration
-from ..models.geometry import constant_acceleration_path, rotation_zyx
+from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
-from ..planning.fleet import FleetInput, FleetPlanner
+from ..planning.fleet import FleetPlanner
 from .air import Air
 from .blockage import Blockage
 from .exit_status import ExitStatus
@@ -50,9 +50,6 @@ from .realtime import full_collections_paused
 
 BENCH_POINT_EVERY = 500  # control steps between two states kept for `aerorelay bench`'s full IPOPT solves
 BENCH_POINT_OFFSET = 250  # the first one kept, mid-way into the first interval
-SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
-GONE_CLEARANCE_M = 10.0  # a lost relay in another's separation constraint: the separation plus this below that relay's own
-# plan, never reached within a step (a fixed point 100 m or 1 km away scaled the constraint until the QP stopped converging)
 
 
 def step_count(duration_s: float, period_s: float) -> int:
@@ -180,32 +177,6 @@ def every_link(scene: RadioScene, losses: Sequence[frozenset[str]]) -> RadioScen
     return scene if len(routes) == len(scene.all_routes) else replace(scene, routes=tuple(routes))
 
 
-def route_neighbours(scene: RadioScene) -> dict[str, tuple[str, str]]:
-    """Each relay's two neighbours on its first route: (upstream, toward the base station), the nodes
-    its NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)."""
-    out: dict[str, tuple[str, str]] = {}
-    for route in scene.all_routes:
-        for i in range(1, len(route) - 1):
-            out.setdefault(route[i], (route[i - 1], route[i + 1]))
-    return out
-
-
-@dataclass(frozen=True, kw_only=True)
-class LoopRelay:
-    """One relay of the network: its name, vehicle, stepper (its controller, without a planner of its
-    own), plant step ``(x, u, d) -> x`` and start (m, world)."""
-
-    name: str
-    vehicle: Multirotor
-    stepper: RelayStepper
-    plant: ca.Function
-    start: np.ndarray
-
-    @property
-    def controller(self):
-        return self.stepper.controller
-
-
 class ClosedLoop:
     """Flies a network (one relay and one source, or a fleet): ``run(progress)`` returns a MissionResult."""
 
@@ -219,9 +190,13 @@ class ClosedLoop:
         ``sensing``: the jammers estimated from the receivers' readings, one estimate every planner shares."""
         if losses and replanner is None:
             raise ValueError("ClosedLoop: relays are lost in flight (losses) but no replanner builds the smaller network's planner")
-        self.scene, self.relays, self.sources, self.planner, self.settings = scene, relays, sources, planner, settings
-        self.separation_m = separation_m
-        self.losses, self.replanner = list(losses), replanner
+        if any(r.plant is None for r in relays) and air is None:
+            raise ValueError("ClosedLoop: every relay needs its plant step (LoopRelay.plant)")
+        self.scene, self.relays, self.sources, self.settings = scene, relays, sources, settings
+        self.losses = list(losses)
+        # the controller side of each step: the network's planner, every relay's stage parameters and NMPC
+        self.control = NetworkController(scene=scene, relays=relays, planner=planner, period_s=settings.period_s,
+                                         separation_m=separation_m, replanner=replanner)
         self.sensing, self.air = sensing, air
         self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
         later = [h for _, lost in self.losses for h in scene.without(lost).hops]
@@ -243,16 +218,9 @@ class ClosedLoop:
         # what the network knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
         self.csi_rng = generator(settings.seed, "csi")
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
-        self.neighbours_of = route_neighbours(scene)
         self.bs_name = scene.name_of("base_station")
         self.bs = scene.fixed_pose(self.bs_name).position
-        spec = relays[0].controller.spec
-        self._tk = spec.ts * np.arange(spec.horizon + 1)
-        self._bs_path = np.repeat(self.bs[:, None], spec.horizon + 1, axis=1)
         self.gravity = relays[0].vehicle.gravity
-        # the relays' plans enter another relay's stage parameters: a relay next to another on a route (a route of
-        # more than one relay), the separation rows
-        self._plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
         self.planner_ms: list[float] = []
         self.timings: dict[str, list[StepTiming]] = {r.name: [] for r in relays}
@@ -281,45 +249,25 @@ class ClosedLoop:
         rng = self.process_rngs[relay]
         return np.concatenate([rng.normal(0.0, st.process_noise_v, 3), rng.normal(0.0, st.process_noise_w, 3)])
 
-    def _predicted(self, x: dict[str, np.ndarray], src: dict) -> dict[str, np.ndarray]:
-        """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
-        plan, shifted by the step flown since (one step old; its current position held before its
-        first plan), a source at constant acceleration."""
-        out = {}
-        for r in self.relays if self._plans_needed else ():
-            nmpc = r.controller.nmpc
-            if nmpc.initialized:
-                out[r.name] = nmpc.plan()[0][0:3].copy()
-            else:
-                out[r.name] = np.repeat(x[r.name][0:3, None], len(self._tk), axis=1)
-        for name, s in src.items():
-            out[name] = constant_acceleration_path(s.p, s.v, s.a, self._tk)
-        return out
-
     def _lose(self, lost: frozenset[str], x: dict[str, np.ndarray]) -> None:
         """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
         others from where they are."""
-        assert self.replanner is not None  # checked in __init__
-        self.scene = self.scene.without(lost)
-        self.planner = self.replanner(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
-        self.neighbours_of = route_neighbours(self.scene)
+        self.control.lose(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
+        self.scene = self.control.scene
         self._links_now = self._link_rows(self.scene)
 
     def _link_rows(self, scene: RadioScene) -> np.ndarray:
         """Where each of ``scene``'s fading links sits among the perturbations' links (every link taken)."""
         return self.perturbations.layout(scene)
 
-    def _relay_step(self, k: int, r: LoopRelay, x: np.ndarray, ref, predicted: dict, lost: frozenset[str], row: dict):
-        """Relay ``r``'s control step at ``x`` on the reference ``ref``: its stage parameters (its neighbours
-        on its route, the other vehicles' plans), its NMPC's input; its step's values into ``row``."""
-        up, down = self.neighbours_of[r.name]
-        others = None
-        if r.controller.spec.neighbours:
-            gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
-            others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
-        a_ext = self.air.estimate(r.name) if self.air else None
-        P = r.stepper.parameters(ref, p2_path=predicted[up], p0_path=predicted.get(down, self._bs_path), others=others,
-                                 separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
+    @property
+    def planner(self):
+        return self.control.planner
+
+    def _relay_step(self, k: int, r: LoopRelay, x: np.ndarray, ref, predicted: dict, lost: frozenset[str]):
+        """Relay ``r``'s control step at ``x`` on the reference ``ref``: its stage parameters, its NMPC's input
+        (a bench point kept every ``BENCH_POINT_EVERY`` steps, its timings)."""
+        P = self.control.parameters(r, ref, predicted, lost, self.air.estimate(r.name) if self.air else None)
         if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
             nmpc = r.controller.nmpc
             self.bench_points[r.name].append(BenchPoint(x.copy(), r.stepper.u.copy(), P.copy(),
@@ -353,17 +301,10 @@ class ClosedLoop:
                     self.air.begin()
                 eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in truth.items()}}
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
-                t0 = time.perf_counter()
-                refs = self.planner.update(FleetInput(
-                    t=t, dt=period, positions={**{n: xs[0:3].copy() for n, xs in flying.items()}, **{n: s.p for n, s in src.items()},
-                                               self.bs_name: self.bs},
-                    velocities={**{n: xs[6:9].copy() for n, xs in flying.items()}, **{n: s.v for n, s in src.items()}},
-                    axes={n: R[n][:, 2] for n in R}, yaws={n: float(xs[5]) for n, xs in flying.items()},
-                    accelerations={n: s.a for n, s in src.items()}, jammer_positions=pj, jammer_powers=powers,
-                    jammer_std_m=std))
-                self.planner_ms.append((time.perf_counter() - t0) * 1e3)
+                refs = self.control.plan(t, flying, src, (pj, powers, std))
+                self.planner_ms.append(self.control.planner_ms)
                 row: dict[str, object] = {"t": t}
-                predicted = self._predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
+                predicted = self.control.predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 true_positions = {**{n: xs[0:3] for n, xs in flying.items()}, **{n: s.p for n, s in truth.items()},
                                   self.bs_name: self.bs}
                 inputs = {}
@@ -373,9 +314,9 @@ class ClosedLoop:
                         if self.air is not None:
                             row |= dict.fromkeys(self.air.columns(r.name, f"{r.name}."), math.nan)
                         continue
-                    info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, lost, row)
+                    info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, lost)
                     inputs[r.name] = info.u
-                    up, down = self.neighbours_of[r.name]
+                    up, down = self.control.neighbours_of[r.name]
                     p, Rr = x[r.name][0:3], R[r.name]
                     v_up, v_down = float(misalignment(p, Rr, true_positions[up])), float(misalignment(p, Rr, true_positions[down]))
                     ref = refs[r.name]
@@ -414,8 +355,11 @@ class ClosedLoop:
                 for r in self.relays:
                     if r.name not in lost:
                         d = self._process_noise(r.name)
-                        x[r.name] = (self.air.advance(r.name, x[r.name], inputs[r.name], d) if self.air
-                                     else np.asarray(r.plant(x[r.name], inputs[r.name], d)).ravel())
+                        if self.air is not None:
+                            x[r.name] = self.air.advance(r.name, x[r.name], inputs[r.name], d)
+                        else:
+                            assert r.plant is not None  # checked in __init__
+                            x[r.name] = np.asarray(r.plant(x[r.name], inputs[r.name], d)).ravel()
                 bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
                 if bad:  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1

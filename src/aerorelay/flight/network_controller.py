@@ -1,0 +1,174 @@
+"""The controller side of a relay network, one control step: the network's planner on what the network
+knows, then every relay's stage parameters (its route neighbours' predicted paths, the other vehicles'
+plans for the separation) and its NMPC. ``sim.closed_loop.ClosedLoop`` flies it over the plant;
+``NetworkStepper`` (``ar.controller`` on a network) steps it from outside with measured states."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..control.nmpc import StepInfo
+from ..models.geometry import constant_acceleration_path, rotation_zyx
+from ..models.mission import SourceState as PathState
+from ..models.radio import RadioScene
+from ..models.vehicle import Multirotor
+from ..planning.base import Reference
+from ..planning.fleet import FleetInput, FleetPlanner
+from .stepper import Command, RelayStepper, SourceState, checked_source
+
+SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
+GONE_CLEARANCE_M = 10.0  # a lost relay in another's separation constraint: the separation plus this below that relay's own
+# plan, never reached within a step (a fixed point 100 m or 1 km away scaled the constraint until the QP stopped converging)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoopRelay:
+    """One relay of the network: its name, vehicle, stepper (its controller, without a planner of its
+    own), plant step ``(x, u, d) -> x`` (None when flown outside) and start (m, world)."""
+
+    name: str
+    vehicle: Multirotor
+    stepper: RelayStepper
+    plant: ca.Function | None
+    start: np.ndarray
+
+    @property
+    def controller(self):
+        return self.stepper.controller
+
+
+def route_neighbours(scene: RadioScene) -> dict[str, tuple[str, str]]:
+    """Each relay's two neighbours on its first route: (upstream, toward the base station), the nodes
+    its NMPC's alignment terms look at (MRAV-2 and the base station of the paper's one relay)."""
+    out: dict[str, tuple[str, str]] = {}
+    for route in scene.all_routes:
+        for i in range(1, len(route) - 1):
+            out.setdefault(route[i], (route[i - 1], route[i + 1]))
+    return out
+
+
+class NetworkController:
+    """Plans and controls every relay of a network for one step (``step``); ``lose`` takes relays out."""
+
+    def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner, period_s: float,
+                 separation_m: float = 0.0,
+                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None):
+        self.scene, self.relays, self.planner, self.period = scene, relays, planner, period_s
+        self.separation_m, self.replanner = separation_m, replanner
+        self.neighbours_of = route_neighbours(scene)
+        self.sources = list(dict.fromkeys(route[0] for route in scene.all_routes))
+        self.bs_name = scene.name_of("base_station")
+        self.bs = scene.fixed_pose(self.bs_name).position
+        spec = relays[0].controller.spec
+        self.tk = spec.ts * np.arange(spec.horizon + 1)
+        self.bs_path = np.repeat(self.bs[:, None], spec.horizon + 1, axis=1)
+        self.gravity = relays[0].vehicle.gravity
+        # the relays' plans enter another relay's stage parameters: a relay next to another on a route (a route of
+        # more than one relay), the separation rows
+        self.plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)
+        self.planner_ms = 0.0  # the last step's planner time (ms)
+
+    def lose(self, lost: frozenset[str], positions: Mapping[str, np.ndarray]) -> None:
+        """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
+        others from where they are (``positions``, m, world)."""
+        if self.replanner is None:
+            raise ValueError("network controller: relays are lost but no replanner builds the smaller network's planner")
+        self.scene = self.scene.without(lost)
+        self.planner = self.replanner(lost, {n: p for n, p in positions.items() if n not in lost})
+        self.neighbours_of = route_neighbours(self.scene)
+
+    def plan(self, t: float, x: Mapping[str, np.ndarray], sources: Mapping, jammers) -> dict[str, Reference]:
+        """The network planner's references from the flying relays' states ``x`` and the ``sources`` as known
+        (``p``, ``v``, ``a``; their attitudes follow their accelerations), ``jammers`` ``(positions, powers, std)``."""
+        pj, powers, std = jammers
+        eta = {**{n: xs[3:6] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in sources.items()}}
+        t0 = time.perf_counter()
+        refs = self.planner.update(FleetInput(
+            t=t, dt=self.period, positions={**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in sources.items()},
+                                            self.bs_name: self.bs},
+            velocities={**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in sources.items()}},
+            axes={n: rotation_zyx(e)[:, 2] for n, e in eta.items()}, yaws={n: float(xs[5]) for n, xs in x.items()},
+            accelerations={n: s.a for n, s in sources.items()}, jammer_positions=pj, jammer_powers=powers, jammer_std_m=std))
+        self.planner_ms = (time.perf_counter() - t0) * 1e3
+        return refs
+
+    def predicted(self, x: Mapping[str, np.ndarray], sources: Mapping) -> dict[str, np.ndarray]:
+        """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
+        plan, shifted by the step flown since (one step old; its current position held before its
+        first plan), a source at constant acceleration."""
+        out = {}
+        for r in self.relays if self.plans_needed else ():
+            nmpc = r.controller.nmpc
+            if nmpc.initialized:
+                out[r.name] = nmpc.plan()[0][0:3].copy()
+            else:
+                out[r.name] = np.repeat(x[r.name][0:3, None], len(self.tk), axis=1)
+        for name, s in sources.items():
+            out[name] = constant_acceleration_path(s.p, s.v, s.a, self.tk)
+        return out
+
+    def parameters(self, r: LoopRelay, ref: Reference, predicted: Mapping[str, np.ndarray], lost: frozenset[str],
+                   a_ext: np.ndarray | None) -> np.ndarray:
+        """Relay ``r``'s stage parameters on ``ref``: its neighbours on its route, the other vehicles' plans."""
+        up, down = self.neighbours_of[r.name]
+        others = None
+        if r.controller.spec.neighbours:
+            gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
+            others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
+        return r.stepper.parameters(ref, p2_path=predicted[up], p0_path=predicted.get(down, self.bs_path), others=others,
+                                    separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
+
+
+class NetworkStepper:
+    """``ar.controller`` on a network: ``step(t, relay_states, sources)`` plans every relay and steps each one's
+    NMPC with the states measured outside (``{relay: full state}``, ``{source: SourceState}``, aerorelay's
+    frames), the relays' plans exchanged inside; returns ``{relay: Command}``. Every relay's state and every
+    source must be given each step (a relay's own hold and landing are the one-relay step API's, not yet a
+    fleet's). Stepped over aerorelay's plant it flies what ``ar.simulate`` flies (tested)."""
+
+    def __init__(self, controller: NetworkController, jammers: Callable[[float], tuple]):
+        self.controller, self.jammers = controller, jammers
+        self.period = controller.period
+        self._t_last: float | None = None
+
+    @property
+    def relays(self) -> list[str]:
+        return [r.name for r in self.controller.relays]
+
+    def step(self, t: float, relay_states: Mapping[str, np.ndarray], sources: Mapping[str, SourceState]) -> dict[str, Command]:
+        """One control period at ``t`` (s): every relay's full state ``(p, eta, v, omega, Omega)`` (m, rad ZYX, m/s,
+        rad/s FLU, Hz) by name, every source as known by name; ``{relay: Command}``. A missing or malformed
+        state, a clock going backwards, is a ValueError naming it."""
+        t0 = time.perf_counter()
+        t = float(t)
+        if not np.isfinite(t) or (self._t_last is not None and t < self._t_last):
+            raise ValueError(f"step: t = {t} s must be finite and not before the previous step's")
+        names = self.relays
+        missing = [n for n in names if n not in relay_states] + [s for s in self.controller.sources if s not in sources]
+        if missing:
+            raise ValueError(f"step: no state for {missing}: a network steps every relay with every source each period")
+        x = {}
+        for r in self.controller.relays:
+            xs = np.asarray(relay_states[r.name], float)
+            if xs.shape != (r.vehicle.nx,) or not np.all(np.isfinite(xs)):
+                raise ValueError(f"step: relay_states[{r.name!r}] must be {r.vehicle.nx} finite numbers (p, eta, v, omega, Omega)")
+            x[r.name] = xs
+        src = {}
+        for name, s in sources.items():
+            checked = checked_source(s)
+            assert checked is not None
+            src[name] = PathState(checked.p, checked.v, checked.a)
+        self._t_last = t
+        refs = self.controller.plan(t, x, src, self.jammers(t))
+        predicted = self.controller.predicted(x, src)
+        out = {}
+        for r in self.controller.relays:
+            P = self.controller.parameters(r, refs[r.name], predicted, frozenset(), None)
+            info: StepInfo = r.stepper.act(x[r.name], P)
+            out[r.name] = r.stepper.command(t, x[r.name], info, refs[r.name], t0)
+        return out

@@ -1,0 +1,58 @@
+"""The step API of a network (issue 50, item 2): ``ar.controller`` on a fleet steps every relay from outside
+(states by name in, commands by name out, the relays' plans exchanged inside); stepped over aerorelay's
+plant it reproduces ``ar.simulate`` of the same fleet bit for bit, as the one relay's does."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly.parts import build
+from aerorelay.config import ScenarioError
+from aerorelay.flight.network_controller import NetworkStepper
+from aerorelay.sim.closed_loop import step_count
+
+
+def _fly_stepped(sc):
+    ctrl = ar.controller(sc)
+    assert isinstance(ctrl, NetworkStepper) and ctrl.relays == [r.name for r in sc.relay_list]
+    parts = build(sc)  # the plant and the sources' paths ar.simulate flies
+    x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
+    plants = {r.name: r.plant for r in parts.relays}
+    states, inputs = [], []
+    for k in range(step_count(sc.duration_s, sc.control_period_s)):
+        t = k * sc.control_period_s
+        sources = {name: ar.SourceState(s.p, s.v, s.a) for name, path in parts.sources.items() for s in [path.state(t)]}
+        cmds = ctrl.step(t, x, sources)
+        assert set(cmds) == set(x) and all(c.mode in ("nmpc", "fallback") for c in cmds.values())
+        states.append({n: xs.copy() for n, xs in x.items()})
+        inputs.append({n: c.omega_dot_hz_s for n, c in cmds.items()})
+        x = {n: np.asarray(plants[n](x[n], cmds[n].omega_dot_hz_s, np.zeros(6))).ravel() for n in x}
+    return states, inputs
+
+
+@pytest.mark.parametrize("preset", ["chain_two_relays", "two_sources"])
+def test_stepping_a_fleet_reproduces_simulate_bit_for_bit(preset):
+    sc = ar.load_scenario(f"scenarios/{preset}.toml", set={"sim.duration_s": 0.6})
+    log = ar.simulate(sc).timeseries
+    states, inputs = _fly_stepped(sc)
+    for r in sc.relay_list:
+        n = r.name
+        cols = [f"{n}.{q}" for q in ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z")]
+        assert np.array_equal(log[cols].to_numpy(), np.array([s[n][:9] for s in states])), n
+        assert np.array_equal(log[[f"{n}.u_{i}" for i in range(1, 7)]].to_numpy(), np.array([u[n] for u in inputs])), n
+
+
+def test_a_fleets_step_needs_every_relay_and_source_and_says_which():
+    sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 0.3})
+    ctrl = ar.controller(sc)
+    parts = build(sc)
+    x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
+    s = parts.sources["inspector"].state(0.0)
+    with pytest.raises(ValueError, match=r"no state for \['r2'\]"):
+        ctrl.step(0.0, {"r1": x["r1"]}, {"inspector": ar.SourceState(s.p, s.v, s.a)})
+    with pytest.raises(ValueError, match=r"relay_states\['r1'\] must be"):
+        ctrl.step(0.0, {**x, "r1": x["r1"][:5]}, {"inspector": ar.SourceState(s.p, s.v, s.a)})
+    with pytest.raises(ScenarioError, match="a MAVLink or ROS 2 bridge flies one relay so far"):
+        ar.fly_lockstep(sc, ar.plant_airframe(sc))
