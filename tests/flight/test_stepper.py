@@ -105,9 +105,14 @@ def test_the_command_is_the_model_one_period_ahead(stepped):
     assert cmd.deadline_met == (cmd.compute_ms <= sc.control_period_s * 1e3)
 
 
-def test_a_fleet_is_a_named_error():
-    with pytest.raises(ar.ScenarioError, match="ar.controller steps one relay"):
-        ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml"))
+def test_a_fleet_steps_as_a_network_and_what_it_does_not_take_yet_is_named():
+    """``ar.controller`` on a fleet is its network's step API (tests/flight/test_network_stepper.py); its jammers
+    estimated from readings are the one relay's so far: named."""
+    from aerorelay.flight.network_controller import NetworkStepper
+
+    assert isinstance(ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml")), NetworkStepper)
+    with pytest.raises(ar.ScenarioError, match="a network's step API takes the jammers as told"):
+        ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml", set={"jammer.localization": "estimated"}))
 
 
 ESTIMATING = {"sim.duration_s": 5.0, "jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0,
