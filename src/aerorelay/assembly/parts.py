@@ -24,6 +24,7 @@ from ..flight.network_controller import LoopRelay
 from ..flight.stepper import RelayStepper
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
+from ..models.battery import Battery
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import CirclePath, LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
@@ -446,7 +447,10 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
                                       p0_parameter=network and view.controller.comms_aware)
         stepper = RelayStepper(vehicle=vehicle, planner=None, controller=controller, period_s=sc.control_period_s,
                                jammers=_no_jammer_view)
-        relays.append(LoopRelay(name=r.name, vehicle=vehicle, stepper=stepper, start=np.array(r.start, float),
+        bat = view.platform.battery
+        battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
+                                                   bat.avionics_w)
+        relays.append(LoopRelay(name=r.name, vehicle=vehicle, stepper=stepper, start=np.array(r.start, float), battery=battery,
                                 plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
     starts = {r.name: r.start for r in relays}

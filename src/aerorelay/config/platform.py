@@ -27,6 +27,17 @@ class Rotor(Strict):
 FOOTPRINT_PER_ARM = 1.5  # a vehicle's reach over its farthest rotor centre: the arm plus a rotor of half its length
 
 
+class BatteryConfig(Strict):
+    """A relay's battery (``[platform.battery]``): its energy, the share of it that can be drawn, the reserve
+    kept to get home, and the avionics' constant load besides the rotors' shaft power."""
+
+    capacity_wh: float = Field(gt=0.0, le=1e5, description="nominal energy, Wh")
+    usable_fraction: float = Field(0.9, gt=0.0, le=1.0, description="the share of capacity_wh that can be drawn")
+    reserve_fraction: float = Field(0.2, ge=0.0, lt=1.0, description="the share of the usable energy kept to get home: "
+                                    "reaching it is logged and timed")
+    avionics_w: float = Field(15.0, ge=0.0, le=1e4, description="constant electrical load besides the rotors, W")
+
+
 class PlatformConfig(Strict):
     """Relay vehicle (MRAV-1). Hexarotor by default; ``rotors`` overrides the layout."""
 
@@ -35,6 +46,8 @@ class PlatformConfig(Strict):
     arm_length_m: float = Field(HEXAROTOR_ARM_LENGTH_M, gt=0.0, le=5.0, description="star layout: distance of every rotor "
                                 "from the centre of mass, m")
     rotors: list[Rotor] | None = Field(None, min_length=4, description="custom layout; overrides tilt/arm")
+    battery: BatteryConfig | None = Field(None, description="its battery: state of charge logged per relay (none: not "
+                                          "modelled)")
     mass_kg: float = Field(2.57, gt=0.0, description="m, kg (Table I)")
     inertia_kgm2: Vec3 = Field(default_factory=lambda: [0.11, 0.11, 0.19], description="diagonal of J, kg m^2")
     gravity_m_s2: float = Field(9.81, gt=0.0, description="g, m/s^2")

@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 
 from ..control.nmpc import StepInfo
+from ..models.battery import Battery
 from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceState as PathState
 from ..models.radio import RadioScene
@@ -36,6 +37,7 @@ class LoopRelay:
     stepper: RelayStepper
     plant: ca.Function | None
     start: np.ndarray
+    battery: Battery | None = None
 
     @property
     def controller(self):

@@ -215,6 +215,9 @@ class ClosedLoop:
             self.columns += sensing.columns
         if air is not None:
             self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
+        # each relay with a battery: its state of charge at the step's start and whether it reached its reserve
+        self.battery_columns = [c for r in relays if r.battery is not None for c in (f"{r.name}.soc", f"{r.name}.battery_reserve")]
+        self.columns += self.battery_columns
         # what the network knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
         self.csi_rng = generator(settings.seed, "csi")
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
@@ -282,6 +285,7 @@ class ClosedLoop:
         period = st.period_s
         n_steps = step_count(st.duration_s, period)
         x = {r.name: r.vehicle.hover_state(r.start) for r in self.relays}
+        drawn = {r.name: 0.0 for r in self.relays if r.battery is not None}  # energy drawn so far, J
         log = new_log(self.columns, n_steps)
         sinr_columns = [c for c in self.columns if c.startswith(("sinr.", "se."))]
         pending, lost = list(self.losses), frozenset[str]()
@@ -351,6 +355,12 @@ class ClosedLoop:
                 row["separation_min"] = separation_min(np.array([true_positions[n] for n in (*flying, *truth)]))
                 if self.air is not None:
                     row |= self.air.wind_values()
+                for r in self.relays:
+                    if r.battery is not None:
+                        soc = r.battery.state_of_charge(drawn[r.name]) if r.name not in lost else math.nan
+                        row |= {f"{r.name}.soc": soc, f"{r.name}.battery_reserve": bool(soc <= r.battery.reserve_fraction)}
+                        if r.name not in lost:
+                            drawn[r.name] += r.battery.draw(float(r.vehicle.shaft_power(x[r.name][12:])), period)
                 record_row(log, k, row, self.columns)
                 for r in self.relays:
                     if r.name not in lost:

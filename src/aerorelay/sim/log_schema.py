@@ -18,7 +18,9 @@ The links: each hop's SINR ``sinr.<tx>.<rx>`` and spectral efficiency ``se.<tx>.
 ``capacity`` (``models.radio.network_rate``); ``jammer_on``; ``separation_min`` (m, the smallest
 distance between two vehicles); each jammer's true position ``jam_<name>_x/y/z`` (m). The random
 channel terms, blockage, jammer estimate and wind add their own columns (``sim/perturbations.py``,
-``sim/blockage.py``, ``sim/jammer_sensing.py``, ``sim/air.py``: a relay's are ``<relay>.a_drag_x``...).
+``sim/blockage.py``, ``sim/jammer_sensing.py``, ``sim/air.py``: a relay's are ``<relay>.a_drag_x``...); a relay
+with a battery (``[platform.battery]``) its state of charge at the step's start ``<relay>.soc`` (the usable
+energy left, fraction) and ``<relay>.battery_reserve`` (at or below its reserve).
 
 Run folders written before this vocabulary (one relay: ``p1_x``, ``gamma_21``...) are read through
 ``LEGACY_COLUMNS`` (``modern_columns``).
@@ -39,7 +41,7 @@ RELAY_STEP = ("pd_x", "pd_y", "pd_z", "v_up", "v_down", "mutual_alignment", "sla
               "qp_status", "fallback", "safety_violation", "taylor_rel_err")
 # the quantities that are not floats, with their types (flags and the QP's status text)
 COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool,
-                                 "safety_violation": bool}
+                                 "safety_violation": bool, "battery_reserve": bool}
 NETWORK_COLUMNS = ("capacity", "jammer_on", "separation_min")
 
 

@@ -208,7 +208,22 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
         "omega_range_hz": [float(speeds.min()), float(speeds.max())],
         **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
+        **battery_metrics(log, name),
     }
+
+
+def battery_metrics(log, name: str) -> dict:
+    """With a battery (``<relay>.soc``): its state of charge at the last step flown (``soc_final_fraction``) and,
+    when it reached its reserve, the first time it did (``battery_reserve_first_s``, s)."""
+    if f"{name}.soc" not in log:
+        return {}
+    soc = np.asarray(log[f"{name}.soc"], float)
+    flew = np.isfinite(soc)
+    out = {"soc_final_fraction": float(soc[flew][-1]) if flew.any() else math.nan}
+    reserve = np.asarray(log[f"{name}.battery_reserve"], bool) & flew
+    if reserve.any():
+        out["battery_reserve_first_s"] = float(np.asarray(log["t"], float)[np.argmax(reserve)])
+    return out
 
 
 NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses")  # the network's, not a relay's

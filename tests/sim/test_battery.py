@@ -1,0 +1,55 @@
+"""A relay's battery (issue 51, item 2, its model): the state of charge logged per relay is the usable
+energy left after the rotors' shaft power (``sum_i c_tau Omega_i^3 2 pi``, written here from the rotor
+model's constants) and the avionics' load drawn over every step before, from the logged rotor speeds;
+hovering, it is the hover power times the time; the reserve's first time is the first step at or below
+it; no battery table, no columns (every number as before: tests/sim/test_one_machinery.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+
+CAPACITY_WH, USABLE, RESERVE, AVIONICS_W = 0.06, 0.9, 0.2, 15.0
+
+
+def _flown(duration_s=2.0, capacity_wh=CAPACITY_WH):
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={
+        "sim.duration_s": duration_s, "platform.battery": {"capacity_wh": capacity_wh, "usable_fraction": USABLE,
+                                                           "reserve_fraction": RESERVE, "avionics_w": AVIONICS_W}})
+    return sc, ar.simulate(sc)
+
+
+def test_the_state_of_charge_is_the_energy_drawn_by_the_rotors_and_the_avionics():
+    sc, r = _flown()
+    df, T = r.timeseries, sc.control_period_s
+    speeds = df[[f"relay.Omega_{i}" for i in range(1, 7)]].to_numpy()
+    power = np.sum(sc.platform.c_tau * speeds**3 * 2.0 * math.pi, axis=1) + AVIONICS_W  # W, each step's start
+    usable_j = CAPACITY_WH * 3600.0 * USABLE
+    want = 1.0 - np.r_[0.0, np.cumsum(power * T)[:-1]] / usable_j
+    np.testing.assert_allclose(df["relay.soc"].to_numpy(), want, rtol=1e-12, atol=1e-12)
+    # a relay holding near its start draws about the hover power: the rotor model's hover speeds
+    hover = ar.api.vehicle(sc).hover_speeds()
+    hover_power = float(np.sum(sc.platform.c_tau * hover**3 * 2.0 * math.pi)) + AVIONICS_W
+    t_end = float(df["t"].iloc[-1])
+    assert 1.0 - df["relay.soc"].iloc[-1] == pytest.approx(hover_power * t_end / usable_j, rel=0.02)
+    reached = df["relay.soc"].to_numpy() <= RESERVE
+    assert reached.any()  # 0.06 Wh: the reserve within 2 s
+    assert r.metrics["battery_reserve_first_s"] == pytest.approx(float(df["t"].to_numpy()[np.argmax(reached)]))
+    assert r.metrics["soc_final_fraction"] == pytest.approx(float(df["relay.soc"].iloc[-1]))
+    assert df["relay.battery_reserve"].dtype == bool and r.metrics["units"]["soc_final_fraction"] == "1"
+
+
+def test_a_battery_that_lasts_never_reaches_its_reserve_and_a_run_without_one_logs_none():
+    _, r = _flown(duration_s=0.3, capacity_wh=100.0)
+    assert r.metrics["soc_final_fraction"] > 0.99 and "battery_reserve_first_s" not in r.metrics
+    plain = ar.simulate(ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 0.15}))
+    assert not [c for c in plain.timeseries if "soc" in c] and "soc_final_fraction" not in plain.metrics
+
+
+def test_a_battery_table_out_of_range_is_named():
+    with pytest.raises(ar.ScenarioError, match=r"platform.battery.usable_fraction"):
+        ar.load_scenario("scenarios/nominal_tilted.toml", set={"platform.battery": {"capacity_wh": 50.0, "usable_fraction": 1.5}})
