@@ -76,9 +76,9 @@ def main():
     heavy = np.zeros(len(iters), bool)
     heavy[list(kept)] = True
     omega = np.stack([res.log[f"relay.Omega_{i + 1}"] for i in range(spec.n_rotors)], 1)
-    u = np.stack([res.log[f"u_{i + 1}"] for i in range(spec.n_rotors)], 1)
+    u = np.stack([res.log[f"relay.u_{i + 1}"] for i in range(spec.n_rotors)], 1)
     v = spec.vehicle
-    events = {"alignment slack > 1e-4": res.log["slack_max"] > 1e-4,
+    events = {"alignment slack > 1e-4": res.log["relay.slack_max"] > 1e-4,
               "a motor within 2 Hz of its top speed": omega.max(1) > v.omega_max - 2.0,
               "a motor acceleration within 10 Hz/s of its bound": (u.max(1) > v.omega_dot_max - 10.0)
               | (u.min(1) < v.omega_dot_min + 10.0)}
