@@ -56,3 +56,34 @@ def test_a_fleets_step_needs_every_relay_and_source_and_says_which():
         ctrl.step(0.0, {**x, "r1": x["r1"][:5]}, {"inspector": ar.SourceState(s.p, s.v, s.a)})
     with pytest.raises(ScenarioError, match="a MAVLink or ROS 2 bridge flies one relay so far"):
         ar.fly_lockstep(sc, ar.plant_airframe(sc))
+
+
+def test_a_relay_whose_state_stops_holds_then_lands_while_the_others_fly_on():
+    """r2's state missing from 0.3 s: it holds where it last was (a position setpoint, no rotor command), lands
+    once missing for land_after_s (3 s), the network planning with its last state; r1 keeps its NMPC; r2's state
+    back, its NMPC again. A missing source holds every relay and says why."""
+    sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 10.0})
+    ctrl, parts = ar.controller(sc), build(sc)
+    x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
+    plants = {r.name: r.plant for r in parts.relays}
+    T = sc.control_period_s
+    modes = []
+    last_r2 = None
+    for k in range(int(3.9 / T)):
+        t = k * T
+        s = parts.sources["inspector"].state(t)
+        states = dict(x) if not (20 <= k < 20 + int(3.3 / T)) else {"r1": x["r1"]}  # r2 silent for 3.3 s
+        if "r2" in states:
+            last_r2 = x["r2"].copy()
+        cmds = ctrl.step(t, states, {"inspector": ar.SourceState(s.p, s.v, s.a)})
+        modes.append((cmds["r1"].mode, cmds["r2"].mode))
+        if cmds["r2"].mode in ("hold", "land"):
+            assert cmds["r2"].rotor_speeds_hz is None
+            assert np.allclose(cmds["r2"].position_m[:2], last_r2[:2])  # where it last was (landing: straight down)
+        x = {n: np.asarray(plants[n](x[n], cmds[n].omega_dot_hz_s, np.zeros(6))).ravel() if cmds[n].omega_dot_hz_s is not None
+             else x[n] for n in x}
+    r1, r2 = zip(*modes, strict=True)
+    assert set(r1) <= {"nmpc", "fallback"}
+    assert r2[19] == "nmpc" and r2[20] == "hold" and r2[20 + int(3.0 / T) + 2] == "land" and r2[-1] == "nmpc"
+    cmds = ctrl.step(len(modes) * T, x, {"inspector": None})
+    assert all(c.mode == "hold" and "no source" in (c.rejected or "") for c in cmds.values())

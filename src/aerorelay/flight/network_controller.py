@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -129,47 +129,61 @@ class NetworkController:
 class NetworkStepper:
     """``ar.controller`` on a network: ``step(t, relay_states, sources)`` plans every relay and steps each one's
     NMPC with the states measured outside (``{relay: full state}``, ``{source: SourceState}``, aerorelay's
-    frames), the relays' plans exchanged inside; returns ``{relay: Command}``. Every relay's state and every
-    source must be given each step (a relay's own hold and landing are the one-relay step API's, not yet a
-    fleet's). Stepped over aerorelay's plant it flies what ``ar.simulate`` flies (tested)."""
+    frames), the relays' plans exchanged inside; returns ``{relay: Command}``. A relay whose state is missing
+    (absent or None) holds where it last was and lands once it stays missing for ``land_after_s`` (its
+    ``RelayStepper``'s stale-input behaviour), the network planning with its last state; a missing source holds
+    every relay. Stepped over aerorelay's plant it flies what ``ar.simulate`` flies (tested)."""
 
     def __init__(self, controller: NetworkController, jammers: Callable[[float], tuple]):
         self.controller, self.jammers = controller, jammers
         self.period = controller.period
         self._t_last: float | None = None
+        self._last: dict[str, np.ndarray] = {}  # each relay's last fresh state
 
     @property
     def relays(self) -> list[str]:
         return [r.name for r in self.controller.relays]
 
-    def step(self, t: float, relay_states: Mapping[str, np.ndarray], sources: Mapping[str, SourceState]) -> dict[str, Command]:
+    def step(self, t: float, relay_states: Mapping[str, np.ndarray | None],
+             sources: Mapping[str, SourceState | None]) -> dict[str, Command]:
         """One control period at ``t`` (s): every relay's full state ``(p, eta, v, omega, Omega)`` (m, rad ZYX, m/s,
-        rad/s FLU, Hz) by name, every source as known by name; ``{relay: Command}``. A missing or malformed
-        state, a clock going backwards, is a ValueError naming it."""
+        rad/s FLU, Hz) by name (None or absent: none arrived), every source as known by name; ``{relay: Command}``.
+        A malformed state, a clock going backwards, or a first step without every state, is a ValueError naming it."""
         t0 = time.perf_counter()
         t = float(t)
         if not np.isfinite(t) or (self._t_last is not None and t < self._t_last):
             raise ValueError(f"step: t = {t} s must be finite and not before the previous step's")
-        names = self.relays
-        missing = [n for n in names if n not in relay_states] + [s for s in self.controller.sources if s not in sources]
-        if missing:
-            raise ValueError(f"step: no state for {missing}: a network steps every relay with every source each period")
-        x = {}
+        fresh = {}
         for r in self.controller.relays:
-            xs = np.asarray(relay_states[r.name], float)
+            given = relay_states.get(r.name)
+            if given is None:
+                continue
+            xs = np.asarray(given, float)
             if xs.shape != (r.vehicle.nx,) or not np.all(np.isfinite(xs)):
                 raise ValueError(f"step: relay_states[{r.name!r}] must be {r.vehicle.nx} finite numbers (p, eta, v, omega, Omega)")
-            x[r.name] = xs
+            fresh[r.name] = xs
+        never = [n for n in self.relays if n not in fresh and n not in self._last]
+        if never:
+            raise ValueError(f"step: no state for {never} and none before: a network's first step needs every relay's")
         src = {}
-        for name, s in sources.items():
-            checked = checked_source(s)
-            assert checked is not None
-            src[name] = PathState(checked.p, checked.v, checked.a)
+        for name in self.controller.sources:
+            checked = checked_source(sources.get(name))
+            if checked is not None:
+                src[name] = PathState(checked.p, checked.v, checked.a)
         self._t_last = t
+        self._last.update(fresh)
+        if len(src) < len(self.controller.sources):  # the network cannot plan without its sources: every relay holds
+            missing = [n for n in self.controller.sources if n not in src]
+            return {r.name: replace(r.stepper.hold_command(t, t0), rejected=f"no source {missing}") for r in self.controller.relays}
+        x = {n: fresh.get(n, self._last[n]) for n in self.relays}  # a missing relay planned at its last state
         refs = self.controller.plan(t, x, src, self.jammers(t))
         predicted = self.controller.predicted(x, src)
         out = {}
         for r in self.controller.relays:
+            if r.name not in fresh:
+                out[r.name] = r.stepper.hold_command(t, t0)
+                continue
+            r.stepper.remember(t, x[r.name])
             P = self.controller.parameters(r, refs[r.name], predicted, frozenset(), None)
             info: StepInfo = r.stepper.act(x[r.name], P)
             out[r.name] = r.stepper.command(t, x[r.name], info, refs[r.name], t0)

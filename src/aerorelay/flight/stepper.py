@@ -360,6 +360,17 @@ class RelayStepper:
                        acceleration_m_s2=acc, attitude_wxyz=quaternion_wxyz(rotation_zyx(x1[3:6])), thrust_normalized=thrust,
                        body_rates_rad_s=x1[9:12], compute_ms=ms, deadline_met=ms <= self.period * 1e3, reference=ref, info=info)
 
+    def remember(self, t: float, x: np.ndarray) -> None:
+        """A fresh state ``x`` flown at ``t`` (s) by a caller that steps this relay's NMPC itself (a network's
+        step): where a later hold holds, and the landing's clock restarts."""
+        self._land_from = None
+        self._last_step = (t, np.asarray(x, float).copy())
+
+    def hold_command(self, t: float, t0: float) -> Command:
+        """The stale-input command at ``t`` (s): hold where the relay last was, land once stale for
+        ``land_after_s`` (``t0``: when the step began, ``time.perf_counter``)."""
+        return self._stale_command(t, t0)
+
     def _stale_command(self, t: float, t0: float) -> Command:
         """Hold where the relay last was (level, its last yaw); land straight down once the input stays stale."""
         if self._last_step is None:
