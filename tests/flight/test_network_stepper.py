@@ -11,6 +11,7 @@ import aerorelay as ar
 from aerorelay.assembly.parts import build
 from aerorelay.config import ScenarioError
 from aerorelay.flight.network_controller import NetworkStepper
+from aerorelay.models.geometry import rotation_zyx
 from aerorelay.sim.closed_loop import step_count
 
 
@@ -87,3 +88,28 @@ def test_a_relay_whose_state_stops_holds_then_lands_while_the_others_fly_on():
     assert r2[19] == "nmpc" and r2[20] == "hold" and r2[20 + int(3.0 / T) + 2] == "land" and r2[-1] == "nmpc"
     cmds = ctrl.step(len(modes) * T, x, {"inspector": None})
     assert all(c.mode == "hold" and "no source" in (c.rejected or "") for c in cmds.values())
+
+
+def test_a_fleets_step_estimates_its_jammer_from_every_relays_readings():
+    """The chain with its jammer estimated: each step is handed what r1's and r2's receivers measured over the
+    last period (the true interference plus the noise where they were, computed here from the scene), folded
+    into one estimate the planner flies on; after 4 s it is within 2 m of the jammer."""
+    sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={
+        "sim.duration_s": 10.0, "jammer.localization": "estimated",
+        "estimation.search_min_m": [-10.0, -40.0, 0.0], "estimation.search_max_m": [70.0, 20.0, 15.0]})  # the jammer inside
+    ctrl, parts = ar.controller(sc), build(sc)
+    scene, noise = parts.scene, parts.scene.budget.noise_power
+    x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
+    T, readings = sc.control_period_s, None
+    for k in range(int(4.0 / T)):
+        t = k * T
+        s = parts.sources["inspector"].state(t)
+        cmds = ctrl.step(t, x, {"inspector": ar.SourceState(s.p, s.v, s.a)}, readings=readings)
+        poses = {n: scene.pose(n, xs[0:3], rotation_zyx(xs[3:6])) for n, xs in x.items()}
+        poses["inspector"] = scene.pose("inspector", s.p, rotation_zyx(s.attitude()))
+        state = scene.evaluate(t, poses)
+        readings = {rx: float(state.interference[h]) + noise for h, (_, rx) in enumerate(state.hops) if rx in ("r1", "r2")}
+        x = {r.name: np.asarray(r.plant(x[r.name], cmds[r.name].omega_dot_hz_s, np.zeros(6))).ravel() for r in parts.relays}
+    positions, _, _ = ctrl.jammers(4.0)
+    truth = scene.jammers[0].position_at(4.0)
+    assert np.linalg.norm(positions[0] - truth) < 2.0

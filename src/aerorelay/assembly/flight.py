@@ -40,15 +40,17 @@ def thrust_along_body_z(sc: Scenario) -> Scenario:
 
 def network_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> NetworkStepper:
     """The step API of a network (``ar.controller`` on more than one relay and one source): its planner and every
-    relay's NMPC as ``ar.simulate`` flies them, the jammers as the network was told them. Jammers estimated from
-    readings and a relay's own hold are the one-relay step API's so far (a named error / not held)."""
-    if sc.estimates_jammers:
-        raise ScenarioError("jammer.localization: a network's step API takes the jammers as told ('oracle') so far; "
-                            "'estimated' steps one relay (ar.simulate estimates them for a fleet)")
+    relay's NMPC as ``ar.simulate`` flies them, the jammers as the network was told them, or estimated from the
+    readings ``step`` is handed (``jammer.localization = "estimated"``: every relay's receiver, the base station's
+    with ``estimation.use_bs``)."""
     parts = build(sc, nmpc_settings=nmpc_settings)
     control = NetworkController(scene=parts.scene, relays=parts.relays, planner=parts.planner, period_s=sc.control_period_s,
                                 separation_m=parts.separation_m, replanner=parts.replanner)
-    return NetworkStepper(control, oracle_jammers(parts.scene, sc.controller.senses_jammer_state))
+    senses = sc.controller.senses_jammer_state
+    if parts.sensing is not None:  # estimated from the readings step() is handed, by every relay's receiver
+        estimated = JammersFromReadings(parts.scene, parts.sensing.estimator, parts.sensing.receivers, senses)
+        return NetworkStepper(control, estimated.view, estimated)
+    return NetworkStepper(control, oracle_jammers(parts.scene, senses))
 
 
 def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,

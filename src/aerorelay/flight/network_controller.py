@@ -20,6 +20,7 @@ from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from ..planning.fleet import FleetInput, FleetPlanner
+from .readings import JammersFromReadings
 from .stepper import Command, RelayStepper, SourceState, checked_source
 
 SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
@@ -134,21 +135,27 @@ class NetworkStepper:
     ``RelayStepper``'s stale-input behaviour), the network planning with its last state; a missing source holds
     every relay. Stepped over aerorelay's plant it flies what ``ar.simulate`` flies (tested)."""
 
-    def __init__(self, controller: NetworkController, jammers: Callable[[float], tuple]):
-        self.controller, self.jammers = controller, jammers
+    def __init__(self, controller: NetworkController, jammers: Callable[[float], tuple],
+                 estimated: JammersFromReadings | None = None):
+        """``estimated``: the jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view)."""
+        self.controller, self.jammers, self.estimated = controller, jammers, estimated
         self.period = controller.period
         self._t_last: float | None = None
         self._last: dict[str, np.ndarray] = {}  # each relay's last fresh state
+        self._read_at: tuple[float, dict[str, np.ndarray]] | None = None  # where the next readings were taken
 
     @property
     def relays(self) -> list[str]:
         return [r.name for r in self.controller.relays]
 
-    def step(self, t: float, relay_states: Mapping[str, np.ndarray | None],
-             sources: Mapping[str, SourceState | None]) -> dict[str, Command]:
+    def step(self, t: float, relay_states: Mapping[str, np.ndarray | None], sources: Mapping[str, SourceState | None],
+             *, readings: Mapping[str, float] | None = None) -> dict[str, Command]:
         """One control period at ``t`` (s): every relay's full state ``(p, eta, v, omega, Omega)`` (m, rad ZYX, m/s,
         rad/s FLU, Hz) by name (None or absent: none arrived), every source as known by name; ``{relay: Command}``.
-        A malformed state, a clock going backwards, or a first step without every state, is a ValueError naming it."""
+        ``readings``: with ``jammer.localization = "estimated"``, what each receiver (a relay, the base station with
+        ``estimation.use_bs``) measured over the last period, interference plus noise (W), taken where the relays
+        were at the last step. A malformed state, a clock going backwards, or a first step without every state, is
+        a ValueError naming it."""
         t0 = time.perf_counter()
         t = float(t)
         if not np.isfinite(t) or (self._t_last is not None and t < self._t_last):
@@ -172,6 +179,13 @@ class NetworkStepper:
                 src[name] = PathState(checked.p, checked.v, checked.a)
         self._t_last = t
         self._last.update(fresh)
+        if readings:
+            if self.estimated is None:
+                raise ValueError("step: readings given, but the scenario's jammers are not estimated "
+                                 "(jammer.localization = 'estimated')")
+            at, states = self._read_at if self._read_at is not None else (t, dict(self._last))
+            self.estimated.add(at, states, readings)
+        self._read_at = (t, dict(self._last))
         if len(src) < len(self.controller.sources):  # the network cannot plan without its sources: every relay holds
             missing = [n for n in self.controller.sources if n not in src]
             return {r.name: replace(r.stepper.hold_command(t, t0), rejected=f"no source {missing}") for r in self.controller.relays}

@@ -24,8 +24,10 @@ class JammersFromReadings:
         self.scene, self.estimator, self.receivers, self.senses_state = scene, estimator, receivers, senses_state
         self.relay = scene.name_of("relay")
 
-    def add(self, t: float, relay_state: np.ndarray, readings: Mapping[str, float]) -> None:
-        """The readings (W, by receiver name) taken at ``t`` (s) with the relay at ``relay_state``."""
+    def add(self, t: float, relay_state: np.ndarray | Mapping[str, np.ndarray], readings: Mapping[str, float]) -> None:
+        """The readings (W, by receiver name) taken at ``t`` (s) with the relay at ``relay_state`` (a network's:
+        every relay's state by name)."""
+        states = relay_state if isinstance(relay_state, Mapping) else {self.relay: relay_state}
         unknown = sorted(set(readings) - set(self.receivers))
         if unknown:
             raise ValueError(f"step: readings from {unknown}; the scenario's receivers are {self.receivers} "
@@ -35,8 +37,8 @@ class JammersFromReadings:
             if name not in readings:
                 rows.append(None)
                 continue
-            pose = (self.scene.pose(name, relay_state[0:3], rotation_zyx(relay_state[3:6])) if name == self.relay
-                    else self.scene.fixed_pose(name))
+            x = states.get(name)
+            pose = self.scene.fixed_pose(name) if x is None else self.scene.pose(name, x[0:3], rotation_zyx(x[3:6]))
             rows.append((pose.position, pose.axis, float(readings[name])))
         self.estimator.add_readings(t, rows)
 
