@@ -1,29 +1,27 @@
-"""The best network the physics allows: a static upper bound on a fleet's rate, per instant.
+"""The best network the physics allows: a certified upper bound on a fleet's rate, per instant.
 
 The network rate ``R = B / sum_s sum_{k in route s} 1/log2(1 + Gamma_{s,k})`` (``models.radio.
-network_rate``) is largest where the sum of the hops' terms is smallest. Over relay positions on
-the position grid (``bound.grid_m`` in the workspace box) that sum is a min-sum problem whose
-variables are the relays' cells: a hop between a fixed node (a source at its pose on its mission,
-the base station) and a relay is a term of that relay's cell, a hop between two relays a term of
-the pair. When the relays' hops form a forest (every chain, and routes that merge toward the base
-station like two sources sharing a chain), dynamic programming solves it exactly, leaf by leaf:
-``O(cells^2)`` per relay-relay hop.
+network_rate``) is largest where the sum of the hops' terms is smallest. The workspace box is covered
+by cubes of side ``bound.network_grid_m`` (``cell_grid``), and every hop's term is bounded from below
+over whole cubes (``models/intervals.py``: the link's least length, floored at the separation, for the
+largest path gain; its exact elevation range for each relay end's best gain over every holdable axis,
+``[sin(e - tilt), sin(e + tilt)]``; the cone a cube subtends at a fixed node for that node's gain; each
+pattern's exact ``gain_bounds``; each relay receiver's jammer interference from below: the relay may
+put its null on a jammer). A relay's axis is relaxed per hop (its hops need not agree on it), so the
+bound holds over every configuration. That is a min-sum problem whose variables are the relays' cubes:
+a hop between a fixed node (a source at its pose on its mission, the base station) and a relay is a
+term of that relay's cube, a hop between two relays a term of the pair. When the relays' hops form a
+forest (every chain, and routes that merge toward the base station like two sources sharing a chain),
+``forest_min_marginals`` solves it exactly with each relay's min-marginals, ``O(cubes^2)`` per
+relay-relay hop. Branch and bound then drops the cubes that cannot hold the optimum (their marginal
+above a refined configuration's sum) and splits the others (``NetworkBoundSolver.certify``).
 
-A relay's antenna axis is shared by its hops, which would make the states (cell, axis) and the
-pair terms ``(cells x axes)^2``; the bound relaxes it instead (an **upper bound**, stated in its
-assumptions): every hop takes, at each of its relay ends, the best gain any holdable axis gives
-toward the other end (tilt up to the platform's hover limit, yaw free: the link's cosine to the
-axis anywhere in ``[sin(e - tilt), sin(e + tilt)]`` for a link at elevation ``e``), and each relay
-receiver the smallest jammer interference any axis of the cone gives. With isotropic relays (or no
-relay-relay hop) the relaxation is exact. The grid optimum is then refined (L-BFGS-B on the true
-network rate, positions and axes jointly, from the grid's chain with each relay's best cone axis):
-``achieved``, a configuration the physics allows at that instant, below the true optimum; the true
-optimum lies between ``achieved`` and ``static`` up to the grid's resolution (the stated tolerance:
-the largest gain of ``achieved`` over the grid's value seen, ``resolution.grid_excess``; where it
-gains, ``static`` is raised to it).
+``achieved``: a configuration the physics allows at that instant, refined on the true network rate
+(L-BFGS-B, or SLSQP with the separation, positions and axes jointly) from three starts; the true
+optimum lies between ``achieved`` and ``static``, ``resolution.certified_gap_*`` says how far apart.
 
 One relay on one route is the single-relay bound (``planning.bound``): the composition root
-dispatches it there (same grid, same numbers).
+dispatches it there.
 """
 
 from __future__ import annotations
@@ -49,14 +47,14 @@ from .feasible_path import speed_limited
 NETWORK_BOUND_VERSION = "5"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
-ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere on the position grid of the workspace box at least the "
-               "separation from the sources, the base station and its route neighbours (not from relays it shares no hop "
-               "with); upper bound: "
-               "each hop takes at each relay end the best gain any holdable axis gives toward the other end (tilt up to "
-               "the hover limit, yaw free) and each relay receiver the least jammer interference over its axis cone, so a "
-               "relay's hops need not agree on its axis (exact for isotropic relays); min-sum dynamic programming over "
-               "the relays' cells (exact on the grid for a forest of relay-relay hops); achieved: the grid optimum "
-               "refined on the true rate with one axis per relay")
+ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere in the workspace box (covered by the cubes) at least "
+               "the separation from the sources, the base station and its route neighbours (not from relays it shares no "
+               "hop with); certified upper bound: every hop's term bounded over whole cubes, each hop taking at each "
+               "relay end the best gain any holdable axis gives (tilt up to the hover limit, yaw free) and each relay "
+               "receiver the least jammer interference over its axis cone, so a relay's hops need not agree on its axis "
+               "(exact for isotropic relays); min-sum dynamic programming over the relays' cubes (exact for a forest "
+               "of relay-relay hops), branch and bound within a work cap; achieved: a configuration refined on the "
+               "true rate with one axis per relay")
 
 
 @dataclass(frozen=True)
