@@ -22,7 +22,6 @@ import casadi as ca
 import numpy as np
 
 from ..flight.network_controller import LoopRelay, NetworkController
-from ..models.channel import misalignment, mutual_alignment
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
@@ -321,15 +320,8 @@ class ClosedLoop:
                     info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, lost)
                     inputs[r.name] = info.u
                     up, down = self.control.neighbours_of[r.name]
-                    p, Rr = x[r.name][0:3], R[r.name]
-                    v_up, v_down = float(misalignment(p, Rr, true_positions[up])), float(misalignment(p, Rr, true_positions[down]))
-                    ref = refs[r.name]
-                    row |= relay_row(r.name, x[r.name], info.u, {
-                        "pd_x": ref.p_ref[0], "pd_y": ref.p_ref[1], "pd_z": ref.p_ref[2], "v_up": v_up, "v_down": v_down,
-                        "mutual_alignment": float(mutual_alignment(v_up, v_down)), "slack_max": info.slack_max,
-                        "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms, "qp_ok": info.ok, "qp_status": info.status,
-                        "fallback": info.fallback, "safety_violation": bool(r.controller.last_violations),
-                        "taylor_rel_err": ref.taylor_rel_err})
+                    row |= relay_row(r.name, x[r.name], R[r.name], info, refs[r.name], true_positions[up],
+                                     true_positions[down], bool(r.controller.last_violations))
                     if self.air is not None:
                         row |= self.air.values(r.name, x[r.name], f"{r.name}.")
                 for name, s in truth.items():

@@ -19,7 +19,6 @@ import numpy as np
 from ..control.nmpc import StepInfo
 from ..flight.stepper import Command
 from ..flight.stepper import SourceState as KnownSource
-from ..models.channel import misalignment, mutual_alignment
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceState
 from ..models.radio import RadioScene
@@ -65,12 +64,7 @@ class FlightRecorder:
             ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
             info = StepInfo(u=np.zeros(self.vehicle.n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
                             feedback_ms=cmd.compute_ms, slack_max=0.0)
-        v_up, v_down = float(misalignment(x[0:3], R1, src.p)), float(misalignment(x[0:3], R1, self._p0))
-        row = {"t": t, **relay_row(self.relay, x, info.u, {
-            "pd_x": ref.p_ref[0], "pd_y": ref.p_ref[1], "pd_z": ref.p_ref[2], "v_up": v_up, "v_down": v_down,
-            "mutual_alignment": float(mutual_alignment(v_up, v_down)), "slack_max": info.slack_max, "solve_ms": info.solve_ms,
-            "feedback_ms": info.feedback_ms, "qp_ok": info.ok, "qp_status": info.status, "fallback": info.fallback,
-            "safety_violation": violation and cmd.mode in ("nmpc", "fallback"), "taylor_rel_err": ref.taylor_rel_err})}
+        row = {"t": t, **relay_row(self.relay, x, R1, info, ref, src.p, self._p0, violation and cmd.mode in ("nmpc", "fallback"))}
         row |= source_row(self.source, src.p, eta2) | link_row(self.scene, t, channel)
         row["separation_min"] = separation_min(np.array([x[0:3], src.p]))
         row |= {"flight_mode": cmd.mode, "compute_ms": cmd.compute_ms, "deadline_met": cmd.deadline_met,

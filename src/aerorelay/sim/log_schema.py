@@ -33,7 +33,10 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from ..control.nmpc import StepInfo
+from ..models.channel import misalignment, mutual_alignment
 from ..models.radio import ChannelState, RadioScene
+from ..planning.base import Reference
 
 VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
 SOURCE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi")
@@ -94,14 +97,21 @@ def log_columns(relays: Mapping[str, int], sources: Sequence[str], scene: RadioS
     return cols + list(NETWORK_COLUMNS) + jammer_columns(scene)
 
 
-def relay_row(name: str, x: np.ndarray, u: np.ndarray, step: Mapping[str, object]) -> dict[str, object]:
-    """A relay's values at a step: its plant state ``x`` (12 + n rotor speeds), input ``u`` (n), and
-    ``step``: its ``RELAY_STEP`` quantities."""
-    n = u.shape[0]
+def relay_row(name: str, x: np.ndarray, R: np.ndarray, info: StepInfo, ref: Reference, p_up: np.ndarray,
+              p_down: np.ndarray, violation: bool) -> dict[str, object]:
+    """A relay's values at a step: its plant state ``x`` (12 + n rotor speeds) with attitude ``R`` (body to
+    world), its NMPC's step ``info`` (input ``u``, n), the planner's ``ref``, its antenna's misalignments toward
+    its upstream node at ``p_up`` and its downstream node at ``p_down`` (m, world), the supervisor's ``violation``."""
+    n = info.u.shape[0]
     if x.shape != (12 + n,):
         raise ValueError(f"log row of {name!r}: state {x.shape} does not match the {n}-rotor input")
     row: dict[str, object] = {f"{name}.{q}": float(v) for q, v in zip(VEHICLE_STATE, x[0:12], strict=True)}
-    row |= {f"{name}.{q}": float(v) for q, v in zip(rotor_quantities(n), np.r_[x[12:], u], strict=True)}
+    row |= {f"{name}.{q}": float(v) for q, v in zip(rotor_quantities(n), np.r_[x[12:], info.u], strict=True)}
+    v_up, v_down = float(misalignment(x[0:3], R, p_up)), float(misalignment(x[0:3], R, p_down))
+    step = {"pd_x": ref.p_ref[0], "pd_y": ref.p_ref[1], "pd_z": ref.p_ref[2], "v_up": v_up, "v_down": v_down,
+            "mutual_alignment": float(mutual_alignment(v_up, v_down)), "slack_max": info.slack_max,
+            "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms, "qp_ok": info.ok, "qp_status": info.status,
+            "fallback": info.fallback, "safety_violation": violation, "taylor_rel_err": ref.taylor_rel_err}
     return row | {f"{name}.{q}": step[q] for q in RELAY_STEP}
 
 
