@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import numpy as np
 
@@ -170,16 +170,25 @@ class CheckedPlanner:
 
 PlannerFactory = Callable[[PlannerContext], Planner]
 PLANNERS: dict[str, PlannerFactory] = {}
+F = TypeVar("F")
 
 
-def register_planner(name: str) -> Callable[[PlannerFactory], PlannerFactory]:
-    """Register a planner factory under ``name`` (the built-ins: ``planning/registry.py``)."""
-    def deco(factory: PlannerFactory) -> PlannerFactory:
-        if name in PLANNERS:
-            raise ValueError(f"planner {name!r} is registered twice")
-        PLANNERS[name] = factory
-        return factory
-    return deco
+def registrar(registry: dict[str, F], what: str) -> Callable[[str], Callable[[F], F]]:
+    """A decorator factory registering factories in ``registry`` by name (``what`` names the kind in the error
+    raised for a name registered twice)."""
+    def register(name: str) -> Callable[[F], F]:
+        def deco(factory: F) -> F:
+            if name in registry:
+                raise ValueError(f"{what} {name!r} is registered twice")
+            registry[name] = factory
+            return factory
+        return deco
+    register.__doc__ = (f"Register a {what} factory under ``name`` (a decorator: ``@register_...(\"mine\")`` above a "
+                        f"function taking the {what}'s context and returning it); a name registered twice is a ValueError.")
+    return register
+
+
+register_planner = registrar(PLANNERS, "planner")  # a planner factory under a name (the built-ins: planning/registry.py)
 
 
 def planner_factory(name: str) -> PlannerFactory:

@@ -18,7 +18,7 @@ import numpy as np
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
 from ..models.vehicle import Multirotor
-from .base import Planner, PlannerInput, PlannerSettings
+from .base import Planner, PlannerInput, PlannerSettings, registrar
 from .trajectory_generator import Reference
 
 
@@ -69,15 +69,9 @@ NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]
 NETWORK_PLANNERS: dict[str, NetworkPlannerFactory] = {}
 
 
-def register_network_planner(name: str) -> Callable[[NetworkPlannerFactory], NetworkPlannerFactory]:
-    """Register a network planner's factory under ``name`` for ``network.planner`` (the built-ins:
-    ``planning/registry.py``; register yours before loading the scenario that names it)."""
-    def deco(factory: NetworkPlannerFactory) -> NetworkPlannerFactory:
-        if name in NETWORK_PLANNERS:
-            raise ValueError(f"network planner {name!r} is registered twice")
-        NETWORK_PLANNERS[name] = factory
-        return factory
-    return deco
+# a network planner's factory under a name for ``network.planner`` (the built-ins: ``planning/registry.py``; register
+# yours before loading the scenario that names it)
+register_network_planner = registrar(NETWORK_PLANNERS, "network planner")
 
 
 def held_reference(position: np.ndarray) -> Reference:
