@@ -32,6 +32,16 @@ def flight_path(kind: str, file: str, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.
                              None if origin is None else tuple(origin))
 
 
+def readable_file(field: str, file: str, read) -> None:
+    """``file`` (named by ``field``) exists and ``read()`` reads it; a ValueError naming the field otherwise."""
+    if not Path(file).is_file():
+        raise ValueError(f"{field}: no such file {file}")
+    try:
+        read()
+    except ValueError as exc:
+        raise ValueError(f"{field}: {exc}") from None
+
+
 FILE_KINDS = {"trajectory_csv": "csv", "trajectory_ulog": "ulog", "trajectory_plan": "plan", "trajectory_gpx": "gpx"}
 COPY_NAMES = {"csv": "mission.csv", "ulog": "mission.ulg", "plan": "mission.plan", "gpx": "mission.gpx"}  # a run folder's copy
 
@@ -90,12 +100,7 @@ class MissionConfig(Strict):
             f = getattr(self, field)
             if f is None:
                 continue
-            if not Path(f).is_file():
-                raise ValueError(f"{field}: no such file {f}")
-            try:
-                flight_path(FILE_KINDS[field], f, origin=self.geo_origin)
-            except ValueError as exc:
-                raise ValueError(f"{field}: {exc}") from None
+            readable_file(field, f, lambda field=field, f=f: flight_path(FILE_KINDS[field], f, origin=self.geo_origin))
         return self
 
     @model_validator(mode="after")
@@ -104,12 +109,8 @@ class MissionConfig(Strict):
             return self
         if self.trajectory_csv is not None:
             raise ValueError("give one of trajectory_csv and trajectory_ulog, not both")
-        if not Path(self.trajectory_ulog).is_file():
-            raise ValueError(f"trajectory_ulog: no such file {self.trajectory_ulog}")
-        try:
-            flight_path("ulog", self.trajectory_ulog, self.ulog_yaw_deg, self.ulog_offset_m)
-        except ValueError as exc:
-            raise ValueError(f"trajectory_ulog: {exc}") from None
+        ulog = self.trajectory_ulog
+        readable_file("trajectory_ulog", ulog, lambda: flight_path("ulog", ulog, self.ulog_yaw_deg, self.ulog_offset_m))
         return self
 
     @property

@@ -5,13 +5,12 @@ jammers are built from them in ``assembly.parts``."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from .base import Strict, Vec3, Waypoint, check_waypoint_times, dbm_to_w, nonzero_direction, on_the_earth
-from .mission import flight_path
+from .mission import FILE_KINDS, flight_path, readable_file
 
 LOOP_CLOSURE_M = 0.01  # a repeating jammer path's last waypoint within this of its first (m)
 OUTAGE_SPECTRAL_EFFICIENCY = 1e-3  # bit/s/Hz: the paper's outage threshold (B = 1); times the bandwidth in physical units
@@ -194,7 +193,7 @@ class NodesConfig(Strict):
                         "hovering; inside controller.workspace")
 
 
-JAMMER_TRACK_KINDS = {"trajectory_csv": "csv", "trajectory_plan": "plan", "trajectory_gpx": "gpx"}
+JAMMER_TRACK_KINDS = {f: kind for f, kind in FILE_KINDS.items() if kind != "ulog"}  # a jammer's track: CSV, .plan, GPX
 
 
 def jammer_track(field: str, file: str, origin=None):
@@ -313,12 +312,7 @@ class JammerConfig(Strict):
             raise ValueError("geo_origin applies to trajectory_plan / trajectory_gpx only")
         for field in given:
             f = getattr(self, field)
-            if not Path(f).is_file():
-                raise ValueError(f"{field}: no such file {f}")
-            try:
-                jammer_track(field, f, self.geo_origin)
-            except ValueError as exc:
-                raise ValueError(f"{field}: {exc}") from None
+            readable_file(field, f, lambda field=field, f=f: jammer_track(field, f, self.geo_origin))
         return self
 
     @property
