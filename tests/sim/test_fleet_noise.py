@@ -54,16 +54,21 @@ def test_a_chains_logged_rates_equal_the_link_equations_with_its_fading(faded):
     df = r.timeseries
     route = sc.route_list[0]
     for k in (0, len(df) // 2, len(df) - 1):
-        row = df.iloc[k]
-        pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
-        inv = 0.0
-        for tx, rx in zip(route[:-1], route[1:], strict=False):
-            (pt, bt), (pr, br) = _pose(row, tx), _pose(row, rx)
-            jam = 4.0 * _gain(pj, None, pr, br, tx_dipole=False) * row[f"fade_amp_jammer_{rx}"] ** 2
-            g = _gain(pt, bt, pr, br) * row[f"fade_amp_{tx}_{rx}"] ** 2 / (1.0 + jam)
-            assert row[f"sinr.{tx}.{rx}"] == pytest.approx(g, rel=1e-9), (tx, rx)
-            inv += 1.0 / math.log2(1.0 + g)
-        assert row["capacity"] == pytest.approx(1.0 / inv, rel=1e-9)
+        _assert_route_rates(df.iloc[k], route)
+
+
+def _assert_route_rates(row, route):
+    """One logged row's hop SINRs and rate against the link equations (P_U = sigma^2 = 1, P_J = 4 W) on its poses
+    and fading amplitudes, rel. 1e-9."""
+    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+    inv = 0.0
+    for tx, rx in zip(route[:-1], route[1:], strict=False):
+        (pt, bt), (pr, br) = _pose(row, tx), _pose(row, rx)
+        jam = 4.0 * _gain(pj, None, pr, br, tx_dipole=False) * row[f"fade_amp_jammer_{rx}"] ** 2
+        g = _gain(pt, bt, pr, br) * row[f"fade_amp_{tx}_{rx}"] ** 2 / (1.0 + jam)
+        assert row[f"sinr.{tx}.{rx}"] == pytest.approx(g, rel=1e-9), (row["t"], tx, rx)
+        inv += 1.0 / math.log2(1.0 + g)
+    assert row["capacity"] == pytest.approx(1.0 / inv, rel=1e-9)
 
 
 def _pose(row, n):
@@ -157,16 +162,7 @@ def test_a_relay_lost_in_flight_under_fading_leaves_its_links_and_the_new_hop_fa
     assert df.loc[~after, "sinr.r1.bs"].isna().all()
     assert df.loc[after, "fade_amp_r1_bs"].std() > 0.1  # drawn: Rician amplitudes at 6 dB spread by ~0.4
     for k, route in ((10, ["inspector", "r1", "r2", "bs"]), (len(df) - 1, ["inspector", "r1", "bs"])):
-        row = df.iloc[k]
-        pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
-        inv = 0.0
-        for tx, rx in zip(route[:-1], route[1:], strict=False):
-            (pt, bt), (pr, br) = _pose(row, tx), _pose(row, rx)
-            jam = 4.0 * _gain(pj, None, pr, br, tx_dipole=False) * row[f"fade_amp_jammer_{rx}"] ** 2
-            g = _gain(pt, bt, pr, br) * row[f"fade_amp_{tx}_{rx}"] ** 2 / (1.0 + jam)
-            assert row[f"sinr.{tx}.{rx}"] == pytest.approx(g, rel=1e-9), (k, tx, rx)
-            inv += 1.0 / math.log2(1.0 + g)
-        assert row["capacity"] == pytest.approx(1.0 / inv, rel=1e-9)
+        _assert_route_rates(df.iloc[k], route)
 
 
 def test_two_hops_into_one_receiver_share_its_jammer_links_draw():
