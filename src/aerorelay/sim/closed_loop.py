@@ -204,7 +204,7 @@ class ClosedLoop:
         # own draw, shadowing along each link's own geometry), unknown to the planners and NMPCs; logged per link
         # (sim/perturbations.py); each step the links of the network flying then are applied
         self.perturbations = settings.link_perturbations(every_link(scene, [lost for _, lost in self.losses]))
-        self._links_now = self._link_rows(scene)
+        self._links_now = self.perturbations.layout(scene)  # the fading links of the network flying now
         self.columns += self.perturbations.columns
         if self.blockage is not None:
             self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
@@ -220,9 +220,7 @@ class ClosedLoop:
         # what the network knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
         self.csi_rng = generator(settings.seed, "csi")
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
-        self.bs_name = scene.name_of("base_station")
-        self.bs = scene.fixed_pose(self.bs_name).position
-        self.gravity = relays[0].vehicle.gravity
+        self.bs_name, self.bs, self.gravity = self.control.bs_name, self.control.bs, self.control.gravity
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
         self.planner_ms: list[float] = []
         self.timings: dict[str, list[StepTiming]] = {r.name: [] for r in relays}
@@ -256,11 +254,7 @@ class ClosedLoop:
         others from where they are."""
         self.control.lose(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
         self.scene = self.control.scene
-        self._links_now = self._link_rows(self.scene)
-
-    def _link_rows(self, scene: RadioScene) -> np.ndarray:
-        """Where each of ``scene``'s fading links sits among the perturbations' links (every link taken)."""
-        return self.perturbations.layout(scene)
+        self._links_now = self.perturbations.layout(self.scene)
 
     @property
     def planner(self):

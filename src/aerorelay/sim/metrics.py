@@ -12,6 +12,7 @@ from ..models.obstacles import clearance
 from ..models.vehicle import Multirotor
 from ..stats import stats_ms
 from .exit_status import ExitStatus, exit_fields
+from .log_schema import rotor_count
 
 # A slack below this fraction of mu is the interior-point solver's tolerance (complementarity
 # 1e-4), not a relaxation of the alignment constraint: on the nominal tilted mission the slack
@@ -20,14 +21,6 @@ SLACK_ACTIVE_FRACTION_OF_MU = 0.0125
 # The soft alignment constraint settles just below mu (slack ~0.01-0.02 on the nominal mission):
 # alignment_within_slack_fraction counts steps with (1 - v_12)(1 - v_10) >= mu - this.
 ALIGNMENT_TOLERANCE = 0.02
-
-
-def _rotor_columns(log, prefix: str, n_rotors: int) -> np.ndarray:
-    """``(steps, n_rotors)`` from the columns ``prefix1..n``; raises if the log has another count."""
-    have = sum(1 for c in log if c.startswith(prefix) and c[len(prefix):].isdigit())
-    if have != n_rotors:
-        raise ValueError(f"the log has {have} '{prefix}*' columns, the vehicle has {n_rotors} rotors")
-    return np.column_stack([log[f"{prefix}{i}"] for i in range(1, n_rotors + 1)])
 
 
 FLIPPED_TILT_DEG = 90.0  # a body tilt beyond this is an inverted vehicle
@@ -179,11 +172,11 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
 
     p = np.column_stack([col("p_x"), col("p_y"), col("p_z")])
     pd = np.column_stack([col("pd_x"), col("pd_y"), col("pd_z")])
+    have = rotor_count(log, name)
+    if have != veh.n_rotors:  # before reading them: a log of fewer rotors is named, not a KeyError
+        raise ValueError(f"the log has {have} '{name}.Omega_*' columns, the vehicle has {veh.n_rotors} rotors")
     speeds = np.column_stack([col(f"Omega_{i}") for i in range(1, veh.n_rotors + 1)])
     inputs = np.column_stack([col(f"u_{i}") for i in range(1, veh.n_rotors + 1)])
-    have = sum(1 for c in log if c.startswith(f"{name}.Omega_"))
-    if have != veh.n_rotors:
-        raise ValueError(f"the log has {have} '{name}.Omega_*' columns, the vehicle has {veh.n_rotors} rotors")
     tilt = np.degrees(np.arccos(np.clip(np.cos(col("phi")) * np.cos(col("theta")), -1, 1)))
     solve, align = col("solve_ms"), col("mutual_alignment")
     slack = np.nan_to_num(col("slack_max"), nan=np.inf)
