@@ -158,4 +158,7 @@ def test_efficiency_keys_name_their_denominator_for_one_relay_and_for_a_fleet():
     f, nb = fleet.metrics, fleet.bound
     assert f["efficiency_mean_vs_static"] == pytest.approx(f["c_mean"] / nb.static.mean(), rel=1e-12)
     assert f["efficiency_min_vs_achieved"] == pytest.approx(f["c_min"] / nb.achieved.min(), rel=1e-12)
-    assert f["capacity_efficiency_mean"] == f["efficiency_mean_vs_static"] and "efficiency_mean_vs_path" not in f
+    assert f["capacity_efficiency_mean"] == f["efficiency_mean_vs_static"]
+    # a fleet's upper path bound (issue 47): its mean only (no max-min path bound for a fleet)
+    assert f["efficiency_mean_vs_path"] == pytest.approx(f["c_mean"] / nb.path_mean.mean(), rel=1e-12)
+    assert f["capacity_efficiency_mean_path"] == f["efficiency_mean_vs_path"] and "efficiency_min_vs_path" not in f

@@ -201,7 +201,8 @@ def add_efficiencies(m: dict, summary: dict, rows) -> None:
 def network_efficiency(m: dict, bound: NetworkBound) -> None:
     """A fleet's efficiency against its network bound: the run's mean and minimum rate over the static
     upper bound's (``capacity_efficiency_*``), over the refined configuration's (``*_achieved``) and
-    over the flyable fleet path's (``*_flyable``, without losses);
+    over the flyable fleet path's (``*_flyable``, without losses) and over the upper path bound's mean
+    (``capacity_efficiency_mean_path``, ``efficiency_mean_vs_path``, without losses);
     with relays lost, before the first loss and from the last on, against the bound of the fleet
     flying then (``*_before_loss``, ``*_after_loss``)."""
     rows = [("capacity_efficiency_mean", m["c_mean"], bound.static.mean(), "the static bound's mean"),
@@ -215,6 +216,9 @@ def network_efficiency(m: dict, bound: NetworkBound) -> None:
         rows += [("capacity_efficiency_mean_flyable", m["c_mean"], summary["flyable"]["mean"], "the flyable fleet path's mean"),
                  ("capacity_efficiency_min_flyable", m["c_min"], summary["flyable"]["min"], "the flyable fleet path's minimum"),
                  *efficiency_rows(m, "flyable", summary["flyable"]["mean"], summary["flyable"]["min"], "the flyable fleet path's")]
+    if "path_mean" in summary and not losses:  # against the upper path bound (no flyable fleet beats its mean)
+        rows += [("capacity_efficiency_mean_path", m["c_mean"], summary["path_mean"]["mean"], "the upper path bound's mean"),
+                 ("efficiency_mean_vs_path", m["c_mean"], summary["path_mean"]["mean"], "the upper path bound's mean")]
     if losses:
         for label, part in loss_phases(bound.t, [loss["t_s"] for loss in losses]).items():
             if f"c_mean_{label}" in m and part.any():

@@ -45,6 +45,18 @@ class FeasiblePath:
     status: str
 
 
+@dataclass(frozen=True)
+class FleetPath:
+    """A flyable fleet path: the network's capacities ``(T,)`` (the capacity function's units), each
+    relay's positions ``(T, K, 3)`` (m, world) and antenna axes ``(T, K, 3)`` (unit, world), and
+    IPOPT's return status."""
+
+    capacity: np.ndarray
+    position: np.ndarray
+    axis: np.ndarray
+    status: str
+
+
 def speed_limited(path: np.ndarray, start: np.ndarray, step_m: float, dv_m: float | None = None) -> np.ndarray:
     """``path (T, 3)`` chased from ``start`` (at rest) moving at most ``step_m`` per sample and,
     with ``dv_m``, changing the move by at most ``dv_m`` per sample (a flyable first guess)."""
@@ -92,7 +104,8 @@ def thrust_directions(T: int, dt: float, gravity: float) -> ca.Function:
 def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: np.ndarray, lo, hi,
                        max_speed: float, max_tilt: float, kind: str = "mean", max_iter: int = 300,
                        max_accel: float | None = None) -> FeasiblePath:
-    """The best flyable relay path (see the module docstring) near ``guess (T, 3)`` (the grid path).
+    """The best flyable relay path (see the module docstring) near ``guess (T, 3)`` (the grid path):
+    ``best_feasible_fleet_path`` for a fleet of one.
 
     ``landscape``: a ``CapacityLandscape`` (its scene, source trajectory and jammers); ``times``
     (s) evenly spaced; ``start`` the relay's start (m); ``lo``/``hi`` the workspace box (m);
@@ -104,46 +117,87 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
     if guess.shape != (T, 3):
         raise ValueError(f"guess: expected ({T}, 3) positions, got {guess.shape}")
     dt = float(times[1] - times[0]) if T > 1 else 1.0
-    step = max_speed * dt
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     start = np.clip(np.asarray(start, float), lo, hi)
     dv = None if max_accel is None else max_accel * dt**2
-    p0 = np.clip(speed_limited(guess, start, step, dv), lo, hi)
-    tilted = max_tilt > 0.0
-    na = 2 if tilted else 0
-    P = ca.SX.sym("p", 3, T)
-    A = ca.SX.sym("a", na, T) if tilted else None
+    p0 = np.clip(speed_limited(guess, start, max_speed * dt, dv), lo, hi)
+    a_guess = None
+    if max_tilt > 0.0:
+        dirs = np.asarray(thrust_directions(T, dt, landscape.gravity)(p0.T))
+        a_guess = _best_axes(landscape, times, p0, max_tilt, dirs)[:, None, :]
     scene = landscape.scene
-    dirs = thrust_directions(T, dt, landscape.gravity)
-    caps, axes_sym = [], []
-    for k, t in enumerate(times):
-        axis = tilted_axes(A[0, k], A[1, k]) if A is not None else ca.DM([0.0, 0.0, 1.0])
-        axes_sym.append(axis)
-        poses = {landscape.relay_name: NodePose(P[:, k], axis), landscape.source_name: landscape.source_pose(float(t))}
-        caps.append(scene.evaluate(float(t), poses, jammer_powers=landscape.silent).capacity)
-    C = ca.vertcat(*caps)
-    f_cap = ca.Function("caps", [P] + ([A] if A is not None else []), [C])
-    AX = ca.horzcat(*axes_sym)
-    f_axes = ca.Function("axes", [P] + ([A] if A is not None else []), [AX])
-    a_guess = _best_axes(landscape, times, p0, max_tilt, np.asarray(dirs(p0.T))) if tilted else None
-    c_guess = np.asarray(f_cap(p0.T, *([a_guess.T] if a_guess is not None else []))).ravel()
+
+    def capacity(t: float, positions: list, axes: list):
+        poses = {landscape.relay_name: NodePose(positions[0], axes[0]), landscape.source_name: landscape.source_pose(t)}
+        return scene.evaluate(t, poses, jammer_powers=landscape.silent).capacity
+
+    fleet = best_feasible_fleet_path(capacity, times, p0[:, None, :], lo, hi, max_speed, [max_tilt], landscape.gravity,
+                                     kind, max_iter, max_accel, a_guess)
+    return FeasiblePath(fleet.capacity, fleet.position[:, 0], fleet.axis[:, 0], fleet.status)
+
+
+def best_feasible_fleet_path(capacity, times: np.ndarray, p0: np.ndarray, lo, hi, max_speed: float,
+                             max_tilts, gravity: float, kind: str = "mean", max_iter: int = 300,
+                             max_accel: float | None = None, a0: np.ndarray | None = None, separation_m: float = 0.0,
+                             fixed: np.ndarray | None = None) -> FleetPath:
+    """The best flyable path of K relays jointly (IPOPT, the module docstring's limits for every relay)
+    from the flyable first guess ``p0 (T, K, 3)`` (m, world; ``p0[0]`` the relays' starts, kept).
+
+    ``capacity(t, positions, axes)``: the network's capacity (CasADi) at ``t`` (s) with relay ``k`` at
+    ``positions[k]`` (3-vector, m) holding ``axes[k]`` (unit, world); ``max_tilts`` each relay's hover
+    tilt limit (rad; 0: coplanar, axis vertical); ``a0 (T, K, 2)`` the tilted relays' first (tilt,
+    azimuth) (rad; holdable along ``p0``); with ``separation_m`` > 0 every two relays and every relay
+    and each of ``fixed (T, F, 3)`` (m: the sources' and fixed nodes' positions at each sample) at
+    least that far apart after the start. A solve whose path breaks a limit, or scores below the first
+    guess, reports the first guess."""
+    T, K = p0.shape[:2]
+    dt = float(times[1] - times[0]) if T > 1 else 1.0
+    step = max_speed * dt
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    tilts = [float(m) for m in max_tilts]
+    P = [ca.SX.sym("p" if K == 1 else f"p{k}", 3, T) for k in range(K)]
+    A = {k: ca.SX.sym("a" if K == 1 else f"a{k}", 2, T) for k in range(K) if tilts[k] > 0.0}
+    tilted = list(A)
+    if tilted and (a0 is None or a0.shape != (T, K, 2)):
+        raise ValueError(f"a0: expected ({T}, {K}, 2) first (tilt, azimuth) angles for the tilted relays")
+    dirs = thrust_directions(T, dt, gravity)
+    axes_sym = [[tilted_axes(A[k][0, i], A[k][1, i]) if k in A else ca.DM([0.0, 0.0, 1.0]) for i in range(T)]
+                for k in range(K)]
+    C = ca.vertcat(*[capacity(float(t), [P[k][:, i] for k in range(K)], [axes_sym[k][i] for k in range(K)])
+                     for i, t in enumerate(times)])
+    inputs = P + [A[k] for k in tilted]
+    f_cap = ca.Function("caps", inputs, [C])
+    AX = [ca.horzcat(*axes_sym[k]) for k in range(K)]
+    f_axes = ca.Function("axes", inputs, AX)
+
+    def args(pos: np.ndarray, ang) -> list:
+        return [pos[:, k].T for k in range(K)] + [ang[:, k].T for k in tilted]
+
+    c_guess = np.asarray(f_cap(*args(p0, a0))).ravel()
     scale = 1.0 / max(float(np.mean(c_guess)), 1e-12)
-    # decision vector: positions, axis angles, (maxmin) the floor s
-    x = [ca.vec(P)] + ([ca.vec(A)] if A is not None else [])
+    # decision vector: every relay's positions, the tilted relays' axis angles, (maxmin) the floor s
+    x = [ca.vec(P[k]) for k in range(K)] + [ca.vec(A[k]) for k in tilted]
     s = ca.SX.sym("s") if kind == "maxmin" else None
     if s is not None:
         x.append(s)
-    moves = ca.vertcat(*[ca.sumsqr(P[:, k + 1] - P[:, k]) for k in range(T - 1)])
-    g = [moves / step**2]
-    lbg, ubg = [np.full(T - 1, -np.inf)], [np.ones(T - 1)]
+    g = [ca.vertcat(*[ca.sumsqr(P[k][:, i + 1] - P[k][:, i]) for k in range(K) for i in range(T - 1)]) / step**2]
+    lbg, ubg = [np.full(K * (T - 1), -np.inf)], [np.ones(K * (T - 1))]
     if max_accel is not None and T > 1:  # from rest: |p_1 - p_0| <= a dt^2 / 2, then |p_(k+1) - 2 p_k + p_(k-1)| <= a dt^2
-        g.append(ca.vertcat(*[ca.sumsqr(a) for a in _path_accelerations(P, dt)[:T - 1]]) / max_accel**2)
-        lbg.append(np.full(T - 1, -np.inf))
-        ubg.append(np.ones(T - 1))
-    if tilted:  # each axis within the tilt limit of the thrust the path needs there
-        g.append(ca.sum1(AX * dirs(P)).T)
-        lbg.append(np.full(T, np.cos(max_tilt)))
+        g.append(ca.vertcat(*[ca.sumsqr(a) for k in range(K) for a in _path_accelerations(P[k], dt)[:T - 1]]) / max_accel**2)
+        lbg.append(np.full(K * (T - 1), -np.inf))
+        ubg.append(np.ones(K * (T - 1)))
+    for k in tilted:  # each axis within the tilt limit of the thrust the path needs there
+        g.append(ca.sum1(AX[k] * dirs(P[k])).T)
+        lbg.append(np.full(T, np.cos(tilts[k])))
         ubg.append(np.full(T, np.inf))
+    if separation_m > 0.0 and T > 1:  # after the start: every pair of relays, every relay and every fixed node
+        gaps = [ca.sumsqr(P[a][:, i] - P[b][:, i]) for i in range(1, T) for a in range(K) for b in range(a + 1, K)]
+        if fixed is not None:
+            gaps += [ca.sumsqr(P[a][:, i] - fixed[i, f]) for i in range(1, T) for a in range(K) for f in range(fixed.shape[1])]
+        if gaps:
+            g.append(ca.vertcat(*gaps) / separation_m**2)
+            lbg.append(np.ones(len(gaps)))
+            ubg.append(np.full(len(gaps), np.inf))
     if s is not None:
         g.append(C * scale - s)
         lbg.append(np.zeros(T))
@@ -151,11 +205,15 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
         objective = -s
     else:
         objective = -ca.sum1(C) * scale / T
-    lbx_p, ubx_p = np.tile(lo, T), np.tile(hi, T)
-    lbx_p[:3], ubx_p[:3] = start, start  # the relay's own start
-    lbx = [lbx_p] + ([np.tile([0.0, -np.inf], T)] if tilted else [])
-    ubx = [ubx_p] + ([np.tile([max_tilt, np.inf], T)] if tilted else [])
-    x0 = [p0.ravel()] + ([a_guess.ravel()] if a_guess is not None else [])
+    lbx, ubx = [], []
+    for k in range(K):
+        lbx_p, ubx_p = np.tile(lo, T), np.tile(hi, T)
+        lbx_p[:3], ubx_p[:3] = p0[0, k], p0[0, k]  # the relay's own start
+        lbx.append(lbx_p)
+        ubx.append(ubx_p)
+    lbx += [np.tile([0.0, -np.inf], T) for _ in tilted]
+    ubx += [np.tile([tilts[k], np.inf], T) for k in tilted]
+    x0 = [p0[:, k].ravel() for k in range(K)] + [np.ravel(a0[:, k]) for k in tilted]  # type: ignore[index]
     if s is not None:
         lbx.append(np.array([-np.inf]))
         ubx.append(np.array([np.inf]))
@@ -168,21 +226,60 @@ def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: n
                  ubx=np.concatenate([np.ravel(v) for v in ubx]), lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     status = str(solver.stats()["return_status"])
     xs = np.asarray(sol["x"]).ravel()
-    pos = xs[:3 * T].reshape(T, 3)
-    ang = xs[3 * T:3 * T + 2 * T].reshape(T, 2) if tilted else None
-    accels = path_accelerations(T, dt)
-    accel_ratio = None if max_accel is None else (  # the limited samples' |a| / max_accel, as constrained above
-        lambda q: np.linalg.norm(np.asarray(accels(q.T))[:, :T - 1], axis=0) / max_accel)
-    pos, ang = _flyable_or_guess(pos, ang, p0, a_guess, lo, hi, step, max_tilt, status, accel_ratio,
-                                 lambda q, a: np.asarray(ca.sum1(f_axes(q.T, a.T) * dirs(q.T))).ravel())
+    pos = np.stack([xs[3 * T * k:3 * T * (k + 1)].reshape(T, 3) for k in range(K)], axis=1)
+    ang = None
+    if tilted:
+        ang = np.zeros((T, K, 2))
+        for j, k in enumerate(tilted):
+            ang[:, k] = xs[3 * T * K + 2 * T * j:3 * T * K + 2 * T * (j + 1)].reshape(T, 2)
+    pos, ang = _fleet_flyable_or_guess(pos, ang, p0, a0, lo, hi, step, tilts, status, max_accel, dt, f_axes, dirs,
+                                       separation_m, fixed)
     if pos is p0:
         status += " (outside the limits: first guess reported)"
-    cap = np.asarray(f_cap(pos.T, *([ang.T] if ang is not None else []))).ravel()
+    cap = np.asarray(f_cap(*args(pos, ang))).ravel()
     value = (lambda c: float(np.mean(c))) if kind == "mean" else (lambda c: float(np.min(c)))
     if value(cap) < value(c_guess):  # a local solve may end below its start: never report worse
-        pos, ang, cap, status = p0, a_guess, c_guess, status + " (first guess kept: better)"
-    axes = np.asarray(f_axes(pos.T, *([ang.T] if ang is not None else []))).T
-    return FeasiblePath(cap, pos, axes, status)
+        pos, ang, cap, status = p0, a0, c_guess, status + " (first guess kept: better)"
+    out = f_axes(*args(pos, ang))
+    axes = np.stack([np.asarray(out[k] if K > 1 else out).T for k in range(K)], axis=1)
+    return FleetPath(cap, pos, axes, status)
+
+
+def _fleet_flyable_or_guess(pos, ang, p0, a0, lo, hi, step, tilts, status, max_accel, dt, f_axes, dirs, separation_m, fixed):
+    """``_flyable_or_guess`` for every relay (its speed, box, acceleration, tilt and lean) and, with a
+    separation, every pair's and every relay's distance to the fixed nodes after the start: IPOPT's
+    fleet path, or the first guess when any relay's or pair's check fails."""
+    T, K = pos.shape[:2]
+    tilted = [k for k in range(K) if tilts[k] > 0.0]
+    accels = path_accelerations(T, dt)
+    accel_ratio = None if max_accel is None else (  # the limited samples' |a| / max_accel, as constrained
+        lambda q: np.linalg.norm(np.asarray(accels(q.T))[:, :T - 1], axis=0) / max_accel)
+    finite = bool(np.all(np.isfinite(pos))) and (ang is None or bool(np.all(np.isfinite(ang))))
+    axes_all = None
+    if finite and tilted:
+        out = f_axes(*([pos[:, k].T for k in range(K)] + [ang[:, k].T for k in tilted]))
+        axes_all = [np.asarray(out[k] if K > 1 else out) for k in range(K)]
+    kept = np.empty_like(pos)
+    for k in range(K):
+        lean = None if axes_all is None or k not in tilted else (
+            lambda q, a, k=k: np.asarray(ca.sum1(ca.DM(axes_all[k]) * dirs(q.T))).ravel())
+        a_k, a0_k = (None, None) if k not in tilted else (ang[:, k], a0[:, k])
+        first = p0[:, k]
+        got, _ = _flyable_or_guess(pos[:, k], a_k, first, a0_k, lo, hi, step, tilts[k], status, accel_ratio, lean)
+        if got is first:
+            return p0, a0
+        kept[:, k] = got  # clipped into the box (within 1e-6 of it)
+    pos = kept
+    if separation_m > 0.0 and T > 1:
+        gaps = [np.linalg.norm(pos[1:, a] - pos[1:, b], axis=-1) for a in range(K) for b in range(a + 1, K)]
+        if fixed is not None:
+            gaps += [np.linalg.norm(pos[1:, a, None] - fixed[1:], axis=-1).ravel() for a in range(K)]
+        closest = min((float(np.min(g)) for g in gaps if np.size(g)), default=np.inf)
+        if closest < separation_m * (1 - 1e-6):
+            log.warning("feasible fleet path: IPOPT returned %s with two vehicles %.3f m apart (separation %.3f m); the "
+                        "first guess is reported", status, closest, separation_m)
+            return p0, a0
+    return pos, ang
 
 
 def _flyable_or_guess(pos, ang, p0, a0, lo, hi, step, max_tilt, status, accel_ratio=None, lean_cos=None):

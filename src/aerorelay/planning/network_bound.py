@@ -40,11 +40,11 @@ from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, e
 from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
-from .bound import BoundResolution
+from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
-from .feasible_path import speed_limited
+from .feasible_path import best_feasible_fleet_path, path_accelerations, speed_limited
 
-NETWORK_BOUND_VERSION = "5"  # bump when the computation changes: cached network bounds are recomputed
+NETWORK_BOUND_VERSION = "6"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
 ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere in the workspace box (covered by the cubes) at least "
@@ -98,6 +98,10 @@ class NetworkBound:
     flyable: np.ndarray = field(default_factory=lambda: np.empty(0))
     flyable_positions: np.ndarray = field(default_factory=lambda: np.empty((0, 0, 3)))
     flyable_axes: np.ndarray = field(default_factory=lambda: np.empty((0, 0, 3)))
+    # the upper path bound (``NetworkBoundSolver.upper_path``; empty: not computed): per instant ``(T,)`` along the
+    # binding relay's best path (``resolution["path_mean_relay"]``), whose cube centres are ``path_mean_position``
+    path_mean: np.ndarray = field(default_factory=lambda: np.empty(0))
+    path_mean_position: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
 
     def __post_init__(self):
         self.relays = [str(r) for r in self.relays]  # a cached bound's names come back as a numpy array
@@ -112,19 +116,27 @@ class NetworkBound:
         flown = self.flyable[np.isfinite(self.flyable)]
         if flown.size:
             out["flyable"] = {**stats(flown), "until_s": float(self.t[: flown.size][-1])}
+        upper = self.path_mean[np.isfinite(self.path_mean)]
+        if upper.size:
+            out["path_mean"] = {**stats(upper), "until_s": float(self.t[: upper.size][-1])}
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {"t": self.t, "static": self.static, "static_positions": self.static_positions, "achieved": self.achieved,
                 "achieved_positions": self.achieved_positions, "achieved_axes": self.achieved_axes,
                 "relays": np.array(self.relays), "flyable": self.flyable, "flyable_positions": self.flyable_positions,
-                "flyable_axes": self.flyable_axes}
+                "flyable_axes": self.flyable_axes,
+                "path_mean": self.path_mean, "path_mean_position": self.path_mean_position}
 
     def frame(self) -> pd.DataFrame:
         cols: dict[str, np.ndarray] = {"t": self.t, "static": self.static, "achieved": self.achieved}
         fly = len(self.flyable) == len(self.t)
         if fly:
             cols["flyable"] = self.flyable
+        if len(self.path_mean) == len(self.t):
+            cols["path_mean"] = self.path_mean
+            for i, ax in enumerate("xyz"):
+                cols[f"path_mean.p_{ax}"] = self.path_mean_position[:, i]
         for k, name in enumerate(self.relays):
             for i, ax in enumerate("xyz"):
                 cols[f"static.{name}.p_{ax}"] = self.static_positions[:, k, i]
@@ -195,6 +207,28 @@ def cell_grid(lo, hi, step: float) -> tuple[list[np.ndarray], np.ndarray]:
     grid = [lo[i] + step * (0.5 + np.arange(n[i])) for i in range(3)]
     X, Y, Z = np.meshgrid(*grid, indexing="ij")
     return grid, np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+
+
+def cube_footprint(reach_m: float, side_m: float) -> np.ndarray:
+    """The cubes (side ``side_m``, m) a point in the centre cube can reach moving at most ``reach_m`` (m): those
+    whose least distance to it, ``side * |max(|offset| - 1, 0)|`` in cells, is at most ``reach_m`` (boolean,
+    odd on each axis, centred)."""
+    r = int(np.floor(reach_m / side_m + 1e-9)) + 1
+    g = np.arange(-r, r + 1)
+    off = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1)
+    gap = side_m * np.linalg.norm(np.maximum(np.abs(off) - 1, 0), axis=-1)
+    return gap <= reach_m + 1e-9
+
+
+def reach_from_rest(t: np.ndarray, max_speed: float, max_accel: float | None) -> np.ndarray:
+    """The farthest (m) a vehicle at rest at ``t = 0`` can be from its start at ``t`` (s) with speed at most
+    ``max_speed`` (m/s) and acceleration at most ``max_accel`` (m/s^2; None: unbounded): ``a t^2 / 2`` while
+    speeding up, then ``v t - v^2 / (2 a)`` (along a straight line at full acceleration, then full speed)."""
+    t = np.asarray(t, float)
+    if max_accel is None:
+        return max_speed * t
+    t_up = max_speed / max_accel
+    return np.where(t <= t_up, 0.5 * max_accel * t**2, max_speed * t - max_speed**2 / (2.0 * max_accel))
 
 
 def forest_min_marginals(nodes: Sequence[str], unary: Mapping[str, np.ndarray], neighbours: Mapping[str, set],
@@ -271,6 +305,7 @@ class NetworkBoundSolver:
         res = pb.resolution
         self.lo, self.hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
         grid, self.cells = cell_grid(self.lo, self.hi, res.grid_m)
+        self.shape = tuple(len(g) for g in grid)
         self.half = 0.5 * res.grid_m
         self.cones = {r: axis_cone(pb.tilt_limits[r], np.radians(res.axis_step_deg)) for r in self.relays}
         self.offsets = OffsetTable([len(g) for g in grid], res.grid_m)
@@ -432,13 +467,18 @@ class NetworkBoundSolver:
             return np.asarray(out)
         return block
 
-    def solve_level(self, t: float, poses, sets: CellSets | None) -> tuple[float, dict[str, np.ndarray]]:
-        """The certified min-sum over the cells of ``sets`` (None: the whole grid) and each relay's min-marginals."""
+    def solve_level(self, t: float, poses, sets: CellSets | None, excluded: Mapping[str, np.ndarray] | None = None
+                    ) -> tuple[float, dict[str, np.ndarray]]:
+        """The certified min-sum over the cells of ``sets`` (None: the whole grid; there ``excluded``, ``{relay:
+        (M,)}``, inf at the cells a relay may not be in and 0 elsewhere, is added to its terms) and each relay's
+        min-marginals."""
         centres = (lambda r: self.cells) if sets is None else (lambda r: sets.centres[r])
         half = self.half if sets is None else sets.half
         interference = {r: self.least_interference(t, r, poses, centres(r), half) for r in self.relays}
         if sets is None:
             unary = self.unary_terms(t, poses, interference)
+            if excluded is not None:
+                unary = {r: u + excluded[r] for r, u in unary.items()}
             block = self._grid_block(interference)
         else:
             unary = {r: self.unary_terms(t, poses, interference, centres(r), half, only=r)[r] for r in self.relays}
@@ -480,40 +520,120 @@ class NetworkBoundSolver:
         with np.errstate(divide="ignore", invalid="ignore"):
             return float(np.nan_to_num(self.scene.evaluate(t, {**poses, **relay_poses}).capacity, nan=0.0))
 
-    def best_axes(self, t: float, P: np.ndarray, poses) -> np.ndarray:
+    def best_axes(self, t: float, P: np.ndarray, poses, thrust: np.ndarray | None = None) -> np.ndarray:
         """Each relay's best axis of its cone for the relays at ``P`` ``(K, 3)`` on the true rate, one
-        relay at a time, twice round (``(K, 3)``, unit, world)."""
+        relay at a time, twice round (``(K, 3)``, unit, world); with ``thrust`` ``(K, 3)`` (unit: where each
+        relay's body z must lean to fly its path) only the axes within its tilt limit of it (the nearest
+        where none is)."""
         A = np.tile([0.0, 0.0, 1.0], (len(self.relays), 1))
+        choices = []
+        for k, r in enumerate(self.relays):
+            cone = self.cones[r]
+            if thrust is not None:
+                cos = cone @ thrust[k]
+                held = cos >= np.cos(self.pb.tilt_limits[r]) - 1e-12
+                cone = cone[held] if held.any() else cone[[int(np.argmax(cos))]]
+            choices.append(cone)
         for _ in range(2):
-            for k, r in enumerate(self.relays):
+            for k in range(len(self.relays)):
                 scores = []
-                for a in self.cones[r]:
+                for a in choices[k]:
                     A[k] = a
                     scores.append(self.rate(t, P, A, poses))
-                A[k] = self.cones[r][int(np.argmax(scores))]
+                A[k] = choices[k][int(np.argmax(scores))]
         return A
 
-    def flyable(self, times: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """The flyable fleet path: each relay from its start (at rest) chasing its refined place
-        ``targets`` ``(T, K, 3)`` at most ``max_speed_m_s`` and changing its move by at most
-        ``max_accel_m_s2`` per sample (``feasible_path.speed_limited``), with each relay's best cone axis
-        at each sample (holdable in hover). Its true rate ``(T,)``, positions and axes ``(T, K, 3)``, and
-        the closest it brings a relay to another vehicle or the base station (m)."""
+    def out_of_reach(self, t: float) -> dict[str, np.ndarray]:
+        """``{relay: (M,)}``: inf at the grid's cubes no point of which a relay at rest at its start at ``t = 0``
+        can reach by ``t`` (s) within the speed and acceleration limits (``reach_from_rest``), 0 elsewhere."""
+        res = self.pb.resolution
+        reach = float(reach_from_rest(np.array([t]), res.max_speed_m_s, res.max_accel_m_s2)[0])
+        out = {}
+        for r in self.relays:
+            gap = np.linalg.norm(np.maximum(np.abs(self.cells - np.asarray(self.pb.starts[r], float)) - self.half, 0.0), axis=1)
+            out[r] = np.where(gap > reach + 1e-9, np.inf, 0.0)
+        return out
+
+    def upper_path(self, times: np.ndarray, marginals: Sequence[Mapping[str, np.ndarray]], static: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, str]:
+        """The upper path bound: no fleet flying from the starts at most ``max_speed_m_s`` (and speeding up at most
+        ``max_accel_m_s2`` from rest) has a higher mean rate over ``times``.
+
+        Proof: ``marginals[i][k]``, relay ``k``'s min-marginal of the certified cube terms with every relay kept to
+        the cubes it can reach by ``times[i]`` (``out_of_reach``), is at most the sum of hop terms of every
+        configuration a flyable fleet can be in at that instant with ``k`` in cube ``c``; so the fleet's rate there
+        is at most ``u_k,t(c) = min(B / m_k,t(c), static_t)``, for every ``k``. Along a flyable path ``k``'s cube
+        moves between samples to one within ``max_speed * dt`` (``cube_footprint``); the best such cube path of
+        ``u_k`` from ``k``'s start (dynamic programming, ``bound._dp``) bounds every flyable fleet's mean rate, and
+        so does the least of them over the relays. Returns that relay's per-sample values ``(T,)``, its cube
+        centres ``(T, 3)`` (m) and its name."""
+        res, bw = self.pb.resolution, self.scene.budget.bandwidth
+        dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
+        footprint = cube_footprint(res.max_speed_m_s * dt, res.grid_m)
+        best = None
+        for r in self.relays:
+            start = np.asarray(self.pb.starts[r], float)
+            values = np.empty((len(times), len(self.cells)))
+            for i in range(len(times)):
+                with np.errstate(divide="ignore"):
+                    values[i] = np.minimum(bw / marginals[i][r], static[i])
+                values[i, ~np.isfinite(marginals[i][r])] = -np.inf  # out of reach (or where no relay may be)
+            cell0 = tuple(int(v) for v in np.clip(np.floor((start - self.lo) / res.grid_m), 0, np.array(self.shape) - 1))
+            idx = _dp(values.reshape(len(times), *self.shape), cell0, footprint, "mean")
+            flat = np.array([np.ravel_multi_index(ix, self.shape) for ix in idx])
+            series = values[np.arange(len(times)), flat]
+            if best is None or series.mean() < best[0].mean():
+                best = (series, self.cells[flat], r)
+        assert best is not None  # a network has a relay
+        return best
+
+    def flyable(self, times: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, str]:
+        """The lower path bound, a flyable fleet path optimized jointly: first each relay from its start (at
+        rest) chasing its refined place ``targets`` ``(T, K, 3)`` at most ``max_speed_m_s`` and changing its move
+        by at most ``max_accel_m_s2`` per sample (``feasible_path.speed_limited``) with each relay's best
+        holdable axis there, then every relay's positions and axes together on the network's true rate
+        (``feasible_path.best_feasible_fleet_path``: the speed and acceleration limits, each axis within its
+        tilt limit of the thrust its path needs, the separation after the start). Its true rate ``(T,)``,
+        positions and axes ``(T, K, 3)``, the closest it brings a relay to another vehicle or the base station
+        (m) and IPOPT's status."""
         res = self.pb.resolution
         dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
         dv = None if res.max_accel_m_s2 is None else res.max_accel_m_s2 * dt**2
-        P = np.stack([speed_limited(targets[:, k], self.pb.starts[r], res.max_speed_m_s * dt, dv)
-                      for k, r in enumerate(self.relays)], axis=1)
-        rate, A, closest = np.empty(len(times)), np.empty_like(P), np.inf
-        for i, t in enumerate(times):
-            poses = self.fixed_poses(float(t))
-            A[i] = self.best_axes(float(t), P[i], poses)
-            rate[i] = self.rate(float(t), P[i], A[i], poses)
-            others = np.array([p.position for p in poses.values()])
-            gaps = [np.linalg.norm(others - q, axis=1).min() for q in P[i]]
+        P = np.stack([np.clip(speed_limited(targets[:, k], np.clip(self.pb.starts[r], self.lo, self.hi), res.max_speed_m_s * dt, dv),
+                              self.lo, self.hi) for k, r in enumerate(self.relays)], axis=1)
+        poses = [self.fixed_poses(float(t)) for t in times]
+        thrust = self.thrust_directions(P, dt)
+        A0 = np.stack([self.best_axes(float(t), P[i], poses[i], thrust[i]) for i, t in enumerate(times)])
+        angles = np.stack([np.arccos(np.clip(A0[..., 2], -1.0, 1.0)), np.arctan2(A0[..., 1], A0[..., 0])], axis=-1)
+        fixed = np.stack([np.array([p.position for p in pz.values()]) for pz in poses])
+
+        def capacity(t: float, positions: list, axes: list):
+            i = int(np.argmin(np.abs(times - t)))
+            relay_poses = {r: NodePose(positions[k], axes[k]) for k, r in enumerate(self.relays)}
+            return self.scene.evaluate(t, {**poses[i], **relay_poses}).capacity
+
+        fleet = best_feasible_fleet_path(capacity, times, P, self.lo, self.hi, res.max_speed_m_s,
+                                         [self.pb.tilt_limits[r] for r in self.relays], self.pb.gravity, "mean",
+                                         max_accel=res.max_accel_m_s2, a0=angles, separation_m=self.pb.separation_m,
+                                         fixed=fixed)
+        P, A = fleet.position, fleet.axis
+        rate = np.array([self.rate(float(t), P[i], A[i], poses[i]) for i, t in enumerate(times)])  # numpy, unregularized
+        closest = np.inf
+        for i in range(len(times)):
+            gaps = [np.linalg.norm(fixed[i] - q, axis=1).min() for q in P[i]]
             gaps += [np.linalg.norm(P[i, a] - P[i, b]) for a in range(len(P[i])) for b in range(a + 1, len(P[i]))]
             closest = min(closest, float(min(gaps)))
-        return rate, P, A, closest
+        return rate, P, A, closest, fleet.status
+
+    def thrust_directions(self, P: np.ndarray, dt: float) -> np.ndarray:
+        """``(T, K, 3)``: the unit direction each relay's thrust points to fly its sampled path ``P`` ``(T, K, 3)``
+        (``feasible_path.path_accelerations`` plus gravity)."""
+        accel = path_accelerations(P.shape[0], dt)
+        out = np.empty_like(P)
+        for k in range(P.shape[1]):
+            f = np.asarray(accel(P[:, k].T)).T + np.array([0.0, 0.0, self.pb.gravity])
+            out[:, k] = f / np.linalg.norm(f, axis=1, keepdims=True)
+        return out
 
     def refine(self, t: float, cells: np.ndarray | None = None, start: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
         """The chain at the grid's ``cells`` (or at the positions ``start`` ``(K, 3)``, m) refined on the true rate:
@@ -565,10 +685,12 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     K = len(solver.relays)
     static, achieved = np.empty(len(times)), np.empty(len(times))
     sp, ap, ax = np.empty((len(times), K, 3)), np.empty((len(times), K, 3)), np.empty((len(times), K, 3))
-    searches = []
+    searches, level0 = [], []
     for k, t in enumerate(times):
         poses = solver.fixed_poses(float(t))
         total, marginals = solver.solve_level(float(t), poses, None)
+        if set(pb.starts) >= set(solver.relays):  # every relay kept to what it can reach from its start (the path bound)
+            level0.append(solver.solve_level(float(t), poses, None, solver.out_of_reach(float(t)))[1])
         bounded = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
         sp[k] = solver.cells[bounded]
         # refined from the relaxed optimum at the cubes' centres, from the bound's best cubes and from the last instant's
@@ -595,26 +717,34 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                   "certified_gap_mean": float(np.nanmean(gap)) if np.isfinite(gap).any() else None,
                   "branch_levels_max": max((s["levels"] for s in searches), default=0)}
     fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
+    upper, up = np.empty(0), np.empty((0, 3))
     if set(pb.starts) >= set(solver.relays):
-        fr, fp, fa, closest = solver.flyable(times, ap)
+        fr, fp, fa, closest, status = solver.flyable(times, ap)
+        upper, up, binding = solver.upper_path(times, level0, static)
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
-                       "flyable_closest_m": closest}
+                       "flyable_closest_m": closest, "flyable_status": status, "path_mean_relay": binding,
+                       "path_mean_footprint": "cubes within max_speed * dt of each other, within the reach from rest of "
+                       "the start"}
     return NetworkBound(times, static, sp, achieved, ap, ax, solver.relays, resolution, pb.outage_threshold,
-                        flyable=fr, flyable_positions=fp, flyable_axes=fa)
+                        flyable=fr, flyable_positions=fp, flyable_axes=fa, path_mean=upper, path_mean_position=up)
 
 
 def spliced(parts: list[tuple[float, NetworkBound]]) -> NetworkBound:
     """One bound over a mission whose fleet shrinks: from each part's start time (s) on, that part's
     bound (a fleet without the relays lost by then); the first part's relays, a relay's positions NaN
-    once it is gone; the flyable path until the first loss. Every part on the same time grid."""
+    once it is gone; the path bounds (flyable and upper) until the first loss. Every part on the same time grid."""
     first = parts[0][1]
     out = NetworkBound(first.t.copy(), first.static.copy(), first.static_positions.copy(), first.achieved.copy(),
                        first.achieved_positions.copy(), first.achieved_axes.copy(), list(first.relays),
                        dict(first.resolution), first.outage_threshold, first.assumptions, first.flyable.copy(),
-                       first.flyable_positions.copy(), first.flyable_axes.copy())
-    if len(out.flyable) and len(parts) > 1:  # the full fleet's flyable path, until the first loss (not flown after)
+                       first.flyable_positions.copy(), first.flyable_axes.copy(), first.path_mean.copy(),
+                       first.path_mean_position.copy())
+    if len(parts) > 1:  # the full fleet's path bounds until the first loss (a path bound is of a whole mission)
         after = out.t >= parts[1][0] - 1e-9
-        out.flyable[after], out.flyable_positions[after], out.flyable_axes[after] = np.nan, np.nan, np.nan
+        if len(out.flyable):
+            out.flyable[after], out.flyable_positions[after], out.flyable_axes[after] = np.nan, np.nan, np.nan
+        if len(out.path_mean):
+            out.path_mean[after], out.path_mean_position[after] = np.nan, np.nan
     phases = []
     for t0, b in parts:
         if not np.allclose(b.t, first.t):

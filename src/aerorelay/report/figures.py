@@ -125,7 +125,7 @@ BOUND_SERIES: tuple[tuple[str, dict], ...] = (
     ("path_mean", dict(color="C2", lw=1.0, ls=(0, (4, 2)), label="path bound (best mean, <= v_max)")),
     ("flyable_mean", dict(color="C4", lw=1.0, ls=":", label="flyable path (best mean found, exactly <= v_max)")),
     ("achieved", dict(color="C2", lw=1.2, label="refined configuration (one axis per relay)")),
-    ("flyable", dict(color="C0", lw=1.0, ls=":", label="flyable fleet path (from the starts, speed-limited)")))
+    ("flyable", dict(color="C0", lw=1.0, ls=":", label="flyable fleet path (lower path bound, jointly optimized)")))
 
 
 def fig_constraints(df: pd.DataFrame, sc: Scenario, relay: str | None = None):
@@ -253,12 +253,14 @@ def fig_bound(bound: pd.DataFrame, sc: Scenario):
 
 
 def fig_network_bound(bound: pd.DataFrame, sc: Scenario):
-    """A fleet's network bound over time: the static upper bound, the refined configuration's rate and
-    the flyable fleet path's (``aerorelay bound`` on a fleet)."""
+    """A fleet's network bound over time: the static upper bound, the refined configuration's rate, the
+    upper path bound and the flyable fleet path's (``aerorelay bound`` on a fleet)."""
     series: list[tuple[str, dict]] = [("static", dict(color="0.4", ls="--", label="static upper bound (relaxed axes, grid)")),
                                       ("achieved", dict(color="C2", lw=1.6, label="refined configuration (one axis per relay)"))]
+    if "path_mean" in bound:
+        series.append(("path_mean", dict(color="C1", lw=1.2, ls=(0, (4, 2)), label="upper path bound (<= v_max from the starts)")))
     if "flyable" in bound:
-        series.append(("flyable", dict(color="C0", lw=1.2, label="flyable fleet path (from the starts, speed-limited)")))
+        series.append(("flyable", dict(color="C0", lw=1.2, label="flyable fleet path (lower path bound, jointly optimized)")))
     return bound_figure(bound, sc, series, "network rate", "network bound")
 
 

@@ -38,6 +38,7 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "solve_ms.p99": "step p99 (ms)", "max_deviation_m": "max deviation (m)",
            "capacity_efficiency_mean": "efficiency, mean C", "capacity_efficiency_min": "efficiency, C_min",
            "capacity_efficiency_mean_flyable": "mean C / flyable path's", "capacity_efficiency_min_flyable": "C_min / flyable path's",
+           "capacity_efficiency_mean_path": "mean C / upper path bound's",
            "fallback_fraction": "fail-safe steps", "motor_saturation_fraction": "a motor at a speed bound",
            "rate_saturation_fraction": "a motor at a rate bound",
            "estimation_first_within_1m_s": "jammer estimate first within 1 m (s)",
@@ -308,6 +309,7 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
     if groups:
         extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min",
                              "capacity_efficiency_mean_flyable", "capacity_efficiency_min_flyable",
+                             "capacity_efficiency_mean_path",
                              "estimation_first_within_1m_s", "estimation_crlb_first_1m_s", "estimation_within_1m_after_10s",
                              "estimation_within_1m_after_bound",
                              "estimator_ms.mean")

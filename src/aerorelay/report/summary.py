@@ -32,7 +32,8 @@ SCALAR_METRICS = (
     "estimation_within_1m_after_bound",
     # networks (sim.metrics.compute_metrics): the network bound, the closest two vehicles, a relay lost in flight
     "capacity_efficiency_mean_achieved", "capacity_efficiency_min_achieved", "bound.static.mean", "bound.static.min",
-    "bound.achieved.mean", "bound.flyable.mean", "bound.flyable.min", "separation_min_m", "fleet_solve_ms.mean",
+    "bound.achieved.mean", "bound.flyable.mean", "bound.flyable.min", "bound.path_mean.min", "capacity_efficiency_mean_path",
+    "separation_min_m", "fleet_solve_ms.mean",
     "fleet_solve_ms.p99", "c_mean_before_loss", "c_min_before_loss", "c_mean_after_loss", "c_min_after_loss", "capacity_efficiency_mean_before_loss",
     "capacity_efficiency_mean_after_loss", "capacity_efficiency_min_after_loss",
     # wind and obstacles (sim.metrics.air_metrics, safety_metrics)
