@@ -92,12 +92,13 @@ def test_reference_accelerates_and_brakes_within_its_limit_and_stops_on_the_targ
     over the BS's null). A real planner, its limits from the scenario (brake_accel as it derives it)."""
     planner = _real_planner({"controller.capacity.speed_m_s": 3.0, "controller.capacity.max_accel_m_s2": 4.0,
                              "controller.capacity.brake_accel_m_s2": 1.5})
-    assert (planner.speed, planner.max_accel, planner.brake_accel) == (3.0, 4.0, 1.5)
+    shaper = planner.shaper  # planning/shaper.py: every capacity-seeking planner's
+    assert (shaper.speed, shaper.max_accel, shaper.brake_accel) == (3.0, 4.0, 1.5)
     dt, p, target = 0.015, np.zeros(3), np.array([5.0, 2.0, -1.0])
     vs = [np.zeros(3)]
     for _ in range(1000):
-        v = planner._velocity_toward(target - p, dt)
-        p, planner.v_ref = p + v * dt, v
+        v = shaper.velocity_toward(target - p, dt)
+        p, shaper.v_ref = p + v * dt, v
         vs.append(v)
     vs = np.array(vs)
     assert np.linalg.norm(vs, axis=1).max() <= 3.0 + 1e-9
@@ -162,13 +163,12 @@ def test_a_level_only_relay_is_asked_to_tilt_toward_its_reference():
     reference's acceleration now adds the PD law's (w = 1 rad/s: w^2 (p_ref - p) + 2 w (v_ref - v)),
     bounded by max_accel; without a measured velocity it is the reference's own."""
     planner = _real_planner({"controller.capacity.tracking_freq_rad_s": 1.0, "controller.capacity.max_accel_m_s2": 4.0})
-    planner.p_ref, planner.v_ref = np.array([-6.95, -5.95, 7.6]), np.zeros(3)
-    inp = SimpleNamespace(p1=np.array([-6.95, -5.3, 7.6]), v1=np.array([0.0, 0.1, 0.0]))
-    a = planner._with_tracking(inp, np.zeros(3))
-    np.testing.assert_allclose(a, [0.0, -0.65 - 0.2, 0.0], atol=1e-12)
-    far = SimpleNamespace(p1=np.array([0.0, 0.0, 7.6]), v1=np.zeros(3))
-    assert np.linalg.norm(planner._with_tracking(far, np.zeros(3))) == pytest.approx(4.0)
-    np.testing.assert_array_equal(planner._with_tracking(SimpleNamespace(p1=inp.p1, v1=None), np.ones(3)), np.ones(3))
+    shaper = planner.shaper
+    shaper.p_ref, shaper.v_ref = np.array([-6.95, -5.95, 7.6]), np.zeros(3)
+    p1, v1 = np.array([-6.95, -5.3, 7.6]), np.array([0.0, 0.1, 0.0])
+    np.testing.assert_allclose(shaper.with_tracking(p1, v1, np.zeros(3)), [0.0, -0.65 - 0.2, 0.0], atol=1e-12)
+    assert np.linalg.norm(shaper.with_tracking(np.array([0.0, 0.0, 7.6]), np.zeros(3), np.zeros(3))) == pytest.approx(4.0)
+    np.testing.assert_array_equal(shaper.with_tracking(p1, None, np.ones(3)), np.ones(3))
 
 
 def test_coplanar_relay_holds_its_reference_with_the_tracking_acceleration():
@@ -235,7 +235,7 @@ def test_decoupled_scoring_picks_the_best_position_at_the_axis_then_the_best_axi
     s = src.state(t)
     inp = PlannerInput(t=t, dt=sc.control_period_s, p1=np.array([-4.0, 3.0, 3.0]), p2=s.p, v2=s.v, a2=s.a,
                        jammer_positions=np.array([[0.0, -3.0, 1.5]]), jammer_powers=np.array([50.0]))
-    planner.target = planner.p_ref = np.array([-4.0, 3.0, 3.0])
+    planner.target = planner.shaper.p_ref = np.array([-4.0, 3.0, 3.0])
     np.testing.assert_array_equal(planner.axis_goal, planner.axes[0])
     cand = planner._candidates(inp, planner.target)
     p2, b2 = planner._predicted_source(inp)

@@ -40,13 +40,14 @@ import time
 import numpy as np
 
 from ..models.axes import axis_set
-from ..models.geometry import E3, align_with_thrust, clip_norm, thrust_direction_from_acceleration
+from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.obstacles import pushed_out
 from ..models.radio import NodePose
 from .base import PlannerContext, PlannerInput
 from .bound import CapacityLandscape, best_path, position_grid
 from .platform_yaw import PlatformYaw
 from .relay_grid import CompiledRelayGrid
+from .shaper import ReferenceShaper, ShaperSettings
 from .trajectory_generator import Reference
 
 
@@ -74,7 +75,6 @@ class CapacityPlanner:
         self.offsets = s.step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
         self.speed = s.speed_m_s
         self.replan_every, self.leash, self.lookahead = s.replan_every, s.leash_m, s.lookahead_s
-        self.axis_rate = np.radians(s.axis_rate_deg_s)
         self.gravity = veh.gravity
         self.source_name = ctx.scene.name_of("source")
         self.obstacles = ctx.obstacles
@@ -87,14 +87,10 @@ class CapacityPlanner:
         self.yaw_grid = (CompiledRelayGrid(ctx.scene, 1, len(self.yaw.all_axes()), source=self.source_name)
                          if self.yaw is not None else None)
         self.preflight_s = time.perf_counter() - t0
-        self.p_ref: np.ndarray | None = None
+        self.shaper = ReferenceShaper(shaper_settings(s, self.tilt_limit, self.gravity))
         self.target: np.ndarray | None = None
-        self.axis = E3.copy()
         self.axis_goal = E3.copy()
         self.best_capacity = 0.0
-        self.v_ref, self.a_ref = np.zeros(3), np.zeros(3)
-        self.accel_tau, self.max_accel = s.accel_tau_s, s.max_accel_m_s2
-        self.brake_accel = min(s.brake_accel_m_s2, s.max_accel_m_s2)
         self.excursion, self.excursion_std, self.excursion_max_loss = s.excursion_m, s.excursion_std_m, s.excursion_max_loss
         self.excursion_allowed = True
         scoring = s.scoring
@@ -103,7 +99,6 @@ class CapacityPlanner:
                           if s.excursion_m > 0 or scoring == "decoupled" else None)
         self.position_grid = (CompiledRelayGrid(ctx.scene, len(self.offsets), 1, source=self.source_name)
                               if scoring == "decoupled" and self.yaw is None else None)
-        self.tracking_freq = s.tracking_freq_rad_s
         self._k = 0
 
     def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -169,35 +164,6 @@ class CapacityPlanner:
             c_point = self.axis_grid(point[None, :], axes, pose, inp.jammer_positions, inp.jammer_powers)
             self.excursion_allowed = float(np.max(c_point)) >= (1.0 - self.excursion_max_loss) * self.best_capacity
 
-    def _turn_axis(self, dt: float):
-        """Rotate the axis reference toward the goal at <= axis_rate (great-circle step)."""
-        c = float(np.clip(self.axis @ self.axis_goal, -1.0, 1.0))
-        ang = np.arccos(c)
-        if ang < 1e-9:
-            return
-        frac = min(1.0, self.axis_rate * dt / ang)
-        v = (1 - frac) * self.axis + frac * self.axis_goal
-        self.axis = v / np.linalg.norm(v)
-
-    def _velocity_toward(self, d_vec: np.ndarray, dt: float) -> np.ndarray:
-        """Reference velocity (m/s, world) toward the target ``d_vec`` away: at most ``speed``, slow
-        enough to stop on it at ``brake_accel`` (v <= sqrt(2 a d)), changing by <= ``max_accel dt``
-        per step (a reference that jumps from 3 m/s to rest overshoots by metres; one that brakes
-        at 4 m/s^2 left a tilted relay holding its antenna 0.9 m past it, motors at their bounds)."""
-        d = float(np.linalg.norm(d_vec))
-        if d < 1e-9:
-            v_des = np.zeros(3)
-        else:
-            v_des = d_vec / d * min(self.speed, np.sqrt(2.0 * self.brake_accel * d))
-        dv = v_des - self.v_ref
-        n = float(np.linalg.norm(dv))
-        if n > self.max_accel * dt:
-            dv *= self.max_accel * dt / n
-        v = self.v_ref + dv
-        if float(np.linalg.norm(v)) * dt >= d:  # would pass the target within the step: land on it
-            return d_vec / dt
-        return v
-
     def _estimate_poor(self, inp: PlannerInput) -> bool:
         """An estimated jammer's largest position std is above ``excursion_std``."""
         return inp.jammer_std_m is not None and bool(np.any(np.asarray(inp.jammer_std_m) > self.excursion_std))
@@ -211,47 +177,34 @@ class CapacityPlanner:
         return excursion_point(self.target, self.excursion, self.speed, inp.t, self.lo, self.hi)
 
     def update(self, inp: PlannerInput) -> Reference:
-        if self.p_ref is None or self.target is None:
-            self.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
-            self.target = self.p_ref.copy()
+        sh = self.shaper
+        if sh.p_ref is None or self.target is None:
+            sh.p_ref = np.clip(np.asarray(inp.p1, float), self.lo, self.hi)
+            self.target = sh.p_ref.copy()
         if self._k % self.replan_every == 0:
             self._replan(inp)
         self._k += 1
-        v_ref = self._velocity_toward(self._goal(inp) - self.p_ref, inp.dt)
-        self.p_ref = self.p_ref + v_ref * inp.dt
-        # acceleration of the reference, low-passed (time constant accel_tau_s) and bounded: the
-        # thrust-direction reference of a relay that can only tilt by accelerating
-        alpha = min(1.0, inp.dt / self.accel_tau)
-        a_raw = (v_ref - self.v_ref) / inp.dt
-        self.a_ref = (1 - alpha) * self.a_ref + alpha * a_raw
-        n = float(np.linalg.norm(self.a_ref))
-        if n > self.max_accel:
-            self.a_ref *= self.max_accel / n
-        self.v_ref = v_ref
-        self._turn_axis(inp.dt)
+        v_ref = sh.advance(self._goal(inp), inp.dt)
+        sh.turn_axis(self.axis_goal, inp.dt)
         yaw = 0.0
-        axis_now = self.axis
+        axis_now = sh.axis
         if self.yaw is not None:  # the axis the platform holds at its measured yaw while it turns
             yaw = self.yaw.advance(inp.dt)
-            axis_now = self.yaw.clip(self.axis, inp.psi1)
+            axis_now = self.yaw.clip(sh.axis, inp.psi1)
         # a coplanar relay tilts only by accelerating (rho_d from a_ref); a tilted one holds the
         # antenna axis relative to the thrust its acceleration needs
-        axis = align_with_thrust(axis_now, self.a_ref, self.gravity) if self.tilt_limit > 0 else None
-        a_ref = self.a_ref.copy() if axis is not None else self._with_tracking(inp, self.a_ref)
-        return Reference(p_opt=self.target.copy(), p_ref=self.p_ref.copy(), v_ref=v_ref, a_ref=a_ref, axis=axis, yaw=yaw)
+        axis = sh.held_axis(axis_now)
+        assert sh.p_ref is not None
+        return Reference(p_opt=self.target.copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref, a_ref=sh.acceleration(inp.p1, inp.v1, axis),
+                         axis=axis, yaw=yaw)
 
-    def _with_tracking(self, inp: PlannerInput, a_ref: np.ndarray) -> np.ndarray:
-        """A level-only platform moves only by tilting, and its thrust-direction reference comes
-        from ``a_ref``: a reference at rest asks it to stay level, and the NMPC's thrust-direction
-        weight then holds the relay off a reference it has drifted from (0.66 m for 7 s at the
-        coplanar corner). The tracking acceleration a PD law would ask (critically damped,
-        ``tracking_freq`` rad/s) is added, bounded like the reference's own."""
-        if inp.v1 is None:
-            return a_ref.copy()
-        assert self.p_ref is not None
-        w = self.tracking_freq
-        return clip_norm(a_ref + w**2 * (self.p_ref - np.asarray(inp.p1, float)) + 2.0 * w * (self.v_ref - np.asarray(inp.v1, float)),
-                         self.max_accel)
+
+def shaper_settings(s, tilt_limit: float, gravity: float) -> ShaperSettings:
+    """The reference shaper's settings from ``[controller.capacity]`` (``CapacityPlannerSettings``) and the
+    platform's hover tilt limit (rad; 0: level-only) and gravity (m/s^2)."""
+    return ShaperSettings(speed_m_s=s.speed_m_s, max_accel_m_s2=s.max_accel_m_s2, brake_accel_m_s2=s.brake_accel_m_s2,
+                          accel_tau_s=s.accel_tau_s, axis_rate_deg_s=s.axis_rate_deg_s,
+                          tracking_freq_rad_s=s.tracking_freq_rad_s, tilt_limit=tilt_limit, gravity=gravity)
 
 
 def excursion_point(target: np.ndarray, radius: float, speed: float, t: float, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
