@@ -2,7 +2,10 @@
 flown by the code before the one-relay loop and the fleet loop became one loop (commit 05e1bca), its
 timeseries written to ``tests/data/before_one_machinery/<case>.parquet``. Run from the repository
 root at that commit (``git worktree add /tmp/old 05e1bca``, then from /tmp/old ``PYTHONPATH=src python
-/path/to/this/script``; cases already recorded are kept unless ``--all``)."""
+/path/to/this/script``; cases already recorded are kept unless ``--all``). ``chain_capacity`` was recorded
+again on 2026-12-04 by the code that rebuilt the fleet's capacity planner (issue 47: a pre-flight route,
+joint moves, the one reference shaper): a deliberate change of that planner's flights, recorded so the case
+keeps guarding the loop (``python tests/data/record_before_one_machinery.py chain_capacity`` from the root)."""
 
 from __future__ import annotations
 
@@ -32,7 +35,7 @@ CASES = {  # case -> (scenario file, dotted updates)
 def main() -> None:
     OUT.mkdir(exist_ok=True)
     for case, (path, updates) in CASES.items():
-        if (OUT / f"{case}.parquet").exists() and "--all" not in sys.argv:
+        if (OUT / f"{case}.parquet").exists() and "--all" not in sys.argv and case not in sys.argv:
             continue
         r = ar.simulate(ar.load_scenario(path, set=updates))
         r.timeseries.to_parquet(OUT / f"{case}.parquet")

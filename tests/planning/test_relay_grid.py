@@ -68,9 +68,9 @@ def test_size_mismatch_raises_naming_the_sizes():
     scene = build_scene(load_scenario("scenarios/nominal_tilted.toml"))
     grid = CompiledRelayGrid(scene, len(OFFSETS), len(AXES), source="source")
     pose = NodePose(np.zeros(3), np.array([0, 0, 1.0]))
-    with pytest.raises(ValueError, match="27 positions, 21 axes and 1 jammer"):
+    with pytest.raises(ValueError, match="27 positions, 21 axes, 1 jammer"):
         grid(np.zeros((26, 3)), AXES, pose, np.zeros((1, 3)), np.ones(1))
-    with pytest.raises(ValueError, match="27 positions, 21 axes and 1 jammer"):
+    with pytest.raises(ValueError, match="27 positions, 21 axes, 1 jammer"):
         grid(np.zeros((27, 3)), AXES, pose, np.zeros((2, 3)), np.ones(2))
-    with pytest.raises(ValueError, match="27 positions, 21 axes and 1 jammer"):
+    with pytest.raises(ValueError, match="27 positions, 21 axes, 1 jammer"):
         grid(np.zeros((27, 3)), AXES[:-1], pose, np.zeros((1, 3)), np.ones(1))

@@ -147,22 +147,26 @@ def _iso_scene(route):
     return RadioScene(nodes, (), LinkBudget(1.0, 1.0, 1.0), tuple(route))  # SNR 1 / d^2: 0.01 at 10 m
 
 
+@pytest.mark.parametrize("joint", [True, False], ids=["joint", "one_at_a_time"])
 @pytest.mark.parametrize("route,want", [(["s", "r1", "bs"], {"r1": [10.0, 0.0, 5.0]}),
                                         (["s", "r1", "r2", "bs"], {"r1": [40 / 3, 0.0, 5.0], "r2": [20 / 3, 0.0, 5.0]})])
-def test_the_fleets_capacity_planner_finds_the_even_spacing_in_free_space(route, want):
+def test_the_fleets_capacity_planner_finds_the_even_spacing_in_free_space(route, want, joint):
     """Isotropic nodes, no jammer, low SNR (1 / d^2): the chain's best places are evenly spaced on the
     segment (1/log2(1 + 1/d^2) is convex in the hop's length d there, so equal hops minimize the sum
     of the hops' terms; at high SNR it is not: one relay on top of an end wins); the planner's
-    coordinate-wise goals on their 0.5 m grid stop within a grid cell's diagonal of them."""
-    from aerorelay.planning.fleet import FleetCapacityPlanner, FleetCapacitySettings, FleetInput
+    goals on their 0.5 m grid stop within a grid cell's diagonal of them, with the relays' moves taken
+    jointly and one relay at a time (the planner before 2026-12-04), without a route."""
+    from aerorelay.models.axes import axis_cone
+    from aerorelay.planning.fleet import FleetInput
+    from aerorelay.planning.fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings
+    from aerorelay.planning.shaper import ShaperSettings
 
     scene = _iso_scene(route)
     starts = {n: np.array([3.0 + 4 * i, 4.0, 5.0]) for i, n in enumerate(route[1:-1])}
-    from aerorelay.models.axes import axis_cone
-
     planner = FleetCapacityPlanner(scene, starts, {n: axis_cone(0.85 * 0.3, np.radians(5.0)) for n in starts},
+                                   {n: ShaperSettings(tilt_limit=0.3) for n in starts},
                                    FleetCapacitySettings(step_m=0.5, replan_every=1, workspace_min=(-50, -50, 5.0),
-                                                         workspace_max=(50, 50, 5.0)))
+                                                         workspace_max=(50, 50, 5.0), joint=joint))
     inp = FleetInput(t=0.0, dt=0.06, positions={"s": np.array([20.0, 0.0, 5.0])}, velocities={"s": np.zeros(3)},
                      axes={"s": np.array([0.0, 0.0, 1.0])}, jammer_positions=np.zeros((0, 3)), jammer_powers=np.zeros(0))
     for _ in range(200):

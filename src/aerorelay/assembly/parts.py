@@ -424,7 +424,8 @@ class Parts:
         others are (``positions``, m, world)."""
         sc = self.scenario.without_relays(lost)
         kept = {r.name: np.asarray(positions[r.name], float) for r in self.relays if r.name not in lost}
-        return network_planner(sc, self.scene.without(lost), self.relays, kept)
+        t0 = next((t for t, gone in self.scenario.losses if gone == lost), 0.0)
+        return network_planner(sc, self.scene.without(lost), self.relays, kept, t0)
 
 
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
@@ -620,14 +621,17 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 
 
 
-def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray]) -> FleetPlanner:
+def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray],
+                    t0: float = 0.0) -> FleetPlanner:
     """The network's planner named by ``network.planner``, built from the scene's world view, its
-    references starting at ``starts`` (m, world) and kept outside the obstacles' margins."""
+    references starting at ``starts`` (m, world) at ``t0`` (s) and kept outside the obstacles' margins."""
     lo, hi = _workspace(sc)
     ctx = NetworkPlannerContext(scene=scene.world_view(), routes=sc.route_list, starts=starts,
                                 vehicles={r.name: r.vehicle for r in relays if r.name in starts},
                                 bs_position=np.asarray(sc.nodes.bs, float), workspace_min=lo, workspace_max=hi,
                                 settings=planner_settings(sc), surrogate_g_bar=sc.antenna.g_bar, separation_m=sc.separation_m,
-                                obstacles=world.obstacles(sc))
+                                obstacles=world.obstacles(sc),
+                                sources={s.name: source_trajectory(s.mission) for s in sc.source_list},
+                                duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.network.route_dt_s, route=sc.network.route)
     planner = NETWORK_PLANNERS[sc.network.planner](ctx)
     return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner

@@ -114,6 +114,7 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         "relays": relays,
         "planner_ms": stats_ms(planner),
         "planner_preflight_s": float(getattr(loop.planner, "preflight_s", 0.0)),
+        "planner_reroute_s": [float(v) for v in getattr(loop.planner, "reroute_s", [])],  # beside the loop, not in planner_ms
         "fleet_step_one_computer_ms": stats_ms(summed),
         "fleet_step_own_computers_ms": stats_ms(own),
         "control_period_ms": period_ms,

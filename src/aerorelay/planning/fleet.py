@@ -15,8 +15,8 @@ from typing import Protocol
 
 import numpy as np
 
-from ..models.obstacles import inside_any
-from ..models.radio import NodePose, RadioScene
+from ..models.mission import SourceTrajectory
+from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from .base import Planner, PlannerInput, PlannerSettings, registrar
 from .trajectory_generator import Reference
@@ -50,7 +50,8 @@ class NetworkPlannerContext:
     """What a network's planner is built from: the network's world view of the radio scene (no true
     jammer), its routes (``[source, relay, ..., bs]``), every relay's start (m, world) and vehicle, the
     base station's position (m), the workspace box (m), the planners' typed settings, the surrogate's
-    ``G_bar``, the separation to keep (m) and the obstacles grown by their margins."""
+    ``G_bar``, the separation to keep (m), the obstacles grown by their margins, the sources' mission plans,
+    the mission's length, the time it starts flying (s) and the pre-flight route's settings."""
 
     scene: RadioScene
     routes: Sequence[Sequence[str]]
@@ -63,6 +64,11 @@ class NetworkPlannerContext:
     surrogate_g_bar: float = 1.0
     separation_m: float = 0.0
     obstacles: tuple = ()
+    sources: Mapping[str, SourceTrajectory] = field(default_factory=dict)  # each source's mission plan (pre-flight routes)
+    duration_s: float = 0.0  # the mission's length (s)
+    t0_s: float = 0.0  # when this planner starts flying (s; a smaller fleet's after a loss)
+    route_dt_s: float = 2.0  # a pre-flight route's time step (s)
+    route: bool = True  # whether a planner that can plan a pre-flight route does
 
 
 NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]
@@ -158,105 +164,4 @@ class EquidistantPlanner:
             new = ref + step
             self.refs[name] = new
             out[name] = Reference(p_opt=goal, p_ref=new.copy(), v_ref=step / inp.dt, a_ref=np.zeros(3))
-        return out
-
-
-@dataclass(frozen=True, kw_only=True)
-class FleetCapacitySettings:
-    """The fleet's capacity-seeking planner: every ``replan_every`` control steps each relay in turn
-    scores its 27 neighbouring goals ``step_m`` (m) apart with every antenna axis it can hold (its
-    candidate axes) on the network's rate, the others held; references move at ``speed_m_s`` (m/s)
-    and turn at ``axis_rate_deg_s`` (deg/s) inside the workspace box less ``margin_m`` (m)."""
-
-    speed_m_s: float = 1.0
-    step_m: float = 0.5
-    replan_every: int = 4
-    axis_rate_deg_s: float = 30.0
-    margin_m: float = 0.05
-    workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
-    workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
-    separation_m: float = 0.0  # goals keep this far (m) from every other vehicle's goal or position, plus GOAL_CLEARANCE_M
-    obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no goal inside one
-
-
-GOAL_CLEARANCE_M = 0.5  # a goal's extra clearance over the separation (m): the NMPC's own margin stays unused
-
-_OFFSETS = np.array([[i, j, k] for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)], float)
-
-
-def _turned(axis: np.ndarray, goal: np.ndarray, most_rad: float) -> np.ndarray:
-    """``axis`` turned toward ``goal`` by at most ``most_rad`` (unit vectors)."""
-    angle = float(np.arccos(np.clip(axis @ goal, -1.0, 1.0)))
-    if angle <= most_rad or angle < 1e-12:
-        return goal.copy()
-    s = np.sin(angle)
-    f = most_rad / angle
-    out = (np.sin((1 - f) * angle) * axis + np.sin(f * angle) * goal) / s  # slerp
-    return out / np.linalg.norm(out)
-
-
-class FleetCapacityPlanner:
-    """Capacity-seeking references for every relay of a fleet, one relay at a time (coordinate-wise:
-    each relay's goal and antenna axis the best of its neighbourhood on the true network rate with
-    the others' goals held), from what the fleet knows: the scene's world view with the jammers at the
-    positions and powers the fleet was told (``FleetInput.jammer_positions`` / ``jammer_powers``)."""
-
-    def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], candidate_axes: Mapping[str, np.ndarray],
-                 settings: FleetCapacitySettings):
-        """``candidate_axes``: each relay's holdable antenna axes ``(n, 3)`` (unit, world)."""
-        self.scene, self.settings = scene, settings
-        self.refs = {n: np.asarray(p, float).copy() for n, p in relay_starts.items()}
-        self.goals = {n: p.copy() for n, p in self.refs.items()}
-        up = np.array([0.0, 0.0, 1.0])
-        self.axis_goals = {n: up.copy() for n in self.refs}
-        self.axes = {n: up.copy() for n in self.refs}
-        self.candidate_axes = {n: np.asarray(candidate_axes[n], float) for n in self.refs}
-        lo, hi = np.asarray(settings.workspace_min, float), np.asarray(settings.workspace_max, float)
-        self.lo, self.hi = lo + settings.margin_m, hi - settings.margin_m
-        self.k = 0
-
-    def _poses(self, inp: FleetInput) -> dict:
-        poses = {n: NodePose(self.goals[n], self.axis_goals[n]) for n in self.refs}
-        for n, p in inp.positions.items():
-            if n not in self.refs and self.scene.node(n).position is None:
-                poses[n] = NodePose(np.asarray(p, float), np.asarray(inp.axes[n], float))
-        return poses
-
-    def _replan(self, inp: FleetInput) -> None:
-        for name in self.refs:
-            poses = self._poses(inp)
-            P = np.clip(self.goals[name] + self.settings.step_m * _OFFSETS, self.lo, self.hi)
-            B = self.candidate_axes[name]
-            others = np.array([np.asarray(p.position, float) for n, p in poses.items() if n != name])
-            poses[name] = NodePose(P[:, None, :], B[None, :, :])
-            rate = np.array(np.broadcast_to(self.scene.evaluate(inp.t, poses, jammer_positions=inp.jammer_positions,
-                                                                jammer_powers=inp.jammer_powers).capacity, (len(P), len(B))))
-            rate = np.nan_to_num(rate, nan=-np.inf)  # an undefined rate is never the best
-            if self.settings.separation_m > 0 and len(others):
-                gap = np.linalg.norm(P[:, None, :] - others[None, :, :], axis=-1).min(axis=1)
-                rate[gap < self.settings.separation_m + GOAL_CLEARANCE_M] = -np.inf  # too close to another vehicle
-                if not np.isfinite(rate).any():
-                    continue  # every neighbour too close: the goal stays
-            if self.settings.obstacles:
-                rate[inside_any(self.settings.obstacles, P)] = -np.inf  # a goal inside an obstacle's margin
-                if not np.isfinite(rate).any():
-                    continue
-            i, j = np.unravel_index(int(np.argmax(rate)), rate.shape)
-            self.goals[name], self.axis_goals[name] = P[i].copy(), B[j].copy()
-
-    def update(self, inp: FleetInput) -> dict[str, Reference]:
-        if self.k % self.settings.replan_every == 0:
-            self._replan(inp)
-        self.k += 1
-        out = {}
-        most = self.settings.speed_m_s * inp.dt
-        for name, ref in self.refs.items():
-            step = self.goals[name] - ref
-            dist = float(np.linalg.norm(step))
-            if dist > most:
-                step = step * (most / dist)
-            self.refs[name] = ref + step
-            self.axes[name] = _turned(self.axes[name], self.axis_goals[name], np.radians(self.settings.axis_rate_deg_s) * inp.dt)
-            out[name] = Reference(p_opt=self.goals[name].copy(), p_ref=self.refs[name].copy(), v_ref=step / inp.dt,
-                                  a_ref=np.zeros(3), axis=self.axes[name].copy())
         return out

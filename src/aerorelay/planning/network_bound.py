@@ -31,18 +31,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
 
 from ..models.antenna import gain_bounds
-from ..models.axes import axis_cone, tilted_axes
 from ..models.geometry import rotation_zyx
 from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, elevation_range
 from ..models.mission import SourceTrajectory
-from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .feasible_path import best_feasible_fleet_path, path_accelerations, speed_limited
+from .fleet_configuration import FleetConfigurations
 
 NETWORK_BOUND_VERSION = "6"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
@@ -307,7 +305,8 @@ class NetworkBoundSolver:
         grid, self.cells = cell_grid(self.lo, self.hi, res.grid_m)
         self.shape = tuple(len(g) for g in grid)
         self.half = 0.5 * res.grid_m
-        self.cones = {r: axis_cone(pb.tilt_limits[r], np.radians(res.axis_step_deg)) for r in self.relays}
+        self.configurations = FleetConfigurations(pb.scene, self.relays, self.lo, self.hi, pb.tilt_limits,
+                                                  np.radians(res.axis_step_deg), pb.separation_m, pb.obstacles)
         self.offsets = OffsetTable([len(g) for g in grid], res.grid_m)
         self.signal = {(tx, rx): self.signal_bound(tx, rx, self.offsets.vectors, 2.0 * self.half) for tx, rx in self.pairs}
         # at the cubes' centres alone (the relaxed terms of the grid's points): where the refinement starts from
@@ -513,35 +512,14 @@ class NetworkBoundSolver:
         cells = {r: int((self.cells if sets is None else sets.centres[r]).shape[0]) for r in self.relays}
         return total, {"levels": levels, "cells": cells, "half_m": self.half if sets is None else sets.half}
 
-    # -- refinement ---------------------------------------------------------------------------
+    # -- refinement (planning.fleet_configuration) ---------------------------------------------
     def rate(self, t: float, positions: np.ndarray, axes: np.ndarray, poses) -> float:
         """The true network rate with the relays at ``positions`` ``(K, 3)`` with antenna ``axes`` ``(K, 3)``."""
-        relay_poses = {r: NodePose(positions[k], axes[k]) for k, r in enumerate(self.relays)}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return float(np.nan_to_num(self.scene.evaluate(t, {**poses, **relay_poses}).capacity, nan=0.0))
+        return self.configurations.rate(t, positions, axes, poses)
 
     def best_axes(self, t: float, P: np.ndarray, poses, thrust: np.ndarray | None = None) -> np.ndarray:
-        """Each relay's best axis of its cone for the relays at ``P`` ``(K, 3)`` on the true rate, one
-        relay at a time, twice round (``(K, 3)``, unit, world); with ``thrust`` ``(K, 3)`` (unit: where each
-        relay's body z must lean to fly its path) only the axes within its tilt limit of it (the nearest
-        where none is)."""
-        A = np.tile([0.0, 0.0, 1.0], (len(self.relays), 1))
-        choices = []
-        for k, r in enumerate(self.relays):
-            cone = self.cones[r]
-            if thrust is not None:
-                cos = cone @ thrust[k]
-                held = cos >= np.cos(self.pb.tilt_limits[r]) - 1e-12
-                cone = cone[held] if held.any() else cone[[int(np.argmax(cos))]]
-            choices.append(cone)
-        for _ in range(2):
-            for k in range(len(self.relays)):
-                scores = []
-                for a in choices[k]:
-                    A[k] = a
-                    scores.append(self.rate(t, P, A, poses))
-                A[k] = choices[k][int(np.argmax(scores))]
-        return A
+        """Each relay's best holdable cone axis ``(K, 3)`` for the relays at ``P`` (``FleetConfigurations.best_axes``)."""
+        return self.configurations.best_axes(t, P, poses, thrust)
 
     def out_of_reach(self, t: float) -> dict[str, np.ndarray]:
         """``{relay: (M,)}``: inf at the grid's cubes no point of which a relay at rest at its start at ``t = 0``
@@ -636,45 +614,10 @@ class NetworkBoundSolver:
         return out
 
     def refine(self, t: float, cells: np.ndarray | None = None, start: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
-        """The chain at the grid's ``cells`` (or at the positions ``start`` ``(K, 3)``, m) refined on the true rate:
-        each relay's best cone axis there (one at a time), then L-BFGS-B over every position and (tilt, azimuth)
-        jointly inside the box and tilt limits."""
-        poses = self.fixed_poses(t)
+        """The relays at the grid's ``cells`` (or at the positions ``start`` ``(K, 3)``, m) refined on the true rate
+        (``FleetConfigurations.refine``): the rate, positions ``(K, 3)`` and axes ``(K, 3)``."""
         first = self.cells[cells] if start is None else np.asarray(start, float)
-        P = np.clip(first, self.lo, self.hi)  # a cell may reach past the box: its centre brought in
-        A = self.best_axes(t, P, poses)
-        limits = [self.pb.tilt_limits[r] for r in self.relays]
-        tilt0 = np.arccos(np.clip(A[:, 2], -1, 1))
-        az0 = np.arctan2(A[:, 1], A[:, 0])
-        x0 = np.concatenate([P.ravel(), tilt0, az0])
-        K = len(self.relays)
-
-        def unpack(x):
-            return x[: 3 * K].reshape(K, 3), tilted_axes(x[3 * K : 4 * K], x[4 * K :])
-
-        def neg(x):
-            return -self.rate(t, *unpack(x), poses)
-
-        bounds = [(lo, hi) for _ in range(K) for lo, hi in zip(self.lo, self.hi, strict=True)]
-        bounds += [(0.0, lim) for lim in limits] + [(None, None)] * K
-        sep = self.pb.separation_m
-        if sep <= 0:
-            res = minimize(neg, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 80})
-        else:  # every relay the separation from the fixed nodes and from every other relay (m^2 margins >= 0)
-            fixed = np.array([p.position for p in poses.values()])
-
-            def margins(x):
-                P = x[: 3 * K].reshape(K, 3)
-                out = [(np.sum((P[:, None, :] - fixed[None, :, :]) ** 2, axis=-1) - sep**2).ravel()]
-                out += [[np.sum((P[i] - P[j]) ** 2) - sep**2 for i in range(K) for j in range(i + 1, K)]]
-                return np.concatenate(out)
-            res = minimize(neg, x0, method="SLSQP", bounds=bounds, constraints=[{"type": "ineq", "fun": margins}],
-                           options={"maxiter": 80})
-            if np.min(margins(res.x)) < -1e-6:
-                res.fun = np.inf  # ended outside the separation: keep the start
-        better = -res.fun >= -neg(x0) and not np.any(inside_any(self.pb.obstacles, unpack(res.x)[0]))
-        x = res.x if better else x0
-        return -neg(x), *unpack(x)
+        return self.configurations.refine(t, first, self.fixed_poses(t))
 
 
 def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBound:

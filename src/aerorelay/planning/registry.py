@@ -7,15 +7,9 @@ import numpy as np
 
 from .base import PlannerContext, PlannerInput, register_planner
 from .baselines import PlannedReference, SingleShotPlanner
-from .capacity_planner import CapacityPlanner, holdable_axes
-from .fleet import (
-    EquidistantPlanner,
-    EquidistantSettings,
-    FleetCapacityPlanner,
-    FleetCapacitySettings,
-    NetworkPlannerContext,
-    register_network_planner,
-)
+from .capacity_planner import CapacityPlanner, holdable_axes, shaper_settings
+from .fleet import EquidistantPlanner, EquidistantSettings, NetworkPlannerContext, register_network_planner
+from .fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_route
 from .network_generator import NetworkGenerator
 from .trajectory_generator import Reference, SurrogateParams, TrajectoryGenerator
 
@@ -72,6 +66,9 @@ def _capacity_seeking(ctx: PlannerContext):
     return CapacityPlanner(ctx)
 
 
+FLEET_ROUTE_CLEARANCE_M = 0.5  # the pre-flight route keeps this much more than the separation (m), as the goals do
+
+
 def _box(ctx: NetworkPlannerContext) -> dict:
     return {"workspace_min": tuple(float(v) for v in ctx.workspace_min), "workspace_max": tuple(float(v) for v in ctx.workspace_max)}
 
@@ -88,12 +85,24 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
     cap = ctx.settings.capacity
     # each relay's antenna axes it can hold at zero yaw toward each azimuth (its own limit there, times tilt_fraction), as
     # the one relay's planner: its best azimuth's limit everywhere was not holdable (3 m tracking errors)
-    axes = {name: holdable_axes(ctx.vehicles[name], cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes)[2]
+    held = {name: holdable_axes(ctx.vehicles[name], cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes)
             for name in ctx.starts}
-    return FleetCapacityPlanner(ctx.scene, ctx.starts, axes,
-                                FleetCapacitySettings(speed_m_s=cap.speed_m_s, replan_every=cap.replan_every,
-                                                      axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
-                                                      separation_m=ctx.separation_m, obstacles=ctx.obstacles, **_box(ctx)))
+    axes = {name: h[2] for name, h in held.items()}
+    shapers = {name: shaper_settings(cap, float(h[1].max()), ctx.vehicles[name].gravity) for name, h in held.items()}
+    route = None
+    if ctx.route and ctx.sources and ctx.duration_s > ctx.t0_s:
+        def route(t0, starts, jammer_positions, jammer_powers):
+            return fleet_route(ctx.scene, ctx.sources, starts, {n: float(h[1].max()) for n, h in held.items()},
+                               ctx.workspace_min + cap.margin_m, ctx.workspace_max - cap.margin_m, t0=t0,
+                               duration_s=ctx.duration_s, dt_s=ctx.route_dt_s, speed_m_s=cap.speed_m_s,
+                               accel_m_s2=cap.max_accel_m_s2, gravity=next(iter(ctx.vehicles.values())).gravity,
+                               separation_m=ctx.separation_m + FLEET_ROUTE_CLEARANCE_M if ctx.separation_m > 0 else 0.0,
+                               obstacles=ctx.obstacles, jammer_positions=jammer_positions, jammer_powers=jammer_powers)
+    return FleetCapacityPlanner(ctx.scene, ctx.starts, axes, shapers,
+                                FleetCapacitySettings(step_m=cap.step_m, replan_every=cap.replan_every,
+                                                      lookahead_s=cap.lookahead_s, leash_m=cap.leash_m, margin_m=cap.margin_m,
+                                                      separation_m=ctx.separation_m, obstacles=ctx.obstacles, **_box(ctx)),
+                                route)
 
 
 @register_network_planner("trajectory_generator")

@@ -1,0 +1,329 @@
+"""The fleet's capacity-seeking planner: what the one relay's has, for every relay of a network.
+
+**Before take-off** (``fleet_route``, from the sources' mission plans and the jammers as the fleet
+knows them at its first step, silent where not localized yet; planned again when a jammer becomes
+known in flight, flown ``ROUTE_LATENCY_S`` later, the goals unleashed meanwhile): every
+``route_dt_s`` the relays' evenly spaced places on their routes, chased from the relays' starts
+within the speed and acceleration limits, with each relay's best holdable axis
+(``fleet_configuration.FleetConfigurations.best_axes``), then every relay's path optimized jointly on
+the network's rate at those limits (``feasible_path.best_feasible_fleet_path``, with the separation): the route the fleet flies near.
+
+**In flight**, once every ``max(replan_every, K)`` control steps, the sources predicted
+``lookahead_s`` ahead at constant acceleration (their antennas along their thrust): every relay's
+27 goals around its current goal ``step_m`` apart (one relay scored per control step, round robin,
+so no step scores them all), each with every antenna axis it can hold, kept within ``leash_m`` of
+its route at the look-ahead time, are scored on the network's true rate (the jammers as the fleet
+knows them) with the other relays at their goals, each relay's candidates in one compiled call
+(``planning.relay_grid``). Then the moves are **joint**: every subset of the relays' best moves is
+scored in one compiled call (``2^K - 1`` configurations, K <= ``JOINT_SUBSETS_MAX_RELAYS``; beyond
+it all moves together or each alone), and the best subset keeping the separation is taken.
+Each relay's reference follows its goal through its own
+``shaper.ReferenceShaper`` (speed, acceleration, braking on the goal, acceleration feed-forward, axis
+rate, the level-only tracking law), the one relay's planner's.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.geometry import E3, rotation_zyx, thrust_direction_from_acceleration
+from ..models.mission import SourceTrajectory
+from ..models.obstacles import inside_any
+from ..models.radio import NodePose, RadioScene
+from .feasible_path import best_feasible_fleet_path, path_accelerations, speed_limited
+from .fleet import FleetInput, equidistant_targets
+from .fleet_configuration import FleetConfigurations
+from .relay_grid import CompiledConfigurations, CompiledRelayGrid
+from .shaper import ReferenceShaper, ShaperSettings
+from .trajectory_generator import Reference
+
+log = logging.getLogger(__name__)
+
+GOAL_CLEARANCE_M = 0.5  # a goal's extra clearance over the separation (m): the NMPC's own margin stays unused
+# a route planned again in flight is flown this long after the jammer became known (s): it runs beside the control loop
+# (0.73 s for two relays, 1.27 s for three over the 47 s mission on the 2-core VM, 2026-12-04)
+ROUTE_LATENCY_S = 1.5
+JOINT_SUBSETS_MAX_RELAYS = 4  # every subset of the relays' moves scored up to this many relays (2^K configurations)
+_OFFSETS = np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class FleetCapacitySettings:
+    """Goals ``step_m`` (m) apart, scored every ``replan_every`` control steps with the sources predicted
+    ``lookahead_s`` (s) ahead, kept within ``leash_m`` (m) of the route, ``margin_m`` (m) inside the
+    workspace box ``[workspace_min, workspace_max]`` (m, world), ``separation_m`` (m, plus
+    ``GOAL_CLEARANCE_M``) from every other vehicle and outside ``obstacles``; ``joint``: the relays' moves
+    taken together (else one relay at a time, the others held: the planner before 2026-12-04)."""
+
+    step_m: float = 0.5
+    replan_every: int = 4
+    lookahead_s: float = 1.0
+    leash_m: float = 1.0
+    margin_m: float = 0.05
+    workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
+    workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
+    separation_m: float = 0.0
+    obstacles: tuple = ()
+    joint: bool = True
+
+
+@dataclass(frozen=True)
+class FleetRoute:
+    """A pre-flight route: times ``(T,)`` (s) and every relay's positions ``(T, K, 3)`` (m, world), relays
+    in ``relays`` order."""
+
+    t: np.ndarray
+    positions: np.ndarray
+    relays: tuple[str, ...]
+
+    def at(self, t: float) -> dict[str, np.ndarray]:
+        """Every relay's place on the route at ``t`` (s), linear between its points."""
+        return {r: np.array([np.interp(t, self.t, self.positions[:, k, i]) for i in range(3)])
+                for k, r in enumerate(self.relays)}
+
+
+def fleet_route(scene: RadioScene, sources: Mapping[str, SourceTrajectory], starts: Mapping[str, np.ndarray],
+                tilt_limits: Mapping[str, float], lo, hi, *, t0: float, duration_s: float, dt_s: float, speed_m_s: float,
+                accel_m_s2: float, gravity: float, separation_m: float = 0.0, obstacles: tuple = (),
+                axis_step_deg: float = 10.0, jammer_positions=None, jammer_powers=None) -> FleetRoute:
+    """The fleet's route (module docstring) from ``t0`` to ``duration_s`` (s) every ``dt_s``, the relays starting at
+    rest at ``starts`` (m), the jammers where the fleet knows them (``jammer_positions`` ``(nJ, 3)`` m,
+    ``jammer_powers`` ``(nJ,)`` W; None: silent, not localized yet)."""
+    relays = list(starts)
+    times = np.arange(t0, max(duration_s, t0) + 1e-9, dt_s)
+    silent = np.zeros(len(scene.jammers)) if jammer_powers is None else np.asarray(jammer_powers, float)
+    configs = FleetConfigurations(scene, relays, lo, hi, tilt_limits, np.radians(axis_step_deg), separation_m, obstacles,
+                                  jammer_positions=jammer_positions, jammer_powers=silent)
+    fixed = {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None}
+    poses = []
+    for t in times:
+        at = dict(fixed)
+        for name, mission in sources.items():
+            s = mission.state(float(t))
+            at[name] = scene.pose(name, s.p, rotation_zyx(s.attitude(gravity)))
+        poses.append(at)
+    routes = [[n for n in r] for r in scene.all_routes]
+    # evenly spaced places at every instant, chased from the starts: IPOPT's first guess (a per-instant refinement
+    # of the places on the network's rate first gave the same route, 6x slower: docs/decisions.md)
+    places = np.empty((len(times), len(relays), 3))
+    for i in range(len(times)):
+        even = equidistant_targets(routes, {n: p.position for n, p in poses[i].items()})
+        places[i] = np.stack([even[r] for r in relays])
+    if len(times) < 2:
+        return FleetRoute(times, np.clip(np.stack([starts[r] for r in relays])[None], lo, hi), tuple(relays))
+    chase = np.stack([np.clip(speed_limited(places[:, k], np.clip(starts[r], lo, hi), speed_m_s * dt_s, accel_m_s2 * dt_s**2),
+                              lo, hi) for k, r in enumerate(relays)], axis=1)
+    accel = path_accelerations(len(times), dt_s)
+    thrust = np.empty_like(chase)
+    for k in range(len(relays)):
+        f = np.asarray(accel(chase[:, k].T)).T + np.array([0.0, 0.0, gravity])
+        thrust[:, k] = f / np.linalg.norm(f, axis=1, keepdims=True)
+    A0 = np.stack([configs.best_axes(float(t), chase[i], poses[i], thrust[i]) for i, t in enumerate(times)])
+    angles = np.stack([np.arccos(np.clip(A0[..., 2], -1.0, 1.0)), np.arctan2(A0[..., 1], A0[..., 0])], axis=-1)
+
+    def capacity(t: float, positions: list, axes: list):
+        i = int(np.argmin(np.abs(times - t)))
+        return scene.evaluate(t, {**poses[i], **{r: NodePose(positions[k], axes[k]) for k, r in enumerate(relays)}},
+                              jammer_positions=jammer_positions, jammer_powers=silent).capacity
+
+    fixed_xyz = np.stack([np.array([p.position for p in pz.values()]) for pz in poses])
+    fleet = best_feasible_fleet_path(capacity, times, chase, lo, hi, speed_m_s, [tilt_limits[r] for r in relays], gravity,
+                                    "mean", max_iter=200, max_accel=accel_m_s2, a0=angles, separation_m=separation_m,
+                                    fixed=fixed_xyz)
+    log.info("fleet route: %d instants from %.1f s, mean rate %.6g, %s", len(times), t0, float(np.mean(fleet.capacity)),
+             fleet.status)
+    return FleetRoute(times, fleet.position, tuple(relays))
+
+
+class FleetCapacityPlanner:
+    """Capacity-seeking references for every relay of a fleet (module docstring), from what the fleet
+    knows: the scene's world view with the jammers at the positions and powers the fleet was told
+    (``FleetInput.jammer_positions`` / ``jammer_powers``)."""
+
+    def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], candidate_axes: Mapping[str, np.ndarray],
+                 shapers: Mapping[str, ShaperSettings], settings: FleetCapacitySettings,
+                 route_builder: Callable[..., FleetRoute] | None = None):
+        """``candidate_axes``: each relay's holdable antenna axes ``(n, 3)`` (unit, world); ``shapers`` each relay's
+        reference limits; ``route_builder(t0, starts, jammer_positions, jammer_powers)`` plans the route (None: no
+        route, no leash): before the first step with what the fleet knows then, and again when a jammer
+        becomes known in flight (its power from 0 to above; ``preflight_s`` the first, ``reroute_s`` the others,
+        s)."""
+        self.scene, self.settings, self.route_builder = scene, settings, route_builder
+        self.route: FleetRoute | None = None
+        self.preflight_s, self.reroute_s = 0.0, list[float]()
+        self.known: tuple[bool, ...] | None = None
+        self.pending: tuple[float, FleetRoute] | None = None  # a route planned in flight: when it is flown (s), the route
+        self.off_loop_s = 0.0  # this step's work beside the control loop (s)
+        self.relays = list(relay_starts)
+        self.shapers = {n: ReferenceShaper(shapers[n]) for n in self.relays}
+        lo, hi = np.asarray(settings.workspace_min, float), np.asarray(settings.workspace_max, float)
+        self.lo, self.hi = lo + settings.margin_m, hi - settings.margin_m
+        for n, p in relay_starts.items():
+            self.shapers[n].p_ref = np.clip(np.asarray(p, float), self.lo, self.hi)
+        self.goals = {n: self.shapers[n].p_ref.copy() for n in self.relays}  # type: ignore[union-attr]
+        self.axis_goals = {n: E3.copy() for n in self.relays}
+        self.axes = {n: np.asarray(candidate_axes[n], float) for n in self.relays}
+        # each relay's goals x axes scored in one compiled call (planning.relay_grid), the other sources and relays given
+        self.sources = [n.name for n in scene.nodes if n.role == "source"]
+        self.grids = {n: CompiledRelayGrid(scene, len(_OFFSETS), len(self.axes[n]), source=self.sources[0], relay=n,
+                                           moving=self._moving(n)) for n in self.relays}
+        K = len(self.relays)
+        # the joint moves' configurations: every non-empty subset of the relays up to JOINT_SUBSETS_MAX_RELAYS, beyond
+        # it all relays together and each alone
+        self.subsets = ([tuple(c) for r in range(1, K + 1) for c in itertools.combinations(range(K), r)]
+                        if K <= JOINT_SUBSETS_MAX_RELAYS else [tuple(range(K))] + [(j,) for j in range(K)])
+        self.configurations = CompiledConfigurations(scene, tuple(self.relays), tuple(self.sources), len(self.subsets))
+        self.cycle = max(settings.replan_every, K)  # steps between two decisions
+        self.scored: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
+        self.gravity = next(iter(shapers.values())).gravity if shapers else 9.81
+        self.k = 0
+
+    def _moving(self, relay: str) -> tuple[str, ...]:
+        """The moving nodes whose poses ``relay``'s grid is given: the sources after the first, the other relays."""
+        return tuple(self.sources[1:] + [n for n in self.relays if n != relay])
+
+    def _others(self, inp: FleetInput) -> dict[str, NodePose]:
+        """Every non-relay vehicle (the sources) predicted ``lookahead_s`` ahead at constant acceleration, its
+        antenna along its thrust (as the one relay's planner predicts MRAV-2)."""
+        tau, out = self.settings.lookahead_s, {}
+        for n, p in inp.positions.items():
+            if n in self.shapers or self.scene.node(n).position is not None:
+                continue
+            v = np.asarray(inp.velocities.get(n, np.zeros(3)), float)
+            a = np.asarray(inp.accelerations.get(n, np.zeros(3)), float)
+            out[n] = NodePose(np.asarray(p, float) + v * tau + 0.5 * a * tau**2, thrust_direction_from_acceleration(a, self.gravity))
+        return out
+
+    def _candidates(self, t: float) -> np.ndarray:
+        """``(K, 27, 3)``: each relay's stencil around its goal, within the leash of its route at ``t`` and in the box."""
+        cand = np.stack([self.goals[n] + self.settings.step_m * _OFFSETS for n in self.relays])
+        if self.route is not None:
+            anchor = self.route.at(t)
+            for k, n in enumerate(self.relays):
+                off = cand[k] - anchor[n]
+                d = np.linalg.norm(off, axis=1, keepdims=True)
+                lim = self.settings.leash_m
+                cand[k] = np.where(d > lim, anchor[n] + off * (lim / np.maximum(d, 1e-12)), cand[k])
+        return np.clip(cand, self.lo, self.hi)
+
+    def _rates(self, t: float, others: dict, inp: FleetInput, positions: np.ndarray, axes: np.ndarray) -> np.ndarray:
+        """The network's rate with relay ``k`` at ``positions[..., k, :]`` holding ``axes[..., k, :]`` (broadcast)."""
+        poses = {**others, **{n: NodePose(positions[..., k, :], axes[..., k, :]) for k, n in enumerate(self.relays)}}
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rate = self.scene.evaluate(t, poses, jammer_positions=inp.jammer_positions, jammer_powers=inp.jammer_powers).capacity
+        return np.nan_to_num(np.asarray(rate, float), nan=-np.inf)  # an undefined rate is never the best
+
+    def _blocked(self, P: np.ndarray, others: np.ndarray) -> np.ndarray:
+        """True where a goal (``P (..., 3)``) is too close to a vehicle in ``others (M, 3)`` or inside an obstacle."""
+        bad = np.zeros(P.shape[:-1], bool)
+        if self.settings.separation_m > 0 and len(others):
+            gap = np.linalg.norm(P[..., None, :] - others, axis=-1).min(axis=-1)
+            bad |= gap < self.settings.separation_m + GOAL_CLEARANCE_M
+        if self.settings.obstacles:
+            bad |= inside_any(self.settings.obstacles, P.reshape(-1, 3)).reshape(P.shape[:-1])
+        return bad
+
+    def _jammers(self, inp: FleetInput) -> tuple[np.ndarray, np.ndarray]:
+        nj = len(self.scene.jammers)
+        jp = np.zeros((nj, 3)) if inp.jammer_positions is None else np.asarray(inp.jammer_positions, float)
+        return jp, np.zeros(nj) if inp.jammer_powers is None else np.asarray(inp.jammer_powers, float)
+
+    def _score(self, inp: FleetInput, j: int) -> None:
+        """Relay ``j``'s goals x axes around its goal (the leash, the box, the sources predicted ahead) on the
+        network's rate with the others at their goals, in one compiled call; its best kept for the decision."""
+        n, others = self.relays[j], self._others(inp)
+        cand = self._candidates(inp.t + self.settings.lookahead_s)[j]
+        here = {**others, **{m: NodePose(self.goals[m], self.axis_goals[m]) for m in self.relays}}
+        rate = self.grids[n](cand, self.axes[n], here[self.sources[0]], *self._jammers(inp), tuple(here[m] for m in self._moving(n)))
+        rate = np.nan_to_num(rate, nan=-np.inf)
+        vehicles = np.array([np.asarray(p.position, float) for p in others.values()]).reshape(-1, 3)
+        rate[self._blocked(cand, np.concatenate([vehicles, *[self.goals[m][None] for m in self.relays if m != n]]))] = -np.inf
+        i, b = np.unravel_index(int(np.argmax(rate)), rate.shape)
+        self.scored[j] = (cand[i].copy(), self.axes[n][b].copy(), float(rate[i, b]))
+
+    def _decide(self, inp: FleetInput) -> None:
+        """Every relay scored since the last decision: the relays' best moves taken jointly (``_joint``) or the
+        best one alone."""
+        movers = [j for j, sc in self.scored.items() if np.isfinite(sc[2])]
+        if movers:
+            gain = {j: self.scored[j][2] for j in movers}
+            chosen = self._joint(inp, movers) if self.settings.joint else [max(gain, key=gain.__getitem__)]
+            for j in chosen:
+                n = self.relays[j]
+                self.goals[n], self.axis_goals[n] = self.scored[j][0].copy(), self.scored[j][1].copy()
+        self.scored.clear()
+
+    def _joint(self, inp: FleetInput, movers: list[int]) -> list[int]:
+        """The subset of the relays' best moves whose configuration rates best and keeps the separation
+        between the relays' goals, every subset scored in one compiled call (``subsets``)."""
+        goals = np.stack([self.goals[n] for n in self.relays])
+        axis_goals = np.stack([self.axis_goals[n] for n in self.relays])
+        P = np.broadcast_to(goals, (len(self.subsets), *goals.shape)).copy()
+        A = np.broadcast_to(axis_goals, (len(self.subsets), *axis_goals.shape)).copy()
+        ok = np.array([all(j in movers for j in sub) for sub in self.subsets])
+        for s, sub in enumerate(self.subsets):
+            for j in sub:
+                P[s, j], A[s, j] = self.scored[j][0] if j in self.scored else goals[j], \
+                    self.scored[j][1] if j in self.scored else axis_goals[j]
+        others = self._others(inp)
+        rate = self.configurations(P, A, tuple(others[n] for n in self.sources), *self._jammers(inp))
+        rate = np.where(ok, np.nan_to_num(rate, nan=-np.inf), -np.inf)
+        if self.settings.separation_m > 0:
+            K = goals.shape[0]
+            for c in np.flatnonzero(np.isfinite(rate)):
+                gaps = [np.linalg.norm(P[c, a] - P[c, b]) for a in range(K) for b in range(a + 1, K)]
+                if gaps and min(gaps) < self.settings.separation_m + GOAL_CLEARANCE_M:
+                    rate[c] = -np.inf
+        if not np.isfinite(rate).any():
+            gain = {j: self.scored[j][2] for j in movers}
+            return [max(gain, key=gain.__getitem__)]
+        return list(self.subsets[int(np.argmax(rate))])
+
+    def _route_with_what_is_known(self, inp: FleetInput) -> None:
+        """The route planned at the first step (before take-off, ``preflight_s``), and planned again from the
+        references' places when a jammer becomes known (``reroute_s``): work a flight computer runs beside
+        the control loop, so its time is kept apart (``off_loop_s``, not in the step's) and the new route is
+        flown from ``ROUTE_LATENCY_S`` after the jammer became known (meanwhile the goals climb unleashed: the old
+        route did not know the jammer)."""
+        self.off_loop_s = 0.0
+        if self.pending is not None and inp.t >= self.pending[0] - 1e-9:
+            self.route, self.pending = self.pending[1], None
+        known = None if inp.jammer_powers is None else tuple(bool(p > 0) for p in np.asarray(inp.jammer_powers, float))
+        if self.route_builder is None or (self.k > 0 and known == self.known):
+            return
+        first, self.known = self.k == 0, known
+        t0 = time.perf_counter()
+        starts = {n: self.shapers[n].p_ref.copy() for n in self.relays}  # type: ignore[union-attr]
+        route = self.route_builder(inp.t, starts, inp.jammer_positions, inp.jammer_powers)
+        self.off_loop_s = time.perf_counter() - t0
+        if first and inp.t <= 1e-9:  # before take-off
+            self.route, self.preflight_s = route, self.off_loop_s
+        else:  # in flight (a jammer newly known, or a smaller fleet's planner after a loss): the old route, planned
+            # without what is known now, no longer leashes the goals while the new one is planned
+            self.route, self.pending = None, (inp.t + ROUTE_LATENCY_S, route)
+            self.reroute_s.append(self.off_loop_s)
+
+    def update(self, inp: FleetInput) -> dict[str, Reference]:
+        self._route_with_what_is_known(inp)
+        slot = self.k % self.cycle  # round robin: one relay scored per step, the moves decided once all are
+        if slot < len(self.relays):
+            self._score(inp, slot)
+            if slot == len(self.relays) - 1:
+                self._decide(inp)
+        self.k += 1
+        out = {}
+        for n in self.relays:
+            sh = self.shapers[n]
+            v_ref = sh.advance(self.goals[n], inp.dt)
+            sh.turn_axis(self.axis_goals[n], inp.dt)
+            axis = sh.held_axis(sh.axis)
+            assert sh.p_ref is not None
+            out[n] = Reference(p_opt=self.goals[n].copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref,
+                               a_ref=sh.acceleration(inp.positions.get(n, sh.p_ref), inp.velocities.get(n), axis), axis=axis)
+        return out

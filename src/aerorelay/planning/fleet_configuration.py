@@ -1,0 +1,107 @@
+"""A fleet's configuration at one instant on the true network rate: its rate, each relay's best
+holdable axis, and positions and axes refined jointly (the network bound's ``achieved`` and the fleet
+planner's pre-flight route share it).
+
+A configuration is every relay's position ``(K, 3)`` (m, world) and antenna axis ``(K, 3)`` (unit,
+world), relays in ``relays`` order; the other nodes' poses come in ``poses`` (name -> ``NodePose``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ..models.axes import axis_cone, tilted_axes
+from ..models.obstacles import inside_any
+from ..models.radio import NodePose, RadioScene
+
+
+class FleetConfigurations:
+    """Configurations of ``relays`` in ``scene`` inside the box ``[lo, hi]`` (m), each relay's axis within
+    its hover tilt limit (``tilt_limits``, rad; cones every ``axis_step_rad``), every relay at least
+    ``separation_m`` (m) from the other nodes and from each other and outside ``obstacles``; the jammers at
+    ``jammer_positions`` (m, ``(nJ, 3)``) radiating ``jammer_powers`` (W, ``(nJ,)``; None: the scene's own)."""
+
+    def __init__(self, scene: RadioScene, relays: Sequence[str], lo, hi, tilt_limits: Mapping[str, float],
+                 axis_step_rad: float, separation_m: float = 0.0, obstacles: tuple = (), jammer_positions=None,
+                 jammer_powers=None):
+        self.scene, self.relays = scene, list(relays)
+        self.lo, self.hi = np.asarray(lo, float), np.asarray(hi, float)
+        self.tilt_limits = dict(tilt_limits)
+        self.cones = {r: axis_cone(self.tilt_limits[r], axis_step_rad) for r in self.relays}
+        self.separation_m, self.obstacles = separation_m, obstacles
+        self.jammer_positions, self.jammer_powers = jammer_positions, jammer_powers
+
+    def rate(self, t: float, positions: np.ndarray, axes: np.ndarray, poses) -> float:
+        """The true network rate with the relays at ``positions`` ``(K, 3)`` with antenna ``axes`` ``(K, 3)``."""
+        relay_poses = {r: NodePose(positions[k], axes[k]) for k, r in enumerate(self.relays)}
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rate = self.scene.evaluate(t, {**poses, **relay_poses}, jammer_positions=self.jammer_positions,
+                                       jammer_powers=self.jammer_powers).capacity
+            return float(np.nan_to_num(rate, nan=0.0))
+
+    def best_axes(self, t: float, P: np.ndarray, poses, thrust: np.ndarray | None = None) -> np.ndarray:
+        """Each relay's best axis of its cone for the relays at ``P`` ``(K, 3)`` on the true rate, one
+        relay at a time, twice round (``(K, 3)``, unit, world); with ``thrust`` ``(K, 3)`` (unit: where each
+        relay's body z must lean to fly its path) only the axes within its tilt limit of it (the nearest
+        where none is)."""
+        A = np.tile([0.0, 0.0, 1.0], (len(self.relays), 1))
+        choices = []
+        for k, r in enumerate(self.relays):
+            cone = self.cones[r]
+            if thrust is not None:
+                cos = cone @ thrust[k]
+                held = cos >= np.cos(self.tilt_limits[r]) - 1e-12
+                cone = cone[held] if held.any() else cone[[int(np.argmax(cos))]]
+            choices.append(cone)
+        for _ in range(2):
+            for k in range(len(self.relays)):
+                scores = []
+                for a in choices[k]:
+                    A[k] = a
+                    scores.append(self.rate(t, P, A, poses))
+                A[k] = choices[k][int(np.argmax(scores))]
+        return A
+
+    def refine(self, t: float, start: np.ndarray, poses) -> tuple[float, np.ndarray, np.ndarray]:
+        """The relays from ``start`` ``(K, 3)`` (m) refined on the true rate: each relay's best cone axis there
+        (one at a time), then every position and (tilt, azimuth) jointly inside the box and tilt limits
+        (L-BFGS-B; SLSQP with the separation from every node in ``poses`` and between relays). Returns the
+        rate, positions and axes; the start's when the solve ends worse, outside the separation or in an
+        obstacle."""
+        P = np.clip(np.asarray(start, float), self.lo, self.hi)  # a cell may reach past the box: its centre brought in
+        A = self.best_axes(t, P, poses)
+        limits = [self.tilt_limits[r] for r in self.relays]
+        tilt0 = np.arccos(np.clip(A[:, 2], -1, 1))
+        az0 = np.arctan2(A[:, 1], A[:, 0])
+        x0 = np.concatenate([P.ravel(), tilt0, az0])
+        K = len(self.relays)
+
+        def unpack(x):
+            return x[: 3 * K].reshape(K, 3), tilted_axes(x[3 * K : 4 * K], x[4 * K :])
+
+        def neg(x):
+            return -self.rate(t, *unpack(x), poses)
+
+        bounds = [(lo, hi) for _ in range(K) for lo, hi in zip(self.lo, self.hi, strict=True)]
+        bounds += [(0.0, lim) for lim in limits] + [(None, None)] * K
+        sep = self.separation_m
+        if sep <= 0:
+            res = minimize(neg, x0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 80})
+        else:  # every relay the separation from the fixed nodes and from every other relay (m^2 margins >= 0)
+            fixed = np.array([p.position for p in poses.values()])
+
+            def margins(x):
+                P = x[: 3 * K].reshape(K, 3)
+                out = [(np.sum((P[:, None, :] - fixed[None, :, :]) ** 2, axis=-1) - sep**2).ravel()]
+                out += [[np.sum((P[i] - P[j]) ** 2) - sep**2 for i in range(K) for j in range(i + 1, K)]]
+                return np.concatenate(out)
+            res = minimize(neg, x0, method="SLSQP", bounds=bounds, constraints=[{"type": "ineq", "fun": margins}],
+                           options={"maxiter": 80})
+            if np.min(margins(res.x)) < -1e-6:
+                res.fun = np.inf  # ended outside the separation: keep the start
+        better = -res.fun >= -neg(x0) and not np.any(inside_any(self.obstacles, unpack(res.x)[0]))
+        x = res.x if better else x0
+        return -neg(x), *unpack(x)
