@@ -1,0 +1,220 @@
+"""Ray-traced links (Sionna RT), weighed by aerorelay's own antennas at each node's attitude.
+
+A link is traced **once with isotropic antennas** at both ends (Sionna RT's ``PathSolver``: line of
+sight, specular reflection, refraction, diffuse reflection (scattering) and diffraction as chosen,
+up to ``max_depth`` interactions). Each traced path ``p`` carries a complex coefficient ``a_p``
+(``|a_p|^2`` its path gain: ``(lambda / 4 pi d)^2`` in free space, times each interaction's
+coefficient), a delay ``tau_p`` (s), the direction it leaves the transmitter ``u_t,p`` and the
+direction it arrives from at the receiver ``u_r,p`` (unit, pointing from the receiver toward the
+path's last point). aerorelay then weighs each path by each end's **own pattern toward that
+direction in its body frame**: with antenna axes ``b_tx`` and ``b_rx`` (unit, world) the path's power
+gain is ``G_tx(u_t,p . b_tx) G_rx(u_r,p . b_rx)`` (``AntennaPattern.gain_from_cos``; for the line of
+sight exactly the analytic channel's ``link_gain``, eq. 6). The link's power gain is then
+
+- ``coherent`` (narrowband): ``|sum_p a_p sqrt(G_tx,p G_rx,p)|^2``: the paths add with their phases
+  (the field changes over half a wavelength, 6 cm at 2.4 GHz);
+- ``power`` (wideband, paths resolved): ``sum_p |a_p|^2 G_tx,p G_rx,p``.
+
+**Polarization** is what the isotropic trace carried: both ends vertically polarized (Sionna's
+``"V"``), so each interaction's coefficient is that polarization's; the weighting changes the power
+toward each direction, not the polarization a tilted dipole would have (a relay's tilt changes its
+field's polarization too: not modelled, said beside the results). The RMS delay spread of a link is
+``sqrt(sum w_p tau_p^2 / sum w_p - (sum w_p tau_p / sum w_p)^2)`` with ``w_p`` the weighed path powers.
+
+The scenario's frame sits in the scene at ``origin_m`` (m, the scene's coordinates of the scenario's
+origin) turned by ``yaw_deg`` (deg, about z, counter-clockwise): ``x_scene = Rz(yaw) x + origin``.
+On CPU Sionna RT runs Mitsuba's LLVM variant, which needs the system's LLVM (Debian: ``libllvm19``);
+its GPU variant is used when present.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+RT_EXTRA = ("the ray-traced channel needs the optional extra: pip install 'aerorelay[rt]' (Sionna RT) and, on a machine "
+            "without a GPU, the system's LLVM library for its CPU variant (Debian/Ubuntu: apt-get install libllvm19)")
+SCENE_NAMES_HINT = "a scene shipped with Sionna RT (simple_street_canyon, munich, etoile, floor_wall, box, ...) or a Mitsuba XML file"
+
+
+class RayTracingUnavailable(RuntimeError):
+    """Sionna RT (the ``rt`` extra) or the LLVM library its CPU variant needs is missing."""
+
+
+def llvm_available() -> bool:
+    """Whether a system LLVM library of version 16 or later (Dr.Jit's CPU back end) is installed."""
+    if os.environ.get("DRJIT_LIBLLVM_PATH"):
+        return Path(os.environ["DRJIT_LIBLLVM_PATH"]).is_file()
+    found = [p for pattern in ("/usr/lib/libLLVM*.so*", "/usr/lib/*/libLLVM*.so*", "/usr/lib64/libLLVM*.so*",
+                               "/usr/local/lib/libLLVM*.so*", "/usr/lib/llvm-*/lib/libLLVM*.so*") for p in glob.glob(pattern)]
+    for path in found:
+        m = re.search(r"libLLVM[-.](?:so\.)?(\d+)", Path(path).name)
+        if m and int(m.group(1)) >= 16:
+            return True
+    return False
+
+
+def sionna_rt():
+    """The ``sionna.rt`` module, or ``RayTracingUnavailable`` naming the extra and the LLVM library."""
+    try:
+        import mitsuba as mi
+        import sionna.rt as rt  # the optional extra: imported only when a ray-traced channel is asked for (sets the variant)
+    except ImportError as exc:
+        raise RayTracingUnavailable(f"{RT_EXTRA} ({exc})") from None
+    if str(mi.variant()).startswith("llvm") and not llvm_available():  # Dr.Jit would abort the process at the first trace
+        raise RayTracingUnavailable(f"{RT_EXTRA}: no GPU and no LLVM 16 or later found (Mitsuba variant {mi.variant()})")
+    return rt
+
+
+def unit_from_angles(theta, phi) -> np.ndarray:
+    """Unit vectors ``(..., 3)`` from zenith ``theta`` and azimuth ``phi`` (rad; Sionna's angles)."""
+    theta, phi = np.asarray(theta, float), np.asarray(phi, float)
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+def rotation_z(yaw_rad: float) -> np.ndarray:
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class TracedLinks:
+    """``n`` traced links of up to ``P`` paths each: complex coefficients ``a`` ``(n, P)`` (0 where a path is
+    not valid), delays ``tau`` ``(n, P)`` (s), departure and arrival unit directions ``(n, P, 3)`` in the
+    scenario's frame (departure: leaving the transmitter; arrival: from the receiver toward where the path
+    comes from), ``valid`` ``(n, P)``."""
+
+    a: np.ndarray
+    tau: np.ndarray
+    departure: np.ndarray
+    arrival: np.ndarray
+    valid: np.ndarray
+
+    @property
+    def paths(self) -> np.ndarray:
+        """``(n,)``: how many valid paths each link has."""
+        return self.valid.sum(axis=1)
+
+    def path_powers(self, pat_tx, b_tx, pat_rx, b_rx) -> np.ndarray:
+        """``(n, P)``: each path's power gain weighed by both ends' patterns toward its directions (``b_tx``,
+        ``b_rx``: ``(n, 3)`` or ``(3,)`` antenna axes, unit, scenario frame)."""
+        return np.abs(self.a) ** 2 * self._weights(pat_tx, b_tx, pat_rx, b_rx)
+
+    def _weights(self, pat_tx, b_tx, pat_rx, b_rx) -> np.ndarray:
+        b_tx, b_rx = np.asarray(b_tx, float), np.asarray(b_rx, float)
+        c_t = np.einsum("npi,ni->np", self.departure, np.broadcast_to(b_tx, (len(self.a), 3)))
+        c_r = np.einsum("npi,ni->np", self.arrival, np.broadcast_to(b_rx, (len(self.a), 3)))
+        w = np.asarray(pat_tx.gain_from_cos(np.clip(c_t, -1.0, 1.0)), float) * np.asarray(pat_rx.gain_from_cos(np.clip(c_r, -1.0, 1.0)), float)
+        return np.where(self.valid, w, 0.0)
+
+    def gain(self, pat_tx, b_tx, pat_rx, b_rx, coherent: bool = True) -> np.ndarray:
+        """``(n,)``: each link's power gain with the ends' patterns at their axes, the paths summed with
+        their phases (``coherent``) or in power (module docstring)."""
+        w = self._weights(pat_tx, b_tx, pat_rx, b_rx)
+        if coherent:
+            return np.abs(np.sum(self.a * np.sqrt(w), axis=1)) ** 2
+        return np.sum(np.abs(self.a) ** 2 * w, axis=1)
+
+    def delay_spread(self, pat_tx, b_tx, pat_rx, b_rx) -> np.ndarray:
+        """``(n,)`` RMS delay spread (s) over the weighed path powers (0 for a link of one path or none)."""
+        w = self.path_powers(pat_tx, b_tx, pat_rx, b_rx)
+        total = w.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.sum(w * self.tau, axis=1) / total
+            var = np.sum(w * self.tau**2, axis=1) / total - mean**2
+        return np.where(total > 0, np.sqrt(np.maximum(var, 0.0)), 0.0)
+
+
+@dataclass(frozen=True)
+class TraceSettings:
+    """What a trace is: the scene (a Sionna scene's name or a Mitsuba XML file's path), the carrier (Hz),
+    where the scenario's frame sits in the scene (``origin_m`` m, ``yaw_deg`` deg), at most ``max_depth``
+    interactions per path and which interactions (``reflection``: specular; ``scattering``: diffuse
+    reflection; ``diffraction``: on edges; ``refraction``: through objects)."""
+
+    scene: str
+    carrier_hz: float
+    origin_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw_deg: float = 0.0
+    max_depth: int = 3
+    reflection: bool = True
+    scattering: bool = False
+    diffraction: bool = False
+    refraction: bool = False
+
+
+class RayTracer:
+    """Traces links in one Sionna RT scene (``TraceSettings``): ``trace(tx (n, 3), rx (n, 3))`` -> the ``n``
+    links ``tx[i] -> rx[i]`` (m, the scenario's frame), every distinct end traced in one call."""
+
+    def __init__(self, settings: TraceSettings):
+        rt = sionna_rt()
+        self.settings = settings
+        self.rt = rt
+        self.scene = load_scene(rt, settings.scene)
+        self.scene.frequency = float(settings.carrier_hz)
+        iso = dict(num_rows=1, num_cols=1, vertical_spacing=0.5, horizontal_spacing=0.5, pattern="iso", polarization="V")
+        self.scene.tx_array = rt.PlanarArray(**iso)
+        self.scene.rx_array = rt.PlanarArray(**iso)
+        self.R = rotation_z(np.radians(settings.yaw_deg))
+        self.origin = np.asarray(settings.origin_m, float)
+        self.solver = rt.PathSolver()
+        self._tx: list[str] = []
+        self._rx: list[str] = []
+
+    def to_scene(self, p: np.ndarray) -> np.ndarray:
+        """Points ``(..., 3)`` of the scenario's frame in the scene's coordinates (m)."""
+        return np.asarray(p, float) @ self.R.T + self.origin
+
+    def _place(self, kind: str, names: list[str], positions: np.ndarray) -> None:
+        cls = self.rt.Transmitter if kind == "tx" else self.rt.Receiver
+        while len(names) < len(positions):
+            name = f"aerorelay_{kind}{len(names)}"
+            self.scene.add(cls(name, position=[0.0, 0.0, 0.0]))
+            names.append(name)
+        while len(names) > len(positions):
+            self.scene.remove(names.pop())
+        for name, p in zip(names, positions, strict=True):
+            self.scene.get(name).position = [float(v) for v in p]
+
+    def trace(self, tx: np.ndarray, rx: np.ndarray) -> TracedLinks:
+        tx, rx = np.atleast_2d(np.asarray(tx, float)), np.atleast_2d(np.asarray(rx, float))
+        if tx.shape != rx.shape or tx.shape[1] != 3:
+            raise ValueError(f"ray tracer: expected as many transmitters as receivers (n, 3), got {tx.shape} and {rx.shape}")
+        utx, itx = np.unique(tx, axis=0, return_inverse=True)
+        urx, irx = np.unique(rx, axis=0, return_inverse=True)
+        self._place("tx", self._tx, self.to_scene(utx))
+        self._place("rx", self._rx, self.to_scene(urx))
+        s = self.settings
+        paths = self.solver(self.scene, max_depth=s.max_depth, los=True, specular_reflection=s.reflection,
+                            diffuse_reflection=s.scattering, refraction=s.refraction, diffraction=s.diffraction,
+                            edge_diffraction=s.diffraction, synthetic_array=True)
+        a = np.asarray(paths.a[0], float) + 1j * np.asarray(paths.a[1], float)  # (rx, rx ant, tx, tx ant, paths)
+        a = a.reshape(len(urx), len(utx), -1)
+        tau = np.asarray(paths.tau, float).reshape(len(urx), len(utx), -1)
+        valid = np.asarray(paths.valid, bool).reshape(len(urx), len(utx), -1)
+        dep = unit_from_angles(np.asarray(paths.theta_t), np.asarray(paths.phi_t)).reshape(len(urx), len(utx), -1, 3) @ self.R
+        arr = unit_from_angles(np.asarray(paths.theta_r), np.asarray(paths.phi_r)).reshape(len(urx), len(utx), -1, 3) @ self.R
+        pick = (irx.ravel(), itx.ravel())
+        ok = valid[pick]
+        return TracedLinks(np.where(ok, a[pick], 0.0), np.where(ok, tau[pick], 0.0), dep[pick], arr[pick], ok)
+
+
+def load_scene(rt, scene: str):
+    """A Sionna scene by its name (``rt.scene.<name>``) or from a Mitsuba XML file's path."""
+    path = Path(scene)
+    if path.suffix.lower() == ".xml":
+        if not path.is_file():
+            raise ValueError(f"ray tracer: scene file {scene!r} does not exist")
+        return rt.load_scene(str(path))
+    if scene == "empty":
+        return rt.load_scene()
+    shipped = getattr(rt.scene, scene, None)
+    if not isinstance(shipped, str):
+        raise ValueError(f"ray tracer: no scene {scene!r}: {SCENE_NAMES_HINT}, or 'empty'")
+    return rt.load_scene(shipped)
