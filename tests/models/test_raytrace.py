@@ -66,7 +66,7 @@ def test_one_floor_reflection_is_the_fresnel_half_space_coefficient(heights):
     reflection is the only path; with the floor's thickness set large (a half space) its amplitude over
     the unfolded path's free-space amplitude is the TM (vertical polarization) Fresnel coefficient of the
     floor's own permittivity and conductivity at the carrier, ``eps = eps_r - j sigma / (omega eps0)``."""
-    tracer = RayTracer(TraceSettings("floor_wall", F, max_depth=1))
+    tracer = RayTracer(TraceSettings("floor_wall", F, max_depth=1), cached=False)  # its material changed below
     floor = tracer.scene.objects["floor"].radio_material
     floor.thickness = 50.0
     h1, h2 = heights
@@ -143,3 +143,36 @@ def test_the_two_ray_delay_spread():
     assert links.delay_spread(ISO, UP, ISO, UP)[0] == pytest.approx(want, rel=1e-6)
     flat = np.hypot(0.5, 3.0)
     assert abs(t[1] - t[0]) == pytest.approx((np.hypot(flat, 0.8) - np.hypot(flat, 0.2)) / 299_792_458.0, rel=1e-3)
+
+
+@needs_rt
+def test_a_trace_is_kept_in_memory_and_on_disk_keyed_by_what_it_depends_on(tmp_path, monkeypatch):
+    """The same links traced twice call the solver once; a new tracer (empty memory) reads them from the disk
+    cache, equal; another carrier or another end is traced again."""
+    monkeypatch.setenv("AERORELAY_CACHE", str(tmp_path))
+    settings = TraceSettings("floor_wall", F, max_depth=1)
+    tx, rx = np.array([[-1.5, -1.5, 0.5]]), np.array([[-1.0, 1.5, 0.3]])
+
+    def counted(tracer):
+        calls = []
+        solver = tracer.solver
+        tracer.solver = lambda *a, **k: calls.append(1) or solver(*a, **k)
+        return calls
+
+    first = RayTracer(settings)
+    calls = counted(first)
+    a = first.trace(tx, rx)
+    first.trace(tx, rx)
+    assert len(calls) == 1
+    second = RayTracer(settings)
+    calls = counted(second)
+    b = second.trace(tx, rx)
+    assert not calls
+    np.testing.assert_array_equal(a.a, b.a)
+    np.testing.assert_array_equal(a.arrival, b.arrival)
+    second.trace(tx, rx + 0.1)
+    assert len(calls) == 1
+    other = RayTracer(TraceSettings("floor_wall", 3.5e9, max_depth=1))
+    calls = counted(other)
+    other.trace(tx, rx)
+    assert len(calls) == 1

@@ -30,15 +30,22 @@ its GPU variant is used when present.
 from __future__ import annotations
 
 import glob
+import hashlib
 import os
 import re
+import tempfile
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..store.cache import cache_dir, cache_lock, entry_is_intact, file_digest, publish_checked
+
 RT_EXTRA = ("the ray-traced channel needs the optional extra: pip install 'aerorelay[rt]' (Sionna RT) and, on a machine "
             "without a GPU, the system's LLVM library for its CPU variant (Debian/Ubuntu: apt-get install libllvm19)")
+TRACE_VERSION = "1"  # bump when a trace's computation changes: cached traces are traced again
+MEMORY_TRACES = 4096  # traces kept in memory (the oldest dropped first)
 SCENE_NAMES_HINT = "a scene shipped with Sionna RT (simple_street_canyon, munich, etoile, floor_wall, box, ...) or a Mitsuba XML file"
 
 
@@ -152,9 +159,14 @@ class RayTracer:
     """Traces links in one Sionna RT scene (``TraceSettings``): ``trace(tx (n, 3), rx (n, 3))`` -> the ``n``
     links ``tx[i] -> rx[i]`` (m, the scenario's frame), every distinct end traced in one call."""
 
-    def __init__(self, settings: TraceSettings):
+    def __init__(self, settings: TraceSettings, cached: bool = True):
+        """``cached``: every trace kept in memory and on disk (the cache folder's ``traces/``), keyed by the scene's
+        files, the settings and the ends: a scene's files edited, or a setting changed, is traced again (a scene
+        changed in Python after loading, its materials for instance, is not in the key: trace it uncached)."""
         rt = sionna_rt()
-        self.settings = settings
+        self.settings, self.cached = settings, cached
+        self.digest = scene_digest(rt, settings.scene)
+        self._memory: dict[str, TracedLinks] = {}
         self.rt = rt
         self.scene = load_scene(rt, settings.scene)
         self.scene.frequency = float(settings.carrier_hz)
@@ -186,6 +198,39 @@ class RayTracer:
         tx, rx = np.atleast_2d(np.asarray(tx, float)), np.atleast_2d(np.asarray(rx, float))
         if tx.shape != rx.shape or tx.shape[1] != 3:
             raise ValueError(f"ray tracer: expected as many transmitters as receivers (n, 3), got {tx.shape} and {rx.shape}")
+        if not self.cached:
+            return self._trace(tx, rx)
+        key = self._key(tx, rx)
+        if key in self._memory:
+            return self._memory[key]
+        path = cache_dir() / "traces" / f"trace_{key}.npz"
+        with cache_lock(path):
+            links = None
+            if entry_is_intact(path):
+                try:
+                    with np.load(path, allow_pickle=False) as z:
+                        links = TracedLinks(z["a"], z["tau"], z["departure"], z["arrival"], z["valid"])
+                except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+                    links = None  # unreadable: traced again
+            if links is None:
+                links = self._trace(tx, rx)
+                fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+                with os.fdopen(fd, "wb") as f:
+                    np.savez(f, a=links.a, tau=links.tau, departure=links.departure, arrival=links.arrival, valid=links.valid)
+                publish_checked(Path(tmp), path)
+        if len(self._memory) >= MEMORY_TRACES:
+            self._memory.pop(next(iter(self._memory)))
+        self._memory[key] = links
+        return links
+
+    def _key(self, tx: np.ndarray, rx: np.ndarray) -> str:
+        """What a trace depends on: the scene's files (``scene_digest``), the settings, the ends (to 1e-9 m)."""
+        h = hashlib.sha256(f"{TRACE_VERSION}|{self.digest}|{self.settings!r}".encode())
+        h.update(np.round(tx, 9).tobytes())
+        h.update(np.round(rx, 9).tobytes())
+        return h.hexdigest()[:24]
+
+    def _trace(self, tx: np.ndarray, rx: np.ndarray) -> TracedLinks:
         utx, itx = np.unique(tx, axis=0, return_inverse=True)
         urx, irx = np.unique(rx, axis=0, return_inverse=True)
         self._place("tx", self._tx, self.to_scene(utx))
@@ -203,6 +248,27 @@ class RayTracer:
         pick = (irx.ravel(), itx.ravel())
         ok = valid[pick]
         return TracedLinks(np.where(ok, a[pick], 0.0), np.where(ok, tau[pick], 0.0), dep[pick], arr[pick], ok)
+
+
+def scene_file(rt, scene: str) -> Path | None:
+    """The XML file of a scene (``load_scene``'s names), None for the empty scene."""
+    if scene == "empty":
+        return None
+    path = Path(scene) if Path(scene).suffix.lower() == ".xml" else Path(str(getattr(rt.scene, scene, "")))
+    return path if path.is_file() else None
+
+
+def scene_digest(rt, scene: str) -> str:
+    """SHA-256 over a scene's XML file and every file in its folder (its meshes), or of its name when it
+    has no file (``"empty"``, or a name ``load_scene`` will refuse)."""
+    path = scene_file(rt, scene)
+    if path is None:
+        return hashlib.sha256(scene.encode()).hexdigest()
+    h = hashlib.sha256()
+    for f in sorted(p for p in path.parent.rglob("*") if p.is_file()):
+        h.update(str(f.relative_to(path.parent)).encode())
+        h.update(file_digest(f).encode())
+    return h.hexdigest()
 
 
 def load_scene(rt, scene: str):
