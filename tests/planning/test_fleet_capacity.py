@@ -73,7 +73,7 @@ def test_compiled_scoring_picks_each_candidates_own_best_and_the_joint_move_is_t
     inp = _input()
     goals = {n: planner.goals[n].copy() for n in STARTS}
     axis_goals = {n: planner.axis_goals[n].copy() for n in STARTS}
-    cand = planner._candidates(inp.t)  # lookahead 0: the candidates scored now
+    cand = np.stack([planner._candidates(inp.t, j) for j in range(len(STARTS))])  # lookahead 0: the candidates scored now
     src = NodePose(SRC, np.array([0.0, 0.0, 1.0]))
 
     def rate(poses):

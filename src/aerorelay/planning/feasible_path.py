@@ -101,6 +101,17 @@ def thrust_directions(T: int, dt: float, gravity: float) -> ca.Function:
     return ca.Function("thrust_dirs", [P], [f / ca.repmat(ca.sqrt(ca.sum1(f**2)), 3, 1)])
 
 
+def fleet_thrust_directions(P: np.ndarray, dt: float, gravity: float) -> np.ndarray:
+    """``(T, K, 3)``: the unit direction each relay's thrust points to fly its sampled path ``P`` ``(T, K, 3)``
+    (m) ``dt`` (s) apart: ``path_accelerations`` plus gravity, normalized (numpy)."""
+    accel = path_accelerations(P.shape[0], dt)
+    out = np.empty_like(P)
+    for k in range(P.shape[1]):
+        f = np.asarray(accel(P[:, k].T)).T + np.array([0.0, 0.0, gravity])
+        out[:, k] = f / np.linalg.norm(f, axis=1, keepdims=True)
+    return out
+
+
 def best_feasible_path(landscape, times: np.ndarray, guess: np.ndarray, start: np.ndarray, lo, hi,
                        max_speed: float, max_tilt: float, kind: str = "mean", max_iter: int = 300,
                        max_accel: float | None = None) -> FeasiblePath:

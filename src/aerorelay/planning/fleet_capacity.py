@@ -32,13 +32,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.geometry import E3, rotation_zyx, thrust_direction_from_acceleration
+from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
-from .feasible_path import best_feasible_fleet_path, path_accelerations, speed_limited
 from .fleet import FleetInput, equidistant_targets
-from .fleet_configuration import FleetConfigurations
+from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 from .relay_grid import CompiledConfigurations, CompiledRelayGrid
 from .shaper import ReferenceShaper, ShaperSettings
 from .trajectory_generator import Reference
@@ -100,42 +99,17 @@ def fleet_route(scene: RadioScene, sources: Mapping[str, SourceTrajectory], star
     silent = np.zeros(len(scene.jammers)) if jammer_powers is None else np.asarray(jammer_powers, float)
     configs = FleetConfigurations(scene, relays, lo, hi, tilt_limits, np.radians(axis_step_deg), separation_m, obstacles,
                                   jammer_positions=jammer_positions, jammer_powers=silent)
-    fixed = {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None}
-    poses = []
-    for t in times:
-        at = dict(fixed)
-        for name, mission in sources.items():
-            s = mission.state(float(t))
-            at[name] = scene.pose(name, s.p, rotation_zyx(s.attitude(gravity)))
-        poses.append(at)
-    routes = [[n for n in r] for r in scene.all_routes]
+    poses = [mission_poses(scene, sources, float(t), gravity) for t in times]
     # evenly spaced places at every instant, chased from the starts: IPOPT's first guess (a per-instant refinement
     # of the places on the network's rate first gave the same route, 6x slower: docs/decisions.md)
     places = np.empty((len(times), len(relays), 3))
     for i in range(len(times)):
-        even = equidistant_targets(routes, {n: p.position for n, p in poses[i].items()})
+        even = equidistant_targets(scene.all_routes, {n: p.position for n, p in poses[i].items()})
         places[i] = np.stack([even[r] for r in relays])
     if len(times) < 2:
         return FleetRoute(times, np.clip(np.stack([starts[r] for r in relays])[None], lo, hi), tuple(relays))
-    chase = np.stack([np.clip(speed_limited(places[:, k], np.clip(starts[r], lo, hi), speed_m_s * dt_s, accel_m_s2 * dt_s**2),
-                              lo, hi) for k, r in enumerate(relays)], axis=1)
-    accel = path_accelerations(len(times), dt_s)
-    thrust = np.empty_like(chase)
-    for k in range(len(relays)):
-        f = np.asarray(accel(chase[:, k].T)).T + np.array([0.0, 0.0, gravity])
-        thrust[:, k] = f / np.linalg.norm(f, axis=1, keepdims=True)
-    A0 = np.stack([configs.best_axes(float(t), chase[i], poses[i], thrust[i]) for i, t in enumerate(times)])
-    angles = np.stack([np.arccos(np.clip(A0[..., 2], -1.0, 1.0)), np.arctan2(A0[..., 1], A0[..., 0])], axis=-1)
-
-    def capacity(t: float, positions: list, axes: list):
-        i = int(np.argmin(np.abs(times - t)))
-        return scene.evaluate(t, {**poses[i], **{r: NodePose(positions[k], axes[k]) for k, r in enumerate(relays)}},
-                              jammer_positions=jammer_positions, jammer_powers=silent).capacity
-
-    fixed_xyz = np.stack([np.array([p.position for p in pz.values()]) for pz in poses])
-    fleet = best_feasible_fleet_path(capacity, times, chase, lo, hi, speed_m_s, [tilt_limits[r] for r in relays], gravity,
-                                    "mean", max_iter=200, max_accel=accel_m_s2, a0=angles, separation_m=separation_m,
-                                    fixed=fixed_xyz)
+    fleet = flyable_fleet_path(configs, times, places, np.stack([starts[r] for r in relays]), poses, speed_m_s=speed_m_s,
+                               accel_m_s2=accel_m_s2, gravity=gravity, max_iter=200)
     log.info("fleet route: %d instants from %.1f s, mean rate %.6g, %s", len(times), t0, float(np.mean(fleet.capacity)),
              fleet.status)
     return FleetRoute(times, fleet.position, tuple(relays))
@@ -200,24 +174,17 @@ class FleetCapacityPlanner:
             out[n] = NodePose(np.asarray(p, float) + v * tau + 0.5 * a * tau**2, thrust_direction_from_acceleration(a, self.gravity))
         return out
 
-    def _candidates(self, t: float) -> np.ndarray:
-        """``(K, 27, 3)``: each relay's stencil around its goal, within the leash of its route at ``t`` and in the box."""
-        cand = np.stack([self.goals[n] + self.settings.step_m * _OFFSETS for n in self.relays])
+    def _candidates(self, t: float, j: int) -> np.ndarray:
+        """``(27, 3)``: relay ``j``'s stencil around its goal, within the leash of its route at ``t`` and in the box."""
+        n = self.relays[j]
+        cand = self.goals[n] + self.settings.step_m * _OFFSETS
         if self.route is not None:
-            anchor = self.route.at(t)
-            for k, n in enumerate(self.relays):
-                off = cand[k] - anchor[n]
-                d = np.linalg.norm(off, axis=1, keepdims=True)
-                lim = self.settings.leash_m
-                cand[k] = np.where(d > lim, anchor[n] + off * (lim / np.maximum(d, 1e-12)), cand[k])
+            anchor = self.route.at(t)[n]
+            off = cand - anchor
+            d = np.linalg.norm(off, axis=1, keepdims=True)
+            lim = self.settings.leash_m
+            cand = np.where(d > lim, anchor + off * (lim / np.maximum(d, 1e-12)), cand)
         return np.clip(cand, self.lo, self.hi)
-
-    def _rates(self, t: float, others: dict, inp: FleetInput, positions: np.ndarray, axes: np.ndarray) -> np.ndarray:
-        """The network's rate with relay ``k`` at ``positions[..., k, :]`` holding ``axes[..., k, :]`` (broadcast)."""
-        poses = {**others, **{n: NodePose(positions[..., k, :], axes[..., k, :]) for k, n in enumerate(self.relays)}}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rate = self.scene.evaluate(t, poses, jammer_positions=inp.jammer_positions, jammer_powers=inp.jammer_powers).capacity
-        return np.nan_to_num(np.asarray(rate, float), nan=-np.inf)  # an undefined rate is never the best
 
     def _blocked(self, P: np.ndarray, others: np.ndarray) -> np.ndarray:
         """True where a goal (``P (..., 3)``) is too close to a vehicle in ``others (M, 3)`` or inside an obstacle."""
@@ -238,7 +205,7 @@ class FleetCapacityPlanner:
         """Relay ``j``'s goals x axes around its goal (the leash, the box, the sources predicted ahead) on the
         network's rate with the others at their goals, in one compiled call; its best kept for the decision."""
         n, others = self.relays[j], self._others(inp)
-        cand = self._candidates(inp.t + self.settings.lookahead_s)[j]
+        cand = self._candidates(inp.t + self.settings.lookahead_s, j)
         here = {**others, **{m: NodePose(self.goals[m], self.axis_goals[m]) for m in self.relays}}
         rate = self.grids[n](cand, self.axes[n], here[self.sources[0]], *self._jammers(inp), tuple(here[m] for m in self._moving(n)))
         rate = np.nan_to_num(rate, nan=-np.inf)
@@ -267,10 +234,9 @@ class FleetCapacityPlanner:
         P = np.broadcast_to(goals, (len(self.subsets), *goals.shape)).copy()
         A = np.broadcast_to(axis_goals, (len(self.subsets), *axis_goals.shape)).copy()
         ok = np.array([all(j in movers for j in sub) for sub in self.subsets])
-        for s, sub in enumerate(self.subsets):
+        for s, sub in enumerate(self.subsets):  # every relay was scored before the decision
             for j in sub:
-                P[s, j], A[s, j] = self.scored[j][0] if j in self.scored else goals[j], \
-                    self.scored[j][1] if j in self.scored else axis_goals[j]
+                P[s, j], A[s, j] = self.scored[j][0], self.scored[j][1]
         others = self._others(inp)
         rate = self.configurations(P, A, tuple(others[n] for n in self.sources), *self._jammers(inp))
         rate = np.where(ok, np.nan_to_num(rate, nan=-np.inf), -np.inf)

@@ -1,6 +1,7 @@
 """A fleet's configuration at one instant on the true network rate: its rate, each relay's best
-holdable axis, and positions and axes refined jointly (the network bound's ``achieved`` and the fleet
-planner's pre-flight route share it).
+holdable axis, and positions and axes refined jointly (the network bound's ``achieved``); and a flyable
+fleet path over a mission (``flyable_fleet_path``: the network bound's lower path bound and the fleet
+planner's pre-flight route).
 
 A configuration is every relay's position ``(K, 3)`` (m, world) and antenna axis ``(K, 3)`` (unit,
 world), relays in ``relays`` order; the other nodes' poses come in ``poses`` (name -> ``NodePose``).
@@ -14,8 +15,11 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..models.axes import axis_cone, tilted_axes
+from ..models.geometry import rotation_zyx
+from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
+from .feasible_path import FleetPath, best_feasible_fleet_path, fleet_thrust_directions, speed_limited
 
 
 class FleetConfigurations:
@@ -105,3 +109,43 @@ class FleetConfigurations:
         better = -res.fun >= -neg(x0) and not np.any(inside_any(self.obstacles, unpack(res.x)[0]))
         x = res.x if better else x0
         return -neg(x), *unpack(x)
+
+
+def mission_poses(scene: RadioScene, sources: Mapping[str, SourceTrajectory], t: float, gravity: float) -> dict[str, NodePose]:
+    """Every source at its pose on its mission at ``t`` (s; its antenna along its thrust), the fixed nodes as placed."""
+    poses = {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None}
+    for name, path in sources.items():
+        s = path.state(t)
+        poses[name] = scene.pose(name, s.p, rotation_zyx(s.attitude(gravity)))
+    return poses
+
+
+def flyable_fleet_path(configs: FleetConfigurations, times: np.ndarray, targets: np.ndarray, starts: np.ndarray,
+                       poses: Sequence[Mapping[str, NodePose]], *, speed_m_s: float, accel_m_s2: float | None, gravity: float,
+                       max_iter: int = 300) -> FleetPath:
+    """A flyable path of ``configs``' relays over ``times`` (s): each relay from its start (``starts`` ``(K, 3)``, m,
+    at rest) chasing ``targets`` ``(T, K, 3)`` at most ``speed_m_s`` and changing its move by at most
+    ``accel_m_s2 dt^2`` per sample (``feasible_path.speed_limited``) with its best axis it can hold while leaning
+    for that path (``best_axes``), then every relay's positions and axes optimized together on the network's rate
+    as ``configs`` sees it (its jammers), the other nodes at ``poses[i]`` (``feasible_path.best_feasible_fleet_path``:
+    the speed and acceleration limits, each axis within its tilt limit of its thrust, ``configs.separation_m``
+    from every node after the start)."""
+    lo, hi, relays = configs.lo, configs.hi, configs.relays
+    dt = float(times[1] - times[0]) if len(times) > 1 else 1.0
+    dv = None if accel_m_s2 is None else accel_m_s2 * dt**2
+    P = np.stack([np.clip(speed_limited(targets[:, k], np.clip(starts[k], lo, hi), speed_m_s * dt, dv), lo, hi)
+                  for k in range(len(relays))], axis=1)
+    thrust = fleet_thrust_directions(P, dt, gravity)
+    A0 = np.stack([configs.best_axes(float(t), P[i], poses[i], thrust[i]) for i, t in enumerate(times)])
+    angles = np.stack([np.arccos(np.clip(A0[..., 2], -1.0, 1.0)), np.arctan2(A0[..., 1], A0[..., 0])], axis=-1)
+    fixed = np.stack([np.array([p.position for p in pz.values()]) for pz in poses])
+
+    def capacity(t: float, positions: list, axes: list):
+        i = int(np.argmin(np.abs(times - t)))
+        relay_poses = {r: NodePose(positions[k], axes[k]) for k, r in enumerate(relays)}
+        return configs.scene.evaluate(t, {**poses[i], **relay_poses}, jammer_positions=configs.jammer_positions,
+                                      jammer_powers=configs.jammer_powers).capacity
+
+    return best_feasible_fleet_path(capacity, times, P, lo, hi, speed_m_s, [configs.tilt_limits[r] for r in relays], gravity,
+                                    "mean", max_iter=max_iter, max_accel=accel_m_s2, a0=angles,
+                                    separation_m=configs.separation_m, fixed=fixed)

@@ -33,14 +33,12 @@ import numpy as np
 import pandas as pd
 
 from ..models.antenna import gain_bounds
-from ..models.geometry import rotation_zyx
 from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, elevation_range
 from ..models.mission import SourceTrajectory
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
-from .feasible_path import best_feasible_fleet_path, path_accelerations, speed_limited
-from .fleet_configuration import FleetConfigurations
+from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 
 NETWORK_BOUND_VERSION = "6"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
@@ -322,11 +320,7 @@ class NetworkBoundSolver:
     # -- channel pieces, bounded over cubes ----------------------------------------------------
     def fixed_poses(self, t: float) -> dict[str, NodePose]:
         """Every source at its pose on its mission at ``t``, the fixed nodes as placed."""
-        poses = {n.name: self.scene.fixed_pose(n.name) for n in self.scene.nodes if n.position is not None}
-        for name, path in self.pb.sources.items():
-            s = path.state(t)
-            poses[name] = self.scene.pose(name, s.p, rotation_zyx(s.attitude(self.pb.gravity)))
-        return poses
+        return mission_poses(self.scene, self.pb.sources, t, self.pb.gravity)
 
     def _path_most(self, r_min: np.ndarray) -> np.ndarray:
         """The largest path gain of a link at least ``r_min`` m long (and at least the separation): the gain
@@ -575,25 +569,10 @@ class NetworkBoundSolver:
         positions and axes ``(T, K, 3)``, the closest it brings a relay to another vehicle or the base station
         (m) and IPOPT's status."""
         res = self.pb.resolution
-        dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
-        dv = None if res.max_accel_m_s2 is None else res.max_accel_m_s2 * dt**2
-        P = np.stack([np.clip(speed_limited(targets[:, k], np.clip(self.pb.starts[r], self.lo, self.hi), res.max_speed_m_s * dt, dv),
-                              self.lo, self.hi) for k, r in enumerate(self.relays)], axis=1)
         poses = [self.fixed_poses(float(t)) for t in times]
-        thrust = self.thrust_directions(P, dt)
-        A0 = np.stack([self.best_axes(float(t), P[i], poses[i], thrust[i]) for i, t in enumerate(times)])
-        angles = np.stack([np.arccos(np.clip(A0[..., 2], -1.0, 1.0)), np.arctan2(A0[..., 1], A0[..., 0])], axis=-1)
+        fleet = flyable_fleet_path(self.configurations, times, targets, np.stack([self.pb.starts[r] for r in self.relays]), poses,
+                                   speed_m_s=res.max_speed_m_s, accel_m_s2=res.max_accel_m_s2, gravity=self.pb.gravity)
         fixed = np.stack([np.array([p.position for p in pz.values()]) for pz in poses])
-
-        def capacity(t: float, positions: list, axes: list):
-            i = int(np.argmin(np.abs(times - t)))
-            relay_poses = {r: NodePose(positions[k], axes[k]) for k, r in enumerate(self.relays)}
-            return self.scene.evaluate(t, {**poses[i], **relay_poses}).capacity
-
-        fleet = best_feasible_fleet_path(capacity, times, P, self.lo, self.hi, res.max_speed_m_s,
-                                         [self.pb.tilt_limits[r] for r in self.relays], self.pb.gravity, "mean",
-                                         max_accel=res.max_accel_m_s2, a0=angles, separation_m=self.pb.separation_m,
-                                         fixed=fixed)
         P, A = fleet.position, fleet.axis
         rate = np.array([self.rate(float(t), P[i], A[i], poses[i]) for i, t in enumerate(times)])  # numpy, unregularized
         closest = np.inf
@@ -602,16 +581,6 @@ class NetworkBoundSolver:
             gaps += [np.linalg.norm(P[i, a] - P[i, b]) for a in range(len(P[i])) for b in range(a + 1, len(P[i]))]
             closest = min(closest, float(min(gaps)))
         return rate, P, A, closest, fleet.status
-
-    def thrust_directions(self, P: np.ndarray, dt: float) -> np.ndarray:
-        """``(T, K, 3)``: the unit direction each relay's thrust points to fly its sampled path ``P`` ``(T, K, 3)``
-        (``feasible_path.path_accelerations`` plus gravity)."""
-        accel = path_accelerations(P.shape[0], dt)
-        out = np.empty_like(P)
-        for k in range(P.shape[1]):
-            f = np.asarray(accel(P[:, k].T)).T + np.array([0.0, 0.0, self.pb.gravity])
-            out[:, k] = f / np.linalg.norm(f, axis=1, keepdims=True)
-        return out
 
     def refine(self, t: float, cells: np.ndarray | None = None, start: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
         """The relays at the grid's ``cells`` (or at the positions ``start`` ``(K, 3)``, m) refined on the true rate
