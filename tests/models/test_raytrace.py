@@ -176,3 +176,68 @@ def test_a_trace_is_kept_in_memory_and_on_disk_keyed_by_what_it_depends_on(tmp_p
     calls = counted(other)
     other.trace(tx, rx)
     assert len(calls) == 1
+
+
+@needs_rt
+def test_the_coherent_sum_is_the_two_ray_field_with_the_carriers_phase():
+    """Line of sight and the floor's reflection (``floor_wall`` as a half space, both ends on one side of the
+    wall): the narrowband gain is ``|lambda/(4 pi d1) e^(-j k d1) + Gamma_TM lambda/(4 pi d2) e^(-j k d2)|^2``
+    (the classic two-ray model with the floor's own Fresnel coefficient), written out here; the power sum
+    is the two terms' squares added."""
+    tracer = RayTracer(TraceSettings("floor_wall", F, max_depth=1), cached=False)
+    floor = tracer.scene.objects["floor"].radio_material
+    floor.thickness = 50.0
+    eps = float(np.asarray(floor.relative_permittivity).ravel()[0]) - 1j * float(np.asarray(floor.conductivity).ravel()[0]) / (
+        2 * np.pi * F * 8.8541878128e-12)
+    lam, k = wavelength_m(F), 2 * np.pi / wavelength_m(F)
+    for tx, rx in (((-1.5, -1.5, 0.5), (-1.0, 1.5, 0.3)), ((-1.8, 0.0, 0.6), (-0.2, 1.0, 0.7)), ((-1.0, -1.0, 0.4), (-1.2, 1.7, 0.45))):
+        tx, rx = np.array(tx), np.array(rx)
+        links = tracer.trace(tx[None], rx[None])
+        assert links.paths[0] == 2 and links.los[0].sum() == 1
+        flat = np.hypot(*(rx - tx)[:2])
+        d1, d2 = np.linalg.norm(rx - tx), np.hypot(flat, tx[2] + rx[2])
+        cos_i = (tx[2] + rx[2]) / d2
+        root = np.sqrt(eps - (1 - cos_i**2))
+        gamma = (eps * cos_i - root) / (eps * cos_i + root)
+        field = lam / (4 * np.pi * d1) * np.exp(-1j * k * d1) + gamma * lam / (4 * np.pi * d2) * np.exp(-1j * k * d2)
+        assert links.gain(ISO, UP, ISO, UP)[0] == pytest.approx(abs(field) ** 2, rel=2e-3)
+        power = (lam / (4 * np.pi * d1)) ** 2 + abs(gamma) ** 2 * (lam / (4 * np.pi * d2)) ** 2
+        assert links.gain(ISO, UP, ISO, UP, coherent=False)[0] == pytest.approx(power, rel=2e-3)
+
+
+def _gamma_tm(eps, h_sum, flat):
+    """The half-space TM (vertical polarization) Fresnel coefficient at the specular point of ends ``h_sum``
+    apart in height (summed) and ``flat`` apart horizontally."""
+    cos_i = h_sum / np.hypot(flat, h_sum)
+    root = np.sqrt(eps - (1 - cos_i**2))
+    return (eps * cos_i - root) / (eps * cos_i + root)
+
+
+@needs_rt
+def test_links_carried_to_moved_ends_match_tracing_them_again():
+    """Ends moved by 5 cm, the traced links carried there (``TracedLinks.moved``) against a new trace: the line of
+    sight exact (length, directions, power); the floor's reflection's delay to second order (within
+    2 |dp|^2 / length over c); its coefficient held where it was traced, so its power is the new trace's
+    times ``|Gamma(old angle)|^2 / |Gamma(new angle)|^2`` of the half-space Fresnel coefficient (written out
+    here): what tracing below the control rate costs, the coefficient's change with the angle."""
+    tracer = RayTracer(TraceSettings("floor_wall", F, max_depth=1), cached=False)
+    floor = tracer.scene.objects["floor"].radio_material
+    floor.thickness = 50.0
+    eps = float(np.asarray(floor.relative_permittivity).ravel()[0]) - 1j * float(np.asarray(floor.conductivity).ravel()[0]) / (
+        2 * np.pi * F * 8.8541878128e-12)
+    tx0, rx0 = np.array([[-1.5, -1.5, 0.5]]), np.array([[-1.0, 1.5, 0.3]])
+    tx1, rx1 = tx0 + [0.03, -0.04, 0.0], rx0 + [0.0, 0.03, 0.04]
+    carried = tracer.trace(tx0, rx0).moved(tx0, rx0, tx1, rx1, F)
+    fresh = tracer.trace(tx1, rx1)
+    los_c, los_f = carried.los[0], fresh.los[0]
+    ref_c, ref_f = carried.valid[0] & ~los_c, fresh.valid[0] & ~los_f
+    assert los_c.sum() == los_f.sum() == 1 and ref_c.sum() == ref_f.sum() == 1
+    np.testing.assert_allclose(carried.departure[0][los_c][0], (rx1 - tx1)[0] / np.linalg.norm(rx1 - tx1), atol=1e-12)
+    assert carried.tau[0][los_c][0] == pytest.approx(np.linalg.norm(rx1 - tx1) / 299_792_458.0, rel=1e-12)
+    assert np.abs(carried.a[0][los_c][0]) ** 2 == pytest.approx(np.abs(fresh.a[0][los_f][0]) ** 2, rel=1e-5)
+    assert carried.tau[0][ref_c][0] == pytest.approx(fresh.tau[0][ref_f][0], abs=2 * 0.05**2 / 3.0 / 299_792_458.0)
+    held = abs(_gamma_tm(eps, 0.8, np.hypot(*(rx0 - tx0)[0, :2]))) ** 2
+    now = abs(_gamma_tm(eps, tx1[0, 2] + rx1[0, 2], np.hypot(*(rx1 - tx1)[0, :2]))) ** 2
+    ratio = np.abs(carried.a[0][ref_c][0]) ** 2 / np.abs(fresh.a[0][ref_f][0]) ** 2
+    assert ratio == pytest.approx(held / now, rel=5e-3)
+    assert abs(held / now - 1) > 0.05  # the held coefficient is the error, and it is not small here

@@ -34,7 +34,8 @@ def check_physics(sc: Scenario) -> Scenario:
     if key in _PASSED:
         return sc
     for loc, check in (("scenario", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
-                       ("scenario", _mu_reachable), ("scenario", _rma_av_geometry), ("scenario", _missions_clear_obstacles)):
+                       ("scenario", _mu_reachable), ("scenario", _rma_av_geometry), ("scenario", _ray_traced_physics),
+                       ("scenario", _missions_clear_obstacles)):
         try:
             check(sc)
         except ValueError as exc:
@@ -183,6 +184,20 @@ def _missions(sc: Scenario) -> list[tuple[str, MissionConfig]]:
     if sc.sources is None:
         return [("mission", sc.mission)]
     return [(f"sources[{i}].mission", s.mission) for i, s in enumerate(sc.sources)]
+
+def _ray_traced_physics(sc: Scenario) -> None:
+    """A ray-traced channel gives physical path gains (m, Hz): physical units; its blockage comes from the
+    scene's geometry, not from obstacles' fixed losses."""
+    if sc.channel.propagation.model != "ray_traced":
+        return
+    if not sc.channel.physical:
+        raise ValueError("channel.propagation.model = 'ray_traced' traces physical path gains at a carrier in Hz: "
+                         "set channel.units = 'physical'")
+    for i, o in enumerate(sc.obstacle_list):
+        if o.nlos_loss_db > 0:
+            raise ValueError(f"obstacles[{i}].nlos_loss_db: with a ray-traced channel the scene's geometry blocks "
+                             "radio; leave it at 0 (the obstacle still keeps the relays out)")
+
 
 def _rma_av_geometry(sc: Scenario) -> None:
     """RMa-AV (TR 36.777 Annex B) holds for aerial heights in (10, 300] m and physical units:

@@ -106,6 +106,12 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
             f = mission.get(key)
             if isinstance(f, str) and f and not Path(f).is_absolute():
                 mission[key] = str((path.parent / f).resolve())
+    channel = data.get("channel")
+    prop = channel.get("propagation") if isinstance(channel, dict) else None
+    if isinstance(prop, dict) and isinstance(prop.get("scene"), str):  # a scene file is named relative to the scenario file
+        scene = Path(prop["scene"])
+        if scene.suffix.lower() == ".xml" and not scene.is_absolute():
+            prop["scene"] = str((path.parent / scene).resolve())
     updates = parse_sets(set) if isinstance(set, list) else dict(set or {})
     _apply_to_data(data, updates, list(unset or []))
     try:

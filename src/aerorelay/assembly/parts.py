@@ -29,6 +29,7 @@ from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import CirclePath, LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
+from ..models.raytrace import RayTracingUnavailable, check_scene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import (
@@ -195,7 +196,21 @@ def check_buildable(sc: Scenario) -> Scenario:
     build_scene(sc)
     planner_registered(sc)
     comms_aware_antennas(sc)
+    ray_traced_scene(sc)
     return sc
+
+
+def ray_traced_scene(sc: Scenario) -> None:
+    """A ray-traced channel's scene loads (the ``rt`` extra installed, the scene's name or file known)."""
+    prop = sc.channel.propagation
+    if prop.model != "ray_traced":
+        return
+    try:
+        check_scene(str(prop.scene))
+    except RayTracingUnavailable as exc:
+        raise ScenarioError(f"channel.propagation.model: {exc}") from None
+    except ValueError as exc:
+        raise ScenarioError(f"channel.propagation.scene: {exc}") from None
 
 
 def comms_aware_antennas(sc: Scenario) -> None:
@@ -232,7 +247,7 @@ def path_gain(ch) -> PathGain:
     prop = ch.propagation
     if prop.model == "rma_av":
         return RmaAvPathGain(carrier_hz=ch.carrier_hz)
-    if prop.model == "free_space":
+    if prop.model in ("free_space", "ray_traced"):  # a traced channel is the plant's: the parts plan with free space
         return PathGain.free_space(ch.carrier_hz) if ch.physical else PathGain()
     loss = prop.reference_loss_db
     if loss is None:  # free space at d0
@@ -417,7 +432,7 @@ class Parts:
         return ClosedLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
                           settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
                           replanner=self.replanner, sensing=self.sensing, air=self.air,
-                          blockage=world.blockage(self.scenario))
+                          blockage=world.blockage(self.scenario), traced=world.traced_channel(self.scenario))
 
     def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
         """The planner of the network without the relays ``lost``, its references starting where the

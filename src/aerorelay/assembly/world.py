@@ -12,10 +12,12 @@ from ..config import PlatformConfig, Scenario
 from ..estimation.disturbance import ExternalAccelerationObserver
 from ..models.drag import drag_coefficients
 from ..models.obstacles import Obstacle, obstacle_model
+from ..models.raytrace import RayTracer, TraceSettings
 from ..models.vehicle import Multirotor
 from ..sim.air import Air, AirborneRelay, HeldWind, WindSeries, WindSettings
 from ..sim.blockage import Blockage
 from ..sim.closed_loop import plant_step_function
+from ..sim.traced import TracedChannel
 
 
 def obstacles(sc: Scenario, margin: bool = True) -> tuple[Obstacle, ...]:
@@ -26,6 +28,24 @@ def obstacles(sc: Scenario, margin: bool = True) -> tuple[Obstacle, ...]:
 def blockage(sc: Scenario) -> Blockage:
     """The plant's radio blockage by the obstacles that block radio (``nlos_loss_db`` > 0; none: inactive)."""
     return Blockage(obstacles(sc, margin=False), [o.nlos_loss_db for o in sc.obstacle_list])
+
+
+def trace_settings(sc: Scenario) -> TraceSettings:
+    """What the plant's ray tracer traces (``[channel.propagation]``, model ``ray_traced``)."""
+    prop = sc.channel.propagation
+    assert prop.scene is not None
+    return TraceSettings(prop.scene, sc.channel.carrier_hz, origin_m=(prop.origin_m[0], prop.origin_m[1], prop.origin_m[2]), yaw_deg=prop.yaw_deg,
+                         max_depth=prop.max_depth, reflection=prop.reflection, scattering=prop.scattering,
+                         diffraction=prop.diffraction, refraction=prop.refraction)
+
+
+def traced_channel(sc: Scenario) -> TracedChannel | None:
+    """The plant's ray-traced channel (``model = "ray_traced"``; None otherwise)."""
+    prop = sc.channel.propagation
+    if prop.model != "ray_traced":
+        return None
+    return TracedChannel(RayTracer(trace_settings(sc)), trace_period_s=max(prop.trace_period_s, sc.control_period_s),
+                         coherent=prop.paths_sum == "coherent")
 
 
 def wind_settings(sc: Scenario) -> WindSettings:

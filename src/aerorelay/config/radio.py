@@ -104,10 +104,29 @@ class PropagationConfig(Strict):
     with the gain expected over the LoS state, the plant draws the state and the standard's
     shadowing). Log-normal shadowing (dB, zero mean, a random field over each link's geometry
     correlated ``exp(-Delta d / decorrelation_m)``) perturbs the plant's channel and the bound, not
-    what the controllers plan with."""
+    what the controllers plan with. ``ray_traced``: the plant's true channel traced with Sionna RT
+    in ``scene`` (the optional ``rt`` extra; ``models/raytrace.py``, ``sim/traced.py``): every link's paths
+    weighed by each end's antenna at its attitude, traced every ``trace_period_s`` and carried to the
+    ends' positions in between; planners, NMPC and bound plan with free space (physical units only)."""
 
-    model: Literal["free_space", "log_distance", "rma_av"] = Field("free_space", description="the path-gain model "
-                                                                   "(see the table's text)")
+    model: Literal["free_space", "log_distance", "rma_av", "ray_traced"] = Field(
+        "free_space", description="the path-gain model (see the table's text)")
+    scene: str | None = Field(None, min_length=1, description="ray_traced: a Sionna RT scene by name (simple_street_canyon, "
+                              "munich, etoile, floor_wall, ...; 'empty': free space) or a Mitsuba XML file, named "
+                              "relative to the scenario file")
+    origin_m: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="ray_traced: where the scenario's origin "
+                                                 "sits in the scene, m (scene coordinates)")
+    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0, description="ray_traced: the scenario's frame turned about z in "
+                           "the scene, deg (counter-clockwise)")
+    max_depth: int = Field(3, ge=0, le=8, description="ray_traced: most interactions per path")
+    reflection: bool = Field(True, description="ray_traced: specular reflections")
+    diffraction: bool = Field(False, description="ray_traced: diffraction on edges")
+    scattering: bool = Field(False, description="ray_traced: diffuse reflection")
+    refraction: bool = Field(False, description="ray_traced: refraction through objects")
+    paths_sum: Literal["coherent", "power"] = Field("power", description="ray_traced: coherent: the paths added with "
+                                                    "their phases (narrowband); power: their powers added (wideband)")
+    trace_period_s: float = Field(0.25, gt=0.0, le=10.0, description="ray_traced: seconds between traces (the links "
+                                  "carried to the ends' positions in between); the control period or less: every step")
     exponent: float = Field(2.0, ge=1.0, le=6.0, description="log_distance: path-loss exponent n")
     reference_distance_m: float = Field(1.0, gt=0.0, le=1000.0, description="log_distance: d0, m")
     reference_loss_db: float | None = Field(None, ge=-100.0, le=200.0, description="log_distance: PL(d0), dB "
@@ -122,6 +141,12 @@ class PropagationConfig(Strict):
 
     @model_validator(mode="after")
     def _rma_av_shadowing_is_the_standards(self):
+        if self.model == "ray_traced" and self.scene is None:
+            raise ValueError("channel.propagation.scene: model = 'ray_traced' needs a scene (a Sionna RT scene's name "
+                             "such as 'simple_street_canyon', 'empty', or a Mitsuba XML file)")
+        if self.model == "ray_traced" and self.shadowing_std_db > 0:
+            raise ValueError("channel.propagation.shadowing_std_db: the ray-traced channel's large-scale terms come "
+                             "from the scene; leave it at 0")
         if self.model == "rma_av" and self.shadowing_std_db > 0:
             raise ValueError("channel.propagation.shadowing_std_db: rma_av draws the standard's shadowing "
                              "(TR 36.777 Table B-3: LoS 4.2 exp(-0.0046 h) dB, NLoS 6 dB); leave it at 0")

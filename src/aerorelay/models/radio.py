@@ -313,6 +313,10 @@ class RadioScene:
         """Pose of node ``name`` at ``position`` with body-to-world rotation ``R``."""
         return NodePose(np.asarray(position, float), self.node(name).antenna.world_axis(R))
 
+    def with_fixed(self, poses: Mapping[str, NodePose]) -> dict[str, NodePose]:
+        """``poses`` with every fixed node's pose added where it is missing."""
+        return {n.name: self.fixed_pose(n.name) for n in self.nodes if n.position is not None and n.name not in poses} | dict(poses)
+
     def emitters(self, t: float, poses: Mapping[str, NodePose], *, positions=None, powers=None) -> list[Emitter]:
         """Every jammer at time ``t``: true position and power, or the given ``positions`` ``(nJ, 3)``
         and ``powers`` ``(nJ,)`` (what a controller knows); boresights track their target node."""
@@ -327,36 +331,42 @@ class RadioScene:
             out.append(Emitter(p, axis, j.pattern, power))
         return out
 
-    def interference(self, emitters: Sequence[Emitter], rx: NodePose, pat_rx: AntennaPattern, fading=None):
-        """``sum_j F_Jj^2 P_J`` at a receiver (eq. 7), W; ``fading`` one power gain per emitter."""
+    def interference(self, emitters: Sequence[Emitter], rx: NodePose, pat_rx: AntennaPattern, fading=None, gains=None):
+        """``sum_j F_Jj^2 P_J`` at a receiver (eq. 7), W; ``fading`` one power gain per emitter; ``gains`` each
+        emitter's link power gain ``F_Jj^2`` given (a ray-traced channel's) instead of ``link_gain``."""
         total = 0.0
         for i, e in enumerate(emitters):
             if not is_symbolic(e.power) and e.power == 0.0:
                 continue
-            f = link_gain(e.position, e.axis, e.pattern, rx.position, rx.axis, pat_rx, self.path_gain)
+            f = gains[i] if gains is not None else link_gain(e.position, e.axis, e.pattern, rx.position, rx.axis, pat_rx,
+                                                             self.path_gain)
             if fading is not None:
                 f = f * fading[i]
             total = total + f * e.power
         return total
 
     def evaluate(self, t: float, poses: Mapping[str, NodePose], *, jammer_positions=None, jammer_powers=None,
-                 fading=None) -> ChannelState:
+                 fading=None, link_gains=None) -> ChannelState:
         """SINR of every hop (eq. 5) and the end-to-end capacity (eq. 9) with the nodes at ``poses``
         (fixed nodes may be omitted). The jammers are the true ones at ``t`` unless
         ``jammer_positions`` ``(nJ, 3)`` / ``jammer_powers`` ``(nJ,)`` say what a controller knows;
-        ``fading``: ``fading_links`` power gains (hops first, then each receiver's jammer links)."""
-        poses = {n.name: self.fixed_pose(n.name) for n in self.nodes if n.position is not None and n.name not in poses} | dict(poses)
+        ``fading``: ``fading_links`` power gains (hops first, then each receiver's jammer links);
+        ``link_gains``: the same links' power gains, antennas included, given instead of eq. 6-7's (a
+        ray-traced channel, ``sim/traced.py``); ``fading`` multiplies them as it does eq. 6-7's."""
+        poses = self.with_fixed(poses)
         emitters = self.emitters(t, poses, positions=jammer_positions, powers=jammer_powers)
         b, nh, nj = self.budget, len(self.hops), len(emitters)
         sinrs, interference = [], []
         with np.errstate(divide="ignore", invalid="ignore"):  # a jammer on a receiver: infinite interference
             for k, (tx, rx) in enumerate(self.hops):
-                h = link_gain(poses[tx].position, poses[tx].axis, self.node(tx).antenna.pattern,
-                              poses[rx].position, poses[rx].axis, self.node(rx).antenna.pattern, self.path_gain)
+                h = link_gains[k] if link_gains is not None else link_gain(
+                    poses[tx].position, poses[tx].axis, self.node(tx).antenna.pattern,
+                    poses[rx].position, poses[rx].axis, self.node(rx).antenna.pattern, self.path_gain)
                 if fading is not None:
                     h = h * fading[k]
                 jam_fade = None if fading is None else fading[nh + k * nj: nh + (k + 1) * nj]
-                i_rx = self.interference(emitters, poses[rx], self.node(rx).antenna.pattern, jam_fade)
+                jam_gains = None if link_gains is None else link_gains[nh + k * nj: nh + (k + 1) * nj]
+                i_rx = self.interference(emitters, poses[rx], self.node(rx).antenna.pattern, jam_fade, jam_gains)
                 if not is_symbolic(i_rx):
                     i_rx = np.nan_to_num(i_rx, nan=np.inf)
                 sinrs.append(h * b.tx_power / (i_rx + b.noise_power))  # eq. 5

@@ -2,9 +2,10 @@
 
 A link is traced **once with isotropic antennas** at both ends (Sionna RT's ``PathSolver``: line of
 sight, specular reflection, refraction, diffuse reflection (scattering) and diffraction as chosen,
-up to ``max_depth`` interactions). Each traced path ``p`` carries a complex coefficient ``a_p``
-(``|a_p|^2`` its path gain: ``(lambda / 4 pi d)^2`` in free space, times each interaction's
-coefficient), a delay ``tau_p`` (s), the direction it leaves the transmitter ``u_t,p`` and the
+up to ``max_depth`` interactions). Each traced path ``p`` carries a complex coefficient ``a_p`` at
+the carrier (``|a_p|^2`` its path gain: ``(lambda / 4 pi d)^2`` in free space, times each
+interaction's coefficient; its phase the interactions' times the propagation's ``exp(-j 2 pi f_c
+tau_p)``, which Sionna's baseband coefficients leave to its ``cfr``), a delay ``tau_p`` (s), the direction it leaves the transmitter ``u_t,p`` and the
 direction it arrives from at the receiver ``u_r,p`` (unit, pointing from the receiver toward the
 path's last point). aerorelay then weighs each path by each end's **own pattern toward that
 direction in its body frame**: with antenna axes ``b_tx`` and ``b_rx`` (unit, world) the path's power
@@ -41,10 +42,11 @@ from pathlib import Path
 import numpy as np
 
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, file_digest, publish_checked
+from .propagation import SPEED_OF_LIGHT_M_S
 
 RT_EXTRA = ("the ray-traced channel needs the optional extra: pip install 'aerorelay[rt]' (Sionna RT) and, on a machine "
             "without a GPU, the system's LLVM library for its CPU variant (Debian/Ubuntu: apt-get install libllvm19)")
-TRACE_VERSION = "1"  # bump when a trace's computation changes: cached traces are traced again
+TRACE_VERSION = "2"  # bump when a trace's computation changes: cached traces are traced again
 MEMORY_TRACES = 4096  # traces kept in memory (the oldest dropped first)
 SCENE_NAMES_HINT = "a scene shipped with Sionna RT (simple_street_canyon, munich, etoile, floor_wall, box, ...) or a Mitsuba XML file"
 
@@ -94,13 +96,45 @@ class TracedLinks:
     """``n`` traced links of up to ``P`` paths each: complex coefficients ``a`` ``(n, P)`` (0 where a path is
     not valid), delays ``tau`` ``(n, P)`` (s), departure and arrival unit directions ``(n, P, 3)`` in the
     scenario's frame (departure: leaving the transmitter; arrival: from the receiver toward where the path
-    comes from), ``valid`` ``(n, P)``."""
+    comes from), ``valid`` ``(n, P)``, ``los`` ``(n, P)``: the path is the line of sight (no interaction)."""
 
     a: np.ndarray
     tau: np.ndarray
     departure: np.ndarray
     arrival: np.ndarray
     valid: np.ndarray
+    los: np.ndarray
+
+    FIELDS = ("a", "tau", "departure", "arrival", "valid", "los")
+
+    def moved(self, tx0: np.ndarray, rx0: np.ndarray, tx1: np.ndarray, rx1: np.ndarray, carrier_hz: float) -> TracedLinks:
+        """The links traced with their ends at ``tx0``, ``rx0`` carried to ``tx1``, ``rx1`` (``(n, 3)``, m) without
+        tracing again. The line of sight exactly: its length ``|rx1 - tx1|``, its directions, its amplitude
+        ``lambda / (4 pi d)`` and phase ``-2 pi d / lambda`` at the new length. Every other path to first order
+        in the ends' displacements, its interactions where they were (a plane wave at each end): its length
+        changes by ``-u_t . (tx1 - tx0) - u_r . (rx1 - rx0)`` (``u_t``, ``u_r`` its departure and arrival
+        directions), its amplitude as ``1 / length`` and its phase with it; its directions kept. A path that
+        appears or vanishes between two traces (a line of sight blocked) does so at the next trace."""
+        lam = SPEED_OF_LIGHT_M_S / carrier_hz
+        tx0, rx0, tx1, rx1 = (np.atleast_2d(np.asarray(v, float)) for v in (tx0, rx0, tx1, rx1))
+        length = self.tau * SPEED_OF_LIGHT_M_S
+        dl = -np.einsum("npi,ni->np", self.departure, tx1 - tx0) - np.einsum("npi,ni->np", self.arrival, rx1 - rx0)
+        d = rx1 - tx1
+        dist = np.linalg.norm(d, axis=1, keepdims=True)
+        u = d / np.maximum(dist, 1e-12)
+        los_len = np.broadcast_to(dist, length.shape)
+        new_len = np.where(self.los, los_len, np.maximum(length + dl, 1e-9))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(self.valid & (length > 0), length / new_len, 0.0)
+        a = self.a * scale * np.exp(-2j * np.pi * (new_len - length) / lam)
+        departure = np.where(self.los[..., None], u[:, None, :], self.departure)
+        arrival = np.where(self.los[..., None], -u[:, None, :], self.arrival)
+        return TracedLinks(np.where(self.valid, a, 0.0), np.where(self.valid, new_len / SPEED_OF_LIGHT_M_S, 0.0),
+                           departure, arrival, self.valid, self.los)
+
+    def take(self, index) -> TracedLinks:
+        """The links at ``index`` (an index array or a slice)."""
+        return TracedLinks(*(getattr(self, f)[index] for f in self.FIELDS))
 
     @property
     def paths(self) -> np.ndarray:
@@ -209,14 +243,14 @@ class RayTracer:
             if entry_is_intact(path):
                 try:
                     with np.load(path, allow_pickle=False) as z:
-                        links = TracedLinks(z["a"], z["tau"], z["departure"], z["arrival"], z["valid"])
+                        links = TracedLinks(*(z[f] for f in TracedLinks.FIELDS))
                 except (OSError, ValueError, KeyError, zipfile.BadZipFile):
                     links = None  # unreadable: traced again
             if links is None:
                 links = self._trace(tx, rx)
                 fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
                 with os.fdopen(fd, "wb") as f:
-                    np.savez(f, a=links.a, tau=links.tau, departure=links.departure, arrival=links.arrival, valid=links.valid)
+                    np.savez(f, **{name: getattr(links, name) for name in TracedLinks.FIELDS})
                 publish_checked(Path(tmp), path)
         if len(self._memory) >= MEMORY_TRACES:
             self._memory.pop(next(iter(self._memory)))
@@ -242,12 +276,15 @@ class RayTracer:
         a = np.asarray(paths.a[0], float) + 1j * np.asarray(paths.a[1], float)  # (rx, rx ant, tx, tx ant, paths)
         a = a.reshape(len(urx), len(utx), -1)
         tau = np.asarray(paths.tau, float).reshape(len(urx), len(utx), -1)
+        a = a * np.exp(-2j * np.pi * s.carrier_hz * tau)  # Sionna's coefficients are baseband: the carrier's phase
         valid = np.asarray(paths.valid, bool).reshape(len(urx), len(utx), -1)
+        kinds = np.asarray(paths.interactions, int)  # (depth, rx, tx, paths): 0 = none
+        los = np.all(kinds == 0, axis=0).reshape(len(urx), len(utx), -1) & valid
         dep = unit_from_angles(np.asarray(paths.theta_t), np.asarray(paths.phi_t)).reshape(len(urx), len(utx), -1, 3) @ self.R
         arr = unit_from_angles(np.asarray(paths.theta_r), np.asarray(paths.phi_r)).reshape(len(urx), len(utx), -1, 3) @ self.R
         pick = (irx.ravel(), itx.ravel())
         ok = valid[pick]
-        return TracedLinks(np.where(ok, a[pick], 0.0), np.where(ok, tau[pick], 0.0), dep[pick], arr[pick], ok)
+        return TracedLinks(np.where(ok, a[pick], 0.0), np.where(ok, tau[pick], 0.0), dep[pick], arr[pick], ok, los[pick])
 
 
 def scene_file(rt, scene: str) -> Path | None:
@@ -269,6 +306,17 @@ def scene_digest(rt, scene: str) -> str:
         h.update(str(f.relative_to(path.parent)).encode())
         h.update(file_digest(f).encode())
     return h.hexdigest()
+
+
+def check_scene(scene: str) -> None:
+    """``RayTracingUnavailable`` without the extra, ``ValueError`` naming the scene when it is not one Sionna RT
+    ships, ``"empty"`` or an existing Mitsuba XML file; nothing is loaded."""
+    rt = sionna_rt()
+    if Path(scene).suffix.lower() == ".xml":
+        if not Path(scene).is_file():
+            raise ValueError(f"scene file {scene!r} does not exist")
+    elif scene != "empty" and not isinstance(getattr(rt.scene, scene, None), str):
+        raise ValueError(f"no scene {scene!r}: {SCENE_NAMES_HINT}, or 'empty'")
 
 
 def load_scene(rt, scene: str):

@@ -46,6 +46,7 @@ from .log_schema import (
 )
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
+from .traced import TracedChannel
 
 BENCH_POINT_EVERY = 500  # control steps between two states kept for `aerorelay bench`'s full IPOPT solves
 BENCH_POINT_OFFSET = 250  # the first one kept, mid-way into the first interval
@@ -183,10 +184,12 @@ class ClosedLoop:
                  planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
                  losses: Sequence[tuple[float, frozenset[str]]] = (),
                  replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None,
-                 sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None):
+                 sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None,
+                 traced: TracedChannel | None = None):
         """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(lost, positions)``
         builds the planner of the network without ``lost`` from the survivors' positions (m, world);
-        ``sensing``: the jammers estimated from the receivers' readings, one estimate every planner shares."""
+        ``sensing``: the jammers estimated from the receivers' readings, one estimate every planner shares;
+        ``traced``: the plant's links ray traced (their gains instead of eq. 6-7's; the controllers never see it)."""
         if losses and replanner is None:
             raise ValueError("ClosedLoop: relays are lost in flight (losses) but no replanner builds the smaller network's planner")
         if any(r.plant is None for r in relays) and air is None:
@@ -210,6 +213,11 @@ class ClosedLoop:
             self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
                                                    for c in self.blockage.columns(s)))
             self.columns += self.nlos_columns
+        self.traced = traced
+        if traced is not None:
+            self.traced_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
+                                                     for c in traced.columns(s)))
+            self.columns += self.traced_columns
         if sensing is not None:
             self.columns += sensing.columns
         if air is not None:
@@ -333,7 +341,11 @@ class ClosedLoop:
                     blocked, values = self.blockage.step(self.scene, t, true_positions)
                     gains = blocked if gains is None else gains * blocked
                     row |= dict.fromkeys(self.nlos_columns, math.nan) | values
-                state = self.scene.evaluate(t, poses, fading=gains)
+                link_gains = None
+                if self.traced is not None:  # the links' gains ray traced at the true poses
+                    link_gains, values = self.traced.step(self.scene, t, poses)
+                    row |= dict.fromkeys(self.traced_columns, math.nan) | values
+                state = self.scene.evaluate(t, poses, fading=gains, link_gains=link_gains)
                 if self.sensing is not None:  # the receivers read this step's interference; the estimate is the next step's
                     row |= self.sensing.step(t, state, {**poses, self.bs_name: self.scene.fixed_pose(self.bs_name)})
                 row |= dict.fromkeys(sinr_columns, math.nan)  # a hop the network does not take now
