@@ -6,6 +6,7 @@ from aerorelay.assembly import load_scenario, parse_scenario
 from aerorelay.assembly.parts import nmpc_settings, relay_pattern
 from aerorelay.config import ScenarioError
 from aerorelay.control.nmpc import NmpcSettings
+from tests.rt_marks import MISSING, SKIP_RT
 
 ROOT = Path(__file__).resolve().parents[1]
 PRESETS = sorted((ROOT / "scenarios").glob("*.toml"))
@@ -13,6 +14,8 @@ PRESETS = sorted((ROOT / "scenarios").glob("*.toml"))
 
 @pytest.mark.parametrize("path", PRESETS, ids=lambda p: p.stem)
 def test_presets_load_and_round_trip(path):
+    if SKIP_RT and 'model = "ray_traced"' in path.read_text():
+        pytest.skip(f"optional rt extra: {MISSING}")
     sc = load_scenario(path)
     import tomllib
 

@@ -5,8 +5,6 @@ delay spread. Needs the optional ``rt`` extra (CI requires it: ``AERORELAY_REQUI
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -15,14 +13,8 @@ from aerorelay.models.antenna import DipolePattern, IsotropicPattern
 from aerorelay.models.propagation import PathGain, wavelength_m
 from aerorelay.models.radio import link_gain
 from aerorelay.models.raytrace import RayTracer, RayTracingUnavailable, TraceSettings
+from tests.rt_marks import needs_rt
 
-try:
-    raytrace.sionna_rt()
-    MISSING = None
-except RayTracingUnavailable as exc:
-    MISSING = str(exc)
-needs_rt = pytest.mark.skipif(MISSING is not None and os.environ.get("AERORELAY_REQUIRE_RT") != "1",
-                              reason=f"optional rt extra: {MISSING}")
 F = 2.4e9
 ISO = IsotropicPattern(1.0)
 UP = np.array([0.0, 0.0, 1.0])

@@ -174,3 +174,20 @@ def test_run_folders_follow_the_umask(tmp_path):
         assert res.exit_code == 0, res.output
         assert out.stat().st_mode & 0o777 == 0o777 & ~mask
         assert (out / "metrics.json").stat().st_mode & 0o777 == 0o666 & ~mask
+
+
+def test_metrics_that_fail_after_the_flight_keep_it_unsafe(tmp_path, monkeypatch):
+    """A metric with no unit (as the ray-traced channel's delay spread once had) or a metric that raises: the
+    flight's time series is kept and written, the run unsafe with why, never lost."""
+    from aerorelay.experiments import run as run_module
+
+    def no_unit(metrics, unit):
+        raise KeyError("metric 'new_thing' has no unit: add it to sim/units.py")
+
+    monkeypatch.setattr(run_module, "metric_units", no_unit)
+    sc = load_scenario(NOMINAL).with_updates({"sim.duration_s": 0.3})
+    result = ar.simulate(sc)
+    assert result.metrics["unsafe"] and "new_thing" in result.metrics["metrics_failed"]
+    assert len(result.timeseries) == len(result.mission.log["t"]) > 0
+    result.save(tmp_path / "run")
+    assert (tmp_path / "run" / "timeseries.parquet").is_file()

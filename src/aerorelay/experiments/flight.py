@@ -35,7 +35,8 @@ FLIGHT_LOG = "flight.parquet"
 def recorder(sc: Scenario, stepper: RelayStepper) -> tuple[FlightRecorder, StepHook]:
     """A recorder of ``sc``'s flight and the bridge's hook that feeds it (the supervisor's verdict and the
     observer's estimate read from ``stepper`` each period)."""
-    rec = FlightRecorder(stepper.vehicle, build_scene(sc), observed=stepper.observer is not None)
+    scene = build_scene(sc)
+    rec = FlightRecorder({scene.name_of("relay"): stepper.vehicle}, scene, observed=stepper.observer is not None)
 
     def hook(t: float, x, cmd: Command, src: SourceState, age: float) -> None:
         rec.record(t, x, cmd, src, state_age_s=age, violation=bool(stepper.controller.last_violations),

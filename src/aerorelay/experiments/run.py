@@ -284,7 +284,11 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     if given:  # what the scenario file cannot say: named in it and in the metrics, so the folder does not fly another run
         metrics["injected"] = injected_parts(given)
         sc = sc.model_copy(update={"injected": metrics["injected"]})
-    metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
+    try:
+        metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
+    except KeyError as exc:  # a metric without a unit must not lose the flight either
+        log.exception("the run's metrics have no unit table; its time series is kept")
+        metrics |= failed_metrics(mission, exc) | {"units": {}}
     return RunResult(sc, mission, df, metrics, bound, views)
 
 

@@ -39,6 +39,8 @@ SCALAR_METRICS = (
     # wind and obstacles (sim.metrics.air_metrics, safety_metrics)
     "wind_speed_mean_m_s", "drag_accel_mean_m_s2", "drag_accel_max_m_s2", "observer_error_mean_m_s2",
     "obstacle_clearance_min_m", "reference_kept_out_steps",
+    # a ray-traced channel (sim.metrics.traced_metrics) and what a run took
+    "delay_spread_mean_ns", "delay_spread_max_ns", "wall_s",
 )
 
 

@@ -14,9 +14,12 @@ the relay's state was, s); with the observer, ``a_ext_x/y/z`` (its estimate, m/s
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from ..control.nmpc import StepInfo
+from ..flight.network_controller import route_neighbours
 from ..flight.stepper import Command
 from ..flight.stepper import SourceState as KnownSource
 from ..models.geometry import rotation_zyx
@@ -39,38 +42,65 @@ def flight_column_type(name: str) -> type:
 
 class FlightRecorder:
     """Collects a flight's rows (``record`` each control period in OFFBOARD); ``mission`` returns them
-    as a ``MissionResult`` like ``ar.simulate``'s. ``observed``: the NMPC has an external-force observer."""
+    as a ``MissionResult`` like ``ar.simulate``'s. ``vehicles``: every relay flown by name (one relay: the
+    scene's relay); ``observed``: the NMPCs have an external-force observer. A fleet's row is every relay's
+    (``record_network``), one relay's the fleet of one's (``record``)."""
 
-    def __init__(self, vehicle: Multirotor, scene: RadioScene, *, observed: bool = False):
-        self.vehicle, self.scene, self.observed = vehicle, scene, observed
-        self.relay, self.source, bs = (scene.name_of(role) for role in ("relay", "source", "base_station"))
-        self._p0 = scene.fixed_pose(bs).position
-        self.observer_columns = [f"{self.relay}.a_ext_{a}" for a in AXES]  # the observer's estimate, as sim/air.py logs it
-        self.columns = (log_columns({self.relay: vehicle.n_rotors}, [self.source], scene) + list(FLIGHT_COLUMNS)
-                        + (self.observer_columns if observed else []))
+    def __init__(self, vehicles: Mapping[str, Multirotor], scene: RadioScene, *, observed: bool = False):
+        self.vehicles, self.scene, self.observed = dict(vehicles), scene, observed
+        self.relays = list(self.vehicles)
+        self.relay = self.relays[0]  # the first relay (the one relay's)
+        self.sources = [n.name for n in scene.nodes if n.role == "source"]
+        self.source = self.sources[0]
+        self.neighbours = route_neighbours(scene)
+        self._fixed = {n.name: scene.fixed_pose(n.name).position for n in scene.nodes if n.position is not None}
+        self.observer_columns = {r: [f"{r}.a_ext_{a}" for a in AXES] for r in self.relays}  # as sim/air.py logs them
+        self.columns = (log_columns({r: v.n_rotors for r, v in self.vehicles.items()}, self.sources, scene)
+                        + list(FLIGHT_COLUMNS) + ([c for r in self.relays for c in self.observer_columns[r]] if observed else []))
         self.rows: list[dict] = []
 
     def record(self, t: float, x: np.ndarray, cmd: Command, source: KnownSource, *, state_age_s: float,
                violation: bool = False, a_ext: np.ndarray | None = None) -> None:
-        """Step ``t`` (s, the mission's clock): the relay's measured state ``x`` (m, rad ZYX, m/s, rad/s,
+        """Step ``t`` (s, the mission's clock) of one relay: its measured state ``x`` (m, rad ZYX, m/s, rad/s,
         the commanded rotor speeds in Hz), the command, the source as the relay knew it."""
-        src = SourceState(np.asarray(source.p, float), np.asarray(source.v, float), np.asarray(source.a, float))
-        eta2 = src.attitude(self.vehicle.gravity)
-        R1 = rotation_zyx(x[3:6])
-        channel = self.scene.evaluate(t, {self.relay: self.scene.pose(self.relay, x[0:3], R1),
-                                          self.source: self.scene.pose(self.source, src.p, rotation_zyx(eta2))})
-        ref, info = cmd.reference, cmd.info
-        if ref is None or info is None:  # the failsafe flew: its target is the reference, no QP
-            ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
-            info = StepInfo(u=np.zeros(self.vehicle.n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
-                            feedback_ms=cmd.compute_ms, slack_max=0.0)
-        row = {"t": t, **relay_row(self.relay, x, R1, info, ref, src.p, self._p0, violation and cmd.mode in ("nmpc", "fallback"))}
-        row |= source_row(self.source, src.p, eta2) | link_row(self.scene, t, channel)
-        row["separation_min"] = separation_min(np.array([x[0:3], src.p]))
-        row |= {"flight_mode": cmd.mode, "compute_ms": cmd.compute_ms, "deadline_met": cmd.deadline_met,
-                "state_age_s": state_age_s}
+        self.record_network(t, {self.relay: x}, {self.relay: cmd}, {self.source: source}, state_age_s=state_age_s,
+                            violations={self.relay: violation}, a_ext={self.relay: a_ext})
+
+    def record_network(self, t: float, xs: Mapping[str, np.ndarray], cmds: Mapping[str, Command],
+                       sources: Mapping[str, KnownSource], *, state_age_s: float, violations: Mapping[str, bool],
+                       a_ext: Mapping[str, np.ndarray | None] | None = None) -> None:
+        """Step ``t`` of every relay (``xs``, ``cmds`` by name) and every source as the network knew it; the
+        oldest relay state's age (s). ``flight_mode`` is the first relay's whose command was not flown by
+        its NMPC, else ``nmpc`` (or ``fallback``); ``compute_ms`` the step's longest, ``deadline_met`` all."""
+        src = {n: SourceState(np.asarray(s.p, float), np.asarray(s.v, float), np.asarray(s.a, float)) for n, s in sources.items()}
+        eta_src = {n: s.attitude(self.vehicles[self.relay].gravity) for n, s in src.items()}
+        R = {r: rotation_zyx(xs[r][3:6]) for r in self.relays}
+        poses = {r: self.scene.pose(r, xs[r][0:3], R[r]) for r in self.relays}
+        poses |= {n: self.scene.pose(n, s.p, rotation_zyx(eta_src[n])) for n, s in src.items()}
+        channel = self.scene.evaluate(t, poses)
+        where = {**self._fixed, **{n: s.p for n, s in src.items()}, **{r: xs[r][0:3] for r in self.relays}}
+        row: dict[str, object] = {"t": t}
+        for r in self.relays:
+            cmd = cmds[r]
+            ref, info = cmd.reference, cmd.info
+            if ref is None or info is None:  # the failsafe flew: its target is the reference, no QP
+                ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
+                info = StepInfo(u=np.zeros(self.vehicles[r].n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
+                                feedback_ms=cmd.compute_ms, slack_max=0.0)
+            up, down = self.neighbours[r]
+            row |= relay_row(r, xs[r], R[r], info, ref, where[up], where[down], violations[r] and cmd.mode in ("nmpc", "fallback"))
+        for n in self.sources:
+            row |= source_row(n, src[n].p, eta_src[n])
+        row |= link_row(self.scene, t, channel)
+        row["separation_min"] = separation_min(np.array([*(xs[r][0:3] for r in self.relays), *(src[n].p for n in self.sources)]))
+        modes = [cmds[r].mode for r in self.relays]
+        row |= {"flight_mode": next((m for m in modes if m not in ("nmpc", "fallback")), modes[0]),
+                "compute_ms": max(cmds[r].compute_ms for r in self.relays),
+                "deadline_met": all(cmds[r].deadline_met for r in self.relays), "state_age_s": state_age_s}
         if self.observed:
-            row |= dict(zip(self.observer_columns, np.zeros(3) if a_ext is None else a_ext, strict=True))
+            for r in self.relays:
+                given = None if a_ext is None else a_ext.get(r)
+                row |= dict(zip(self.observer_columns[r], np.zeros(3) if given is None else given, strict=True))
         if not self.rows and set(row) != set(self.columns):
             raise ValueError(f"flight record: columns {sorted(set(self.columns) ^ set(row))} not both declared and recorded")
         self.rows.append(row)
@@ -82,9 +112,9 @@ class FlightRecorder:
         if not self.rows:
             raise ValueError("flight record: no control period was flown in OFFBOARD")
         log = {c: _column([r[c] for r in self.rows], flight_column_type(c)) for c in self.columns}
-        return MissionResult(log=log, wall_s=wall_s, sim_s=float(log["t"][-1] - log["t"][0]),
-                             qp_failures=int(np.sum(~log[f"{self.relay}.qp_ok"])), controller=controller,
-                             fallback_episodes=fallback_episodes, aborted=aborted)
+        failures = sum(int(np.sum(~log[f"{r}.qp_ok"])) for r in self.relays)
+        return MissionResult(log=log, wall_s=wall_s, sim_s=float(log["t"][-1] - log["t"][0]), qp_failures=failures,
+                             controller=controller, fallback_episodes=fallback_episodes, aborted=aborted)
 
 
 def _column(values: list, kind: type) -> np.ndarray:

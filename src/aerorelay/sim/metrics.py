@@ -222,6 +222,21 @@ def battery_metrics(log, name: str) -> dict:
 NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses")  # the network's, not a relay's
 
 
+def traced_metrics(log) -> dict:
+    """A ray-traced channel's (``sim/traced.py`` columns): per hop (by ``<tx>-><rx>``) the RMS delay spread's
+    mean over the steps (``delay_spread_ns``) and the valid paths' (``paths_mean``), and over every hop and
+    step the delay spread's mean and largest (``delay_spread_mean_ns``, ``delay_spread_max_ns``); empty otherwise."""
+    hop = {f"delay_spread_ns_{tx}_{rx}": f"{tx}->{rx}" for tx, rx in (c.split(".")[1:3] for c in log if c.startswith("se."))}
+    spread = [c for c in hop if c in log]
+    if not spread:
+        return {}
+    values = np.concatenate([np.asarray(log[c], float) for c in spread])
+    return {"delay_spread_ns": {hop[c]: float(np.nanmean(np.asarray(log[c], float))) for c in spread},
+            "paths_mean": {hop[c]: float(np.nanmean(np.asarray(log[c.replace("delay_spread_ns_", "paths_", 1)], float)))
+                           for c in spread},
+            "delay_spread_mean_ns": float(np.nanmean(values)), "delay_spread_max_ns": float(np.nanmax(values))}
+
+
 def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndarray]:
     """Which of the times ``t`` (s) lie before the first loss and from the last one on (a loss at
     ``t_l`` counts from ``t_l`` itself): ``{"before_loss": mask, "after_loss": mask}``."""
@@ -286,6 +301,7 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
         if len(sources) == 1 and len(hops) == 2:  # the paper's two hops: source -> relay (2 -> 1), relay -> bs (1 -> 0)
             out["se_21_mean"], out["se_10_mean"] = (float(np.mean(np.asarray(log[c], float))) for c in hops)
     out |= estimation_metrics(log, period_s)
+    out |= traced_metrics(log)
     out["unsafe"] = bool(reasons)
     out["unsafe_reason"] = "; ".join(reasons)
     out |= exit_fields(statuses)

@@ -9,7 +9,7 @@ import math
 DIMENSIONLESS = "1"
 # metric-name endings and the unit they carry (longest ending first)
 SUFFIX_UNITS = (("_m_s2", "m/s^2"), ("_m_s", "m/s"), ("_hz_s", "Hz/s"), ("_fraction", DIMENSIONLESS), ("_ms", "ms"), ("_kJ", "kJ"), ("_deg", "deg"),
-                ("_hz", "Hz"), ("_m", "m"), ("_s", "s"))
+                ("_hz", "Hz"), ("_m", "m"), ("_ns", "ns"), ("_s", "s"))
 CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", "c_mean_before_loss", "c_min_after_loss",
                     "c_mean_after_loss")
 SPECTRAL = "bit/s/Hz"
@@ -37,7 +37,7 @@ def metric_unit(key: str, capacity_unit: str) -> str | None:
 
 
 GROUPS = ("routes", "relays")  # a run's metrics per route (by source) and per relay
-SPECTRAL_TABLES = ("se_mean",)  # per hop, bit/s/Hz
+HOP_TABLES = {"se_mean": SPECTRAL, "delay_spread_ns": "ns", "paths_mean": DIMENSIONLESS}  # per hop, by "<tx>-><rx>"
 
 
 def metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
@@ -45,8 +45,8 @@ def metric_units(metrics: dict, capacity_unit: str) -> dict[str, str]:
     the unit of their name): the network's at the top, each route's and each relay's as
     ``routes.<source>.<metric>`` and ``relays.<name>.<metric>``. Raises KeyError naming a metric without
     a unit, so a new metric cannot be written without one."""
-    out = _units({k: v for k, v in metrics.items() if k not in GROUPS and k not in SPECTRAL_TABLES}, capacity_unit)
-    out |= {k: SPECTRAL for k in SPECTRAL_TABLES if k in metrics}
+    out = _units({k: v for k, v in metrics.items() if k not in GROUPS and k not in HOP_TABLES}, capacity_unit)
+    out |= {k: unit for k, unit in HOP_TABLES.items() if k in metrics}
     for group in GROUPS:
         for node, node_metrics in metrics.get(group, {}).items():
             out |= {f"{group}.{node}.{k}": u for k, u in _units(node_metrics, capacity_unit).items()}
