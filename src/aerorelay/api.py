@@ -27,7 +27,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
-from .assembly.flight import build_stepper, network_stepper
+from .assembly.flight import build_stepper, network_stepper, thrust_along_body_z
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
@@ -184,7 +184,7 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint)
     bridge.connect()
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)  # the flight's wall time starts once the vehicle answered
-    bridge.on_step = recording.hook
+    bridge.on_step = recording.hook  # type: ignore[assignment]  # one relay's: a StepHook
     aborted = None
     try:
         bridge.run(sc.duration_s if duration_s is None else duration_s)
@@ -200,12 +200,14 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
 
 def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: Path | None = None, **names: str):
     """Run the relay's controller as a ROS 2 node (``spin``: ``flight.ros_node.spin``, the optional extra,
-    imported by the caller) until ``duration_s``; ``out``: the flight's run folder (as ``fly`` writes it,
-    without ``flight.parquet``), written on Ctrl-C too. Returns the node and the flight's result (its
-    metrics say whether it was safe; None when nothing was flown)."""
+    imported by the caller) until ``duration_s``; a network's as one node for the fleet (``FleetNode``, each relay
+    under its own name); ``out``: the flight's run folder (as ``fly`` writes it, without ``flight.parquet``),
+    written on Ctrl-C too. Returns the node and the flight's result (its metrics say whether it was safe; which
+    relays left the network and when, ``lost_in_flight``; None when nothing was flown)."""
     if out is not None:
         check_output_folder(out, "run")
-    ctrl = build_stepper(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z (one relay)
+    # its setpoints are for an autopilot: thrust along body z (one relay, or every relay of a network)
+    ctrl = network_stepper(thrust_along_body_z(sc)) if sc.is_network else build_stepper(sc, autopilot=True)
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
     aborted, node, result = None, None, None
     try:
@@ -214,7 +216,7 @@ def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: P
         aborted = "interrupted (Ctrl-C)"
         raise
     finally:
-        result = recording.finish(None, aborted)
+        result = recording.finish(None, aborted, lost_at=getattr(ctrl, "lost_at", None))
     return node, result
 
 

@@ -698,10 +698,18 @@ def ros(
 ):
     """Run the relay's controller as a ROS 2 node (the optional extra: pip install 'aerorelay[ros]'): subscribes
     nav_msgs/Odometry of the relay and the source, publishes trajectory_msgs/MultiDOFJointTrajectory setpoints and
-    the link state every control period."""
+    the link state every control period. A network ([[relays]]) is one node for the fleet: each relay and source
+    under its own name (/<relay>/odom, /<relay>/setpoint), the network's link on /network/link."""
     sc = _load_or_exit(scenario)
+    names: dict[str, str] = {}
     try:
-        relay, source = check_ros_namespace(relay, "--relay"), check_ros_namespace(source, "--source")
+        if sc.is_network:
+            if (relay, source) != ("relay", "source"):
+                raise ValueError("--relay / --source: a network's topics are its relays' and sources' names in the scenario")
+            for n in (*(r.name for r in sc.relay_list), *(s.name for s in sc.source_list)):
+                check_ros_namespace(n, "a relay's or source's name")
+        else:
+            names = {"relay": check_ros_namespace(relay, "--relay"), "source": check_ros_namespace(source, "--source")}
     except ValueError as exc:
         _fail(str(exc))
     _check_duration(duration)
@@ -709,9 +717,14 @@ def ros(
         from .flight import ros_node  # the optional extra: imported only here
     except ImportError as exc:
         _fail(f"the ROS 2 node needs the ros extra (pip install 'aerorelay[ros]'): {exc}")
-    console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
+    if sc.is_network:
+        ends = ", ".join(f"/{r.name}/odom -> /{r.name}/setpoint" for r in sc.relay_list)
+        console.print(f"ROS 2 fleet node: {ends}; sources " + ", ".join(f"/{s.name}/odom" for s in sc.source_list)
+                      + "; /network/link", markup=False, highlight=False)
+    else:
+        console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
     try:
-        node, result = api.ros(sc, ros_node.spin, duration, out=out, relay=relay, source=source)
+        node, result = api.ros(sc, ros_node.spin, duration, out=out, **names)
     except OutputError as exc:
         _fail(str(exc))
     except KeyboardInterrupt:

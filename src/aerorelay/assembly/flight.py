@@ -28,14 +28,31 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
 
 
 def thrust_along_body_z(sc: Scenario) -> Scenario:
-    """``sc`` with its relay's rotors turned to push along body z (a star layout untilted, a custom
-    layout's axes set to body z; positions and spins kept): the vehicle an autopilot flies, whose
-    thrust stays along body z, so the NMPC plans only what the autopilot can fly."""
+    """``sc`` with its relays' rotors turned to push along body z (a star layout untilted, a custom
+    layout's axes set to body z; positions and spins kept; a network's relays' own platforms too): the
+    vehicle an autopilot flies, whose thrust stays along body z, so the NMPC plans only what the
+    autopilot can fly."""
     p = sc.platform
     if p.rotors is not None:
         rotors = [r.model_dump() | {"axis": [0.0, 0.0, 1.0]} for r in p.rotors]
-        return sc.with_updates({"platform.rotors": rotors})
-    return sc if p.tilt_deg == 0 else sc.with_updates({"platform.tilt_deg": 0.0})
+        sc = sc.with_updates({"platform.rotors": rotors})
+    elif p.tilt_deg != 0:
+        sc = sc.with_updates({"platform.tilt_deg": 0.0})
+    if sc.relays is not None and any(r.platform is not None for r in sc.relays):  # a relay's own platform, likewise
+        relays = [r.model_dump() | ({} if r.platform is None else {"platform": _untilted(sc.platform_of(i))})
+                  for i, r in enumerate(sc.relays)]
+        sc = sc.with_updates({"relays": relays})
+    return sc
+
+
+def _untilted(p) -> dict:
+    """A platform table with its rotors pushing along body z."""
+    table = p.model_dump()
+    if p.rotors is not None:
+        table["rotors"] = [r | {"axis": [0.0, 0.0, 1.0]} for r in table["rotors"]]
+    else:
+        table["tilt_deg"] = 0.0
+    return table
 
 
 def network_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> NetworkStepper:

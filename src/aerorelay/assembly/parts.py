@@ -21,7 +21,7 @@ from ..control.relay import FailsafeSettings, RelayController
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
 from ..flight.network_controller import LoopRelay
-from ..flight.stepper import RelayStepper
+from ..flight.stepper import RelayStepper, StaleSettings
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
 from ..models.battery import Battery
@@ -462,7 +462,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         controller = build_controller(view, vehicle, nmpc_settings, others,
                                       p0_parameter=network and view.controller.comms_aware)
         stepper = RelayStepper(vehicle=vehicle, planner=None, controller=controller, period_s=sc.control_period_s,
-                               jammers=_no_jammer_view)
+                               jammers=_no_jammer_view, stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
         bat = view.platform.battery
         battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
                                                    bat.avionics_w)

@@ -17,8 +17,10 @@ from ..assembly.flight import build_stepper
 from ..assembly.parts import build_scene, build_source
 from ..config import Scenario, ScenarioError
 from ..flight.airframes import Airframe
+from ..flight.autopilot_loop import FleetStepHook
 from ..flight.mavlink_bridge import OffboardBridge, StepHook
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
+from ..flight.network_controller import NetworkStepper
 from ..flight.sources import MavlinkSource
 from ..flight.stepper import Command, RelayStepper, SourceState
 from ..models.mission import SourceTrajectory
@@ -32,8 +34,15 @@ log = logging.getLogger(__name__)
 FLIGHT_LOG = "flight.parquet"
 
 
+def flown_relays(sc: Scenario, stepper: RelayStepper | NetworkStepper) -> dict[str, RelayStepper]:
+    """Every relay's stepper by name (one relay: the scene's relay's)."""
+    if isinstance(stepper, NetworkStepper):
+        return {r.name: r.stepper for r in stepper.controller.relays}
+    return {build_scene(sc).name_of("relay"): stepper}
+
+
 def recorder(sc: Scenario, stepper: RelayStepper) -> tuple[FlightRecorder, StepHook]:
-    """A recorder of ``sc``'s flight and the bridge's hook that feeds it (the supervisor's verdict and the
+    """A recorder of ``sc``'s flight and the transport's hook that feeds it (the supervisor's verdict and the
     observer's estimate read from ``stepper`` each period)."""
     scene = build_scene(sc)
     rec = FlightRecorder({scene.name_of("relay"): stepper.vehicle}, scene, observed=stepper.observer is not None)
@@ -44,24 +53,46 @@ def recorder(sc: Scenario, stepper: RelayStepper) -> tuple[FlightRecorder, StepH
     return rec, hook
 
 
-def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper, wall_s: float, *, aborted: str | None = None,
-                  views: Callable[[RunResult, Path], None] | None = None, bridge_log: pd.DataFrame | None = None) -> RunResult:
+def fleet_recorder(sc: Scenario, stepper: NetworkStepper) -> tuple[FlightRecorder, FleetStepHook]:
+    """``recorder`` for a network: ``FleetLoop``'s hook (every relay's verdict and observer's estimate)."""
+    relays = flown_relays(sc, stepper)
+    observed = any(r.observer is not None for r in relays.values())
+    rec = FlightRecorder({n: r.vehicle for n, r in relays.items()}, build_scene(sc), observed=observed)
+
+    def hook(t: float, xs, cmds, srcs, age: float) -> None:
+        rec.record_network(t, xs, cmds, srcs, state_age_s=age,
+                           violations={n: bool(r.controller.last_violations) for n, r in relays.items()},
+                           a_ext={n: r.observer.estimate if r.observer is not None else None for n, r in relays.items()})
+    return rec, hook
+
+
+def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper | NetworkStepper, wall_s: float, *,
+                  aborted: str | None = None, views: Callable[[RunResult, Path], None] | None = None,
+                  bridge_log: pd.DataFrame | None = None, lost_at: dict[str, float] | None = None) -> RunResult:
     """The flight as ``ar.simulate``'s result: its time series and metrics (``run_metrics`` plus the
     flight's own, ``sim.flight_record.flight_metrics``, and the telemetry the bridge did not trust,
-    ``telemetry_metrics``); ``views`` writes figures and MCAP."""
-    mission = rec.mission(wall_s, controller=stepper.controller.nmpc.settings.fingerprint(),
-                          fallback_episodes=stepper.controller.fallback_episodes, aborted=aborted)
+    ``telemetry_metrics``); ``views`` writes figures and MCAP. ``lost_at``: relays that left the network in
+    flight, when (s): in the metrics, ``relays.<name>.lost_at_s`` and ``lost_in_flight``."""
+    relays = flown_relays(sc, stepper)
+    first = next(iter(relays.values()))
+    mission = rec.mission(wall_s, controller=first.controller.nmpc.settings.fingerprint(),
+                          fallback_episodes=sum(r.controller.fallback_episodes for r in relays.values()), aborted=aborted)
     df = log_frame(mission.log, rec.columns, {c: flight_column_type(c) for c in rec.columns if flight_column_type(c) is not float})
-    metrics = run_metrics(sc, mission, {rec.relay: stepper.vehicle}, None) | flight_metrics(mission.log) | telemetry_metrics(bridge_log)
+    metrics = run_metrics(sc, mission, {n: r.vehicle for n, r in relays.items()}, None) | flight_metrics(mission.log) | \
+        telemetry_metrics(bridge_log)
+    if lost_at:
+        metrics["lost_in_flight"] = [{"relay": n, "t_s": float(t)} for n, t in sorted(lost_at.items(), key=lambda kv: kv[1])]
+        for n, t in lost_at.items():
+            metrics["relays"][n]["lost_at_s"] = float(t)
     metrics["outage_threshold"] = sc.channel.outage
     metrics["unit_system"] = sc.channel.units
     metrics["units"] = metric_units(metrics, sc.channel.capacity_unit)
     return RunResult(sc, mission, df, metrics, None, views)
 
 
-def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder, stepper: RelayStepper,
-                wall_s: float, *, aborted: str | None = None,
-                views: Callable[[RunResult, Path], None] | None = None) -> RunResult | None:
+def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder,
+                stepper: RelayStepper | NetworkStepper, wall_s: float, *, aborted: str | None = None,
+                views: Callable[[RunResult, Path], None] | None = None, lost_at: dict[str, float] | None = None) -> RunResult | None:
     """Write the flight's run folder into ``out`` (with ``flight.parquet``, the bridge's log, when given);
     when the metrics fail, a folder with what there is (``flight.parquet`` and the rows recorded,
     ``timeseries.parquet``) so the flight is never lost; the error is logged and re-raised after it is written."""
@@ -69,7 +100,7 @@ def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame | None, rec: F
         if bridge_log is not None:
             bridge_log.to_parquet(tmp / FLIGHT_LOG, index=False)
     try:
-        result = flight_result(sc, rec, stepper, wall_s, aborted=aborted, views=views, bridge_log=bridge_log)
+        result = flight_result(sc, rec, stepper, wall_s, aborted=aborted, views=views, bridge_log=bridge_log, lost_at=lost_at)
     except Exception:
         log.exception("the flight's metrics failed: writing its raw logs to %s", out)
         save_raw(Path(out), bridge_log, rec)
@@ -90,25 +121,29 @@ def save_raw(out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder) ->
 
 
 class Recording:
-    """A flight being recorded (``aerorelay fly``, ``aerorelay ros``): ``hook`` feeds the recorder;
-    ``finish(bridge_log, aborted)`` at the end, also on Ctrl-C, writes the run folder to ``out`` (raw logs
-    when nothing was flown in OFFBOARD) and returns the flight's result (None when nothing was flown)."""
+    """A flight being recorded (``aerorelay fly``, ``aerorelay ros``; one relay or a network): ``hook`` feeds the
+    recorder; ``finish(bridge_log, aborted, lost_at)`` at the end, also on Ctrl-C, writes the run folder to
+    ``out`` (raw logs when nothing was flown in OFFBOARD) and returns the flight's result (None when nothing was
+    flown)."""
 
-    def __init__(self, sc: Scenario, stepper: RelayStepper, out: Path | None, *,
+    def __init__(self, sc: Scenario, stepper: RelayStepper | NetworkStepper, out: Path | None, *,
                  views: Callable[[RunResult, Path], None] | None = None):
         self.sc, self.stepper, self.out, self.views = sc, stepper, None if out is None else Path(out), views
-        self.rec, self.hook = recorder(sc, stepper)
+        self.hook: StepHook | FleetStepHook
+        self.rec, self.hook = fleet_recorder(sc, stepper) if isinstance(stepper, NetworkStepper) else recorder(sc, stepper)
         self.wall0 = time.perf_counter()
 
-    def finish(self, bridge_log: pd.DataFrame | None, aborted: str | None = None) -> RunResult | None:
+    def finish(self, bridge_log: pd.DataFrame | None, aborted: str | None = None,
+               lost_at: dict[str, float] | None = None) -> RunResult | None:
         wall = time.perf_counter() - self.wall0
         if not self.rec.rows:
             if self.out is not None:
                 save_raw(self.out, bridge_log, self.rec)
             return None
         if self.out is None:
-            return flight_result(self.sc, self.rec, self.stepper, wall, aborted=aborted, bridge_log=bridge_log)
-        return save_flight(self.sc, self.out, bridge_log, self.rec, self.stepper, wall, aborted=aborted, views=self.views)
+            return flight_result(self.sc, self.rec, self.stepper, wall, aborted=aborted, bridge_log=bridge_log, lost_at=lost_at)
+        return save_flight(self.sc, self.out, bridge_log, self.rec, self.stepper, wall, aborted=aborted, views=self.views,
+                           lost_at=lost_at)
 
 
 def bridge_frame(rows: list[dict]) -> pd.DataFrame:

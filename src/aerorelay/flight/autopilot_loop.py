@@ -11,24 +11,30 @@ controller's command out. It owns what the transports must not each write again:
   first-order filter (``AccelerationFilter``), so planners that look ahead see it accelerate;
 * the recording hook, called with every period whose telemetry was trusted.
 
-The transports keep only message conversion (frames, stamps, units).
+The transports keep only message conversion (frames, stamps, units). ``FleetLoop`` is the same for a
+network's ``NetworkStepper``: every relay's state built, checked and gated on its own, a relay whose
+telemetry is stale or not trusted handed on as missing (it holds, then lands, the others planning
+with its last state), every source's acceleration filtered.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .commanded import CommandedState
 from .frames import matrix_from_wxyz
+from .network_controller import NetworkStepper
 from .stepper import Command, RelayStepper, SourceState
 
 # called every control period flown: (time s, the relay's measured state, the command, the source as the
 # relay knew it, the state's age s)
 StepHook = Callable[[float, np.ndarray, Command, SourceState, float], None]
+# a fleet's: (time s, each relay's measured state, each relay's command, each source as known, the oldest state's age s)
+FleetStepHook = Callable[[float, dict[str, np.ndarray], dict[str, Command], dict[str, SourceState], float], None]
 
 
 @dataclass(frozen=True)
@@ -128,3 +134,92 @@ class AutopilotLoop:
             self.on_step(t, measured, cmd, source, t - relay.stamp)
         self.commanded.commanded(cmd)
         return cmd
+
+
+class FleetLoop:
+    """``tick(t, relays, sources)`` every control period for a network (``NetworkStepper``): what the autopilots
+    measured of each relay and what the network knows of each source in (``Measured`` or None, by name), every
+    relay's command out (see the module). Nothing runs until every relay has a trusted state and every source
+    has arrived (``waiting`` says why); afterwards a relay whose state is missing, stale or not trusted is
+    handed on as missing (``rejected[relay]`` says why), so it holds and then lands while the others fly on.
+    ``on_step`` gets the periods in which every relay in the network and every source were handed on. A relay without a
+    trusted state for longer than its ``land_after_s`` leaves the network (the stepper's ``lost_at``): the others
+    re-plan."""
+
+    def __init__(self, stepper: NetworkStepper, *, measured_attitude: bool = False, on_step: FleetStepHook | None = None):
+        self.stepper, self.on_step = stepper, on_step
+        self.relays = {r.name: r for r in stepper.controller.relays}
+        self.commanded = {n: CommandedState(r.vehicle.hover_speeds(), measured_attitude=measured_attitude)
+                          for n, r in self.relays.items()}
+        self.accel = {s: AccelerationFilter() for s in stepper.controller.sources}
+        self.waiting: str | None = "no relay states or sources yet"
+        self.rejected: dict[str, str] = {}  # each relay's reason this period, when its state was not handed on
+        self.started = False
+        self._bad_since: dict[str, float] = {}
+
+    def _lose_the_silent(self, t: float) -> None:
+        """A relay without a trusted state for longer than its ``land_after_s`` (it is landing) leaves the network:
+        the others are planned again without it (unless it is the last one flying)."""
+        for name in self.relays:
+            if name in self.rejected:
+                self._bad_since.setdefault(name, t)
+            else:
+                self._bad_since.pop(name, None)
+        for name, since in self._bad_since.items():
+            flying = [n for n in self.relays if n not in self.stepper.lost]
+            if name in flying and t - since > self.relays[name].stepper.stale.land_after_s and len(flying) > 1:
+                self.stepper.lose([name], t)
+
+    def _source(self, name: str, m: Measured | None) -> SourceState | None:
+        if m is None or not (np.all(np.isfinite(m.p)) and np.all(np.isfinite(m.v)) and np.isfinite(m.stamp)):
+            return None
+        return SourceState(m.p, m.v, self.accel[name].update(m.stamp, m.v), stamp=m.stamp)
+
+    def tick(self, t: float, relays: dict[str, Measured | None], sources: dict[str, Measured | None]) -> dict[str, Command] | None:
+        """One control period at ``t`` (s, the mission's clock): every relay's command, or None while the network
+        cannot start (``waiting``)."""
+        known = {n: self._source(n, sources.get(n)) for n in self.accel}
+        src = {n: s for n, s in known.items() if s is not None}
+        states: dict[str, np.ndarray] = {}
+        measured: dict[str, np.ndarray] = {}
+        ages: list[float] = []
+        self.rejected = {}
+        any_source = next(iter(src.values()), None)
+        for name, r in self.relays.items():
+            m = relays.get(name)
+            if m is None:
+                self.rejected[name] = "no relay state"
+                continue
+            meas = self.commanded[name].measured(m.p, m.R, m.v, m.w)
+            x = self.commanded[name].for_nmpc(meas)
+            bad = ~np.isfinite(meas)
+            x[bad] = meas[bad]
+            why = r.stepper.check.problem(t, x, m.stamp, None) or r.stepper.stale_reason(t, x, m.stamp, any_source)
+            if why is not None and why != "no source":
+                self.rejected[name] = why
+                continue
+            r.stepper.check.trust(m.stamp, x)
+            states[name], measured[name] = x, meas
+            ages.append(t - m.stamp)
+        hold_after = next(iter(self.relays.values())).stepper.stale.hold_after_s
+        stale_sources = [n for n, s in src.items() if s.stamp is not None and t - s.stamp > hold_after]
+        if not self.started:
+            missing = [n for n in self.relays if n not in states]
+            absent = [n for n in self.accel if n not in src or n in stale_sources]
+            if missing or absent:
+                self.waiting = "; ".join(([f"relays {missing}: " + ", ".join(sorted({self.rejected[n] for n in missing}))] if missing else [])
+                                         + ([f"no fresh source {absent}"] if absent else []))
+                return None
+            self.started = True
+        self.waiting = None
+        self._lose_the_silent(t)
+        given = {n: s for n, s in src.items() if n not in stale_sources}
+        cmds = self.stepper.step(t, states, given)
+        for name, cmd in cmds.items():
+            if name in self.rejected:
+                cmds[name] = replace(cmd, rejected=self.rejected[name])
+            self.commanded[name].commanded(cmd)
+        in_network = {n: m for n, m in measured.items() if n not in self.stepper.lost}
+        if self.on_step is not None and len(in_network) == len(self.relays) - len(self.stepper.lost) and len(given) == len(self.accel):
+            self.on_step(t, in_network, {n: cmds[n] for n in in_network}, given, max(ages))
+        return cmds

@@ -5,6 +5,7 @@ plans for the separation) and its NMPC. ``sim.closed_loop.ClosedLoop`` flies it 
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -144,10 +145,26 @@ class NetworkStepper:
         self._t_last: float | None = None
         self._last: dict[str, np.ndarray] = {}  # each relay's last fresh state
         self._read_at: tuple[float, dict[str, np.ndarray]] | None = None  # where the next readings were taken
+        self.lost: set[str] = set()  # relays taken out of the network (``lose``)
+        self.lost_at: dict[str, float] = {}  # when (s, the caller's clock; NaN: not said)
 
     @property
     def relays(self) -> list[str]:
         return [r.name for r in self.controller.relays]
+
+    def lose(self, relays, t: float = math.nan) -> None:
+        """Take ``relays`` out of the network for good (a link that stayed down, a relay sent home): the routes
+        skip them and the others are planned again from where they last were; their commands keep holding and
+        then landing them. ``t``: when (s), kept in ``lost_at``."""
+        new = set(relays) - self.lost
+        if not new:
+            return
+        unknown = new - set(self.relays)
+        if unknown:
+            raise ValueError(f"lose: no relay {sorted(unknown)} in the network ({', '.join(self.relays)})")
+        self.lost |= new
+        self.lost_at |= dict.fromkeys(sorted(new), float(t))
+        self.controller.lose(frozenset(self.lost), {n: xs[0:3].copy() for n, xs in self._last.items()})
 
     def step(self, t: float, relay_states: Mapping[str, np.ndarray | None], sources: Mapping[str, SourceState | None],
              *, readings: Mapping[str, float] | None = None) -> dict[str, Command]:
@@ -190,12 +207,15 @@ class NetworkStepper:
         if len(src) < len(self.controller.sources):  # the network cannot plan without its sources: every relay holds
             missing = [n for n in self.controller.sources if n not in src]
             return {r.name: replace(r.stepper.hold_command(t, t0), rejected=f"no source {missing}") for r in self.controller.relays}
-        x = {n: fresh.get(n, self._last[n]) for n in self.relays}  # a missing relay planned at its last state
+        # a missing relay planned at its last state; a lost one not at all
+        x = {n: fresh.get(n, self._last[n]) for n in self.relays if n not in self.lost}
         refs = self.controller.plan(t, x, src, self.jammers(t))
-        predicted = self.controller.predicted(x, src)
+        predicted = self.controller.predicted({**x, **{n: self._last[n] for n in self.lost}}, src)
+        for n in self.lost & set(predicted):  # a lost relay still flies (it holds and lands): kept clear where it last was
+            predicted[n] = np.repeat(self._last[n][0:3, None], predicted[n].shape[1], axis=1)
         out = {}
         for r in self.controller.relays:
-            if r.name not in fresh:
+            if r.name not in fresh or r.name in self.lost:
                 out[r.name] = r.stepper.hold_command(t, t0)
                 continue
             r.stepper.remember(t, x[r.name])

@@ -14,6 +14,7 @@ the relay's state was, s); with the observer, ``a_ext_x/y/z`` (its estimate, m/s
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -29,7 +30,7 @@ from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from .air import AXES
 from .closed_loop import MissionResult
-from .log_schema import column_type, link_row, log_columns, relay_row, separation_min, source_row
+from .log_schema import column_type, gone_row, link_row, log_columns, relay_row, separation_min, source_row
 
 FLIGHT_COLUMNS = ("flight_mode", "compute_ms", "deadline_met", "state_age_s")
 FLIGHT_COLUMN_TYPES: dict[str, type] = {"flight_mode": str, "deadline_met": bool}
@@ -52,7 +53,6 @@ class FlightRecorder:
         self.relay = self.relays[0]  # the first relay (the one relay's)
         self.sources = [n.name for n in scene.nodes if n.role == "source"]
         self.source = self.sources[0]
-        self.neighbours = route_neighbours(scene)
         self._fixed = {n.name: scene.fixed_pose(n.name).position for n in scene.nodes if n.position is not None}
         self.observer_columns = {r: [f"{r}.a_ext_{a}" for a in AXES] for r in self.relays}  # as sim/air.py logs them
         self.columns = (log_columns({r: v.n_rotors for r, v in self.vehicles.items()}, self.sources, scene)
@@ -74,31 +74,40 @@ class FlightRecorder:
         its NMPC, else ``nmpc`` (or ``fallback``); ``compute_ms`` the step's longest, ``deadline_met`` all."""
         src = {n: SourceState(np.asarray(s.p, float), np.asarray(s.v, float), np.asarray(s.a, float)) for n, s in sources.items()}
         eta_src = {n: s.attitude(self.vehicles[self.relay].gravity) for n, s in src.items()}
-        R = {r: rotation_zyx(xs[r][3:6]) for r in self.relays}
-        poses = {r: self.scene.pose(r, xs[r][0:3], R[r]) for r in self.relays}
-        poses |= {n: self.scene.pose(n, s.p, rotation_zyx(eta_src[n])) for n, s in src.items()}
-        channel = self.scene.evaluate(t, poses)
-        where = {**self._fixed, **{n: s.p for n, s in src.items()}, **{r: xs[r][0:3] for r in self.relays}}
+        flying = [r for r in self.relays if r in xs]
+        scene = self.scene.without([r for r in self.relays if r not in xs])  # a relay without a state has left the network
+        R = {r: rotation_zyx(xs[r][3:6]) for r in flying}
+        poses = {r: scene.pose(r, xs[r][0:3], R[r]) for r in flying}
+        poses |= {n: scene.pose(n, s.p, rotation_zyx(eta_src[n])) for n, s in src.items()}
+        channel = scene.evaluate(t, poses)
+        where = {**self._fixed, **{n: s.p for n, s in src.items()}, **{r: xs[r][0:3] for r in flying}}
         row: dict[str, object] = {"t": t}
+        neighbours = route_neighbours(scene)
         for r in self.relays:
+            if r not in xs:
+                row |= gone_row(r, self.vehicles[r].n_rotors)
+                continue
             cmd = cmds[r]
             ref, info = cmd.reference, cmd.info
             if ref is None or info is None:  # the failsafe flew: its target is the reference, no QP
                 ref = Reference(p_opt=cmd.position_m, p_ref=cmd.position_m, v_ref=cmd.velocity_m_s, a_ref=cmd.acceleration_m_s2)
                 info = StepInfo(u=np.zeros(self.vehicles[r].n_rotors), ok=True, status=cmd.mode, prep_ms=0.0,
                                 feedback_ms=cmd.compute_ms, slack_max=0.0)
-            up, down = self.neighbours[r]
+            up, down = neighbours[r]
             row |= relay_row(r, xs[r], R[r], info, ref, where[up], where[down], violations[r] and cmd.mode in ("nmpc", "fallback"))
         for n in self.sources:
             row |= source_row(n, src[n].p, eta_src[n])
-        row |= link_row(self.scene, t, channel)
-        row["separation_min"] = separation_min(np.array([*(xs[r][0:3] for r in self.relays), *(src[n].p for n in self.sources)]))
-        modes = [cmds[r].mode for r in self.relays]
+        row |= dict.fromkeys((c for c in self.columns if c.startswith(("sinr.", "se.", "capacity."))), math.nan)
+        row |= link_row(scene, t, channel)
+        self.columns += [c for c in row if c not in self.columns and c.startswith(("sinr.", "se.", "capacity."))]  # a hop taken
+        # after a relay left the network
+        row["separation_min"] = separation_min(np.array([*(xs[r][0:3] for r in flying), *(src[n].p for n in self.sources)]))
+        modes = [cmds[r].mode for r in flying]
         row |= {"flight_mode": next((m for m in modes if m not in ("nmpc", "fallback")), modes[0]),
-                "compute_ms": max(cmds[r].compute_ms for r in self.relays),
-                "deadline_met": all(cmds[r].deadline_met for r in self.relays), "state_age_s": state_age_s}
+                "compute_ms": max(cmds[r].compute_ms for r in flying),
+                "deadline_met": all(cmds[r].deadline_met for r in flying), "state_age_s": state_age_s}
         if self.observed:
-            for r in self.relays:
+            for r in flying:
                 given = None if a_ext is None else a_ext.get(r)
                 row |= dict(zip(self.observer_columns[r], np.zeros(3) if given is None else given, strict=True))
         if not self.rows and set(row) != set(self.columns):
@@ -111,7 +120,7 @@ class FlightRecorder:
         nothing was flown in OFFBOARD."""
         if not self.rows:
             raise ValueError("flight record: no control period was flown in OFFBOARD")
-        log = {c: _column([r[c] for r in self.rows], flight_column_type(c)) for c in self.columns}
+        log = {c: _column([r.get(c, math.nan) for r in self.rows], flight_column_type(c)) for c in self.columns}
         failures = sum(int(np.sum(~log[f"{r}.qp_ok"])) for r in self.relays)
         return MissionResult(log=log, wall_s=wall_s, sim_s=float(log["t"][-1] - log["t"][0]), qp_failures=failures,
                              controller=controller, fallback_episodes=fallback_episodes, aborted=aborted)

@@ -17,7 +17,7 @@ COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "r
           "reference_kept_out_steps", "telemetry_rejected_periods")
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
                   "aborted", "reference_clipped_first", "bound", "losses", "telemetry_rejected_reason", "metrics_failed",
-                  "exit_status", "exit_sentence", "exit_statuses", "injected")
+                  "exit_status", "exit_sentence", "exit_statuses", "injected", "lost_in_flight")
 
 
 def metric_unit(key: str, capacity_unit: str) -> str | None:
