@@ -77,33 +77,19 @@ class BridgeState:
 OFFBOARD_RETRIES = 5  # OFFBOARD asked again after a hold at most this many times (once a second) before the flight ends
 
 
-class OffboardBridge:
-    """``connect()``, then ``tick(t)`` every control period (lockstep: the caller's clock) or
-    ``run(duration_s)`` on the wall clock. ``source``: the inspection drone: its path (its mission file),
-    or a ``flight.sources.MavlinkSource`` (a second MAVLink system);
-    ``on_step``: called with every control period flown in OFFBOARD (a ``sim.flight_record`` recorder)."""
+class VehicleLink:
+    """One vehicle's MAVLink link as a ground station sees it: its heartbeat and telemetry read (only its
+    own system's and component's), modes asked, setpoints sent (``setpoint``: ``position`` or
+    ``attitude``); what every bridge, one relay's or a fleet's, does with each vehicle."""
 
-    def __init__(self, url: str, stepper: RelayStepper, source: SourceTrajectory | MissionSource | MavlinkSource,
-                 hover_speeds: np.ndarray, *,
-                 arm: bool = False, setpoint: str = "position", hover_throttle: float = 0.5, system: int = 255,
-                 on_step: StepHook | None = None, measured_attitude: bool = False):
+    def __init__(self, url: str, *, setpoint: str = "position", hover_throttle: float = 0.5, system: int = 255):
         if setpoint not in ("position", "attitude"):
             raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
         self.link = connect(url, system=system, component=190)
-        self.stepper, self.arm, self.setpoint, self.hover_throttle = stepper, arm, setpoint, hover_throttle
-        self.source = MissionSource(source) if isinstance(source, SourceTrajectory) else source
-        # the NMPC's state, the first step's gating, the telemetry check and the recording hook
-        self.loop = AutopilotLoop(stepper, measured_attitude=measured_attitude, on_step=on_step, hover_speeds=hover_speeds)
+        self.setpoint, self.hover_throttle = setpoint, hover_throttle
         self.state = BridgeState()
-        self.t0: float | None = None  # when streaming began (bridge time)
-        self.mission_t0: float | None = None  # when the vehicle entered OFFBOARD: the mission's clock starts
         self.requested: set[str] = set()
-        self.log: list[dict] = []
         self.target = (1, 1)
-        self.phase = "stream"  # stream (before OFFBOARD), offboard, held (the bridge asked for a hold), ended
-        self.ended: str | None = None  # why the flight ended early (None: it did not)
-        self._good_since: float | None = None  # in a hold: since when telemetry has been good (bridge time)
-        self._offboard_asks: list[float] = []  # when OFFBOARD was asked again after a hold (bridge time)
 
     def announce(self) -> None:
         """A GCS heartbeat (a vehicle listening with ``udpin`` learns where to answer)."""
@@ -157,15 +143,6 @@ class OffboardBridge:
             elif kind == "COMMAND_ACK":
                 st.acks.append((int(msg.command), int(msg.result)))
 
-    @property
-    def on_step(self) -> StepHook | None:
-        """Called with every control period flown in OFFBOARD on trusted telemetry (a recorder)."""
-        return self.loop.on_step
-
-    @on_step.setter
-    def on_step(self, hook: StepHook | None) -> None:
-        self.loop.on_step = hook
-
     def measured(self, clock_offset: float) -> Measured | None:
         """The relay as its telemetry reports it, stamped on a clock ``clock_offset`` s after the bridge's
         (the mission's); None before telemetry."""
@@ -191,6 +168,68 @@ class OffboardBridge:
     def hand_back(self) -> None:
         """Ask the vehicle to hold (AUTO.LOITER): on Ctrl-C, stale telemetry, the end of the run."""
         self.request_mode("AUTO", "LOITER")
+
+    def _send_position(self, t: float, p, v, a, yaw_enu: float) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED from ENU position (m), velocity (m/s), acceleration (m/s^2), yaw (rad)."""
+        self.link.mav.set_position_target_local_ned_send(_boot_ms(t), *self.target, MAV.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
+                                                         *enu_to_ned(p), *enu_to_ned(v), *enu_to_ned(a), yaw_enu_to_ned(yaw_enu), 0.0)
+
+    def _send_hold(self, position: np.ndarray, t: float) -> None:
+        zero = np.zeros(3)
+        self._send_position(t, position, zero, zero, 0.0)
+
+    def _send(self, cmd: Command, t: float) -> None:
+        if self.setpoint == "attitude" and cmd.mode in ("nmpc", "fallback"):
+            R = matrix_from_wxyz(cmd.attitude_wxyz)
+            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(R))
+            rates = flu_to_frd(cmd.body_rates_rad_s)
+            self.link.mav.set_attitude_target_send(_boot_ms(t), *self.target, ATTITUDE_TARGET_MASK, q, *rates,
+                                                   min(1.0, cmd.thrust_normalized * self.hover_throttle))
+            return
+        self._send_position(t, cmd.position_m, cmd.velocity_m_s, cmd.acceleration_m_s2,
+                            euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz))[2])
+
+    def wait_for_telemetry(self, timeout_s: float = 5.0) -> None:
+        """Read until the vehicle's position arrives; TimeoutError naming the messages after ``timeout_s``."""
+        end = time.monotonic() + timeout_s
+        while self.state.position is None:
+            if time.monotonic() > end:
+                raise TimeoutError(f"no LOCAL_POSITION_NED or ODOMETRY from the vehicle within {timeout_s:g} s")
+            self._read(0.0)
+            time.sleep(0.005)
+
+
+class OffboardBridge(VehicleLink):
+    """``connect()``, then ``tick(t)`` every control period (lockstep: the caller's clock) or
+    ``run(duration_s)`` on the wall clock. ``source``: the inspection drone: its path (its mission file),
+    or a ``flight.sources.MavlinkSource`` (a second MAVLink system);
+    ``on_step``: called with every control period flown in OFFBOARD (a ``sim.flight_record`` recorder)."""
+
+    def __init__(self, url: str, stepper: RelayStepper, source: SourceTrajectory | MissionSource | MavlinkSource,
+                 hover_speeds: np.ndarray, *,
+                 arm: bool = False, setpoint: str = "position", hover_throttle: float = 0.5, system: int = 255,
+                 on_step: StepHook | None = None, measured_attitude: bool = False):
+        super().__init__(url, setpoint=setpoint, hover_throttle=hover_throttle, system=system)
+        self.stepper, self.arm = stepper, arm
+        self.source = MissionSource(source) if isinstance(source, SourceTrajectory) else source
+        # the NMPC's state, the first step's gating, the telemetry check and the recording hook
+        self.loop = AutopilotLoop(stepper, measured_attitude=measured_attitude, on_step=on_step, hover_speeds=hover_speeds)
+        self.t0: float | None = None  # when streaming began (bridge time)
+        self.mission_t0: float | None = None  # when the vehicle entered OFFBOARD: the mission's clock starts
+        self.log: list[dict] = []
+        self.phase = "stream"  # stream (before OFFBOARD), offboard, held (the bridge asked for a hold), ended
+        self.ended: str | None = None  # why the flight ended early (None: it did not)
+        self._good_since: float | None = None  # in a hold: since when telemetry has been good (bridge time)
+        self._offboard_asks: list[float] = []  # when OFFBOARD was asked again after a hold (bridge time)
+
+    @property
+    def on_step(self) -> StepHook | None:
+        """Called with every control period flown in OFFBOARD on trusted telemetry (a recorder)."""
+        return self.loop.on_step
+
+    @on_step.setter
+    def on_step(self, hook: StepHook | None) -> None:
+        self.loop.on_step = hook
 
     def tick(self, t: float) -> Command | None:
         """One control period at bridge time ``t`` (s): read; before OFFBOARD stream a hold where the
@@ -278,35 +317,6 @@ class OffboardBridge:
                          "compute_ms": cmd.compute_ms if cmd is not None else math.nan,
                          "deadline_met": cmd.deadline_met if cmd is not None else None, "armed": self.state.armed,
                          "custom_mode": self.state.custom_mode, "rejected": why or ""})
-
-    def _send_position(self, t: float, p, v, a, yaw_enu: float) -> None:
-        """SET_POSITION_TARGET_LOCAL_NED from ENU position (m), velocity (m/s), acceleration (m/s^2), yaw (rad)."""
-        self.link.mav.set_position_target_local_ned_send(_boot_ms(t), *self.target, MAV.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
-                                                         *enu_to_ned(p), *enu_to_ned(v), *enu_to_ned(a), yaw_enu_to_ned(yaw_enu), 0.0)
-
-    def _send_hold(self, position: np.ndarray, t: float) -> None:
-        zero = np.zeros(3)
-        self._send_position(t, position, zero, zero, 0.0)
-
-    def _send(self, cmd: Command, t: float) -> None:
-        if self.setpoint == "attitude" and cmd.mode in ("nmpc", "fallback"):
-            R = matrix_from_wxyz(cmd.attitude_wxyz)
-            q = quaternion_wxyz(rotation_enu_flu_to_ned_frd(R))
-            rates = flu_to_frd(cmd.body_rates_rad_s)
-            self.link.mav.set_attitude_target_send(_boot_ms(t), *self.target, ATTITUDE_TARGET_MASK, q, *rates,
-                                                   min(1.0, cmd.thrust_normalized * self.hover_throttle))
-            return
-        self._send_position(t, cmd.position_m, cmd.velocity_m_s, cmd.acceleration_m_s2,
-                            euler_zyx(matrix_from_wxyz(cmd.attitude_wxyz))[2])
-
-    def wait_for_telemetry(self, timeout_s: float = 5.0) -> None:
-        """Read until the vehicle's position arrives; TimeoutError naming the messages after ``timeout_s``."""
-        end = time.monotonic() + timeout_s
-        while self.state.position is None:
-            if time.monotonic() > end:
-                raise TimeoutError(f"no LOCAL_POSITION_NED or ODOMETRY from the vehicle within {timeout_s:g} s")
-            self._read(0.0)
-            time.sleep(0.005)
 
     def run(self, duration_s: float) -> None:
         """Tick on the wall clock at the controller's period for ``duration_s`` once the vehicle's telemetry
