@@ -8,7 +8,7 @@ capacity-seeking relay, radio scenes with any number of jammers). The public API
 """
 
 from ._version import __version__
-from .api import Result, bench, bound, controller, fly_lockstep, link_budget, plant_airframe, reproduce, rotorpy_airframe, simulate
+from .api import Result, bench, bound, controller, fly_lockstep, link_budget, plant_airframe, plant_airframes, reproduce, rotorpy_airframe, simulate
 from .assembly import load_scenario, parse_scenario
 from .assembly.parts import build, build_scene
 from .config import Scenario, ScenarioError
@@ -24,7 +24,8 @@ from .planning.trajectory_generator import Reference
 __all__ = [
     "__version__", "AutopilotLoop", "Measured",
     "Command", "PointMass", "Result", "SourceState", "StaleSettings", "bench", "bound", "controller", "fly_lockstep", "link_budget",
-    "plant_airframe", "reproduce", "rotorpy_airframe", "simulate", "CosinePattern", "DipolePattern", "IsotropicPattern", "SinPowerPattern",
+    "plant_airframe", "plant_airframes",
+    "reproduce", "rotorpy_airframe", "simulate", "CosinePattern", "DipolePattern", "IsotropicPattern", "SinPowerPattern",
     "TabulatedPattern", "AlwaysOn", "Jammer", "PeriodicOnOff", "Antenna", "LinkBudget", "Node", "NodePose",
     "RadioScene", "route_capacity", "PlannerContext", "PlannerInput", "register_planner", "Reference", "Scenario",
     "ScenarioError", "load_scenario", "parse_scenario", "build", "build_scene",

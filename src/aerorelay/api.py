@@ -19,7 +19,7 @@ import logging
 import math
 import os
 import platform
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -142,6 +142,11 @@ def plant_airframe(sc: Scenario) -> Airframe:
     return MultirotorAirframe(build_vehicle(sc.platform_of(0)), sc.relay_list[0].start)
 
 
+def plant_airframes(sc: Scenario) -> dict[str, Airframe]:
+    """``plant_airframe`` for every relay of the scenario by name, each its own platform at its own start."""
+    return {r.name: MultirotorAirframe(build_vehicle(sc.platform_of(i)), r.start) for i, r in enumerate(sc.relay_list)}
+
+
 def rotorpy_airframe(sc: Scenario, params: dict | None = None) -> Airframe:
     """RotorPy's quadrotor (``params``: a RotorPy parameter dict, default its Hummingbird, as
     ``scenarios/rotorpy_hummingbird.toml`` models it) at the scenario's relay start, in its ``[wind]``
@@ -150,15 +155,26 @@ def rotorpy_airframe(sc: Scenario, params: dict | None = None) -> Airframe:
     return RotorpyQuadrotor(sc.relay_list[0].start, params, wind=wind if wind is not None else still_air)
 
 
-def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position",
-                 duration_s: float | None = None) -> tuple[RunResult, pd.DataFrame]:
+def fly_lockstep(sc: Scenario, airframe: Airframe | Mapping[str, Airframe], *, setpoint: str = "position",
+                 duration_s: float | None = None,
+                 telemetry_lost: Callable[[str, float], bool] | None = None) -> tuple[RunResult, pd.DataFrame]:
     """Fly the scenario's relay controller through the MAVLink bridge on the in-repo vehicle flying
     ``airframe`` (``rotorpy_airframe(sc)``, or ``flight.airframes.PointMass``), over UDP on localhost in
     lockstep: the flight as ``simulate``'s result (``save`` writes the run folder with figures and MCAP)
     and the bridge's log (docs/guide/flying.md). With position setpoints the NMPC runs without ``[wind]``'s
-    external-force observer, as ``fly`` does."""
+    external-force observer, as ``fly`` does. A network: ``airframe`` maps every relay's name to its vehicle's
+    airframe (``plant_airframes(sc)``), each its own MAVLink system on its own link, the fleet's bridge flying them
+    all (``flight.mavlink_fleet``); ``telemetry_lost(relay, t)`` drops a relay's telemetry at bridge time ``t``."""
     if setpoint not in ("position", "attitude"):
         raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
+    if sc.is_network:
+        if not isinstance(airframe, Mapping):
+            raise ValueError("fly_lockstep: a network needs one airframe per relay, {relay name: airframe} "
+                             "(ar.plant_airframes(sc))")
+        return _flight.fly_lockstep_fleet(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views,
+                                          telemetry_lost=telemetry_lost)
+    if isinstance(airframe, Mapping):
+        raise ValueError("fly_lockstep: one relay flies one airframe (a mapping is for a network's relays)")
     return _flight.fly_lockstep(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views)
 
 

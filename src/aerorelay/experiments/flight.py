@@ -7,23 +7,25 @@ from __future__ import annotations
 import logging
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..assembly.flight import build_stepper
+from ..assembly.flight import build_stepper, network_stepper, thrust_along_body_z
 from ..assembly.parts import build_scene, build_source
 from ..config import Scenario, ScenarioError
 from ..flight.airframes import Airframe
 from ..flight.autopilot_loop import FleetStepHook
+from ..flight.mavlink import drain
 from ..flight.mavlink_bridge import OffboardBridge, StepHook
+from ..flight.mavlink_fleet import FleetBridge
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
 from ..flight.network_controller import NetworkStepper
 from ..flight.sources import MavlinkSource
 from ..flight.stepper import Command, RelayStepper, SourceState
-from ..models.mission import SourceTrajectory
+from ..models.mission import SourceTrajectory, source_trajectory
 from ..sim.flight_record import FlightRecorder, flight_column_type, flight_metrics, telemetry_metrics
 from ..sim.units import metric_units
 from ..store.outputs import new_sibling, swap_in
@@ -228,6 +230,76 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
     log_df = bridge_frame(bridge.log)
     return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
                          bridge_log=log_df), log_df
+
+
+def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpoint: str = "position",
+                       duration_s: float | None = None, views: Callable[[RunResult, Path], None] | None = None,
+                       telemetry_lost: Callable[[str, float], bool] | None = None) -> tuple[RunResult, pd.DataFrame]:
+    """``fly_lockstep`` for a network: every relay's controller through the fleet's MAVLink bridge
+    (``flight.mavlink_fleet.FleetBridge``) on one in-repo vehicle per relay (``airframes`` by relay name, each its
+    own UDP link and system id 1, 2, ...), the sources from their missions. ``telemetry_lost(relay, t)``: the
+    relay's telemetry does not reach the bridge at bridge time ``t`` (a link dropped; its setpoints still reach
+    the vehicle). Returns the flight as ``ar.simulate``'s result (the relays that left the network and when in
+    ``lost_in_flight``; the bridge's events in ``aborted`` only when every vehicle left) and the bridge's log."""
+    check_flyable(sc)
+    stepper = network_stepper(thrust_along_body_z(sc))  # an autopilot's thrust stays along body z (every relay)
+    rec, hook = fleet_recorder(sc, stepper)
+    missing = [n for n in stepper.relays if n not in airframes]
+    if missing:
+        raise ValueError(f"fly_lockstep: no airframe for the relays {missing}")
+    T = stepper.period
+    ports = {n: free_udp_port() for n in stepper.relays}
+    vehicles = {n: MavlinkVehicle(f"udpin:127.0.0.1:{ports[n]}", settings=VehicleSettings(telemetry_hz=1.0 / T), system=i + 1,
+                                  airframe=airframes[n]) for i, n in enumerate(stepper.relays)}
+    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    bridge = FleetBridge({n: f"udpout:127.0.0.1:{p}" for n, p in ports.items()}, stepper, sources, arm=True,
+                         setpoint=setpoint, on_step=hook)
+    if telemetry_lost is not None:
+        for name, link in bridge.links.items():
+            read = link._read
+
+            def gated(t: float, read=read, name=name, link=link) -> None:
+                if telemetry_lost(name, t):
+                    drain(link.link)  # the messages are lost on the way
+                else:
+                    read(t)
+            link._read = gated  # type: ignore[method-assign]
+    duration = sc.duration_s if duration_s is None else duration_s
+    t, aborted = 0.0, None
+    wall0 = time.perf_counter()
+    try:
+        heard: set[str] = set()
+        while len(heard) < len(vehicles):  # the handshake: each vehicle answers once it has heard the bridge
+            for n, link in bridge.links.items():
+                if n not in heard:
+                    link.announce()
+            for v in vehicles.values():
+                v.step(T)
+            heard |= {n for n, link in bridge.links.items() if n not in heard and link.heard_vehicle()}
+            t += T
+            if t > LOCKSTEP_OFFBOARD_WITHIN_S:
+                raise TimeoutError(f"lockstep: the in-repo vehicles of {sorted(set(vehicles) - heard)} did not answer")
+        while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
+            for v in vehicles.values():
+                v.step(T)
+            bridge.tick(t)
+            t += T
+            if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
+                raise TimeoutError(f"lockstep: the vehicles did not all enter OFFBOARD within {LOCKSTEP_OFFBOARD_WITHIN_S:g} s")
+            aborted = next((f"relay {n}: {why}" for n, a in airframes.items() if (why := _left_the_air(a, sc.world.ground_z_m))), None)
+            if aborted or bridge.ended:
+                break
+    finally:
+        bridge.hand_back()
+        for v in vehicles.values():
+            v.step(T)
+        for link in bridge.links.values():
+            link.link.close()
+        for v in vehicles.values():
+            v.link.close()
+    log_df = bridge_frame(bridge.log)
+    return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
+                         bridge_log=log_df, lost_at=stepper.lost_at), log_df
 
 
 def _left_the_air(airframe: Airframe, ground_z_m: float) -> str | None:

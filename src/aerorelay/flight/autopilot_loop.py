@@ -20,7 +20,7 @@ with its last state), every source's acceleration filtered.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -170,14 +170,23 @@ class FleetLoop:
             if name in flying and t - since > self.relays[name].stepper.stale.land_after_s and len(flying) > 1:
                 self.stepper.lose([name], t)
 
-    def _source(self, name: str, m: Measured | None) -> SourceState | None:
+    def reset(self, relay: str) -> None:
+        """Forget the rotor speeds and attitude last commanded to ``relay`` (its autopilot flew it in between)."""
+        old = self.commanded[relay]
+        self.commanded[relay] = CommandedState(self.relays[relay].vehicle.hover_speeds(), measured_attitude=old.measured_attitude)
+
+    def _source(self, name: str, m: Measured | SourceState | None) -> SourceState | None:
+        if isinstance(m, SourceState):  # known with its acceleration (a mission file, a MAVLink source's own estimate)
+            ok = all(np.all(np.isfinite(np.asarray(v, float))) for v in (m.p, m.v, m.a))
+            return m if ok and (m.stamp is None or np.isfinite(m.stamp)) else None
         if m is None or not (np.all(np.isfinite(m.p)) and np.all(np.isfinite(m.v)) and np.isfinite(m.stamp)):
             return None
         return SourceState(m.p, m.v, self.accel[name].update(m.stamp, m.v), stamp=m.stamp)
 
-    def tick(self, t: float, relays: dict[str, Measured | None], sources: dict[str, Measured | None]) -> dict[str, Command] | None:
+    def tick(self, t: float, relays: Mapping[str, Measured | None],
+             sources: Mapping[str, Measured | SourceState | None]) -> dict[str, Command] | None:
         """One control period at ``t`` (s, the mission's clock): every relay's command, or None while the network
-        cannot start (``waiting``)."""
+        cannot start (``waiting``). A source is measured (its acceleration filtered here) or known already."""
         known = {n: self._source(n, sources.get(n)) for n in self.accel}
         src = {n: s for n, s in known.items() if s is not None}
         states: dict[str, np.ndarray] = {}
