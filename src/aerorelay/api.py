@@ -53,10 +53,12 @@ from .experiments.study import Study, StudyError, expand, find_studies
 from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, RotorpyQuadrotor, still_air
 from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
+from .flight.mavlink_fleet import FleetBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.network_controller import NetworkStepper
 from .flight.sources import MavlinkSource
 from .flight.stepper import RelayStepper, StaleSettings
+from .models.mission import source_trajectory
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
@@ -124,22 +126,35 @@ def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale
 
 
 def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None, *,
-         source: bool = False) -> None:
+         source: bool = False, relay: str | None = None) -> None:
     """Run the in-repo MAVLink vehicle (``flight.mavlink_vehicle``: PX4's offboard subset, not PX4) on
     ``url`` in real time, flying ``airframe`` (default: an ideal point mass at the scenario's relay start;
     ``flight.airframes.RotorpyQuadrotor``: RotorPy's quadrotor). ``source``: instead, the inspection drone
-    flying the scenario's mission as MAVLink system 2 (for ``fly``'s ``source_url``)."""
+    flying the scenario's mission as MAVLink system 2 (for ``fly``'s ``source_url``). ``relay``: a network's
+    relay by name: the vehicle starts at its start as MAVLink system ``1 + its index`` (one process per relay)."""
     if source:
         MavlinkVehicle(url, system=2, airframe=MissionFlyer(build_source(sc))).run_realtime(duration_s=duration_s)
         return
-    MavlinkVehicle(url, position=sc.relay_list[0].start, airframe=airframe).run_realtime(duration_s=duration_s)
+    i = relay_index(sc, relay)
+    MavlinkVehicle(url, position=sc.relay_list[i].start, airframe=airframe, system=i + 1).run_realtime(duration_s=duration_s)
 
 
-def plant_airframe(sc: Scenario) -> Airframe:
+def relay_index(sc: Scenario, relay: str | None) -> int:
+    """The index of relay ``relay`` in the scenario (None: the first); a ValueError naming the relays otherwise."""
+    names = [r.name for r in sc.relay_list]
+    if relay is None:
+        return 0
+    if relay not in names:
+        raise ValueError(f"--relay {relay!r}: the scenario's relays are {', '.join(names)}")
+    return names.index(relay)
+
+
+def plant_airframe(sc: Scenario, relay: str | None = None) -> Airframe:
     """aerorelay's own plant for the scenario's relay platform (the tilted hexarotor by default) under a
     multirotor autopilot's cascade at the relay's start (``flight.airframes.MultirotorAirframe``: its
-    thrust stays along body z, as an autopilot flies it)."""
-    return MultirotorAirframe(build_vehicle(sc.platform_of(0)), sc.relay_list[0].start)
+    thrust stays along body z, as an autopilot flies it); ``relay``: a network's relay by name (None: the first)."""
+    i = relay_index(sc, relay)
+    return MultirotorAirframe(build_vehicle(sc.platform_of(i)), sc.relay_list[i].start)
 
 
 def plant_airframes(sc: Scenario) -> dict[str, Airframe]:
@@ -147,12 +162,12 @@ def plant_airframes(sc: Scenario) -> dict[str, Airframe]:
     return {r.name: MultirotorAirframe(build_vehicle(sc.platform_of(i)), r.start) for i, r in enumerate(sc.relay_list)}
 
 
-def rotorpy_airframe(sc: Scenario, params: dict | None = None) -> Airframe:
+def rotorpy_airframe(sc: Scenario, params: dict | None = None, relay: str | None = None) -> Airframe:
     """RotorPy's quadrotor (``params``: a RotorPy parameter dict, default its Hummingbird, as
-    ``scenarios/rotorpy_hummingbird.toml`` models it) at the scenario's relay start, in its ``[wind]``
-    (the same mean, gusts and seed as ``simulate``'s); needs ``pip install 'aerorelay[rotorpy]'``."""
+    ``scenarios/rotorpy_hummingbird.toml`` models it) at the scenario's relay start (``relay``: a network's relay
+    by name), in its ``[wind]`` (the same mean, gusts and seed as ``simulate``'s); needs ``pip install 'aerorelay[rotorpy]'``."""
     wind = wind_field(sc)
-    return RotorpyQuadrotor(sc.relay_list[0].start, params, wind=wind if wind is not None else still_air)
+    return RotorpyQuadrotor(sc.relay_list[relay_index(sc, relay)].start, params, wind=wind if wind is not None else still_air)
 
 
 def fly_lockstep(sc: Scenario, airframe: Airframe | Mapping[str, Airframe], *, setpoint: str = "position",
@@ -192,6 +207,8 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     setpoints the NMPC runs without ``[wind]``'s external-force observer (beside an autopilot's position
     loop it lost RotorPy's quadrotor in a 5 m/s wind: docs/decisions.md)."""
     _flight.check_flyable(sc)
+    if sc.is_network:
+        raise ValueError("fly: a network flies one vehicle per relay: fly_fleet(sc, {relay: url})")
     if out is not None:
         check_output_folder(out, "run")
     # the observer destabilized a position cascade; an autopilot's thrust stays along body z (the guide)
@@ -211,6 +228,39 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     finally:
         df = _flight.bridge_frame(bridge.log)
         result = recording.finish(df, aborted)
+    return result, df
+
+
+def fly_fleet(sc: Scenario, urls: Mapping[str, str], *, arm: bool = False, setpoint: str = "position",
+              duration_s: float | None = None, out: Path | None = None) -> tuple[RunResult | None, pd.DataFrame]:
+    """``fly`` for a network: one MAVLink autopilot per relay (``urls`` by relay name, each its own link and
+    system; ``flight.mavlink_fleet``), the sources from their mission files. A vehicle whose telemetry stops
+    holds, then lands and leaves the network (the others re-plan); the run folder's metrics name it and when
+    (``lost_in_flight``). Returns the flight (None when nothing was flown) and the bridge's log (a row per
+    relay per period)."""
+    _flight.check_flyable(sc)
+    if not sc.is_network:
+        raise ValueError("fly_fleet: the scenario has one relay: fly(sc, url)")
+    for name, url in urls.items():
+        check_mavlink_url(url, f"--mavlink {name}=")
+    if out is not None:
+        check_output_folder(out, "run")
+    ctrl = network_stepper(thrust_along_body_z(sc))
+    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    bridge = FleetBridge(urls, ctrl, sources, arm=arm, setpoint=setpoint)
+    bridge.connect()
+    recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
+    bridge.loop.on_step = recording.hook  # type: ignore[assignment]  # a network's: a FleetStepHook
+    aborted = None
+    try:
+        bridge.run(sc.duration_s if duration_s is None else duration_s)
+        aborted = bridge.ended
+    except KeyboardInterrupt:
+        aborted = "interrupted (Ctrl-C): the vehicles were asked to hold"
+        raise
+    finally:
+        df = _flight.bridge_frame(bridge.log)
+        result = recording.finish(df, aborted, lost_at=ctrl.lost_at)
     return result, df
 
 

@@ -607,6 +607,8 @@ def sitl(
                                  "scenario's [wind]; pip install 'aerorelay[rotorpy]')"),
     source: bool = typer.Option(False, "--source", help="be the inspection drone instead: fly the scenario's source mission "
                                 "as MAVLink system 2 (for aerorelay fly --source-mavlink)"),
+    relay: str = typer.Option(None, "--relay", help="a network's relay by name: start at its start as MAVLink system 1 + "
+                              "its index (one sitl per relay, each on its own --listen)", show_default=False),
 ):
     """Run the in-repo MAVLink vehicle in real time: PX4's offboard subset (heartbeats, arming, modes, the
     offboard rules and timeout, position and attitude telemetry) on an ideal point-mass autopilot, aerorelay's own
@@ -617,16 +619,20 @@ def sitl(
     _check_url(listen, "--listen")
     if airframe not in ("pointmass", "plant", "rotorpy"):
         _fail(f"--airframe must be pointmass, plant or rotorpy, got {airframe!r}")
-    frame = api.plant_airframe(sc) if airframe == "plant" else None
+    try:
+        api.relay_index(sc, relay)
+    except ValueError as exc:
+        _fail(str(exc))
+    frame = api.plant_airframe(sc, relay) if airframe == "plant" else None
     if airframe == "rotorpy":
         try:
-            frame = api.rotorpy_airframe(sc)  # RotorPy: an optional extra, imported when the airframe is made
+            frame = api.rotorpy_airframe(sc, relay=relay)  # RotorPy: an optional extra, imported when the airframe is made
         except ImportError as exc:
             _fail(f"--airframe rotorpy needs RotorPy (pip install 'aerorelay[rotorpy]'): {exc}")
-    console.print(f"vehicle ({'the source, system 2' if source else airframe}) listening on {listen} (Ctrl-C stops)",
-                  markup=False, highlight=False)
+    who = "the source, system 2" if source else airframe + (f", relay {relay}" if relay else "")
+    console.print(f"vehicle ({who}) listening on {listen} (Ctrl-C stops)", markup=False, highlight=False)
     try:
-        api.sitl(sc, listen, duration, airframe=frame, source=source)
+        api.sitl(sc, listen, duration, airframe=frame, source=source, relay=relay)
     except KeyboardInterrupt:
         pass
 
@@ -634,8 +640,9 @@ def sitl(
 @app.command()
 def fly(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
-    mavlink: str = typer.Option(..., "--mavlink", help="the autopilot's MAVLink URL (e.g. udpout:127.0.0.1:14540)",
-                                show_default=False),
+    mavlink: list[str] = typer.Option(..., "--mavlink", help="the autopilot's MAVLink URL (e.g. udpout:127.0.0.1:14540); a "
+                                      "network: one per relay as NAME=URL, repeated (--mavlink r1=udpout:127.0.0.1:14541 "
+                                      "--mavlink r2=udpout:127.0.0.1:14542)", show_default=False),
     arm: bool = typer.Option(False, "--arm", help="arm the vehicle (never without this flag)"),
     setpoint: str = typer.Option("position", "--setpoint", help="position (SET_POSITION_TARGET_LOCAL_NED with velocity and "
                                  "acceleration feed-forward) | attitude (SET_ATTITUDE_TARGET)"),
@@ -652,12 +659,18 @@ def fly(
 ):
     """Fly the relay's controller on a MAVLink autopilot in OFFBOARD: wait for its heartbeat, stream setpoints,
     arm only with --arm, ask for OFFBOARD, step the controller every period; hand back to a hold at the end,
-    on stale telemetry or on Ctrl-C."""
+    on stale telemetry or on Ctrl-C. A network flies one autopilot per relay (--mavlink NAME=URL each)."""
     sc = _load_or_exit(scenario)
     if setpoint not in ("position", "attitude"):
         _fail(f"--setpoint must be position or attitude, got {setpoint!r}")
     _check_duration(duration)
-    _check_url(mavlink, "--mavlink")
+    if sc.is_network:
+        _fly_fleet(sc, mavlink, arm=arm, setpoint=setpoint, duration=duration, out=out, source_mavlink=source_mavlink)
+        return
+    if len(mavlink) != 1 or "=" in mavlink[0].split(":", 1)[0]:
+        _fail("--mavlink: a scenario with one relay flies one autopilot: give its URL once, without a name")
+    url = mavlink[0]
+    _check_url(url, "--mavlink")
     _check_url(source_mavlink, "--source-mavlink")
     try:
         origin = tuple(float(v) for v in source_origin.split(","))
@@ -666,7 +679,7 @@ def fly(
     if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
         _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
     try:
-        result, df = api.fly(sc, mavlink, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
+        result, df = api.fly(sc, url, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
                         source_system=source_system, source_origin=origin)
     except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
         _fail(str(exc))
@@ -677,6 +690,40 @@ def fly(
     flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
     console.print(f"{len(flown)} control periods flown ({int((flown['mode'] == 'nmpc').sum()) if len(flown) else 0} by the NMPC)"
                   + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
+    _exit_if_unsafe(result)
+
+
+def _fly_fleet(sc, mavlink: list[str], *, arm: bool, setpoint: str, duration: float | None, out: Path | None,
+               source_mavlink: str | None) -> None:
+    """``fly`` on a network: one NAME=URL per relay."""
+    names = [r.name for r in sc.relay_list]
+    urls: dict[str, str] = {}
+    for given in mavlink:
+        name, sep, url = given.partition("=")
+        if not sep or name not in names:
+            _fail(f"--mavlink {given!r}: a network needs one NAME=URL per relay, NAME one of {', '.join(names)}")
+        if name in urls:
+            _fail(f"--mavlink: relay {name!r} given twice")
+        _check_url(url, f"--mavlink {name}=")
+        urls[name] = url
+    if set(urls) != set(names):
+        _fail(f"--mavlink: no vehicle for the relays {sorted(set(names) - set(urls))} (one NAME=URL per relay)")
+    if source_mavlink is not None:
+        _fail("--source-mavlink: a network's sources fly their mission files (MAVLink sources fly with one relay so far)")
+    try:
+        result, df = api.fly_fleet(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out)
+    except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
+        _fail(str(exc))
+    except KeyboardInterrupt:
+        console.print("interrupted: the vehicles were asked to hold" + (f"; the flight is in {out}" if out else ""),
+                      markup=False, highlight=False)
+        return
+    flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
+    per = ", ".join(f"{n}: {int((flown['relay'] == n).sum()) if len(flown) else 0}" for n in names)
+    console.print(f"control periods flown per relay ({per})" + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
+    if result is not None and result.metrics.get("lost_in_flight"):
+        console.print("left the network: " + ", ".join(f"{e['relay']} at {e['t_s']:.2f} s" for e in result.metrics["lost_in_flight"]),
+                      markup=False, highlight=False)
     _exit_if_unsafe(result)
 
 

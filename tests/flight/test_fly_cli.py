@@ -57,3 +57,48 @@ def test_fly_names_a_bad_source_origin_before_contacting_a_vehicle():
     result = CliRunner().invoke(app, ["fly", "scenarios/nominal_tilted.toml", "--mavlink", "udpout:127.0.0.1:9",
                                       "--source-mavlink", "udpout:127.0.0.1:10", "--source-origin", "1,2"])
     assert result.exit_code != 0 and "--source-origin must be three finite numbers" in result.output
+
+
+def test_fly_a_chain_of_two_relays_against_two_sitl_vehicles(tmp_path):
+    """A network: one ``aerorelay sitl --relay`` process per relay (each its own port and system id), one
+    ``aerorelay fly --mavlink NAME=URL`` per relay; both flown in OFFBOARD by the fleet's controller, the run
+    folder recording both relays."""
+    ports = {"r1": free_udp_port(), "r2": free_udp_port()}
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    chain = "scenarios/chain_two_relays.toml"
+    vehicles = [subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "sitl", chain, "--relay", r, "--listen",
+                                  f"udpin:127.0.0.1:{p}", "--duration", "40"], env=env, stdout=subprocess.PIPE,
+                                 stderr=subprocess.STDOUT) for r, p in ports.items()]
+    try:
+        for v in vehicles:
+            assert v.stdout is not None
+            end = time.monotonic() + 60.0
+            while b"listening" not in v.stdout.readline() and time.monotonic() < end:
+                pass
+        args = ["fly", chain, "--arm", "--duration", "5", "--out", str(tmp_path)]
+        for r, p in ports.items():
+            args += ["--mavlink", f"{r}=udpout:127.0.0.1:{p}"]
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 0, result.output
+        df = pd.read_parquet(tmp_path / "flight.parquet")
+        for r in ports:
+            mine = df[df["relay"] == r]
+            assert (mine["mode"] == "stream").any() and (mine["mode"] == "nmpc").sum() >= 20, mine["mode"].value_counts()
+            assert mine["armed"].iloc[-1]
+        ts = pd.read_parquet(tmp_path / "timeseries.parquet")
+        assert ts[["r1.p_x", "r2.p_x", "sinr.r1.r2"]].notna().all().all()
+        assert "control periods flown per relay (r1:" in result.output
+    finally:
+        for v in vehicles:
+            v.kill()
+            v.wait()
+
+
+def test_fly_names_a_network_without_a_vehicle_for_every_relay():
+    chain = "scenarios/chain_two_relays.toml"
+    result = CliRunner().invoke(app, ["fly", chain, "--mavlink", "r1=udpout:127.0.0.1:9"])
+    assert result.exit_code != 0 and "no vehicle for the relays ['r2']" in result.output
+    result = CliRunner().invoke(app, ["fly", chain, "--mavlink", "udpout:127.0.0.1:9"])
+    assert result.exit_code != 0 and "one NAME=URL per relay" in result.output
+    result = CliRunner().invoke(app, ["sitl", chain, "--relay", "r9"])
+    assert result.exit_code != 0 and "the scenario's relays are r1, r2" in result.output
