@@ -340,13 +340,17 @@ def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
                                       obstacles=world.obstacles(sc, margin=False))
 
 
+SOURCE_CLEARANCE_MARGIN_M = 0.0  # a goal keeps min_separation_m from the source (more changed the nominal flights)
+
+
 def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> PlannerContext:
     """What a planner is built from: the relay's world view of the scene (no true jammer position or
     power: ``RadioScene.world_view``), MRAV-2's planned path, the vehicle, the workspace."""
     lo, hi = _workspace(sc)
     return PlannerContext(scene=scene.world_view(), source=source, vehicle=vehicle, workspace_min=lo, workspace_max=hi,
                           relay_start=relay_start(sc), duration_s=sc.duration_s, settings=planner_settings(sc),
-                          surrogate_g_bar=sc.antenna.g_bar, obstacles=world.obstacles(sc))
+                          surrogate_g_bar=sc.antenna.g_bar, obstacles=world.obstacles(sc),
+                          source_clearance_m=sc.separation_m + SOURCE_CLEARANCE_MARGIN_M)
 
 
 def planner_settings(sc: Scenario) -> PlannerSettings:

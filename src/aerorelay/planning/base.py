@@ -119,6 +119,7 @@ class PlannerContext:
     settings: PlannerSettings = PlannerSettings()
     surrogate_g_bar: float = 1.0  # G_bar of the generator's surrogate (eq. 12-13)
     obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no position inside is a goal
+    source_clearance_m: float = 0.0  # no goal closer than this to the source (now or as predicted), m
 
 
 class Planner(Protocol):

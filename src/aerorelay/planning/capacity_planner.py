@@ -75,6 +75,7 @@ class CapacityPlanner:
         self.offsets = s.step_m * np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
         self.speed = s.speed_m_s
         self.replan_every, self.leash, self.lookahead = s.replan_every, s.leash_m, s.lookahead_s
+        self.source_clearance = float(ctx.source_clearance_m)
         self.gravity = veh.gravity
         self.source_name = ctx.scene.name_of("source")
         self.obstacles = ctx.obstacles
@@ -130,6 +131,9 @@ class CapacityPlanner:
         cand = np.clip(np.where(n > self.leash, anchor + off * (self.leash / np.maximum(n, 1e-12)), cand), self.lo, self.hi)
         if self.obstacles:  # a candidate inside an obstacle's margin moves to its surface
             cand = np.array([pushed_out(self.obstacles, c) for c in cand])
+        if self.source_clearance > 0:  # never a goal on the source: out of its clearance, now and as predicted
+            for p2 in (np.asarray(inp.p2, float), self._predicted_source(inp)[0]):
+                cand = away_from(cand, p2, self.source_clearance)
         return cand
 
     def _replan(self, inp: PlannerInput):
@@ -205,6 +209,15 @@ def shaper_settings(s, tilt_limit: float, gravity: float) -> ShaperSettings:
     return ShaperSettings(speed_m_s=s.speed_m_s, max_accel_m_s2=s.max_accel_m_s2, brake_accel_m_s2=s.brake_accel_m_s2,
                           accel_tau_s=s.accel_tau_s, axis_rate_deg_s=s.axis_rate_deg_s,
                           tracking_freq_rad_s=s.tracking_freq_rad_s, tilt_limit=tilt_limit, gravity=gravity)
+
+
+def away_from(points: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
+    """``points`` ``(n, 3)`` closer than ``radius`` to ``centre`` moved out to that distance, along the line from
+    it (straight up for a point on it), m."""
+    d = points - centre
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    direction = np.where(n > 1e-9, d / np.maximum(n, 1e-12), np.array([0.0, 0.0, 1.0]))
+    return np.where(n < radius, centre + direction * radius, points)
 
 
 def excursion_point(target: np.ndarray, radius: float, speed: float, t: float, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
