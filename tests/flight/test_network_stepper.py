@@ -9,7 +9,6 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.assembly.parts import build
-from aerorelay.config import ScenarioError
 from aerorelay.flight.network_controller import NetworkStepper
 from aerorelay.models.geometry import rotation_zyx
 from aerorelay.sim.closed_loop import step_count

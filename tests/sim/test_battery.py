@@ -19,7 +19,9 @@ CAPACITY_WH, USABLE, RESERVE, AVIONICS_W = 0.06, 0.9, 0.2, 15.0
 def _flown(duration_s=2.0, capacity_wh=CAPACITY_WH):
     sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={
         "sim.duration_s": duration_s, "platform.battery": {"capacity_wh": capacity_wh, "usable_fraction": USABLE,
-                                                           "reserve_fraction": RESERVE, "avionics_w": AVIONICS_W}})
+                                                           "reserve_fraction": RESERVE, "avionics_w": AVIONICS_W,
+                                                           "go_home": False}})  # holding: the hover's energy (flying home:
+    # tests/sim/test_going_home.py)
     return sc, ar.simulate(sc)
 
 

@@ -44,7 +44,9 @@ from ..planning.base import (
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
 from ..planning.bound_cost import check_bound_cost, network_bound_cost, single_bound_cost
+from ..planning.capacity_planner import shaper_settings
 from ..planning.fleet import NETWORK_PLANNERS, FleetPlanner, NetworkPlannerContext, OneRelayPlanner
+from ..planning.home import HomeSettings
 from ..planning.keep_out import KeepOutFleetPlanner, KeepOutPlanner
 from ..planning.network_bound import (
     NETWORK_BOUND_VERSION,
@@ -470,8 +472,12 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         bat = view.platform.battery
         battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
                                                    bat.avionics_w)
+        home = None if bat is None or not bat.go_home else HomeSettings(
+            landing_m=(r.start[0], r.start[1], float(view.controller.workspace.min[2])),  # home, on the workspace's floor
+            return_speed_m_s=bat.return_speed_m_s, land_speed_m_s=bat.land_speed_m_s)
         relays.append(LoopRelay(name=r.name, vehicle=vehicle, stepper=stepper, start=np.array(r.start, float), battery=battery,
-                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)))
+                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s), home=home,
+                                shaper=shaper_settings(planner_settings(view).capacity, 0.0, vehicle.gravity)))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
     starts = {r.name: r.start for r in relays}
     relay_planner = None

@@ -36,6 +36,10 @@ class BatteryConfig(Strict):
     reserve_fraction: float = Field(0.2, ge=0.0, lt=1.0, description="the share of the usable energy kept to get home: "
                                     "reaching it is logged and timed")
     avionics_w: float = Field(15.0, ge=0.0, le=1e4, description="constant electrical load besides the rotors, W")
+    go_home: bool = Field(True, description="fly home (the relay's start) and land once the energy left is what getting "
+                          "there needs plus the reserve; the relay leaves the network then (the others re-plan)")
+    return_speed_m_s: float = Field(2.0, gt=0.0, le=20.0, description="the speed it flies home at, m/s")
+    land_speed_m_s: float = Field(0.5, gt=0.0, le=5.0, description="the speed it descends at once home, m/s")
 
 
 class PlatformConfig(Strict):

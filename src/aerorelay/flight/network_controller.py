@@ -21,6 +21,8 @@ from ..models.radio import RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from ..planning.fleet import FleetInput, FleetPlanner
+from ..planning.home import HomeSettings
+from ..planning.shaper import ShaperSettings
 from .readings import JammersFromReadings
 from .stepper import Command, RelayStepper, SourceState, checked_source
 
@@ -40,6 +42,8 @@ class LoopRelay:
     plant: ca.Function | None
     start: np.ndarray
     battery: Battery | None = None
+    home: HomeSettings | None = None  # where and how it flies home when its battery says so (None: it does not)
+    shaper: ShaperSettings | None = None  # its reference shaper's limits (for the flight home)
 
     @property
     def controller(self):
@@ -62,7 +66,8 @@ class NetworkController:
     def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner, period_s: float,
                  separation_m: float = 0.0,
                  replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None):
-        self.scene, self.relays, self.planner, self.period = scene, relays, planner, period_s
+        self.scene, self.relays, self.period = scene, relays, period_s
+        self.planner: FleetPlanner | None = planner  # None once no relay is left in the network
         self.separation_m, self.replanner = separation_m, replanner
         self.neighbours_of = route_neighbours(scene)
         self.sources = list(dict.fromkeys(route[0] for route in scene.all_routes))
@@ -83,13 +88,23 @@ class NetworkController:
         if self.replanner is None:
             raise ValueError("network controller: relays are lost but no replanner builds the smaller network's planner")
         self.scene = self.scene.without(lost)
-        self.planner = self.replanner(lost, {n: p for n, p in positions.items() if n not in lost})
+        left = [r.name for r in self.relays if r.name not in lost]
+        # no relay left in the network: the sources reach the base station directly, nothing to plan
+        self.planner = self.replanner(lost, {n: p for n, p in positions.items() if n not in lost}) if left else None
         self.neighbours_of = route_neighbours(self.scene)
+
+    def neighbours(self, relay: str) -> tuple[str, str]:
+        """A relay's two neighbours on its first route; a relay out of the network (flying home) has none: the
+        base station stands for both."""
+        return self.neighbours_of.get(relay, (self.bs_name, self.bs_name))
 
     def plan(self, t: float, x: Mapping[str, np.ndarray], sources: Mapping, jammers) -> dict[str, Reference]:
         """The network planner's references from the flying relays' states ``x`` and the ``sources`` as known
         (``p``, ``v``, ``a``; their attitudes follow their accelerations), ``jammers`` ``(positions, powers, std)``."""
         pj, powers, std = jammers
+        if self.planner is None:
+            self.planner_ms = 0.0
+            return {}
         eta = {**{n: xs[3:6] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in sources.items()}}
         t0 = time.perf_counter()
         refs = self.planner.update(FleetInput(
@@ -120,12 +135,12 @@ class NetworkController:
     def parameters(self, r: LoopRelay, ref: Reference, predicted: Mapping[str, np.ndarray], lost: frozenset[str],
                    a_ext: np.ndarray | None) -> np.ndarray:
         """Relay ``r``'s stage parameters on ``ref``: its neighbours on its route, the other vehicles' plans."""
-        up, down = self.neighbours_of[r.name]
+        up, down = self.neighbours(r.name)
         others = None
         if r.controller.spec.neighbours:
             gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
             others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
-        return r.stepper.parameters(ref, p2_path=predicted[up], p0_path=predicted.get(down, self.bs_path), others=others,
+        return r.stepper.parameters(ref, p2_path=predicted.get(up, self.bs_path), p0_path=predicted.get(down, self.bs_path), others=others,
                                     separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
 
 

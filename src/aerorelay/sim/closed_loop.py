@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from itertools import combinations
 
 import casadi as ca
 import numpy as np
@@ -29,6 +30,7 @@ from ..models.radio import RadioScene
 from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetPlanner
+from ..planning.home import HomeFlight, extra_time_s
 from .air import Air
 from .blockage import Blockage
 from .exit_status import ExitStatus
@@ -201,21 +203,26 @@ class ClosedLoop:
                                          separation_m=separation_m, replanner=replanner)
         self.sensing, self.air = sensing, air
         self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
-        later = [h for _, lost in self.losses for h in scene.without(lost).hops]
+        # the networks it may fly: after each scheduled loss, and with any relay that may fly home out of it
+        homing = [r.name for r in relays if r.home is not None and r.battery is not None]
+        scheduled: list[frozenset[str]] = [frozenset()] + [lost for _, lost in self.losses]
+        self.potential = [lost | set(sub) for lost in scheduled for k in range(len(homing) + 1)
+                          for sub in combinations(homing, k)][1:]
+        later = [h for lost in self.potential for h in scene.without(lost).hops]
         self.columns = log_columns({r.name: r.vehicle.n_rotors for r in relays}, list(sources), scene, later)
         # the plant's random channel terms on every link the network takes, before and after each loss (each its
         # own draw, shadowing along each link's own geometry), unknown to the planners and NMPCs; logged per link
         # (sim/perturbations.py); each step the links of the network flying then are applied
-        self.perturbations = settings.link_perturbations(every_link(scene, [lost for _, lost in self.losses]))
+        self.perturbations = settings.link_perturbations(every_link(scene, self.potential))
         self._links_now = self.perturbations.layout(scene)  # the fading links of the network flying now
         self.columns += self.perturbations.columns
         if self.blockage is not None:
-            self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
+            self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for lost in self.potential))
                                                    for c in self.blockage.columns(s)))
             self.columns += self.nlos_columns
         self.traced = traced
         if traced is not None:
-            self.traced_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for _, lost in self.losses))
+            self.traced_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for lost in self.potential))
                                                      for c in traced.columns(s)))
             self.columns += self.traced_columns
         if sensing is not None:
@@ -224,9 +231,12 @@ class ClosedLoop:
             self.columns += air.wind_columns() + [c for r in relays for c in air.columns(r.name, f"{r.name}.")]
         # each relay with a battery: its state of charge at the step's start and whether it reached its reserve
         self.battery_columns = [c for r in relays if r.battery is not None for c in (f"{r.name}.soc", f"{r.name}.battery_reserve")]
+        # and, when it may fly home, whether it has turned home (it has then left the network)
+        self.battery_columns += [f"{n}.going_home" for n in homing]
         self.columns += self.battery_columns
         # what the network knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
         self.csi_rng = generator(settings.seed, "csi")
+        self.hover_w = {r.name: float(r.vehicle.shaft_power(r.vehicle.hover_speeds())) for r in relays}  # W, for the way home
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
         self.bs_name, self.bs, self.gravity = self.control.bs_name, self.control.bs, self.control.gravity
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
@@ -264,6 +274,25 @@ class ClosedLoop:
         self.scene = self.control.scene
         self._links_now = self.perturbations.layout(self.scene)
 
+    def _go_home(self, drawn: dict[str, float], x: dict[str, np.ndarray], flying: Mapping[str, np.ndarray],
+                 homing: dict[str, HomeFlight], gone: frozenset[str]) -> None:
+        """Each relay in the network whose battery's energy left is what getting home needs plus the reserve
+        (``models.battery``) turns home: it leaves the network (the others re-plan) and flies home to land."""
+        turned = []
+        for r in self.relays:
+            if r.home is None or r.battery is None or r.name not in flying or r.name in homing:
+                continue
+            p = x[r.name][0:3]
+            home = np.asarray(r.home.landing_m, float)
+            assert r.shaper is not None
+            need = r.battery.energy_home_j(float(np.linalg.norm(p[0:2] - home[0:2])), float(p[2] - home[2]), self.hover_w[r.name],
+                                           r.home.return_speed_m_s, r.home.land_speed_m_s, extra_time_s(r.home, r.shaper))
+            if r.battery.must_go_home(drawn[r.name], need):
+                homing[r.name] = HomeFlight(r.home, r.shaper, p, x[r.name][6:9])
+                turned.append(r.name)
+        if turned:
+            self._lose(gone | set(homing), x)
+
     @property
     def planner(self):
         return self.control.planner
@@ -290,6 +319,8 @@ class ClosedLoop:
         log = new_log(self.columns, n_steps)
         sinr_columns = [c for c in self.columns if c.startswith(("sinr.", "se."))]
         pending, lost = list(self.losses), frozenset[str]()
+        homing: dict[str, HomeFlight] = {}  # relays flying home (out of the network), their flights
+        landed: set[str] = set()  # relays home and down: out of the flight
         wall0 = time.perf_counter()
         aborted, flown, exit_status = None, n_steps, None
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
@@ -297,8 +328,9 @@ class ClosedLoop:
                 t = k * period
                 while pending and t >= pending[0][0] - 1e-9:
                     lost = pending.pop(0)[1]
-                    self._lose(lost, x)
-                flying = {n: xs for n, xs in x.items() if n not in lost}
+                    self._lose(lost | landed | set(homing), x)
+                gone = lost | landed
+                flying = {n: xs for n, xs in x.items() if n not in gone}
                 truth = {name: path.state(t) for name, path in self.sources.items()}
                 src = self._known_sources(truth)  # over the optical links, with CSI noise
                 pj, powers, std = self._known_jammers(t)
@@ -306,7 +338,8 @@ class ClosedLoop:
                     self.air.begin()
                 eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in truth.items()}}
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
-                refs = self.control.plan(t, flying, src, (pj, powers, std))
+                refs = self.control.plan(t, {n: xs for n, xs in flying.items() if n not in homing}, src, (pj, powers, std))
+                refs |= {n: home.reference(period, x[n][0:3], x[n][6:9]) for n, home in homing.items() if n in flying}
                 self.planner_ms.append(self.control.planner_ms)
                 row: dict[str, object] = {"t": t}
                 predicted = self.control.predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
@@ -314,21 +347,22 @@ class ClosedLoop:
                                   self.bs_name: self.bs}
                 inputs = {}
                 for r in self.relays:
-                    if r.name in lost:
+                    if r.name in gone:
                         row |= gone_row(r.name, r.vehicle.n_rotors)
                         if self.air is not None:
                             row |= dict.fromkeys(self.air.columns(r.name, f"{r.name}."), math.nan)
                         continue
-                    info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, lost)
+                    info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, gone)
                     inputs[r.name] = info.u
-                    up, down = self.control.neighbours_of[r.name]
+                    up, down = self.control.neighbours(r.name)
                     row |= relay_row(r.name, x[r.name], R[r.name], info, refs[r.name], true_positions[up],
                                      true_positions[down], bool(r.controller.last_violations))
                     if self.air is not None:
                         row |= self.air.values(r.name, x[r.name], f"{r.name}.")
                 for name, s in truth.items():
                     row |= source_row(name, s.p, eta[name])
-                poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R}
+                in_scene = {nd.name for nd in self.scene.nodes}  # a relay flying home has left the network's scene
+                poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R if n in in_scene}
                 gains = None
                 if self.perturbations.active:  # fading and shadowing on every link, each its own
                     velocities = {**{n: xs[6:9] if n in flying else np.zeros(3) for n, xs in x.items()},
@@ -355,20 +389,24 @@ class ClosedLoop:
                     row |= self.air.wind_values()
                 for r in self.relays:
                     if r.battery is not None:
-                        soc = r.battery.state_of_charge(drawn[r.name]) if r.name not in lost else math.nan
+                        soc = r.battery.state_of_charge(drawn[r.name]) if r.name not in gone else math.nan
                         row |= {f"{r.name}.soc": soc, f"{r.name}.battery_reserve": bool(soc <= r.battery.reserve_fraction)}
-                        if r.name not in lost:
+                        if r.home is not None:
+                            row[f"{r.name}.going_home"] = r.name in homing
+                        if r.name not in gone:
                             drawn[r.name] += r.battery.draw(float(r.vehicle.shaft_power(x[r.name][12:])), period)
                 record_row(log, k, row, self.columns)
+                self._go_home(drawn, x, flying, homing, gone)
                 for r in self.relays:
-                    if r.name not in lost:
+                    if r.name not in gone:
                         d = self._process_noise(r.name)
                         if self.air is not None:
                             x[r.name] = self.air.advance(r.name, x[r.name], inputs[r.name], d)
                         else:
                             assert r.plant is not None  # checked in __init__
                             x[r.name] = np.asarray(r.plant(x[r.name], inputs[r.name], d)).ravel()
-                bad = [n for n, xs in x.items() if n not in lost and not np.all(np.isfinite(xs))]
+                landed |= {n for n, home in homing.items() if n not in landed and home.landed(x[n][0:3])}
+                bad = [n for n, xs in x.items() if n not in gone and not np.all(np.isfinite(xs))]
                 if bad:  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1
                     exit_status = ExitStatus.NON_FINITE.value

@@ -20,7 +20,8 @@ distance between two vehicles); each jammer's true position ``jam_<name>_x/y/z``
 channel terms, blockage, jammer estimate and wind add their own columns (``sim/perturbations.py``,
 ``sim/blockage.py``, ``sim/jammer_sensing.py``, ``sim/air.py``: a relay's are ``<relay>.a_drag_x``...); a relay
 with a battery (``[platform.battery]``) its state of charge at the step's start ``<relay>.soc`` (the usable
-energy left, fraction) and ``<relay>.battery_reserve`` (at or below its reserve).
+energy left, fraction) and ``<relay>.battery_reserve`` (at or below its reserve), and when it may fly home
+``<relay>.going_home`` (it has turned home and left the network; its columns are NaN once it is down).
 
 Run folders written before this vocabulary (one relay: ``p1_x``, ``gamma_21``...) are read through
 ``LEGACY_COLUMNS`` (``modern_columns``).
@@ -44,7 +45,8 @@ RELAY_STEP = ("pd_x", "pd_y", "pd_z", "v_up", "v_down", "mutual_alignment", "sla
               "qp_status", "fallback", "safety_violation", "taylor_rel_err")
 # the quantities that are not floats, with their types (flags and the QP's status text)
 COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool,
-                                 "safety_violation": bool, "battery_reserve": bool}
+                                 "safety_violation": bool, "battery_reserve": bool,
+                                 "going_home": bool}
 NETWORK_COLUMNS = ("capacity", "jammer_on", "separation_min")
 
 

@@ -207,15 +207,25 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
 
 def battery_metrics(log, name: str) -> dict:
     """With a battery (``<relay>.soc``): its state of charge at the last step flown (``soc_final_fraction``) and,
-    when it reached its reserve, the first time it did (``battery_reserve_first_s``, s)."""
+    when it reached its reserve, the first time it did (``battery_reserve_first_s``, s); when it flew home, when it
+    turned (``went_home_at_s``), landed (``landed_at_s``) and its state of charge then (``soc_landed_fraction``)."""
     if f"{name}.soc" not in log:
         return {}
     soc = np.asarray(log[f"{name}.soc"], float)
     flew = np.isfinite(soc)
     out = {"soc_final_fraction": float(soc[flew][-1]) if flew.any() else math.nan}
     reserve = np.asarray(log[f"{name}.battery_reserve"], bool) & flew
+    t = np.asarray(log["t"], float)
     if reserve.any():
-        out["battery_reserve_first_s"] = float(np.asarray(log["t"], float)[np.argmax(reserve)])
+        out["battery_reserve_first_s"] = float(t[np.argmax(reserve)])
+    home = np.asarray(log.get(f"{name}.going_home", np.zeros(t.size, bool)), bool)
+    if home.any():  # it turned home (and left the network), and once down it left the flight
+        k = int(np.argmax(home))
+        out["went_home_at_s"] = float(t[k])
+        down = ~flew & (np.arange(t.size) > k)
+        if down.any():
+            out["landed_at_s"] = float(t[np.argmax(down)])
+            out["soc_landed_fraction"] = float(soc[np.argmax(down) - 1])
     return out
 
 

@@ -1,0 +1,63 @@
+"""A relay flying home to land (its battery's energy left is what getting home needs plus the reserve:
+``models/battery.py``): level at its return speed to above its home, then straight down at its landing
+speed to its landing point, through the one reference shaper (``planning/shaper.py``: speed, braking on
+the goal, bounded acceleration), level-only (no antenna axis to hold: it has left the network)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .shaper import ReferenceShaper, ShaperSettings
+from .trajectory_generator import Reference
+
+LANDED_WITHIN_M = 0.3  # the relay is down once its reference is on the landing point and it is this close to it
+SETTLE_S = 2.0  # the relay's lag behind its reference at the landing point (the chain's relay: 1.2 s measured, 2026-12-05)
+
+
+@dataclass(frozen=True)
+class HomeSettings:
+    """Where a relay lands (m, world: its home's x, y and the landing height) and how fast it gets there
+    (m/s: level, then down)."""
+
+    landing_m: tuple[float, float, float]
+    return_speed_m_s: float
+    land_speed_m_s: float
+
+
+def extra_time_s(settings: HomeSettings, shaper: ShaperSettings) -> float:
+    """What the way home takes beyond ``d / v_home + h / v_land`` (s): speeding up to the return speed and braking
+    from it (``v / 2a`` each), braking the descent, and ``SETTLE_S`` for the relay to follow its reference down."""
+    brake = min(shaper.brake_accel_m_s2, shaper.max_accel_m_s2)
+    v, w = settings.return_speed_m_s, settings.land_speed_m_s
+    return v / (2.0 * shaper.max_accel_m_s2) + v / (2.0 * brake) + w / (2.0 * brake) + SETTLE_S
+
+
+class HomeFlight:
+    """``reference(dt, p1, v1)`` each control step from where the relay turned home (``p0`` m, ``v0`` m/s);
+    ``landed(p1)`` once it is down (see the module)."""
+
+    def __init__(self, settings: HomeSettings, shaper: ShaperSettings, p0: np.ndarray, v0: np.ndarray):
+        self.settings = settings
+        self.shaper = ReferenceShaper(replace(shaper, speed_m_s=settings.return_speed_m_s, tilt_limit=0.0))
+        self.shaper.p_ref, self.shaper.v_ref = np.asarray(p0, float).copy(), np.asarray(v0, float).copy()
+        self.down = np.asarray(settings.landing_m, float)
+        self.above = np.array([self.down[0], self.down[1], max(float(p0[2]), float(self.down[2]))])
+        self.phase = "return"  # return (level, toward above home), descend
+
+    def reference(self, dt: float, p1: np.ndarray, v1: np.ndarray) -> Reference:
+        sh = self.shaper
+        assert sh.p_ref is not None
+        if self.phase == "return" and float(np.linalg.norm(sh.p_ref - self.above)) < 1e-6:
+            self.phase = "descend"
+            sh.speed = self.settings.land_speed_m_s
+        goal = self.above if self.phase == "return" else self.down
+        v_ref = sh.advance(goal, dt)
+        return Reference(p_opt=goal.copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref, a_ref=sh.acceleration(p1, v1, None), axis=None)
+
+    def landed(self, p1: np.ndarray) -> bool:
+        """Whether the relay is down: its reference on the landing point and itself within ``LANDED_WITHIN_M`` of it."""
+        assert self.shaper.p_ref is not None
+        return (self.phase == "descend" and float(np.linalg.norm(self.shaper.p_ref - self.down)) < 1e-6
+                and float(np.linalg.norm(np.asarray(p1, float) - self.down)) < LANDED_WITHIN_M)
