@@ -58,7 +58,7 @@ from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.network_controller import NetworkStepper
 from .flight.sources import MavlinkSource
 from .flight.stepper import RelayStepper, StaleSettings
-from .models.mission import source_trajectory
+from .models.mission import SourceTrajectory, source_trajectory
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
@@ -172,14 +172,17 @@ def rotorpy_airframe(sc: Scenario, params: dict | None = None, relay: str | None
 
 def fly_lockstep(sc: Scenario, airframe: Airframe | Mapping[str, Airframe], *, setpoint: str = "position",
                  duration_s: float | None = None,
-                 telemetry_lost: Callable[[str, float], bool] | None = None) -> tuple[RunResult, pd.DataFrame]:
+                 telemetry_lost: Callable[[str, float], bool] | None = None,
+                 source_airframes: Mapping[str, Airframe] | None = None) -> tuple[RunResult, pd.DataFrame]:
     """Fly the scenario's relay controller through the MAVLink bridge on the in-repo vehicle flying
     ``airframe`` (``rotorpy_airframe(sc)``, or ``flight.airframes.PointMass``), over UDP on localhost in
     lockstep: the flight as ``simulate``'s result (``save`` writes the run folder with figures and MCAP)
     and the bridge's log (docs/guide/flying.md). With position setpoints the NMPC runs without ``[wind]``'s
     external-force observer, as ``fly`` does. A network: ``airframe`` maps every relay's name to its vehicle's
     airframe (``plant_airframes(sc)``), each its own MAVLink system on its own link, the fleet's bridge flying them
-    all (``flight.mavlink_fleet``); ``telemetry_lost(relay, t)`` drops a relay's telemetry at bridge time ``t``."""
+    all (``flight.mavlink_fleet``); ``telemetry_lost(relay, t)`` drops a relay's telemetry at bridge time ``t``;
+    ``source_airframes`` (``flight.airframes.MissionFlyer`` by source name) flies those sources as further MAVLink
+    systems the bridge reads."""
     if setpoint not in ("position", "attitude"):
         raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
     if sc.is_network:
@@ -187,7 +190,7 @@ def fly_lockstep(sc: Scenario, airframe: Airframe | Mapping[str, Airframe], *, s
             raise ValueError("fly_lockstep: a network needs one airframe per relay, {relay name: airframe} "
                              "(ar.plant_airframes(sc))")
         return _flight.fly_lockstep_fleet(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views,
-                                          telemetry_lost=telemetry_lost)
+                                          telemetry_lost=telemetry_lost, source_airframes=source_airframes)
     if isinstance(airframe, Mapping):
         raise ValueError("fly_lockstep: one relay flies one airframe (a mapping is for a network's relays)")
     return _flight.fly_lockstep(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views)
@@ -232,9 +235,11 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
 
 
 def fly_fleet(sc: Scenario, urls: Mapping[str, str], *, arm: bool = False, setpoint: str = "position",
-              duration_s: float | None = None, out: Path | None = None) -> tuple[RunResult | None, pd.DataFrame]:
+              duration_s: float | None = None, out: Path | None = None,
+              source_urls: Mapping[str, str] | None = None) -> tuple[RunResult | None, pd.DataFrame]:
     """``fly`` for a network: one MAVLink autopilot per relay (``urls`` by relay name, each its own link and
-    system; ``flight.mavlink_fleet``), the sources from their mission files. A vehicle whose telemetry stops
+    system; ``flight.mavlink_fleet``), the sources from their mission files or, for those in ``source_urls`` (by
+    source name), as MAVLink systems on those links (any system that reports there). A vehicle whose telemetry stops
     holds, then lands and leaves the network (the others re-plan); the run folder's metrics name it and when
     (``lost_in_flight``). Returns the flight (None when nothing was flown) and the bridge's log (a row per
     relay per period)."""
@@ -245,8 +250,14 @@ def fly_fleet(sc: Scenario, urls: Mapping[str, str], *, arm: bool = False, setpo
         check_mavlink_url(url, f"--mavlink {name}=")
     if out is not None:
         check_output_folder(out, "run")
+    known = [s.name for s in sc.source_list]
+    for name, url in (source_urls or {}).items():
+        if name not in known:
+            raise ValueError(f"--source-mavlink {name}=: the scenario's sources are {', '.join(known)}")
+        check_mavlink_url(url, f"--source-mavlink {name}=")
     ctrl = network_stepper(thrust_along_body_z(sc))
-    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    sources: dict[str, SourceTrajectory | MavlinkSource] = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    sources |= {name: MavlinkSource(url) for name, url in (source_urls or {}).items()}
     bridge = FleetBridge(urls, ctrl, sources, arm=arm, setpoint=setpoint)
     bridge.connect()
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)

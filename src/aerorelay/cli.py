@@ -650,8 +650,9 @@ def fly(
                                    show_default=False),
     out: Path = typer.Option(None, "--out", help="write the flight's run folder here (timeseries.parquet, metrics.json, "
                              "figures, run.mcap, flight.parquet: the bridge's log)", show_default=False),
-    source_mavlink: str = typer.Option(None, "--source-mavlink", help="read the source (inspection drone) as a second MAVLink "
-                                       "system on this URL (default: its mission file)", show_default=False),
+    source_mavlink: list[str] = typer.Option(None, "--source-mavlink", help="read the source (inspection drone) as a second "
+                                             "MAVLink system on this URL (default: its mission file); a network: NAME=URL per "
+                                             "source read so, repeated", show_default=False),
     source_system: int = typer.Option(None, "--source-system", min=1, max=255, help="the source's MAVLink system id "
                                       "(default: any on --source-mavlink)", show_default=False),
     source_origin: str = typer.Option("0,0,0", "--source-origin", help="where the source's local frame's origin lies in the "
@@ -671,7 +672,10 @@ def fly(
         _fail("--mavlink: a scenario with one relay flies one autopilot: give its URL once, without a name")
     url = mavlink[0]
     _check_url(url, "--mavlink")
-    _check_url(source_mavlink, "--source-mavlink")
+    if source_mavlink and len(source_mavlink) > 1:
+        _fail("--source-mavlink: a scenario with one relay reads one source: give its URL once")
+    source_url = source_mavlink[0] if source_mavlink else None
+    _check_url(source_url, "--source-mavlink")
     try:
         origin = tuple(float(v) for v in source_origin.split(","))
     except ValueError:
@@ -679,7 +683,7 @@ def fly(
     if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
         _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
     try:
-        result, df = api.fly(sc, url, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_mavlink,
+        result, df = api.fly(sc, url, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_url,
                         source_system=source_system, source_origin=origin)
     except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
         _fail(str(exc))
@@ -694,7 +698,7 @@ def fly(
 
 
 def _fly_fleet(sc, mavlink: list[str], *, arm: bool, setpoint: str, duration: float | None, out: Path | None,
-               source_mavlink: str | None) -> None:
+               source_mavlink: list[str] | None) -> None:
     """``fly`` on a network: one NAME=URL per relay."""
     names = [r.name for r in sc.relay_list]
     urls: dict[str, str] = {}
@@ -708,10 +712,14 @@ def _fly_fleet(sc, mavlink: list[str], *, arm: bool, setpoint: str, duration: fl
         urls[name] = url
     if set(urls) != set(names):
         _fail(f"--mavlink: no vehicle for the relays {sorted(set(names) - set(urls))} (one NAME=URL per relay)")
-    if source_mavlink is not None:
-        _fail("--source-mavlink: a network's sources fly their mission files (MAVLink sources fly with one relay so far)")
+    sources: dict[str, str] = {}
+    for given in source_mavlink or []:
+        name, sep, url = given.partition("=")
+        if not sep:
+            _fail(f"--source-mavlink {given!r}: a network's sources are given as NAME=URL (the others fly their mission files)")
+        sources[name] = url
     try:
-        result, df = api.fly_fleet(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out)
+        result, df = api.fly_fleet(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_urls=sources)
     except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:

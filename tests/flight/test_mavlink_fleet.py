@@ -61,3 +61,22 @@ def test_a_short_telemetry_gap_holds_and_the_vehicle_takes_offboard_back():
     modes = _events(log, "r1")
     assert "hold" in modes and "land" not in modes and modes[-1] in ("nmpc", "fallback")
     assert "lost_in_flight" not in flown.metrics and not flown.metrics["unsafe"]
+
+
+def test_the_inspector_as_a_third_mavlink_system_is_flown_on_its_reports(chain):
+    """The chain's inspector as a further in-repo vehicle (MissionFlyer: its mission, system 3 on its own link):
+    the relays fly on its reports, which are where its path puts it, and the rate is the mission file's."""
+    from aerorelay.assembly.parts import build
+    from aerorelay.flight.airframes import MissionFlyer
+
+    sc, flown_file, _, _ = chain
+    path = build(sc).sources["inspector"]
+    flown, log = ar.fly_lockstep(sc, ar.plant_airframes(sc), source_airframes={"inspector": MissionFlyer(path)})
+    df = flown.timeseries
+    assert not flown.metrics["unsafe"] and (df["flight_mode"] == "nmpc").mean() > 0.95
+    p = df[["inspector.p_x", "inspector.p_y", "inspector.p_z"]].to_numpy()
+    t0 = log.loc[log["mode"] != "stream", "t"].iloc[0]
+    want = np.array([path.state(tm + t0 + sc.control_period_s).p for tm in df["t"]])
+    assert np.max(np.linalg.norm(p - want, axis=1)) < 0.05  # its report one step on, as for one relay
+    a, b = df["capacity"].to_numpy(), flown_file.timeseries["capacity"].to_numpy()
+    assert a.mean() == pytest.approx(b.mean(), rel=0.01)

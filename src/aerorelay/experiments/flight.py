@@ -234,13 +234,16 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
 
 def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpoint: str = "position",
                        duration_s: float | None = None, views: Callable[[RunResult, Path], None] | None = None,
-                       telemetry_lost: Callable[[str, float], bool] | None = None) -> tuple[RunResult, pd.DataFrame]:
+                       telemetry_lost: Callable[[str, float], bool] | None = None,
+                       source_airframes: Mapping[str, Airframe] | None = None) -> tuple[RunResult, pd.DataFrame]:
     """``fly_lockstep`` for a network: every relay's controller through the fleet's MAVLink bridge
     (``flight.mavlink_fleet.FleetBridge``) on one in-repo vehicle per relay (``airframes`` by relay name, each its
     own UDP link and system id 1, 2, ...), the sources from their missions. ``telemetry_lost(relay, t)``: the
     relay's telemetry does not reach the bridge at bridge time ``t`` (a link dropped; its setpoints still reach
-    the vehicle). Returns the flight as ``ar.simulate``'s result (the relays that left the network and when in
-    ``lost_in_flight``; the bridge's events in ``aborted`` only when every vehicle left) and the bridge's log."""
+    the vehicle). ``source_airframes`` (e.g. ``flight.airframes.MissionFlyer`` by source name): those sources are
+    further in-repo vehicles (system ids after the relays', each its own link), read as MAVLink systems. Returns
+    the flight as ``ar.simulate``'s result (the relays that left the network and when in ``lost_in_flight``; the
+    bridge's events in ``aborted`` only when every vehicle left) and the bridge's log."""
     check_flyable(sc)
     stepper = network_stepper(thrust_along_body_z(sc))  # an autopilot's thrust stays along body z (every relay)
     rec, hook = fleet_recorder(sc, stepper)
@@ -251,9 +254,18 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
     ports = {n: free_udp_port() for n in stepper.relays}
     vehicles = {n: MavlinkVehicle(f"udpin:127.0.0.1:{ports[n]}", settings=VehicleSettings(telemetry_hz=1.0 / T), system=i + 1,
                                   airframe=airframes[n]) for i, n in enumerate(stepper.relays)}
-    sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    sources: dict[str, SourceTrajectory | MavlinkSource] = {s.name: source_trajectory(s.mission) for s in sc.source_list}
+    source_vehicles = []
+    for i, (name, frame) in enumerate((source_airframes or {}).items()):
+        if name not in sources:
+            raise ValueError(f"fly_lockstep: no source {name!r} ({', '.join(sources)})")
+        port, system = free_udp_port(), len(vehicles) + 1 + i
+        source_vehicles.append(MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T),
+                                              system=system, airframe=frame))
+        sources[name] = MavlinkSource(f"udpout:127.0.0.1:{port}", system=system)
     bridge = FleetBridge({n: f"udpout:127.0.0.1:{p}" for n, p in ports.items()}, stepper, sources, arm=True,
                          setpoint=setpoint, on_step=hook)
+    everyone = [*vehicles.values(), *source_vehicles]
     if telemetry_lost is not None:
         for name, link in bridge.links.items():
             read = link._read
@@ -273,14 +285,14 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
             for n, link in bridge.links.items():
                 if n not in heard:
                     link.announce()
-            for v in vehicles.values():
+            for v in everyone:
                 v.step(T)
             heard |= {n for n, link in bridge.links.items() if n not in heard and link.heard_vehicle()}
             t += T
             if t > LOCKSTEP_OFFBOARD_WITHIN_S:
                 raise TimeoutError(f"lockstep: the in-repo vehicles of {sorted(set(vehicles) - heard)} did not answer")
         while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
-            for v in vehicles.values():
+            for v in everyone:
                 v.step(T)
             bridge.tick(t)
             t += T
@@ -295,7 +307,10 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
             v.step(T)
         for link in bridge.links.values():
             link.link.close()
-        for v in vehicles.values():
+        for src in bridge.sources.values():
+            if isinstance(src, MavlinkSource):
+                src.link.close()
+        for v in everyone:
             v.link.close()
     log_df = bridge_frame(bridge.log)
     return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
