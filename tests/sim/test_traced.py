@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import aerorelay as ar
 from aerorelay.assembly import load_scenario, parse_scenario
 from aerorelay.assembly.load import updated
 from aerorelay.assembly.parts import build, build_scene
@@ -95,3 +96,16 @@ def test_an_unknown_scene_is_named_before_any_work():
     with pytest.raises(ScenarioError, match=r"channel\.propagation\.scene: .*no scene 'atlantis'"):
         updated(parse_scenario({}), {**PHYSICAL, "channel.propagation.model": "ray_traced",
                                      "channel.propagation.scene": "atlantis"})
+
+
+@needs_rt
+def test_a_fleet_flies_on_the_traced_channel_as_one_relay_does():
+    """The two-relay chain in an empty scene: every hop's SINR and the network's rate as in free space (the traced
+    line of sight carried between traces exactly), its three hops and the jammer's links traced in one call."""
+    chain = ar.load_scenario(ROOT / "scenarios" / "chain_two_relays.toml").with_updates({"sim.duration_s": 1.0})
+    free = build(chain).closed_loop().run().log
+    loop = build(chain.with_updates({"channel.propagation.model": "ray_traced", "channel.propagation.scene": "empty"})).closed_loop()
+    traced = loop.run().log
+    for col in ("sinr.inspector.r1", "sinr.r1.r2", "sinr.r2.bs", "capacity"):
+        np.testing.assert_allclose(traced[col], free[col], rtol=1e-5)
+    assert loop.traced is not None and loop.traced.traces == 4  # 1 s at one trace per 0.25 s
