@@ -232,6 +232,12 @@ def battery_metrics(log, name: str) -> dict:
 NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses")  # the network's, not a relay's
 
 
+def _mean_taken(values: np.ndarray) -> float:
+    """The mean over the steps a hop was taken (NaN when never: a hop of a network flown only after a loss)."""
+    taken = values[np.isfinite(values)]
+    return float(taken.mean()) if taken.size else math.nan
+
+
 def traced_metrics(log) -> dict:
     """A ray-traced channel's (``sim/traced.py`` columns): per hop (by ``<tx>-><rx>``) the RMS delay spread's
     mean over the steps (``delay_spread_ns``) and the valid paths' (``paths_mean``), and over every hop and
@@ -273,7 +279,7 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
                  "outage_fraction": float(np.mean(cap < outage_threshold)), **outage_durations(cap < outage_threshold, period_s)}
     out["routes"] = {s: {"c_min": float(c.min()), "c_mean": float(c.mean()), "outage_fraction": float(np.mean(c < outage_threshold))}
                      for s in sources for c in [np.asarray(log[f"capacity.{s}"], float)]}
-    out["se_mean"] = {c[3:].replace(".", "->", 1): float(np.nanmean(np.asarray(log[c], float))) for c in log if c.startswith("se.")}
+    out["se_mean"] = {c[3:].replace(".", "->", 1): _mean_taken(np.asarray(log[c], float)) for c in log if c.startswith("se.")}
     if losses:
         t = np.asarray(log["t"], float)
         out["losses"] = [{"t_s": float(tl), "relays": sorted(lost)} for tl, lost in losses]
