@@ -187,7 +187,16 @@ def _missions(sc: Scenario) -> list[tuple[str, MissionConfig]]:
 
 def _ray_traced_physics(sc: Scenario) -> None:
     """A ray-traced channel gives physical path gains (m, Hz): physical units; its blockage comes from the
-    scene's geometry, not from obstacles' fixed losses."""
+    scene's geometry, not from obstacles' fixed losses. Traced scoring needs a traced channel."""
+    traced_scoring = [f for f, c in (("controller", sc.controller), *((f"relays[{i}].controller", sc.controller_of(i))
+                                                                      for i in range(len(sc.relay_list))))
+                      if c.capacity.scoring == "traced"]
+    if traced_scoring and sc.channel.propagation.model != "ray_traced":
+        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores candidates on the ray-traced channel: "
+                         "set channel.propagation.model = 'ray_traced' (and its scene)")
+    if traced_scoring and sc.is_network:
+        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores one relay's candidates (a network's "
+                         "fleet planner scores on free space so far)")
     if sc.channel.propagation.model != "ray_traced":
         return
     if not sc.channel.physical:

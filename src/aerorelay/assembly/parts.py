@@ -8,6 +8,7 @@ it) and shared by the planner, the controller, the plant and the bound.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -29,7 +30,7 @@ from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import CirclePath, LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
-from ..models.raytrace import RayTracingUnavailable, check_scene
+from ..models.raytrace import RayTracer, RayTracingUnavailable, check_scene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import (
@@ -352,7 +353,9 @@ def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source
     return PlannerContext(scene=scene.world_view(), source=source, vehicle=vehicle, workspace_min=lo, workspace_max=hi,
                           relay_start=relay_start(sc), duration_s=sc.duration_s, settings=planner_settings(sc),
                           surrogate_g_bar=sc.antenna.g_bar, obstacles=world.obstacles(sc),
-                          source_clearance_m=sc.separation_m + SOURCE_CLEARANCE_MARGIN_M)
+                          source_clearance_m=sc.separation_m + SOURCE_CLEARANCE_MARGIN_M,
+                          tracer=RayTracer(world.trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None,
+                          traced_coherent=sc.channel.propagation.paths_sum == "coherent")
 
 
 def planner_settings(sc: Scenario) -> PlannerSettings:
@@ -361,12 +364,21 @@ def planner_settings(sc: Scenario) -> PlannerSettings:
     return PlannerSettings(
         generator=GeneratorSettings(mu=c.mu, governor_speed_m_s=c.governor_speed_m_s, hessian_eig_floor=c.hessian_eig_floor),
         capacity=CapacityPlannerSettings(
-            speed_m_s=cap.speed_m_s, replan_every=cap.replan_every, leash_m=cap.leash_m, lookahead_s=cap.lookahead,
+            speed_m_s=cap.speed_m_s, replan_every=replans_every(sc), leash_m=cap.leash_m, lookahead_s=cap.lookahead,
             axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
             route_grid_m=cap.route_grid_m, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
             excursion_m=cap.excursion_m, excursion_std_m=cap.excursion_std_m, excursion_max_loss=cap.excursion_max_loss,
             yaw_rate_deg_s=cap.yaw_rate_deg_s, tilt_fraction=cap.tilt_fraction, boundary_axes=cap.boundary_axes,
             tracking_freq_rad_s=cap.tracking_freq_rad_s, scoring=cap.scoring))
+
+
+def replans_every(sc: Scenario) -> int:
+    """Control steps between the capacity planner's replans: ``replan_every``, and with traced scoring at least
+    the channel's ``trace_period_s`` (one trace per replan), at most 50 steps."""
+    cap = sc.controller.capacity
+    if cap.scoring != "traced":
+        return cap.replan_every
+    return min(50, max(cap.replan_every, math.ceil(sc.channel.propagation.trace_period_s / sc.control_period_s - 1e-9)))
 
 
 def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:

@@ -112,9 +112,11 @@ class CapacityPlannerConfig(Strict):
                                       "its circling point is more than this fraction below the target's (1: never pauses)")
     position_weight: float = Field(5.0, ge=0.0, description="replaces weights.position, m^-2")
     position_weight_terminal: float = Field(50.0, ge=0.0, description="replaces weights.position_terminal, m^-2")
-    scoring: Literal["joint", "decoupled"] = Field("joint", description="joint: every candidate position with every "
-                                                   "holdable axis (27 x K poses); decoupled: the positions at the current "
-                                                   "axis goal, then every axis at the best one (27 + K: docs/results/controller-speed.md)")
+    scoring: Literal["joint", "decoupled", "traced"] = Field(
+        "joint", description="joint: every candidate position with every holdable axis (27 x K poses); decoupled: the "
+        "positions at the current axis goal, then every axis at the best one (27 + K: docs/results/controller-speed.md); "
+        "traced: as joint, on the ray-traced channel (channel.propagation.model = 'ray_traced'; one trace per replan, "
+        "the replans at most every trace_period_s)")
     replan_every: int = Field(4, ge=1, le=50, description="control steps between two replans (all candidates scored in "
                               "one compiled call): 1 spreads the planner over every step, so no step carries it alone "
                               "(docs/results/controller-speed.md)")

@@ -91,7 +91,7 @@ class CapacityPlannerSettings:
     scoring: str = "joint"
 
     def __post_init__(self):
-        checks.one_of("CapacityPlannerSettings", "scoring", self.scoring, ("joint", "decoupled"))
+        checks.one_of("CapacityPlannerSettings", "scoring", self.scoring, ("joint", "decoupled", "traced"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -120,6 +120,8 @@ class PlannerContext:
     surrogate_g_bar: float = 1.0  # G_bar of the generator's surrogate (eq. 12-13)
     obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no position inside is a goal
     source_clearance_m: float = 0.0  # no goal closer than this to the source (now or as predicted), m
+    tracer: object | None = None  # a models.raytrace.RayTracer of the scene's map (scoring "traced"), None: analytic
+    traced_coherent: bool = False  # the traced paths summed with their phases
 
 
 class Planner(Protocol):

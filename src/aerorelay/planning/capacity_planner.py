@@ -43,11 +43,13 @@ from ..models.axes import axis_set
 from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.obstacles import pushed_out
 from ..models.radio import NodePose
+from ..models.raytrace import RayTracer
 from .base import PlannerContext, PlannerInput
 from .bound import CapacityLandscape, best_path, position_grid
 from .platform_yaw import PlatformYaw
 from .relay_grid import CompiledRelayGrid
 from .shaper import ReferenceShaper, ShaperSettings
+from .traced_grid import TracedRelayGrid
 from .trajectory_generator import Reference
 
 
@@ -81,7 +83,12 @@ class CapacityPlanner:
         self.obstacles = ctx.obstacles
         t0 = time.perf_counter()
         self.route_t, self.route_p = self._preflight_route(ctx, s.route_grid_m, s.route_dt_s)
-        self.grid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes), source=self.source_name)
+        self.grid: CompiledRelayGrid | TracedRelayGrid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes),
+                                                                           source=self.source_name)
+        if s.scoring == "traced":  # every candidate pose on the ray-traced channel of the scene's map
+            if not isinstance(ctx.tracer, RayTracer):
+                raise ValueError("capacity planner: scoring 'traced' needs the scene's ray tracer (a ray-traced channel)")
+            self.grid = TracedRelayGrid(ctx.scene, ctx.tracer, source=self.source_name, coherent=ctx.traced_coherent)
         # yawing the platform (yaw_rate_deg_s > 0, a tilted platform): rotated axis sets scored at the best position
         self.yaw = (PlatformYaw(self.axes, az, limits, rate=np.radians(s.yaw_rate_deg_s))
                     if s.yaw_rate_deg_s > 0 and self.tilt_limit > 0 else None)

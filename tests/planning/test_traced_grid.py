@@ -1,0 +1,50 @@
+"""The capacity planner's candidates scored on the ray-traced channel (``planning/traced_grid.py``): in an empty
+scene every candidate pose's capacity is the compiled free-space grid's (float32 tracing aside), the jammer
+and the relay-to-base-station hop (traced from the base station) included; a traced scoring without a
+traced channel is a named error. Needs the ``rt`` extra."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import aerorelay as ar
+from aerorelay.assembly.load import updated
+from aerorelay.assembly.parts import build_scene
+from aerorelay.config import ScenarioError
+from aerorelay.models.radio import NodePose
+from aerorelay.models.raytrace import RayTracer, TraceSettings
+from aerorelay.planning.relay_grid import CompiledRelayGrid
+from aerorelay.planning.traced_grid import TracedRelayGrid
+from tests.rt_marks import needs_rt
+
+PHYSICAL = {"channel.units": "physical", "jammer.inr_db_at_relay_start": 10.0}
+
+
+@needs_rt
+def test_in_an_empty_scene_the_traced_grid_is_the_free_space_grid():
+    sc = ar.parse_scenario({}).with_updates(PHYSICAL)
+    scene = build_scene(sc)
+    rng = np.random.default_rng(3)
+    P = rng.uniform([-6, -5, 1], [6, 5, 8], (7, 3))
+    B = rng.normal(size=(5, 3)) * [0.3, 0.3, 1.0]
+    B /= np.linalg.norm(B, axis=1, keepdims=True)
+    src = NodePose(np.array([-3.0, 5.8, 1.7]), np.array([0.1, 0.0, 0.995]) / np.linalg.norm([0.1, 0.0, 0.995]))
+    pj, PJ = np.array([[-6.95, -5.79, 1.72]]), np.array([scene.jammers[0].power])
+    traced = TracedRelayGrid(scene, RayTracer(TraceSettings("empty", 2.4e9, max_depth=0), cached=False), source="source")
+    want = CompiledRelayGrid(scene, len(P), len(B), source="source")(P, B, src, pj, PJ)
+    np.testing.assert_allclose(traced(P, B, src, pj, PJ), want, rtol=2e-4)
+    assert traced.traces == 1  # every link of every candidate in one trace
+
+
+def test_traced_scoring_needs_a_traced_channel():
+    with pytest.raises(ScenarioError, match=r"controller\.capacity\.scoring: 'traced'.*ray_traced"):
+        updated(ar.parse_scenario({}), {**PHYSICAL, "controller.planner": "capacity", "controller.capacity.scoring": "traced"})
+
+
+@needs_rt
+def test_a_relay_scoring_on_the_traced_channel_flies():
+    sc = ar.load_scenario("scenarios/street_canyon.toml", set={"sim.duration_s": 1.0, "controller.planner": "capacity",
+                                                               "controller.capacity.scoring": "traced"})
+    r = ar.simulate(sc)
+    assert not r.metrics["unsafe"] and r.metrics["c_min"] > 0
