@@ -288,11 +288,12 @@ class RayTracer:
 
 
 def scene_file(rt, scene: str) -> Path | None:
-    """The XML file of a scene (``load_scene``'s names), None for the empty scene."""
-    if scene == "empty":
+    """The XML file of a scene (``load_scene``'s names), None for the empty scene or one that does not exist."""
+    try:
+        source = scene_source(rt, scene)
+    except ValueError:
         return None
-    path = Path(scene) if Path(scene).suffix.lower() == ".xml" else Path(str(getattr(rt.scene, scene, "")))
-    return path if path.is_file() else None
+    return None if source is None else Path(source)
 
 
 def scene_digest(rt, scene: str) -> str:
@@ -308,27 +309,28 @@ def scene_digest(rt, scene: str) -> str:
     return h.hexdigest()
 
 
+def scene_source(rt, scene: str) -> str | None:
+    """The Mitsuba XML file a scene loads from (a shipped scene's by its name, ``rt.scene.<name>``, or the file
+    given), None for ``"empty"``; ``ValueError`` naming the scene when it is none of these."""
+    if Path(scene).suffix.lower() == ".xml":
+        if not Path(scene).is_file():
+            raise ValueError(f"ray tracer: scene file {scene!r} does not exist")
+        return scene
+    if scene == "empty":
+        return None
+    shipped = getattr(rt.scene, scene, None)
+    if not isinstance(shipped, str):
+        raise ValueError(f"ray tracer: no scene {scene!r}: {SCENE_NAMES_HINT}, or 'empty'")
+    return shipped
+
+
 def check_scene(scene: str) -> None:
     """``RayTracingUnavailable`` without the extra, ``ValueError`` naming the scene when it is not one Sionna RT
     ships, ``"empty"`` or an existing Mitsuba XML file; nothing is loaded."""
-    rt = sionna_rt()
-    if Path(scene).suffix.lower() == ".xml":
-        if not Path(scene).is_file():
-            raise ValueError(f"scene file {scene!r} does not exist")
-    elif scene != "empty" and not isinstance(getattr(rt.scene, scene, None), str):
-        raise ValueError(f"no scene {scene!r}: {SCENE_NAMES_HINT}, or 'empty'")
+    scene_source(sionna_rt(), scene)
 
 
 def load_scene(rt, scene: str):
     """A Sionna scene by its name (``rt.scene.<name>``) or from a Mitsuba XML file's path."""
-    path = Path(scene)
-    if path.suffix.lower() == ".xml":
-        if not path.is_file():
-            raise ValueError(f"ray tracer: scene file {scene!r} does not exist")
-        return rt.load_scene(str(path))
-    if scene == "empty":
-        return rt.load_scene()
-    shipped = getattr(rt.scene, scene, None)
-    if not isinstance(shipped, str):
-        raise ValueError(f"ray tracer: no scene {scene!r}: {SCENE_NAMES_HINT}, or 'empty'")
-    return rt.load_scene(shipped)
+    source = scene_source(rt, scene)
+    return rt.load_scene() if source is None else rt.load_scene(source)
