@@ -486,10 +486,10 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
                                                    bat.avionics_w)
         home = None if bat is None or not bat.go_home else HomeSettings(
             landing_m=(r.start[0], r.start[1], float(view.controller.workspace.min[2])),  # home, on the workspace's floor
-            return_speed_m_s=bat.return_speed_m_s, land_speed_m_s=bat.land_speed_m_s)
+            return_speed_m_s=bat.return_speed_m_s, land_speed_m_s=bat.land_speed_m_s,
+            shaper=shaper_settings(planner_settings(view).capacity, 0.0, vehicle.gravity))
         relays.append(LoopRelay(name=r.name, vehicle=vehicle, stepper=stepper, start=np.array(r.start, float), battery=battery,
-                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s), home=home,
-                                shaper=shaper_settings(planner_settings(view).capacity, 0.0, vehicle.gravity)))
+                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s), home=home))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
     starts = {r.name: r.start for r in relays}
     relay_planner = None

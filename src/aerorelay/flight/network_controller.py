@@ -22,7 +22,6 @@ from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from ..planning.fleet import FleetInput, FleetPlanner
 from ..planning.home import HomeSettings
-from ..planning.shaper import ShaperSettings
 from .readings import JammersFromReadings
 from .stepper import Command, RelayStepper, SourceState, checked_source
 
@@ -43,7 +42,6 @@ class LoopRelay:
     start: np.ndarray
     battery: Battery | None = None
     home: HomeSettings | None = None  # where and how it flies home when its battery says so (None: it does not)
-    shaper: ShaperSettings | None = None  # its reference shaper's limits (for the flight home)
 
     @property
     def controller(self):

@@ -18,17 +18,19 @@ SETTLE_S = 2.0  # the relay's lag behind its reference at the landing point (the
 
 @dataclass(frozen=True)
 class HomeSettings:
-    """Where a relay lands (m, world: its home's x, y and the landing height) and how fast it gets there
-    (m/s: level, then down)."""
+    """Where a relay lands (m, world: its home's x, y and the landing height), how fast it gets there (m/s:
+    level, then down) and its reference shaper's limits on the way."""
 
     landing_m: tuple[float, float, float]
     return_speed_m_s: float
     land_speed_m_s: float
+    shaper: ShaperSettings
 
 
-def extra_time_s(settings: HomeSettings, shaper: ShaperSettings) -> float:
+def extra_time_s(settings: HomeSettings) -> float:
     """What the way home takes beyond ``d / v_home + h / v_land`` (s): speeding up to the return speed and braking
     from it (``v / 2a`` each), braking the descent, and ``SETTLE_S`` for the relay to follow its reference down."""
+    shaper = settings.shaper
     brake = min(shaper.brake_accel_m_s2, shaper.max_accel_m_s2)
     v, w = settings.return_speed_m_s, settings.land_speed_m_s
     return v / (2.0 * shaper.max_accel_m_s2) + v / (2.0 * brake) + w / (2.0 * brake) + SETTLE_S
@@ -38,9 +40,9 @@ class HomeFlight:
     """``reference(dt, p1, v1)`` each control step from where the relay turned home (``p0`` m, ``v0`` m/s);
     ``landed(p1)`` once it is down (see the module)."""
 
-    def __init__(self, settings: HomeSettings, shaper: ShaperSettings, p0: np.ndarray, v0: np.ndarray):
+    def __init__(self, settings: HomeSettings, p0: np.ndarray, v0: np.ndarray):
         self.settings = settings
-        self.shaper = ReferenceShaper(replace(shaper, speed_m_s=settings.return_speed_m_s, tilt_limit=0.0))
+        self.shaper = ReferenceShaper(replace(settings.shaper, speed_m_s=settings.return_speed_m_s, tilt_limit=0.0))
         self.shaper.p_ref, self.shaper.v_ref = np.asarray(p0, float).copy(), np.asarray(v0, float).copy()
         self.down = np.asarray(settings.landing_m, float)
         self.above = np.array([self.down[0], self.down[1], max(float(p0[2]), float(self.down[2]))])

@@ -284,11 +284,10 @@ class ClosedLoop:
                 continue
             p = x[r.name][0:3]
             home = np.asarray(r.home.landing_m, float)
-            assert r.shaper is not None
             need = r.battery.energy_home_j(float(np.linalg.norm(p[0:2] - home[0:2])), float(p[2] - home[2]), self.hover_w[r.name],
-                                           r.home.return_speed_m_s, r.home.land_speed_m_s, extra_time_s(r.home, r.shaper))
+                                           r.home.return_speed_m_s, r.home.land_speed_m_s, extra_time_s(r.home))
             if r.battery.must_go_home(drawn[r.name], need):
-                homing[r.name] = HomeFlight(r.home, r.shaper, p, x[r.name][6:9])
+                homing[r.name] = HomeFlight(r.home, p, x[r.name][6:9])
                 turned.append(r.name)
         if turned:
             self._lose(gone | set(homing), x)
