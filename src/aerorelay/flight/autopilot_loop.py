@@ -94,24 +94,20 @@ class AutopilotLoop:
     def __init__(self, stepper: RelayStepper, *, measured_attitude: bool = False, on_step: StepHook | None = None,
                  hover_speeds: np.ndarray | None = None):
         self.stepper, self.on_step = stepper, on_step
-        self.hover = stepper.vehicle.hover_speeds() if hover_speeds is None else np.asarray(hover_speeds, float)
-        self.commanded = CommandedState(self.hover, measured_attitude=measured_attitude)
+        hover = stepper.vehicle.hover_speeds() if hover_speeds is None else np.asarray(hover_speeds, float)
+        self.commanded = CommandedState(hover, measured_attitude=measured_attitude)
         self.waiting: str | None = "no relay state or source yet"  # why no command was given (None: one was)
         self.x: np.ndarray | None = None  # the NMPC's state the last command was stepped from (None: none)
 
     def reset(self) -> None:
         """Forget the rotor speeds and attitude last commanded (the autopilot flew in between)."""
-        self.commanded = CommandedState(self.hover, measured_attitude=self.commanded.measured_attitude)
+        self.commanded.forget()
 
     def states(self, relay: Measured | None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The relay's measured state and the NMPC's state from it (None, None without one)."""
         if relay is None:
             return None, None
-        measured = self.commanded.measured(relay.p, relay.R, relay.v, relay.w)
-        x = self.commanded.for_nmpc(measured)
-        bad = ~np.isfinite(measured)
-        x[bad] = measured[bad]  # a measurement the NMPC's state does not use is still checked (a zero quaternion)
-        return measured, x
+        return self.commanded.states(relay.p, relay.R, relay.v, relay.w)
 
     def problem(self, t: float, relay: Measured | None, source: SourceState | None) -> str | None:
         """Why the inputs at ``t`` cannot start or resume the controller (stale, missing or not trusted); None when they can."""
@@ -172,8 +168,7 @@ class FleetLoop:
 
     def reset(self, relay: str) -> None:
         """Forget the rotor speeds and attitude last commanded to ``relay`` (its autopilot flew it in between)."""
-        old = self.commanded[relay]
-        self.commanded[relay] = CommandedState(self.relays[relay].vehicle.hover_speeds(), measured_attitude=old.measured_attitude)
+        self.commanded[relay].forget()
 
     def _source(self, name: str, m: Measured | SourceState | None) -> SourceState | None:
         if isinstance(m, SourceState):  # known with its acceleration (a mission file, a MAVLink source's own estimate)
@@ -199,10 +194,7 @@ class FleetLoop:
             if m is None:
                 self.rejected[name] = "no relay state"
                 continue
-            meas = self.commanded[name].measured(m.p, m.R, m.v, m.w)
-            x = self.commanded[name].for_nmpc(meas)
-            bad = ~np.isfinite(meas)
-            x[bad] = meas[bad]
+            meas, x = self.commanded[name].states(m.p, m.R, m.v, m.w)
             why = r.stepper.check.problem(t, x, m.stamp, None) or r.stepper.stale_reason(t, x, m.stamp, any_source)
             if why is not None and why != "no source":
                 self.rejected[name] = why

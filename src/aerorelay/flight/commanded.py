@@ -23,8 +23,13 @@ class CommandedState:
     ``(p, eta, v, omega, Omega)``, ``for_nmpc`` turns it into the NMPC's; ``commanded(cmd)`` after every step."""
 
     def __init__(self, hover_speeds: np.ndarray, *, measured_attitude: bool = False):
-        self.speeds = np.asarray(hover_speeds, float).copy()
+        self.hover = np.asarray(hover_speeds, float).copy()
         self.measured_attitude = measured_attitude
+        self.forget()
+
+    def forget(self) -> None:
+        """Back to hover, no attitude planned (the autopilot flew the vehicle in between)."""
+        self.speeds = self.hover.copy()
         self.plan = (np.zeros(3), np.zeros(3))  # the controller's last attitude (ZYX, rad) and body rates (rad/s)
 
     def measured(self, p, R, v, w) -> np.ndarray:
@@ -37,6 +42,15 @@ class CommandedState:
         if not self.measured_attitude:
             x[3:6], x[9:12] = self.plan
         return x
+
+    def states(self, p, R, v, w) -> tuple[np.ndarray, np.ndarray]:
+        """``(measured, x)``: the measured state and the NMPC's from it, a measured entry the NMPC's state does not
+        use kept in it when it is not finite, so the telemetry check still sees it (a zero quaternion)."""
+        measured = self.measured(p, R, v, w)
+        x = self.for_nmpc(measured)
+        bad = ~np.isfinite(measured)
+        x[bad] = measured[bad]
+        return measured, x
 
     def commanded(self, cmd: Command) -> None:
         """Keep what the step commanded (nothing on a hold or landing: the autopilot flies those)."""
