@@ -221,17 +221,7 @@ def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position"
     bridge.connect()
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)  # the flight's wall time starts once the vehicle answered
     bridge.on_step = recording.hook  # type: ignore[assignment]  # one relay's: a StepHook
-    aborted = None
-    try:
-        bridge.run(sc.duration_s if duration_s is None else duration_s)
-        aborted = bridge.ended
-    except KeyboardInterrupt:
-        aborted = "interrupted (Ctrl-C): the vehicle was asked to hold"
-        raise
-    finally:
-        df = _flight.bridge_frame(bridge.log)
-        result = recording.finish(df, aborted)
-    return result, df
+    return _flown(bridge, recording, sc.duration_s if duration_s is None else duration_s, "the vehicle was asked to hold")
 
 
 def fly_fleet(sc: Scenario, urls: Mapping[str, str], *, arm: bool = False, setpoint: str = "position",
@@ -262,16 +252,24 @@ def fly_fleet(sc: Scenario, urls: Mapping[str, str], *, arm: bool = False, setpo
     bridge.connect()
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
     bridge.loop.on_step = recording.hook  # type: ignore[assignment]  # a network's: a FleetStepHook
+    return _flown(bridge, recording, sc.duration_s if duration_s is None else duration_s, "the vehicles were asked to hold",
+                  lost_at=ctrl.lost_at)
+
+
+def _flown(bridge: OffboardBridge | FleetBridge, recording: _flight.Recording, duration_s: float, on_interrupt: str,
+           lost_at: dict[str, float] | None = None) -> tuple[RunResult | None, pd.DataFrame]:
+    """Run ``bridge`` for ``duration_s`` and write what ``recording`` holds, also on Ctrl-C (``on_interrupt`` says what
+    the vehicles were asked; ``lost_at``: the relays that left the network, filled in as they do)."""
     aborted = None
     try:
-        bridge.run(sc.duration_s if duration_s is None else duration_s)
+        bridge.run(duration_s)
         aborted = bridge.ended
     except KeyboardInterrupt:
-        aborted = "interrupted (Ctrl-C): the vehicles were asked to hold"
+        aborted = f"interrupted (Ctrl-C): {on_interrupt}"
         raise
     finally:
         df = _flight.bridge_frame(bridge.log)
-        result = recording.finish(df, aborted, lost_at=ctrl.lost_at)
+        result = recording.finish(df, aborted, lost_at=lost_at)
     return result, df
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
@@ -682,19 +683,27 @@ def fly(
         origin = ()
     if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
         _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
-    try:
-        result, df = api.fly(sc, url, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_url,
-                        source_system=source_system, source_origin=origin)
-    except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
-        _fail(str(exc))
-    except KeyboardInterrupt:
-        console.print("interrupted: the vehicle was asked to hold" + (f"; the flight is in {out}" if out else ""),
-                      markup=False, highlight=False)
+    done = _flown(lambda: api.fly(sc, url, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_url,
+                                  source_system=source_system, source_origin=origin), out, "the vehicle was")
+    if done is None:
         return
+    result, df = done
     flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
     console.print(f"{len(flown)} control periods flown ({int((flown['mode'] == 'nmpc').sum()) if len(flown) else 0} by the NMPC)"
                   + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
     _exit_if_unsafe(result)
+
+
+def _flown(fly: Callable[[], tuple], out: Path | None, who: str) -> tuple | None:
+    """``fly()``'s flight and bridge log; a named error exits 2, Ctrl-C says where the flight is and gives None."""
+    try:
+        return fly()
+    except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
+        _fail(str(exc))
+    except KeyboardInterrupt:
+        console.print(f"interrupted: {who} asked to hold" + (f"; the flight is in {out}" if out else ""),
+                      markup=False, highlight=False)
+    return None
 
 
 def _fly_fleet(sc, mavlink: list[str], *, arm: bool, setpoint: str, duration: float | None, out: Path | None,
@@ -718,14 +727,11 @@ def _fly_fleet(sc, mavlink: list[str], *, arm: bool, setpoint: str, duration: fl
         if not sep:
             _fail(f"--source-mavlink {given!r}: a network's sources are given as NAME=URL (the others fly their mission files)")
         sources[name] = url
-    try:
-        result, df = api.fly_fleet(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_urls=sources)
-    except (TimeoutError, OutputError, ScenarioError, ValueError) as exc:
-        _fail(str(exc))
-    except KeyboardInterrupt:
-        console.print("interrupted: the vehicles were asked to hold" + (f"; the flight is in {out}" if out else ""),
-                      markup=False, highlight=False)
+    done = _flown(lambda: api.fly_fleet(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_urls=sources),
+                  out, "the vehicles were")
+    if done is None:
         return
+    result, df = done
     flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
     per = ", ".join(f"{n}: {int((flown['relay'] == n).sum()) if len(flown) else 0}" for n in names)
     console.print(f"control periods flown per relay ({per})" + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
