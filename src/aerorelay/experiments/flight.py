@@ -19,7 +19,7 @@ from ..config import Scenario, ScenarioError
 from ..flight.airframes import Airframe
 from ..flight.autopilot_loop import FleetStepHook
 from ..flight.mavlink import drain
-from ..flight.mavlink_bridge import OffboardBridge, StepHook
+from ..flight.mavlink_bridge import OffboardBridge, StepHook, VehicleLink
 from ..flight.mavlink_fleet import FleetBridge
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
 from ..flight.network_controller import NetworkStepper
@@ -199,26 +199,10 @@ def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position"
     bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", stepper, source, stepper.vehicle.hover_speeds(), arm=True,
                             setpoint=setpoint, on_step=hook)
     duration = sc.duration_s if duration_s is None else duration_s
-    t, aborted = 0.0, None
     wall0 = time.perf_counter()
     try:
-        while not bridge.heard_vehicle():  # the handshake: the vehicle answers once it has heard the bridge
-            bridge.announce()
-            for v in vehicles:
-                v.step(T)
-            t += T
-            if t > LOCKSTEP_OFFBOARD_WITHIN_S:
-                raise TimeoutError("lockstep: the in-repo vehicle did not answer the bridge's heartbeat")
-        while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
-            for v in vehicles:
-                v.step(T)
-            bridge.tick(t)
-            t += T
-            if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
-                raise TimeoutError(f"lockstep: the vehicle did not enter OFFBOARD within {LOCKSTEP_OFFBOARD_WITHIN_S:g} s")
-            aborted = _left_the_air(airframe, sc.world.ground_z_m)
-            if aborted or bridge.phase == "ended":
-                break
+        aborted = _in_lockstep(bridge, {"relay": bridge}, vehicles, T, duration,
+                               lambda: _left_the_air(airframe, sc.world.ground_z_m))
     finally:
         bridge.hand_back()
         vehicle.step(T)
@@ -277,30 +261,10 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
                     read(t)
             link._read = gated  # type: ignore[method-assign]
     duration = sc.duration_s if duration_s is None else duration_s
-    t, aborted = 0.0, None
     wall0 = time.perf_counter()
     try:
-        heard: set[str] = set()
-        while len(heard) < len(vehicles):  # the handshake: each vehicle answers once it has heard the bridge
-            for n, link in bridge.links.items():
-                if n not in heard:
-                    link.announce()
-            for v in everyone:
-                v.step(T)
-            heard |= {n for n, link in bridge.links.items() if n not in heard and link.heard_vehicle()}
-            t += T
-            if t > LOCKSTEP_OFFBOARD_WITHIN_S:
-                raise TimeoutError(f"lockstep: the in-repo vehicles of {sorted(set(vehicles) - heard)} did not answer")
-        while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
-            for v in everyone:
-                v.step(T)
-            bridge.tick(t)
-            t += T
-            if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
-                raise TimeoutError(f"lockstep: the vehicles did not all enter OFFBOARD within {LOCKSTEP_OFFBOARD_WITHIN_S:g} s")
-            aborted = next((f"relay {n}: {why}" for n, a in airframes.items() if (why := _left_the_air(a, sc.world.ground_z_m))), None)
-            if aborted or bridge.ended:
-                break
+        aborted = _in_lockstep(bridge, bridge.links, everyone, T, duration, lambda: next(
+            (f"relay {n}: {why}" for n, a in airframes.items() if (why := _left_the_air(a, sc.world.ground_z_m))), None))
     finally:
         bridge.hand_back()
         for v in vehicles.values():
@@ -315,6 +279,36 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
     log_df = bridge_frame(bridge.log)
     return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
                          bridge_log=log_df, lost_at=stepper.lost_at), log_df
+
+
+def _in_lockstep(bridge: OffboardBridge | FleetBridge, links: Mapping[str, VehicleLink], vehicles: list[MavlinkVehicle],
+                 period: float, duration: float, left_the_air: Callable[[], str | None]) -> str | None:
+    """The handshake (each vehicle answers once it has heard its link), then per control period one step of every
+    in-repo vehicle and one bridge tick, until ``duration`` (s) of mission has flown, the bridge has ended the
+    flight or a vehicle left the air; returns why it stopped early (``left_the_air``), None otherwise. TimeoutError
+    when a vehicle does not answer or OFFBOARD is not entered within ``LOCKSTEP_OFFBOARD_WITHIN_S``."""
+    t, heard = 0.0, set[str]()
+    while len(heard) < len(links):
+        for n, link in links.items():
+            if n not in heard:
+                link.announce()
+        for v in vehicles:
+            v.step(period)
+        heard |= {n for n, link in links.items() if n not in heard and link.heard_vehicle()}
+        t += period
+        if len(heard) < len(links) and t > LOCKSTEP_OFFBOARD_WITHIN_S:
+            raise TimeoutError(f"lockstep: the in-repo vehicles of {sorted(set(links) - heard)} did not answer the bridge's heartbeat")
+    while bridge.mission_t0 is None or t - bridge.mission_t0 < duration - 1e-9:
+        for v in vehicles:
+            v.step(period)
+        bridge.tick(t)
+        t += period
+        if bridge.mission_t0 is None and t > LOCKSTEP_OFFBOARD_WITHIN_S:
+            raise TimeoutError(f"lockstep: the vehicles did not all enter OFFBOARD within {LOCKSTEP_OFFBOARD_WITHIN_S:g} s")
+        aborted = left_the_air()
+        if aborted or bridge.ended:
+            return aborted
+    return None
 
 
 def _left_the_air(airframe: Airframe, ground_z_m: float) -> str | None:
