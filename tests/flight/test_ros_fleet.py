@@ -25,6 +25,7 @@ if os.environ.get("AERORELAY_REQUIRE_ROS") != "1":
 
 import aerorelay as ar  # noqa: E402
 from aerorelay.assembly.parts import build_scene  # noqa: E402
+from tests.flight.ros_messages import odometry  # noqa: E402
 from tests.reference_channel import jammer_gain_sq, legitimate_gain_sq  # noqa: E402
 
 SCENARIO = "scenarios/chain_two_relays.toml"
@@ -72,20 +73,12 @@ def test_the_fleet_node_flies_both_relays_and_one_that_goes_silent_leaves_the_ne
     probe.create_subscription(Float64MultiArray, "/network/link", links.append, 10)
     pubs = {n: probe.create_publisher(Odometry, f"/{n}/odom", 10) for n in ("r1", "r2", "inspector")}
 
-    def odom(p):
-        m = Odometry()
-        m.header.stamp = probe.get_clock().now().to_msg()
-        m.header.frame_id, m.child_frame_id = "map", "base_link"
-        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = (float(v) for v in p)
-        m.pose.pose.orientation.w = 1.0
-        return m
-
     def publish_until(done, silent=(), within=240.0):
         end = time.monotonic() + within
         while time.monotonic() < end and not done():
             for n, pub in pubs.items():
                 if n not in silent:
-                    pub.publish(odom(held[n]))
+                    pub.publish(odometry(probe, held[n]))
             rclpy.spin_once(probe, timeout_sec=0.01)
         return done()
 

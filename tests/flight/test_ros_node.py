@@ -20,6 +20,7 @@ if os.environ.get("AERORELAY_REQUIRE_ROS") != "1":
     pytest.importorskip("rclpy", reason="the optional ros extra (pip install 'aerorelay[ros]') is not installed")
 
 import aerorelay as ar  # noqa: E402
+from tests.flight.ros_messages import odometry  # noqa: E402
 
 
 def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
@@ -44,19 +45,11 @@ def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
     relay_pub = probe.create_publisher(Odometry, "/relay/odom", 10)
     source_pub = probe.create_publisher(Odometry, "/source/odom", 10)
 
-    def odom(p):
-        m = Odometry()
-        m.header.stamp = probe.get_clock().now().to_msg()
-        m.header.frame_id, m.child_frame_id = "map", "base_link"
-        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = (float(v) for v in p)
-        m.pose.pose.orientation.w = 1.0
-        return m
-
     try:
         end = time.monotonic() + 240.0  # the node's process starts (imports, the controller): slow on a loaded machine
         while time.monotonic() < end and len(setpoints) < 30:
-            relay_pub.publish(odom(sc.nodes.relay))
-            source_pub.publish(odom(sc.mission.start))
+            relay_pub.publish(odometry(probe, sc.nodes.relay))
+            source_pub.publish(odometry(probe, sc.mission.start))
             rclpy.spin_once(probe, timeout_sec=0.01)
         assert len(setpoints) >= 30, node_proc.stdout.read1().decode() if node_proc.poll() is not None else "no setpoints"
         pt = setpoints[-1].points[0]
