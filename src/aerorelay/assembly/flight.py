@@ -32,17 +32,13 @@ def thrust_along_body_z(sc: Scenario) -> Scenario:
     layout's axes set to body z; positions and spins kept; a network's relays' own platforms too): the
     vehicle an autopilot flies, whose thrust stays along body z, so the NMPC plans only what the
     autopilot can fly."""
-    p = sc.platform
-    if p.rotors is not None:
-        rotors = [r.model_dump() | {"axis": [0.0, 0.0, 1.0]} for r in p.rotors]
-        sc = sc.with_updates({"platform.rotors": rotors})
-    elif p.tilt_deg != 0:
-        sc = sc.with_updates({"platform.tilt_deg": 0.0})
+    updates: dict = {}
+    if sc.platform.rotors is not None or sc.platform.tilt_deg != 0:
+        updates["platform"] = _untilted(sc.platform)
     if sc.relays is not None and any(r.platform is not None for r in sc.relays):  # a relay's own platform, likewise
-        relays = [r.model_dump() | ({} if r.platform is None else {"platform": _untilted(sc.platform_of(i))})
-                  for i, r in enumerate(sc.relays)]
-        sc = sc.with_updates({"relays": relays})
-    return sc
+        updates["relays"] = [r.model_dump() | ({} if r.platform is None else {"platform": _untilted(sc.platform_of(i))})
+                             for i, r in enumerate(sc.relays)]
+    return sc.with_updates(updates) if updates else sc
 
 
 def _untilted(p) -> dict:
