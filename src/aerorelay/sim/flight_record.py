@@ -52,6 +52,7 @@ class FlightRecorder:
         self.relays = list(self.vehicles)
         self.relay = self.relays[0]  # the first relay (the one relay's)
         self.sources = [n.name for n in scene.nodes if n.role == "source"]
+        self.neighbours = route_neighbours(scene)  # each relay's, while every relay is in the network
         self.source = self.sources[0]
         self._fixed = {n.name: scene.fixed_pose(n.name).position for n in scene.nodes if n.position is not None}
         self.observer_columns = {r: [f"{r}.a_ext_{a}" for a in AXES] for r in self.relays}  # as sim/air.py logs them
@@ -75,14 +76,15 @@ class FlightRecorder:
         src = {n: SourceState(np.asarray(s.p, float), np.asarray(s.v, float), np.asarray(s.a, float)) for n, s in sources.items()}
         eta_src = {n: s.attitude(self.vehicles[self.relay].gravity) for n, s in src.items()}
         flying = [r for r in self.relays if r in xs]
-        scene = self.scene.without([r for r in self.relays if r not in xs])  # a relay without a state has left the network
+        left = [r for r in self.relays if r not in xs]  # a relay without a state has left the network
+        scene = self.scene.without(left) if left else self.scene
         R = {r: rotation_zyx(xs[r][3:6]) for r in flying}
         poses = {r: scene.pose(r, xs[r][0:3], R[r]) for r in flying}
         poses |= {n: scene.pose(n, s.p, rotation_zyx(eta_src[n])) for n, s in src.items()}
         channel = scene.evaluate(t, poses)
         where = {**self._fixed, **{n: s.p for n, s in src.items()}, **{r: xs[r][0:3] for r in flying}}
         row: dict[str, object] = {"t": t}
-        neighbours = route_neighbours(scene)
+        neighbours = route_neighbours(scene) if left else self.neighbours
         for r in self.relays:
             if r not in xs:
                 row |= gone_row(r, self.vehicles[r].n_rotors)
