@@ -103,8 +103,10 @@ def _above_ground(sc: Scenario) -> None:
     ws = sc.controller.workspace
     if ws.min[2] < g:
         raise ValueError(f"controller.workspace.min: z = {ws.min[2]:g} m is below {where}; the relay must stay above it")
-    if sc.nodes.bs[2] < g:
-        raise ValueError(f"nodes.bs: z = {sc.nodes.bs[2]:g} m is below {where}")
+    for i, b in enumerate(sc.base_station_list):
+        if b.position[2] < g:
+            field = "nodes.bs" if sc.base_stations is None else f"base_stations[{i}].position"
+            raise ValueError(f"{field}: z = {b.position[2]:g} m is below {where}")
     for field, m in _missions(sc):
         if m.flown_file is None:
             low = [w for w in m.waypoints if w[3] < g]
@@ -230,7 +232,8 @@ def _rma_av_geometry(sc: Scenario) -> None:
         if zmin <= lo or zmax > hi:
             raise ValueError(f"channel.propagation.model = 'rma_av' holds for aerial heights in ({lo:g}, {hi:g}] m "
                              f"(TR 36.777 Table B-2): {what} spans {zmin:.2f}-{zmax:.2f} m")
-    span = math.dist(ws.min[:2], ws.max[:2]) + max(math.dist(sc.nodes.bs[:2], p[:2]) for p in (ws.min, ws.max))
+    span = math.dist(ws.min[:2], ws.max[:2]) + max(math.dist(b.position[:2], p[:2]) for p in (ws.min, ws.max)
+                                                   for b in sc.base_station_list)
     if span > RMA_AV_MAX_D2D_M:
         raise ValueError(f"channel.propagation.model = 'rma_av' holds for 2D distances <= {RMA_AV_MAX_D2D_M:g} m")
 
@@ -247,7 +250,7 @@ def _mu_reachable(sc: Scenario) -> None:
     if not c.comms_aware or c.mu <= 0.0:
         return
     reach, times, tilt = _reachable_alignment(platform.model_dump_json(), mission.model_dump_json(),
-                                              tuple(c.workspace.min), tuple(c.workspace.max), tuple(sc.nodes.bs),
+                                              tuple(c.workspace.min), tuple(c.workspace.max), tuple(sc.first_station.position),
                                               sc.duration_s)
     k = int(np.argmin(reach))
     limit = math.floor(reach[k] * 100.0) / 100.0

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..config import AntennaConfig, JammerConfig, Scenario, ScenarioError
-from ..config.network import BASE_STATION
+from ..config.network import ANY_BASE_STATION, BaseStationConfig
 from ..config.radio import NodeAntennaConfig
 from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
@@ -58,6 +58,7 @@ from ..planning.network_bound import (
 )
 from ..sim.air import Air
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
+from ..sim.handover import HandoverRule
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from . import world
@@ -148,21 +149,29 @@ def own_pattern(cfg: NodeAntennaConfig | None, shared: AntennaConfig) -> Antenna
     return CosinePattern(cfg.g_bar, cfg.exponent, cfg.back_lobe)
 
 
+def _base_station_node(b: BaseStationConfig, shared: AntennaConfig, shared_pattern: AntennaPattern) -> Node:
+    """A base station: its own antenna and axis (``[[base_stations]]``), else ``[antenna]``'s base station's."""
+    axis = np.array(b.axis if b.axis is not None else shared.bs_antenna_axis(), float)
+    return Node(b.name, "base_station", Antenna(own_pattern(b.antenna, shared) or shared_pattern, axis / np.linalg.norm(axis)),
+                np.array(b.position, float))
+
+
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
     """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_antenna_axis()``), source
     'source' (MRAV-2) and relay 'relay' (MRAV-1) or the fleet's sources and relays by name, antennas along
     body z; the routes (``[network]``); every jammer."""
     pat = node_patterns(sc.antenna)
-    bs_axis = np.array(sc.antenna.bs_antenna_axis(), float)
-    bs_axis = bs_axis / np.linalg.norm(bs_axis)
-    nodes = (Node(BASE_STATION, "base_station", Antenna(pat.bs, bs_axis), np.array(sc.nodes.bs, float)),
+    nodes = (*(_base_station_node(b, sc.antenna, pat.bs) for b in sc.base_station_list),
              *(Node(s.name, "source", Antenna(own_pattern(s.antenna, sc.antenna) or pat.source)) for s in sc.source_list),
              *(Node(r.name, "relay", Antenna(own_pattern(r.antenna, sc.antenna) or pat.relay)) for r in sc.relay_list))
     ch = sc.channel
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
-    routes = tuple(tuple(r) for r in sc.route_list)
+    stations = tuple(sc.base_station_names)
+    # a route to "any" of several base stations serves from the first until the network's handover rule picks
+    ends = tuple(stations if r[-1] == ANY_BASE_STATION and len(stations) > 1 else () for r in sc.route_list)
+    routes = tuple(tuple(r[:-1]) + (stations[0] if r[-1] == ANY_BASE_STATION else r[-1],) for r in sc.route_list)
     scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), routes[0], path_gain(ch),
-                       routes=routes if len(routes) > 1 else ())
+                       routes=routes if len(routes) > 1 else (), handover=ends if any(ends) else ())
     if jammers is None and any(j.inr_db_at_relay_start is not None for j in sc.jammer_configs):
         scene = _powers_for_inr(scene, sc)
     return scene
@@ -198,6 +207,7 @@ def check_buildable(sc: Scenario) -> Scenario:
     returns ``sc``."""
     build_scene(sc)
     planner_registered(sc)
+    one_base_station_planners(sc)
     comms_aware_antennas(sc)
     ray_traced_scene(sc)
     return sc
@@ -226,6 +236,23 @@ def comms_aware_antennas(sc: Scenario) -> None:
             raise ScenarioError(f"relays[{i}].antenna: a {r.antenna.pattern} antenna on relay {r.name!r} with the paper's "
                                 "comms-aware NMPC, whose misalignment terms keep links off a doughnut antenna's axis; fly it "
                                 "with controller.planner = 'capacity' or controller.variant = 'unconstrained'")
+
+
+GENERATORS = ("trajectory_generator", "isotropic")  # planners that plan toward one base station's position
+
+
+def one_base_station_planners(sc: Scenario) -> None:
+    """The paper's generator (and baseline A) plan toward one base station: with routes that may hand
+    over (``"any"``) or that end at different base stations, a named error (fly the capacity planner)."""
+    ends = {r[-1] for r in sc.route_list}
+    if not sc.has_handover and len(ends) == 1:
+        return
+    why = "routes that end at 'any' base station" if sc.has_handover else f"routes ending at {sorted(ends)}"
+    field, name = ("network.planner", sc.network.planner) if sc.is_network else \
+        ("relays[0].controller.planner" if sc.relays is not None else "controller.planner", relay_view(sc, 0).controller.planner)
+    if name in GENERATORS:
+        raise ScenarioError(f"{field}: {name!r} plans toward one base station's position; with {why} fly "
+                            "'capacity' (it scores every base station a route may end at)")
 
 
 def planner_registered(sc: Scenario) -> None:
@@ -281,7 +308,7 @@ def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None, neighbours: int = 
     c = sc.controller
     lo, hi = _workspace(sc)
     return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
-                   bs_position=_vec3(sc.nodes.bs), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
+                   bs_position=_vec3(sc.first_station.position), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
                    exact_input_rate=c.exact_input_rate, neighbours=neighbours, p0_parameter=p0_parameter,
                    disturbance=sc.wind is not None and sc.wind.observer, obstacles=len(sc.obstacle_list))
 
@@ -395,7 +422,8 @@ def sim_settings(sc: Scenario) -> SimSettings:
     return SimSettings(period_s=sc.control_period_s, duration_s=sc.duration_s, plant_rate_hz=sc.sim.plant_rate_hz,
                        relay_start=relay_start(sc), seed=sc.seed, csi_noise_m=p.csi_noise_m,
                        process_noise_v=p.process_noise_v, process_noise_w=p.process_noise_w, fading_k_db=p.fading_k_db,
-                       senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise)
+                       senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise,
+                       handover=HandoverRule(sc.network.handover_margin_db, sc.network.handover_dwell_s))
 
 
 def relay_view(sc: Scenario, i: int) -> Scenario:
@@ -478,7 +506,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         vehicle = build_vehicle(view.platform)
         platforms[r.name] = (vehicle, view.platform)
         controller = build_controller(view, vehicle, nmpc_settings, others,
-                                      p0_parameter=network and view.controller.comms_aware)
+                                      p0_parameter=(network or sc.has_handover) and view.controller.comms_aware)
         stepper = RelayStepper(vehicle=vehicle, planner=None, controller=controller, period_s=sc.control_period_s,
                                jammers=_no_jammer_view, stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
         bat = view.platform.battery
@@ -529,7 +557,8 @@ def search_box(sc: Scenario, sources: dict[str, SourceTrajectory]) -> tuple[np.n
     est = sc.estimation
     if est.search_min_m is not None:
         return np.array(est.search_min_m, float), np.array(est.search_max_m, float)
-    rows: list[np.ndarray] = [np.asarray(sc.nodes.bs, float), *(np.array(r.start, float) for r in sc.relay_list)]
+    rows: list[np.ndarray] = [*(np.asarray(b.position, float) for b in sc.base_station_list),
+                              *(np.array(r.start, float) for r in sc.relay_list)]
     pts = np.vstack(rows + [path.state(t).p for path in sources.values() for t in np.linspace(0.0, sc.duration_s, 50)])
     lo, hi = pts.min(axis=0) - SEARCH_MARGIN_M, pts.max(axis=0) + SEARCH_MARGIN_M
     lo[2], hi[2] = max(0.0, pts[:, 2].min() - SEARCH_MARGIN_M), pts[:, 2].max() + 0.5 * SEARCH_MARGIN_M
@@ -540,7 +569,7 @@ def build_sensing(sc: Scenario, scene: RadioScene, sources: dict[str, SourceTraj
     """Every relay's (and the base station's, with ``use_bs``) energy detector and the one jammer
     estimator their readings feed, whose estimate every planner shares."""
     est = sc.estimation
-    names = [r.name for r in sc.relay_list] + ([BASE_STATION] if est.use_bs else [])
+    names = [r.name for r in sc.relay_list] + (sc.base_station_names if est.use_bs else [])
     receivers = [Receiver(name=n, pattern=scene.node(n).antenna.pattern, noise_w=scene.budget.noise_power,
                           fixed=scene.node(n).position is not None)
                  for n in names]
@@ -594,6 +623,7 @@ def scenario_bound_key(sc: Scenario) -> str:
     """Everything the bound depends on (not the controller, except its workspace box)."""
     sc = relay_view(sc, 0)
     fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
+    fleet |= {"base_stations", "network"} if sc.base_stations is not None else set()  # a file with nodes.bs keeps its key
     data = world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers",
                                                            "mission", "bound"} | fleet))
     data["bound"].pop("max_minutes", None)  # a limit on the work, not what the bound is
@@ -625,8 +655,9 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     (``relays.lost_at_s``), from each loss on the bound of the smaller fleet (each fleet's bound cached
     on its own: the loss times are not in its key)."""
     check_bound_size(sc)
+    stations = {"base_stations"} if sc.base_stations is not None else set()  # a file with nodes.bs keeps its key
     data = world.bound_key_data(sc, sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes",
-                                                           "jammer", "jammers", "bound", "platform"}))
+                                                           "jammer", "jammers", "bound", "platform"} | stations))
     for r in data.get("relays") or []:
         r.pop("lost_at_s", None)
     data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
@@ -665,7 +696,7 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
     lo, hi = _workspace(sc)
     ctx = NetworkPlannerContext(scene=scene.world_view(), routes=sc.route_list, starts=starts,
                                 vehicles={r.name: r.vehicle for r in relays if r.name in starts},
-                                bs_position=np.asarray(sc.nodes.bs, float), workspace_min=lo, workspace_max=hi,
+                                bs_position=np.asarray(sc.first_station.position, float), workspace_min=lo, workspace_max=hi,
                                 settings=planner_settings(sc), surrogate_g_bar=sc.antenna.g_bar, separation_m=sc.separation_m,
                                 obstacles=world.obstacles(sc),
                                 sources={s.name: source_trajectory(s.mission) for s in sc.source_list},

@@ -15,6 +15,7 @@ from .platform import PlatformConfig
 from .radio import NodeAntennaConfig
 
 BASE_STATION = "bs"  # the base station's name in routes ([nodes] bs)
+ANY_BASE_STATION = "any"  # a route's end: whichever base station serves it best ([[base_stations]], the handover rule)
 LEGACY_RELAY, LEGACY_SOURCE = "relay", "source"  # the one relay and source of a file with [nodes] relay and [mission]
 
 # platform presets a relay may name (``platform = "quad_x"``); an inline table is a [platform] table
@@ -63,12 +64,46 @@ class SourceConfig(Strict):
                                               "[antenna]'s (source_pattern)")
 
 
+class BaseStationConfig(Strict):
+    """One base station of several (``[[base_stations]]``): its name, where it stands, its antenna."""
+
+    name: str = Field(min_length=1, max_length=32, pattern=NAME_PATTERN, description="names the base station in routes, "
+                      "logs and reports ('any' is the route end meaning the best one)")
+    position: Vec3 = Field(description="m (world); fixed, identity attitude")
+    antenna: NodeAntennaConfig | None = Field(None, description="its own antenna about its axis; default: [antenna]'s "
+                                              "bs_pattern (and bs_g_max, bs_exponent, bs_back_lobe for cosine)")
+    axis: Vec3 | None = Field(None, description="its antenna's axis (world; normalized): a dipole's or sin_power's axis, a "
+                              "cosine antenna's boresight; default: [antenna]'s (bs_tilt_deg, bs_azimuth_deg)")
+
+    @field_validator("name")
+    @classmethod
+    def _not_any(cls, v):
+        if v == ANY_BASE_STATION:
+            raise ValueError(f"{ANY_BASE_STATION!r} is the route end that means the best base station; name it otherwise")
+        return v
+
+    @field_validator("axis")
+    @classmethod
+    def _nonzero(cls, v):
+        if v is not None and sum(c * c for c in v) < 1e-12:
+            raise ValueError("the axis must be a nonzero vector")
+        return v
+
+
 class NetworkConfig(Strict):
     """How data flows: each route from a source through relays to the base station ``bs``; every
     hop of every route has its own time slot (docs/concepts/networks.md)."""
 
-    routes: list[list[str]] | None = Field(None, min_length=1, description="each [source, relay, ..., \"bs\"]; default: "
-                                           "one route per source through every relay in order")
+    routes: list[list[str]] | None = Field(None, min_length=1, description="each [source, relay, ..., base station]: "
+                                           "\"bs\" ([nodes] bs), a [[base_stations]] name, or \"any\" (the best base station "
+                                           "by the route's rate, with the handover rule); default: one route per source through "
+                                           "every relay in order to the base station (\"any\" with several)")
+    handover_margin_db: float = Field(3.0, ge=0.0, le=30.0, description="a route ending at \"any\" hands over to "
+                                      "another base station when that one's route rate exceeds the serving one's by this "
+                                      "much, dB (10 log10 of the rates' ratio); a serving route that is dead hands over to "
+                                      "any live one")
+    handover_dwell_s: float = Field(2.0, ge=0.0, le=3600.0, description="a route stays with a base station at least this "
+                                    "long after a handover (s); the first serving one is the best at t = 0")
     min_separation_m: float | None = Field(None, gt=0.0, le=100.0, description="between any two vehicles (relays and "
                                            "sources), m; default the vehicles' own size: twice the largest footprint radius "
                                            "of the relays' platforms (1.5 x the farthest rotor centre: the arm plus a rotor "

@@ -24,10 +24,12 @@ from .controller import ControllerConfig
 from .errors import format_errors
 from .mission import MissionConfig
 from .network import (
+    ANY_BASE_STATION,
     BASE_STATION,
     LEGACY_RELAY,
     LEGACY_SOURCE,
     PLATFORM_PRESETS,
+    BaseStationConfig,
     NetworkConfig,
     RelayConfig,
     SourceConfig,
@@ -86,6 +88,9 @@ class Scenario(Strict):
                                              "(replaces nodes.relay)")
     sources: list[SourceConfig] | None = Field(None, min_length=1, max_length=16, description="the inspection drones "
                                                "(replaces [mission])")
+    base_stations: list[BaseStationConfig] | None = Field(None, min_length=1, max_length=8, description="several base "
+                                                         "stations (replaces nodes.bs); a route ends at one by name or "
+                                                         "at \"any\"")
     network: NetworkConfig = Field(default_factory=NetworkConfig)
     wind: WindConfig | None = Field(None, description="mean wind and Dryden gusts on every relay (default: still air)")
     obstacles: list[ObstacleConfig] | None = Field(None, max_length=64, description="boxes and vertical cylinders the "
@@ -120,7 +125,7 @@ class Scenario(Strict):
                 raise ValueError(f"jammers: names must be unique, {dup} used more than once")
         self._one_way_to_name_the_fleet()
         pts = {
-            "nodes.bs": self.nodes.bs,
+            **{self._base_station_field(i, "position"): b.position for i, b in enumerate(self.base_station_list)},
             **{self._relay_field(i, "start", legacy="nodes.relay"): r.start for i, r in enumerate(self.relay_list)},
             **{f"{self.jammer_field(i)}.position": j.position for i, j in enumerate(self.jammer_configs)},
             **{self._source_field(i, "mission start", legacy="mission.waypoints[0]"): s.mission.start
@@ -143,7 +148,7 @@ class Scenario(Strict):
                 where = self._relay_field(i, "start", legacy="nodes.relay")
                 raise ValueError(f"{where} {r.start} must lie inside controller.workspace [{ws.min}, {ws.max}]")
         self._routes_hold()
-        nodes = [BASE_STATION] + [r.name for r in self.relay_list] + [s.name for s in self.source_list]
+        nodes = self.base_station_names + [r.name for r in self.relay_list] + [s.name for s in self.source_list]
         for i, j in enumerate(self.jammer_configs):
             if j.point_at is not None and j.point_at not in nodes:
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
@@ -180,13 +185,41 @@ class Scenario(Strict):
         return list(self.sources) if self.sources is not None else [SourceConfig(name=LEGACY_SOURCE, mission=self.mission)]
 
     @property
+    def base_station_list(self) -> list[BaseStationConfig]:
+        """Every base station: ``[[base_stations]]``, or the one at ``nodes.bs`` named ``bs``."""
+        if self.base_stations is not None:
+            return list(self.base_stations)
+        return [BaseStationConfig(name=BASE_STATION, position=self.nodes.bs)]
+
+    @property
+    def base_station_names(self) -> list[str]:
+        return [b.name for b in self.base_station_list]
+
+    def _base_station_field(self, i: int, what: str) -> str:
+        return "nodes.bs" if self.base_stations is None else f"base_stations[{i}].{what}"
+
+    @property
     def route_list(self) -> list[list[str]]:
-        """Every route ``[source, relay, ..., "bs"]``: ``network.routes``, or one per source through
-        every relay in order."""
+        """Every route ``[source, relay, ..., base station]``: ``network.routes``, or one per source
+        through every relay in order to the base station (``"any"`` of several)."""
         if self.network.routes is not None:
             return [list(r) for r in self.network.routes]
         relays = [r.name for r in self.relay_list]
-        return [[s.name, *relays, BASE_STATION] for s in self.source_list]
+        names = self.base_station_names
+        end = names[0] if len(names) == 1 else ANY_BASE_STATION
+        return [[s.name, *relays, end] for s in self.source_list]
+
+    @property
+    def first_station(self) -> BaseStationConfig:
+        """The base station the first route ends at (the first listed for ``"any"``): the one a planner
+        or NMPC that looks toward one base station looks at."""
+        end = self.route_list[0][-1]
+        return next((b for b in self.base_station_list if b.name == end), self.base_station_list[0])
+
+    @property
+    def has_handover(self) -> bool:
+        """Whether a route ends at ``"any"`` of several base stations (the handover rule picks its end)."""
+        return len(self.base_station_list) > 1 and any(r[-1] == ANY_BASE_STATION for r in self.route_list)
 
     @property
     def starts(self) -> dict[str, list[float]]:
@@ -201,8 +234,8 @@ class Scenario(Strict):
 
     @property
     def has_two_hops(self) -> bool:
-        """One route of two hops, the paper's (source -> relay -> base station)."""
-        return len(self.route_list) == 1 and len(self.route_list[0]) == 3
+        """One route of two hops to one base station, the paper's (source -> relay -> base station)."""
+        return len(self.route_list) == 1 and len(self.route_list[0]) == 3 and not self.has_handover
 
     def platform_of(self, i: int) -> PlatformConfig:
         """Relay ``i``'s platform: its own (a preset or a table), else ``[platform]``."""
@@ -275,25 +308,35 @@ class Scenario(Strict):
         if self.sources is not None and "mission" in self.model_fields_set:
             raise ValueError("mission: give the sources as [[sources]] (each with its [sources.mission]) or one "
                              "[mission], not both")
-        names = [s.name for s in self.source_list] + [r.name for r in self.relay_list] + [BASE_STATION]
+        if self.base_stations is not None and "bs" in self.nodes.model_fields_set:
+            raise ValueError("nodes.bs: give the base stations as [[base_stations]] or one nodes.bs, not both")
+        names = [s.name for s in self.source_list] + [r.name for r in self.relay_list] + self.base_station_names
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
-            raise ValueError(f"network: {twice} named more than once (sources, relays and the base station "
-                             f"'{BASE_STATION}' need distinct names)")
+            raise ValueError(f"network: {twice} named more than once (sources, relays and base stations "
+                             f"{self.base_station_names} need distinct names)")
+        if ANY_BASE_STATION in names:
+            raise ValueError(f"network: {ANY_BASE_STATION!r} is the route end meaning the best base station; name the "
+                             "vehicle otherwise")
 
     def _routes_hold(self) -> None:
-        """Each route from a source through relays to the base station, no node twice, no route
-        twice; every relay and every source on a route."""
+        """Each route from a source through relays to a base station (or ``"any"``), no node twice, no
+        route twice; every relay and every source on a route."""
         sources, relays = [s.name for s in self.source_list], [r.name for r in self.relay_list]
+        stations = self.base_station_names
+        ends = stations + [ANY_BASE_STATION]
         routes = self.route_list
         for i, route in enumerate(routes):
             where = f"network.routes[{i}]"
-            unknown = [n for n in route if n not in sources + relays + [BASE_STATION]]
+            unknown = [n for n in route if n not in sources + relays + ends]
             if unknown:
                 raise ValueError(f"{where}: no node named {unknown[0]!r} (sources {sources}, relays {relays}, base "
-                                 f"station '{BASE_STATION}')")
-            if len(route) < 2 or route[-1] != BASE_STATION:
-                raise ValueError(f"{where}: {route} must end at the base station '{BASE_STATION}'")
+                                 f"stations {stations} or 'any')")
+            if len(route) < 2 or route[-1] not in ends:
+                raise ValueError(f"{where}: {route} must end at a base station ({', '.join(ends)})")
+            inner = [n for n in route[:-1] if n in ends]
+            if inner:
+                raise ValueError(f"{where}: {route} passes the base station {inner[0]!r} before its end")
             if route[0] not in sources:
                 raise ValueError(f"{where}: {route} must start at a source ({', '.join(sources)})")
             twice = [n for n in route if route.count(n) > 1]
@@ -332,8 +375,8 @@ class Scenario(Strict):
                     where = self._relay_field(j, "start", legacy="nodes.relay")
                     raise ValueError(f"{where} {r.start} lies {-d:.2f} m inside obstacles[{i}] ({o.name}) and its "
                                      f"margin ({o.margin_m} m): start every relay outside")
-            fixed = {"nodes.bs": self.nodes.bs, **{f"{self.jammer_field(k)}.position": j.position
-                                                   for k, j in enumerate(self.jammer_configs)}}
+            fixed = {**{self._base_station_field(k, "position"): b.position for k, b in enumerate(self.base_station_list)},
+                     **{f"{self.jammer_field(k)}.position": j.position for k, j in enumerate(self.jammer_configs)}}
             bare = obstacle_model(o, margin=False)
             for where, p in fixed.items():
                 if float(bare.signed_distance(p)) < 0:
@@ -424,13 +467,16 @@ class Scenario(Strict):
 
     def _plain_data(self) -> dict:
         """``model_dump`` as a file would say it: a network file without ``nodes.relay`` and
-        ``[mission]`` (its ``[[relays]]`` and ``[[sources]]`` say them), a one-relay file without a
+        ``[mission]`` (its ``[[relays]]`` and ``[[sources]]`` say them), nor ``nodes.bs`` beside
+        ``[[base_stations]]``, a one-relay file without a
         default ``[network]``."""
         data = self.model_dump(exclude_none=True)
         if self.relays is not None:
             data["nodes"].pop("relay", None)
         if self.sources is not None:
             data.pop("mission", None)
+        if self.base_stations is not None:
+            data["nodes"].pop("bs", None)
         if not self.is_network_file and self.network == NetworkConfig():
             data.pop("network", None)
         if not self.injected:  # said only by a run flown with parts passed from Python

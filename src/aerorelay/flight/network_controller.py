@@ -71,9 +71,11 @@ class NetworkController:
         self.sources = list(dict.fromkeys(route[0] for route in scene.all_routes))
         self.bs_name = scene.name_of("base_station")
         self.bs = scene.fixed_pose(self.bs_name).position
+        self.stations = {n.name: scene.fixed_pose(n.name).position for n in scene.nodes if n.role == "base_station"}
         spec = relays[0].controller.spec
         self.tk = spec.ts * np.arange(spec.horizon + 1)
         self.bs_path = np.repeat(self.bs[:, None], spec.horizon + 1, axis=1)
+        self.station_paths = {n: np.repeat(p[:, None], spec.horizon + 1, axis=1) for n, p in self.stations.items()}
         self.gravity = relays[0].vehicle.gravity
         # the relays' plans enter another relay's stage parameters: a relay next to another on a route (a route of
         # more than one relay), the separation rows
@@ -89,6 +91,12 @@ class NetworkController:
         left = [r.name for r in self.relays if r.name not in lost]
         # no relay left in the network: the sources reach the base station directly, nothing to plan
         self.planner = self.replanner(lost, {n: p for n, p in positions.items() if n not in lost}) if left else None
+        self.neighbours_of = route_neighbours(self.scene)
+
+    def hand_over(self, ends) -> None:
+        """Each route now ends at ``ends`` (a base station each, the handover rule's choice): a relay's NMPC
+        looks toward its route's serving base station."""
+        self.scene = self.scene.serving(ends)
         self.neighbours_of = route_neighbours(self.scene)
 
     def neighbours(self, relay: str) -> tuple[str, str]:
@@ -107,7 +115,7 @@ class NetworkController:
         t0 = time.perf_counter()
         refs = self.planner.update(FleetInput(
             t=t, dt=self.period, positions={**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in sources.items()},
-                                            self.bs_name: self.bs},
+                                            **self.stations},
             velocities={**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in sources.items()}},
             axes={n: rotation_zyx(e)[:, 2] for n, e in eta.items()}, yaws={n: float(xs[5]) for n, xs in x.items()},
             accelerations={n: s.a for n, s in sources.items()}, jammer_positions=pj, jammer_powers=powers, jammer_std_m=std))
@@ -138,7 +146,8 @@ class NetworkController:
         if r.controller.spec.neighbours:
             gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
             others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
-        return r.stepper.parameters(ref, p2_path=predicted.get(up, self.bs_path), p0_path=predicted.get(down, self.bs_path), others=others,
+        return r.stepper.parameters(ref, p2_path=predicted.get(up, self.bs_path),
+                                    p0_path=predicted.get(down, self.station_paths.get(down, self.bs_path)), others=others,
                                     separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
 
 

@@ -109,13 +109,17 @@ class ChannelState:
     """One evaluation of the channel: per hop (every link of every route once, in route order) the
     SINR and the interference ``sum_j F_Jj^2 P_J`` at its receiver (W); the capacity of each route
     (``route_capacity``, eq. 9 with any number of hops) and the network's rate ``capacity`` (every
-    hop of every route in its own slot: ``network_rate``; the route's capacity for one route)."""
+    hop of every route in its own slot: ``network_rate``; the route's capacity for one route). A route that
+    may end at any of several base stations (``RadioScene.handover``) counts with its serving end or its
+    best one (``RadioScene.evaluate``'s ``ends``)."""
 
     hops: tuple[tuple[str, str], ...]
     sinr: tuple[np.ndarray, ...]
     interference: tuple[np.ndarray, ...]
     capacity: np.ndarray
     route_capacity: tuple[np.ndarray, ...] = ()
+    # per route, the rate of each route it may take (``RadioScene.candidate_routes``; a fixed route: one)
+    candidates: tuple[tuple[np.ndarray, ...], ...] = ()
 
     def spectral_efficiency(self) -> tuple[np.ndarray, ...]:
         """``log2(1 + Gamma_k)`` per hop, bit/s/Hz (eq. 8 with B = 1)."""
@@ -193,6 +197,17 @@ def route_capacity(sinrs: Sequence, bandwidth: float = 1.0):
     return out
 
 
+def rate_of_routes(capacities: Sequence):
+    """The network's rate from its routes' capacities ``C_r`` (each route's hops in their own slots):
+    ``1 / sum_r 1 / C_r``, which is ``network_rate`` since ``C_r = B / sum_k 1/log2(1 + Gamma_k)``;
+    zero when a route is dead. numpy (broadcast) or CasADi."""
+    if is_symbolic(*capacities):
+        return 1.0 / sum(1.0 / c for c in capacities)
+    caps = list(np.broadcast_arrays(*(np.asarray(c, float) for c in capacities)))
+    alive = np.all([c > 0 for c in caps], axis=0)
+    return np.where(alive, 1.0 / sum(1.0 / np.where(alive, c, 1.0) for c in caps), 0.0)
+
+
 def network_rate(route_sinrs: Sequence[Sequence], bandwidth: float = 1.0):
     """The rate every source of a network gets when every hop of every route has its own time slot
     (no two hops interfere; the jammers reach every receiver): ``R = B / sum_s sum_{k in route s}
@@ -208,6 +223,13 @@ def network_rate(route_sinrs: Sequence[Sequence], bandwidth: float = 1.0):
     return bandwidth * np.where(alive, 1.0 / inv, 0.0)
 
 
+def _fold(f, values):
+    out = values[0]
+    for v in values[1:]:
+        out = f(out, v)
+    return out
+
+
 @dataclass(frozen=True)
 class RadioScene:
     """Nodes, jammers, link budget and the routes data takes (node names, a source first, a base
@@ -219,6 +241,9 @@ class RadioScene:
     route: tuple[str, ...] = ("source", "relay", "bs")
     path_gain: PathGain = PathGain()  # deterministic large-scale propagation of every link
     routes: tuple[tuple[str, ...], ...] = ()  # a network's routes (empty: the one ``route``)
+    # per route of ``all_routes``, the base stations it may end at (its serving end among them; empty: its end is
+    # fixed); ``()``: every route's end fixed
+    handover: tuple[tuple[str, ...], ...] = ()
 
     def __post_init__(self):
         for field_name, items, kind in (("nodes", self.nodes, Node), ("jammers", self.jammers, Jammer)):
@@ -239,6 +264,15 @@ class RadioScene:
                 raise ValueError("radio scene: the route must start at a source and end at a base station")
             if len(set(route)) != len(route):
                 raise ValueError(f"radio scene: route {list(route)} passes a node twice")
+        if self.handover:
+            if len(self.handover) != len(self.all_routes):
+                raise ValueError(f"radio scene: handover gives {len(self.handover)} routes' base stations for "
+                                 f"{len(self.all_routes)} routes")
+            for route, ends in zip(self.all_routes, self.handover, strict=True):
+                wrong = [e for e in ends if e not in names or self.node(e).role != "base_station"]
+                if wrong or (ends and route[-1] not in ends):
+                    raise ValueError(f"radio scene: route {list(route)} may end at {list(ends)}: each a base station, "
+                                     "its serving end among them")
         for j in self.jammers:
             if j.point_at is not None and j.point_at not in names:
                 raise ValueError(f"jammer {j.name!r}: point_at {j.point_at!r} is not a node ({', '.join(names)})")
@@ -265,12 +299,27 @@ class RadioScene:
         were set for the whole fleet)."""
         lost = set(lost)
         routes: list[tuple[str, ...]] = []
-        for r in self.all_routes:
+        ends: list[tuple[str, ...]] = []
+        for r, e in zip(self.all_routes, self.handover or [()] * len(self.all_routes), strict=True):
             kept = tuple(n for n in r if n not in lost)
             if kept not in routes:
                 routes.append(kept)
+                ends.append(e)
         nodes = tuple(n for n in self.nodes if n.name not in lost)
-        return replace(self, nodes=nodes, route=routes[0], routes=tuple(routes) if len(routes) > 1 else ())
+        return replace(self, nodes=nodes, route=routes[0], routes=tuple(routes) if len(routes) > 1 else (),
+                       handover=tuple(ends) if self.handover else ())
+
+    def serving(self, ends: Sequence[str]) -> RadioScene:
+        """The scene with each route ending at ``ends`` (a base station each, one it may end at)."""
+        routes = tuple(r[:-1] + (str(e),) for r, e in zip(self.all_routes, ends, strict=True))
+        return replace(self, route=routes[0], routes=routes if len(routes) > 1 else ())
+
+    @property
+    def candidate_routes(self) -> tuple[tuple[tuple[str, ...], ...], ...]:
+        """Per route, every route it may take: with each base station it may end at, in ``handover``'s
+        order (the serving one among them), or itself when its end is fixed."""
+        ends = self.handover or [()] * len(self.all_routes)
+        return tuple(tuple(r[:-1] + (b,) for b in e) if e else (r,) for r, e in zip(self.all_routes, ends, strict=True))
 
     @property
     def all_routes(self) -> tuple[tuple[str, ...], ...]:
@@ -279,16 +328,25 @@ class RadioScene:
 
     @property
     def hops(self) -> tuple[tuple[str, str], ...]:
-        """Every link of every route once (a link two routes share is one hop), in route order."""
+        """Every link of every route once (a link two routes share is one hop), in route order; a route
+        that may end at several base stations with each (``candidate_routes``: the order does not
+        depend on which serves)."""
         out: list[tuple[str, str]] = []
-        for route in self.all_routes:
-            out += [h for h in zip(route[:-1], route[1:], strict=True) if h not in out]
+        for routes in self.candidate_routes:
+            for route in routes:
+                out += [h for h in zip(route[:-1], route[1:], strict=True) if h not in out]
         return tuple(out)
 
     def route_hops(self) -> tuple[tuple[int, ...], ...]:
         """Per route, the indices in ``hops`` of its links, in order."""
         hops = self.hops
         return tuple(tuple(hops.index(h) for h in zip(r[:-1], r[1:], strict=True)) for r in self.all_routes)
+
+    def candidate_hops(self) -> tuple[tuple[tuple[int, ...], ...], ...]:
+        """Per route, per route it may take (``candidate_routes``), the indices in ``hops`` of its links."""
+        hops = self.hops
+        return tuple(tuple(tuple(hops.index(h) for h in zip(r[:-1], r[1:], strict=True)) for r in routes)
+                     for routes in self.candidate_routes)
 
     @property
     def fading_links(self) -> int:
@@ -346,13 +404,16 @@ class RadioScene:
         return total
 
     def evaluate(self, t: float, poses: Mapping[str, NodePose], *, jammer_positions=None, jammer_powers=None,
-                 fading=None, link_gains=None) -> ChannelState:
+                 fading=None, link_gains=None, ends: Literal["best", "serving"] = "best") -> ChannelState:
         """SINR of every hop (eq. 5) and the end-to-end capacity (eq. 9) with the nodes at ``poses``
         (fixed nodes may be omitted). The jammers are the true ones at ``t`` unless
         ``jammer_positions`` ``(nJ, 3)`` / ``jammer_powers`` ``(nJ,)`` say what a controller knows;
         ``fading``: ``fading_links`` power gains (hops first, then each receiver's jammer links);
         ``link_gains``: the same links' power gains, antennas included, given instead of eq. 6-7's (a
-        ray-traced channel, ``sim/traced.py``); ``fading`` multiplies them as it does eq. 6-7's."""
+        ray-traced channel, ``sim/traced.py``); ``fading`` multiplies them as it does eq. 6-7's.
+        ``ends``: a route that may end at several base stations (``handover``) counts with the best of
+        them (``"best"``: what a planner or a bound can reach, per element of a grid) or with the one
+        serving it now (``"serving"``: its end in ``all_routes``, the network's truth)."""
         poses = self.with_fixed(poses)
         emitters = self.emitters(t, poses, positions=jammer_positions, powers=jammer_powers)
         b, nh, nj = self.budget, len(self.hops), len(emitters)
@@ -371,10 +432,22 @@ class RadioScene:
                     i_rx = np.nan_to_num(i_rx, nan=np.inf)
                 sinrs.append(h * b.tx_power / (i_rx + b.noise_power))  # eq. 5
                 interference.append(i_rx)
-        per_route = [[sinrs[k] for k in r] for r in self.route_hops()]
-        routes = tuple(route_capacity(r, b.bandwidth) for r in per_route)
-        rate = routes[0] if len(routes) == 1 else network_rate(per_route, b.bandwidth)
-        return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, routes)
+        if not any(self.handover):
+            per_route = [[sinrs[k] for k in r] for r in self.route_hops()]
+            routes = tuple(route_capacity(r, b.bandwidth) for r in per_route)
+            rate = routes[0] if len(routes) == 1 else network_rate(per_route, b.bandwidth)
+            return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, routes, tuple((c,) for c in routes))
+        if ends not in ("best", "serving"):
+            raise ValueError(f"evaluate: ends must be 'best' or 'serving', got {ends!r}")
+        candidates = tuple(tuple(route_capacity([sinrs[k] for k in hs], b.bandwidth) for hs in route)
+                           for route in self.candidate_hops())
+        if ends == "serving":
+            chosen = tuple(c[rs.index(r)] for c, rs, r in zip(candidates, self.candidate_routes, self.all_routes, strict=True))
+        else:
+            most = ca.fmax if is_symbolic(*sinrs) else np.maximum
+            chosen = tuple(_fold(most, c) for c in candidates)
+        rate = chosen[0] if len(chosen) == 1 else rate_of_routes(chosen)
+        return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, chosen, candidates)
 
     def relay_grid(self, t: float, positions, axes, poses: Mapping[str, NodePose], *, jammer_positions=None,
                    jammer_powers=None, relay: str | None = None, fading=None) -> np.ndarray:
@@ -407,7 +480,9 @@ class RadioScene:
         if not self.jammers:
             parts.append("no jammer")
         b = self.budget
-        routes = "; ".join(" -> ".join(r) for r in self.all_routes)
+        ends = self.handover or [()] * len(self.all_routes)
+        routes = "; ".join(" -> ".join(r[:-1]) + (f" -> any of {'/'.join(e)}" if e else f" -> {r[-1]}")
+                           for r, e in zip(self.all_routes, ends, strict=True))
         parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; "
                      f"{'route' if len(self.all_routes) == 1 else 'routes'} {routes}")
         if not self.path_gain.is_paper:

@@ -123,15 +123,20 @@ class EquidistantSettings:
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
 
 
-def equidistant_targets(routes: Sequence[Sequence[str]], positions: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+def equidistant_targets(routes: Sequence[Sequence[str]], positions: Mapping[str, np.ndarray],
+                        ends: Sequence[Sequence[str]] = ()) -> dict[str, np.ndarray]:
     """Each relay's place on its route: relay ``k`` (1-based from the base station) of a route with
     ``K`` relays at ``p_bs + k / (K + 1) (p_source - p_bs)``; a relay on several routes at the mean
     of its places. ``routes``: ``[source, relay, ..., bs]``; ``positions``: the sources' and the base
-    station's (m, world)."""
+    stations' (m, world); ``ends``: per route, the base stations it may end at (``RadioScene.handover``;
+    empty: its own end): the one nearest its source is its ``bs``."""
     places: dict[str, list[np.ndarray]] = {}
-    for route in routes:
+    for i, route in enumerate(routes):
         src, relays, bs = route[0], list(route[1:-1]), route[-1]
-        p_src, p_bs = np.asarray(positions[src], float), np.asarray(positions[bs], float)
+        p_src = np.asarray(positions[src], float)
+        if i < len(ends) and ends[i]:
+            bs = min(ends[i], key=lambda b: float(np.linalg.norm(np.asarray(positions[b], float) - p_src)))
+        p_bs = np.asarray(positions[bs], float)
         n = len(relays)
         for k, name in enumerate(reversed(relays), start=1):  # counted from the base station
             places.setdefault(name, []).append(p_bs + k / (n + 1) * (p_src - p_bs))
@@ -144,15 +149,18 @@ class EquidistantPlanner:
     inside the workspace; no antenna-axis reference (the thrust direction follows the flight, as an
     operator's relay flies)."""
 
-    def __init__(self, routes: Sequence[Sequence[str]], relay_starts: Mapping[str, np.ndarray], settings: EquidistantSettings):
+    def __init__(self, routes: Sequence[Sequence[str]], relay_starts: Mapping[str, np.ndarray], settings: EquidistantSettings,
+                 ends: Sequence[Sequence[str]] = ()):
+        """``ends``: per route, the base stations it may end at (``equidistant_targets``)."""
         self.routes = [list(r) for r in routes]
+        self.ends = [list(e) for e in ends]
         self.settings = settings
         self.refs = {n: np.asarray(p, float).copy() for n, p in relay_starts.items()}
         lo, hi = np.asarray(settings.workspace_min, float), np.asarray(settings.workspace_max, float)
         self.lo, self.hi = lo + settings.margin_m, hi - settings.margin_m
 
     def update(self, inp: FleetInput) -> dict[str, Reference]:
-        targets = equidistant_targets(self.routes, inp.positions)
+        targets = equidistant_targets(self.routes, inp.positions, self.ends)
         out = {}
         for name, ref in self.refs.items():
             goal = np.clip(targets[name], self.lo, self.hi)

@@ -104,7 +104,7 @@ def fleet_route(scene: RadioScene, sources: Mapping[str, SourceTrajectory], star
     # of the places on the network's rate first gave the same route, 6x slower: docs/decisions.md)
     places = np.empty((len(times), len(relays), 3))
     for i in range(len(times)):
-        even = equidistant_targets(scene.all_routes, {n: p.position for n, p in poses[i].items()})
+        even = equidistant_targets(scene.all_routes, {n: p.position for n, p in poses[i].items()}, scene.handover)
         places[i] = np.stack([even[r] for r in relays])
     if len(times) < 2:
         return FleetRoute(times, np.clip(np.stack([starts[r] for r in relays])[None], lo, hi), tuple(relays))

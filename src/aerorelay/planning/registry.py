@@ -76,8 +76,9 @@ def _box(ctx: NetworkPlannerContext) -> dict:
 @register_network_planner("equidistant")
 def _equidistant(ctx: NetworkPlannerContext):
     cap = ctx.settings.capacity
-    return EquidistantPlanner(ctx.routes, ctx.starts, EquidistantSettings(speed_m_s=cap.speed_m_s, margin_m=cap.margin_m,
-                                                                          **_box(ctx)))
+    return EquidistantPlanner(ctx.scene.all_routes, ctx.starts, EquidistantSettings(speed_m_s=cap.speed_m_s,
+                                                                                    margin_m=cap.margin_m, **_box(ctx)),
+                              ctx.scene.handover)
 
 
 @register_network_planner("capacity")

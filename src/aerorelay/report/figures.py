@@ -63,7 +63,8 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
         ax.plot(*_xyz(df, r, "pd"), color=colour, ls=":", lw=1, label=f"{'relay' if one else r} reference")
     for i, s in enumerate(sources):
         ax.plot(*_xyz(df, s), color=SOURCE if i == 0 else f"C{i + len(relays)}", label="MRAV-2 (source)" if one else f"source {s}")
-    ax.scatter(*sc.nodes.bs, color="k", s=30, label="BS")
+    for b in sc.base_station_list:
+        ax.scatter(*b.position, color="k", s=30, label="BS" if len(sc.base_station_list) == 1 else f"BS {b.name}")
     for i, (name, P) in enumerate(jammer_tracks(sc, df["t"].to_numpy())):
         ax.scatter(*P[0], color="r", s=30, label="jammer" if i == 0 else None)
         if np.ptp(P, axis=0).max() > 1e-9:
@@ -188,7 +189,8 @@ def fig_paths(df: pd.DataFrame, sc: Scenario):
             ax.plot(x, v, lw=1.0, label=name)
             ax.plot(x[0], v[0], "o", ms=3, color=ax.lines[-1].get_color())
     for ax, i in ((top, 1), (side, 2)):
-        ax.plot(sc.nodes.bs[0], sc.nodes.bs[i], "k^", label="bs")
+        for b in sc.base_station_list:
+            ax.plot(b.position[0], b.position[i], "k^", label=b.name)
         for j in sc.jammer_configs:
             ax.plot(df[f"jam_{j.name}_x"], df[f"jam_{j.name}_{'yz'[i - 1]}"], "rx", ms=4, label=f"jammer {j.name!r}")
         ax.set_xlabel("x (m)")
@@ -216,8 +218,8 @@ def trajectory_html(df: pd.DataFrame, sc: Scenario) -> str:
     for s in sources_in(df.columns):
         traces.append(go.Scatter3d(x=df[f"{s}.p_x"], y=df[f"{s}.p_y"], z=df[f"{s}.p_z"], mode="lines",
                                    name=f"source {s}", line=dict(width=4)))
-    traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="bs",
-                               marker=dict(color="black", size=5)))
+    traces += [go.Scatter3d(x=[b.position[0]], y=[b.position[1]], z=[b.position[2]], mode="markers", name=b.name,
+                            marker=dict(color="black", size=5)) for b in sc.base_station_list]
     fig = go.Figure([*traces, *jammer_traces(sc, df["t"].to_numpy())])
     routes = "; ".join(" -> ".join(r) for r in sc.route_list)
     fig.update_layout(title=f"{sc.name}: {routes}", height=720,

@@ -236,8 +236,9 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
                                        name="MRAV-2" if len(sources) == 1 else f"source {name}",
                                        line=dict(color="#7b3fa0", width=4, dash="dash")))
     sc = scenario_of(next(iter(firsts.values())))
-    traces.append(go.Scatter3d(x=[sc.nodes.bs[0]], y=[sc.nodes.bs[1]], z=[sc.nodes.bs[2]], mode="markers", name="BS",
-                               marker=dict(color="black", size=5)))
+    traces += [go.Scatter3d(x=[b.position[0]], y=[b.position[1]], z=[b.position[2]], mode="markers",
+                            name="BS" if len(sc.base_station_list) == 1 else f"BS {b.name}", marker=dict(color="black", size=5))
+               for b in sc.base_station_list]
     traces.extend(jammer_traces(sc, np.arange(0.0, sc.duration_s + 1e-9, 0.5)))
     fig = go.Figure(traces)
     fig.update_layout(height=520, scene=dict(aspectmode="data", xaxis_title="x (m)", yaxis_title="y (m)", zaxis_title="z (m)"),

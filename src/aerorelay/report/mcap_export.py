@@ -150,8 +150,8 @@ def _frame(name: str, t: float, p, eta) -> FrameTransform:
                           translation=Vector3(x=p[0], y=p[1], z=p[2]), rotation=quaternion_zyx(*eta))
 
 
-def _base_station(t: float, p0: np.ndarray) -> SceneEntity:
-    return SceneEntity(timestamp=_stamp(t), frame_id="world", id="bs",
+def _base_station(name: str, t: float, p0: np.ndarray) -> SceneEntity:
+    return SceneEntity(timestamp=_stamp(t), frame_id="world", id=name,
                        cylinders=[CylinderPrimitive(pose=_pose(p0 + [0, 0, 0.5]), size=Vector3(x=0.4, y=0.4, z=1.0),
                                                     bottom_scale=1.0, top_scale=1.0, color=Color(r=0.1, g=0.1, b=0.1, a=1))])
 
@@ -168,8 +168,8 @@ def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFra
     eul = {n: df[[f"{n}.phi", f"{n}.theta", f"{n}.psi"]].to_numpy() for n in relays + sources}
     ref = {n: df[[f"{n}.pd_x", f"{n}.pd_y", f"{n}.pd_z"]].to_numpy() for n in relays}
     hops = [tuple(c.split(".")[1:]) for c in df.columns if c.startswith("sinr.")]
-    p0 = np.array(sc.nodes.bs, float)
-    pos["bs"] = np.repeat(p0[None, :], len(t), axis=0)
+    for b in sc.base_station_list:
+        pos[b.name] = np.repeat(np.array(b.position, float)[None, :], len(t), axis=0)
     tracks = jammer_tracks(sc, t)
     cols = numeric_columns(df)
     values = df[cols].astype(float).to_numpy()
@@ -186,7 +186,7 @@ def write_run_mcap(df: pd.DataFrame, sc: Scenario, path: Path, bound: pd.DataFra
                 continue
             ents = [_vehicle(n, t[k], colour[n]) for n in relays + sources]
             ents += [_marker(f"reference_{n}", t[k], ref[n][k], colour[n], 0.2) for n in relays]
-            ents.append(_base_station(t[k], p0))
+            ents += [_base_station(b.name, t[k], np.asarray(b.position, float)) for b in sc.base_station_list]
             ents += [_link(f"link_{tx}_{rx}", t[k], pos[tx][k], pos[rx][k], float(df[f"sinr.{tx}.{rx}"].iloc[k]))
                      for tx, rx in hops]
             ents += [_marker(f"jammer_{name}", t[k], P[k], (0.9, 0.1, 0.1), 0.4) for name, P in tracks]

@@ -26,7 +26,7 @@ from ..flight.network_controller import LoopRelay, NetworkController
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
-from ..models.radio import RadioScene
+from ..models.radio import ChannelState, RadioScene
 from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetPlanner
@@ -34,6 +34,7 @@ from ..planning.home import HomeFlight, extra_time_s
 from .air import Air
 from .blockage import Blockage
 from .exit_status import ExitStatus
+from .handover import Handover, HandoverRule
 from .jammer_sensing import JammerSensing
 from .log_schema import (
     gone_row,
@@ -106,6 +107,7 @@ class SimSettings:
     senses_jammer_state: bool = False
     # fading model, shadowing and carrier of the plant's random channel terms (sim/perturbations.py)
     channel_noise: PerturbationSettings | None = None
+    handover: HandoverRule = HandoverRule()  # which base station serves a route that may end at several
 
     def link_perturbations(self, scene: RadioScene) -> LinkPerturbations:
         """The plant's random channel terms on ``scene``'s links (the fading's K from ``fading_k_db``)."""
@@ -239,6 +241,12 @@ class ClosedLoop:
         self.hover_w = {r.name: float(r.vehicle.shaft_power(r.vehicle.hover_speeds())) for r in relays}  # W, for the way home
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
         self.bs_name, self.bs, self.gravity = self.control.bs_name, self.control.bs, self.control.gravity
+        self.stations = self.control.stations  # every base station's position (m, world)
+        # a route that may end at several base stations: which serves it, decided each step from the true rates
+        self.handover = Handover(settings.handover) if any(scene.handover) else None
+        self.handover_columns = [f"{rs[0][0]}.base_station" for rs in scene.candidate_routes if len(rs) > 1]
+        self.handover_columns += [f"capacity_via.{r[0]}.{r[-1]}" for rs in scene.candidate_routes if len(rs) > 1 for r in rs]
+        self.columns += self.handover_columns
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
         self.planner_ms: list[float] = []
         self.timings: dict[str, list[StepTiming]] = {r.name: [] for r in relays}
@@ -292,6 +300,23 @@ class ClosedLoop:
         if turned:
             self._lose(gone | set(homing), x)
 
+    def _hand_over(self, t: float, state: ChannelState, poses, gains, link_gains) -> tuple[ChannelState, dict]:
+        """The handover rule on this step's true rates (``state``, the channel at ``poses`` with the plant's
+        ``gains`` / ``link_gains``): a route handed over is served by its new base station from this step on;
+        the serving base stations and every candidate's rate logged."""
+        assert self.handover is not None
+        ends = self.handover.decide(t, self.scene, state)
+        if ends is not None:
+            self.control.hand_over(ends)
+            self.scene = self.control.scene
+            state = self.scene.evaluate(t, poses, fading=gains, link_gains=link_gains, ends="serving")
+        values: dict[str, object] = dict.fromkeys(self.handover_columns, math.nan)
+        for routes, route, rates in zip(self.scene.candidate_routes, self.scene.all_routes, state.candidates, strict=True):
+            if len(routes) > 1:
+                values[f"{route[0]}.base_station"] = route[-1]
+                values |= {f"capacity_via.{r[0]}.{r[-1]}": float(c) for r, c in zip(routes, rates, strict=True)}
+        return state, values
+
     @property
     def planner(self):
         return self.control.planner
@@ -343,7 +368,7 @@ class ClosedLoop:
                 row: dict[str, object] = {"t": t}
                 predicted = self.control.predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
                 true_positions = {**{n: xs[0:3] for n, xs in flying.items()}, **{n: s.p for n, s in truth.items()},
-                                  self.bs_name: self.bs}
+                                  **self.stations}
                 inputs = {}
                 for r in self.relays:
                     if r.name in gone:
@@ -365,7 +390,7 @@ class ClosedLoop:
                 gains = None
                 if self.perturbations.active:  # fading and shadowing on every link, each its own
                     velocities = {**{n: xs[6:9] if n in flying else np.zeros(3) for n, xs in x.items()},
-                                  **{n: s.v for n, s in truth.items()}, self.bs_name: np.zeros(3)}
+                                  **{n: s.v for n, s in truth.items()}, **{n: np.zeros(3) for n in self.stations}}
                     every, values = self.perturbations.step(t, {**{n: xs[0:3] for n, xs in x.items()}, **true_positions},
                                                             velocities)  # a lost relay's links at where it was lost
                     gains = None if every is None else every[self._links_now]
@@ -378,9 +403,12 @@ class ClosedLoop:
                 if self.traced is not None:  # the links' gains ray traced at the true poses
                     link_gains, values = self.traced.step(self.scene, t, poses)
                     row |= dict.fromkeys(self.traced_columns, math.nan) | values
-                state = self.scene.evaluate(t, poses, fading=gains, link_gains=link_gains)
+                state = self.scene.evaluate(t, poses, fading=gains, link_gains=link_gains, ends="serving")
+                if self.handover is not None:
+                    state, values = self._hand_over(t, state, poses, gains, link_gains)
+                    row |= values
                 if self.sensing is not None:  # the receivers read this step's interference; the estimate is the next step's
-                    row |= self.sensing.step(t, state, {**poses, self.bs_name: self.scene.fixed_pose(self.bs_name)})
+                    row |= self.sensing.step(t, state, self.scene.with_fixed(poses))
                 row |= dict.fromkeys(sinr_columns, math.nan)  # a hop the network does not take now
                 row |= link_row(self.scene, t, state)
                 row["separation_min"] = separation_min(np.array([true_positions[n] for n in (*flying, *truth)]))

@@ -46,7 +46,7 @@ RELAY_STEP = ("pd_x", "pd_y", "pd_z", "v_up", "v_down", "mutual_alignment", "sla
 # the quantities that are not floats, with their types (flags and the QP's status text)
 COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool,
                                  "safety_violation": bool, "battery_reserve": bool,
-                                 "going_home": bool}
+                                 "going_home": bool, "base_station": str}
 NETWORK_COLUMNS = ("capacity", "jammer_on", "separation_min")
 
 

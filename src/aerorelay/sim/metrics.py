@@ -253,6 +253,26 @@ def traced_metrics(log) -> dict:
             "delay_spread_mean_ns": float(np.nanmean(values)), "delay_spread_max_ns": float(np.nanmax(values))}
 
 
+def handover_metrics(log, sources: Sequence[str]) -> dict:
+    """Each route that may end at several base stations (its ``<source>.base_station`` column): the
+    handovers it made (``handovers``, the first choice not counted), the shortest time one base station
+    served between two handovers (``dwell_min_s``; None without two), the share of the steps each
+    served (``served_fraction``); the network's ``handovers`` in all. Empty without such a route."""
+    routes, total = {}, 0
+    t = np.asarray(log["t"], float)
+    for s in sources:
+        col = f"{s}.base_station"
+        if col not in log:
+            continue
+        serving = [str(v) for v in log[col]]
+        at = [float(t[k]) for k in range(1, len(serving)) if serving[k] != serving[k - 1]]
+        served = sorted(set(serving))
+        routes[s] = {"handovers": len(at), "dwell_min_s": float(np.min(np.diff(at))) if len(at) > 1 else None,
+                     "served_fraction": {b: float(np.mean([v == b for v in serving])) for b in served}}
+        total += len(at)
+    return {"handovers": total, "routes": routes} if routes else {}
+
+
 def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndarray]:
     """Which of the times ``t`` (s) lie before the first loss and from the last one on (a loss at
     ``t_l`` counts from ``t_l`` itself): ``{"before_loss": mask, "after_loss": mask}``."""
@@ -318,6 +338,11 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
             out["se_21_mean"], out["se_10_mean"] = (float(np.mean(np.asarray(log[c], float))) for c in hops)
     out |= estimation_metrics(log, period_s)
     out |= traced_metrics(log)
+    handover = handover_metrics(log, sources)
+    if handover:
+        out["handovers"] = handover["handovers"]
+        for s, m in handover["routes"].items():
+            out["routes"][s] |= m
     out["unsafe"] = bool(reasons)
     out["unsafe_reason"] = "; ".join(reasons)
     out |= exit_fields(statuses)
