@@ -313,3 +313,46 @@ def test_no_flyable_fleet_path_beats_the_upper_path_bound():
         best = max(best, float(np.mean(rates)))
     assert best <= b.path_mean.mean(), (best, b.path_mean.mean())
     assert b.summary()["path_mean"]["mean"] == pytest.approx(b.path_mean.mean())
+
+
+def test_routes_that_may_end_at_either_base_station_are_bounded_by_the_best_combination():
+    """Two relays from a source moving from the west base station's side to the east one's (30 m apart), the
+    route ending at either (``RadioScene.handover``): at every instant the static bound is the larger of the two
+    fixed-end networks' bounds (each computed on its own) and the refined configuration the better one; the upper
+    path bound, taken over both networks' terms at once, lies above the flyable fleet path and above 30 random
+    flyable fleet paths each scored on its best end at every sample (the network hands over freely), and at
+    every instant at most the static bound."""
+    from dataclasses import replace
+
+    names = ["r1", "r2"]
+    iso = IsotropicPattern(1.0)
+    east = np.array([30.0, 0.0, 2.0])
+    nodes = (Node("west", "base_station", Antenna(iso), BS), Node("east", "base_station", Antenna(iso), east),
+             Node("s", "source", Antenna(iso)), *(Node(n, "relay", Antenna(iso)) for n in names))
+    sc = RadioScene(nodes, (), LinkBudget(1.0, 1.0, 1.0), ("s", *names, "west"), handover=(("west", "east"),))
+    source = LinearPath(np.array([[0.0, 8.0, 0.5, 2.0], [8.0, 22.0, 0.5, 2.0]]))
+    starts = {"r1": np.array([5.0, 1.0, 2.0]), "r2": np.array([3.0, -1.0, 2.0])}
+    lo, hi = np.array([-1.0, -2.0, 0.0]), np.array([31.0, 2.0, 4.0])
+
+    def pb(scene):
+        return NetworkBoundProblem(scene, {"s": source}, {r: 0.35 for r in names}, lo, hi, 8.0,
+                                   BoundResolution(grid_m=1.0, dt_s=1.0, axis_step_deg=10.0, max_speed_m_s=1.0,
+                                                   max_accel_m_s2=1.0), separation_m=1.0, starts=starts)
+
+    b = compute_network_bound(pb(sc))
+    plain = replace(sc, handover=())
+    fixed = {end: compute_network_bound(pb(plain.serving([end]))) for end in ("west", "east")}
+    np.testing.assert_allclose(b.static, np.maximum(fixed["west"].static, fixed["east"].static), rtol=1e-12)
+    np.testing.assert_allclose(b.achieved, np.maximum(fixed["west"].achieved, fixed["east"].achieved), rtol=1e-12)
+    assert (fixed["east"].static > fixed["west"].static).any() and (fixed["west"].static > fixed["east"].static).any()
+    assert np.all(b.path_mean <= b.static * (1 + 1e-12))
+    assert b.flyable.mean() <= b.path_mean.mean()
+    assert b.path_mean.mean() >= max(f.path_mean.mean() for f in fixed.values()) - 1e-12
+    solvers = [NetworkBoundSolver(pb(plain.serving([end]))) for end in ("west", "east")]
+    rng = np.random.default_rng(5)
+    best = 0.0
+    for path in _random_flyable_fleets(pb(sc), b.t, 30, rng):
+        rates = [max(s.rate(float(t), path[i], s.best_axes(float(t), path[i], s.fixed_poses(float(t))), s.fixed_poses(float(t)))
+                     for s in solvers) for i, t in enumerate(b.t)]
+        best = max(best, float(np.mean(rates)))
+    assert best <= b.path_mean.mean(), (best, b.path_mean.mean())

@@ -27,7 +27,8 @@ dispatches it there.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from itertools import product
 
 import numpy as np
 import pandas as pd
@@ -526,8 +527,8 @@ class NetworkBoundSolver:
             out[r] = np.where(gap > reach + 1e-9, np.inf, 0.0)
         return out
 
-    def upper_path(self, times: np.ndarray, marginals: Sequence[Mapping[str, np.ndarray]], static: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, str]:
+    def upper_path(self, times: np.ndarray, marginals: Sequence[Sequence[Mapping[str, np.ndarray]]],
+                   static: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, str]:
         """The upper path bound: no fleet flying from the starts at most ``max_speed_m_s`` (and speeding up at most
         ``max_accel_m_s2`` from rest) has a higher mean rate over ``times``.
 
@@ -538,18 +539,24 @@ class NetworkBoundSolver:
         moves between samples to one within ``max_speed * dt`` (``cube_footprint``); the best such cube path of
         ``u_k`` from ``k``'s start (dynamic programming, ``bound._dp``) bounds every flyable fleet's mean rate, and
         so does the least of them over the relays. Returns that relay's per-sample values ``(T,)``, its cube
-        centres ``(T, 3)`` (m) and its name."""
+        centres ``(T, 3)`` (m) and its name.
+
+        ``marginals`` and ``static`` are given per network the fleet may be (one; or, with routes that may end at
+        several base stations, one per combination of ends, ``end_choices``): the fleet's rate is then the best
+        combination's, at most ``max_e u_{e,k,t}(c)``, which the values take (the cubes are the same grid)."""
         res, bw = self.pb.resolution, self.scene.budget.bandwidth
         dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
         footprint = cube_footprint(res.max_speed_m_s * dt, res.grid_m)
         best = None
         for r in self.relays:
             start = np.asarray(self.pb.starts[r], float)
-            values = np.empty((len(times), len(self.cells)))
-            for i in range(len(times)):
-                with np.errstate(divide="ignore"):
-                    values[i] = np.minimum(bw / marginals[i][r], static[i])
-                values[i, ~np.isfinite(marginals[i][r])] = -np.inf  # out of reach (or where no relay may be)
+            values = np.full((len(times), len(self.cells)), -np.inf)
+            for m_e, s_e in zip(marginals, static, strict=True):
+                for i in range(len(times)):
+                    with np.errstate(divide="ignore"):
+                        u = np.minimum(bw / m_e[i][r], s_e[i])
+                    u[~np.isfinite(m_e[i][r])] = -np.inf  # out of reach (or where no relay may be)
+                    values[i] = np.maximum(values[i], u)
             cell0 = tuple(int(v) for v in np.clip(np.floor((start - self.lo) / res.grid_m), 0, np.array(self.shape) - 1))
             idx = _dp(values.reshape(len(times), *self.shape), cell0, footprint, "mean")
             flat = np.array([np.ravel_multi_index(ix, self.shape) for ix in idx])
@@ -589,8 +596,22 @@ class NetworkBoundSolver:
         return self.configurations.refine(t, first, self.fixed_poses(t))
 
 
-def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBound:
-    """The static network bound and the refined configuration on the bound's time grid."""
+@dataclass
+class _Instants:
+    """The per-instant pieces of one network's bound (``compute_network_bound``)."""
+
+    solver: NetworkBoundSolver
+    times: np.ndarray
+    static: np.ndarray
+    static_positions: np.ndarray
+    achieved: np.ndarray
+    achieved_positions: np.ndarray
+    achieved_axes: np.ndarray
+    reachable: list  # per instant, each relay's min-marginals kept to what it can reach from its start (the path bound)
+    searches: list
+
+
+def _instants(pb: NetworkBoundProblem, progress=None) -> _Instants:
     solver = NetworkBoundSolver(pb)
     res, bw = pb.resolution, pb.scene.budget.bandwidth
     times = np.arange(0.0, pb.duration_s + 1e-9, res.dt_s)
@@ -617,6 +638,44 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
         static[k] = bw / total if np.isfinite(total) and total > 0 else np.inf
         if progress is not None:
             progress(k + 1, len(times))
+    return _Instants(solver, times, static, sp, achieved, ap, ax, level0, searches)
+
+
+def end_choices(scene: RadioScene) -> list[RadioScene]:
+    """Every network a scene whose routes may end at several base stations can be (``RadioScene.handover``):
+    one plain scene per combination of ends; the scene itself when every end is fixed."""
+    if not any(scene.handover):
+        return [scene]
+    plain = replace(scene, handover=())
+    return [plain.serving(ends) for ends in product(*(tuple(r[-1] for r in routes) for routes in scene.candidate_routes))]
+
+
+def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBound:
+    """The static network bound and the refined configuration on the bound's time grid. Routes that may end
+    at several base stations: each combination of ends bounded on its own, the network's at every instant
+    the best of them (its rate is the best combination's: ``RadioScene.evaluate``), the upper path bound from
+    every combination's terms at once (``NetworkBoundSolver.upper_path``), the flyable path the best
+    combination's."""
+    scenes = end_choices(pb.scene)
+    parts = []
+    for i, scene in enumerate(scenes):
+        def step(k, n, i=i):
+            if progress is not None:
+                progress(i * n + k, len(scenes) * n)
+
+        parts.append(_instants(replace(pb, scene=scene), step))
+    first = parts[0]
+    times, solver = first.times, first.solver
+    best = np.argmax(np.stack([p.static for p in parts]), axis=0)
+    done = np.argmax(np.stack([p.achieved for p in parts]), axis=0)
+    rows = np.arange(len(times))
+    static = np.stack([p.static for p in parts])[best, rows]
+    sp = np.stack([p.static_positions for p in parts])[best, rows]
+    achieved = np.stack([p.achieved for p in parts])[done, rows]
+    ap = np.stack([p.achieved_positions for p in parts])[done, rows]
+    ax = np.stack([p.achieved_axes for p in parts])[done, rows]
+    res = pb.resolution
+    searches = [s for p in parts for s in p.searches]
     excess = float(np.max(achieved / np.where(static > 0, static, np.inf) - 1.0, initial=0.0))
     gap = static / np.where(achieved > 0, achieved, np.nan) - 1.0  # how far above a configuration the physics allows
     method = "chain" if len(pb.scene.all_routes) == 1 else "tree"
@@ -628,11 +687,15 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                   "certified_gap_max": float(np.nanmax(gap, initial=0.0)),
                   "certified_gap_mean": float(np.nanmean(gap)) if np.isfinite(gap).any() else None,
                   "branch_levels_max": max((s["levels"] for s in searches), default=0)}
+    if len(scenes) > 1:
+        resolution["end_combinations"] = [[r[-1] for r in sc.all_routes] for sc in scenes]
+    K = len(solver.relays)
     fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
     upper, up = np.empty(0), np.empty((0, 3))
     if set(pb.starts) >= set(solver.relays):
-        fr, fp, fa, closest, status = solver.flyable(times, ap)
-        upper, up, binding = solver.upper_path(times, level0, static)
+        flown = [p.solver.flyable(times, p.achieved_positions) for p in parts]
+        fr, fp, fa, closest, status = max(flown, key=lambda f: float(np.mean(f[0])))  # the best combination's
+        upper, up, binding = solver.upper_path(times, [p.reachable for p in parts], [p.static for p in parts])
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
                        "flyable_closest_m": closest, "flyable_status": status, "path_mean_relay": binding,
                        "path_mean_footprint": "cubes within max_speed * dt of each other, within the reach from rest of "
