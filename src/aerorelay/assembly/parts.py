@@ -65,6 +65,7 @@ from . import world
 from .checks import check_physics
 from .vehicle import build_vehicle
 
+LAND_SPEED_M_S = 0.5  # a spare without a battery table lands at this speed (m/s; the battery table's default)
 ROLE_NAMES = {"bs": "base_station", "source": "source", "relay": "relay"}
 
 
@@ -156,6 +157,12 @@ def _base_station_node(b: BaseStationConfig, shared: AntennaConfig, shared_patte
                 np.array(b.position, float))
 
 
+def relay_node(sc: Scenario, name: str) -> Node:
+    """Relay ``name``'s radio node: its own antenna, else ``[antenna]``'s (a spare's, for when it takes over)."""
+    r = next(r for r in sc.relay_list if r.name == name)
+    return Node(r.name, "relay", Antenna(own_pattern(r.antenna, sc.antenna) or node_patterns(sc.antenna).relay))
+
+
 def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene:
     """The radio scene: base station 'bs' (fixed, its antenna axis ``antenna.bs_antenna_axis()``), source
     'source' (MRAV-2) and relay 'relay' (MRAV-1) or the fleet's sources and relays by name, antennas along
@@ -163,7 +170,7 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
     pat = node_patterns(sc.antenna)
     nodes = (*(_base_station_node(b, sc.antenna, pat.bs) for b in sc.base_station_list),
              *(Node(s.name, "source", Antenna(own_pattern(s.antenna, sc.antenna) or pat.source)) for s in sc.source_list),
-             *(Node(r.name, "relay", Antenna(own_pattern(r.antenna, sc.antenna) or pat.relay)) for r in sc.relay_list))
+             *(relay_node(sc, r.name) for r in sc.relay_list if not r.standby))
     ch = sc.channel
     jams = tuple(jammers) if jammers is not None else tuple(build_jammer(j) for j in sc.jammer_configs)
     stations = tuple(sc.base_station_names)
@@ -183,7 +190,8 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
     ``aerorelay info`` evaluates it: the channel's interference per unit power, one jammer at a time)."""
     I = np.eye(3)
     relay = scene.name_of("relay")  # the first relay: a fleet's INR is set at r1's start
-    poses = {n: scene.pose(n, np.array(p, float), I) for n, p in sc.starts.items()}  # a fleet: every vehicle at its start
+    in_scene = {n.name for n in scene.nodes}  # a spare waits outside the network
+    poses = {n: scene.pose(n, np.array(p, float), I) for n, p in sc.starts.items() if n in in_scene}  # every vehicle at its start
     hop = next(k for k, (_, rx) in enumerate(scene.hops) if rx == relay)
     out = []
     for i, (j, cfg) in enumerate(zip(scene.jammers, sc.jammer_configs, strict=True)):
@@ -480,13 +488,15 @@ class Parts:
                           replanner=self.replanner, sensing=self.sensing, air=self.air,
                           blockage=world.blockage(self.scenario), traced=world.traced_channel(self.scenario))
 
-    def replanner(self, lost: frozenset[str], positions) -> FleetPlanner:
-        """The planner of the network without the relays ``lost``, its references starting where the
-        others are (``positions``, m, world)."""
-        sc = self.scenario.without_relays(lost)
-        kept = {r.name: np.asarray(positions[r.name], float) for r in self.relays if r.name not in lost}
-        t0 = next((t for t, gone in self.scenario.losses if gone == lost), 0.0)
-        return network_planner(sc, self.scene.without(lost), self.relays, kept, t0)
+    def replanner(self, scene: RadioScene, positions, t0: float) -> FleetPlanner:
+        """The planner of the network ``scene`` flies now (relays lost or gone home, spares in their places), its
+        references starting where its relays are (``positions``, m, world) at ``t0`` (s)."""
+        names = [n.name for n in scene.nodes if n.role == "relay"]
+        routes = [[*r[:-1], ANY_BASE_STATION if scene.handover and scene.handover[i] else r[-1]]
+                  for i, r in enumerate(scene.all_routes)]
+        sc = self.scenario.network_of(names, routes)
+        kept = {n: np.asarray(positions[n], float) for n in names}
+        return network_planner(sc, scene, self.relays, kept, t0)
 
 
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
@@ -512,14 +522,19 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         bat = view.platform.battery
         battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
                                                    bat.avionics_w)
-        home = None if bat is None or not bat.go_home else HomeSettings(
-            landing_m=(r.start[0], r.start[1], float(view.controller.workspace.min[2])),  # home, on the workspace's floor
-            return_speed_m_s=bat.return_speed_m_s, land_speed_m_s=bat.land_speed_m_s,
-            shaper=shaper_settings(planner_settings(view).capacity, 0.0, vehicle.gravity))
+        cap = planner_settings(view).capacity
+        # home, on the workspace's floor below its start; a spare also flies to a relay's place at its return speed (the
+        # capacity planner's speed without a battery)
+        home = None if (bat is None or not bat.go_home) and not r.standby else HomeSettings(
+            landing_m=(r.start[0], r.start[1], float(view.controller.workspace.min[2])),
+            return_speed_m_s=bat.return_speed_m_s if bat is not None else cap.speed_m_s,
+            land_speed_m_s=bat.land_speed_m_s if bat is not None else LAND_SPEED_M_S,
+            shaper=shaper_settings(cap, 0.0, vehicle.gravity))
         relays.append(LoopRelay(name=r.name, vehicle=vehicle, stepper=stepper, start=np.array(r.start, float), battery=battery,
-                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s), home=home))
+                                plant=plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s), home=home,
+                                spare=relay_node(sc, r.name) if r.standby else None))
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
-    starts = {r.name: r.start for r in relays}
+    starts = {r.name: r.start for r in relays if r.spare is None}  # the network's relays (a spare waits outside it)
     relay_planner = None
     if planner is not None or not network:  # a one-relay planner: the user's (checked at the boundary) or the scenario's
         first = relays[0]
@@ -569,7 +584,7 @@ def build_sensing(sc: Scenario, scene: RadioScene, sources: dict[str, SourceTraj
     """Every relay's (and the base station's, with ``use_bs``) energy detector and the one jammer
     estimator their readings feed, whose estimate every planner shares."""
     est = sc.estimation
-    names = [r.name for r in sc.relay_list] + (sc.base_station_names if est.use_bs else [])
+    names = [r.name for r in sc.relay_list if not r.standby] + (sc.base_station_names if est.use_bs else [])
     receivers = [Receiver(name=n, pattern=scene.node(n).antenna.pattern, noise_w=scene.budget.noise_power,
                           fixed=scene.node(n).position is not None)
                  for n in names]
@@ -643,11 +658,13 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
     vehicles = {r.name: build_vehicle(sc.platform_of(i)) for i, r in enumerate(sc.relay_list)}
     return NetworkBoundProblem(
         build_scene(sc).without(lost), {s.name: source_trajectory(s.mission) for s in sc.source_list},
-        {name: v.hover_tilt_limit for name, v in vehicles.items() if name not in lost}, lo, hi, sc.duration_s,
+        {name: v.hover_tilt_limit for name, v in vehicles.items() if name not in lost and name not in sc.standby_names},
+        lo, hi, sc.duration_s,
         BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
         next(iter(vehicles.values())).gravity, sc.channel.outage, sc.separation_m,
-        {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost}, world.obstacles(sc))
+        {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost and not r.standby},
+        world.obstacles(sc))
 
 
 def network_bound(sc: Scenario, progress=None) -> NetworkBound:

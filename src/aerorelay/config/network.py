@@ -45,6 +45,9 @@ class RelayConfig(Strict):
     lost_at_s: float | None = Field(None, gt=0.0, description="the relay is lost at this time, s (battery, fault): from "
                                     "then on it is gone, every route through it skips it and the others re-plan; "
                                     "before the mission's end; default: never")
+    standby: bool = Field(False, description="a spare: it waits at its start, on no route, and launches when a relay "
+                          "of the network will have to fly home ([platform.battery] go_home) so that it arrives before "
+                          "that one leaves, then takes its place on its routes (docs/concepts/operations.md)")
 
     @field_validator("platform")
     @classmethod

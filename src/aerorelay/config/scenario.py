@@ -185,6 +185,11 @@ class Scenario(Strict):
         return list(self.sources) if self.sources is not None else [SourceConfig(name=LEGACY_SOURCE, mission=self.mission)]
 
     @property
+    def standby_names(self) -> list[str]:
+        """The spare relays (``standby = true``): on no route until one takes a relay's place."""
+        return [r.name for r in self.relay_list if r.standby]
+
+    @property
     def base_station_list(self) -> list[BaseStationConfig]:
         """Every base station: ``[[base_stations]]``, or the one at ``nodes.bs`` named ``bs``."""
         if self.base_stations is not None:
@@ -204,7 +209,7 @@ class Scenario(Strict):
         through every relay in order to the base station (``"any"`` of several)."""
         if self.network.routes is not None:
             return [list(r) for r in self.network.routes]
-        relays = [r.name for r in self.relay_list]
+        relays = [r.name for r in self.relay_list if not r.standby]
         names = self.base_station_names
         end = names[0] if len(names) == 1 else ANY_BASE_STATION
         return [[s.name, *relays, end] for s in self.source_list]
@@ -296,6 +301,13 @@ class Scenario(Strict):
         network = self.network.model_copy(update={"routes": routes})
         return self.model_copy(update={"relays": relays, "network": network})
 
+    def network_of(self, relays: list[str], routes: list[list[str]]) -> Scenario:
+        """The fleet flying ``relays`` (names, spares among them now on routes) on ``routes``, no loss left to happen:
+        what a network planner is built for after relays are lost, gone home or taken over."""
+        by_name = {r.name: r for r in self.relay_list}
+        flying = [by_name[n].model_copy(update={"lost_at_s": None, "standby": False}) for n in relays]
+        return self.model_copy(update={"relays": flying, "network": self.network.model_copy(update={"routes": routes})})
+
     def _relay_field(self, i: int, what: str, *, legacy: str) -> str:
         return legacy if self.relays is None else f"relays[{i}].{what}"
 
@@ -349,11 +361,32 @@ class Scenario(Strict):
                 raise ValueError(f"{where}: {route} is given twice")
         used = {n for r in routes for n in r}
         for i, r in enumerate(self.relay_list):
-            if r.name not in used:
+            if r.standby and r.name in used:
+                raise ValueError(f"relays[{i}].standby: the spare {r.name!r} is on a route; a spare waits on none until it "
+                                 "takes a relay's place")
+            if not r.standby and r.name not in used:
                 raise ValueError(f"relays[{i}]: {r.name!r} is on no route of network.routes (a relay carries data)")
+        self._spares_can_take_over()
         for i, s in enumerate(self.source_list):
             if s.name not in used:
                 raise ValueError(f"sources[{i}]: {s.name!r} is on no route of network.routes (its data goes nowhere)")
+
+    def _spares_can_take_over(self) -> None:
+        """A spare has a relay to stand by for (one that flies home: ``[platform.battery] go_home``), is never lost at
+        a time, and one relay at least flies from the start."""
+        spares = [i for i, r in enumerate(self.relay_list) if r.standby]
+        if not spares:
+            return
+        if len(spares) == len(self.relay_list):
+            raise ValueError(f"relays[{spares[-1]}].standby: every relay is a spare; one at least flies from the start")
+        batteries = [(r, self.platform_of(i).battery) for i, r in enumerate(self.relay_list)]
+        homing = [r.name for r, b in batteries if not r.standby and b is not None and b.go_home]
+        if not homing:
+            raise ValueError(f"relays[{spares[0]}].standby: no relay of the network flies home ([platform.battery] with "
+                             "go_home = true, its own or the shared one), so the spare would never launch")
+        for i in spares:
+            if self.relay_list[i].lost_at_s is not None:
+                raise ValueError(f"relays[{i}].lost_at_s: a spare is not lost at a time (it is on no route until it takes over)")
 
     @property
     def obstacle_list(self) -> list[ObstacleConfig]:
@@ -491,6 +524,8 @@ class Scenario(Strict):
         if self.mission.flown_file and "mission.waypoints" in updates:  # waypoints given: they fly, not the file
             for f in ("trajectory_csv", "trajectory_ulog", "trajectory_plan", "trajectory_gpx"):
                 data["mission"].pop(f, None)
+        if any(k == "base_stations" or k.startswith("base_stations.") for k in updates):  # they replace nodes.bs
+            data.get("nodes", {}).pop("bs", None)
         for key, value in updates.items():
             node: Any = data
             *parents, leaf = key.split(".")

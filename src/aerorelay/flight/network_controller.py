@@ -17,7 +17,7 @@ from ..control.nmpc import StepInfo
 from ..models.battery import Battery
 from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceState as PathState
-from ..models.radio import RadioScene
+from ..models.radio import Node, RadioScene
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from ..planning.fleet import FleetInput, FleetPlanner
@@ -42,6 +42,7 @@ class LoopRelay:
     start: np.ndarray
     battery: Battery | None = None
     home: HomeSettings | None = None  # where and how it flies home when its battery says so (None: it does not)
+    spare: Node | None = None  # a spare's radio node (``standby``): it waits outside the network until it takes over
 
     @property
     def controller(self):
@@ -63,7 +64,9 @@ class NetworkController:
 
     def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner, period_s: float,
                  separation_m: float = 0.0,
-                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None):
+                 replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None):
+        """``replanner(scene, positions, t0)``: the planner of the network ``scene`` (relays lost, gone home or taken
+        over), its references starting where its relays are (m, world) at ``t0`` (s)."""
         self.scene, self.relays, self.period = scene, relays, period_s
         self.planner: FleetPlanner | None = planner  # None once no relay is left in the network
         self.separation_m, self.replanner = separation_m, replanner
@@ -82,16 +85,27 @@ class NetworkController:
         self.plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)
         self.planner_ms = 0.0  # the last step's planner time (ms; without work the planner runs beside the loop: off_loop_s)
 
-    def lose(self, lost: frozenset[str], positions: Mapping[str, np.ndarray]) -> None:
+    def lose(self, lost: frozenset[str], positions: Mapping[str, np.ndarray], t0: float = 0.0) -> None:
         """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
-        others from where they are (``positions``, m, world)."""
+        others from where they are (``positions``, m, world) at ``t0`` (s)."""
+        self.recompose(self.scene.without(lost), positions, t0)
+
+    def recompose(self, scene: RadioScene, positions: Mapping[str, np.ndarray], t0: float) -> None:
+        """The network flies ``scene`` from now on (relays gone, spares in their places): its planner rebuilt from
+        where its relays are (``positions``, m, world) at ``t0`` (s); no relay left: the sources reach the base
+        station directly, nothing to plan."""
         if self.replanner is None:
-            raise ValueError("network controller: relays are lost but no replanner builds the smaller network's planner")
-        self.scene = self.scene.without(lost)
-        left = [r.name for r in self.relays if r.name not in lost]
-        # no relay left in the network: the sources reach the base station directly, nothing to plan
-        self.planner = self.replanner(lost, {n: p for n, p in positions.items() if n not in lost}) if left else None
+            raise ValueError("network controller: the network changes but no replanner builds its planner")
+        self.scene = scene
+        left = any(n.role == "relay" for n in scene.nodes)
+        self.planner = self.replanner(scene, positions, t0) if left else None
         self.neighbours_of = route_neighbours(self.scene)
+
+    def take_over(self, leaving: str, spare: Node, positions: Mapping[str, np.ndarray], t0: float,
+                  gone: frozenset[str] = frozenset()) -> None:
+        """The ``spare`` takes the place of ``leaving`` on every route (``RadioScene.handed_to``), the relays ``gone``
+        leave; the planner rebuilt (``recompose``)."""
+        self.recompose(self.scene.handed_to(leaving, spare).without(gone), positions, t0)
 
     def hand_over(self, ends) -> None:
         """Each route now ends at ``ends`` (a base station each, the handover rule's choice): a relay's NMPC
@@ -186,7 +200,8 @@ class NetworkStepper:
             raise ValueError(f"lose: no relay {sorted(unknown)} in the network ({', '.join(self.relays)})")
         self.lost |= new
         self.lost_at |= dict.fromkeys(sorted(new), float(t))
-        self.controller.lose(frozenset(self.lost), {n: xs[0:3].copy() for n, xs in self._last.items()})
+        self.controller.lose(frozenset(self.lost), {n: xs[0:3].copy() for n, xs in self._last.items()},
+                             float(t) if math.isfinite(t) else 0.0)
 
     def step(self, t: float, relay_states: Mapping[str, np.ndarray | None], sources: Mapping[str, SourceState | None],
              *, readings: Mapping[str, float] | None = None) -> dict[str, Command]:

@@ -309,6 +309,16 @@ class RadioScene:
         return replace(self, nodes=nodes, route=routes[0], routes=tuple(routes) if len(routes) > 1 else (),
                        handover=tuple(ends) if self.handover else ())
 
+    def handed_to(self, leaving: str, node: Node) -> RadioScene:
+        """The scene with ``node`` (a spare relay) in the place of relay ``leaving`` on every route, ``leaving``'s
+        node gone; the jammers as they are (one aimed at ``leaving`` aims at ``node``)."""
+        if self.node(leaving).role != "relay" or node.role != "relay":
+            raise ValueError(f"handed_to: {leaving!r} and {node.name!r} must both be relays")
+        routes = tuple(tuple(node.name if n == leaving else n for n in r) for r in self.all_routes)
+        nodes = tuple(node if n.name == leaving else n for n in self.nodes)
+        jammers = tuple(replace(j, point_at=node.name) if j.point_at == leaving else j for j in self.jammers)
+        return replace(self, nodes=nodes, jammers=jammers, route=routes[0], routes=routes if len(routes) > 1 else ())
+
     def serving(self, ends: Sequence[str]) -> RadioScene:
         """The scene with each route ending at ``ends`` (a base station each, one it may end at)."""
         routes = tuple(r[:-1] + (str(e),) for r, e in zip(self.all_routes, ends, strict=True))

@@ -1,7 +1,9 @@
 """A relay flying home to land (its battery's energy left is what getting home needs plus the reserve:
 ``models/battery.py``): level at its return speed to above its home, then straight down at its landing
 speed to its landing point, through the one reference shaper (``planning/shaper.py``: speed, braking on
-the goal, bounded acceleration), level-only (no antenna axis to hold: it has left the network)."""
+the goal, bounded acceleration), level-only (no antenna axis to hold: it has left the network). A spare
+flying to the place of a relay that will go home (``PlaceFlight``): straight at its return speed to beside
+that relay, through the same shaper, until it takes the place."""
 
 from __future__ import annotations
 
@@ -63,3 +65,45 @@ class HomeFlight:
         assert self.shaper.p_ref is not None
         return (self.phase == "descend" and float(np.linalg.norm(self.shaper.p_ref - self.down)) < 1e-6
                 and float(np.linalg.norm(np.asarray(p1, float) - self.down)) < LANDED_WITHIN_M)
+
+
+PLACE_CLEARANCE_M = 1.0  # a spare waits this much beyond the separation from the relay whose place it takes (m)
+
+
+def beside(relay: np.ndarray, spare: np.ndarray, distance_m: float) -> np.ndarray:
+    """Where a spare waits for a relay's place: ``distance_m`` from the relay at ``relay`` (m, world), level with
+    it, on the side the spare at ``spare`` comes from (along x when it is right above or below)."""
+    relay, spare = np.asarray(relay, float), np.asarray(spare, float)
+    d = spare[0:2] - relay[0:2]
+    n = float(np.linalg.norm(d))
+    u = d / n if n > 1e-9 else np.array([1.0, 0.0])
+    return np.array([relay[0] + distance_m * u[0], relay[1] + distance_m * u[1], relay[2]])
+
+
+def transit_time_s(spare: np.ndarray, relay: np.ndarray, relay_velocity: np.ndarray, speed_m_s: float,
+                   distance_m: float) -> float:
+    """How long a spare at ``spare`` (m) flying at ``speed_m_s`` takes to come within ``distance_m`` of a relay at
+    ``relay`` (m) moving at ``relay_velocity`` (m/s): the gap over the closing speed, the spare's speed less the
+    relay's speed away from it (at least a quarter of the spare's: a relay flying away as fast is caught up with
+    only once it slows), at cruise (the speeding up and braking: ``extra_time_s``)."""
+    d = np.asarray(relay, float) - np.asarray(spare, float)
+    gap = float(np.linalg.norm(d))
+    away = max(0.0, float(np.dot(relay_velocity, d)) / gap) if gap > 1e-9 else 0.0
+    return max(gap - distance_m, 0.0) / max(speed_m_s - away, 0.25 * speed_m_s)
+
+
+class PlaceFlight:
+    """``reference(dt, p1, v1, goal)`` each control step from where a spare launched (``p0`` m, ``v0`` m/s) toward
+    ``goal`` (m, world; it moves with the relay whose place the spare takes): straight, at the spare's return speed
+    (``HomeSettings``), level-only."""
+
+    def __init__(self, settings: HomeSettings, p0: np.ndarray, v0: np.ndarray):
+        self.shaper = ReferenceShaper(replace(settings.shaper, speed_m_s=settings.return_speed_m_s, tilt_limit=0.0))
+        self.shaper.p_ref, self.shaper.v_ref = np.asarray(p0, float).copy(), np.asarray(v0, float).copy()
+
+    def reference(self, dt: float, p1: np.ndarray, v1: np.ndarray, goal: np.ndarray) -> Reference:
+        sh = self.shaper
+        assert sh.p_ref is not None
+        goal = np.asarray(goal, float)
+        v_ref = sh.advance(goal, dt)
+        return Reference(p_opt=goal.copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref, a_ref=sh.acceleration(p1, v1, None), axis=None)

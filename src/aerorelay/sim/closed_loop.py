@@ -17,7 +17,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from itertools import combinations
+from itertools import combinations, permutations
 
 import casadi as ca
 import numpy as np
@@ -26,11 +26,11 @@ from ..flight.network_controller import LoopRelay, NetworkController
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
-from ..models.radio import ChannelState, RadioScene
+from ..models.radio import ChannelState, Node, RadioScene
 from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetPlanner
-from ..planning.home import HomeFlight, extra_time_s
+from ..planning.home import PLACE_CLEARANCE_M, HomeFlight, PlaceFlight, beside, extra_time_s, transit_time_s
 from .air import Air
 from .blockage import Blockage
 from .exit_status import ExitStatus
@@ -171,14 +171,53 @@ def process_streams(seed: int, relays: Sequence[str]) -> dict[str, np.random.Gen
             for i, name in enumerate(relays)}
 
 
-def every_link(scene: RadioScene, losses: Sequence[frozenset[str]]) -> RadioScene:
-    """``scene`` with every route the network takes, before and after each of ``losses`` (the relays lost
-    by then): its links are every link the network ever takes, the scene's own first (``scene`` itself
-    when nothing is lost)."""
-    routes = list(scene.all_routes)
-    for lost in losses:
-        routes += [r for r in scene.without(lost).all_routes if r not in routes]
-    return scene if len(routes) == len(scene.all_routes) else replace(scene, routes=tuple(routes))
+def every_link(scene: RadioScene, networks: Sequence[RadioScene]) -> RadioScene:
+    """``scene`` with every route of ``networks`` (the networks the flight may fly besides ``scene``: after a
+    loss, with spares in relays' places): its links are every link the network ever takes, the scene's own
+    first (``scene`` itself when no network adds a route)."""
+    routes, ends = list(scene.all_routes), list(scene.handover or [()] * len(scene.all_routes))
+    nodes = list(scene.nodes)
+    for net in networks:
+        for r, e in zip(net.all_routes, net.handover or [()] * len(net.all_routes), strict=True):
+            if r not in routes:
+                routes.append(r)
+                ends.append(e)
+        nodes += [n for n in net.nodes if n.name not in {m.name for m in nodes}]
+    if len(routes) == len(scene.all_routes):
+        return scene
+    return replace(scene, nodes=tuple(nodes), routes=tuple(routes), handover=tuple(ends) if any(ends) else ())
+
+
+def possible_networks(scene: RadioScene, scheduled: Sequence[frozenset[str]], homing: Sequence[str],
+                      spares: Mapping[str, Node]) -> list[RadioScene]:
+    """Every network a flight of ``scene`` may fly besides ``scene`` itself: after each ``scheduled`` loss (the
+    relays lost by then), with any of the relays that may fly home (``homing``) gone, and each spare (``spares``:
+    name -> node) in the place of one of them; each network once, in that order."""
+    out: list[RadioScene] = []
+    seen = {(scene.all_routes, tuple(n.name for n in scene.nodes))}
+    for lost in scheduled:
+        for k in range(len(homing) + 1):
+            for sub in combinations(homing, k):
+                for placed in _placements([h for h in sub if h not in spares] + [h for h in sub if h in spares], spares):
+                    net = scene
+                    for leaving, spare in placed:
+                        if any(n.name == leaving for n in net.nodes) and all(n.name != spare for n in net.nodes):
+                            net = net.handed_to(leaving, spares[spare])
+                    net = net.without(lost | set(sub))
+                    key = (net.all_routes, tuple(n.name for n in net.nodes))
+                    if key not in seen:
+                        seen.add(key)
+                        out.append(net)
+    return out
+
+
+def _placements(leaving: Sequence[str], spares: Mapping[str, Node]) -> list[list[tuple[str, str]]]:
+    """Every way to put distinct spares in the places of some of ``leaving`` (none first): ``[(relay, spare)]``."""
+    out: list[list[tuple[str, str]]] = [[]]
+    for k in range(1, min(len(leaving), len(spares)) + 1):
+        for who in combinations(leaving, k):
+            out += [list(zip(who, chosen, strict=True)) for chosen in permutations(spares, k) if not set(who) & set(chosen)]
+    return out
 
 
 class ClosedLoop:
@@ -187,11 +226,12 @@ class ClosedLoop:
     def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], sources: dict[str, SourceTrajectory],
                  planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
                  losses: Sequence[tuple[float, frozenset[str]]] = (),
-                 replanner: Callable[[frozenset[str], Mapping[str, np.ndarray]], FleetPlanner] | None = None,
+                 replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None,
                  sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None,
                  traced: TracedChannel | None = None):
-        """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(lost, positions)``
-        builds the planner of the network without ``lost`` from the survivors' positions (m, world);
+        """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(scene, positions, t0)``
+        builds the planner of the network ``scene`` from its relays' positions (m, world) at ``t0`` (s);
+        ``relays``: a spare (``LoopRelay.spare``) waits outside ``scene`` until it takes a relay's place;
         ``sensing``: the jammers estimated from the receivers' readings, one estimate every planner shares;
         ``traced``: the plant's links ray traced (their gains instead of eq. 6-7's; the controllers never see it)."""
         if losses and replanner is None:
@@ -208,23 +248,23 @@ class ClosedLoop:
         # the networks it may fly: after each scheduled loss, and with any relay that may fly home out of it
         homing = [r.name for r in relays if r.home is not None and r.battery is not None]
         scheduled: list[frozenset[str]] = [frozenset()] + [lost for _, lost in self.losses]
-        self.potential = [lost | set(sub) for lost in scheduled for k in range(len(homing) + 1)
-                          for sub in combinations(homing, k)][1:]
-        later = [h for lost in self.potential for h in scene.without(lost).hops]
+        self.spares = {r.name: r.spare for r in relays if r.spare is not None}
+        self.networks = possible_networks(scene, scheduled, homing, self.spares)
+        later = [h for net in self.networks for h in net.hops]
         self.columns = log_columns({r.name: r.vehicle.n_rotors for r in relays}, list(sources), scene, later)
         # the plant's random channel terms on every link the network takes, before and after each loss (each its
         # own draw, shadowing along each link's own geometry), unknown to the planners and NMPCs; logged per link
         # (sim/perturbations.py); each step the links of the network flying then are applied
-        self.perturbations = settings.link_perturbations(every_link(scene, self.potential))
+        self.perturbations = settings.link_perturbations(every_link(scene, self.networks))
         self._links_now = self.perturbations.layout(scene)  # the fading links of the network flying now
         self.columns += self.perturbations.columns
         if self.blockage is not None:
-            self.nlos_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for lost in self.potential))
+            self.nlos_columns = list(dict.fromkeys(c for s in (scene, *self.networks)
                                                    for c in self.blockage.columns(s)))
             self.columns += self.nlos_columns
         self.traced = traced
         if traced is not None:
-            self.traced_columns = list(dict.fromkeys(c for s in (scene, *(scene.without(lost) for lost in self.potential))
+            self.traced_columns = list(dict.fromkeys(c for s in (scene, *self.networks)
                                                      for c in traced.columns(s)))
             self.columns += self.traced_columns
         if sensing is not None:
@@ -235,6 +275,8 @@ class ClosedLoop:
         self.battery_columns = [c for r in relays if r.battery is not None for c in (f"{r.name}.soc", f"{r.name}.battery_reserve")]
         # and, when it may fly home, whether it has turned home (it has then left the network)
         self.battery_columns += [f"{n}.going_home" for n in homing]
+        # each spare: whether it waits, whether it flies to a relay's place, and whose (its name once it took it)
+        self.battery_columns += [c for n in self.spares for c in (f"{n}.waiting", f"{n}.ferrying", f"{n}.replaces")]
         self.columns += self.battery_columns
         # what the network knows: the sources and the jammers with CSI noise (one stream); each relay's process noise its own
         self.csi_rng = generator(settings.seed, "csi")
@@ -275,30 +317,73 @@ class ClosedLoop:
         rng = self.process_rngs[relay]
         return np.concatenate([rng.normal(0.0, st.process_noise_v, 3), rng.normal(0.0, st.process_noise_w, 3)])
 
-    def _lose(self, lost: frozenset[str], x: dict[str, np.ndarray]) -> None:
+    def _lose(self, lost: frozenset[str], x: dict[str, np.ndarray], t0: float) -> None:
         """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
-        others from where they are."""
-        self.control.lose(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost})
+        others from where they are at ``t0`` (s)."""
+        self.control.lose(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost}, t0)
         self.scene = self.control.scene
         self._links_now = self.perturbations.layout(self.scene)
 
-    def _go_home(self, drawn: dict[str, float], x: dict[str, np.ndarray], flying: Mapping[str, np.ndarray],
-                 homing: dict[str, HomeFlight], gone: frozenset[str]) -> None:
+    def _energy_home(self, r: LoopRelay, p: np.ndarray) -> float:
+        """What relay ``r`` at ``p`` (m) needs to get home and land (J; ``models.battery``)."""
+        assert r.home is not None and r.battery is not None
+        home = np.asarray(r.home.landing_m, float)
+        return r.battery.energy_home_j(float(np.linalg.norm(p[0:2] - home[0:2])), float(p[2] - home[2]), self.hover_w[r.name],
+                                       r.home.return_speed_m_s, r.home.land_speed_m_s, extra_time_s(r.home))
+
+    def _go_home(self, t: float, drawn: dict[str, float], x: dict[str, np.ndarray], flying: Mapping[str, np.ndarray],
+                 homing: dict[str, HomeFlight], gone: frozenset[str], ferrying: dict[str, tuple[str, PlaceFlight]]) -> None:
         """Each relay in the network whose battery's energy left is what getting home needs plus the reserve
-        (``models.battery``) turns home: it leaves the network (the others re-plan) and flies home to land."""
+        (``models.battery``) turns home: it leaves the network and flies home to land; a spare flying to its place
+        takes it on every route (``ferrying``: spare -> (relay, flight)); the network re-plans."""
         turned = []
         for r in self.relays:
             if r.home is None or r.battery is None or r.name not in flying or r.name in homing:
                 continue
             p = x[r.name][0:3]
-            home = np.asarray(r.home.landing_m, float)
-            need = r.battery.energy_home_j(float(np.linalg.norm(p[0:2] - home[0:2])), float(p[2] - home[2]), self.hover_w[r.name],
-                                           r.home.return_speed_m_s, r.home.land_speed_m_s, extra_time_s(r.home))
-            if r.battery.must_go_home(drawn[r.name], need):
+            if r.battery.must_go_home(drawn[r.name], self._energy_home(r, p)):
                 homing[r.name] = HomeFlight(r.home, p, x[r.name][6:9])
                 turned.append(r.name)
-        if turned:
-            self._lose(gone | set(homing), x)
+        if not turned:
+            return
+        net = self.control.scene
+        for spare, (leaving, _) in list(ferrying.items()):
+            if leaving in turned and spare not in homing and any(n.name == leaving for n in net.nodes):
+                net = net.handed_to(leaving, self.spares[spare])
+                del ferrying[spare]
+        self.control.recompose(net.without(gone | set(homing)), {n: xs[0:3].copy() for n, xs in x.items()}, t)
+        self.scene = self.control.scene
+        self._links_now = self.perturbations.layout(self.scene)
+
+    def _launch(self, drawn: dict[str, float], x: dict[str, np.ndarray], waiting: set[str],
+                ferrying: dict[str, tuple[str, PlaceFlight]]) -> None:
+        """A waiting spare launches for a relay of the network that will have to fly home before the spare could
+        reach it: when the relay's energy left, less what hovering draws over the spare's flight to it
+        (``planning.home.transit_time_s``, plus speeding up, braking and settling), is what getting home needs plus
+        the reserve. The nearest waiting spare goes; it flies beside the relay (``PlaceFlight``) until it takes over."""
+        taken = {leaving for leaving, _ in ferrying.values()}
+        for r in self.relays:
+            if not waiting:
+                return
+            if r.home is None or r.battery is None or r.name in taken or all(n.name != r.name for n in self.scene.nodes):
+                continue
+            p = x[r.name][0:3]
+            spare = min((s for s in self.relays if s.name in waiting), key=lambda s: float(np.linalg.norm(s.start - p)))
+            assert spare.home is not None  # every spare has its way to a place (assembly.parts)
+            transit = transit_time_s(spare.start, p, x[r.name][6:9], spare.home.return_speed_m_s,
+                                     self.control.separation_m + PLACE_CLEARANCE_M) + extra_time_s(spare.home)
+            if r.battery.must_go_home(drawn[r.name] + r.battery.draw(self.hover_w[r.name], transit), self._energy_home(r, p)):
+                waiting.discard(spare.name)
+                ferrying[spare.name] = (r.name, PlaceFlight(spare.home, spare.start, np.zeros(3)))
+                taken.add(r.name)
+
+    def _ferry_references(self, period: float, x: dict[str, np.ndarray], ferrying: dict[str, tuple[str, PlaceFlight]]) -> dict:
+        """Each spare flying to its relay: a reference beside that relay (``beside``), the separation and 1 m away."""
+        out = {}
+        for spare, (leaving, flight) in ferrying.items():
+            goal = beside(x[leaving][0:3], x[spare][0:3], self.control.separation_m + PLACE_CLEARANCE_M)
+            out[spare] = flight.reference(period, x[spare][0:3], x[spare][6:9], goal)
+        return out
 
     def _hand_over(self, t: float, state: ChannelState, poses, gains, link_gains) -> tuple[ChannelState, dict]:
         """The handover rule on this step's true rates (``state``, the channel at ``poses`` with the plant's
@@ -345,15 +430,18 @@ class ClosedLoop:
         pending, lost = list(self.losses), frozenset[str]()
         homing: dict[str, HomeFlight] = {}  # relays flying home (out of the network), their flights
         landed: set[str] = set()  # relays home and down: out of the flight
+        waiting = set(self.spares)  # spares on the ground at their starts (out of the flight)
+        ferrying: dict[str, tuple[str, PlaceFlight]] = {}  # spares flying to a relay's place: (that relay, the flight)
+        replaced: dict[str, str] = {}  # spare -> the relay whose place it flies to or took
         wall0 = time.perf_counter()
         aborted, flown, exit_status = None, n_steps, None
         with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
             for k in range(n_steps):
                 t = k * period
                 while pending and t >= pending[0][0] - 1e-9:
-                    lost = pending.pop(0)[1]
-                    self._lose(lost | landed | set(homing), x)
-                gone = lost | landed
+                    when, lost = pending.pop(0)
+                    self._lose(lost | landed | set(homing), x, when)
+                gone = lost | landed | waiting
                 flying = {n: xs for n, xs in x.items() if n not in gone}
                 truth = {name: path.state(t) for name, path in self.sources.items()}
                 src = self._known_sources(truth)  # over the optical links, with CSI noise
@@ -362,8 +450,10 @@ class ClosedLoop:
                     self.air.begin()
                 eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in truth.items()}}
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
-                refs = self.control.plan(t, {n: xs for n, xs in flying.items() if n not in homing}, src, (pj, powers, std))
+                refs = self.control.plan(t, {n: xs for n, xs in flying.items() if n not in homing and n not in ferrying},
+                                         src, (pj, powers, std))
                 refs |= {n: home.reference(period, x[n][0:3], x[n][6:9]) for n, home in homing.items() if n in flying}
+                refs |= self._ferry_references(period, x, ferrying)
                 self.planner_ms.append(self.control.planner_ms)
                 row: dict[str, object] = {"t": t}
                 predicted = self.control.predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
@@ -372,7 +462,7 @@ class ClosedLoop:
                 inputs = {}
                 for r in self.relays:
                     if r.name in gone:
-                        row |= gone_row(r.name, r.vehicle.n_rotors)
+                        row |= gone_row(r.name, r.vehicle.n_rotors, "standby" if r.name in waiting else "lost")
                         if self.air is not None:
                             row |= dict.fromkeys(self.air.columns(r.name, f"{r.name}."), math.nan)
                         continue
@@ -422,8 +512,13 @@ class ClosedLoop:
                             row[f"{r.name}.going_home"] = r.name in homing
                         if r.name not in gone:
                             drawn[r.name] += r.battery.draw(float(r.vehicle.shaft_power(x[r.name][12:])), period)
+                replaced |= {spare: leaving for spare, (leaving, _) in ferrying.items()}
+                for n in self.spares:
+                    row |= {f"{n}.waiting": n in waiting, f"{n}.ferrying": n in ferrying, f"{n}.replaces": replaced.get(n, "")}
                 record_row(log, k, row, self.columns)
-                self._go_home(drawn, x, flying, homing, gone)
+                self._go_home(t, drawn, x, flying, homing, gone, ferrying)
+                if waiting:
+                    self._launch(drawn, x, waiting, ferrying)
                 for r in self.relays:
                     if r.name not in gone:
                         d = self._process_noise(r.name)

@@ -46,7 +46,8 @@ RELAY_STEP = ("pd_x", "pd_y", "pd_z", "v_up", "v_down", "mutual_alignment", "sla
 # the quantities that are not floats, with their types (flags and the QP's status text)
 COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool,
                                  "safety_violation": bool, "battery_reserve": bool,
-                                 "going_home": bool, "base_station": str}
+                                 "going_home": bool, "base_station": str, "waiting": bool, "ferrying": bool,
+                                 "replaces": str}
 NETWORK_COLUMNS = ("capacity", "jammer_on", "separation_min")
 
 
@@ -117,10 +118,11 @@ def relay_row(name: str, x: np.ndarray, R: np.ndarray, info: StepInfo, ref: Refe
     return row | {f"{name}.{q}": step[q] for q in RELAY_STEP}
 
 
-def gone_row(name: str, n_rotors: int) -> dict[str, object]:
-    """A lost relay's columns at a step: NaN, its flags false, ``qp_status`` "lost"."""
+def gone_row(name: str, n_rotors: int, status: str = "lost") -> dict[str, object]:
+    """A relay's columns at a step it does not fly (lost, landed, or a spare waiting: ``status`` "standby"): NaN,
+    its flags false, ``qp_status`` ``status``."""
     row: dict[str, object] = {c: math.nan for c in relay_columns(name, n_rotors)}
-    return row | {f"{name}.qp_ok": False, f"{name}.qp_status": "lost", f"{name}.fallback": False,
+    return row | {f"{name}.qp_ok": False, f"{name}.qp_status": status, f"{name}.fallback": False,
                   f"{name}.safety_violation": False}
 
 

@@ -166,6 +166,8 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
     alignment (``mutual_alignment >= mu``, within ``ALIGNMENT_TOLERANCE``), slack, QP and fallback shares,
     step times (ms), tracking error (m), distance (m), shaft energy (kJ), rotor ranges and saturation, wind."""
     flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))
+    if not flew.any():  # a spare that never launched
+        return spare_metrics(log, name) or {"flew": False}
 
     def col(q: str, kind=float) -> np.ndarray:
         return np.asarray(log[f"{name}.{q}"])[flew].astype(kind)
@@ -202,6 +204,7 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
         **saturation_metrics(speeds, inputs, veh),
         "omega_dot_range_hz_s": [float(inputs.min()), float(inputs.max())],
         **battery_metrics(log, name),
+        **spare_metrics(log, name),
     }
 
 
@@ -226,6 +229,43 @@ def battery_metrics(log, name: str) -> dict:
         if down.any():
             out["landed_at_s"] = float(t[np.argmax(down)])
             out["soc_landed_fraction"] = float(soc[np.argmax(down) - 1])
+    return out
+
+
+TAKEOVER_BEFORE_S = 5.0  # the network's rate "before a spare took over": its mean over this long before (s)
+
+
+def spare_metrics(log, name: str) -> dict:
+    """A spare (``<relay>.waiting``): when it launched (``launched_at_s``), when it took a relay's place
+    (``took_over_at_s``: the first step it flew in the network) and whose (``took_over_from``); the network's mean
+    rate over the ``TAKEOVER_BEFORE_S`` before and after (``c_mean_before_takeover``, ``c_mean_after_takeover``), how
+    long it stayed below the one before (``rate_recovered_after_s``; None: not by the end: the sources moved on) and
+    the least rate meanwhile (``c_min_after_takeover``). Empty for a relay that is no spare; a
+    spare that never launched: ``standby_only``."""
+    if f"{name}.waiting" not in log:
+        return {}
+    t = np.asarray(log["t"], float)
+    waiting = np.asarray(log[f"{name}.waiting"], bool)
+    if waiting.all():
+        return {"standby_only": True}
+    out: dict = {"launched_at_s": float(t[np.argmax(~waiting)])}
+    ferrying = np.asarray(log[f"{name}.ferrying"], bool)
+    flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))
+    placed = flew & ~waiting & ~ferrying & (t >= out["launched_at_s"])
+    if not placed.any():
+        return out
+    k = int(np.argmax(placed))
+    out["took_over_at_s"], out["took_over_from"] = float(t[k]), str(log[f"{name}.replaces"][k])
+    cap = np.asarray(log["capacity"], float)
+    before = cap[(t >= t[k] - TAKEOVER_BEFORE_S) & (t < t[k])]
+    after = cap[(t >= t[k]) & (t < t[k] + TAKEOVER_BEFORE_S)]
+    out["c_mean_after_takeover"] = float(after.mean())
+    if before.size:
+        out["c_mean_before_takeover"] = level = float(before.mean())
+        back = np.flatnonzero(cap[k:] >= level)
+        out["rate_recovered_after_s"] = float(t[k + back[0]] - t[k]) if back.size else None
+        stop = k + (back[0] if back.size else len(cap) - k)
+        out["c_min_after_takeover"] = float(cap[k:max(stop, k + 1)].min())
     return out
 
 
@@ -320,7 +360,7 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
         lost_at = [tl for tl, lost in losses if name in lost]
         if lost_at:
             m["lost_at_s"] = lost_at[0]
-        if m["unsafe"]:
+        if m.get("unsafe"):  # a spare that never flew has no verdict
             reasons.append(m["unsafe_reason"] if len(relays) == 1 else f"relay {name!r}: {m['unsafe_reason']}")
             statuses += [ExitStatus(v) for v in m["exit_statuses"]]
         out["relays"][name] = m
