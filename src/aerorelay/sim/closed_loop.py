@@ -17,7 +17,6 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from itertools import combinations, permutations
 
 import casadi as ca
 import numpy as np
@@ -26,7 +25,7 @@ from ..flight.network_controller import LoopRelay, NetworkController
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
-from ..models.radio import ChannelState, Node, RadioScene
+from ..models.radio import ChannelState, RadioScene
 from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetPlanner
@@ -47,6 +46,7 @@ from .log_schema import (
     source_row,
     steps_flown,
 )
+from .networks import every_link, possible_networks
 from .perturbations import LinkPerturbations, PerturbationSettings
 from .realtime import full_collections_paused
 from .traced import TracedChannel
@@ -169,55 +169,6 @@ def process_streams(seed: int, relays: Sequence[str]) -> dict[str, np.random.Gen
     children = stream(seed, "process").spawn(max(len(relays) - 1, 0))
     return {name: generator(seed, "process") if i == 0 else np.random.default_rng(children[i - 1])
             for i, name in enumerate(relays)}
-
-
-def every_link(scene: RadioScene, networks: Sequence[RadioScene]) -> RadioScene:
-    """``scene`` with every route of ``networks`` (the networks the flight may fly besides ``scene``: after a
-    loss, with spares in relays' places): its links are every link the network ever takes, the scene's own
-    first (``scene`` itself when no network adds a route)."""
-    routes, ends = list(scene.all_routes), list(scene.handover or [()] * len(scene.all_routes))
-    nodes = list(scene.nodes)
-    for net in networks:
-        for r, e in zip(net.all_routes, net.handover or [()] * len(net.all_routes), strict=True):
-            if r not in routes:
-                routes.append(r)
-                ends.append(e)
-        nodes += [n for n in net.nodes if n.name not in {m.name for m in nodes}]
-    if len(routes) == len(scene.all_routes):
-        return scene
-    return replace(scene, nodes=tuple(nodes), routes=tuple(routes), handover=tuple(ends) if any(ends) else ())
-
-
-def possible_networks(scene: RadioScene, scheduled: Sequence[frozenset[str]], homing: Sequence[str],
-                      spares: Mapping[str, Node]) -> list[RadioScene]:
-    """Every network a flight of ``scene`` may fly besides ``scene`` itself: after each ``scheduled`` loss (the
-    relays lost by then), with any of the relays that may fly home (``homing``) gone, and each spare (``spares``:
-    name -> node) in the place of one of them; each network once, in that order."""
-    out: list[RadioScene] = []
-    seen = {(scene.all_routes, tuple(n.name for n in scene.nodes))}
-    for lost in scheduled:
-        for k in range(len(homing) + 1):
-            for sub in combinations(homing, k):
-                for placed in _placements([h for h in sub if h not in spares] + [h for h in sub if h in spares], spares):
-                    net = scene
-                    for leaving, spare in placed:
-                        if any(n.name == leaving for n in net.nodes) and all(n.name != spare for n in net.nodes):
-                            net = net.handed_to(leaving, spares[spare])
-                    net = net.without(lost | set(sub))
-                    key = (net.all_routes, tuple(n.name for n in net.nodes))
-                    if key not in seen:
-                        seen.add(key)
-                        out.append(net)
-    return out
-
-
-def _placements(leaving: Sequence[str], spares: Mapping[str, Node]) -> list[list[tuple[str, str]]]:
-    """Every way to put distinct spares in the places of some of ``leaving`` (none first): ``[(relay, spare)]``."""
-    out: list[list[tuple[str, str]]] = [[]]
-    for k in range(1, min(len(leaving), len(spares)) + 1):
-        for who in combinations(leaving, k):
-            out += [list(zip(who, chosen, strict=True)) for chosen in permutations(spares, k) if not set(who) & set(chosen)]
-    return out
 
 
 class ClosedLoop:
