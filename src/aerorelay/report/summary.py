@@ -41,6 +41,8 @@ SCALAR_METRICS = (
     "obstacle_clearance_min_m", "reference_kept_out_steps",
     # a ray-traced channel (sim.metrics.traced_metrics) and what a run took
     "delay_spread_mean_ns", "delay_spread_max_ns", "wall_s",
+    # operations (sim.metrics.handover_metrics, spare_metrics)
+    "handovers",
 )
 
 
