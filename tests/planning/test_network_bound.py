@@ -319,7 +319,7 @@ def test_routes_that_may_end_at_either_base_station_are_bounded_by_the_best_comb
     """Two relays from a source moving from the west base station's side to the east one's (30 m apart), the
     route ending at either (``RadioScene.handover``): at every instant the static bound is the larger of the two
     fixed-end networks' bounds (each computed on its own) and the refined configuration the better one; the upper
-    path bound, taken over both networks' terms at once, lies above the flyable fleet path and above 30 random
+    path bound, taken over both networks' terms at once, lies above the flyable fleet path and above 15 random
     flyable fleet paths each scored on its best end at every sample (the network hands over freely), and at
     every instant at most the static bound."""
     from dataclasses import replace
@@ -351,7 +351,7 @@ def test_routes_that_may_end_at_either_base_station_are_bounded_by_the_best_comb
     solvers = [NetworkBoundSolver(pb(plain.serving([end]))) for end in ("west", "east")]
     rng = np.random.default_rng(5)
     best = 0.0
-    for path in _random_flyable_fleets(pb(sc), b.t, 30, rng):
+    for path in _random_flyable_fleets(pb(sc), b.t, 15, rng):
         rates = [max(s.rate(float(t), path[i], s.best_axes(float(t), path[i], s.fixed_poses(float(t))), s.fixed_poses(float(t)))
                      for s in solvers) for i, t in enumerate(b.t)]
         best = max(best, float(np.mean(rates)))

@@ -125,3 +125,10 @@ def test_the_spare_takes_the_place_the_step_the_relay_turns_home_and_the_network
 def test_bad_spares_are_named_errors(tmp_path, text, field):
     with pytest.raises(ScenarioError, match=field):
         _load(tmp_path, text, "bad.toml")
+
+
+def test_a_fleet_with_a_spare_is_not_flown_from_outside(tmp_path):
+    """The step API (and so MAVLink and ROS 2) flies the relays it is handed: a spare would never launch there."""
+    sc = _load(tmp_path, SPARE)
+    with pytest.raises(ScenarioError, match=r"relays\[1\]\.standby: spare relays take over in ar\.simulate"):
+        ar.controller(sc)

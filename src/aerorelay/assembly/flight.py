@@ -55,7 +55,12 @@ def network_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) 
     """The step API of a network (``ar.controller`` on more than one relay and one source): its planner and every
     relay's NMPC as ``ar.simulate`` flies them, the jammers as the network was told them, or estimated from the
     readings ``step`` is handed (``jammer.localization = "estimated"``: every relay's receiver, the base station's
-    with ``estimation.use_bs``)."""
+    with ``estimation.use_bs``). Spares (``standby``) are a simulation's: a named error here (the vehicles outside fly
+    what they are told; launching and landing a spare is their operator's)."""
+    if sc.standby_names:
+        i = next(i for i, r in enumerate(sc.relay_list) if r.standby)
+        raise ScenarioError(f"relays[{i}].standby: spare relays take over in ar.simulate / aerorelay run; flying a fleet "
+                            "from outside (ar.controller, aerorelay fly, ROS 2) does not launch them: leave the spare out")
     parts = build(sc, nmpc_settings=nmpc_settings)
     control = NetworkController(scene=parts.scene, relays=parts.relays, planner=parts.planner, period_s=sc.control_period_s,
                                 separation_m=parts.separation_m, replanner=parts.replanner)
