@@ -43,6 +43,7 @@ name = "inspector"
 waypoints = [[0.0, 6.0, 3.0, 10.0], [20.0, 50.0, 3.0, 12.0], [30.0, 50.0, -3.0, 12.0]]
 [network]
 min_separation_m = 2.0
+planner = "equidistant"
 """
 
 
@@ -118,6 +119,7 @@ def test_the_spare_takes_the_place_the_step_the_relay_turns_home_and_the_network
 
 @pytest.mark.parametrize("text, field", [
     (SPARE.replace("[network]\n", '[network]\nroutes = [["inspector", "r1", "spare", "bs"]]\n'), r"relays\[1\]\.standby"),
+    (SPARE.replace('planner = "equidistant"\n', ""), r"relays\[1\]\.standby: with a spare, one relay and one source are a network"),
     (SPARE.replace("capacity_wh = 3.0", "capacity_wh = 3.0\ngo_home = false"), r"relays\[1\]\.standby: no relay"),
     (SPARE.replace('start = [2.0, -4.0, 1.0]\nstandby = true', 'start = [2.0, -4.0, 1.0]\nstandby = true\nlost_at_s = 5.0'),
      r"relays\[1\]\.lost_at_s"),

@@ -384,6 +384,11 @@ class Scenario(Strict):
         if not homing:
             raise ValueError(f"relays[{spares[0]}].standby: no relay of the network flies home ([platform.battery] with "
                              "go_home = true, its own or the shared one), so the spare would never launch")
+        flying = len(self.relay_list) - len(spares)
+        if flying == 1 and len(self.source_list) == 1 and "planner" not in self.network.model_fields_set:
+            raise ValueError(f"relays[{spares[0]}].standby: with a spare, one relay and one source are a network, planned by "
+                             "network.planner (not controller.planner) before and after the spare takes over; name it "
+                             "(network.planner = \"capacity\", \"equidistant\", ...)")
         for i in spares:
             if self.relay_list[i].lost_at_s is not None:
                 raise ValueError(f"relays[{i}].lost_at_s: a spare is not lost at a time (it is on no route until it takes over)")
