@@ -134,3 +134,19 @@ def test_a_fleet_with_a_spare_is_not_flown_from_outside(tmp_path):
     sc = _load(tmp_path, SPARE)
     with pytest.raises(ScenarioError, match=r"relays\[1\]\.standby: spare relays take over in ar\.simulate"):
         ar.controller(sc)
+
+
+def test_a_spare_on_its_way_takes_the_place_of_a_relay_lost_before_it_turns_home(tmp_path, takeover):
+    """r1 lost (``lost_at_s``) after the spare launched for it and before its battery sends it home: the spare takes
+    its place then, and the route runs through it from that step."""
+    _, flown = takeover
+    launched = flown.metrics["relays"]["spare"]["launched_at_s"]
+    lost_at = round(launched + 2.0, 2)
+    sc = _load(tmp_path, SPARE.replace('start = [8.0, 2.0, 6.0]', f'start = [8.0, 2.0, 6.0]\nlost_at_s = {lost_at}'))
+    r = ar.simulate(sc)
+    spare = r.metrics["relays"]["spare"]
+    assert spare["launched_at_s"] == pytest.approx(launched)
+    assert spare["took_over_at_s"] == pytest.approx(lost_at, abs=sc.control_period_s) and spare["took_over_from"] == "r1"
+    t = r.timeseries["t"].to_numpy()
+    assert np.isfinite(r.timeseries["sinr.inspector.spare"].to_numpy()[t >= spare["took_over_at_s"] - 1e-9][:100]).all()
+    assert (r.timeseries["capacity"].to_numpy() > 0).all() and not r.metrics["unsafe"], r.metrics["unsafe_reason"]

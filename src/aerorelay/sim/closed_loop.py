@@ -297,12 +297,20 @@ class ClosedLoop:
                 turned.append(r.name)
         if not turned:
             return
+        for spare in [s for s in ferrying if s in homing]:  # a spare whose own battery sent it home before it took over
+            del ferrying[spare]
+        self._recompose(gone | set(homing), frozenset(turned), x, ferrying, t)
+
+    def _recompose(self, leave: frozenset[str], leaving: frozenset[str], x: dict[str, np.ndarray],
+                   ferrying: dict[str, tuple[str, PlaceFlight]], t0: float) -> None:
+        """The relays ``leave`` are out of the network from now on; each spare flying to the place of one of
+        ``leaving`` takes it on every route (``RadioScene.handed_to``); the network's planner rebuilt at ``t0`` (s)."""
         net = self.control.scene
-        for spare, (leaving, _) in list(ferrying.items()):
-            if leaving in turned and spare not in homing and any(n.name == leaving for n in net.nodes):
-                net = net.handed_to(leaving, self.spares[spare])
+        for spare, (relay, _) in list(ferrying.items()):
+            if relay in leaving and any(n.name == relay for n in net.nodes):
+                net = net.handed_to(relay, self.spares[spare])
                 del ferrying[spare]
-        self.control.recompose(net.without(gone | set(homing)), {n: xs[0:3].copy() for n, xs in x.items()}, t)
+        self.control.recompose(net.without(leave), {n: xs[0:3].copy() for n, xs in x.items()}, t0)
         self.scene = self.control.scene
         self._links_now = self.perturbations.layout(self.scene)
 
@@ -390,8 +398,12 @@ class ClosedLoop:
             for k in range(n_steps):
                 t = k * period
                 while pending and t >= pending[0][0] - 1e-9:
-                    when, lost = pending.pop(0)
-                    self._lose(lost | landed | set(homing), x, when)
+                    when, now_lost = pending.pop(0)
+                    if any(relay in now_lost for relay, _ in ferrying.values()):  # a spare on its way takes the lost one's place
+                        self._recompose(now_lost | landed | set(homing), now_lost - lost, x, ferrying, when)
+                    else:
+                        self._lose(now_lost | landed | set(homing), x, when)
+                    lost = now_lost
                 gone = lost | landed | waiting
                 flying = {n: xs for n, xs in x.items() if n not in gone}
                 truth = {name: path.state(t) for name, path in self.sources.items()}
