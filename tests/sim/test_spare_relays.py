@@ -123,6 +123,7 @@ def test_the_spare_takes_the_place_the_step_the_relay_turns_home_and_the_network
     (SPARE.replace("capacity_wh = 3.0", "capacity_wh = 3.0\ngo_home = false"), r"relays\[1\]\.standby: no relay"),
     (SPARE.replace('start = [2.0, -4.0, 1.0]\nstandby = true', 'start = [2.0, -4.0, 1.0]\nstandby = true\nlost_at_s = 5.0'),
      r"relays\[1\]\.lost_at_s"),
+    (SPARE.replace("power_w = 0.08", 'power_w = 0.08\npattern = "cosine"\npoint_at = "spare"'), r"jammer\.point_at: 'spare' is a spare"),
 ])
 def test_bad_spares_are_named_errors(tmp_path, text, field):
     with pytest.raises(ScenarioError, match=field):

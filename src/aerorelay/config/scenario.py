@@ -152,6 +152,9 @@ class Scenario(Strict):
         for i, j in enumerate(self.jammer_configs):
             if j.point_at is not None and j.point_at not in nodes:
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is not a node ({', '.join(nodes)})")
+            if j.point_at in self.standby_names:
+                raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is a spare, on no route at the start; aim "
+                                 "the jammer at a node of the network")
         self._separation_holds()
         self._fading_has_its_strength()
         self._obstacles_hold()
