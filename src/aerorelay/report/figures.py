@@ -105,6 +105,7 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
     ax.semilogy(df["t"], np.maximum(df["capacity"], 1e-12), color="k", label="end-to-end C" if len(routes) <= 1 else "network rate")
     ax.axhline(sc.channel.outage, color="r", ls="--", lw=1, label="outage threshold")
     _shade_jammer_off(ax, df)
+    _mark_operations(ax, df)
     ax.set_ylabel(f"C ({sc.channel.capacity_unit})")
     ax.legend(fontsize=7)
     ax = axes[1]
@@ -117,6 +118,23 @@ def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = No
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def _mark_operations(ax, df: pd.DataFrame) -> None:
+    """Vertical lines where the network changed: a handover (``<source>.base_station``, labelled with the new
+    station) and a spare taking a relay's place (``<spare>.ferrying`` ending)."""
+    t = df["t"].to_numpy()
+    events = []
+    for c in [c for c in df.columns if c.endswith(".base_station")]:
+        v = df[c].astype(str).to_numpy()
+        events += [(t[k], f"to {v[k]}") for k in np.flatnonzero(v[1:] != v[:-1]) + 1]
+    for c in [c for c in df.columns if c.endswith(".ferrying")]:
+        v = df[c].to_numpy(bool)
+        spare = c[: -len(".ferrying")]
+        events += [(t[k], f"{spare} in {df[f'{spare}.replaces'].iloc[k]}'s place") for k in np.flatnonzero(v[:-1] & ~v[1:]) + 1]
+    for i, (when, text) in enumerate(events):
+        ax.axvline(when, color="0.3", ls=":", lw=0.8, label="handover / take-over" if i == 0 else None)
+        ax.annotate(text, (when, 0.98), xycoords=("data", "axes fraction"), fontsize=6, rotation=90, va="top", ha="right")
 
 
 # the bounds' series behind a run's capacity: one relay's (planning/bound.py) and a network's (planning/network_bound.py)
