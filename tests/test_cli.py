@@ -31,6 +31,13 @@ def test_info_prints_sanity_budget():
     assert "0.0649" in res.output and "0.0129" in res.output and "61.56" in res.output
 
 
+def test_info_on_a_fleet_with_a_spare_and_two_base_stations():
+    """The spare is listed (its start is no node of the network yet), each base station's hops are in the budget."""
+    res = runner.invoke(app, ["info", str(ROOT / "scenarios" / "relay_shifts.toml")])
+    assert res.exit_code == 0, res.output
+    assert "spare" in res.output and "depot, substation" in res.output and "r2 -> substation: SINR" in res.output
+
+
 def test_scenario_that_is_not_utf8_is_a_named_error(tmp_path):
     bad = tmp_path / "latin1.toml"
     bad.write_bytes('name = "Kraftwerk Süd"\n'.encode("latin-1"))

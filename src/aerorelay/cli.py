@@ -133,6 +133,12 @@ def model_summary(sc: Scenario) -> Table:
         t.add_row("mutual alignment at t=0", f"{budget['mutual_alignment']:.3f} (mu = {sc.controller.mu})")
     else:
         t.add_row("relays / sources / routes", f"{len(sc.relay_list)} / {len(sc.source_list)} / {len(sc.route_list)}")
+        if sc.standby_names:
+            t.add_row("spares (standby)", ", ".join(sc.standby_names))
+        if sc.base_stations is not None:
+            t.add_row("base stations", ", ".join(sc.base_station_names))
+        if sc.has_handover:
+            t.add_row("handover: margin (dB) / dwell (s)", f"{sc.network.handover_margin_db:g} / {sc.network.handover_dwell_s:g}")
     t.add_row("jammers", str(len(sc.jammer_configs)))
     if budget is not None:
         t.add_row("interference / noise at t=0: relay, BS (dB)", f"{budget['inr_relay_db']:.1f}, {budget['inr_bs_db']:.1f}")
