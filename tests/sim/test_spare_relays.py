@@ -151,3 +151,18 @@ def test_a_spare_on_its_way_takes_the_place_of_a_relay_lost_before_it_turns_home
     t = r.timeseries["t"].to_numpy()
     assert np.isfinite(r.timeseries["sinr.inspector.spare"].to_numpy()[t >= spare["took_over_at_s"] - 1e-9][:100]).all()
     assert (r.timeseries["capacity"].to_numpy() > 0).all() and not r.metrics["unsafe"], r.metrics["unsafe_reason"]
+
+
+def test_the_relay_shifts_preset_stays_connected_and_safe_through_its_swap_and_handover():
+    """``scenarios/relay_shifts.toml`` over its first 45 s: the spare takes r1's place, the route is handed over to
+    the substation, the rate stays above zero throughout and nothing is unsafe (launches and landings included)."""
+    from pathlib import Path
+
+    sc = ar.load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / "relay_shifts.toml", set={"sim.duration_s": 45.0})
+    r = ar.simulate(sc)
+    m, ts = r.metrics, r.timeseries
+    assert m["relays"]["spare"]["took_over_from"] == "r1"
+    assert m["handovers"] >= 1 and ts["inspector.base_station"].iloc[-1] == "substation"
+    assert (ts["capacity"].to_numpy() > 0).all()
+    assert not m["unsafe"], m["unsafe_reason"]
+    assert m["separation_min_m"] >= sc.network.min_separation_m
