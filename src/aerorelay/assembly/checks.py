@@ -199,6 +199,9 @@ def _ray_traced_physics(sc: Scenario) -> None:
     if traced_scoring and sc.is_network:
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores one relay's candidates (a network's "
                          "fleet planner scores on free space so far)")
+    if traced_scoring and sc.has_handover:
+        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores the route to one base station; a route "
+                         "to 'any' of several scores on free space so far")
     if sc.channel.propagation.model != "ray_traced":
         return
     if not sc.channel.physical:

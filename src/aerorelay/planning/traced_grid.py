@@ -24,10 +24,11 @@ class TracedRelayGrid:
     def __init__(self, scene: RadioScene, tracer: RayTracer, *, source: str, coherent: bool = False, relay: str | None = None):
         self.scene, self.tracer, self.coherent = scene, tracer, coherent
         self.source, self.relay = source, relay or scene.name_of("relay")
-        self.bs = scene.name_of("base_station")
         route = next(r for r in scene.all_routes if self.relay in r)
-        if list(route) != [source, self.relay, self.bs]:
-            raise ValueError(f"traced scoring: the relay's route must be {source} -> {self.relay} -> {self.bs}, got {list(route)}")
+        self.bs = route[-1]
+        if list(route) != [source, self.relay, self.bs] or any(scene.handover):
+            raise ValueError(f"traced scoring: the relay's route must be {source} -> {self.relay} -> one base station, got "
+                             f"{list(route)}" + (" that may end at several" if any(scene.handover) else ""))
         self.traces = 0
 
     def _gains(self, links: TracedLinks, pat_tx, b_tx, pat_rx, axes: np.ndarray, rx_is_candidate: bool) -> np.ndarray:
