@@ -38,14 +38,28 @@ def extra_time_s(settings: HomeSettings) -> float:
     return v / (2.0 * shaper.max_accel_m_s2) + v / (2.0 * brake) + w / (2.0 * brake) + SETTLE_S
 
 
-class HomeFlight:
-    """``reference(dt, p1, v1)`` each control step from where the relay turned home (``p0`` m, ``v0`` m/s);
-    ``landed(p1)`` once it is down (see the module)."""
+class _ShapedFlight:
+    """A level-only flight through the reference shaper at the return speed (``HomeSettings``) from ``p0`` (m) and
+    ``v0`` (m/s): ``_toward(goal, dt, p1, v1)`` moves the reference one step toward ``goal`` (m, world)."""
 
     def __init__(self, settings: HomeSettings, p0: np.ndarray, v0: np.ndarray):
         self.settings = settings
         self.shaper = ReferenceShaper(replace(settings.shaper, speed_m_s=settings.return_speed_m_s, tilt_limit=0.0))
         self.shaper.p_ref, self.shaper.v_ref = np.asarray(p0, float).copy(), np.asarray(v0, float).copy()
+
+    def _toward(self, goal: np.ndarray, dt: float, p1: np.ndarray, v1: np.ndarray) -> Reference:
+        sh = self.shaper
+        assert sh.p_ref is not None
+        v_ref = sh.advance(goal, dt)
+        return Reference(p_opt=goal.copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref, a_ref=sh.acceleration(p1, v1, None), axis=None)
+
+
+class HomeFlight(_ShapedFlight):
+    """``reference(dt, p1, v1)`` each control step from where the relay turned home (``p0`` m, ``v0`` m/s);
+    ``landed(p1)`` once it is down (see the module)."""
+
+    def __init__(self, settings: HomeSettings, p0: np.ndarray, v0: np.ndarray):
+        super().__init__(settings, p0, v0)
         self.down = np.asarray(settings.landing_m, float)
         self.above = np.array([self.down[0], self.down[1], max(float(p0[2]), float(self.down[2]))])
         self.phase = "return"  # return (level, toward above home), descend
@@ -56,9 +70,7 @@ class HomeFlight:
         if self.phase == "return" and float(np.linalg.norm(sh.p_ref - self.above)) < 1e-6:
             self.phase = "descend"
             sh.speed = self.settings.land_speed_m_s
-        goal = self.above if self.phase == "return" else self.down
-        v_ref = sh.advance(goal, dt)
-        return Reference(p_opt=goal.copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref, a_ref=sh.acceleration(p1, v1, None), axis=None)
+        return self._toward(self.above if self.phase == "return" else self.down, dt, p1, v1)
 
     def landed(self, p1: np.ndarray) -> bool:
         """Whether the relay is down: its reference on the landing point and itself within ``LANDED_WITHIN_M`` of it."""
@@ -92,18 +104,10 @@ def transit_time_s(spare: np.ndarray, relay: np.ndarray, relay_velocity: np.ndar
     return max(gap - distance_m, 0.0) / max(speed_m_s - away, 0.25 * speed_m_s)
 
 
-class PlaceFlight:
+class PlaceFlight(_ShapedFlight):
     """``reference(dt, p1, v1, goal)`` each control step from where a spare launched (``p0`` m, ``v0`` m/s) toward
     ``goal`` (m, world; it moves with the relay whose place the spare takes): straight, at the spare's return speed
     (``HomeSettings``), level-only."""
 
-    def __init__(self, settings: HomeSettings, p0: np.ndarray, v0: np.ndarray):
-        self.shaper = ReferenceShaper(replace(settings.shaper, speed_m_s=settings.return_speed_m_s, tilt_limit=0.0))
-        self.shaper.p_ref, self.shaper.v_ref = np.asarray(p0, float).copy(), np.asarray(v0, float).copy()
-
     def reference(self, dt: float, p1: np.ndarray, v1: np.ndarray, goal: np.ndarray) -> Reference:
-        sh = self.shaper
-        assert sh.p_ref is not None
-        goal = np.asarray(goal, float)
-        v_ref = sh.advance(goal, dt)
-        return Reference(p_opt=goal.copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref, a_ref=sh.acceleration(p1, v1, None), axis=None)
+        return self._toward(np.asarray(goal, float), dt, p1, v1)
