@@ -9,7 +9,7 @@ from typing import Any
 
 from pydantic import Field, field_validator
 
-from .base import Strict, Vec3, papers_generator_named
+from .base import Strict, Vec3, nonzero_direction, papers_generator_named
 from .mission import MissionConfig
 from .platform import PlatformConfig
 from .radio import NodeAntennaConfig
@@ -85,12 +85,7 @@ class BaseStationConfig(Strict):
             raise ValueError(f"{ANY_BASE_STATION!r} is the route end that means the best base station; name it otherwise")
         return v
 
-    @field_validator("axis")
-    @classmethod
-    def _nonzero(cls, v):
-        if v is not None and sum(c * c for c in v) < 1e-12:
-            raise ValueError("the axis must be a nonzero vector")
-        return v
+    _nonzero_axis = field_validator("axis")(lambda v: v if v is None else nonzero_direction(v, "a base station's antenna axis"))
 
 
 class NetworkConfig(Strict):
