@@ -22,6 +22,7 @@ from aerorelay.models.geometry import rotation_zyx
 from aerorelay.models.radio import ChannelState, NodePose, network_rate
 from aerorelay.sim.handover import Handover, HandoverRule
 from tests.reference_channel import end_to_end_capacity, link_sinr
+from tests.scenario_files import scenario_from_text
 
 CROSSING = """
 name = "handover_cross"
@@ -56,9 +57,7 @@ STATIONS = {"west": np.array([0.0, 0.0, 0.0]), "east": np.array([24.0, 0.0, 0.0]
 
 
 def _scenario(tmp_path, text=CROSSING, name="cross.toml"):
-    path = tmp_path / name
-    path.write_text(text)
-    return ar.load_scenario(path)
+    return scenario_from_text(tmp_path, text, name)
 
 
 @pytest.fixture(scope="module")

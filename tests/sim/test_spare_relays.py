@@ -14,6 +14,7 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.config import ScenarioError
+from tests.scenario_files import scenario_from_text
 
 AVIONICS_W = 15.0
 SPARE = """
@@ -48,9 +49,7 @@ planner = "equidistant"
 
 
 def _load(tmp_path, text, name="spare.toml"):
-    path = tmp_path / name
-    path.write_text(text)
-    return ar.load_scenario(path)
+    return scenario_from_text(tmp_path, text, name)
 
 
 @pytest.fixture(scope="module")
