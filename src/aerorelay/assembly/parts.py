@@ -59,6 +59,7 @@ from ..planning.network_bound import (
 from ..sim.air import Air
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.handover import HandoverRule
+from ..sim.initial import start_poses
 from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from . import world
@@ -188,10 +189,8 @@ def _powers_for_inr(scene: RadioScene, sc: Scenario) -> RadioScene:
     """The scene with each ``inr_db_at_relay_start`` jammer's peak power set so that its
     interference-to-noise ratio at the relay's start is that (level attitudes at t = 0, as
     ``aerorelay info`` evaluates it: the channel's interference per unit power, one jammer at a time)."""
-    I = np.eye(3)
     relay = scene.name_of("relay")  # the first relay: a fleet's INR is set at r1's start
-    in_scene = {n.name for n in scene.nodes}  # a spare waits outside the network
-    poses = {n: scene.pose(n, np.array(p, float), I) for n, p in sc.starts.items() if n in in_scene}  # every vehicle at its start
+    poses = start_poses(scene, sc.starts)  # every vehicle of the network at its start (a spare waits outside it)
     hop = next(k for k, (_, rx) in enumerate(scene.hops) if rx == relay)
     out = []
     for i, (j, cfg) in enumerate(zip(scene.jammers, sc.jammer_configs, strict=True)):
@@ -492,8 +491,7 @@ class Parts:
         """The planner of the network ``scene`` flies now (relays lost or gone home, spares in their places), its
         references starting where its relays are (``positions``, m, world) at ``t0`` (s)."""
         names = [n.name for n in scene.nodes if n.role == "relay"]
-        routes = [[*r[:-1], ANY_BASE_STATION if scene.handover and scene.handover[i] else r[-1]]
-                  for i, r in enumerate(scene.all_routes)]
+        routes = [[*r[:-1], ANY_BASE_STATION if e else r[-1]] for r, e in zip(scene.all_routes, scene.route_ends, strict=True)]
         sc = self.scenario.network_of(names, routes)
         kept = {n: np.asarray(positions[n], float) for n in names}
         return network_planner(sc, scene, self.relays, kept, t0)

@@ -101,12 +101,6 @@ class NetworkController:
         self.planner = self.replanner(scene, positions, t0) if left else None
         self.neighbours_of = route_neighbours(self.scene)
 
-    def take_over(self, leaving: str, spare: Node, positions: Mapping[str, np.ndarray], t0: float,
-                  gone: frozenset[str] = frozenset()) -> None:
-        """The ``spare`` takes the place of ``leaving`` on every route (``RadioScene.handed_to``), the relays ``gone``
-        leave; the planner rebuilt (``recompose``)."""
-        self.recompose(self.scene.handed_to(leaving, spare).without(gone), positions, t0)
-
     def hand_over(self, ends) -> None:
         """Each route now ends at ``ends`` (a base station each, the handover rule's choice): a relay's NMPC
         looks toward its route's serving base station."""

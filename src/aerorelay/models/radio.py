@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import reduce
 from typing import Any, Literal
 
 import casadi as ca
@@ -223,13 +224,6 @@ def network_rate(route_sinrs: Sequence[Sequence], bandwidth: float = 1.0):
     return bandwidth * np.where(alive, 1.0 / inv, 0.0)
 
 
-def _fold(f, values):
-    out = values[0]
-    for v in values[1:]:
-        out = f(out, v)
-    return out
-
-
 @dataclass(frozen=True)
 class RadioScene:
     """Nodes, jammers, link budget and the routes data takes (node names, a source first, a base
@@ -300,7 +294,7 @@ class RadioScene:
         lost = set(lost)
         routes: list[tuple[str, ...]] = []
         ends: list[tuple[str, ...]] = []
-        for r, e in zip(self.all_routes, self.handover or [()] * len(self.all_routes), strict=True):
+        for r, e in zip(self.all_routes, self.route_ends, strict=True):
             kept = tuple(n for n in r if n not in lost)
             if kept not in routes:
                 routes.append(kept)
@@ -319,6 +313,16 @@ class RadioScene:
         jammers = tuple(replace(j, point_at=node.name) if j.point_at == leaving else j for j in self.jammers)
         return replace(self, nodes=nodes, jammers=jammers, route=routes[0], routes=routes if len(routes) > 1 else ())
 
+    @property
+    def node_names(self) -> frozenset[str]:
+        """The names of the scene's nodes."""
+        return frozenset(n.name for n in self.nodes)
+
+    @property
+    def route_ends(self) -> tuple[tuple[str, ...], ...]:
+        """Per route of ``all_routes``, the base stations it may end at (``handover``; empty: its end is fixed)."""
+        return self.handover or ((),) * len(self.all_routes)
+
     def serving(self, ends: Sequence[str]) -> RadioScene:
         """The scene with each route ending at ``ends`` (a base station each, one it may end at)."""
         routes = tuple(r[:-1] + (str(e),) for r, e in zip(self.all_routes, ends, strict=True))
@@ -328,8 +332,7 @@ class RadioScene:
     def candidate_routes(self) -> tuple[tuple[tuple[str, ...], ...], ...]:
         """Per route, every route it may take: with each base station it may end at, in ``handover``'s
         order (the serving one among them), or itself when its end is fixed."""
-        ends = self.handover or [()] * len(self.all_routes)
-        return tuple(tuple(r[:-1] + (b,) for b in e) if e else (r,) for r, e in zip(self.all_routes, ends, strict=True))
+        return tuple(tuple(r[:-1] + (b,) for b in e) if e else (r,) for r, e in zip(self.all_routes, self.route_ends, strict=True))
 
     @property
     def all_routes(self) -> tuple[tuple[str, ...], ...]:
@@ -424,6 +427,8 @@ class RadioScene:
         ``ends``: a route that may end at several base stations (``handover``) counts with the best of
         them (``"best"``: what a planner or a bound can reach, per element of a grid) or with the one
         serving it now (``"serving"``: its end in ``all_routes``, the network's truth)."""
+        if ends not in ("best", "serving"):
+            raise ValueError(f"evaluate: ends must be 'best' or 'serving', got {ends!r}")
         poses = self.with_fixed(poses)
         emitters = self.emitters(t, poses, positions=jammer_positions, powers=jammer_powers)
         b, nh, nj = self.budget, len(self.hops), len(emitters)
@@ -447,15 +452,13 @@ class RadioScene:
             routes = tuple(route_capacity(r, b.bandwidth) for r in per_route)
             rate = routes[0] if len(routes) == 1 else network_rate(per_route, b.bandwidth)
             return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, routes, tuple((c,) for c in routes))
-        if ends not in ("best", "serving"):
-            raise ValueError(f"evaluate: ends must be 'best' or 'serving', got {ends!r}")
         candidates = tuple(tuple(route_capacity([sinrs[k] for k in hs], b.bandwidth) for hs in route)
                            for route in self.candidate_hops())
         if ends == "serving":
             chosen = tuple(c[rs.index(r)] for c, rs, r in zip(candidates, self.candidate_routes, self.all_routes, strict=True))
         else:
             most = ca.fmax if is_symbolic(*sinrs) else np.maximum
-            chosen = tuple(_fold(most, c) for c in candidates)
+            chosen = tuple(reduce(most, c) for c in candidates)
         rate = chosen[0] if len(chosen) == 1 else rate_of_routes(chosen)
         return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, chosen, candidates)
 
@@ -490,9 +493,8 @@ class RadioScene:
         if not self.jammers:
             parts.append("no jammer")
         b = self.budget
-        ends = self.handover or [()] * len(self.all_routes)
         routes = "; ".join(" -> ".join(r[:-1]) + (f" -> any of {'/'.join(e)}" if e else f" -> {r[-1]}")
-                           for r, e in zip(self.all_routes, ends, strict=True))
+                           for r, e in zip(self.all_routes, self.route_ends, strict=True))
         parts.append(f"P_U {b.tx_power:g} W, noise {b.noise_power:g} W, B {b.bandwidth:g}; "
                      f"{'route' if len(self.all_routes) == 1 else 'routes'} {routes}")
         if not self.path_gain.is_paper:

@@ -233,7 +233,7 @@ class ClosedLoop:
         self.csi_rng = generator(settings.seed, "csi")
         self.hover_w = {r.name: float(r.vehicle.shaft_power(r.vehicle.hover_speeds())) for r in relays}  # W, for the way home
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
-        self.bs_name, self.bs, self.gravity = self.control.bs_name, self.control.bs, self.control.gravity
+        self.gravity = self.control.gravity
         self.stations = self.control.stations  # every base station's position (m, world)
         # a route that may end at several base stations: which serves it, decided each step from the true rates
         self.handover = Handover(settings.handover) if any(scene.handover) else None
@@ -268,13 +268,6 @@ class ClosedLoop:
         rng = self.process_rngs[relay]
         return np.concatenate([rng.normal(0.0, st.process_noise_v, 3), rng.normal(0.0, st.process_noise_w, 3)])
 
-    def _lose(self, lost: frozenset[str], x: dict[str, np.ndarray], t0: float) -> None:
-        """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
-        others from where they are at ``t0`` (s)."""
-        self.control.lose(lost, {n: xs[0:3].copy() for n, xs in x.items() if n not in lost}, t0)
-        self.scene = self.control.scene
-        self._links_now = self.perturbations.layout(self.scene)
-
     def _energy_home(self, r: LoopRelay, p: np.ndarray) -> float:
         """What relay ``r`` at ``p`` (m) needs to get home and land (J; ``models.battery``)."""
         assert r.home is not None and r.battery is not None
@@ -307,7 +300,7 @@ class ClosedLoop:
         ``leaving`` takes it on every route (``RadioScene.handed_to``); the network's planner rebuilt at ``t0`` (s)."""
         net = self.control.scene
         for spare, (relay, _) in list(ferrying.items()):
-            if relay in leaving and any(n.name == relay for n in net.nodes):
+            if relay in leaving and relay in net.node_names:
                 net = net.handed_to(relay, self.spares[spare])
                 del ferrying[spare]
         self.control.recompose(net.without(leave), {n: xs[0:3].copy() for n, xs in x.items()}, t0)
@@ -324,7 +317,7 @@ class ClosedLoop:
         for r in self.relays:
             if not waiting:
                 return
-            if r.home is None or r.battery is None or r.name in taken or all(n.name != r.name for n in self.scene.nodes):
+            if r.home is None or r.battery is None or r.name in taken or r.name not in self.scene.node_names:
                 continue
             p = x[r.name][0:3]
             spare = min((s for s in self.relays if s.name in waiting), key=lambda s: float(np.linalg.norm(s.start - p)))
@@ -398,11 +391,8 @@ class ClosedLoop:
             for k in range(n_steps):
                 t = k * period
                 while pending and t >= pending[0][0] - 1e-9:
-                    when, now_lost = pending.pop(0)
-                    if any(relay in now_lost for relay, _ in ferrying.values()):  # a spare on its way takes the lost one's place
-                        self._recompose(now_lost | landed | set(homing), now_lost - lost, x, ferrying, when)
-                    else:
-                        self._lose(now_lost | landed | set(homing), x, when)
+                    when, now_lost = pending.pop(0)  # a spare on its way to one of them takes its place
+                    self._recompose(now_lost | landed | set(homing), now_lost - lost, x, ferrying, when)
                     lost = now_lost
                 gone = lost | landed | waiting
                 flying = {n: xs for n, xs in x.items() if n not in gone}
@@ -438,7 +428,7 @@ class ClosedLoop:
                         row |= self.air.values(r.name, x[r.name], f"{r.name}.")
                 for name, s in truth.items():
                     row |= source_row(name, s.p, eta[name])
-                in_scene = {nd.name for nd in self.scene.nodes}  # a relay flying home has left the network's scene
+                in_scene = self.scene.node_names  # a relay flying home has left the network's scene
                 poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R if n in in_scene}
                 gains = None
                 if self.perturbations.active:  # fading and shadowing on every link, each its own

@@ -36,7 +36,7 @@ def start_poses(scene: RadioScene, starts: Mapping[str, object]) -> dict[str, No
     """Every node's pose at the start: the moving ones at ``starts`` (name -> m, world) with level
     attitudes (a start of no node of the scene, a waiting spare's, left out), the fixed ones where they stand."""
     I = np.eye(3)
-    names = {n.name for n in scene.nodes}  # a spare waits outside the network: no node of its scene
+    names = scene.node_names  # a spare waits outside the network: no node of its scene
     poses = {n: scene.pose(n, np.asarray(p, float), I) for n, p in starts.items() if n in names}
     return {n.name: scene.fixed_pose(n.name) for n in scene.nodes if n.position is not None} | poses
 

@@ -16,10 +16,10 @@ def every_link(scene: RadioScene, networks: Sequence[RadioScene]) -> RadioScene:
     """``scene`` with every route of ``networks`` (the networks the flight may fly besides ``scene``: after a
     loss, with spares in relays' places): its links are every link the network ever takes, the scene's own
     first (``scene`` itself when no network adds a route)."""
-    routes, ends = list(scene.all_routes), list(scene.handover or [()] * len(scene.all_routes))
+    routes, ends = list(scene.all_routes), list(scene.route_ends)
     nodes = list(scene.nodes)
     for net in networks:
-        for r, e in zip(net.all_routes, net.handover or [()] * len(net.all_routes), strict=True):
+        for r, e in zip(net.all_routes, net.route_ends, strict=True):
             if r not in routes:
                 routes.append(r)
                 ends.append(e)
@@ -35,17 +35,17 @@ def possible_networks(scene: RadioScene, scheduled: Sequence[frozenset[str]], ho
     relays lost by then), with any of the relays that may fly home (``homing``) gone, and each spare (``spares``:
     name -> node) in the place of one of them; each network once, in that order."""
     out: list[RadioScene] = []
-    seen = {(scene.all_routes, tuple(n.name for n in scene.nodes))}
+    seen = {(scene.all_routes, scene.node_names)}
     for lost in scheduled:
         for k in range(len(homing) + 1):
             for sub in combinations(homing, k):
                 for placed in _placements([h for h in sub if h not in spares] + [h for h in sub if h in spares], spares):
                     net = scene
                     for leaving, spare in placed:
-                        if any(n.name == leaving for n in net.nodes) and all(n.name != spare for n in net.nodes):
+                        if leaving in net.node_names and spare not in net.node_names:
                             net = net.handed_to(leaving, spares[spare])
                     net = net.without(lost | set(sub))
-                    key = (net.all_routes, tuple(n.name for n in net.nodes))
+                    key = (net.all_routes, net.node_names)
                     if key not in seen:
                         seen.add(key)
                         out.append(net)
