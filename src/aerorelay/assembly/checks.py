@@ -196,9 +196,12 @@ def _ray_traced_physics(sc: Scenario) -> None:
     if traced_scoring and sc.channel.propagation.model != "ray_traced":
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores candidates on the ray-traced channel: "
                          "set channel.propagation.model = 'ray_traced' (and its scene)")
-    if traced_scoring and sc.is_network:
-        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores one relay's candidates (a network's "
-                         "fleet planner scores on free space so far)")
+    if traced_scoring and sc.is_network and sc.controller.capacity.scoring != "traced":
+        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: a network's candidates are scored by its fleet planner: "
+                         "set controller.capacity.scoring = 'traced' (with network.planner = 'capacity')")
+    if traced_scoring and sc.is_network and sc.network.planner != "capacity":
+        raise ValueError(f"controller.capacity.scoring: 'traced' scores the capacity-seeking planners' candidates; "
+                         f"network.planner = {sc.network.planner!r} scores none: set network.planner = 'capacity'")
     if traced_scoring and sc.has_handover:
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores the route to one base station; a route "
                          "to 'any' of several scores on free space so far")

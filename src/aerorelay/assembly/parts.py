@@ -715,6 +715,8 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
                                 settings=planner_settings(sc), surrogate_g_bar=sc.antenna.g_bar, separation_m=sc.separation_m,
                                 obstacles=world.obstacles(sc),
                                 sources={s.name: source_trajectory(s.mission) for s in sc.source_list},
-                                duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.network.route_dt_s, route=sc.network.route)
+                                duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.network.route_dt_s, route=sc.network.route,
+                                tracer=RayTracer(world.trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None,
+                                traced_coherent=sc.channel.propagation.paths_sum == "coherent")
     planner = NETWORK_PLANNERS[sc.network.planner](ctx)
     return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner

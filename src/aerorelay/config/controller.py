@@ -116,7 +116,8 @@ class CapacityPlannerConfig(Strict):
         "joint", description="joint: every candidate position with every holdable axis (27 x K poses); decoupled: the "
         "positions at the current axis goal, then every axis at the best one (27 + K: docs/results/controller-speed.md); "
         "traced: as joint, on the ray-traced channel (channel.propagation.model = 'ray_traced'; one trace per replan, "
-        "the replans at most every trace_period_s)")
+        "the replans at most every trace_period_s; a fleet's with network.planner = 'capacity': a trace per relay and "
+        "one for the joint moves)")
     replan_every: int = Field(4, ge=1, le=50, description="control steps between two replans (all candidates scored in "
                               "one compiled call): 1 spreads the planner over every step, so no step carries it alone "
                               "(docs/results/controller-speed.md)")

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
+from ..models.raytrace import RayTracer
 from ..models.vehicle import Multirotor
 from .base import Planner, PlannerInput, PlannerSettings, registrar
 from .trajectory_generator import Reference
@@ -69,6 +70,8 @@ class NetworkPlannerContext:
     t0_s: float = 0.0  # when this planner starts flying (s; a smaller fleet's after a loss)
     route_dt_s: float = 2.0  # a pre-flight route's time step (s)
     route: bool = True  # whether a planner that can plan a pre-flight route does
+    tracer: RayTracer | None = None  # the scene's ray tracer when candidates are scored on the traced channel
+    traced_coherent: bool = False  # ... and whether its paths are summed with their phases
 
 
 NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]

@@ -36,10 +36,12 @@ from ..models.geometry import E3, thrust_direction_from_acceleration
 from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
+from ..models.raytrace import RayTracer
 from .fleet import FleetInput, equidistant_targets
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 from .relay_grid import CompiledConfigurations, CompiledRelayGrid
 from .shaper import ReferenceShaper, ShaperSettings
+from .traced_grid import TracedConfigurations, TracedRelayGrid
 from .trajectory_generator import Reference
 
 log = logging.getLogger(__name__)
@@ -122,12 +124,15 @@ class FleetCapacityPlanner:
 
     def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], candidate_axes: Mapping[str, np.ndarray],
                  shapers: Mapping[str, ShaperSettings], settings: FleetCapacitySettings,
-                 route_builder: Callable[..., FleetRoute] | None = None):
+                 route_builder: Callable[..., FleetRoute] | None = None, tracer: RayTracer | None = None,
+                 traced_coherent: bool = False):
         """``candidate_axes``: each relay's holdable antenna axes ``(n, 3)`` (unit, world); ``shapers`` each relay's
         reference limits; ``route_builder(t0, starts, jammer_positions, jammer_powers)`` plans the route (None: no
         route, no leash): before the first step with what the fleet knows then, and again when a jammer
         becomes known in flight (its power from 0 to above; ``preflight_s`` the first, ``reroute_s`` the others,
-        s)."""
+        s). ``tracer``: the candidates and the joint moves scored on the ray-traced channel of the scene's map
+        (``planning.traced_grid``; ``traced_coherent``: its paths summed with their phases), the route planned on
+        the scene's analytic channel (IPOPT through thousands of traces is not flyable on a CPU)."""
         self.scene, self.settings, self.route_builder = scene, settings, route_builder
         self.route: FleetRoute | None = None
         self.preflight_s, self.reroute_s = 0.0, list[float]()
@@ -145,14 +150,21 @@ class FleetCapacityPlanner:
         self.axes = {n: np.asarray(candidate_axes[n], float) for n in self.relays}
         # each relay's goals x axes scored in one compiled call (planning.relay_grid), the other sources and relays given
         self.sources = [n.name for n in scene.nodes if n.role == "source"]
-        self.grids = {n: CompiledRelayGrid(scene, len(_OFFSETS), len(self.axes[n]), source=self.sources[0], relay=n,
-                                           moving=self._moving(n)) for n in self.relays}
+        self.grids: dict[str, CompiledRelayGrid | TracedRelayGrid]
+        if tracer is None:
+            self.grids = {n: CompiledRelayGrid(scene, len(_OFFSETS), len(self.axes[n]), source=self.sources[0], relay=n,
+                                               moving=self._moving(n)) for n in self.relays}
+        else:
+            self.grids = {n: TracedRelayGrid(scene, tracer, source=self.sources[0], relay=n, moving=self._moving(n),
+                                             coherent=traced_coherent) for n in self.relays}
         K = len(self.relays)
         # the joint moves' configurations: every non-empty subset of the relays up to JOINT_SUBSETS_MAX_RELAYS, beyond
         # it all relays together and each alone
         self.subsets = ([tuple(c) for r in range(1, K + 1) for c in itertools.combinations(range(K), r)]
                         if K <= JOINT_SUBSETS_MAX_RELAYS else [tuple(range(K))] + [(j,) for j in range(K)])
-        self.configurations = CompiledConfigurations(scene, tuple(self.relays), tuple(self.sources), len(self.subsets))
+        self.configurations = (CompiledConfigurations(scene, tuple(self.relays), tuple(self.sources), len(self.subsets))
+                               if tracer is None else
+                               TracedConfigurations(scene, tracer, tuple(self.relays), tuple(self.sources), coherent=traced_coherent))
         self.cycle = max(settings.replan_every, K)  # steps between two decisions
         self.scored: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
         self.gravity = next(iter(shapers.values())).gravity if shapers else 9.81

@@ -103,7 +103,7 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
                                 FleetCapacitySettings(step_m=cap.step_m, replan_every=cap.replan_every,
                                                       lookahead_s=cap.lookahead_s, leash_m=cap.leash_m, margin_m=cap.margin_m,
                                                       separation_m=ctx.separation_m, obstacles=ctx.obstacles, **_box(ctx)),
-                                route)
+                                route, tracer=ctx.tracer, traced_coherent=ctx.traced_coherent)
 
 
 @register_network_planner("trajectory_generator")
