@@ -28,7 +28,10 @@ SINGLE_EVALS_PER_S = 7.1e6  # capacities per second, one-relay bound (measured, 
 PAIR_EVALS_PER_S = 5.1e7  # pair terms per second, network bound (measured, see the module)
 DP_PASSES = 4  # the network bound's passes over every pair of cells an instant: up and down, certified and at the centres
 BOX_PAIRS_PER_S = 2.3e6  # pair terms per second of its branch and bound's cubes (measured 2026-12-04: 5.5e6 in 2.4 s)
-BRANCH_LEVELS, BRANCH_PAIRS = 6, 3e6  # planning.network_bound.NetworkBoundSolver's defaults: its worst case an instant
+# planning.network_bound.NetworkBoundSolver's defaults: its worst case a search; 1e6 pairs a level measured as tight as
+# 3e6 at a third of the time (network study K = 2, 120 m: 18.33 Mbit/s at t = 30 s either way, 2.1 against 7.1 s)
+BRANCH_LEVELS, BRANCH_PAIRS = 6, 1e6
+BRANCH_SEARCHES = 2  # searches an instant: the static bound's and the upper path bound's (kept to what the relays can reach)
 BRANCH_CELLS = 200_000  # ... and the most cubes a relay may have at a level (one relay alone has no pair terms)
 TEMPORARIES = 4  # arrays of one instant's (cells x axes) numpy holds at once in the capacity landscape
 CHUNK = 256  # rows of a network bound's pair-term block (planning.network_bound.CHUNK)
@@ -74,7 +77,7 @@ def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, re
     of cubes and its branch and bound's worst case, each instant."""
     cells, instants = cube_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
     held = CHUNK * cells * 8 * 3 + relays * cells * 8 * 8
-    branch = (2 * BRANCH_LEVELS * BRANCH_PAIRS / BOX_PAIRS_PER_S) if pair_hops else 0.0
+    branch = (BRANCH_SEARCHES * 2 * BRANCH_LEVELS * BRANCH_PAIRS / BOX_PAIRS_PER_S) if pair_hops else 0.0
     seconds = instants * (DP_PASSES * pair_hops * float(cells) ** 2 / PAIR_EVALS_PER_S + relays * cells * 64 / SINGLE_EVALS_PER_S
                           + branch)
     return BoundCost(cells, 0, instants, relays, pair_hops, float(held), seconds)

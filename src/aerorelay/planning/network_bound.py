@@ -13,8 +13,10 @@ a hop between a fixed node (a source at its pose on its mission, the base statio
 term of that relay's cube, a hop between two relays a term of the pair. When the relays' hops form a
 forest (every chain, and routes that merge toward the base station like two sources sharing a chain),
 ``forest_min_marginals`` solves it exactly with each relay's min-marginals, ``O(cubes^2)`` per
-relay-relay hop. Branch and bound then drops the cubes that cannot hold the optimum (their marginal
-above a refined configuration's sum) and splits the others (``NetworkBoundSolver.certify``).
+relay-relay hop. Best-first branch and bound then drops the cubes that cannot hold the optimum (their
+marginal above a refined configuration's sum) and splits those with the least marginals in eight, as many
+as a level's work allows, cubes of several sizes side by side (``NetworkBoundSolver.certify``); the upper
+path bound's per-cube terms are tightened by the same search (``_reachable_tightened``).
 
 ``achieved``: a configuration the physics allows at that instant, refined on the true network rate
 (L-BFGS-B, or SLSQP with the separation, positions and axes jointly) from three starts; the true
@@ -41,7 +43,7 @@ from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 
-NETWORK_BOUND_VERSION = "6"  # bump when the computation changes: cached network bounds are recomputed
+NETWORK_BOUND_VERSION = "7"  # bump when the computation changes: cached network bounds are recomputed
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
 ASSUMPTIONS = ("small-scale fading ignored; every relay anywhere in the workspace box (covered by the cubes) at least "
@@ -273,10 +275,24 @@ def forest_min_marginals(nodes: Sequence[str], unary: Mapping[str, np.ndarray], 
 
 @dataclass
 class CellSets:
-    """Each relay's cells at one level of the search: centres ``(n_r, 3)`` (m) of cubes of half-side ``half`` (m)."""
+    """Each relay's cells at one level of the search: centres ``(n_r, 3)`` (m) of cubes of half-sides ``(n_r,)``
+    (m; cubes of several sizes side by side), and the grid's cube each lies in (``roots``, ``(n_r,)``)."""
 
     centres: dict[str, np.ndarray]
-    half: float
+    halves: dict[str, np.ndarray]
+    roots: dict[str, np.ndarray]
+
+    def split(self, keep: Mapping[str, np.ndarray], split: Mapping[str, np.ndarray]) -> CellSets:
+        """The cells ``keep`` (boolean per cell) as they are and the cells ``split`` (within ``keep``) in eight."""
+        children = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+        centres, halves, roots = {}, {}, {}
+        for r, c in self.centres.items():
+            stay, cut = keep[r] & ~split[r], split[r]
+            h = self.halves[r][cut] / 2.0
+            centres[r] = np.concatenate([c[stay], (c[cut][:, None, :] + h[:, None, None] * children[None]).reshape(-1, 3)])
+            halves[r] = np.concatenate([self.halves[r][stay], np.repeat(h, 8)])
+            roots[r] = np.concatenate([self.roots[r][stay], np.repeat(self.roots[r][cut], 8)])
+        return CellSets(centres, halves, roots)
 
 
 class NetworkBoundSolver:
@@ -368,7 +384,8 @@ class NetworkBoundSolver:
         """``(n,)``: inf at the cubes no relay may be anywhere in (wholly inside one obstacle's margin, or
         wholly closer than the separation to a source or the base station), else 0."""
         out = np.zeros(len(centres))
-        corners = centres[:, None, :] + half * np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+        half = np.asarray(half, float)  # a scalar, or (n, 1): each cube's own
+        corners = centres[:, None, :] + half[..., None] * np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
         for o in self.pb.obstacles:  # convex: a cube whose corners are all inside is inside
             out[np.all(o.signed_distance(corners) < 0, axis=1)] = np.inf
         sep = self.pb.separation_m
@@ -454,7 +471,8 @@ class NetworkBoundSolver:
                 ca, cb = sets.centres[a][rows], sets.centres[b]
                 d = cb[None, :, :] - ca[:, None, :]  # a -> b
                 d = d if tx == a else -d  # tx -> rx
-                s = self.signal_bound(tx, rx, d, 2.0 * sets.half)
+                spread = sets.halves[a][rows][:, None, None] + sets.halves[b][None, :, None]  # the two cubes' half-sides
+                s = self.signal_bound(tx, rx, d, spread)
                 i_rx = interference[rx][None, :] if rx == b else interference[rx][rows][:, None]
                 with np.errstate(divide="ignore", invalid="ignore"):
                     out = out + count * self._term(s / (i_rx + self.scene.budget.noise_power))
@@ -466,16 +484,16 @@ class NetworkBoundSolver:
         """The certified min-sum over the cells of ``sets`` (None: the whole grid; there ``excluded``, ``{relay:
         (M,)}``, inf at the cells a relay may not be in and 0 elsewhere, is added to its terms) and each relay's
         min-marginals."""
-        centres = (lambda r: self.cells) if sets is None else (lambda r: sets.centres[r])
-        half = self.half if sets is None else sets.half
-        interference = {r: self.least_interference(t, r, poses, centres(r), half) for r in self.relays}
         if sets is None:
+            interference = {r: self.least_interference(t, r, poses) for r in self.relays}
             unary = self.unary_terms(t, poses, interference)
             if excluded is not None:
                 unary = {r: u + excluded[r] for r, u in unary.items()}
             block = self._grid_block(interference)
         else:
-            unary = {r: self.unary_terms(t, poses, interference, centres(r), half, only=r)[r] for r in self.relays}
+            half = {r: sets.halves[r][:, None] for r in self.relays}
+            interference = {r: self.least_interference(t, r, poses, sets.centres[r], half[r]) for r in self.relays}
+            unary = {r: self.unary_terms(t, poses, interference, sets.centres[r], half[r], only=r)[r] for r in self.relays}
             block = self._sets_block(sets, interference)
         return forest_min_marginals(self.relays, unary, self.neighbours, block)
 
@@ -484,28 +502,55 @@ class NetworkBoundSolver:
         total, marginals = self.solve_level(t, self.fixed_poses(t), None)
         return total, np.array([int(np.argmin(marginals[r])) for r in self.relays])
 
-    def certify(self, t: float, total: float, marginals: dict[str, np.ndarray], feasible_sum: float) -> tuple[float, dict]:
-        """Branch and bound from the grid's certified ``total``: cells whose min-marginal exceeds ``feasible_sum``
-        (the terms' sum of a configuration the physics allows, which the optimum's cannot exceed) cannot hold
-        the optimum and are dropped; the others are split in eight and bounded again, until the bound is within
-        ``tolerance`` of ``feasible_sum``, ``max_levels`` splits, or ``max_pairs`` pair terms a level. Returns the
-        certified sum (a lower bound of every configuration's) and what the search did."""
-        poses = self.fixed_poses(t)
-        sets, kept = None, {r: marginals[r] <= feasible_sum * (1 + 1e-12) for r in self.relays}
-        levels = 0
-        children = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+    def _split_threshold(self, marginals: Mapping[str, np.ndarray], kept: Mapping[str, np.ndarray]) -> float | None:
+        """The largest min-marginal up to which the kept cells can be split in eight with the next level's pair terms
+        within ``max_pairs`` and every relay's cells within ``BRANCH_CELLS`` (None: not even the best cells can)."""
+        values = np.unique(np.concatenate([marginals[r][kept[r]] for r in self.relays]))
+        kept_n = {r: int(kept[r].sum()) for r in self.relays}
+
+        def fits(tau: float) -> bool:
+            n = {r: kept_n[r] + 7 * int(np.count_nonzero(kept[r] & (marginals[r] <= tau))) for r in self.relays}
+            work = sum(n[a] * n[b] for a, b in self.edges)
+            return work <= self.max_pairs and max(n.values()) <= BRANCH_CELLS
+
+        if not len(values) or not fits(values[0]):
+            return None
+        lo, hi = 0, len(values) - 1  # fits(values[lo]) holds; the largest index that fits (work grows with tau)
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if fits(values[mid]) else (lo, mid - 1)
+        return float(values[lo])
+
+    def certify(self, t: float, total: float, marginals: dict[str, np.ndarray], feasible_sum: float
+                ) -> tuple[float, dict, dict[str, np.ndarray]]:
+        """Best-first branch and bound from the grid's certified ``total`` and min-marginals: cells whose min-marginal
+        exceeds ``feasible_sum`` (the terms' sum of a configuration the physics allows, which the optimum's cannot
+        exceed) are dropped; of the others those with the least min-marginals, as many as keep the next level's pair
+        terms within ``max_pairs``, are split in eight, and every relay's cells (of several sizes) are bounded again,
+        until the bound is within ``tolerance`` of ``feasible_sum`` or after ``max_levels`` levels. Returns the
+        certified sum (a lower bound of every configuration's), what the search did, and each relay's min-marginals
+        on the grid's cubes tightened by the search ``{relay: (M,)}``: a grid cube's is at least ``min(feasible_sum,
+        its kept sub-cubes' least)`` (a configuration with another relay in a dropped cube sums above
+        ``feasible_sum``), and at least its grid value."""
+        poses, M = self.fixed_poses(t), len(self.cells)
+        sets = CellSets({r: self.cells for r in self.relays}, {r: np.full(M, self.half) for r in self.relays},
+                        {r: np.arange(M) for r in self.relays})
+        tight = {r: np.array(marginals[r], float) for r in self.relays}
+        cap, levels = feasible_sum * (1 + 1e-12), 0
         while feasible_sum / total - 1.0 > self.tolerance and levels < self.max_levels:
-            current = {r: (self.cells if sets is None else sets.centres[r])[kept[r]] for r in self.relays}
-            half = (self.half if sets is None else sets.half) / 2.0
-            nxt = CellSets({r: (c[:, None, :] + half * children[None]).reshape(-1, 3) for r, c in current.items()}, half)
-            work = sum(len(nxt.centres[a]) * len(nxt.centres[b]) for a, b in self.edges)
-            if work > self.max_pairs or any(len(c) == 0 or len(c) > BRANCH_CELLS for c in nxt.centres.values()):
+            kept = {r: marginals[r] <= cap for r in self.relays}
+            tau = self._split_threshold(marginals, kept)
+            if tau is None:
                 break
-            level_total, marginals = self.solve_level(t, poses, nxt)
-            total, sets, levels = max(total, level_total), nxt, levels + 1  # every level's sum is a lower bound
-            kept = {r: marginals[r] <= feasible_sum * (1 + 1e-12) for r in self.relays}
-        cells = {r: int((self.cells if sets is None else sets.centres[r]).shape[0]) for r in self.relays}
-        return total, {"levels": levels, "cells": cells, "half_m": self.half if sets is None else sets.half}
+            sets = sets.split(kept, {r: kept[r] & (marginals[r] <= tau) for r in self.relays})
+            level_total, marginals = self.solve_level(t, poses, sets)
+            total, levels = max(total, level_total), levels + 1  # every level's sum is a lower bound
+            for r in self.relays:
+                per_root = np.full(M, feasible_sum)
+                np.minimum.at(per_root, sets.roots[r], np.minimum(marginals[r], feasible_sum))
+                tight[r] = np.maximum(tight[r], per_root)
+        cells = {r: int(len(sets.centres[r])) for r in self.relays}
+        return total, {"levels": levels, "cells": cells, "half_min_m": float(min(h.min() for h in sets.halves.values()))}, tight
 
     # -- refinement (planning.fleet_configuration) ---------------------------------------------
     def rate(self, t: float, positions: np.ndarray, axes: np.ndarray, poses) -> float:
@@ -533,7 +578,8 @@ class NetworkBoundSolver:
         ``max_accel_m_s2`` from rest) has a higher mean rate over ``times``.
 
         Proof: ``marginals[i][k]``, relay ``k``'s min-marginal of the certified cube terms with every relay kept to
-        the cubes it can reach by ``times[i]`` (``out_of_reach``), is at most the sum of hop terms of every
+        the cubes it can reach by ``times[i]`` (``out_of_reach``; tightened by branch and bound, each cube's at most
+        the least over its sub-cubes, ``_reachable_tightened``), is at most the sum of hop terms of every
         configuration a flyable fleet can be in at that instant with ``k`` in cube ``c``; so the fleet's rate there
         is at most ``u_k,t(c) = min(B / m_k,t(c), static_t)``, for every ``k``. Along a flyable path ``k``'s cube
         moves between samples to one within ``max_speed * dt`` (``cube_footprint``); the best such cube path of
@@ -607,7 +653,7 @@ class _Instants:
     achieved: np.ndarray
     achieved_positions: np.ndarray
     achieved_axes: np.ndarray
-    reachable: list  # per instant, each relay's min-marginals kept to what it can reach from its start (the path bound)
+    reachable: list  # per instant, (the min-sum, each relay's min-marginals) kept to what it can reach from its start
     searches: list
 
 
@@ -623,7 +669,7 @@ def _instants(pb: NetworkBoundProblem, progress=None) -> _Instants:
         poses = solver.fixed_poses(float(t))
         total, marginals = solver.solve_level(float(t), poses, None)
         if set(pb.starts) >= set(solver.relays):  # every relay kept to what it can reach from its start (the path bound)
-            level0.append(solver.solve_level(float(t), poses, None, solver.out_of_reach(float(t)))[1])
+            level0.append(solver.solve_level(float(t), poses, None, solver.out_of_reach(float(t))))
         bounded = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
         sp[k] = solver.cells[bounded]
         # refined from the relaxed optimum at the cubes' centres, from the bound's best cubes and from the last instant's
@@ -633,12 +679,28 @@ def _instants(pb: NetworkBoundProblem, progress=None) -> _Instants:
             tries.append(solver.refine(float(t), start=ap[k - 1]))
         achieved[k], ap[k], ax[k] = max(tries, key=lambda r: r[0])
         if np.isfinite(total) and total > 0 and achieved[k] > 0:
-            total, search = solver.certify(float(t), total, marginals, bw / achieved[k])
+            total, search, _ = solver.certify(float(t), total, marginals, bw / achieved[k])
             searches.append(search)
         static[k] = bw / total if np.isfinite(total) and total > 0 else np.inf
         if progress is not None:
             progress(k + 1, len(times))
     return _Instants(solver, times, static, sp, achieved, ap, ax, level0, searches)
+
+
+def _reachable_tightened(part: _Instants, feasible_sums: np.ndarray) -> tuple[list[dict[str, np.ndarray]], list[int]]:
+    """Each instant's min-marginals kept to what the relays can reach, tightened by branch and bound
+    (``NetworkBoundSolver.certify``) against ``feasible_sums`` ``(T,)``: the terms' sum of a flyable fleet's
+    configuration at that instant (the lower path bound's), so a cube whose sub-cubes all sum above it is capped
+    there (it cannot beat that fleet at that instant); and the levels each search went."""
+    out, levels = [], []
+    for (total, marginals), t, feasible in zip(part.reachable, part.times, feasible_sums, strict=True):
+        if not (np.isfinite(total) and total > 0 and np.isfinite(feasible) and feasible > 0):
+            out.append(marginals)
+            continue
+        _, search, tight = part.solver.certify(float(t), total, marginals, float(feasible))
+        out.append(tight)
+        levels.append(search["levels"])
+    return out, levels
 
 
 def end_choices(scene: RadioScene) -> list[RadioScene]:
@@ -695,7 +757,12 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     if set(pb.starts) >= set(solver.relays):
         flown = [p.solver.flyable(times, p.achieved_positions) for p in parts]
         fr, fp, fa, closest, status = max(flown, key=lambda f: float(np.mean(f[0])))  # the best combination's
-        upper, up, binding = solver.upper_path(times, [p.reachable for p in parts], [p.static for p in parts])
+        with np.errstate(divide="ignore"):
+            sums = pb.scene.budget.bandwidth / fr  # the flyable fleet's terms' sum at each instant
+        tightened = [_reachable_tightened(p, sums) for p in parts]
+        upper, up, binding = solver.upper_path(times, [m for m, _ in tightened], [p.static for p in parts])
+        levels = [lv for _, lvs in tightened for lv in lvs]
+        resolution["path_branch_levels_max"] = max(levels, default=0)
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
                        "flyable_closest_m": closest, "flyable_status": status, "path_mean_relay": binding,
                        "path_mean_footprint": "cubes within max_speed * dt of each other, within the reach from rest of "
