@@ -4,8 +4,10 @@ timeseries written to ``tests/data/before_one_machinery/<case>.parquet``. Run fr
 root at that commit (``git worktree add /tmp/old 05e1bca``, then from /tmp/old ``PYTHONPATH=src python
 /path/to/this/script``; cases already recorded are kept unless ``--all``). ``chain_capacity`` was recorded
 again on 2026-12-04 by the code that rebuilt the fleet's capacity planner (issue 47: a pre-flight route,
-joint moves, the one reference shaper): a deliberate change of that planner's flights, recorded so the case
-keeps guarding the loop (``python tests/data/record_before_one_machinery.py chain_capacity`` from the root)."""
+joint moves, the one reference shaper), and on 2026-12-05 when a relay whose move loses the joint decision
+came to hold its goal within its leash (5e-4 m on r1 in these 1.5 s): deliberate changes of that planner's
+flights, recorded so the case keeps guarding the loop (``python tests/data/record_before_one_machinery.py
+chain_capacity`` from the root)."""
 
 from __future__ import annotations
 

@@ -4,7 +4,8 @@ and the fleet loop, commit 05e1bca; ``tests/data/record_before_one_machinery.py`
 compared column by column under the old names read through ``sim.log_schema.modern_columns``: the
 nominal preset with the paper's planner and with the capacity planner, with fading, CSI and process
 noise and gusty wind, with an estimated jammer, a chain of two relays and two sources sharing it
-(``chain_capacity`` recorded again when issue 47 rebuilt the fleet's capacity planner, 2026-12-04)."""
+(``chain_capacity`` recorded again when issue 47 rebuilt the fleet's capacity planner, 2026-12-04, and when its
+hold came to keep a relay's goal within its leash, 2026-12-05)."""
 
 from __future__ import annotations
 
