@@ -94,7 +94,8 @@ def test_a_fleets_candidates_and_joint_moves_on_the_traced_channel_of_an_empty_s
 def test_a_fleet_scoring_on_the_traced_channel_flies_and_scores_traced():
     from aerorelay.assembly.parts import build
     from aerorelay.planning.traced_grid import TracedConfigurations
-    sc = ar.load_scenario("scenarios/street_canyon_chain.toml", set={"sim.duration_s": 1.0})  # traced scoring: the preset's
+    # traced scoring: the preset's; two decisions (0.25 s apart) on reflections of depth 1 (the suite's time)
+    sc = ar.load_scenario("scenarios/street_canyon_chain.toml", set={"sim.duration_s": 0.3, "channel.propagation.max_depth": 1})
     planner = build(sc).planner
     assert all(isinstance(g, TracedRelayGrid) for g in planner.grids.values())
     assert isinstance(planner.configurations, TracedConfigurations)
