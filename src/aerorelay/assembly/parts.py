@@ -30,7 +30,7 @@ from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from ..models.mission import CirclePath, LinearPath, MinimumJerkPath, RepeatingPath, SourceTrajectory, source_trajectory
 from ..models.propagation import PathGain, RmaAvPathGain, free_space_loss_db
 from ..models.radio import Antenna, LinkBudget, Node, RadioScene
-from ..models.raytrace import RayTracer, RayTracingUnavailable, check_scene
+from ..models.raytrace import RayTracingUnavailable, check_scene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import (
@@ -388,8 +388,7 @@ def planner_context(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source
                           relay_start=relay_start(sc), duration_s=sc.duration_s, settings=planner_settings(sc),
                           surrogate_g_bar=sc.antenna.g_bar, obstacles=world.obstacles(sc),
                           source_clearance_m=sc.separation_m + SOURCE_CLEARANCE_MARGIN_M,
-                          tracer=RayTracer(world.trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None,
-                          traced_coherent=sc.channel.propagation.paths_sum == "coherent")
+                          tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc))
 
 
 def planner_settings(sc: Scenario) -> PlannerSettings:
@@ -716,7 +715,6 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
                                 obstacles=world.obstacles(sc),
                                 sources={s.name: source_trajectory(s.mission) for s in sc.source_list},
                                 duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.network.route_dt_s, route=sc.network.route,
-                                tracer=RayTracer(world.trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None,
-                                traced_coherent=sc.channel.propagation.paths_sum == "coherent")
+                                tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc))
     planner = NETWORK_PLANNERS[sc.network.planner](ctx)
     return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner

@@ -39,13 +39,24 @@ def trace_settings(sc: Scenario) -> TraceSettings:
                          diffraction=prop.diffraction, refraction=prop.refraction)
 
 
+def traced_coherent(sc: Scenario) -> bool:
+    """Whether a ray-traced channel's paths are summed with their phases (``paths_sum = "coherent"``), else in power."""
+    return sc.channel.propagation.paths_sum == "coherent"
+
+
 def traced_channel(sc: Scenario) -> TracedChannel | None:
     """The plant's ray-traced channel (``model = "ray_traced"``; None otherwise)."""
     prop = sc.channel.propagation
     if prop.model != "ray_traced":
         return None
     return TracedChannel(RayTracer(trace_settings(sc)), trace_period_s=max(prop.trace_period_s, sc.control_period_s),
-                         coherent=prop.paths_sum == "coherent")
+                         coherent=traced_coherent(sc))
+
+
+def scoring_tracer(sc: Scenario) -> RayTracer | None:
+    """The ray tracer the capacity planners score candidates with (``controller.capacity.scoring = "traced"``, the
+    one relay's and a fleet's; None otherwise)."""
+    return RayTracer(trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None
 
 
 def wind_settings(sc: Scenario) -> WindSettings:

@@ -373,6 +373,12 @@ class RadioScene:
             out += [(j.name, rx, i) for i, j in enumerate(self.jammers)]
         return out
 
+    def end_antennas(self, link: tuple[str, str, int | None], poses: Mapping[str, NodePose], emitters: Sequence[Emitter]):
+        """``(pattern_tx, axis_tx, pattern_rx, axis_rx)`` of a link of ``link_ends`` (a jammer's from ``emitters``)."""
+        a, b, j = link
+        pat_tx, b_tx = (self.node(a).antenna.pattern, poses[a].axis) if j is None else (emitters[j].pattern, emitters[j].axis)
+        return pat_tx, b_tx, self.node(b).antenna.pattern, poses[b].axis
+
     def fixed_pose(self, name: str) -> NodePose:
         """Pose of a fixed node (identity attitude)."""
         n = self.node(name)

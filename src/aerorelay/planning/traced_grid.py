@@ -71,8 +71,7 @@ class TracedNetwork:
             assert traced is not None
             one = traced.take(slice(at, at + n))
             at += n
-            pat_tx, b_tx = (sc.node(a).antenna.pattern, poses[a].axis) if j is None else (emitters[j].pattern, emitters[j].axis)
-            pat_rx, b_rx = sc.node(b).antenna.pattern, poses[b].axis
+            pat_tx, b_tx, pat_rx, b_rx = sc.end_antennas((a, b, j), poses, emitters)
             if reverse:
                 gains.append(one.gain(pat_rx, rows(b_rx), pat_tx, rows(b_tx), coherent=self.coherent))
             else:

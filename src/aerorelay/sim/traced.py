@@ -57,11 +57,7 @@ class TracedChannel:
         values: dict[str, float] = {"trace_age_s": float(t - self._traced_at)}
         for k, (a, b, j) in enumerate(ends):
             one = links.take(slice(k, k + 1))
-            if j is None:
-                pat_tx, b_tx = scene.node(a).antenna.pattern, poses[a].axis
-            else:
-                pat_tx, b_tx = emitters[j].pattern, emitters[j].axis
-            pat_rx, b_rx = scene.node(b).antenna.pattern, poses[b].axis
+            pat_tx, b_tx, pat_rx, b_rx = scene.end_antennas((a, b, j), poses, emitters)
             gains[k] = float(one.gain(pat_tx, b_tx, pat_rx, b_rx, coherent=self.coherent)[0])
             if j is None:
                 values[f"paths_{a}_{b}"] = float(one.paths[0])
