@@ -171,6 +171,32 @@ def test_a_trace_is_kept_in_memory_and_on_disk_keyed_by_what_it_depends_on(tmp_p
 
 
 @needs_rt
+def test_links_of_several_transmitters_are_each_traced_from_their_own_and_a_fixed_ends_links_once(tmp_path, monkeypatch):
+    """Links of three transmitters in any order (one serving two receivers) each come out as Friis for their own ends,
+    one solver call per transmitter, each asked with the settings' rays; a transmitter's links to the same receivers
+    again (another order, other transmitters beside it) come from memory: only the new transmitter is traced."""
+    monkeypatch.setenv("AERORELAY_CACHE", str(tmp_path))
+    tracer = RayTracer(TraceSettings("empty", F, max_depth=0, rays_per_source=20_000))
+    asked = []
+    solver = tracer.solver
+    tracer.solver = lambda *a, **k: asked.append(k["samples_per_src"]) or solver(*a, **k)
+    A, B, C = [0.0, 0.0, 10.0], [50.0, 5.0, 3.0], [-20.0, 7.0, 30.0]
+    tx = np.array([A, B, A, C])
+    rx = np.array([[10.0, 0.0, 10.0], [30.0, 40.0, 10.0], [0.0, 300.0, 40.0], [30.0, 40.0, 10.0]])
+    links = tracer.trace(tx, rx)
+    friis = (wavelength_m(F) / (4 * np.pi * np.linalg.norm(rx - tx, axis=1))) ** 2
+    np.testing.assert_allclose(10 * np.log10(links.gain(ISO, UP, ISO, UP) / friis), 0.0, atol=0.05)
+    np.testing.assert_allclose(np.linalg.norm(links.departure[:, 0] - (rx - tx) / np.linalg.norm(rx - tx, axis=1)[:, None],
+                                              axis=1), 0.0, atol=1e-5)
+    assert asked == [20_000] * 3 and tracer.calls == 3
+    D = [5.0, -9.0, 2.0]
+    again = tracer.trace(np.array([D, A, A]), np.array([[0.0, 0.0, 1.0], [0.0, 300.0, 40.0], [10.0, 0.0, 10.0]]))
+    assert tracer.calls == 4  # D's link only
+    np.testing.assert_array_equal(again.a[1], links.a[2])
+    np.testing.assert_array_equal(again.a[2], links.a[0])
+
+
+@needs_rt
 def test_the_coherent_sum_is_the_two_ray_field_with_the_carriers_phase():
     """Line of sight and the floor's reflection (``floor_wall`` as a half space, both ends on one side of the
     wall): the narrowband gain is ``|lambda/(4 pi d1) e^(-j k d1) + Gamma_TM lambda/(4 pi d2) e^(-j k d2)|^2``

@@ -53,7 +53,8 @@ def test_traced_scoring_of_a_route_to_any_base_station_is_a_named_error():
 @needs_rt
 def test_a_relay_scoring_on_the_traced_channel_flies():
     sc = ar.load_scenario("scenarios/street_canyon.toml", set={"sim.duration_s": 1.0, "controller.planner": "capacity",
-                                                               "controller.capacity.scoring": "traced"})
+                                                               "controller.capacity.scoring": "traced",
+                                                               "controller.capacity.route_grid_m": 3.0})
     r = ar.simulate(sc)
     assert not r.metrics["unsafe"] and r.metrics["c_min"] > 0
 
@@ -106,3 +107,69 @@ def test_a_fleet_scoring_on_the_traced_channel_flies_and_scores_traced():
 def test_traced_scoring_in_a_network_needs_its_capacity_planner():
     with pytest.raises(ScenarioError, match=r"network\.planner = 'equidistant' scores none"):
         updated(ar.load_scenario("scenarios/chain_two_relays.toml"), {**FLEET, "network.planner": "equidistant"})
+
+
+EMPTY = {**PHYSICAL, "channel.propagation.model": "ray_traced", "channel.propagation.scene": "empty",
+         "channel.propagation.max_depth": 0, "channel.propagation.rays_per_source": 10_000}
+
+
+@needs_rt
+def test_the_bound_on_the_traced_map_of_an_empty_scene_is_the_free_space_grids_best_cell():
+    # the traced bound (every cell traced at every instant, not refined between cells) equals, in free space, the best
+    # cell and axis of the analytic landscape (Friis at the cells: float32 tracing aside) and its path DP's values,
+    # and stays at or below the analytic bound refined off the grid
+    from dataclasses import replace
+
+    from aerorelay.assembly.parts import bound_problem
+    from aerorelay.models.axes import axis_cone
+    from aerorelay.planning.bound import CapacityLandscape, compute_bound, position_grid
+    sc = ar.parse_scenario({}).with_updates({**EMPTY, "bound.grid_m": 3.0, "bound.dt_s": 5.0, "sim.duration_s": 20.0})
+    pb = bound_problem(sc)
+    assert pb.tracer is not None
+    traced = compute_bound(pb)
+    analytic = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity)
+    _, cells = position_grid(pb.workspace_min, pb.workspace_max, 3.0)
+    axes = axis_cone(pb.vehicle.hover_tilt_limit, np.radians(5.0))
+    best = np.array([analytic.capacity(t, cells, axes).max() for t in traced.t])
+    np.testing.assert_allclose(traced.static, best, rtol=3e-4)
+    refined = compute_bound(replace(pb, tracer=None))
+    assert np.all(traced.static <= refined.static * (1 + 3e-4))
+    assert np.all(traced.path_mean <= traced.static * (1 + 1e-9))
+    assert traced.resolution["flyable_status"]["mean"] == "not refined (traced channel)"
+
+
+@needs_rt
+def test_the_traced_route_of_an_empty_scene_is_the_free_space_route():
+    # scoring 'traced' plans the pre-flight route on the traced map: in free space the analytic route (same DP, values to
+    # float32), in a few traces: the base station's to the cells once, the source's once per instant
+    from aerorelay.assembly.parts import build_planner, build_source
+    from aerorelay.assembly.vehicle import build_vehicle
+    from aerorelay.models.raytrace import RayTracer
+    over = {**EMPTY, "controller.planner": "capacity", "controller.capacity.route_grid_m": 3.0,
+            "controller.capacity.route_dt_s": 4.0, "sim.duration_s": 20.0}
+    routes = {}
+    for scoring in ("joint", "traced"):
+        sc = ar.parse_scenario({}).with_updates(over | {"controller.capacity.scoring": scoring})
+        planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), build_source(sc))
+        routes[scoring] = planner.route_p
+        if scoring == "traced":
+            assert isinstance(planner.grid, TracedRelayGrid)
+            tracer = planner.grid.network.tracer
+            assert isinstance(tracer, RayTracer) and tracer.calls <= len(planner.route_t) + 1
+    np.testing.assert_allclose(routes["traced"], routes["joint"], atol=1e-9)
+
+
+@needs_rt
+def test_a_traced_route_too_long_to_trace_is_refused_naming_its_grid():
+    with pytest.raises(ScenarioError, match=r"controller\.capacity\.route_grid_m: the pre-flight route on the traced map"):
+        ar.parse_scenario({}).with_updates({**EMPTY, "channel.propagation.rays_per_source": 10_000_000, "controller.planner":
+                                            "capacity", "controller.capacity.scoring": "traced",
+                                            "controller.capacity.route_grid_m": 0.5})
+
+
+@needs_rt
+def test_a_fleets_network_bound_on_the_traced_channel_is_a_named_error():
+    from aerorelay.assembly.parts import check_bound_size
+    sc = ar.load_scenario("scenarios/street_canyon_chain.toml")
+    with pytest.raises(ScenarioError, match=r"bound: a fleet's network bound on the ray-traced channel is not built"):
+        check_bound_size(sc)

@@ -20,6 +20,7 @@ from ..models.mission import source_trajectory
 from ..models.obstacles import obstacle_model, segment_clearance
 from ..models.propagation import RMA_AV_MAX_D2D_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MIN_HEIGHT_M
 from ..models.vehicle import HoverInfeasibleError
+from ..planning.bound_cost import TRACE_S_PER_RAY_RECEIVER, grid_cells
 from .vehicle import shared_vehicle
 
 REACH_MAX_TIMES = 300  # mission instants the alignment reachability check samples (1 s apart up to 299 s)
@@ -205,6 +206,8 @@ def _ray_traced_physics(sc: Scenario) -> None:
     if traced_scoring and sc.has_handover:
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores the route to one base station; a route "
                          "to 'any' of several scores on free space so far")
+    if traced_scoring and not sc.is_network:
+        _traced_route_fits(sc)
     if sc.channel.propagation.model != "ray_traced":
         return
     if not sc.channel.physical:
@@ -214,6 +217,23 @@ def _ray_traced_physics(sc: Scenario) -> None:
         if o.nlos_loss_db > 0:
             raise ValueError(f"obstacles[{i}].nlos_loss_db: with a ray-traced channel the scene's geometry blocks "
                              "radio; leave it at 0 (the obstacle still keeps the relays out)")
+
+
+def _traced_route_fits(sc: Scenario) -> None:
+    """The one relay's pre-flight route on the traced map (``scoring = "traced"``) traces every cell of its grid at each
+    of its instants before take-off: refused, naming ``route_grid_m``, when that is estimated longer than
+    ``bound.max_minutes`` (``planning.bound_cost``'s tracing rate)."""
+    cap = sc.controller.capacity
+    ws = sc.controller.workspace
+    lo, hi = np.asarray(ws.min, float) + cap.margin_m, np.asarray(ws.max, float) - cap.margin_m
+    dt = max(cap.route_dt_s, cap.route_grid_m / cap.speed_m_s)
+    cells, instants = grid_cells(lo, hi, cap.route_grid_m), int(sc.duration_s / dt) + 2
+    minutes = cells * instants * sc.channel.propagation.rays_per_source * TRACE_S_PER_RAY_RECEIVER / 60.0
+    if minutes > sc.bound.max_minutes:
+        raise ValueError(f"controller.capacity.route_grid_m: the pre-flight route on the traced map traces {cells:,} cells "
+                         f"at {instants} instants, ~{minutes:.3g} min here, more than bound.max_minutes = "
+                         f"{sc.bound.max_minutes:g}: a coarser route_grid_m (up to 3 m) or route_dt_s, fewer "
+                         "channel.propagation.rays_per_source, a smaller workspace, or a larger bound.max_minutes")
 
 
 def _rma_av_geometry(sc: Scenario) -> None:

@@ -44,7 +44,7 @@ from ..planning.base import (
     planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
-from ..planning.bound_cost import check_bound_cost, network_bound_cost, single_bound_cost
+from ..planning.bound_cost import check_bound_cost, network_bound_cost, single_bound_cost, traced_bound_cost
 from ..planning.capacity_planner import shaper_settings
 from ..planning.fleet import NETWORK_PLANNERS, FleetPlanner, NetworkPlannerContext, OneRelayPlanner
 from ..planning.home import HomeSettings
@@ -399,7 +399,7 @@ def planner_settings(sc: Scenario) -> PlannerSettings:
         capacity=CapacityPlannerSettings(
             speed_m_s=cap.speed_m_s, replan_every=replans_every(sc), leash_m=cap.leash_m, lookahead_s=cap.lookahead,
             axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
-            route_grid_m=cap.route_grid_m, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
+            route_grid_m=cap.route_grid_m, route_dt_s=cap.route_dt_s, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
             excursion_m=cap.excursion_m, excursion_std_m=cap.excursion_std_m, excursion_max_loss=cap.excursion_max_loss,
             yaw_rate_deg_s=cap.yaw_rate_deg_s, tilt_fraction=cap.tilt_fraction, boundary_axes=cap.boundary_axes,
             tracking_freq_rad_s=cap.tracking_freq_rad_s, scoring=cap.scoring))
@@ -604,7 +604,7 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
     realization = large_scale_realization(scene, noise, sc.seed)
     return BoundProblem(scene, build_source(sc), vehicle or build_vehicle(sc.platform_of(0)), lo, hi, relay_start(sc),
                         sc.duration_s, bound_resolution(sc), sc.channel.outage, realization if realization.active else None,
-                        world.obstacles(sc))
+                        world.obstacles(sc), tracer=world.map_tracer(sc), traced_coherent=world.traced_coherent(sc))
 
 
 def check_bound_size(sc: Scenario) -> None:
@@ -613,6 +613,11 @@ def check_bound_size(sc: Scenario) -> None:
     half of this machine's memory or longer than ``bound.max_minutes``."""
     lo, hi = _workspace(sc)
     b = sc.bound
+    traced = sc.channel.propagation.model == "ray_traced"
+    if sc.is_network and traced:
+        raise ScenarioError("bound: a fleet's network bound on the ray-traced channel is not built (its certified cube "
+                            "terms are the analytic channel's; the one relay's bound is traced at its cells); fly the "
+                            "fleet with --no-bound, or bound it on channel.propagation.model = 'free_space'")
     if sc.is_network:
         relays = {r.name for r in sc.relay_list}
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
@@ -620,7 +625,8 @@ def check_bound_size(sc: Scenario) -> None:
         check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.network_grid_m", dt_field="bound.network_dt_s")
         return
     axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
-    cost = single_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes)
+    cost = (traced_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes, sc.channel.propagation.rays_per_source) if traced
+            else single_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes))
     check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.grid_m", dt_field="bound.dt_s")
 
 
@@ -643,7 +649,7 @@ def scenario_bound_key(sc: Scenario) -> str:
     data["duration_s"] = sc.duration_s
     if sc.channel.propagation.random:  # the bound searches the run's own realization
         data["seed"] = sc.seed
-    return bound_key(data)
+    return bound_key(data | world.scene_key(sc))
 
 
 def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> NetworkBoundProblem:

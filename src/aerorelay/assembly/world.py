@@ -12,7 +12,7 @@ from ..config import PlatformConfig, Scenario
 from ..estimation.disturbance import ExternalAccelerationObserver
 from ..models.drag import drag_coefficients
 from ..models.obstacles import Obstacle, obstacle_model
-from ..models.raytrace import RayTracer, TraceSettings
+from ..models.raytrace import RayTracer, TraceSettings, scene_digest, sionna_rt
 from ..models.vehicle import Multirotor
 from ..sim.air import Air, AirborneRelay, HeldWind, WindSeries, WindSettings
 from ..sim.blockage import Blockage
@@ -35,7 +35,7 @@ def trace_settings(sc: Scenario) -> TraceSettings:
     prop = sc.channel.propagation
     assert prop.scene is not None
     return TraceSettings(prop.scene, sc.channel.carrier_hz, origin_m=(prop.origin_m[0], prop.origin_m[1], prop.origin_m[2]), yaw_deg=prop.yaw_deg,
-                         max_depth=prop.max_depth, reflection=prop.reflection, scattering=prop.scattering,
+                         max_depth=prop.max_depth, rays_per_source=prop.rays_per_source, reflection=prop.reflection, scattering=prop.scattering,
                          diffraction=prop.diffraction, refraction=prop.refraction)
 
 
@@ -51,6 +51,21 @@ def traced_channel(sc: Scenario) -> TracedChannel | None:
         return None
     return TracedChannel(RayTracer(trace_settings(sc)), trace_period_s=max(prop.trace_period_s, sc.control_period_s),
                          coherent=traced_coherent(sc))
+
+
+def map_tracer(sc: Scenario) -> RayTracer | None:
+    """A ray tracer of the scene's map (``model = "ray_traced"``; None otherwise): what the one relay's bound and a
+    traced pre-flight route trace their cells with."""
+    return RayTracer(trace_settings(sc)) if sc.channel.propagation.model == "ray_traced" else None
+
+
+def scene_key(sc: Scenario) -> dict:
+    """A traced scene's files in a cache key (``models.raytrace.scene_digest``: a scene's meshes edited, its bound is
+    computed again); empty without a ray-traced channel."""
+    prop = sc.channel.propagation
+    if prop.model != "ray_traced" or prop.scene is None:
+        return {}
+    return {"scene_digest": scene_digest(sionna_rt(), prop.scene)}
 
 
 def scoring_tracer(sc: Scenario) -> RayTracer | None:

@@ -87,6 +87,9 @@ class CapacityPlannerConfig(Strict):
     leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
     route_grid_m: float = Field(1.0, ge=0.1, le=3.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
                                 "take-off, 1 m: 0.3-0.6 s on this VM, capacity within 0.01 of the bound either way)")
+    route_dt_s: float = Field(1.0, ge=0.1, le=30.0, description="time step of the pre-flight route, s (at least "
+                              "route_grid_m / speed_m_s: a step moves at least one cell; with scoring = 'traced' each step "
+                              "traces every cell)")
     lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
                                       "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")

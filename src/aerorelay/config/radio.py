@@ -119,6 +119,9 @@ class PropagationConfig(Strict):
     yaw_deg: float = Field(0.0, ge=-360.0, le=360.0, description="ray_traced: the scenario's frame turned about z in "
                            "the scene, deg (counter-clockwise)")
     max_depth: int = Field(3, ge=0, le=8, description="ray_traced: most interactions per path")
+    rays_per_source: int = Field(1_000_000, ge=1_000, le=100_000_000, description="ray_traced: rays shot from each "
+                                 "transmitter to find the paths (Sionna RT's samples_per_src; each found path is then "
+                                 "exact): fewer trace faster and may miss weak paths (docs/concepts/ray-tracing.md)")
     reflection: bool = Field(True, description="ray_traced: specular reflections")
     diffraction: bool = Field(False, description="ray_traced: diffraction on edges")
     scattering: bool = Field(False, description="ray_traced: diffuse reflection")

@@ -55,8 +55,8 @@ class BoundConfig(Strict):
                                   "(two or more relays: its cost grows with the square of the cells), m")
     network_dt_s: float = Field(2.0, ge=0.05, le=30.0, description="time grid spacing of a fleet's network bound, s")
     max_minutes: float = Field(60.0, gt=0.0, le=10080.0, description="refuse, before any work, a bound estimated to take "
-                               "longer than this on this machine (min; raise it to wait); a bound needing more than half "
-                               "of the machine's memory is always refused")
+                               "longer than this on this machine (min; raise it to wait; a traced pre-flight route too); a "
+                               "bound needing more than half of the machine's memory is always refused")
 
 
 class EstimationConfig(Strict):

@@ -46,8 +46,9 @@ from .propagation import SPEED_OF_LIGHT_M_S
 
 RT_EXTRA = ("the ray-traced channel needs the optional extra: pip install 'aerorelay[rt]' (Sionna RT) and, on a machine "
             "without a GPU, the system's LLVM library for its CPU variant (Debian/Ubuntu: apt-get install libllvm19)")
-TRACE_VERSION = "2"  # bump when a trace's computation changes: cached traces are traced again
-MEMORY_TRACES = 4096  # traces kept in memory (the oldest dropped first)
+TRACE_VERSION = "3"  # bump when a trace's computation changes: cached traces are traced again
+MEMORY_TRACES = 4096  # traces kept in memory (the oldest dropped first) ...
+MEMORY_BYTES = 512 * 2**20  # ... and at most this many bytes of them (a radio map's trace holds thousands of links)
 SCENE_NAMES_HINT = "a scene shipped with Sionna RT (simple_street_canyon, munich, etoile, floor_wall, box, ...) or a Mitsuba XML file"
 
 
@@ -175,14 +176,17 @@ class TracedLinks:
 class TraceSettings:
     """What a trace is: the scene (a Sionna scene's name or a Mitsuba XML file's path), the carrier (Hz),
     where the scenario's frame sits in the scene (``origin_m`` m, ``yaw_deg`` deg), at most ``max_depth``
-    interactions per path and which interactions (``reflection``: specular; ``scattering``: diffuse
-    reflection; ``diffraction``: on edges; ``refraction``: through objects)."""
+    interactions per path, found by ``rays_per_source`` rays shot from each transmitter (Sionna's
+    ``samples_per_src``; the paths found are exact, fewer rays may miss weak ones), and which
+    interactions (``reflection``: specular; ``scattering``: diffuse reflection; ``diffraction``: on
+    edges; ``refraction``: through objects)."""
 
     scene: str
     carrier_hz: float
     origin_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     yaw_deg: float = 0.0
     max_depth: int = 3
+    rays_per_source: int = 1_000_000
     reflection: bool = True
     scattering: bool = False
     diffraction: bool = False
@@ -191,7 +195,7 @@ class TraceSettings:
 
 class RayTracer:
     """Traces links in one Sionna RT scene (``TraceSettings``): ``trace(tx (n, 3), rx (n, 3))`` -> the ``n``
-    links ``tx[i] -> rx[i]`` (m, the scenario's frame), every distinct end traced in one call."""
+    links ``tx[i] -> rx[i]`` (m, the scenario's frame), one Sionna call per distinct transmitter not cached."""
 
     def __init__(self, settings: TraceSettings, cached: bool = True):
         """``cached``: every trace kept in memory and on disk (the cache folder's ``traces/``), keyed by the scene's
@@ -201,6 +205,8 @@ class RayTracer:
         self.settings, self.cached = settings, cached
         self.digest = scene_digest(rt, settings.scene)
         self._memory: dict[str, TracedLinks] = {}
+        self._memory_bytes = 0
+        self.calls = 0  # Sionna calls made (traces not found in a cache)
         self.rt = rt
         self.scene = load_scene(rt, settings.scene)
         self.scene.frequency = float(settings.carrier_hz)
@@ -229,9 +235,32 @@ class RayTracer:
             self.scene.get(name).position = [float(v) for v in p]
 
     def trace(self, tx: np.ndarray, rx: np.ndarray) -> TracedLinks:
+        """The links ``tx[i] -> rx[i]``: one Sionna call per distinct transmitter that is not cached, to its
+        distinct receivers only (a call traces every transmitter to every receiver it holds); cached per
+        transmitter, so a fixed end's links to the same receivers (a base station's to a radio map's cells)
+        are traced once."""
         tx, rx = np.atleast_2d(np.asarray(tx, float)), np.atleast_2d(np.asarray(rx, float))
         if tx.shape != rx.shape or tx.shape[1] != 3:
             raise ValueError(f"ray tracer: expected as many transmitters as receivers (n, 3), got {tx.shape} and {rx.shape}")
+        utx, itx = np.unique(tx, axis=0, return_inverse=True)
+        itx = itx.ravel()
+        groups = []
+        for u in range(len(utx)):
+            links = np.flatnonzero(itx == u)
+            urx, irx = np.unique(rx[links], axis=0, return_inverse=True)
+            groups.append((links, irx.ravel(), self._traced_from(utx[u], urx)))
+        width = max(g[2].a.shape[1] for g in groups)
+        n = len(tx)
+        out = {"a": np.zeros((n, width), complex), "tau": np.zeros((n, width)), "departure": np.zeros((n, width, 3)),
+               "arrival": np.zeros((n, width, 3)), "valid": np.zeros((n, width), bool), "los": np.zeros((n, width), bool)}
+        for links, irx, traced in groups:
+            for f in TracedLinks.FIELDS:
+                part = getattr(traced, f)[irx]
+                out[f][links, :part.shape[1]] = part
+        return TracedLinks(**out)
+
+    def _traced_from(self, tx: np.ndarray, rx: np.ndarray) -> TracedLinks:
+        """One transmitter ``(3,)`` to distinct receivers ``(m, 3)``: from memory, the disk cache, or traced."""
         if not self.cached:
             return self._trace(tx, rx)
         key = self._key(tx, rx)
@@ -252,10 +281,16 @@ class RayTracer:
                 with os.fdopen(fd, "wb") as f:
                     np.savez(f, **{name: getattr(links, name) for name in TracedLinks.FIELDS})
                 publish_checked(Path(tmp), path)
-        if len(self._memory) >= MEMORY_TRACES:
-            self._memory.pop(next(iter(self._memory)))
-        self._memory[key] = links
+        self._remember(key, links)
         return links
+
+    def _remember(self, key: str, links: TracedLinks) -> None:
+        """Kept in memory, the oldest dropped first beyond ``MEMORY_TRACES`` entries or ``MEMORY_BYTES``."""
+        self._memory[key] = links
+        self._memory_bytes += sum(getattr(links, f).nbytes for f in TracedLinks.FIELDS)
+        while len(self._memory) > 1 and (len(self._memory) > MEMORY_TRACES or self._memory_bytes > MEMORY_BYTES):
+            old = self._memory.pop(next(iter(self._memory)))
+            self._memory_bytes -= sum(getattr(old, f).nbytes for f in TracedLinks.FIELDS)
 
     def _key(self, tx: np.ndarray, rx: np.ndarray) -> str:
         """What a trace depends on: the scene's files (``scene_digest``), the settings, the ends (to 1e-9 m)."""
@@ -265,26 +300,25 @@ class RayTracer:
         return h.hexdigest()[:24]
 
     def _trace(self, tx: np.ndarray, rx: np.ndarray) -> TracedLinks:
-        utx, itx = np.unique(tx, axis=0, return_inverse=True)
-        urx, irx = np.unique(rx, axis=0, return_inverse=True)
-        self._place("tx", self._tx, self.to_scene(utx))
-        self._place("rx", self._rx, self.to_scene(urx))
+        """One transmitter ``(3,)`` to distinct receivers ``(m, 3)`` in one Sionna call: ``m`` links."""
+        rx = np.atleast_2d(rx)
+        self._place("tx", self._tx, self.to_scene(np.atleast_2d(tx)))
+        self._place("rx", self._rx, self.to_scene(rx))
         s = self.settings
-        paths = self.solver(self.scene, max_depth=s.max_depth, los=True, specular_reflection=s.reflection,
-                            diffuse_reflection=s.scattering, refraction=s.refraction, diffraction=s.diffraction,
-                            edge_diffraction=s.diffraction, synthetic_array=True)
-        a = np.asarray(paths.a[0], float) + 1j * np.asarray(paths.a[1], float)  # (rx, rx ant, tx, tx ant, paths)
-        a = a.reshape(len(urx), len(utx), -1)
-        tau = np.asarray(paths.tau, float).reshape(len(urx), len(utx), -1)
+        paths = self.solver(self.scene, max_depth=s.max_depth, samples_per_src=s.rays_per_source, los=True,
+                            specular_reflection=s.reflection, diffuse_reflection=s.scattering, refraction=s.refraction,
+                            diffraction=s.diffraction, edge_diffraction=s.diffraction, synthetic_array=True)
+        self.calls += 1
+        m = len(rx)
+        a = (np.asarray(paths.a[0], float) + 1j * np.asarray(paths.a[1], float)).reshape(m, -1)  # (rx, rx ant, tx, tx ant, paths)
+        tau = np.asarray(paths.tau, float).reshape(m, -1)
         a = a * np.exp(-2j * np.pi * s.carrier_hz * tau)  # Sionna's coefficients are baseband: the carrier's phase
-        valid = np.asarray(paths.valid, bool).reshape(len(urx), len(utx), -1)
+        valid = np.asarray(paths.valid, bool).reshape(m, -1)
         kinds = np.asarray(paths.interactions, int)  # (depth, rx, tx, paths): 0 = none
-        los = np.all(kinds == 0, axis=0).reshape(len(urx), len(utx), -1) & valid
-        dep = unit_from_angles(np.asarray(paths.theta_t), np.asarray(paths.phi_t)).reshape(len(urx), len(utx), -1, 3) @ self.R
-        arr = unit_from_angles(np.asarray(paths.theta_r), np.asarray(paths.phi_r)).reshape(len(urx), len(utx), -1, 3) @ self.R
-        pick = (irx.ravel(), itx.ravel())
-        ok = valid[pick]
-        return TracedLinks(np.where(ok, a[pick], 0.0), np.where(ok, tau[pick], 0.0), dep[pick], arr[pick], ok, los[pick])
+        los = np.all(kinds == 0, axis=0).reshape(m, -1) & valid
+        dep = unit_from_angles(np.asarray(paths.theta_t), np.asarray(paths.phi_t)).reshape(m, -1, 3) @ self.R
+        arr = unit_from_angles(np.asarray(paths.theta_r), np.asarray(paths.phi_r)).reshape(m, -1, 3) @ self.R
+        return TracedLinks(np.where(valid, a, 0.0), np.where(valid, tau, 0.0), dep, arr, valid, los)
 
 
 def scene_file(rt, scene: str) -> Path | None:

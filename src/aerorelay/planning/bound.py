@@ -49,9 +49,11 @@ from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.propagation import LargeScaleRealization
 from ..models.radio import NodePose, RadioScene
+from ..models.raytrace import RayTracer
 from ..models.vehicle import Multirotor
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 from .feasible_path import best_feasible_path, leaning_capacity, speed_limited
+from .traced_grid import TracedRelayGrid
 
 log = logging.getLogger(__name__)
 BOUND_VERSION = "11"  # bump when the computation changes: cached bounds are recomputed
@@ -86,6 +88,8 @@ class BoundProblem:
     outage_threshold: float = 1e-3
     realization: LargeScaleRealization | None = None  # the run's shadowing field / LoS states (None: deterministic)
     obstacles: tuple = ()  # models.obstacles shapes grown by their margins: the relay is never inside one
+    tracer: RayTracer | None = None  # the bound on the ray-traced channel at its cells
+    traced_coherent: bool = False  # ... its paths summed with their phases (else in power)
 
 
 @dataclass
@@ -141,15 +145,26 @@ ASSUMPTIONS = ("small-scale fading ignored; the run's large-scale realization (s
                "move, so the path bounds stay upper bounds at max_speed)")
 
 
+TRACED_ASSUMPTIONS = ("on the ray-traced channel at the grid's cells (the traced map: every cell traced from the source at "
+                      "every instant and from the fixed ends once; static the best cell, not refined between cells); "
+                      "relay at any cell of the workspace box with any antenna axis the platform can hold in hover "
+                      "(yaw free); attitude changes free; path bounds one move per time step to a cell within "
+                      "max_speed * dt + grid / 2; the flyable paths the grid paths pulled back to the speed and "
+                      "acceleration limits (not refined)")
+
+
 class CapacityLandscape:
     """The true end-to-end capacity over relay poses at time t (``jammer_known=False``: as planned
     before take-off, with every jammer silent)."""
 
     def __init__(self, scene: RadioScene, source: SourceTrajectory, gravity: float, jammer_known: bool = True,
-                 realization: LargeScaleRealization | None = None, keep_out: tuple = ()):
-        """``keep_out``: obstacles (grown by their margins) where the relay may not be: capacity 0 there."""
+                 realization: LargeScaleRealization | None = None, keep_out: tuple = (),
+                 traced: TracedRelayGrid | None = None):
+        """``keep_out``: obstacles (grown by their margins) where the relay may not be: capacity 0 there.
+        ``traced``: the capacity on the ray-traced channel (``planning.traced_grid``) instead of eq. 5-9's
+        analytic links (the jammers at their true positions and powers at t, or silent)."""
         self.scene, self.source, self.gravity = scene, source, gravity
-        self.keep_out = keep_out
+        self.keep_out, self.traced = keep_out, traced
         self.silent = None if jammer_known else np.zeros(len(scene.jammers))
         self.source_name = scene.name_of("source")
         self.relay_name = scene.name_of("relay")
@@ -162,8 +177,17 @@ class CapacityLandscape:
     def capacity(self, t: float, positions, axes) -> np.ndarray:
         """``(M, K)`` for relay positions ``(M, 3)`` x antenna axes ``(K, 3)``."""
         source = self.source_pose(t)
-        fading = None if self.realization is None else self._large_scale(t, np.atleast_2d(np.asarray(positions, float)), source)
-        C = self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
+        if self.traced is not None:
+            jammers = self.scene.jammers
+            if self.silent is not None:  # silent jammers add nothing wherever they are (a planner does not know where)
+                pj, powers = np.zeros((len(jammers), 3)), self.silent
+            else:
+                pj = np.array([j.position_at(t) for j in jammers], float).reshape(-1, 3)
+                powers = np.array([float(j.power_at(t)) for j in jammers])
+            C = self.traced(positions, axes, source, pj, powers)
+        else:
+            fading = None if self.realization is None else self._large_scale(t, np.atleast_2d(np.asarray(positions, float)), source)
+            C = self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
         if not self.keep_out:
             return C
         inside = inside_any(self.keep_out, np.atleast_2d(np.asarray(positions, float)))
@@ -255,7 +279,10 @@ def best_path(scene: CapacityLandscape, cells: np.ndarray, shape: tuple[int, ...
 def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
     """The static and path bounds of a problem (see the module docstring)."""
     b = pb.resolution
-    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity, realization=pb.realization, keep_out=pb.obstacles)
+    traced = None if pb.tracer is None else TracedRelayGrid(pb.scene, pb.tracer, source=pb.scene.name_of("source"),
+                                                            coherent=pb.traced_coherent)
+    scene = CapacityLandscape(pb.scene, pb.source, pb.vehicle.gravity, realization=pb.realization, keep_out=pb.obstacles,
+                              traced=traced)
     max_tilt = pb.vehicle.hover_tilt_limit
     axes = axis_cone(max_tilt, np.radians(b.axis_step_deg))
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
@@ -270,7 +297,10 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
         best_axis[k] = np.argmax(C, axis=1)
         best[k] = C[np.arange(C.shape[0]), best_axis[k]]
         i = int(np.argmax(best[k]))
-        static[k], static_p[k], static_b[k] = _refine(scene, t, cells[i], axes[best_axis[k, i]], lo, hi, max_tilt)
+        if traced is None:
+            static[k], static_p[k], static_b[k] = _refine(scene, t, cells[i], axes[best_axis[k, i]], lo, hi, max_tilt)
+        else:  # on the traced map's cells: a continuous search would trace at every step of it
+            static[k], static_p[k], static_b[k] = best[k, i], cells[i], axes[best_axis[k, i]]
         if progress is not None:
             progress(k + 1, len(times))
     start = tuple(int(np.argmin(np.abs(grid[i] - pb.relay_start[i]))) for i in range(3))
@@ -298,26 +328,29 @@ def compute_bound(pb: BoundProblem, progress=None) -> CapacityBound:
                   "times": int(len(times)), "path_step_radius_m": float(b.max_speed_m_s * b.dt_s + 0.5 * b.grid_m),
                   "max_path_speed_m_s": fastest_step_m_s(fp, b.grid_m, b.dt_s), "flyable_status": statuses,
                   "flyable_max_accel_m_s2": b.max_accel_m_s2}
+    if pb.tracer is not None:
+        resolution["traced_calls"] = int(pb.tracer.calls)
     return CapacityBound(times, static, static_p, static_b, paths["mean"][0], paths["mean"][1], paths["maxmin"][0],
                          paths["maxmin"][1], *flyable["mean"], *flyable["maxmin"], resolution, pb.outage_threshold,
-                         f"{pb.scene.describe()}; {ASSUMPTIONS}")
+                         f"{pb.scene.describe()}; {TRACED_ASSUMPTIONS if traced is not None else ASSUMPTIONS}")
 
 
 def _flyable(scene: CapacityLandscape, times: np.ndarray, grid_path: np.ndarray, pb: BoundProblem, max_tilt: float,
              kind: str) -> tuple[tuple[np.ndarray, np.ndarray], str]:
     """The flyable path near a grid path: ``((capacity, position), status)``. With a large-scale
-    realization (a shadowing field is not symbolic) the grid path pulled back to the speed and
+    realization (a shadowing field is not symbolic) or a traced channel the grid path pulled back to the speed and
     acceleration limits, its best axis per sample among those the platform can lean to there
     (``leaning_capacity``), unrefined: still flyable, a weaker lower estimate."""
     lo, hi = np.asarray(pb.workspace_min, float), np.asarray(pb.workspace_max, float)
     v, accel = pb.resolution.max_speed_m_s, pb.resolution.max_accel_m_s2
-    if scene.realization is None:
+    if scene.realization is None and scene.traced is None:
         fp = best_feasible_path(scene, times, grid_path, pb.relay_start, lo, hi, v, max_tilt, kind, max_accel=accel)
         return (fp.capacity, fp.position), fp.status
     dt = float(times[1] - times[0]) if len(times) > 1 else 1.0
     pos = np.clip(speed_limited(grid_path, np.clip(pb.relay_start, lo, hi), v * dt, None if accel is None else accel * dt**2), lo, hi)
     cap = leaning_capacity(scene, times, pos, axis_cone(max_tilt, np.radians(pb.resolution.axis_step_deg)), max_tilt)
-    return (cap, pos), "not refined (large-scale realization)"
+    why = "traced channel" if scene.traced is not None else "large-scale realization"
+    return (cap, pos), f"not refined ({why})"
 
 
 def cached_bound(pb, key: str, progress=None, *, compute=None, kind=None):

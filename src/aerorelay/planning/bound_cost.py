@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import ScenarioError
+from .traced_grid import ROWS_PER_CALL
 
 SINGLE_EVALS_PER_S = 7.1e6  # capacities per second, one-relay bound (measured, see the module)
 PAIR_EVALS_PER_S = 5.1e7  # pair terms per second, network bound (measured, see the module)
@@ -33,6 +34,11 @@ BOX_PAIRS_PER_S = 2.3e6  # pair terms per second of its branch and bound's cubes
 BRANCH_LEVELS, BRANCH_PAIRS = 6, 1e6
 BRANCH_SEARCHES = 2  # searches an instant: the static bound's and the upper path bound's (kept to what the relays can reach)
 BRANCH_CELLS = 200_000  # ... and the most cubes a relay may have at a level (one relay alone has no pair terms)
+# a traced bound (planning.bound with a ray tracer): Sionna RT on this VM's CPU, street canyon, depth 3, 2026-12-05:
+# 1 transmitter to 400 receivers in 3.56 s at 1e5 rays, 22.0 s at 1e6 (python tm.py in docs/results/raytraced.md);
+# Munich's meshes 1.4x the street's: the estimate takes 1e-7 s per ray and receiver
+TRACE_S_PER_RAY_RECEIVER = 1e-7
+TRACED_PATHS, TRACED_PATH_BYTES = 40, 80  # paths a link holds (its widest receiver's) and bytes per path and row
 TEMPORARIES = 4  # arrays of one instant's (cells x axes) numpy holds at once in the capacity landscape
 CHUNK = 256  # rows of a network bound's pair-term block (planning.network_bound.CHUNK)
 
@@ -70,6 +76,16 @@ def single_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, axe
     cells, instants = grid_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
     held = cells * axes * 8 * TEMPORARIES + instants * cells * (8 + 4 + 8 + 8)  # best, best_axis, the DP's values and mask
     return BoundCost(cells, axes, instants, 1, 0, float(held), cells * axes * instants / SINGLE_EVALS_PER_S)
+
+
+def traced_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, axes: int, rays: int) -> BoundCost:
+    """The one-relay bound's cost on a ray-traced channel: every cell traced from the source at every instant (the fixed
+    ends' traces to the cells once, from the tracer's cache afterwards), ``TRACE_S_PER_RAY_RECEIVER`` each, then
+    weighed per axis in blocks of ``traced_grid.ROWS_PER_CALL`` (``TRACED_PATHS`` paths of ``TRACED_PATH_BYTES``)."""
+    cost = single_bound_cost(lo, hi, grid_m, dt_s, duration_s, axes)
+    trace_s = (cost.instants + 2) * cost.cells * rays * TRACE_S_PER_RAY_RECEIVER
+    held = cost.bytes + ROWS_PER_CALL * TRACED_PATHS * TRACED_PATH_BYTES * 3 + cost.cells * TRACED_PATHS * TRACED_PATH_BYTES * 3
+    return BoundCost(cost.cells, axes, cost.instants, 1, 0, float(held), cost.seconds + trace_s)
 
 
 def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int) -> BoundCost:

@@ -3,7 +3,8 @@
 Two layers. **Before take-off** (like baseline B, from MRAV-2's mission plan, without the jammer,
 which is not localized yet): a coarse route, the max-mean path through the capacity landscape
 (best holdable antenna axis per cell) on a ``route_grid_m`` grid every ``route_dt_s`` at the
-planner's speed limit, by the dynamic programming of ``planning/bound.py``. It picks the basin of
+planner's speed limit, by the dynamic programming of ``planning/bound.py`` (with ``scoring = "traced"`` on
+the ray-traced channel at the grid's cells: the scene's map traced from the source's plan at each instant). It picks the basin of
 the landscape to be in at each time, so the reference never has to jump between far-apart
 near-equal optima. **In flight**, once per ``replan_every`` control steps (all candidates in one
 compiled call, ``planning.relay_grid``) the planner evaluates the true end-to-end capacity
@@ -82,13 +83,14 @@ class CapacityPlanner:
         self.source_name = ctx.scene.name_of("source")
         self.obstacles = ctx.obstacles
         t0 = time.perf_counter()
-        self.route_t, self.route_p = self._preflight_route(ctx, s.route_grid_m, s.route_dt_s)
-        self.grid: CompiledRelayGrid | TracedRelayGrid = CompiledRelayGrid(ctx.scene, len(self.offsets), len(self.axes),
-                                                                           source=self.source_name)
-        if s.scoring == "traced":  # every candidate pose on the ray-traced channel of the scene's map
+        traced = None
+        if s.scoring == "traced":  # the route and every candidate pose on the ray-traced channel of the scene's map
             if not isinstance(ctx.tracer, RayTracer):
                 raise ValueError("capacity planner: scoring 'traced' needs the scene's ray tracer (a ray-traced channel)")
-            self.grid = TracedRelayGrid(ctx.scene, ctx.tracer, source=self.source_name, coherent=ctx.traced_coherent)
+            traced = TracedRelayGrid(ctx.scene, ctx.tracer, source=self.source_name, coherent=ctx.traced_coherent)
+        self.route_t, self.route_p = self._preflight_route(ctx, s.route_grid_m, s.route_dt_s, traced)
+        self.grid: CompiledRelayGrid | TracedRelayGrid = traced or CompiledRelayGrid(ctx.scene, len(self.offsets),
+                                                                                     len(self.axes), source=self.source_name)
         # yawing the platform (yaw_rate_deg_s > 0, a tilted platform): rotated axis sets scored at the best position
         self.yaw = (PlatformYaw(self.axes, az, limits, rate=np.radians(s.yaw_rate_deg_s))
                     if s.yaw_rate_deg_s > 0 and self.tilt_limit > 0 else None)
@@ -109,14 +111,18 @@ class CapacityPlanner:
                               if scoring == "decoupled" and self.yaw is None else None)
         self._k = 0
 
-    def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    def _preflight_route(self, ctx: PlannerContext, grid_m: float, dt_s: float,
+                         traced: TracedRelayGrid | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The route on the analytic channel, or on the traced one at the grid's cells (``traced``: the scene's map,
+        every cell traced from the source's plan at each instant)."""
         grid, cells = position_grid(self.lo, self.hi, grid_m)
         shape = tuple(len(g) for g in grid)
         # at least one cell per step: on a 1 m grid at 0.5 m/s a 1 s step could not move at all
         dt_s = max(dt_s, grid_m / self.speed)
         times = np.arange(0.0, ctx.duration_s + dt_s, dt_s)
         start = tuple(int(np.argmin(np.abs(grid[i] - np.clip(ctx.relay_start[i], self.lo[i], self.hi[i])))) for i in range(3))
-        landscape = CapacityLandscape(ctx.scene, ctx.source, self.gravity, jammer_known=False, keep_out=ctx.obstacles)
+        landscape = CapacityLandscape(ctx.scene, ctx.source, self.gravity, jammer_known=False, keep_out=ctx.obstacles,
+                                      traced=traced)
         route = best_path(landscape, cells, shape, self.axes, times, start, self.speed * dt_s / grid_m)
         return times, route
 

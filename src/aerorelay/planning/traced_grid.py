@@ -22,6 +22,8 @@ import numpy as np
 from ..models.radio import NodePose, RadioScene
 from ..models.raytrace import RayTracer
 
+ROWS_PER_CALL = 20_000  # configurations weighed at once (each row holds every path's coefficient and directions)
+
 
 class TracedNetwork:
     """``rates(poses, jammer_positions (nJ, 3), jammer_powers (nJ,), n)`` -> the network's rate ``(n,)`` of ``n``
@@ -102,9 +104,14 @@ class TracedRelayGrid:
         m, k = len(P), len(B)
         if len(others) != len(self.moving):
             raise ValueError(f"traced relay grid: built for {len(self.moving)} other moving node(s), got {len(others)}")
-        poses = {self.source: source_pose, **dict(zip(self.moving, others, strict=True)),
-                 self.relay: NodePose(np.repeat(P, k, axis=0), np.tile(B, (m, 1)))}  # position-major, as the compiled grid
-        return self.network.rates(poses, jammer_positions, jammer_powers, m * k).reshape(m, k)
+        fixed = {self.source: source_pose, **dict(zip(self.moving, others, strict=True))}
+        out = np.empty((m, k))
+        block = max(1, ROWS_PER_CALL // m)  # axes per call: a radio map's thousands of cells x every axis in blocks
+        for a in range(0, k, block):  # (the positions' trace is the same each block: from the tracer's memory)
+            kb = len(B[a:a + block])
+            poses = fixed | {self.relay: NodePose(np.repeat(P, kb, axis=0), np.tile(B[a:a + block], (m, 1)))}  # position-major
+            out[:, a:a + kb] = self.network.rates(poses, jammer_positions, jammer_powers, m * kb).reshape(m, kb)
+        return out
 
 
 class TracedConfigurations:
