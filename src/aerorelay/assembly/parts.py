@@ -44,7 +44,13 @@ from ..planning.base import (
     planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
-from ..planning.bound_cost import check_bound_cost, network_bound_cost, single_bound_cost, traced_bound_cost
+from ..planning.bound_cost import (
+    check_bound_cost,
+    network_bound_cost,
+    single_bound_cost,
+    traced_bound_cost,
+    traced_network_bound_cost,
+)
 from ..planning.capacity_planner import shaper_settings
 from ..planning.fleet import NETWORK_PLANNERS, FleetPlanner, NetworkPlannerContext, OneRelayPlanner
 from ..planning.home import HomeSettings
@@ -56,6 +62,7 @@ from ..planning.network_bound import (
     compute_network_bound,
     spliced,
 )
+from ..planning.traced_network_bound import compute_traced_network_bound
 from ..sim.air import Air
 from ..sim.closed_loop import ClosedLoop, SimSettings, plant_step_function
 from ..sim.handover import HandoverRule
@@ -614,14 +621,13 @@ def check_bound_size(sc: Scenario) -> None:
     lo, hi = _workspace(sc)
     b = sc.bound
     traced = sc.channel.propagation.model == "ray_traced"
-    if sc.is_network and traced:
-        raise ScenarioError("bound: a fleet's network bound on the ray-traced channel is not built (its certified cube "
-                            "terms are the analytic channel's; the one relay's bound is traced at its cells); fly the "
-                            "fleet with --no-bound, or bound it on channel.propagation.model = 'free_space'")
     if sc.is_network:
         relays = {r.name for r in sc.relay_list}
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
-        cost = network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops))
+        fixed_ends = len(sc.source_list) + len(sc.jammer_configs)
+        cost = (traced_network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops),
+                                          fixed_ends, sc.channel.propagation.rays_per_source) if traced else
+                network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops)))
         check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.network_grid_m", dt_field="bound.network_dt_s")
         return
     axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
@@ -683,7 +689,14 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
     data["bound"].pop("max_minutes", None)  # a limit on the work, not what the bound is
     data |= {"workspace": sc.controller.workspace.model_dump(), "duration_s": sc.duration_s,
-             "kind": f"network {NETWORK_BOUND_VERSION}"}
+             "kind": f"network {NETWORK_BOUND_VERSION}"} | world.scene_key(sc)
+    compute = compute_network_bound
+    tracer = world.map_tracer(sc)
+    if tracer is not None:  # on the traced map of the cubes' centres
+        coherent = world.traced_coherent(sc)
+
+        def compute(pb, progress=None):
+            return compute_traced_network_bound(pb, tracer, coherent, progress)
     fleets = [(0.0, frozenset[str]()), *sc.losses]
     parts = []
     for i, (t, lost) in enumerate(fleets):
@@ -693,8 +706,7 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
             if progress is not None:
                 progress(i * n + k, len(fleets) * n)
 
-        parts.append((t, cached_bound(network_bound_problem(sc, lost), key, step, compute=compute_network_bound,
-                                      kind=NetworkBound)))
+        parts.append((t, cached_bound(network_bound_problem(sc, lost), key, step, compute=compute, kind=NetworkBound)))
     return parts[0][1] if len(parts) == 1 else spliced(parts)
 
 

@@ -88,6 +88,18 @@ def traced_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, axe
     return BoundCost(cost.cells, axes, cost.instants, 1, 0, float(held), cost.seconds + trace_s)
 
 
+def traced_network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int,
+                              fixed_ends: int, rays: int) -> BoundCost:
+    """A fleet's network bound on the traced map (``planning.traced_network_bound``): every cube centre traced to every
+    other once per relay-relay hop, each fixed end (sources, jammers) to every centre at each instant, then the
+    min-sum's pair terms."""
+    cells, instants = cube_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
+    trace_s = (pair_hops * cells + instants * fixed_ends) * cells * rays * TRACE_S_PER_RAY_RECEIVER
+    held = (pair_hops + 1) * cells * cells * 8 * 3 + cells * TRACED_PATHS * TRACED_PATH_BYTES * 3
+    return BoundCost(cells, 0, instants, relays, pair_hops, float(held),
+                     trace_s + instants * DP_PASSES * pair_hops * cells**2 / PAIR_EVALS_PER_S)
+
+
 def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int) -> BoundCost:
     """A fleet's network bound's cost (``planning.network_bound.compute_network_bound``): its passes over every pair
     of cubes and its branch and bound's worst case, each instant."""
