@@ -8,9 +8,10 @@ bound at ``BOUND_S_PER_MISSION_S`` the first time a geometry is seen (moving jam
 energy studies: 60-90 s for 47 s; cached afterwards), ``RANDOM_BOUND_FACTOR`` times that over a
 run's own shadowing realization (one per seed: ~190 s). Runs are taken round-robin over the studies, each study's
 runs in order, so every study keeps its first runs; the others are left out and named. A ray-traced channel adds
-``TRACE_S`` per trace (Sionna RT on the CPU, street canyon, depth 3, every link of one relay in one call: 207 s
-against 21 s for the 47 s mission traced every 0.25 s, 2026-12-05) and ``TRACE_STARTUP_S`` (the scene and the
-first trace's compilation)."""
+``TRACE_S`` per trace at Sionna's default 1e6 rays per transmitter (Sionna RT on the CPU, street canyon, depth 3,
+every link of one relay: 207 s against 21 s for the 47 s mission traced every 0.25 s, 2026-12-05), in proportion to
+``rays_per_source`` down to ``TRACE_FLOOR`` of it (1e5 rays: 44 s against 253 s for the same mission), and
+``TRACE_STARTUP_S`` (the scene and the first trace's compilation)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ RUN_OVERHEAD_S = 3.0
 BOUND_S_PER_MISSION_S = 1.6
 RANDOM_BOUND_FACTOR = 2.5  # a bound over the run's own shadowing / LoS realization (one per seed) costs this much more
 TRACE_S = 1.0
+TRACE_FLOOR = 0.15
 TRACE_STARTUP_S = 6.0
 
 
@@ -42,7 +44,8 @@ def run_cost_s(spec: RunSpec, bounds_seen: set[str]) -> float:
     cost = RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * sc.duration_s
     prop = sc.channel.propagation
     if prop.model == "ray_traced":
-        cost += TRACE_STARTUP_S + TRACE_S * sc.duration_s / max(prop.trace_period_s, sc.control_period_s)
+        per_trace = TRACE_S * max(prop.rays_per_source / 1e6, TRACE_FLOOR)
+        cost += TRACE_STARTUP_S + per_trace * sc.duration_s / max(prop.trace_period_s, sc.control_period_s)
     if spec.bound:
         key = scenario_bound_key(sc)
         if key not in bounds_seen:

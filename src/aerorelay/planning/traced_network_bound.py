@@ -21,7 +21,8 @@ any holdable axes, **not** of the space between them. ``achieved`` is the traced
 one axis per relay (each relay's best with the others held, twice round). The upper path bound is the certified
 one's dynamic programming (``NetworkBoundSolver.upper_path``) over these terms kept to what each relay can reach
 from its start; the lower one each relay chasing its ``achieved`` cell from its start within the speed and
-acceleration limits, its traced rate at each sample with the axes chosen the same way (not refined)."""
+acceleration limits, its traced rate at each sample with the axes chosen the same way (not refined; its status
+says when two relays come closer than the separation on it: then it is no fleet's path)."""
 
 from __future__ import annotations
 
@@ -204,8 +205,11 @@ def compute_traced_network_bound(pb: NetworkBoundProblem, tracer: RayTracer, coh
         for i, t in enumerate(times):
             fr[i], fa[i] = _axes_for(configs, terms, float(t), fp[i], solver.fixed_poses(float(t)))
         gaps = [np.linalg.norm(fp[:, a] - fp[:, b], axis=1).min() for a in range(K) for b in range(a + 1, K)]
+        closest = float(min(gaps, default=np.inf))
+        status = "not refined (traced channel)" + (f"; two relays {closest:.2f} m apart, closer than the separation"
+                                                   if closest < pb.separation_m else "")
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
-                       "flyable_status": "not refined (traced channel)", "flyable_closest_relays_m": float(min(gaps, default=np.inf)),
+                       "flyable_status": status, "flyable_closest_relays_m": closest,
                        "path_mean_relay": binding, "traced_calls": int(tracer.calls)}
     return NetworkBound(times, static, sp, achieved, ap, ax, solver.relays, resolution, pb.outage_threshold,
                         TRACED_ASSUMPTIONS, flyable=fr, flyable_positions=fp, flyable_axes=fa, path_mean=upper,
