@@ -54,7 +54,9 @@ def test_traced_scoring_of_a_route_to_any_base_station_is_a_named_error():
 def test_a_relay_scoring_on_the_traced_channel_flies():
     sc = ar.load_scenario("scenarios/street_canyon.toml", set={"sim.duration_s": 1.0, "controller.planner": "capacity",
                                                                "controller.capacity.scoring": "traced",
-                                                               "controller.capacity.route_grid_m": 3.0})
+                                                               "controller.capacity.route_grid_m": 3.0,  # 200 cells
+                                                               "controller.workspace.min": [-42.0, -6.0, 4.0],
+                                                               "controller.workspace.max": [-20.0, 8.0, 16.0]})
     r = ar.simulate(sc)
     assert not r.metrics["unsafe"] and r.metrics["c_min"] > 0
 
@@ -142,6 +144,7 @@ def test_the_bound_on_the_traced_map_of_an_empty_scene_is_the_free_space_grids_b
 def test_the_traced_route_of_an_empty_scene_is_the_free_space_route():
     # scoring 'traced' plans the pre-flight route on the traced map: in free space the analytic route (same DP, values to
     # float32), in a few traces: the base station's to the cells once, the source's once per instant
+    from aerorelay.assembly import world
     from aerorelay.assembly.parts import build_planner, build_source
     from aerorelay.assembly.vehicle import build_vehicle
     from aerorelay.models.raytrace import RayTracer
@@ -150,12 +153,14 @@ def test_the_traced_route_of_an_empty_scene_is_the_free_space_route():
     routes = {}
     for scoring in ("joint", "traced"):
         sc = ar.parse_scenario({}).with_updates(over | {"controller.capacity.scoring": scoring})
+        before = world.map_tracer(sc).calls  # the process's one tracer of these settings
         planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), build_source(sc))
         routes[scoring] = planner.route_p
         if scoring == "traced":
             assert isinstance(planner.grid, TracedRelayGrid)
             tracer = planner.grid.network.tracer
-            assert isinstance(tracer, RayTracer) and tracer.calls <= len(planner.route_t) + 1
+            assert isinstance(tracer, RayTracer) and tracer is world.map_tracer(sc)
+            assert tracer.calls - before <= len(planner.route_t) + 1
     np.testing.assert_allclose(routes["traced"], routes["joint"], atol=1e-9)
 
 
@@ -236,6 +241,6 @@ def test_a_fleets_network_bound_on_the_traced_map_of_an_empty_scene_is_the_brute
 @needs_rt
 def test_a_fleets_network_bound_on_a_fine_traced_map_is_refused_naming_its_grid():
     from aerorelay.assembly.parts import check_bound_size
-    sc = ar.load_scenario("scenarios/street_canyon_chain.toml")
+    sc = ar.load_scenario("scenarios/street_canyon_chain.toml", set={"bound.network_grid_m": 2.0})
     with pytest.raises(ScenarioError, match=r"bound\.network_grid_m: the bound would take"):
         check_bound_size(sc)

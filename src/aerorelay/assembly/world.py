@@ -4,6 +4,7 @@ margin for the planners and the NMPC; bare for the supervisor and the safety ver
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 
 import numpy as np
@@ -39,6 +40,14 @@ def trace_settings(sc: Scenario) -> TraceSettings:
                          diffraction=prop.diffraction, refraction=prop.refraction)
 
 
+@functools.lru_cache(maxsize=4)
+def shared_tracer(settings: TraceSettings) -> RayTracer:
+    """One loaded ray tracer per trace settings in this process: the plant's, the scoring planners' (rebuilt after
+    a relay is lost or taken over) and the bounds' share its scene (loaded once) and its traces in memory. Its
+    ``calls`` count every Sionna call any of them made."""
+    return RayTracer(settings)
+
+
 def traced_coherent(sc: Scenario) -> bool:
     """Whether a ray-traced channel's paths are summed with their phases (``paths_sum = "coherent"``), else in power."""
     return sc.channel.propagation.paths_sum == "coherent"
@@ -49,14 +58,14 @@ def traced_channel(sc: Scenario) -> TracedChannel | None:
     prop = sc.channel.propagation
     if prop.model != "ray_traced":
         return None
-    return TracedChannel(RayTracer(trace_settings(sc)), trace_period_s=max(prop.trace_period_s, sc.control_period_s),
+    return TracedChannel(shared_tracer(trace_settings(sc)), trace_period_s=max(prop.trace_period_s, sc.control_period_s),
                          coherent=traced_coherent(sc))
 
 
 def map_tracer(sc: Scenario) -> RayTracer | None:
     """A ray tracer of the scene's map (``model = "ray_traced"``; None otherwise): what the one relay's bound and a
     traced pre-flight route trace their cells with."""
-    return RayTracer(trace_settings(sc)) if sc.channel.propagation.model == "ray_traced" else None
+    return shared_tracer(trace_settings(sc)) if sc.channel.propagation.model == "ray_traced" else None
 
 
 def scene_key(sc: Scenario) -> dict:
@@ -71,7 +80,7 @@ def scene_key(sc: Scenario) -> dict:
 def scoring_tracer(sc: Scenario) -> RayTracer | None:
     """The ray tracer the capacity planners score candidates with (``controller.capacity.scoring = "traced"``, the
     one relay's and a fleet's; None otherwise)."""
-    return RayTracer(trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None
+    return shared_tracer(trace_settings(sc)) if sc.controller.capacity.scoring == "traced" else None
 
 
 def wind_settings(sc: Scenario) -> WindSettings:

@@ -35,6 +35,7 @@ import hashlib
 import os
 import re
 import tempfile
+import threading
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -206,6 +207,7 @@ class RayTracer:
         self.digest = scene_digest(rt, settings.scene)
         self._memory: dict[str, TracedLinks] = {}
         self._memory_bytes = 0
+        self._lock = threading.RLock()
         self.calls = 0  # Sionna calls made (traces not found in a cache)
         self.rt = rt
         self.scene = load_scene(rt, settings.scene)
@@ -242,6 +244,10 @@ class RayTracer:
         tx, rx = np.atleast_2d(np.asarray(tx, float)), np.atleast_2d(np.asarray(rx, float))
         if tx.shape != rx.shape or tx.shape[1] != 3:
             raise ValueError(f"ray tracer: expected as many transmitters as receivers (n, 3), got {tx.shape} and {rx.shape}")
+        with self._lock:  # one scene whose transmitters and receivers each call places: one call at a time
+            return self._trace_links(tx, rx)
+
+    def _trace_links(self, tx: np.ndarray, rx: np.ndarray) -> TracedLinks:
         utx, itx = np.unique(tx, axis=0, return_inverse=True)
         itx = itx.ravel()
         groups = []
