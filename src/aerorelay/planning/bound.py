@@ -177,21 +177,22 @@ class CapacityLandscape:
     def capacity(self, t: float, positions, axes) -> np.ndarray:
         """``(M, K)`` for relay positions ``(M, 3)`` x antenna axes ``(K, 3)``."""
         source = self.source_pose(t)
-        if self.traced is not None:
+        P = np.atleast_2d(np.asarray(positions, float))
+        inside = inside_any(self.keep_out, P) if self.keep_out else np.zeros(len(P), bool)
+        if self.traced is not None:  # the cells inside an obstacle are not traced (no receiver inside a building)
             jammers = self.scene.jammers
             if self.silent is not None:  # silent jammers add nothing wherever they are (a planner does not know where)
                 pj, powers = np.zeros((len(jammers), 3)), self.silent
             else:
                 pj = np.array([j.position_at(t) for j in jammers], float).reshape(-1, 3)
                 powers = np.array([float(j.power_at(t)) for j in jammers])
-            C = self.traced(positions, axes, source, pj, powers)
-        else:
-            fading = None if self.realization is None else self._large_scale(t, np.atleast_2d(np.asarray(positions, float)), source)
-            C = self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
-        if not self.keep_out:
+            C = np.zeros((len(P), len(np.atleast_2d(axes))))
+            if not inside.all():
+                C[~inside] = self.traced(P[~inside], axes, source, pj, powers)
             return C
-        inside = inside_any(self.keep_out, np.atleast_2d(np.asarray(positions, float)))
-        return np.where(inside[:, None], 0.0, C)
+        fading = None if self.realization is None else self._large_scale(t, P, source)
+        C = self.scene.relay_grid(t, positions, axes, {self.source_name: source}, jammer_powers=self.silent, fading=fading)
+        return np.where(inside[:, None], 0.0, C) if self.keep_out else C
 
     def _large_scale(self, t: float, relay: np.ndarray, source: NodePose) -> list:
         """Each link's realized power multiplier at these relay positions: ``(M, 1)`` or a scalar."""
