@@ -232,7 +232,7 @@ def _traced_route_fits(sc: Scenario) -> None:
     if minutes > sc.bound.max_minutes:
         raise ValueError(f"controller.capacity.route_grid_m: the pre-flight route on the traced map traces {cells:,} cells "
                          f"at {instants} instants, ~{minutes:.3g} min here, more than bound.max_minutes = "
-                         f"{sc.bound.max_minutes:g}: a coarser route_grid_m (up to 3 m) or route_dt_s, fewer "
+                         f"{sc.bound.max_minutes:g}: a coarser route_grid_m or route_dt_s, fewer "
                          "channel.propagation.rays_per_source, a smaller workspace, or a larger bound.max_minutes")
 
 

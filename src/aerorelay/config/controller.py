@@ -85,7 +85,7 @@ class CapacityPlannerConfig(Strict):
                                     "3 m/s overshot its braking reference by 0.9 m, motors at their bounds: docs/results/controller-speed.md)")
     margin_m: float = Field(0.05, ge=0.0, le=2.0, description="the reference keeps this far inside the workspace box, m")
     leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
-    route_grid_m: float = Field(1.0, ge=0.1, le=3.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
+    route_grid_m: float = Field(1.0, ge=0.1, le=20.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
                                 "take-off, 1 m: 0.3-0.6 s on this VM, capacity within 0.01 of the bound either way)")
     route_dt_s: float = Field(1.0, ge=0.1, le=30.0, description="time step of the pre-flight route, s (at least "
                               "route_grid_m / speed_m_s: a step moves at least one cell; with scoring = 'traced' each step "

@@ -46,7 +46,8 @@ class BoundConfig(Strict):
     """Resolution of the capacity bounds (``aerorelay bound``, planning/bound.py)."""
 
     max_speed_m_s: float = Field(1.0, gt=0.0, le=20.0, description="speed limit of the path bounds, m/s")
-    grid_m: float = Field(0.5, ge=0.1, le=3.0, description="position grid spacing, m")
+    grid_m: float = Field(0.5, ge=0.1, le=20.0, description="position grid spacing, m (a ray-traced channel traces every "
+                          "cell: coarse, a few metres)")
     dt_s: float = Field(0.5, ge=0.05, le=5.0, description="time grid spacing, s")
     axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the relay antenna axes searched, deg")
     max_accel_m_s2: float = Field(4.0, gt=0.0, le=50.0, description="acceleration limit of the flyable paths (from rest "
