@@ -7,6 +7,7 @@ import pytest
 
 from aerorelay.experiments.budget import RUN_OVERHEAD_S, SIM_S_PER_MISSION_S, left_out_notices, run_cost_s, within_budget
 from aerorelay.experiments.study import expand, find_studies
+from tests.rt_marks import needs_rt
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,3 +44,25 @@ def test_the_budget_keeps_what_fits_round_robin_and_names_the_rest(quick_specs, 
     assert ("left out" in text) == bool(c.left_out)
     for s in c.left_out:
         assert s.group in text
+
+
+@needs_rt
+def test_a_traced_run_costs_its_traces_at_its_rays_and_its_bound_its_traced_maps_tracing():
+    # the street canyon's traced mission at the preset's 1e5 rays: TRACE_FLOOR of a 1e6-ray trace per trace (188 of them);
+    # bounded, the first run adds the traced map's tracing (cells x instants x rays x 1e-7 s), written out here
+    from dataclasses import replace
+
+    from aerorelay.experiments.budget import TRACE_FLOOR, TRACE_S, TRACE_STARTUP_S
+    from aerorelay.experiments.study import scenario_of
+    spec = next(r for st in find_studies(ROOT / "experiments", ["raytraced"]) for r in expand(st, ROOT, quick=False)
+                if r.group == "ray_traced[planner=capacity]")
+    sc = scenario_of(spec)
+    traces = 47.0 / 0.25
+    flight = RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * 47.0 + TRACE_STARTUP_S + TRACE_S * TRACE_FLOOR * traces
+    assert run_cost_s(spec, set()) == pytest.approx(flight)
+    cells = 26 * 7 * 6  # the street's workspace every 3 m: x -45..30, y -7.5..12, z 3..20
+    instants = 19  # every 2.5 s over 47 s
+    tracing = (instants + 2) * cells * 1e5 * 1e-7
+    bounded = run_cost_s(replace(spec, bound=True), set())
+    assert bounded - flight == pytest.approx(tracing, rel=0.05)
+    assert sc.bound.grid_m == 3.0 and sc.channel.propagation.rays_per_source == 100_000

@@ -45,6 +45,7 @@ from ..planning.base import (
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
 from ..planning.bound_cost import (
+    BoundCost,
     check_bound_cost,
     network_bound_cost,
     single_bound_cost,
@@ -614,26 +615,33 @@ def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioS
                         world.obstacles(sc), tracer=world.map_tracer(sc), traced_coherent=world.traced_coherent(sc))
 
 
-def check_bound_size(sc: Scenario) -> None:
-    """``planning.bound_cost``: a named error (BoundTooLarge, a ScenarioError naming the ``[bound]``
-    field) before any work when the scenario's bound (a fleet's network bound) would need more than
-    half of this machine's memory or longer than ``bound.max_minutes``."""
+def bound_cost(sc: Scenario) -> BoundCost:
+    """What the scenario's bound (a fleet's network bound; on a ray-traced channel, its traced map's) will cost:
+    ``planning.bound_cost``'s estimate."""
     lo, hi = _workspace(sc)
     b = sc.bound
+    rays = sc.channel.propagation.rays_per_source
     traced = sc.channel.propagation.model == "ray_traced"
     if sc.is_network:
         relays = {r.name for r in sc.relay_list}
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
         fixed_ends = len(sc.source_list) + len(sc.jammer_configs)
-        cost = (traced_network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops),
-                                          fixed_ends, sc.channel.propagation.rays_per_source) if traced else
-                network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops)))
-        check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.network_grid_m", dt_field="bound.network_dt_s")
-        return
+        if traced:
+            return traced_network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays),
+                                             len(hops), fixed_ends, rays)
+        return network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops))
     axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
-    cost = (traced_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes, sc.channel.propagation.rays_per_source) if traced
-            else single_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes))
-    check_bound_cost(cost, max_minutes=b.max_minutes, grid_field="bound.grid_m", dt_field="bound.dt_s")
+    if traced:
+        return traced_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes, rays)
+    return single_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes)
+
+
+def check_bound_size(sc: Scenario) -> None:
+    """``planning.bound_cost``: a named error (BoundTooLarge, a ScenarioError naming the ``[bound]``
+    field) before any work when the scenario's bound (a fleet's network bound) would need more than
+    half of this machine's memory or longer than ``bound.max_minutes``."""
+    fields = ("bound.network_grid_m", "bound.network_dt_s") if sc.is_network else ("bound.grid_m", "bound.dt_s")
+    check_bound_cost(bound_cost(sc), max_minutes=sc.bound.max_minutes, grid_field=fields[0], dt_field=fields[1])
 
 
 def bound_resolution(sc: Scenario) -> BoundResolution:

@@ -11,13 +11,14 @@ runs in order, so every study keeps its first runs; the others are left out and 
 ``TRACE_S`` per trace at Sionna's default 1e6 rays per transmitter (Sionna RT on the CPU, street canyon, depth 3,
 every link of one relay: 207 s against 21 s for the 47 s mission traced every 0.25 s, 2026-12-05), in proportion to
 ``rays_per_source`` down to ``TRACE_FLOOR`` of it (1e5 rays: 44 s against 253 s for the same mission), and
-``TRACE_STARTUP_S`` (the scene and the first trace's compilation)."""
+``TRACE_STARTUP_S`` (the scene and the first trace's compilation); a bound on a traced channel at
+``planning.bound_cost``'s estimate of its traced map."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..assembly.parts import scenario_bound_key
+from ..assembly.parts import bound_cost, scenario_bound_key
 from .study import RunSpec, scenario_of
 
 SIM_S_PER_MISSION_S = 0.12
@@ -51,7 +52,8 @@ def run_cost_s(spec: RunSpec, bounds_seen: set[str]) -> float:
         if key not in bounds_seen:
             bounds_seen.add(key)
             factor = RANDOM_BOUND_FACTOR if sc.channel.propagation.random else 1.0
-            cost += BOUND_S_PER_MISSION_S * factor * sc.duration_s
+            # a traced map's bound is its tracing: planning.bound_cost's estimate (the analytic rate does not hold)
+            cost += bound_cost(sc).seconds if prop.model == "ray_traced" else BOUND_S_PER_MISSION_S * factor * sc.duration_s
     return cost
 
 
