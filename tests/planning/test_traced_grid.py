@@ -244,3 +244,15 @@ def test_a_fleets_network_bound_on_a_fine_traced_map_is_refused_naming_its_grid(
     sc = ar.load_scenario("scenarios/street_canyon_chain.toml", set={"bound.network_grid_m": 2.0})
     with pytest.raises(ScenarioError, match=r"bound\.network_grid_m: the bound would take"):
         check_bound_size(sc)
+
+
+@needs_rt
+def test_a_traced_bound_of_routes_to_any_base_station_is_refused_before_any_work():
+    from aerorelay.assembly.parts import check_bound_size
+    two = {"base_stations": [{"name": "a", "position": [0.0, 0.0, 0.0]}, {"name": "b", "position": [9.0, 0.0, 0.0]}]}
+    sc = updated(ar.parse_scenario(two), {**PHYSICAL, "channel.propagation.model": "ray_traced",
+                                          "channel.propagation.scene": "empty", "bound.grid_m": 3.0,
+                                          "controller.planner": "capacity"})
+    assert sc.has_handover
+    with pytest.raises(ScenarioError, match=r"bound: routes that may end at several base stations"):
+        check_bound_size(sc)

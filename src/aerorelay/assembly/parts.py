@@ -640,6 +640,10 @@ def check_bound_size(sc: Scenario) -> None:
     """``planning.bound_cost``: a named error (BoundTooLarge, a ScenarioError naming the ``[bound]``
     field) before any work when the scenario's bound (a fleet's network bound) would need more than
     half of this machine's memory or longer than ``bound.max_minutes``."""
+    if sc.channel.propagation.model == "ray_traced" and sc.has_handover:
+        raise ScenarioError("bound: routes that may end at several base stations ('any') are bounded on the analytic "
+                            "channel only; the traced map's bound takes routes to one base station (name it), or fly "
+                            "with --no-bound")
     fields = ("bound.network_grid_m", "bound.network_dt_s") if sc.is_network else ("bound.grid_m", "bound.dt_s")
     check_bound_cost(bound_cost(sc), max_minutes=sc.bound.max_minutes, grid_field=fields[0], dt_field=fields[1])
 
