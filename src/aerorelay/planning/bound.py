@@ -53,7 +53,7 @@ from ..models.raytrace import RayTracer
 from ..models.vehicle import Multirotor
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
 from .feasible_path import best_feasible_path, leaning_capacity, speed_limited
-from .traced_grid import TracedRelayGrid
+from .traced_grid import TracedRelayGrid, jammers_at
 
 log = logging.getLogger(__name__)
 BOUND_VERSION = "11"  # bump when the computation changes: cached bounds are recomputed
@@ -180,12 +180,7 @@ class CapacityLandscape:
         P = np.atleast_2d(np.asarray(positions, float))
         inside = inside_any(self.keep_out, P) if self.keep_out else np.zeros(len(P), bool)
         if self.traced is not None:  # the cells inside an obstacle are not traced (no receiver inside a building)
-            jammers = self.scene.jammers
-            if self.silent is not None:  # silent jammers add nothing wherever they are (a planner does not know where)
-                pj, powers = np.zeros((len(jammers), 3)), self.silent
-            else:
-                pj = np.array([j.position_at(t) for j in jammers], float).reshape(-1, 3)
-                powers = np.array([float(j.power_at(t)) for j in jammers])
+            pj, powers = jammers_at(self.scene, t, silent=self.silent is not None)  # silent: a planner does not know where
             C = np.zeros((len(P), len(np.atleast_2d(axes))))
             if not inside.all():
                 C[~inside] = self.traced(P[~inside], axes, source, pj, powers)

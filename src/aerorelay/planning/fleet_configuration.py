@@ -51,7 +51,6 @@ class FleetConfigurations:
         relay at a time, twice round (``(K, 3)``, unit, world); with ``thrust`` ``(K, 3)`` (unit: where each
         relay's body z must lean to fly its path) only the axes within its tilt limit of it (the nearest
         where none is)."""
-        A = np.tile([0.0, 0.0, 1.0], (len(self.relays), 1))
         choices = []
         for k, r in enumerate(self.relays):
             cone = self.cones[r]
@@ -60,14 +59,7 @@ class FleetConfigurations:
                 held = cos >= np.cos(self.tilt_limits[r]) - 1e-12
                 cone = cone[held] if held.any() else cone[[int(np.argmax(cos))]]
             choices.append(cone)
-        for _ in range(2):
-            for k in range(len(self.relays)):
-                scores = []
-                for a in choices[k]:
-                    A[k] = a
-                    scores.append(self.rate(t, P, A, poses))
-                A[k] = choices[k][int(np.argmax(scores))]
-        return A
+        return coordinate_best_axes(choices, lambda batch: [self.rate(t, P, A, poses) for A in batch])[0]
 
     def refine(self, t: float, start: np.ndarray, poses) -> tuple[float, np.ndarray, np.ndarray]:
         """The relays from ``start`` ``(K, 3)`` (m) refined on the true rate: each relay's best cone axis there
@@ -112,6 +104,22 @@ class FleetConfigurations:
         better = -res.fun >= -neg(x0) and not np.any(inside_any(self.obstacles, unpack(res.x)[0]))
         P, A = unpack(res.x if better else x0)
         return self.rate(t, P, A, poses), P, A
+
+
+def coordinate_best_axes(choices: Sequence[np.ndarray], score) -> tuple[np.ndarray, float]:
+    """Each relay's best axis among its ``choices[k]`` ``(n_k, 3)`` (unit, world), one relay at a time from vertical
+    with the others held, twice round; ``score(axes (n, K, 3))`` rates a batch of the fleet's axes ``(n,)``. The axes
+    ``(K, 3)`` and the last choice's score (the rate at those axes)."""
+    A = np.tile([0.0, 0.0, 1.0], (len(choices), 1))
+    best = -np.inf
+    for _ in range(2):
+        for k, cone in enumerate(choices):
+            batch = np.repeat(A[None], len(cone), axis=0)
+            batch[:, k] = cone
+            scores = np.asarray(score(batch), float)
+            j = int(np.argmax(scores))
+            A[k], best = cone[j], float(scores[j])
+    return A, best
 
 
 def mission_poses(scene: RadioScene, sources: Mapping[str, SourceTrajectory], t: float, gravity: float) -> dict[str, NodePose]:

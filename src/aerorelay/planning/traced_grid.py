@@ -25,6 +25,15 @@ from ..models.raytrace import RayTracer
 ROWS_PER_CALL = 20_000  # configurations weighed at once (each row holds every path's coefficient and directions)
 
 
+def jammers_at(scene: RadioScene, t: float, silent: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's jammers at ``t`` as the traced scorers take them: positions ``(nJ, 3)`` (m) and powers ``(nJ,)`` (W);
+    ``silent``: every power 0 (not localized yet) and the positions 0, where a silent jammer adds nothing."""
+    if silent:
+        return np.zeros((len(scene.jammers), 3)), np.zeros(len(scene.jammers))
+    return (np.array([j.position_at(t) for j in scene.jammers], float).reshape(-1, 3),
+            np.array([float(j.power_at(t)) for j in scene.jammers]))
+
+
 class TracedNetwork:
     """``rates(poses, jammer_positions (nJ, 3), jammer_powers (nJ,), n)`` -> the network's rate ``(n,)`` of ``n``
     configurations on the traced channel (see the module); each node's pose in ``poses`` has a position and an

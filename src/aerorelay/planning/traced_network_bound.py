@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.axes import axis_cone
 from ..models.raytrace import RayTracer, TracedLinks
 from .feasible_path import speed_limited
+from .fleet_configuration import coordinate_best_axes
 from .network_bound import NetworkBound, NetworkBoundProblem, NetworkBoundSolver, forest_min_marginals
-from .traced_grid import TracedConfigurations
+from .traced_grid import TracedConfigurations, jammers_at
 
 TRACED_ASSUMPTIONS = ("on the ray-traced channel's map: every hop's term at the cubes' centres (not bounded over the "
                       "cubes), each relay end's best gain over its holdable axes per hop (per path for a hop between "
@@ -55,7 +55,7 @@ class TracedTerms:
         self.solver, self.tracer, self.coherent = solver, tracer, coherent
         pb = solver.pb
         self.scene, self.cells = pb.scene, solver.cells
-        self.axes = {r: axis_cone(pb.tilt_limits[r], np.radians(pb.resolution.axis_step_deg)) for r in solver.relays}
+        self.axes = solver.configurations.cones  # each relay's holdable axes (axis_step_deg apart, up to its hover limit)
         self.open = np.isfinite(solver._excluded({}, self.cells, 0.0))  # centres not inside an obstacle's margin
         self.pair_gain = {(tx, rx): self._pair_gains(tx, rx) for tx, rx in solver.pairs}
 
@@ -90,7 +90,8 @@ class TracedTerms:
         return out
 
     def interference(self, t: float, poses) -> tuple[dict[str, np.ndarray], dict[str, float]]:
-        """Each relay's least jammer interference at every cell over its axes ``(M,)`` and each fixed receiver's (W)."""
+        """Each relay's least jammer interference at every cell over its axes ``(M,)`` and each fixed node's that receives a
+        relay's hop (W)."""
         emitters = self.scene.emitters(t, poses)
         at_relays = {r: np.zeros(len(self.cells)) for r in self.solver.relays}
         at_fixed: dict[str, float] = {}
@@ -102,8 +103,8 @@ class TracedTerms:
                 pat_r = self.scene.node(r).antenna.pattern
                 per_axis = [links.gain(e.pattern, e.axis, pat_r, b, coherent=self.coherent) for b in self.axes[r]]
                 at_relays[r] = at_relays[r] + e.power * np.min(per_axis, axis=0)
-        for name, pose in poses.items():
-            total = 0.0
+        for name in {other for _, other, is_tx, _ in self.solver.unary if is_tx}:  # fixed receivers of relays' hops
+            pose, total = poses[name], 0.0
             for e in emitters:
                 if e.power == 0.0:
                     continue
@@ -139,23 +140,12 @@ class TracedTerms:
 
 
 def _axes_for(configs: TracedConfigurations, terms: TracedTerms, t: float, P: np.ndarray, poses) -> tuple[float, np.ndarray]:
-    """The traced rate of the relays at ``P`` ``(K, 3)`` and their axes ``(K, 3)``: each relay's best cone axis with the
-    others held (from vertical), twice round."""
-    relays = terms.solver.relays
-    A = np.tile([0.0, 0.0, 1.0], (len(relays), 1))
+    """The traced rate of the relays at ``P`` ``(K, 3)`` and their axes ``(K, 3)`` (``coordinate_best_axes`` over their
+    cones, each batch of axes in one traced call)."""
     sources = tuple(poses[s] for s in configs.sources)
-    emitters = terms.scene.emitters(t, poses)
-    pj = np.array([np.zeros(3) if e.position is None else e.position for e in emitters], float).reshape(-1, 3)
-    PJ = np.array([e.power for e in emitters], float)
-    rate = 0.0
-    for _ in range(2):
-        for k, r in enumerate(relays):
-            cone = terms.axes[r]
-            axes = np.repeat(A[None], len(cone), axis=0)
-            axes[:, k] = cone
-            rates = configs(np.repeat(P[None], len(cone), axis=0), axes, sources, pj, PJ)
-            j = int(np.argmax(rates))
-            A[k], rate = cone[j], float(rates[j])
+    pj, PJ = jammers_at(terms.scene, t)
+    A, rate = coordinate_best_axes([terms.axes[r] for r in terms.solver.relays],
+                                   lambda batch: configs(np.repeat(P[None], len(batch), axis=0), batch, sources, pj, PJ))
     return rate, A
 
 
@@ -192,7 +182,7 @@ def compute_traced_network_bound(pb: NetworkBoundProblem, tracer: RayTracer, coh
                   "open_cells": int(terms.open.sum()), "times": int(len(times)), "method": "min-sum dynamic programming on "
                   "the relays' forest over the traced map's cube centres (not certified between them)",
                   "tilt_limits_deg": {r: float(np.degrees(v)) for r, v in pb.tilt_limits.items()},
-                  "separation_m": pb.separation_m, "traced_calls": int(tracer.calls)}
+                  "separation_m": pb.separation_m}
     fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
     upper, up = np.empty(0), np.empty((0, 3))
     if with_starts:
@@ -210,7 +200,8 @@ def compute_traced_network_bound(pb: NetworkBoundProblem, tracer: RayTracer, coh
                                                    if closest < pb.separation_m else "")
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
                        "flyable_status": status, "flyable_closest_relays_m": closest,
-                       "path_mean_relay": binding, "traced_calls": int(tracer.calls)}
+                       "path_mean_relay": binding}
+    resolution["traced_calls"] = int(tracer.calls)
     return NetworkBound(times, static, sp, achieved, ap, ax, solver.relays, resolution, pb.outage_threshold,
                         TRACED_ASSUMPTIONS, flyable=fr, flyable_positions=fp, flyable_axes=fa, path_mean=upper,
                         path_mean_position=up)
