@@ -30,6 +30,7 @@ its GPU variant is used when present.
 
 from __future__ import annotations
 
+import functools
 import glob
 import hashlib
 import os
@@ -210,16 +211,26 @@ class RayTracer:
         self._lock = threading.RLock()
         self.calls = 0  # Sionna calls made (traces not found in a cache)
         self.rt = rt
-        self.scene = load_scene(rt, settings.scene)
-        self.scene.frequency = float(settings.carrier_hz)
-        iso = dict(num_rows=1, num_cols=1, vertical_spacing=0.5, horizontal_spacing=0.5, pattern="iso", polarization="V")
-        self.scene.tx_array = rt.PlanarArray(**iso)
-        self.scene.rx_array = rt.PlanarArray(**iso)
         self.R = rotation_z(np.radians(settings.yaw_deg))
         self.origin = np.asarray(settings.origin_m, float)
-        self.solver = rt.PathSolver()
         self._tx: list[str] = []
         self._rx: list[str] = []
+
+    @functools.cached_property
+    def scene(self):
+        """The Sionna scene, loaded at the first trace that is not cached (a bound or route read from the cache never
+        loads it), isotropic vertically polarized antennas at both ends, at the settings' carrier."""
+        scene = load_scene(self.rt, self.settings.scene)
+        scene.frequency = float(self.settings.carrier_hz)
+        iso = dict(num_rows=1, num_cols=1, vertical_spacing=0.5, horizontal_spacing=0.5, pattern="iso", polarization="V")
+        scene.tx_array = self.rt.PlanarArray(**iso)
+        scene.rx_array = self.rt.PlanarArray(**iso)
+        return scene
+
+    @functools.cached_property
+    def solver(self):
+        """Sionna's path solver (made with the scene, at the first trace that is not cached)."""
+        return self.rt.PathSolver()
 
     def to_scene(self, p: np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` of the scenario's frame in the scene's coordinates (m)."""
