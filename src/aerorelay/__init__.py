@@ -12,9 +12,9 @@ from .api import Result, bench, bound, controller, fly_lockstep, link_budget, pl
 from .assembly import load_scenario, parse_scenario
 from .assembly.parts import build, build_scene
 from .config import Scenario, ScenarioError
+from .control.relay_step import Command, SourceState, StaleSettings
 from .flight.airframes import PointMass
 from .flight.autopilot_loop import AutopilotLoop, Measured
-from .flight.stepper import Command, SourceState, StaleSettings
 from .models.antenna import CosinePattern, DipolePattern, IsotropicPattern, SinPowerPattern, TabulatedPattern
 from .models.jammer import AlwaysOn, Jammer, PeriodicOnOff
 from .models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene, route_capacity

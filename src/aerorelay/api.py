@@ -27,7 +27,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
-from .assembly.flight import build_stepper, network_stepper, thrust_along_body_z
+from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
@@ -43,7 +43,9 @@ from .assembly.vehicle import build_vehicle
 from .assembly.world import wind_field
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop
+from .control.network import Controller, OneRelay
 from .control.nmpc import NmpcSettings
+from .control.relay_step import StaleSettings
 from .experiments import flight as _flight
 from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
@@ -53,11 +55,8 @@ from .experiments.study import Study, StudyError, expand, find_studies
 from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, RotorpyQuadrotor, still_air
 from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
-from .flight.mavlink_fleet import FleetBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
-from .flight.network_controller import NetworkStepper
 from .flight.sources import MavlinkSource
-from .flight.stepper import RelayStepper, StaleSettings
 from .models.mission import SourceTrajectory, source_trajectory
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
@@ -109,20 +108,19 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
 
 
 def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
-               observer: bool = True, autopilot: bool = False) -> RelayStepper | NetworkStepper:
-    """The relay's planner and NMPC stepped from outside: ``ctrl.step(t, relay_state, source)`` each
-    control period returns a ``Command`` (rotor speeds and autopilot setpoints, world ENU, body FLU;
-    ``aerorelay.flight.frames`` converts to NED/FRD). Stale inputs hold, then land (``stale``). Stepped
-    over aerorelay's plant it flies exactly what ``simulate`` flies (docs/guide/flying.md). ``observer=False``
-    leaves out ``[wind]``'s external-force observer (for an autopilot's position loop: see the guide);
-    ``autopilot=True`` plans for the vehicle an autopilot flies (thrust along body z: a tilted platform's
-    rotors untilted in the NMPC's model), for its setpoints. A network (more than one relay and one source)
-    gives a ``flight.network_controller.NetworkStepper``: ``ctrl.step(t, {relay: state}, {source: SourceState})``
-    returns ``{relay: Command}``, the relays' plans exchanged inside (over aerorelay's plant it flies what
-    ``simulate`` flies, tested)."""
-    if sc.is_network:
-        return network_stepper(sc, nmpc_settings=nmpc_settings)
-    return build_stepper(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer, autopilot=autopilot)
+               observer: bool = True, autopilot: bool = False) -> Controller | OneRelay:
+    """The scenario's controller stepped from outside, for any network: ``ctrl.step(t, {relay: state}, {source:
+    SourceState})`` each control period returns ``{relay: Command}`` (rotor speeds and autopilot setpoints, world ENU,
+    body FLU; ``aerorelay.flight.frames`` converts to NED/FRD), the relays' plans exchanged inside
+    (``control.network.Controller``). One relay and one source: ``ctrl.step(t, relay_state, source)`` returns its
+    ``Command`` (``control.network.OneRelay``, a thin adapter over the same controller). Every relay's telemetry is
+    checked, stale inputs hold, then land (``stale``, every relay's). Stepped over aerorelay's plant it flies exactly
+    what ``simulate`` flies, in wind too (docs/guide/flying.md). ``observer=False`` leaves out ``[wind]``'s
+    external-force observer (for an autopilot's position loop: see the guide); ``autopilot=True`` plans for the vehicle
+    an autopilot flies (thrust along body z: a tilted platform's rotors untilted in the NMPC's model), for its
+    setpoints."""
+    ctrl = build_controller(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer, autopilot=autopilot)
+    return OneRelay(ctrl) if len(ctrl.relays) == 1 and len(ctrl.sources) == 1 else ctrl
 
 
 def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None, *,
@@ -174,124 +172,101 @@ def fly_lockstep(sc: Scenario, airframe: Airframe | Mapping[str, Airframe], *, s
                  duration_s: float | None = None,
                  telemetry_lost: Callable[[str, float], bool] | None = None,
                  source_airframes: Mapping[str, Airframe] | None = None) -> tuple[RunResult, pd.DataFrame]:
-    """Fly the scenario's relay controller through the MAVLink bridge on the in-repo vehicle flying
-    ``airframe`` (``rotorpy_airframe(sc)``, or ``flight.airframes.PointMass``), over UDP on localhost in
-    lockstep: the flight as ``simulate``'s result (``save`` writes the run folder with figures and MCAP)
+    """Fly the scenario's controller through the MAVLink bridge on the in-repo vehicles, one per relay, over UDP on
+    localhost in lockstep (``experiments.flight.fly_lockstep``): ``airframe`` maps every relay's name to its vehicle's
+    airframe (``plant_airframes(sc)``, ``rotorpy_airframe(sc)``, ``flight.airframes.PointMass``); one airframe is the
+    one relay's. Returns the flight as ``simulate``'s result (``save`` writes the run folder with figures and MCAP)
     and the bridge's log (docs/guide/flying.md). With position setpoints the NMPC runs without ``[wind]``'s
-    external-force observer, as ``fly`` does. A network: ``airframe`` maps every relay's name to its vehicle's
-    airframe (``plant_airframes(sc)``), each its own MAVLink system on its own link, the fleet's bridge flying them
-    all (``flight.mavlink_fleet``); ``telemetry_lost(relay, t)`` drops a relay's telemetry at bridge time ``t``;
-    ``source_airframes`` (``flight.airframes.MissionFlyer`` by source name) flies those sources as further MAVLink
-    systems the bridge reads."""
-    if setpoint not in ("position", "attitude"):
-        raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
-    if sc.is_network:
-        if not isinstance(airframe, Mapping):
-            raise ValueError("fly_lockstep: a network needs one airframe per relay, {relay name: airframe} "
-                             "(ar.plant_airframes(sc))")
-        return _flight.fly_lockstep_fleet(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views,
-                                          telemetry_lost=telemetry_lost, source_airframes=source_airframes)
-    if isinstance(airframe, Mapping):
-        raise ValueError("fly_lockstep: one relay flies one airframe (a mapping is for a network's relays)")
-    return _flight.fly_lockstep(sc, airframe, setpoint=setpoint, duration_s=duration_s, views=write_run_views)
+    external-force observer, as ``fly`` does. ``telemetry_lost(relay, t)`` drops a relay's telemetry at bridge time
+    ``t``; ``source_airframes`` (``flight.airframes.MissionFlyer`` by source name) flies those sources as further
+    MAVLink systems the bridge reads."""
+    return _flight.fly_lockstep(sc, _by_relay(sc, airframe, "airframe", "ar.plant_airframes(sc)"), setpoint=setpoint,
+                                duration_s=duration_s, views=write_run_views, telemetry_lost=telemetry_lost,
+                                source_airframes=source_airframes)
 
 
-def fly(sc: Scenario, url: str, *, arm: bool = False, setpoint: str = "position", duration_s: float | None = None,
-        out: Path | None = None, source_url: str | None = None, source_system: int | None = None,
+def _by_relay(sc: Scenario, given, what: str, hint: str) -> dict:
+    """``given`` by relay name: a mapping as it is, one value for the scenario's one relay (a ValueError for a network)."""
+    if isinstance(given, Mapping):
+        return dict(given)
+    names = [r.name for r in sc.relay_list]
+    if len(names) != 1:
+        raise ValueError(f"a network needs one {what} per relay, {{relay name: {what}}} ({hint}); its relays: {', '.join(names)}")
+    return {names[0]: given}
+
+
+def fly(sc: Scenario, url: str | Mapping[str, str], *, arm: bool = False, setpoint: str = "position",
+        duration_s: float | None = None, out: Path | None = None,
+        source_url: str | Mapping[str, str] | None = None, source_system: int | None = None,
         source_origin: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[RunResult | None, pd.DataFrame]:
-    """Fly the scenario's relay controller on a MAVLink autopilot at ``url`` in OFFBOARD (``flight.mavlink_bridge``):
-    wait for its heartbeat, stream, arm only with ``arm``, hand back to a hold at the end or on Ctrl-C.
-    Returns the flight as ``simulate``'s result (None when no period was flown in OFFBOARD) and the
-    bridge's log (one row per control period). ``out``: the run folder ``aerorelay run`` writes (time
-    series, metrics, figures, run.mcap) plus ``flight.parquet``, written even when the flight is
-    interrupted (``experiments.flight``); it is checked before the vehicle is contacted. ``source_url``:
-    the source is a second MAVLink system on that link (``source_system``: its id, None any; its local
-    origin at ``source_origin``, m ENU in the scenario's world); default its mission file. With position
-    setpoints the NMPC runs without ``[wind]``'s external-force observer (beside an autopilot's position
-    loop it lost RotorPy's quadrotor in a 5 m/s wind: docs/decisions.md)."""
+    """Fly the scenario's controller on MAVLink autopilots in OFFBOARD (``flight.mavlink_bridge``), one per relay:
+    ``url`` by relay name (one URL: the one relay's), each its own link and system; wait for every heartbeat, stream,
+    arm only with ``arm``, hand back to a hold at the end or on Ctrl-C. A vehicle whose telemetry stops holds, then
+    lands and leaves the network (the others re-plan); the run folder's metrics name it and when (``lost_in_flight``).
+    Returns the flight as ``simulate``'s result (None when no period was flown in OFFBOARD) and the bridge's log (a row
+    per relay per period). ``out``: the run folder ``aerorelay run`` writes (time series, metrics, figures, run.mcap)
+    plus ``flight.parquet``, written even when the flight is interrupted (``experiments.flight``); it is checked before
+    any vehicle is contacted. ``source_url``: sources as MAVLink systems, by source name (one URL: the one source's,
+    ``source_system`` its system id, None any, its local origin at ``source_origin``, m ENU in the scenario's world);
+    the others from their mission files. With position setpoints the NMPC runs without ``[wind]``'s external-force
+    observer (beside an autopilot's position loop it lost RotorPy's quadrotor in a 5 m/s wind: docs/decisions.md)."""
     _flight.check_flyable(sc)
-    if sc.is_network:
-        raise ValueError("fly: a network flies one vehicle per relay: fly_fleet(sc, {relay: url})")
+    urls = _by_relay(sc, url, "MAVLink URL", "--mavlink NAME=URL")
+    for name, u in urls.items():
+        check_mavlink_url(u, f"--mavlink {name}=" if isinstance(url, Mapping) else "--mavlink")
+    known = [s.name for s in sc.source_list]
+    if source_url is not None and not isinstance(source_url, Mapping):
+        if len(known) != 1:
+            raise ValueError(f"--source-mavlink: the scenario has sources {', '.join(known)}: give NAME=URL for each")
+        source_url = {known[0]: source_url}
+    elif source_system is not None or source_origin != (0.0, 0.0, 0.0):
+        raise ValueError("source_system / source_origin: for one source flown from one URL (source_url=URL)")
+    for name, u in (source_url or {}).items():
+        if name not in known:
+            raise ValueError(f"--source-mavlink {name}=: the scenario's sources are {', '.join(known)}")
+        check_mavlink_url(u, f"--source-mavlink {name}=")
     if out is not None:
         check_output_folder(out, "run")
     # the observer destabilized a position cascade; an autopilot's thrust stays along body z (the guide)
-    ctrl = build_stepper(sc, observer=setpoint == "attitude", autopilot=True)  # one relay: a bridge flies one
-    source = build_source(sc) if source_url is None else MavlinkSource(source_url, system=source_system, origin_enu=source_origin)
-    bridge = OffboardBridge(url, ctrl, source, ctrl.vehicle.hover_speeds(), arm=arm, setpoint=setpoint)
-    bridge.connect()
-    recording = _flight.Recording(sc, ctrl, out, views=write_run_views)  # the flight's wall time starts once the vehicle answered
-    bridge.on_step = recording.hook  # type: ignore[assignment]  # one relay's: a StepHook
-    return _flown(bridge, recording, sc.duration_s if duration_s is None else duration_s, "the vehicle was asked to hold")
-
-
-def fly_fleet(sc: Scenario, urls: Mapping[str, str], *, arm: bool = False, setpoint: str = "position",
-              duration_s: float | None = None, out: Path | None = None,
-              source_urls: Mapping[str, str] | None = None) -> tuple[RunResult | None, pd.DataFrame]:
-    """``fly`` for a network: one MAVLink autopilot per relay (``urls`` by relay name, each its own link and
-    system; ``flight.mavlink_fleet``), the sources from their mission files or, for those in ``source_urls`` (by
-    source name), as MAVLink systems on those links (any system that reports there). A vehicle whose telemetry stops
-    holds, then lands and leaves the network (the others re-plan); the run folder's metrics name it and when
-    (``lost_in_flight``). Returns the flight (None when nothing was flown) and the bridge's log (a row per
-    relay per period)."""
-    _flight.check_flyable(sc)
-    if not sc.is_network:
-        raise ValueError("fly_fleet: the scenario has one relay: fly(sc, url)")
-    for name, url in urls.items():
-        check_mavlink_url(url, f"--mavlink {name}=")
-    if out is not None:
-        check_output_folder(out, "run")
-    known = [s.name for s in sc.source_list]
-    for name, url in (source_urls or {}).items():
-        if name not in known:
-            raise ValueError(f"--source-mavlink {name}=: the scenario's sources are {', '.join(known)}")
-        check_mavlink_url(url, f"--source-mavlink {name}=")
-    ctrl = network_stepper(thrust_along_body_z(sc))
+    ctrl = build_controller(sc, observer=setpoint == "attitude", autopilot=True)
     sources: dict[str, SourceTrajectory | MavlinkSource] = {s.name: source_trajectory(s.mission) for s in sc.source_list}
-    sources |= {name: MavlinkSource(url) for name, url in (source_urls or {}).items()}
-    bridge = FleetBridge(urls, ctrl, sources, arm=arm, setpoint=setpoint)
+    sources |= {name: MavlinkSource(u, system=source_system, origin_enu=source_origin) for name, u in (source_url or {}).items()}
+    bridge = OffboardBridge(urls, ctrl, sources, arm=arm, setpoint=setpoint)
     bridge.connect()
-    recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
-    bridge.loop.on_step = recording.hook  # type: ignore[assignment]  # a network's: a FleetStepHook
-    return _flown(bridge, recording, sc.duration_s if duration_s is None else duration_s, "the vehicles were asked to hold",
-                  lost_at=ctrl.lost_at)
-
-
-def _flown(bridge: OffboardBridge | FleetBridge, recording: _flight.Recording, duration_s: float, on_interrupt: str,
-           lost_at: dict[str, float] | None = None) -> tuple[RunResult | None, pd.DataFrame]:
-    """Run ``bridge`` for ``duration_s`` and write what ``recording`` holds, also on Ctrl-C (``on_interrupt`` says what
-    the vehicles were asked; ``lost_at``: the relays that left the network, filled in as they do)."""
+    recording = _flight.Recording(sc, ctrl, out, views=write_run_views)  # the flight's wall time starts once the vehicles answered
+    bridge.on_step = recording.hook
     aborted = None
     try:
-        bridge.run(duration_s)
+        bridge.run(sc.duration_s if duration_s is None else duration_s)
         aborted = bridge.ended
     except KeyboardInterrupt:
-        aborted = f"interrupted (Ctrl-C): {on_interrupt}"
+        aborted = "interrupted (Ctrl-C): the vehicles were asked to hold"
         raise
     finally:
         df = _flight.bridge_frame(bridge.log)
-        result = recording.finish(df, aborted, lost_at=lost_at)
+        result = recording.finish(df, aborted, lost_at=ctrl.lost_at)
     return result, df
 
 
-def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: Path | None = None, **names: str):
-    """Run the relay's controller as a ROS 2 node (``spin``: ``flight.ros_node.spin``, the optional extra,
-    imported by the caller) until ``duration_s``; a network's as one node for the fleet (``FleetNode``, each relay
-    under its own name); ``out``: the flight's run folder (as ``fly`` writes it, without ``flight.parquet``),
-    written on Ctrl-C too. Returns the node and the flight's result (its metrics say whether it was safe; which
-    relays left the network and when, ``lost_in_flight``; None when nothing was flown)."""
+def ros(sc: Scenario, spin: Callable, duration_s: float | None = None, *, out: Path | None = None,
+        topics: Mapping[str, str] | None = None):
+    """Run the scenario's controller as one ROS 2 node (``spin``: ``flight.ros_node.spin``, the optional extra,
+    imported by the caller) until ``duration_s``, each relay and source under its name as topic namespace
+    (``topics``: another namespace by name); ``out``: the flight's run folder (as ``fly`` writes it, without
+    ``flight.parquet``), written on Ctrl-C too. Returns the node and the flight's result (its metrics say whether it was
+    safe; which relays left the network and when, ``lost_in_flight``; None when nothing was flown)."""
     if out is not None:
         check_output_folder(out, "run")
-    # its setpoints are for an autopilot: thrust along body z (one relay, or every relay of a network)
-    ctrl = network_stepper(thrust_along_body_z(sc)) if sc.is_network else build_stepper(sc, autopilot=True)
+    ctrl = build_controller(sc, autopilot=True)  # its setpoints are for an autopilot: thrust along body z
     recording = _flight.Recording(sc, ctrl, out, views=write_run_views)
     aborted, node, result = None, None, None
     try:
-        node = spin(ctrl, build_scene(sc), duration_s, on_step=recording.hook, **names)
+        node = spin(ctrl, build_scene(sc), duration_s, on_step=recording.hook, topics=topics)
     except KeyboardInterrupt:
         aborted = "interrupted (Ctrl-C)"
         raise
     finally:
-        result = recording.finish(None, aborted, lost_at=getattr(ctrl, "lost_at", None))
+        result = recording.finish(None, aborted, lost_at=ctrl.lost_at)
     return node, result
 
 

@@ -665,39 +665,61 @@ def fly(
     source_origin: str = typer.Option("0,0,0", "--source-origin", help="where the source's local frame's origin lies in the "
                                       "scenario's world, x,y,z m ENU"),
 ):
-    """Fly the relay's controller on a MAVLink autopilot in OFFBOARD: wait for its heartbeat, stream setpoints,
-    arm only with --arm, ask for OFFBOARD, step the controller every period; hand back to a hold at the end,
-    on stale telemetry or on Ctrl-C. A network flies one autopilot per relay (--mavlink NAME=URL each)."""
+    """Fly the scenario's controller on MAVLink autopilots in OFFBOARD, one per relay (--mavlink NAME=URL each; one
+    relay: its URL alone): wait for their heartbeats, stream setpoints, arm only with --arm, ask for OFFBOARD, step
+    the controller every period; a vehicle on stale telemetry holds, then lands and leaves the network; hand back to a
+    hold at the end or on Ctrl-C."""
     sc = _load_or_exit(scenario)
     if setpoint not in ("position", "attitude"):
         _fail(f"--setpoint must be position or attitude, got {setpoint!r}")
     _check_duration(duration)
-    if sc.is_network:
-        _fly_fleet(sc, mavlink, arm=arm, setpoint=setpoint, duration=duration, out=out, source_mavlink=source_mavlink)
-        return
-    if len(mavlink) != 1 or "=" in mavlink[0].split(":", 1)[0]:
-        _fail("--mavlink: a scenario with one relay flies one autopilot: give its URL once, without a name")
-    url = mavlink[0]
-    _check_url(url, "--mavlink")
-    if source_mavlink and len(source_mavlink) > 1:
-        _fail("--source-mavlink: a scenario with one relay reads one source: give its URL once")
-    source_url = source_mavlink[0] if source_mavlink else None
-    _check_url(source_url, "--source-mavlink")
+    names = [r.name for r in sc.relay_list]
+    urls = _named_urls(mavlink, names, "--mavlink", "relay")
+    if set(urls) != set(names):
+        _fail(f"--mavlink: no vehicle for the relays {sorted(set(names) - set(urls))} (one NAME=URL per relay)")
+    sources = _named_urls(source_mavlink or [], [s.name for s in sc.source_list], "--source-mavlink", "source")
     try:
         origin = tuple(float(v) for v in source_origin.split(","))
     except ValueError:
         origin = ()
     if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
         _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
-    done = _flown(lambda: api.fly(sc, url, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=source_url,
-                                  source_system=source_system, source_origin=origin), out, "the vehicle was")
+    if (source_system is not None or origin != (0.0, 0.0, 0.0)) and len(sources) != 1:
+        _fail("--source-system / --source-origin: for one source read with --source-mavlink")
+    one_source = list(sources.values())[0] if len(sources) == 1 else sources
+    done = _flown(lambda: api.fly(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=one_source or None,
+                                  source_system=source_system, source_origin=origin), out, "the vehicles were")
     if done is None:
         return
     result, df = done
     flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
-    console.print(f"{len(flown)} control periods flown ({int((flown['mode'] == 'nmpc').sum()) if len(flown) else 0} by the NMPC)"
-                  + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
+    per = ", ".join(f"{n}: {int((flown['relay'] == n).sum()) if len(flown) else 0}" for n in names)
+    nmpc = int((flown["mode"] == "nmpc").sum()) if len(flown) else 0
+    console.print(f"control periods flown per relay ({per}; {nmpc} by the NMPC)" + (f"; run folder: {out}" if out else ""),
+                  markup=False, highlight=False)
+    if result is not None and result.metrics.get("lost_in_flight"):
+        console.print("left the network: " + ", ".join(f"{e['relay']} at {e['t_s']:.2f} s" for e in result.metrics["lost_in_flight"]),
+                      markup=False, highlight=False)
     _exit_if_unsafe(result)
+
+
+def _named_urls(given: list[str], names: list[str], option: str, what: str) -> dict[str, str]:
+    """``option``'s values by name: NAME=URL each, NAME one of ``names``; one plain URL is the one ``what``'s when there
+    is one. Exits 2 naming the option on anything else."""
+    out: dict[str, str] = {}
+    for value in given:
+        name, sep, url = value.partition("=")
+        if not sep or "://" in name or ":" in name:  # a plain URL (udpout:host:port) has no NAME=
+            if len(names) != 1 or len(given) != 1:
+                _fail(f"{option} {value!r}: the scenario has {what}s {', '.join(names)}: give one NAME=URL per {what}")
+            name, url = names[0], value
+        elif name not in names:
+            _fail(f"{option} {value!r}: NAME must be one of the scenario's {what}s: {', '.join(names)}")
+        if name in out:
+            _fail(f"{option}: {what} {name!r} given twice")
+        _check_url(url, f"{option} {name}=" if sep else option)
+        out[name] = url
+    return out
 
 
 def _flown(fly: Callable[[], tuple], out: Path | None, who: str) -> tuple | None:
@@ -712,41 +734,6 @@ def _flown(fly: Callable[[], tuple], out: Path | None, who: str) -> tuple | None
     return None
 
 
-def _fly_fleet(sc, mavlink: list[str], *, arm: bool, setpoint: str, duration: float | None, out: Path | None,
-               source_mavlink: list[str] | None) -> None:
-    """``fly`` on a network: one NAME=URL per relay."""
-    names = [r.name for r in sc.relay_list]
-    urls: dict[str, str] = {}
-    for given in mavlink:
-        name, sep, url = given.partition("=")
-        if not sep or name not in names:
-            _fail(f"--mavlink {given!r}: a network needs one NAME=URL per relay, NAME one of {', '.join(names)}")
-        if name in urls:
-            _fail(f"--mavlink: relay {name!r} given twice")
-        _check_url(url, f"--mavlink {name}=")
-        urls[name] = url
-    if set(urls) != set(names):
-        _fail(f"--mavlink: no vehicle for the relays {sorted(set(names) - set(urls))} (one NAME=URL per relay)")
-    sources: dict[str, str] = {}
-    for given in source_mavlink or []:
-        name, sep, url = given.partition("=")
-        if not sep:
-            _fail(f"--source-mavlink {given!r}: a network's sources are given as NAME=URL (the others fly their mission files)")
-        sources[name] = url
-    done = _flown(lambda: api.fly_fleet(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_urls=sources),
-                  out, "the vehicles were")
-    if done is None:
-        return
-    result, df = done
-    flown = df[~df["mode"].isin(["stream", "wait", "ended"])] if len(df) else df
-    per = ", ".join(f"{n}: {int((flown['relay'] == n).sum()) if len(flown) else 0}" for n in names)
-    console.print(f"control periods flown per relay ({per})" + (f"; run folder: {out}" if out else ""), markup=False, highlight=False)
-    if result is not None and result.metrics.get("lost_in_flight"):
-        console.print("left the network: " + ", ".join(f"{e['relay']} at {e['t_s']:.2f} s" for e in result.metrics["lost_in_flight"]),
-                      markup=False, highlight=False)
-    _exit_if_unsafe(result)
-
-
 def _exit_if_unsafe(result) -> None:
     """Exit 3 (as ``run`` does) when a flight's metrics say it was unsafe or ended early, naming why."""
     if result is not None and result.metrics.get("unsafe"):
@@ -757,26 +744,31 @@ def _exit_if_unsafe(result) -> None:
 @app.command()
 def ros(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
-    relay: str = typer.Option("relay", "--relay", help="the relay's topic namespace (/<relay>/odom, /<relay>/setpoint, /<relay>/link)"),
-    source: str = typer.Option("source", "--source", help="the source's topic namespace (/<source>/odom)"),
+    relay: str = typer.Option(None, "--relay", help="the one relay's topic namespace (/<relay>/odom, /<relay>/setpoint; "
+                              "default: its name in the scenario)", show_default=False),
+    source: str = typer.Option(None, "--source", help="the one source's topic namespace (/<source>/odom; default: its name)",
+                               show_default=False),
     duration: float = typer.Option(None, "--duration", help="stop after this many seconds (default: until Ctrl-C)", show_default=False),
     out: Path = typer.Option(None, "--out", help="write the flight's run folder here (timeseries.parquet, metrics.json, "
                              "figures, run.mcap)", show_default=False),
 ):
-    """Run the relay's controller as a ROS 2 node (the optional extra: pip install 'aerorelay[ros]'): subscribes
-    nav_msgs/Odometry of the relay and the source, publishes trajectory_msgs/MultiDOFJointTrajectory setpoints and
-    the link state every control period. A network ([[relays]]) is one node for the fleet: each relay and source
-    under its own name (/<relay>/odom, /<relay>/setpoint), the network's link on /network/link."""
+    """Run the scenario's controller as one ROS 2 node (the optional extra: pip install 'aerorelay[ros]'): subscribes
+    nav_msgs/Odometry of every relay and source, each under its name in the scenario (/<relay>/odom, /<source>/odom),
+    publishes trajectory_msgs/MultiDOFJointTrajectory setpoints per relay (/<relay>/setpoint) and the network's link
+    state (/network/link) every control period."""
     sc = _load_or_exit(scenario)
-    names: dict[str, str] = {}
+    relays, sources = [r.name for r in sc.relay_list], [s.name for s in sc.source_list]
+    topics: dict[str, str] = {}
     try:
-        if sc.is_network:
-            if (relay, source) != ("relay", "source"):
-                raise ValueError("--relay / --source: a network's topics are its relays' and sources' names in the scenario")
-            for n in (*(r.name for r in sc.relay_list), *(s.name for s in sc.source_list)):
-                check_ros_namespace(n, "a relay's or source's name")
-        else:
-            names = {"relay": check_ros_namespace(relay, "--relay"), "source": check_ros_namespace(source, "--source")}
+        for flag, given, names in (("--relay", relay, relays), ("--source", source, sources)):
+            if given is None:
+                continue
+            if len(names) != 1:
+                raise ValueError(f"{flag}: renames the scenario's one {flag[2:]}; its {flag[2:]}s ({', '.join(names)}) are "
+                                 "their topics' namespaces")
+            topics[names[0]] = check_ros_namespace(given, flag)
+        for n in (*relays, *sources):
+            check_ros_namespace(topics.get(n, n), "a relay's or source's name")
     except ValueError as exc:
         _fail(str(exc))
     _check_duration(duration)
@@ -784,14 +776,11 @@ def ros(
         from .flight import ros_node  # the optional extra: imported only here
     except ImportError as exc:
         _fail(f"the ROS 2 node needs the ros extra (pip install 'aerorelay[ros]'): {exc}")
-    if sc.is_network:
-        ends = ", ".join(f"/{r.name}/odom -> /{r.name}/setpoint" for r in sc.relay_list)
-        console.print(f"ROS 2 fleet node: {ends}; sources " + ", ".join(f"/{s.name}/odom" for s in sc.source_list)
-                      + "; /network/link", markup=False, highlight=False)
-    else:
-        console.print(f"ROS 2 node: /{relay}/odom + /{source}/odom -> /{relay}/setpoint, /{relay}/link", markup=False, highlight=False)
+    ends = ", ".join(f"/{topics.get(r, r)}/odom -> /{topics.get(r, r)}/setpoint" for r in relays)
+    console.print(f"ROS 2 node: {ends}; sources " + ", ".join(f"/{topics.get(s, s)}/odom" for s in sources) + "; /network/link",
+                  markup=False, highlight=False)
     try:
-        node, result = api.ros(sc, ros_node.spin, duration, out=out, **names)
+        node, result = api.ros(sc, ros_node.spin, duration, out=out, topics=topics)
     except OutputError as exc:
         _fail(str(exc))
     except KeyboardInterrupt:

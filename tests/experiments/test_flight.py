@@ -13,9 +13,9 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.assembly.parts import build_scene
+from aerorelay.control.relay_step import SourceState
 from aerorelay.experiments import flight
 from aerorelay.flight.airframes import PointMass, RotorpyQuadrotor
-from aerorelay.flight.stepper import SourceState
 from aerorelay.models.geometry import rotation_batch
 from aerorelay.sim.log_schema import log_columns
 from tests.reference_channel import end_to_end_capacity, link_sinr
@@ -26,7 +26,7 @@ HUMMINGBIRD = ar.load_scenario("scenarios/rotorpy_hummingbird.toml")
 
 @pytest.fixture(scope="module")
 def point_mass_flight():
-    return flight.fly_lockstep(NOMINAL, PointMass(NOMINAL.nodes.relay), duration_s=4.0)
+    return flight.fly_lockstep(NOMINAL, {"relay": PointMass(NOMINAL.nodes.relay)}, duration_s=4.0)
 
 
 def test_lockstep_flight_logs_every_period_in_offboard(point_mass_flight):
@@ -69,25 +69,25 @@ def test_rotorpy_quadrotor_flies_the_capacity_relay_through_the_bridge(setpoint,
     """Measured on these 4 s (2026-12-04, RotorPy 3.0.0; the start's transient included, so above the
     47 s means of docs/results/flying.md): the tracking error within 50% of it."""
     sc = HUMMINGBIRD
-    result, _ = flight.fly_lockstep(sc, RotorpyQuadrotor(sc.nodes.relay), setpoint=setpoint, duration_s=4.0)
+    result, _ = flight.fly_lockstep(sc, {"relay": RotorpyQuadrotor(sc.nodes.relay)}, setpoint=setpoint, duration_s=4.0)
     m = result.metrics
     assert not m["unsafe"] and m["fallback_fraction"] == 0 and m["position_error_mean_m"] < 1.5 * measured_m, m
 
 
 def _stepped(sc, steps: int):
     """A recorder fed by stepping the controller by hand at hover, then one stale step (a hold)."""
-    stepper = ar.controller(sc)
-    rec, hook = flight.recorder(sc, stepper)
-    x = stepper.vehicle.hover_state(sc.nodes.relay)
+    one = ar.controller(sc)
+    rec, hook = flight.recorder(sc, one.network)
+    x = one.vehicle.hover_state(sc.nodes.relay)
     src = SourceState(np.array(sc.mission.waypoints[0][1:4]), np.zeros(3), np.zeros(3))
-    T = stepper.period
+    T = one.period
     for k in range(steps):
-        cmd = stepper.step(k * T, x, src)
-        hook(k * T, x, cmd, src, 0.0)
+        cmd = one.step(k * T, x, src)
+        hook(k * T, {"relay": x}, {"relay": cmd}, {"source": src}, 0.0)
     t = steps * T + 0.2
-    cmd = stepper.step(t, None, SourceState(src.p, src.v, src.a, stamp=t))
-    hook(t, x, cmd, src, 0.2)
-    return stepper, rec
+    cmd = one.step(t, None, SourceState(src.p, src.v, src.a, stamp=t))
+    hook(t, {"relay": x}, {"relay": cmd}, {"source": src}, 0.2)
+    return one.network, rec
 
 
 def test_the_failsafe_rows_carry_its_target_and_no_rotor_rates():
@@ -111,7 +111,7 @@ def test_a_flight_whose_metrics_fail_keeps_its_logs(tmp_path, monkeypatch):
 
 
 def test_a_flight_that_never_reached_offboard_keeps_the_bridge_log(tmp_path):
-    rec = flight.recorder(NOMINAL, ar.controller(NOMINAL))[0]
+    rec = flight.recorder(NOMINAL, ar.controller(NOMINAL).network)[0]
     flight.save_raw(tmp_path / "run", pd.DataFrame({"t": [0.0], "mode": ["stream"]}), rec)
     assert {p.name for p in (tmp_path / "run").iterdir()} >= {"flight.parquet"}
     with pytest.raises(ValueError, match="no control period was flown in OFFBOARD"):
@@ -123,8 +123,8 @@ def test_position_setpoints_fly_without_the_wind_observer_attitude_setpoints_wit
     (beside an autopilot's position loop the observer lost RotorPy's quadrotor, docs/decisions.md:
     that loss is a measurement, not what this test checks)."""
     sc = NOMINAL.with_updates({"wind": {"mean_m_s": [3.0, 0.0, 0.0]}})
-    position, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="position", duration_s=1.5)
-    attitude, _ = flight.fly_lockstep(sc, PointMass(sc.nodes.relay), setpoint="attitude", duration_s=1.5)
+    position, _ = flight.fly_lockstep(sc, {"relay": PointMass(sc.nodes.relay)}, setpoint="position", duration_s=1.5)
+    attitude, _ = flight.fly_lockstep(sc, {"relay": PointMass(sc.nodes.relay)}, setpoint="attitude", duration_s=1.5)
     assert "relay.a_ext_x" not in position.timeseries and "relay.a_ext_x" in attitude.timeseries
     assert ar.controller(sc, observer=False).observer is None and ar.controller(sc).observer is not None
 
@@ -134,4 +134,4 @@ def test_estimated_jammers_are_refused_by_the_bridge_before_any_vehicle_is_conta
     with pytest.raises(ar.ScenarioError, match="no radio hands the MAVLink bridge"):
         ar.api.fly(sc, "udpout:127.0.0.1:9")
     with pytest.raises(ar.ScenarioError, match="no radio hands the MAVLink bridge"):
-        flight.fly_lockstep(sc, PointMass(sc.nodes.relay))
+        flight.fly_lockstep(sc, {"relay": PointMass(sc.nodes.relay)})

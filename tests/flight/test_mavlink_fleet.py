@@ -1,4 +1,4 @@
-"""A relay network through MAVLink (``flight.mavlink_fleet.FleetBridge``): the two-relay chain flown in lockstep
+"""A relay network through MAVLink (``flight.mavlink_bridge.OffboardBridge``, one vehicle per relay): the two-relay chain flown in lockstep
 over two in-repo vehicles (each its own UDP link and system id) with our plant's airframe keeps the rate
 ``ar.simulate`` flies on the same chain; one vehicle's telemetry lost for 1 s holds it and it takes OFFBOARD
 back; lost for 4 s it holds, lands and leaves the network, the other relay re-plans alone, and the run names

@@ -8,33 +8,46 @@ import numpy as np
 import pytest
 
 import aerorelay as ar
+from aerorelay.assembly import world
 from aerorelay.assembly.parts import build
-from aerorelay.flight.network_controller import NetworkStepper
+from aerorelay.control.network import Controller
 from aerorelay.models.geometry import rotation_zyx
 from aerorelay.sim.closed_loop import step_count
 
 
 def _fly_stepped(sc):
+    """``ar.controller(sc)`` stepped over the plant ``ar.simulate`` flies (in ``[wind]``, the same wind series)."""
     ctrl = ar.controller(sc)
-    assert isinstance(ctrl, NetworkStepper) and ctrl.relays == [r.name for r in sc.relay_list]
+    assert isinstance(ctrl, Controller) and ctrl.relays == [r.name for r in sc.relay_list]
     parts = build(sc)  # the plant and the sources' paths ar.simulate flies
     x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
     plants = {r.name: r.plant for r in parts.relays}
+    air = world.air(sc, {r.name: (r.vehicle, sc.platform_of(i)) for i, r in enumerate(parts.relays)})
     states, inputs = [], []
     for k in range(step_count(sc.duration_s, sc.control_period_s)):
         t = k * sc.control_period_s
         sources = {name: ar.SourceState(s.p, s.v, s.a) for name, path in parts.sources.items() for s in [path.state(t)]}
+        if air is not None:
+            air.begin()
         cmds = ctrl.step(t, x, sources)
         assert set(cmds) == set(x) and all(c.mode in ("nmpc", "fallback") for c in cmds.values())
         states.append({n: xs.copy() for n, xs in x.items()})
         inputs.append({n: c.omega_dot_hz_s for n, c in cmds.items()})
-        x = {n: np.asarray(plants[n](x[n], cmds[n].omega_dot_hz_s, np.zeros(6))).ravel() for n in x}
+        x = {n: air.advance(n, x[n], cmds[n].omega_dot_hz_s, np.zeros(6)) if air is not None else
+             np.asarray(plants[n](x[n], cmds[n].omega_dot_hz_s, np.zeros(6))).ravel() for n in x}
     return states, inputs
 
 
-@pytest.mark.parametrize("preset", ["chain_two_relays", "two_sources"])
-def test_stepping_a_fleet_reproduces_simulate_bit_for_bit(preset):
-    sc = ar.load_scenario(f"scenarios/{preset}.toml", set={"sim.duration_s": 0.6})
+GUSTS = {"wind": {"mean_m_s": [6.0, 0.0, 0.0], "gusts": True}}
+
+
+@pytest.mark.parametrize("preset, updates", [("chain_two_relays", {}), ("two_sources", {}), ("chain_two_relays", GUSTS)],
+                         ids=["chain", "two-sources", "chain-in-gusts"])
+def test_stepping_a_fleet_reproduces_simulate_bit_for_bit(preset, updates):
+    """In gusty wind each relay's external-force observer is the controller's own, as ar.simulate gives every relay."""
+    sc = ar.load_scenario(f"scenarios/{preset}.toml", set={"sim.duration_s": 0.6}).with_updates(updates)
+    if updates:
+        assert all(ar.controller(sc).relay(r.name).stepper.observer is not None for r in sc.relay_list)
     log = ar.simulate(sc).timeseries
     states, inputs = _fly_stepped(sc)
     for r in sc.relay_list:
@@ -50,7 +63,7 @@ def test_a_fleets_step_needs_every_relay_and_source_and_says_which():
     parts = build(sc)
     x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
     s = parts.sources["inspector"].state(0.0)
-    with pytest.raises(ValueError, match=r"no state for \['r2'\]"):
+    with pytest.raises(ValueError, match=r"no trusted state for \['r2'\]"):
         ctrl.step(0.0, {"r1": x["r1"]}, {"inspector": ar.SourceState(s.p, s.v, s.a)})
     with pytest.raises(ValueError, match=r"relay_states\['r1'\] must be"):
         ctrl.step(0.0, {**x, "r1": x["r1"][:5]}, {"inspector": ar.SourceState(s.p, s.v, s.a)})

@@ -41,7 +41,7 @@ def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
     probe = Node("aerorelay_test_probe")
     setpoints, links = [], []
     probe.create_subscription(MultiDOFJointTrajectory, "/relay/setpoint", setpoints.append, 10)
-    probe.create_subscription(Float64MultiArray, "/relay/link", links.append, 10)
+    probe.create_subscription(Float64MultiArray, "/network/link", links.append, 10)
     relay_pub = probe.create_publisher(Odometry, "/relay/odom", 10)
     source_pub = probe.create_publisher(Odometry, "/source/odom", 10)
 
@@ -58,10 +58,13 @@ def test_the_node_answers_odometry_with_setpoints_and_the_link(tmp_path):
         assert np.linalg.norm(p - np.array(sc.nodes.relay)) < 0.5  # one period ahead of a relay held at its start
         assert abs(np.linalg.norm([q.w, q.x, q.y, q.z]) - 1) < 1e-9
         assert setpoints[-1].joint_names == ["relay"]
-        # capacity and the two hops' SINR at the held poses: the spec's sanity geometry, from the link budget
+        # capacity (the network's and its one route's) and the two hops' SINR at the held poses: the spec's sanity
+        # geometry, from the link budget
         budget = ar.link_budget(sc)
-        np.testing.assert_allclose(links[-1].data, [budget["capacity"], budget["gamma_21"], budget["gamma_10"]], rtol=1e-9)
-        np.testing.assert_allclose(links[-1].data, [0.0129, 0.0649, 0.0105], atol=5e-4)  # SPEC.md's values
+        want = [budget["capacity"], budget["capacity"], budget["gamma_21"], budget["gamma_10"]]
+        np.testing.assert_allclose(links[-1].data, want, rtol=1e-9)
+        np.testing.assert_allclose(links[-1].data, [0.0129, 0.0129, 0.0649, 0.0105], atol=5e-4)  # SPEC.md's values
+        assert links[-1].layout.dim[0].label == "capacity,capacity.source,sinr.source.relay,sinr.relay.bs"
     finally:
         probe.destroy_node()
         rclpy.shutdown()

@@ -46,7 +46,8 @@ def test_the_second_system_is_read_in_enu_shifted_by_its_origin():
 
 
 def test_the_relay_flies_on_the_second_systems_reports():
-    result, log = fly_lockstep(SC, PointMass(SC.nodes.relay), duration_s=3.0, source_airframe=MissionFlyer(build_source(SC)))
+    result, log = fly_lockstep(SC, {"relay": PointMass(SC.nodes.relay)}, duration_s=3.0,
+                               source_airframes={"source": MissionFlyer(build_source(SC))})
     df = result.timeseries
     assert (df["flight_mode"] == "nmpc").all() and not result.metrics["unsafe"]
     t0 = log.loc[log["mode"] != "stream", "t"].iloc[0]  # the bridge time OFFBOARD began: the mission's clock is 0 there
@@ -57,15 +58,16 @@ def test_the_relay_flies_on_the_second_systems_reports():
 
 
 def test_a_silent_source_makes_the_relay_hold_within_one_period():
-    ctrl = ar.controller(SC)
+    ctrl = ar.controller(SC).network
     port, source_port = free_udp_port(), free_udp_port()
     relay = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T), airframe=PointMass(SC.nodes.relay))
     source_vehicle = _source_vehicle(source_port)
-    bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", ctrl, MavlinkSource(f"udpout:127.0.0.1:{source_port}", system=2),
-                            ctrl.vehicle.hover_speeds(), arm=True)
+    bridge = OffboardBridge({"relay": f"udpout:127.0.0.1:{port}"}, ctrl,
+                            {"source": MavlinkSource(f"udpout:127.0.0.1:{source_port}", system=2)}, arm=True)
+    link = bridge.links["relay"]
     t = 0.0
-    while not bridge.heard_vehicle():
-        bridge.announce()
+    while not link.heard_vehicle():
+        link.announce()
         relay.step(T)
         source_vehicle.step(T)
         t += T
@@ -75,13 +77,13 @@ def test_a_silent_source_makes_the_relay_hold_within_one_period():
         if k * T < 3.0:  # the source reports for 3 s, then goes silent
             source_vehicle.step(T)
             last_report = t
-        cmd = bridge.tick(t)
-        modes.append((t, None if cmd is None else cmd.mode))
+        cmds = bridge.tick(t)
+        modes.append((t, None if cmds is None else cmds["relay"].mode))
         t += T
     assert [m for _, m in modes if m is not None][0] == "nmpc"
     held_at = next(tt for tt, m in modes if m == "hold")
     # stale once older than hold_after_s; held at the first period after that, and from then on
     assert held_at - last_report <= ctrl.stale.hold_after_s + T + 1e-9
     assert all(m == "hold" for tt, m in modes if tt >= held_at)
-    for link in (bridge.link, bridge.source.link, relay.link, source_vehicle.link):
-        link.close()
+    for each in (link.link, bridge.sources["source"].link, relay.link, source_vehicle.link):
+        each.close()

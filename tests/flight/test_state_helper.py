@@ -28,18 +28,19 @@ def _source(sc, t):
 
 
 def test_the_autopilot_loop_steps_from_what_an_autopilot_reports(sc):
-    loop = ar.AutopilotLoop(ar.controller(sc, autopilot=True))
-    p, T = np.array(sc.nodes.relay), loop.stepper.period
-    assert loop.tick(0.0, None, _source(sc, 0.0)) is None and loop.waiting == "no relay state"
-    cmds = [loop.tick(k * T, ar.Measured(p, np.eye(3), np.zeros(3), np.zeros(3), k * T), _source(sc, k * T)) for k in range(5)]
+    loop = ar.AutopilotLoop(ar.controller(sc, autopilot=True).network)
+    p, T = np.array(sc.nodes.relay), loop.period
+    assert loop.tick(0.0, {"relay": None}, {"source": _source(sc, 0.0)}) is None and loop.waiting == "relay: no relay state"
+    cmds = [loop.tick(k * T, {"relay": ar.Measured(p, np.eye(3), np.zeros(3), np.zeros(3), k * T)},
+                      {"source": _source(sc, k * T)})["relay"] for k in range(5)]
     assert all(c.mode == "nmpc" for c in cmds)
-    np.testing.assert_allclose(loop.commanded.speeds, cmds[-1].rotor_speeds_hz)  # the speeds last commanded: the next state's
+    np.testing.assert_allclose(loop.commanded["relay"].speeds, cmds[-1].rotor_speeds_hz)  # the speeds last commanded
 
 
 def test_a_state_that_cannot_be_flown_is_named_once(sc, caplog):
     ctrl = ar.controller(sc)
     x = ctrl.vehicle.hover_state(sc.nodes.relay)
-    caplog.set_level(logging.WARNING, logger="aerorelay.flight.stepper")
+    caplog.set_level(logging.WARNING, logger="aerorelay.control.relay_step")
     T = ctrl.period
     for k in range(8):  # the attitude turning at 1 rad/s, the body rates read zero (a simulator without them)
         x = x.copy()
@@ -60,7 +61,7 @@ def test_a_state_that_cannot_be_flown_is_named_once(sc, caplog):
 
 def test_a_consistent_state_says_nothing(sc, caplog):
     ctrl = ar.controller(sc)
-    caplog.set_level(logging.WARNING, logger="aerorelay.flight.stepper")
+    caplog.set_level(logging.WARNING, logger="aerorelay.control.relay_step")
     x = ctrl.vehicle.hover_state(sc.nodes.relay)
     x[3:6] = [0.05, 0.0, 0.0]
     x[9:12] = [0.0, 0.0, 0.0]

@@ -105,14 +105,51 @@ def test_the_command_is_the_model_one_period_ahead(stepped):
     assert cmd.deadline_met == (cmd.compute_ms <= sc.control_period_s * 1e3)
 
 
-def test_a_fleet_steps_as_a_network_and_what_it_does_not_take_yet_is_named():
-    """``ar.controller`` on a fleet is its network's step API (tests/flight/test_network_stepper.py), with its
-    jammers estimated from readings when the scenario says so."""
-    from aerorelay.flight.network_controller import NetworkStepper
+def test_a_networks_controller_honours_autopilot_stale_and_observer():
+    """``ar.controller`` on a fleet is the same controller as on one relay (``control.network.Controller``; one relay
+    and one source through the ``OneRelay`` adapter): ``autopilot``, ``stale`` and ``observer`` reach every relay
+    (each was dropped for a network before), and jammers are estimated from readings when the scenario says so."""
+    from aerorelay.control.network import Controller, OneRelay
 
-    assert isinstance(ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml")), NetworkStepper)
+    chain = ar.load_scenario("scenarios/chain_two_relays.toml", set={"wind.mean_m_s": [3.0, 0.0, 0.0]})
+    stale = ar.StaleSettings(hold_after_s=0.2, land_after_s=9.0)
+    ctrl = ar.controller(chain, autopilot=True, stale=stale)
+    assert isinstance(ctrl, Controller) and ctrl.stale == stale
+    for i, r in enumerate(chain.relay_list):
+        part = ctrl.relay(r.name).stepper
+        assert part.stale == stale and part.observer is not None  # [wind] gives every relay its observer
+        assert np.allclose(part.vehicle.axes, [0.0, 0.0, 1.0])  # an autopilot's thrust along body z
+        assert not np.allclose(ar.controller(chain).relay(r.name).vehicle.axes, [0.0, 0.0, 1.0]) or \
+            chain.platform_of(i).tilt_deg == 0
+    assert all(ar.controller(chain, observer=False).relay(n).stepper.observer is None for n in ctrl.relays)
+    one = ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml"), stale=stale)
+    assert isinstance(one, OneRelay) and one.network.stale == stale
     estimating = ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml", set={"jammer.localization": "estimated"}))
-    assert isinstance(estimating, NetworkStepper) and estimating.estimated is not None
+    assert isinstance(estimating, Controller) and estimating.estimated is not None
+
+
+def test_a_networks_relay_with_bad_telemetry_is_held_by_name_and_the_others_fly():
+    """One relay's 1 km telemetry jump or NaN state is not trusted: that relay holds where it last was and its command
+    says why, the other relay's NMPC flies on (before, the network took the jump as its state and commanded 1 km out
+    of the workspace, and a NaN raised for the whole fleet); a NaN source holds every relay, naming it."""
+    sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 1.0})
+    ctrl, parts = ar.controller(sc), build(sc)
+    x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}
+    T = sc.control_period_s
+    s = parts.sources["inspector"].state(0.0)
+    src = {"inspector": ar.SourceState(s.p, s.v, s.a)}
+    ctrl.step(0.0, x, src)
+    jumped = {**x, "r2": x["r2"] + np.r_[1000.0, np.zeros(x["r2"].size - 1)]}
+    cmds = ctrl.step(T, jumped, src)
+    assert cmds["r2"].mode == "hold" and "jumped" in cmds["r2"].rejected
+    assert np.array_equal(cmds["r2"].position_m, x["r2"][0:3])
+    assert cmds["r1"].mode in ("nmpc", "fallback") and cmds["r1"].rejected is None
+    nan = {**x, "r2": np.full_like(x["r2"], np.nan)}
+    cmds = ctrl.step(2 * T, nan, src)
+    assert cmds["r2"].mode == "hold" and "not finite" in cmds["r2"].rejected and cmds["r1"].mode in ("nmpc", "fallback")
+    bad_source = {"inspector": ar.SourceState(np.full(3, np.nan), s.v, s.a)}
+    cmds = ctrl.step(3 * T, x, bad_source)
+    assert all(c.mode == "hold" and "source inspector: source not finite" in c.rejected for c in cmds.values())
 
 
 ESTIMATING = {"sim.duration_s": 5.0, "jammer.localization": "estimated", "jammer.inr_db_at_relay_start": 10.0,

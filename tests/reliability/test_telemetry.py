@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 import aerorelay as ar
 from aerorelay.assembly.parts import build_source
 from aerorelay.cli import app
+from aerorelay.control.relay_step import SourceState
 from aerorelay.experiments.flight import free_udp_port
 from aerorelay.flight.autopilot_loop import AccelerationFilter, rotation_from_quaternion
 from aerorelay.flight.frames import enu_to_ned
@@ -24,7 +25,6 @@ from aerorelay.flight.mavlink import MavlinkUrlError, check_url
 from aerorelay.flight.mavlink_bridge import OffboardBridge
 from aerorelay.flight.mavlink_vehicle import MavlinkVehicle
 from aerorelay.flight.names import check_ros_namespace
-from aerorelay.flight.stepper import SourceState
 
 runner = CliRunner()
 SCENARIO = "scenarios/nominal_tilted.toml"
@@ -37,15 +37,16 @@ def sc():
 
 def _flying(sc):
     """A bridge flying the in-repo vehicle in OFFBOARD (lockstep), and a spoofer on the bridge's socket."""
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).network  # the one controller; one relay is a network of one
     port = free_udp_port()
     vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", position=sc.nodes.relay)
-    bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", ctrl, build_source(sc), ctrl.vehicle.hover_speeds(), arm=True)
+    bridge = OffboardBridge({"relay": f"udpout:127.0.0.1:{port}"}, ctrl, {"source": build_source(sc)}, arm=True)
+    link = bridge.links["relay"]
     T = ctrl.period
     for _ in range(5):
-        bridge.announce()
+        link.announce()
         vehicle.step(T)
-        if bridge.heard_vehicle(0.05):
+        if link.heard_vehicle(0.05):
             break
     t = 0.0
     for _ in range(int(2.5 / T)):
@@ -53,7 +54,7 @@ def _flying(sc):
         bridge.tick(t)
         t += T
     assert vehicle.mode == "OFFBOARD"
-    bridge_port = bridge.link.port.getsockname()[1]
+    bridge_port = link.link.port.getsockname()[1]
 
     def spoofer(system: int, component: int = 1):
         return mavutil.mavlink_connection(f"udpout:127.0.0.1:{bridge_port}", source_system=system, source_component=component,
@@ -83,8 +84,9 @@ def test_telemetry_from_another_system_is_ignored(sc):
     for _ in range(20):
         other.mav.local_position_ned_send(0, *enu_to_ned([500.0, 0.0, 10.0]), 0.0, 0.0, 0.0)
         t = _fly(vehicle, bridge, T, t, T)
-    assert bridge.state.foreign >= 20
-    assert np.linalg.norm(bridge.state.position - vehicle.p) < 1e-3  # the vehicle's own position, not the stranger's
+    state = bridge.links["relay"].state
+    assert state.foreign >= 20
+    assert np.linalg.norm(state.position - vehicle.p) < 1e-3  # the vehicle's own position, not the stranger's
     assert all(r["mode"] == "nmpc" for r in bridge.log[-20:]) and vehicle.mode == "OFFBOARD"
     assert _inside(sc, vehicle.target["p"])
 
@@ -110,7 +112,7 @@ def test_bad_telemetry_is_held_named_and_offboard_comes_back(sc, bad):
     reason = "not finite" if bad == "nan" else "jumped"
     assert reason in rows[0]["rejected"]
     t = _fly(vehicle, bridge, T, t, 4.0, trace)  # good telemetry again: back to OFFBOARD (streamed 1 s first)
-    assert vehicle.mode == "OFFBOARD" and bridge.phase == "offboard" and bridge.log[-1]["mode"] == "nmpc"
+    assert vehicle.mode == "OFFBOARD" and bridge.phase["relay"] == "offboard" and bridge.log[-1]["mode"] == "nmpc"
     assert bridge.ended is None
     for mode, vmode, target in trace:  # every setpoint finite and in the workspace; no NMPC period while it held
         assert np.all(np.isfinite(target["p"])) and _inside(sc, target["p"])
@@ -124,7 +126,7 @@ def test_garbage_datagrams_do_not_end_the_flight(sc):
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rng = np.random.default_rng(3)
     for _ in range(30):
-        sock.sendto(rng.bytes(int(rng.integers(1, 300))), ("127.0.0.1", bridge.link.port.getsockname()[1]))
+        sock.sendto(rng.bytes(int(rng.integers(1, 300))), ("127.0.0.1", bridge.links["relay"].link.port.getsockname()[1]))
         t = _fly(vehicle, bridge, T, t, T)
     sock.close()
     assert vehicle.mode == "OFFBOARD" and all(r["mode"] == "nmpc" for r in bridge.log[-30:])
@@ -140,7 +142,7 @@ def test_a_vehicle_taken_out_of_offboard_ends_the_flight(sc):
     trace = []
     t = _fly(vehicle, bridge, T, t, 1.0, trace)
     assert vehicle.mode == "POSCTL"
-    assert bridge.phase == "ended" and "left OFFBOARD for POSCTL" in bridge.ended
+    assert bridge.phase["relay"] == "ended" and "left OFFBOARD for POSCTL" in bridge.ended
     assert all(mode != "nmpc" or vmode == "OFFBOARD" for mode, vmode, _ in trace)
     assert bridge.log[-1]["mode"] == "ended"
 
@@ -150,7 +152,7 @@ def test_telemetry_stale_for_longer_than_land_after_lands_and_ends(sc):
     for _ in range(int((ctrl.stale.land_after_s + 0.5) / T)):  # the vehicle falls silent (not stepped)
         bridge.tick(t)
         t += T
-    assert bridge.phase == "ended" and "asked to land" in bridge.ended
+    assert bridge.phase["relay"] == "ended" and "asked to land" in bridge.ended
     vehicle.step(T)
     assert vehicle.mode == "LAND"
     z0 = vehicle.p[2]
@@ -211,7 +213,7 @@ def test_step_names_wrong_shapes_and_a_clock_going_backwards(stepped):
     t = t + 2.0
     with pytest.raises(ValueError, match=r"source\.v must be three numbers"):
         ctrl.step(t, x, _source(src, t, v=np.zeros(2)))
-    with pytest.raises(ValueError, match="relay_state must have"):
+    with pytest.raises(ValueError, match=r"relay_states\['relay'\] must be 18 numbers"):
         ctrl.step(t, x[:5], _source(src, t))
     ctrl.step(t, x, _source(src, t))
     with pytest.raises(ValueError, match="clock went backwards"):
@@ -295,7 +297,7 @@ def test_fly_exits_3_on_an_unsafe_flight(monkeypatch):
     class Flown:
         metrics = {"unsafe": True, "unsafe_reason": "left the workspace by 490.00 m"}
 
-    monkeypatch.setattr(api, "fly", lambda *a, **k: (Flown(), pd.DataFrame({"mode": ["nmpc"]})))
+    monkeypatch.setattr(api, "fly", lambda *a, **k: (Flown(), pd.DataFrame({"mode": ["nmpc"], "relay": ["relay"]})))
     r = runner.invoke(app, ["fly", SCENARIO, "--mavlink", "udpout:127.0.0.1:14999"])
     assert r.exit_code == 3 and "left the workspace by 490.00 m" in r.output
 

@@ -27,7 +27,7 @@ from aerorelay.flight.ros_node import RelayNode  # noqa: E402
 def node():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml")
     rclpy.init(domain_id=int(os.environ.get("AERORELAY_TEST_ROS_DOMAIN", "201")))
-    n = RelayNode(ar.controller(sc, autopilot=True), build_scene(sc), relay="relay_t", source="source_t")
+    n = RelayNode(ar.controller(sc, autopilot=True).network, build_scene(sc), topics={"relay": "relay_t", "source": "source_t"})
     n.timer.cancel()  # the test ticks it
     yield sc, n
     n.destroy_node()
@@ -47,7 +47,7 @@ def _tick(n, relay, source):
     n.odom["relay"], n.odom["source"] = relay, source
     k = len(n.commands)
     n.tick()
-    return n.commands[-1] if len(n.commands) > k else None
+    return n.commands[-1]["relay"] if len(n.commands) > k else None
 
 
 def test_bad_odometry_is_held_and_named_and_good_odometry_flies_again(node):
@@ -61,7 +61,7 @@ def test_bad_odometry_is_held_and_named_and_good_odometry_flies_again(node):
     ahead = n.get_clock().now().nanoseconds * 1e-9 + 5.0
     cmd = _tick(n, _odom(n, p1, stamp=ahead), _odom(n, p2))
     assert cmd.mode == "hold" and "ahead of the clock" in cmd.rejected
-    assert all(np.all(np.isfinite(c.position_m)) for c in n.commands)
+    assert all(np.all(np.isfinite(c.position_m)) for cmds in n.commands for c in cmds.values())
     assert len(n.rejected) == 3
     assert _tick(n, _odom(n, p1), _odom(n, p2)).mode in ("nmpc", "fallback")
 

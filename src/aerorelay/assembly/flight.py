@@ -4,13 +4,15 @@ and, with ``[wind]``, its own external-force observer."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..config import Scenario, ScenarioError
+from ..control.network import Controller, NetworkController
 from ..control.nmpc import NmpcSettings
-from ..flight.network_controller import NetworkController, NetworkStepper
-from ..flight.readings import JammersFromReadings
-from ..flight.stepper import RelayStepper, StaleSettings
+from ..control.readings import JammersFromReadings
+from ..control.relay_step import RelayStep, StaleSettings
 from ..models.radio import RadioScene
 from ..sim.closed_loop import known_jammers
 from . import world
@@ -51,40 +53,30 @@ def _untilted(p) -> dict:
     return table
 
 
-def network_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None) -> NetworkStepper:
-    """The step API of a network (``ar.controller`` on more than one relay and one source): its planner and every
-    relay's NMPC as ``ar.simulate`` flies them, the jammers as the network was told them, or estimated from the
-    readings ``step`` is handed (``jammer.localization = "estimated"``: every relay's receiver, the base station's
-    with ``estimation.use_bs``). Spares (``standby``) are a simulation's: a named error here (the vehicles outside fly
+def build_controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
+                     observer: bool = True, autopilot: bool = False) -> Controller:
+    """The controller of any network stepped from outside (``ar.controller``): its planner and every relay's NMPC as
+    ``ar.simulate`` flies them, the jammers as the network was told them, or estimated from the readings ``step`` is
+    handed (``jammer.localization = "estimated"``: every relay's receiver, the base station's with
+    ``estimation.use_bs``). Every relay gets ``stale`` (default: hold after 0.05 s, land after 3 s, on the world's
+    ground) and, with ``[wind]`` and ``observer``, its own external-force observer (``observer=False``: none, for an
+    autopilot's position loop); ``autopilot``: every relay's NMPC models the vehicle an autopilot flies
+    (``thrust_along_body_z``). Spares (``standby``) are a simulation's: a named error here (the vehicles outside fly
     what they are told; launching and landing a spare is their operator's)."""
     if sc.standby_names:
         i = next(i for i, r in enumerate(sc.relay_list) if r.standby)
         raise ScenarioError(f"relays[{i}].standby: spare relays take over in ar.simulate / aerorelay run; flying a fleet "
                             "from outside (ar.controller, aerorelay fly, ROS 2) does not launch them: leave the spare out")
-    parts = build(sc, nmpc_settings=nmpc_settings)
-    control = NetworkController(scene=parts.scene, relays=parts.relays, planner=parts.planner, period_s=sc.control_period_s,
+    flown = thrust_along_body_z(sc) if autopilot else sc
+    parts = build(flown, nmpc_settings=nmpc_settings)
+    stale = stale or StaleSettings(ground_z_m=sc.world.ground_z_m)
+    relays = [replace(r, stepper=RelayStep(vehicle=r.vehicle, controller=r.controller, period_s=sc.control_period_s, stale=stale,
+                                           observer=world.observer(flown, r.vehicle) if observer else None))
+              for r in parts.relays]
+    control = NetworkController(scene=parts.scene, relays=relays, planner=parts.planner, period_s=sc.control_period_s,
                                 separation_m=parts.separation_m, replanner=parts.replanner)
     senses = sc.controller.senses_jammer_state
     if parts.sensing is not None:  # estimated from the readings step() is handed, by every relay's receiver
         estimated = JammersFromReadings(parts.scene, parts.sensing.estimator, parts.sensing.receivers, senses)
-        return NetworkStepper(control, estimated.view, estimated)
-    return NetworkStepper(control, oracle_jammers(parts.scene, senses))
-
-
-def build_stepper(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
-                  observer: bool = True, autopilot: bool = False) -> RelayStepper:
-    """The stepper of one relay's scenario (``observer=False``: without ``[wind]``'s external-force
-    observer; with ``jammer.localization = "estimated"`` the jammers come from the readings ``step`` is
-    handed; ``autopilot``: its NMPC models the vehicle an autopilot flies, ``thrust_along_body_z``); a network is
-    ``network_stepper``'s (a named error here: the bridges fly one relay)."""
-    if sc.is_network:
-        raise ScenarioError("relays: a MAVLink or ROS 2 bridge flies one relay so far; a network is stepped from Python by "
-                            "ar.controller (docs/guide/flying.md)")
-    parts = build(thrust_along_body_z(sc) if autopilot else sc, nmpc_settings=nmpc_settings)
-    senses = sc.controller.senses_jammer_state
-    estimated = None if parts.sensing is None else JammersFromReadings(parts.scene, parts.sensing.estimator,
-                                                                       parts.sensing.receivers, senses)
-    return RelayStepper(vehicle=parts.vehicle, planner=parts.relay_planner, controller=parts.controller, estimated=estimated,
-                        period_s=sc.control_period_s, jammers=estimated.view if estimated else oracle_jammers(parts.scene, senses),
-                        observer=world.observer(sc, parts.vehicle) if observer else None,
-                        stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m))
+        return Controller(control, estimated.view, estimated)
+    return Controller(control, oracle_jammers(parts.scene, senses))

@@ -16,13 +16,13 @@ import numpy as np
 from ..config import AntennaConfig, JammerConfig, Scenario, ScenarioError
 from ..config.network import ANY_BASE_STATION, BaseStationConfig
 from ..config.radio import NodeAntennaConfig
+from ..control.network import LoopRelay
 from ..control.nmpc import NmpcSettings
 from ..control.ocp import OcpSpec
 from ..control.relay import FailsafeSettings, RelayController
+from ..control.relay_step import RelayStep, StaleSettings
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
-from ..flight.network_controller import LoopRelay
-from ..flight.stepper import RelayStepper, StaleSettings
 from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
 from ..models.axes import axis_cone
 from ..models.battery import Battery
@@ -522,8 +522,8 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         platforms[r.name] = (vehicle, view.platform)
         controller = build_controller(view, vehicle, nmpc_settings, others,
                                       p0_parameter=(network or sc.has_handover) and view.controller.comms_aware)
-        stepper = RelayStepper(vehicle=vehicle, planner=None, controller=controller, period_s=sc.control_period_s,
-                               jammers=_no_jammer_view, stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
+        stepper = RelayStep(vehicle=vehicle, controller=controller, period_s=sc.control_period_s,
+                            stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
         bat = view.platform.battery
         battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
                                                    bat.avionics_w)
@@ -562,10 +562,6 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     sensing = build_sensing(sc, scene, sources) if sc.estimates_jammers and scene.jammers else None
     return Parts(sc, scene, relays, sources, fleet, sim_settings(sc), sc.separation_m, sensing, world.air(sc, platforms),
                  relay_planner)
-
-
-def _no_jammer_view(t: float):
-    raise AssertionError("a relay in the closed loop is handed the jammers its network knows")
 
 
 SEARCH_MARGIN_M = 10.0  # the default search box: the nodes' box widened by this horizontally, 5 m up, from the ground

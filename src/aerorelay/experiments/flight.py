@@ -13,18 +13,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..assembly.flight import build_stepper, network_stepper, thrust_along_body_z
-from ..assembly.parts import build_scene, build_source
+from ..assembly.flight import build_controller
+from ..assembly.parts import build_scene
 from ..config import Scenario, ScenarioError
+from ..control.network import Controller
+from ..control.relay_step import RelayStep
 from ..flight.airframes import Airframe
-from ..flight.autopilot_loop import FleetStepHook
+from ..flight.autopilot_loop import StepHook
 from ..flight.mavlink import drain
-from ..flight.mavlink_bridge import OffboardBridge, StepHook, VehicleLink
-from ..flight.mavlink_fleet import FleetBridge
+from ..flight.mavlink_bridge import OffboardBridge, VehicleLink
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
-from ..flight.network_controller import NetworkStepper
 from ..flight.sources import MavlinkSource
-from ..flight.stepper import Command, RelayStepper, SourceState
 from ..models.mission import SourceTrajectory, source_trajectory
 from ..sim.flight_record import FlightRecorder, flight_column_type, flight_metrics, telemetry_metrics
 from ..sim.units import metric_units
@@ -36,46 +35,33 @@ log = logging.getLogger(__name__)
 FLIGHT_LOG = "flight.parquet"
 
 
-def flown_relays(sc: Scenario, stepper: RelayStepper | NetworkStepper) -> dict[str, RelayStepper]:
-    """Every relay's stepper by name (one relay: the scene's relay's)."""
-    if isinstance(stepper, NetworkStepper):
-        return {r.name: r.stepper for r in stepper.controller.relays}
-    return {build_scene(sc).name_of("relay"): stepper}
+def flown_relays(controller: Controller) -> dict[str, RelayStep]:
+    """Every relay's part of the controller by name."""
+    return {r.name: r.stepper for r in controller.controller.relays}
 
 
-def recorder(sc: Scenario, stepper: RelayStepper) -> tuple[FlightRecorder, StepHook]:
-    """A recorder of ``sc``'s flight and the transport's hook that feeds it (the supervisor's verdict and the
-    observer's estimate read from ``stepper`` each period)."""
-    scene = build_scene(sc)
-    rec = FlightRecorder({scene.name_of("relay"): stepper.vehicle}, scene, observed=stepper.observer is not None)
-
-    def hook(t: float, x, cmd: Command, src: SourceState, age: float) -> None:
-        rec.record(t, x, cmd, src, state_age_s=age, violation=bool(stepper.controller.last_violations),
-                   a_ext=stepper.observer.estimate if stepper.observer is not None else None)
-    return rec, hook
-
-
-def fleet_recorder(sc: Scenario, stepper: NetworkStepper) -> tuple[FlightRecorder, FleetStepHook]:
-    """``recorder`` for a network: ``FleetLoop``'s hook (every relay's verdict and observer's estimate)."""
-    relays = flown_relays(sc, stepper)
+def recorder(sc: Scenario, controller: Controller) -> tuple[FlightRecorder, StepHook]:
+    """A recorder of ``sc``'s flight and the transport's hook that feeds it (every relay's supervisor verdict and
+    observer's estimate read from the controller each period)."""
+    relays = flown_relays(controller)
     observed = any(r.observer is not None for r in relays.values())
     rec = FlightRecorder({n: r.vehicle for n, r in relays.items()}, build_scene(sc), observed=observed)
 
     def hook(t: float, xs, cmds, srcs, age: float) -> None:
-        rec.record_network(t, xs, cmds, srcs, state_age_s=age,
-                           violations={n: bool(r.controller.last_violations) for n, r in relays.items()},
-                           a_ext={n: r.observer.estimate if r.observer is not None else None for n, r in relays.items()})
+        rec.record(t, xs, cmds, srcs, state_age_s=age,
+                   violations={n: bool(r.controller.last_violations) for n, r in relays.items()},
+                   a_ext={n: r.observer.estimate if r.observer is not None else None for n, r in relays.items()})
     return rec, hook
 
 
-def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper | NetworkStepper, wall_s: float, *,
+def flight_result(sc: Scenario, rec: FlightRecorder, stepper: Controller, wall_s: float, *,
                   aborted: str | None = None, views: Callable[[RunResult, Path], None] | None = None,
                   bridge_log: pd.DataFrame | None = None, lost_at: dict[str, float] | None = None) -> RunResult:
     """The flight as ``ar.simulate``'s result: its time series and metrics (``run_metrics`` plus the
     flight's own, ``sim.flight_record.flight_metrics``, and the telemetry the bridge did not trust,
     ``telemetry_metrics``); ``views`` writes figures and MCAP. ``lost_at``: relays that left the network in
     flight, when (s): in the metrics, ``relays.<name>.lost_at_s`` and ``lost_in_flight``."""
-    relays = flown_relays(sc, stepper)
+    relays = flown_relays(stepper)
     first = next(iter(relays.values()))
     mission = rec.mission(wall_s, controller=first.controller.nmpc.settings.fingerprint(),
                           fallback_episodes=sum(r.controller.fallback_episodes for r in relays.values()), aborted=aborted)
@@ -93,7 +79,7 @@ def flight_result(sc: Scenario, rec: FlightRecorder, stepper: RelayStepper | Net
 
 
 def save_flight(sc: Scenario, out: Path, bridge_log: pd.DataFrame | None, rec: FlightRecorder,
-                stepper: RelayStepper | NetworkStepper, wall_s: float, *, aborted: str | None = None,
+                stepper: Controller, wall_s: float, *, aborted: str | None = None,
                 views: Callable[[RunResult, Path], None] | None = None, lost_at: dict[str, float] | None = None) -> RunResult | None:
     """Write the flight's run folder into ``out`` (with ``flight.parquet``, the bridge's log, when given);
     when the metrics fail, a folder with what there is (``flight.parquet`` and the rows recorded,
@@ -128,11 +114,10 @@ class Recording:
     ``out`` (raw logs when nothing was flown in OFFBOARD) and returns the flight's result (None when nothing was
     flown)."""
 
-    def __init__(self, sc: Scenario, stepper: RelayStepper | NetworkStepper, out: Path | None, *,
+    def __init__(self, sc: Scenario, stepper: Controller, out: Path | None, *,
                  views: Callable[[RunResult, Path], None] | None = None):
         self.sc, self.stepper, self.out, self.views = sc, stepper, None if out is None else Path(out), views
-        self.hook: StepHook | FleetStepHook
-        self.rec, self.hook = fleet_recorder(sc, stepper) if isinstance(stepper, NetworkStepper) else recorder(sc, stepper)
+        self.rec, self.hook = recorder(sc, stepper)
         self.wall0 = time.perf_counter()
 
     def finish(self, bridge_log: pd.DataFrame | None, aborted: str | None = None,
@@ -173,71 +158,36 @@ def free_udp_port() -> int:
         return int(s.getsockname()[1])
 
 
-def fly_lockstep(sc: Scenario, airframe: Airframe, *, setpoint: str = "position", duration_s: float | None = None,
-                 views: Callable[[RunResult, Path], None] | None = None,
-                 source_airframe: Airframe | None = None) -> tuple[RunResult, pd.DataFrame]:
-    """Fly ``sc``'s relay controller through the MAVLink bridge on the in-repo vehicle flying ``airframe``,
-    over UDP on localhost, in lockstep (one vehicle step per control period, telemetry every period):
-    the bridge streams, arms, enters OFFBOARD, flies the mission (``duration_s``, default the scenario's)
-    and hands back to a hold. ``source_airframe`` (e.g. ``flight.airframes.MissionFlyer``): the source
-    is a second in-repo vehicle (system 2, its own link), read as a second MAVLink system; default its
-    mission file. Returns the flight as ``ar.simulate``'s result and the bridge's log. The flight stops
-    early (``aborted``: reported unsafe) when the vehicle goes below the ground or its state stops being
-    finite."""
+def fly_lockstep(sc: Scenario, airframes: Mapping[str, Airframe], *, setpoint: str = "position",
+                 duration_s: float | None = None, views: Callable[[RunResult, Path], None] | None = None,
+                 telemetry_lost: Callable[[str, float], bool] | None = None,
+                 source_airframes: Mapping[str, Airframe] | None = None) -> tuple[RunResult, pd.DataFrame]:
+    """Fly ``sc``'s controller through the MAVLink bridge (``flight.mavlink_bridge.OffboardBridge``) on one in-repo
+    vehicle per relay (``airframes`` by relay name, each its own UDP link on localhost and system id 1, 2, ...), in
+    lockstep (one vehicle step per control period, telemetry every period): the bridge streams, arms, enters OFFBOARD,
+    flies the mission (``duration_s``, default the scenario's) and hands back to a hold. With position setpoints the
+    NMPC runs without ``[wind]``'s external-force observer, as ``aerorelay fly`` does (docs/guide/flying.md).
+    ``telemetry_lost(relay, t)``: the relay's telemetry does not reach the bridge at bridge time ``t`` (a link
+    dropped; its setpoints still reach the vehicle). ``source_airframes`` (e.g. ``flight.airframes.MissionFlyer`` by
+    source name): those sources are further in-repo vehicles (system ids after the relays', each its own link), read
+    as MAVLink systems; the others fly their mission files. Returns the flight as ``ar.simulate``'s result (the relays
+    that left the network and when in ``lost_in_flight``; reported unsafe, ``aborted``, when a vehicle went below the
+    ground or its state stopped being finite, or every vehicle left the flight) and the bridge's log."""
     check_flyable(sc)
-    stepper = build_stepper(sc, observer=setpoint == "attitude", autopilot=True)  # as aerorelay fly: docs/guide/flying.md
-    rec, hook = recorder(sc, stepper)
-    port, T = free_udp_port(), stepper.period
-    vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T), airframe=airframe)
-    vehicles = [vehicle]
-    source: MavlinkSource | SourceTrajectory = build_source(sc)
-    if source_airframe is not None:
-        source_port = free_udp_port()
-        vehicles.append(MavlinkVehicle(f"udpin:127.0.0.1:{source_port}", settings=VehicleSettings(telemetry_hz=1.0 / T),
-                                       system=2, airframe=source_airframe))
-        source = MavlinkSource(f"udpout:127.0.0.1:{source_port}", system=2)
-    bridge = OffboardBridge(f"udpout:127.0.0.1:{port}", stepper, source, stepper.vehicle.hover_speeds(), arm=True,
-                            setpoint=setpoint, on_step=hook)
-    duration = sc.duration_s if duration_s is None else duration_s
-    wall0 = time.perf_counter()
-    try:
-        aborted = _in_lockstep(bridge, {"relay": bridge}, vehicles, T, duration,
-                               lambda: _left_the_air(airframe, sc.world.ground_z_m))
-    finally:
-        bridge.hand_back()
-        vehicle.step(T)
-        bridge.link.close()
-        if isinstance(source, MavlinkSource):
-            source.link.close()
-        for v in vehicles:
-            v.link.close()
-    log_df = bridge_frame(bridge.log)
-    return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
-                         bridge_log=log_df), log_df
-
-
-def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpoint: str = "position",
-                       duration_s: float | None = None, views: Callable[[RunResult, Path], None] | None = None,
-                       telemetry_lost: Callable[[str, float], bool] | None = None,
-                       source_airframes: Mapping[str, Airframe] | None = None) -> tuple[RunResult, pd.DataFrame]:
-    """``fly_lockstep`` for a network: every relay's controller through the fleet's MAVLink bridge
-    (``flight.mavlink_fleet.FleetBridge``) on one in-repo vehicle per relay (``airframes`` by relay name, each its
-    own UDP link and system id 1, 2, ...), the sources from their missions. ``telemetry_lost(relay, t)``: the
-    relay's telemetry does not reach the bridge at bridge time ``t`` (a link dropped; its setpoints still reach
-    the vehicle). ``source_airframes`` (e.g. ``flight.airframes.MissionFlyer`` by source name): those sources are
-    further in-repo vehicles (system ids after the relays', each its own link), read as MAVLink systems. Returns
-    the flight as ``ar.simulate``'s result (the relays that left the network and when in ``lost_in_flight``; the
-    bridge's events in ``aborted`` only when every vehicle left) and the bridge's log."""
-    check_flyable(sc)
-    stepper = network_stepper(thrust_along_body_z(sc))  # an autopilot's thrust stays along body z (every relay)
-    rec, hook = fleet_recorder(sc, stepper)
-    missing = [n for n in stepper.relays if n not in airframes]
-    if missing:
-        raise ValueError(f"fly_lockstep: no airframe for the relays {missing}")
-    T = stepper.period
-    ports = {n: free_udp_port() for n in stepper.relays}
+    if setpoint not in ("position", "attitude"):
+        raise ValueError(f"setpoint must be 'position' or 'attitude', got {setpoint!r}")
+    relays = [r.name for r in sc.relay_list]
+    missing, unknown = [n for n in relays if n not in airframes], [n for n in airframes if n not in relays]
+    if missing or unknown:
+        raise ValueError(f"fly_lockstep: one airframe per relay ({', '.join(relays)}), by name (ar.plant_airframes(sc)); "
+                         + (f"none for {missing}" if missing else f"no relay {unknown}"))
+    # an autopilot's thrust stays along body z; the observer destabilized a position cascade (docs/guide/flying.md)
+    controller = build_controller(sc, observer=setpoint == "attitude", autopilot=True)
+    rec, hook = recorder(sc, controller)
+    T = controller.period
+    ports = {n: free_udp_port() for n in relays}
     vehicles = {n: MavlinkVehicle(f"udpin:127.0.0.1:{ports[n]}", settings=VehicleSettings(telemetry_hz=1.0 / T), system=i + 1,
-                                  airframe=airframes[n]) for i, n in enumerate(stepper.relays)}
+                                  airframe=airframes[n]) for i, n in enumerate(relays)}
     sources: dict[str, SourceTrajectory | MavlinkSource] = {s.name: source_trajectory(s.mission) for s in sc.source_list}
     source_vehicles = []
     for i, (name, frame) in enumerate((source_airframes or {}).items()):
@@ -247,8 +197,8 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
         source_vehicles.append(MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T),
                                               system=system, airframe=frame))
         sources[name] = MavlinkSource(f"udpout:127.0.0.1:{port}", system=system)
-    bridge = FleetBridge({n: f"udpout:127.0.0.1:{p}" for n, p in ports.items()}, stepper, sources, arm=True,
-                         setpoint=setpoint, on_step=hook)
+    bridge = OffboardBridge({n: f"udpout:127.0.0.1:{p}" for n, p in ports.items()}, controller, sources, arm=True,
+                            setpoint=setpoint, on_step=hook)
     everyone = [*vehicles.values(), *source_vehicles]
     if telemetry_lost is not None:
         for name, link in bridge.links.items():
@@ -277,11 +227,11 @@ def fly_lockstep_fleet(sc: Scenario, airframes: Mapping[str, Airframe], *, setpo
         for v in everyone:
             v.link.close()
     log_df = bridge_frame(bridge.log)
-    return flight_result(sc, rec, stepper, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
-                         bridge_log=log_df, lost_at=stepper.lost_at), log_df
+    return flight_result(sc, rec, controller, time.perf_counter() - wall0, aborted=aborted or bridge.ended, views=views,
+                         bridge_log=log_df, lost_at=controller.lost_at), log_df
 
 
-def _in_lockstep(bridge: OffboardBridge | FleetBridge, links: Mapping[str, VehicleLink], vehicles: list[MavlinkVehicle],
+def _in_lockstep(bridge: OffboardBridge, links: Mapping[str, VehicleLink], vehicles: list[MavlinkVehicle],
                  period: float, duration: float, left_the_air: Callable[[], str | None]) -> str | None:
     """The handshake (each vehicle answers once it has heard its link), then per control period one step of every
     in-repo vehicle and one bridge tick, until ``duration`` (s) of mission has flown, the bridge has ended the

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..control.relay_step import Command
 from .frames import euler_zyx, matrix_from_wxyz
-from .stepper import Command
 
 
 class CommandedState:

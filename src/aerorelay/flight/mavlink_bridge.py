@@ -1,29 +1,30 @@
-"""The MAVLink offboard bridge (``aerorelay fly SCENARIO --mavlink URL``): the relay's controller
-(``flight.stepper``) flying a PX4 vehicle in OFFBOARD.
+"""The MAVLink offboard bridge (``aerorelay fly SCENARIO --mavlink URL``, ``--mavlink NAME=URL`` per relay of a
+network): the scenario's controller (``control.network.Controller``) flying one PX4 vehicle per relay in OFFBOARD,
+each on its own link (``VehicleLink``: its own system's telemetry, its own modes); one relay is a network of one.
 
-It waits for the autopilot's heartbeat; streams setpoints before it asks for OFFBOARD (PX4 accepts
-OFFBOARD only after a setpoint stream of >= 2 Hz for 1 s); arms only when told to; then every
-control period reads the vehicle's state (LOCAL_POSITION_NED and ATTITUDE_QUATERNION, or ODOMETRY in
-the local NED frame with its velocity in body FRD or local NED; NED/FRD on the wire, ENU/FLU
-inside), steps the controller and sends the setpoint it computed in that period (never an older
-one): SET_POSITION_TARGET_LOCAL_NED with velocity and acceleration feed-forward
-(``setpoint = "position"``) or SET_ATTITUDE_TARGET with body rates and thrust (``"attitude"``; PX4's
+It waits for every autopilot's heartbeat; streams a hold where each vehicle is before it asks for OFFBOARD (PX4
+accepts OFFBOARD only after a setpoint stream of >= 2 Hz for 1 s); arms only when told to; the mission's clock
+starts once every vehicle reports OFFBOARD. Then every control period it reads each vehicle's state
+(LOCAL_POSITION_NED and ATTITUDE_QUATERNION, or ODOMETRY in the local NED frame with its velocity in body FRD or
+local NED; NED/FRD on the wire, ENU/FLU inside), steps the controller and sends each vehicle its relay's setpoint
+computed in that period (never an older one): SET_POSITION_TARGET_LOCAL_NED with velocity and acceleration
+feed-forward (``setpoint = "position"``) or SET_ATTITUDE_TARGET with body rates and thrust (``"attitude"``; PX4's
 thrust is a fraction of full throttle: the controller's thrust over hover times ``hover_throttle``).
-Until the vehicle reports OFFBOARD the bridge streams a hold where the vehicle is (the proof of life
-PX4 wants) and the controller does not run; the mission's clock starts when OFFBOARD is entered.
-When telemetry goes stale or is not trusted (``flight.stepper.TelemetryCheck``: non-finite, stamped
-ahead of the clock or backwards, a jump no vehicle can make) the controller's hold setpoint is sent and
-the vehicle is asked for a hold (AUTO.LOITER); while it holds the controller does not run and no
-period is logged as flown by it. Once telemetry has been good for PX4's 1 s of streamed setpoints the
-bridge asks for OFFBOARD again (every second, ``OFFBOARD_RETRIES`` times at most, then the flight
-ends). Input that stays bad for ``land_after_s`` asks the vehicle to land (AUTO.LAND) and ends the
-flight; a vehicle that leaves OFFBOARD without the bridge asking (a pilot, a failsafe, another ground
-station) ends it too: the bridge never fights a mode change it did not make. ``ended`` says why a
-flight ended early. ``hand_back()`` (on Ctrl-C) asks for a hold. Only the vehicle's own system and
-component are read (telemetry from any other system on the link is ignored and counted).
 
-The NMPC's state, the first step's gating and the telemetry check: ``flight.autopilot_loop`` (shared
-with the ROS 2 node); this module converts messages and keeps PX4's mode rules.
+A vehicle whose telemetry goes stale or is not trusted (the controller's telemetry check: non-finite, stamped ahead
+of the clock or backwards, a jump no vehicle can make) is sent its relay's hold and asked to hold (AUTO.LOITER);
+while it holds its relay's controller does not run (its hold, then landing, setpoints keep streaming) and no period
+of it is logged as flown. Once its telemetry has been good for PX4's 1 s of proof the bridge asks for OFFBOARD again
+(once a second, ``OFFBOARD_RETRIES`` times at most, then it is asked to land). Input that stays bad for
+``land_after_s``: the vehicle is asked to land (AUTO.LAND) and its relay leaves the network (the others re-plan
+without it: ``Controller.lose``). A vehicle that leaves OFFBOARD without the bridge asking (a pilot, a failsafe,
+another ground station) leaves the flight too: the bridge never fights a mode change it did not make. The flight
+ends when every vehicle has (``ended`` says why); ``events`` names each relay's hold, landing and departure with its
+mission time. ``hand_back()`` (on Ctrl-C, at the end) asks every vehicle still flying to hold. Only each vehicle's
+own system and component are read (telemetry from any other system on its link is ignored and counted).
+
+The NMPC's state, the first step's gating and the source's acceleration: ``flight.autopilot_loop`` (shared with
+the ROS 2 node); this module converts messages and keeps PX4's mode rules.
 """
 
 from __future__ import annotations
@@ -31,10 +32,13 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..control.network import Controller
+from ..control.relay_step import Command
 from ..models.mission import SourceTrajectory
 from .autopilot_loop import AutopilotLoop, Measured, StepHook, rotation_from_quaternion
 from .frames import (
@@ -52,7 +56,6 @@ from .frames import (
 from .mavlink import MAV, connect, drain
 from .px4 import ATTITUDE_TARGET_MASK, OFFBOARD_PROOF_S, POSITION_TARGET_MASK, PX4_AUTO_SUB_MODE, PX4_MAIN_MODE, mode_name
 from .sources import MavlinkSource, MissionSource
-from .stepper import Command, RelayStepper, SourceState
 
 log = logging.getLogger(__name__)
 
@@ -199,28 +202,40 @@ class VehicleLink:
             time.sleep(0.005)
 
 
-class OffboardBridge(VehicleLink):
-    """``connect()``, then ``tick(t)`` every control period (lockstep: the caller's clock) or
-    ``run(duration_s)`` on the wall clock. ``source``: the inspection drone: its path (its mission file),
-    or a ``flight.sources.MavlinkSource`` (a second MAVLink system);
-    ``on_step``: called with every control period flown in OFFBOARD (a ``sim.flight_record`` recorder)."""
+class OffboardBridge:
+    """``connect()``, then ``tick(t)`` every control period (lockstep: the caller's clock) or ``run(duration_s)``
+    on the wall clock. ``urls``: each relay's vehicle's link by the relay's name; ``sources``: each source's path
+    or a ``MavlinkSource``; ``on_step``: called with every control period flown (a ``sim.flight_record`` recorder)."""
 
-    def __init__(self, url: str, stepper: RelayStepper, source: SourceTrajectory | MissionSource | MavlinkSource,
-                 hover_speeds: np.ndarray, *,
-                 arm: bool = False, setpoint: str = "position", hover_throttle: float = 0.5, system: int = 255,
-                 on_step: StepHook | None = None, measured_attitude: bool = False):
-        super().__init__(url, setpoint=setpoint, hover_throttle=hover_throttle, system=system)
-        self.stepper, self.arm = stepper, arm
-        self.source = MissionSource(source) if isinstance(source, SourceTrajectory) else source
-        # the NMPC's state, the first step's gating, the telemetry check and the recording hook
-        self.loop = AutopilotLoop(stepper, measured_attitude=measured_attitude, on_step=on_step, hover_speeds=hover_speeds)
+    def __init__(self, urls: Mapping[str, str], controller: Controller,
+                 sources: Mapping[str, SourceTrajectory | MissionSource | MavlinkSource], *, arm: bool = False,
+                 setpoint: str = "position", hover_throttle: float = 0.5, on_step: StepHook | None = None,
+                 measured_attitude: bool = False, system: int = 255):
+        missing = [n for n in controller.relays if n not in urls]
+        unknown = [n for n in urls if n not in controller.relays]
+        if missing or unknown:
+            raise ValueError(f"bridge: one vehicle link per relay ({', '.join(controller.relays)}); "
+                             + (f"none for {missing}" if missing else f"no relay {unknown}"))
+        absent = [n for n in controller.sources if n not in sources]
+        if absent:
+            raise ValueError(f"bridge: no source for {absent} (a mission path or a MAVLink source each)")
+        self.controller, self.arm = controller, arm
+        self.links = {n: VehicleLink(urls[n], setpoint=setpoint, hover_throttle=hover_throttle, system=system)
+                      for n in controller.relays}
+        self.sources = {n: MissionSource(s) if isinstance(s, SourceTrajectory) else s for n, s in sources.items()}
+        self.loop = AutopilotLoop(controller, on_step=on_step, measured_attitude=measured_attitude)
+        self.phase = dict.fromkeys(self.links, "stream")  # stream, offboard, held (asked to hold), ended (landing or gone)
         self.t0: float | None = None  # when streaming began (bridge time)
-        self.mission_t0: float | None = None  # when the vehicle entered OFFBOARD: the mission's clock starts
+        self.mission_t0: float | None = None  # when the last vehicle entered OFFBOARD: the mission's clock starts
         self.log: list[dict] = []
-        self.phase = "stream"  # stream (before OFFBOARD), offboard, held (the bridge asked for a hold), ended
-        self.ended: str | None = None  # why the flight ended early (None: it did not)
-        self._good_since: float | None = None  # in a hold: since when telemetry has been good (bridge time)
-        self._offboard_asks: list[float] = []  # when OFFBOARD was asked again after a hold (bridge time)
+        self.events: list[tuple[float, str, str]] = []  # (mission time s, relay, what happened)
+        self.ended: str | None = None
+        self._good_since: dict[str, float] = {}
+        self._offboard_asks: dict[str, list[float]] = {n: [] for n in self.links}
+
+    @property
+    def period(self) -> float:
+        return self.controller.period
 
     @property
     def on_step(self) -> StepHook | None:
@@ -231,105 +246,150 @@ class OffboardBridge(VehicleLink):
     def on_step(self, hook: StepHook | None) -> None:
         self.loop.on_step = hook
 
-    def tick(self, t: float) -> Command | None:
-        """One control period at bridge time ``t`` (s): read; before OFFBOARD stream a hold where the
-        vehicle is and ask (arm if told, then OFFBOARD) once the stream is 1 s old; in OFFBOARD step the
-        controller and send its setpoint (a hold when telemetry is stale or not trusted, and the vehicle
-        asked to hold); in a hold the controller's hold setpoint, OFFBOARD asked again once telemetry is
-        good (see the module). None while streaming and once the flight ended."""
-        self._read(t)
-        if self.state.position is None:
-            raise RuntimeError("tick: no telemetry from the vehicle yet (LOCAL_POSITION_NED or ODOMETRY)")
+    def connect(self, timeout_s: float = 10.0) -> None:
+        """Announce the bridge on every link until each vehicle's heartbeat arrives; TimeoutError naming the silent ones."""
+        end = time.monotonic() + timeout_s
+        waiting = set(self.links)
+        while waiting and time.monotonic() < end:
+            for n in sorted(waiting):
+                self.links[n].announce()
+                if self.links[n].heard_vehicle(0.05):
+                    waiting.discard(n)
+        if waiting:
+            raise TimeoutError(f"no autopilot heartbeat within {timeout_s:g} s from the vehicles of {sorted(waiting)}")
+
+    def _event(self, tm: float, relay: str, what: str) -> None:
+        log.warning("relay %s at mission time %.2f s: %s", relay, tm, what)
+        self.events.append((tm, relay, what))
+
+    def tick(self, t: float) -> dict[str, Command] | None:
+        """One control period at bridge time ``t`` (s): read every link; stream and ask before the mission; then
+        step the fleet and send each vehicle its relay's command (see the module). None before the mission."""
+        for link in self.links.values():
+            link._read(t)
+        silent = [n for n, link in self.links.items() if link.state.position is None]
+        if silent:
+            raise RuntimeError(f"tick: no telemetry yet from the vehicles of {silent} (LOCAL_POSITION_NED or ODOMETRY)")
         if self.t0 is None:
             self.t0 = t
-        if self.phase == "ended":
-            self._row(t, "ended")
+        if self.mission_t0 is None and all(link.offboard for link in self.links.values()):
+            self.mission_t0 = t  # every vehicle in OFFBOARD: the mission's clock starts, its first period flown now
+            self.phase = dict.fromkeys(self.links, "offboard")
+        if self.mission_t0 is None:
+            self._stream(t)
             return None
-        if self.phase == "stream" and self.offboard:
-            self.mission_t0, self.phase = t, "offboard"
-        if self.phase == "stream":
-            self.source.known(t, 0.0)  # a second MAVLink system hears the bridge and starts reporting
-            self._send_hold(self.state.position, t)
-            if t - self.t0 >= OFFBOARD_PROOF_S + 0.1:  # PX4's rule: stream first, then ask
-                if self.arm and not self.state.armed and "ARM" not in self.requested:
-                    self._command_long(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
-                    self.requested.add("ARM")
-                if "OFFBOARD" not in self.requested and (self.state.armed or not self.arm):
-                    self.request_mode("OFFBOARD")
-            self._row(t, "stream")
+        if self.ended is not None:
+            for n in self.links:
+                self._row(t, n, "ended")
             return None
-        assert self.mission_t0 is not None
-        tm = t - self.mission_t0  # the mission's clock
-        src = self.source.known(t, tm)
-        relay = self.measured(self.mission_t0)
-        if self.phase == "held" and self.offboard and self._offboard_asks:  # it took OFFBOARD back: the controller flies again
-            self.phase = "offboard"
-            self.loop.reset()
-            self._offboard_asks.clear()
-        if self.phase == "offboard" and not self.offboard:
-            return self._end(t, f"the vehicle left OFFBOARD for {mode_name(self.state.custom_mode)} at mission time {tm:.2f} s "
-                                "without the bridge asking (a pilot, a failsafe or another ground station): the flight ends")
-        if self.phase == "held":
-            return self._held(t, tm, relay, src)
-        cmd = self.loop.tick(tm, relay, src)
-        if cmd is None:
-            self._send_hold(self.state.position, t)  # no trusted telemetry or source yet: keep the stream alive where it is
-            self._row(t, "wait", rejected=self.loop.waiting)
+        tm = t - self.mission_t0
+        known = {n: s.known(t, tm) for n, s in self.sources.items()}
+        measured = {n: link.measured(self.mission_t0) if self.phase[n] in ("offboard", "held") else None
+                    for n, link in self.links.items()}
+        # a held vehicle's autopilot flies it: its controller does not run (its hold, then landing, streams on)
+        held_why = {n: self.loop.problem(tm, n, measured[n]) for n in self.links if self.phase[n] == "held"}
+        for n, link in self.links.items():
+            if self.phase[n] == "offboard" and not link.offboard:
+                self._leave(tm, n, f"left OFFBOARD for {mode_name(link.state.custom_mode)} without the bridge asking")
+            elif self.phase[n] == "held" and link.offboard and self._offboard_asks[n]:
+                self.phase[n] = "offboard"  # it took OFFBOARD back: its relay's controller flies it again
+                self.loop.reset(n)
+                self._offboard_asks[n].clear()
+                self._event(tm, n, "took OFFBOARD back")
+        cmds = self.loop.tick(tm, {n: m for n, m in measured.items() if self.phase[n] == "offboard"}, known)
+        if cmds is None:
+            for n, link in self.links.items():
+                link._send_hold(np.asarray(link.state.position, float), t)
+                self._row(t, n, "wait", rejected=self.loop.waiting)
             return None
-        self._send(cmd, t)
-        if cmd.mode in ("hold", "land"):
-            self.hand_back()
-            self.phase, self._good_since = "held", None
-        self._row(t, cmd.mode, x=self.loop.x, cmd=cmd)
-        return cmd
+        for n, link in self.links.items():
+            cmd = cmds[n]
+            if self.phase[n] == "ended":
+                self._row(t, n, "ended")
+                continue
+            link._send(cmd, t)
+            why = held_why[n] if n in held_why else self.loop.rejected.get(n)
+            if cmd.mode == "land" or n in self.controller.lost:
+                link.request_mode("AUTO", "LAND")
+                self._leave(tm, n, f"input stale or not trusted for {self.controller.stale.land_after_s:g} s "
+                                   f"({why or 'stale'}): asked to land")
+            elif cmd.mode == "hold" and self.phase[n] == "offboard":
+                link.hand_back()
+                self.phase[n] = "held"
+                self._good_since.pop(n, None)
+                self._event(tm, n, f"holding ({why or 'stale'})")
+            elif self.phase[n] == "held":
+                self._ask_back(t, tm, n, why)
+            self._row(t, n, cmd.mode, cmd=cmd, rejected=why)
+        if all(p == "ended" for p in self.phase.values()):
+            self.ended = "every relay's vehicle left the flight: " + "; ".join(f"{n} at {tm_:.2f} s ({w})" for tm_, n, w in self.events)
+        return cmds
 
-    def _held(self, t: float, tm: float, relay: Measured | None, src: SourceState | None) -> Command | None:
-        """A period in the hold the bridge asked for (the vehicle has not taken OFFBOARD back): the
-        controller's hold (or landing) setpoint keeps the stream alive; OFFBOARD asked again once telemetry
-        has been good for PX4's proof time; land and end when the input stays bad."""
-        problem = self.loop.problem(tm, relay, src)
-        self._good_since = (self._good_since if self._good_since is not None else t) if problem is None else None
-        cmd = self.stepper.step(tm, None, None)  # the hold (then the landing) where the relay last was trusted
-        self._send(cmd, t)
-        if cmd.mode == "land":
-            self.request_mode("AUTO", "LAND")
-            return self._end(t, f"telemetry stale or not trusted for {self.stepper.stale.land_after_s:g} s "
-                                f"({problem or 'stale'}): the vehicle was asked to land", cmd)
-        if self._good_since is not None and t - self._good_since >= OFFBOARD_PROOF_S and \
-                (not self._offboard_asks or t - self._offboard_asks[-1] >= 1.0):
-            if len(self._offboard_asks) >= OFFBOARD_RETRIES:
-                return self._end(t, f"the vehicle did not take OFFBOARD back after {OFFBOARD_RETRIES} requests: the flight ends", cmd)
-            self.request_mode("OFFBOARD")
-            self._offboard_asks.append(t)
-        self._row(t, cmd.mode, cmd=cmd, rejected=problem)
-        return cmd
+    def _stream(self, t: float) -> None:
+        """Before the mission: a hold where each vehicle is, then (after PX4's proof time) arm and OFFBOARD, each its own."""
+        for n, link in self.links.items():
+            for s in self.sources.values():
+                s.known(t, 0.0)  # a MAVLink source hears the bridge and starts reporting
+            link._send_hold(np.asarray(link.state.position, float), t)
+            assert self.t0 is not None
+            if t - self.t0 >= OFFBOARD_PROOF_S + 0.1:
+                if self.arm and not link.state.armed and "ARM" not in link.requested:
+                    link._command_long(MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+                    link.requested.add("ARM")
+                if "OFFBOARD" not in link.requested and (link.state.armed or not self.arm):
+                    link.request_mode("OFFBOARD")
+            self._row(t, n, "stream")
 
-    def _end(self, t: float, why: str, cmd: Command | None = None) -> Command | None:
-        """End the flight (``ended`` says why): logged, and the period's command (if one was sent) returned."""
-        log.warning("flight ended: %s", why)
-        self.phase, self.ended = "ended", why
-        self._row(t, "ended", cmd=cmd)
-        return cmd
+    def _ask_back(self, t: float, tm: float, n: str, why: str | None) -> None:
+        """A held vehicle: OFFBOARD asked again once its telemetry has been good for PX4's proof time."""
+        if why is not None:
+            self._good_since.pop(n, None)
+            return
+        since = self._good_since.setdefault(n, t)
+        asks = self._offboard_asks[n]
+        if t - since >= OFFBOARD_PROOF_S and (not asks or t - asks[-1] >= 1.0):
+            if len(asks) >= OFFBOARD_RETRIES:
+                self.links[n].request_mode("AUTO", "LAND")
+                self._leave(tm, n, f"did not take OFFBOARD back after {OFFBOARD_RETRIES} requests: asked to land")
+                return
+            self.links[n].request_mode("OFFBOARD")
+            asks.append(t)
 
-    def _row(self, t: float, mode: str, *, x: np.ndarray | None = None, cmd: Command | None = None, rejected: str | None = None) -> None:
-        why = rejected if rejected is not None else (cmd.rejected if cmd is not None else None)
-        self.log.append({"t": t, "mode": mode, "x": None if x is None else x.copy(),
-                         "compute_ms": cmd.compute_ms if cmd is not None else math.nan,
-                         "deadline_met": cmd.deadline_met if cmd is not None else None, "armed": self.state.armed,
-                         "custom_mode": self.state.custom_mode, "rejected": why or ""})
+    def _leave(self, tm: float, n: str, why: str) -> None:
+        """Relay ``n``'s vehicle is out of the flight: it leaves the network (unless it is the last one flying)."""
+        if self.phase[n] == "ended":
+            return
+        self.phase[n] = "ended"
+        self._event(tm, n, why)
+        flying = [r for r, p in self.phase.items() if p != "ended"]
+        if flying and n not in self.controller.lost:
+            self.controller.lose([n], tm)
+
+    def _row(self, t: float, relay: str, mode: str, *, cmd: Command | None = None, rejected: str | None = None) -> None:
+        link = self.links[relay]
+        self.log.append({"t": t, "relay": relay, "mode": mode, "x": None if link.state.position is None else
+                         np.r_[link.state.position, np.zeros(3)], "compute_ms": cmd.compute_ms if cmd is not None else math.nan,
+                         "deadline_met": cmd.deadline_met if cmd is not None else None, "armed": link.state.armed,
+                         "custom_mode": link.state.custom_mode, "rejected": rejected or ""})
+
+    def hand_back(self) -> None:
+        """Ask every vehicle still flying to hold (AUTO.LOITER): on Ctrl-C, the end of the run."""
+        for n, link in self.links.items():
+            if self.phase[n] != "ended":
+                link.hand_back()
 
     def run(self, duration_s: float) -> None:
-        """Tick on the wall clock at the controller's period for ``duration_s`` once the vehicle's telemetry
-        arrives; hand back at the end or on Ctrl-C."""
-        self.wait_for_telemetry()
-        period = self.stepper.period
+        """Tick on the wall clock at the controller's period for ``duration_s`` of mission once every vehicle's
+        telemetry arrives; hand back at the end or on Ctrl-C."""
+        for link in self.links.values():
+            link.wait_for_telemetry()
         start = time.monotonic()
         try:
             k = 0
-            while k * period < duration_s and self.phase != "ended":
+            while (self.mission_t0 is None or k * self.period - self.mission_t0 < duration_s) and self.ended is None:
                 self.tick(time.monotonic() - start)
                 k += 1
-                time.sleep(max(0.0, start + k * period - time.monotonic()))
+                time.sleep(max(0.0, start + k * self.period - time.monotonic()))
         finally:
             self.hand_back()
 

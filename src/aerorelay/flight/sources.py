@@ -8,7 +8,7 @@ while nothing has arrived.
   frame's origin lies in the scenario's world, m; PX4 puts it where its estimator started), stamped
   with the bridge time it arrived. Its acceleration, which LOCAL_POSITION_NED does not carry, is the
   velocity's change between messages through a first-order filter (``accel_time_constant_s``). A
-  source that stops reporting goes stale and the relay's controller holds (``flight.stepper``).
+  source that stops reporting goes stale and the relays' controller holds (``control.network.Controller``).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ import math
 
 import numpy as np
 
+from ..control.relay_step import SourceState
 from ..models.mission import SourceTrajectory
 from .autopilot_loop import AccelerationFilter
 from .frames import ned_to_enu
 from .mavlink import MAV, connect, drain
-from .stepper import SourceState
 
 GCS_HEARTBEAT_S = 1.0  # how often the bridge announces itself on the source's link once it is heard
 

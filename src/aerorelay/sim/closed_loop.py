@@ -1,5 +1,5 @@
 """The closed loop of a relay network, for any number of relays and sources (one relay is a network
-of one): every relay steps through its ``RelayStepper`` (stage parameters, NMPC, supervisor,
+of one): every relay steps through its ``RelayStep`` (stage parameters, NMPC, supervisor,
 fail-safe) on the references of the network's planner (a one-relay planner flies through
 ``planning.fleet.OneRelayPlanner``), every source flies its mission, and one world step follows:
 each relay's RK4 plant (``plant_step_function``, input held over the control period, drag in the
@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from ..flight.network_controller import LoopRelay, NetworkController
+from ..control.network import LoopRelay, NetworkController
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory

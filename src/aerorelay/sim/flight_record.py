@@ -19,10 +19,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ..control.network import route_neighbours
 from ..control.nmpc import StepInfo
-from ..flight.network_controller import route_neighbours
-from ..flight.stepper import Command
-from ..flight.stepper import SourceState as KnownSource
+from ..control.relay_step import Command
+from ..control.relay_step import SourceState as KnownSource
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceState
 from ..models.radio import RadioScene
@@ -44,8 +44,7 @@ def flight_column_type(name: str) -> type:
 class FlightRecorder:
     """Collects a flight's rows (``record`` each control period in OFFBOARD); ``mission`` returns them
     as a ``MissionResult`` like ``ar.simulate``'s. ``vehicles``: every relay flown by name (one relay: the
-    scene's relay); ``observed``: the NMPCs have an external-force observer. A fleet's row is every relay's
-    (``record_network``), one relay's the fleet of one's (``record``)."""
+    scene's relay); ``observed``: the NMPCs have an external-force observer. A row is every relay's."""
 
     def __init__(self, vehicles: Mapping[str, Multirotor], scene: RadioScene, *, observed: bool = False):
         self.vehicles, self.scene, self.observed = dict(vehicles), scene, observed
@@ -60,14 +59,7 @@ class FlightRecorder:
                         + list(FLIGHT_COLUMNS) + ([c for r in self.relays for c in self.observer_columns[r]] if observed else []))
         self.rows: list[dict] = []
 
-    def record(self, t: float, x: np.ndarray, cmd: Command, source: KnownSource, *, state_age_s: float,
-               violation: bool = False, a_ext: np.ndarray | None = None) -> None:
-        """Step ``t`` (s, the mission's clock) of one relay: its measured state ``x`` (m, rad ZYX, m/s, rad/s,
-        the commanded rotor speeds in Hz), the command, the source as the relay knew it."""
-        self.record_network(t, {self.relay: x}, {self.relay: cmd}, {self.source: source}, state_age_s=state_age_s,
-                            violations={self.relay: violation}, a_ext={self.relay: a_ext})
-
-    def record_network(self, t: float, xs: Mapping[str, np.ndarray], cmds: Mapping[str, Command],
+    def record(self, t: float, xs: Mapping[str, np.ndarray], cmds: Mapping[str, Command],
                        sources: Mapping[str, KnownSource], *, state_age_s: float, violations: Mapping[str, bool],
                        a_ext: Mapping[str, np.ndarray | None] | None = None) -> None:
         """Step ``t`` of every relay (``xs``, ``cmds`` by name) and every source as the network knew it; the

@@ -1,7 +1,8 @@
 """The controller side of a relay network, one control step: the network's planner on what the network
 knows, then every relay's stage parameters (its route neighbours' predicted paths, the other vehicles'
 plans for the separation) and its NMPC. ``sim.closed_loop.ClosedLoop`` flies it over the plant;
-``NetworkStepper`` (``ar.controller`` on a network) steps it from outside with measured states."""
+``Controller`` (``ar.controller``, any network) steps it from outside with measured states, ``OneRelay`` adapts
+it to one relay and one source."""
 
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from ..control.nmpc import StepInfo
 from ..models.battery import Battery
 from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceState as PathState
@@ -22,8 +22,9 @@ from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from ..planning.fleet import FleetInput, FleetPlanner
 from ..planning.home import HomeSettings
+from .nmpc import StepInfo
 from .readings import JammersFromReadings
-from .stepper import Command, RelayStepper, SourceState, checked_source
+from .relay_step import Command, RelayStep, SourceState, StaleSettings, checked_source
 
 SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
 GONE_CLEARANCE_M = 10.0  # a lost relay in another's separation constraint: the separation plus this below that relay's own
@@ -37,7 +38,7 @@ class LoopRelay:
 
     name: str
     vehicle: Multirotor
-    stepper: RelayStepper
+    stepper: RelayStep
     plant: ca.Function | None
     start: np.ndarray
     battery: Battery | None = None
@@ -159,21 +160,33 @@ class NetworkController:
                                     separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
 
 
-class NetworkStepper:
-    """``ar.controller`` on a network: ``step(t, relay_states, sources)`` plans every relay and steps each one's
-    NMPC with the states measured outside (``{relay: full state}``, ``{source: SourceState}``, aerorelay's
-    frames), the relays' plans exchanged inside; returns ``{relay: Command}``. A relay whose state is missing
-    (absent or None) holds where it last was and lands once it stays missing for ``land_after_s`` (its
-    ``RelayStepper``'s stale-input behaviour), the network planning with its last state; a missing source holds
-    every relay. Stepped over aerorelay's plant it flies what ``ar.simulate`` flies (tested)."""
+class Controller:
+    """The controller of any network, stepped from outside (``ar.controller(sc)``): ``step(t, relay_states, sources)``
+    each control period with every relay's measured state and every source as known, by name (aerorelay's frames:
+    world ENU, body FLU; ``flight.frames`` converts at an autopilot's edge), returns ``{relay: Command}``: the rotor
+    speeds and their rates (what aerorelay's plant flies) and the setpoints an autopilot accepts (position, velocity,
+    acceleration, attitude with the collective thrust normalized to hover, body rates: the relay's state one period
+    ahead under the command, by its own model), the step's computation time and whether it met its deadline. One
+    relay and one source: ``OneRelay`` adapts ``step(t, x, source)`` to it.
+
+    It owns, per relay, what the transports must not each write again: the telemetry check (a state with a
+    non-finite entry, stamped ahead of the clock or behind the last trusted one, or a jump no vehicle of its thrust
+    can make: held and ``Command.rejected`` says why), the state sanity warnings, the external-force observer
+    (``[wind]``, as ``ar.simulate`` gives every relay), the stale-input failsafe (a relay whose state is missing, older
+    than ``hold_after_s`` or not trusted holds where it last was, lands after ``land_after_s``, the network planning
+    with its last state) and the model it plans with (``autopilot``: thrust along body z). A source missing, stale or
+    not finite holds every relay. A malformed state, a clock going backwards, or a first step without a trusted state
+    of every relay, is a ValueError naming it. Stepped over aerorelay's plant it flies what ``ar.simulate`` flies
+    (tested, in gusty wind too)."""
 
     def __init__(self, controller: NetworkController, jammers: Callable[[float], tuple],
                  estimated: JammersFromReadings | None = None):
-        """``estimated``: the jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view)."""
+        """``jammers(t)``: the jammers as the network knows them at ``t`` (positions ``(nJ, 3)`` m, the powers it plans
+        with W, the position std m or None); ``estimated``: the jammers are estimated from the readings ``step`` is
+        handed (then ``jammers`` is its view)."""
         self.controller, self.jammers, self.estimated = controller, jammers, estimated
         self.period = controller.period
         self._t_last: float | None = None
-        self._last: dict[str, np.ndarray] = {}  # each relay's last fresh state
         self._read_at: tuple[float, dict[str, np.ndarray]] | None = None  # where the next readings were taken
         self.lost: set[str] = set()  # relays taken out of the network (``lose``)
         self.lost_at: dict[str, float] = {}  # when (s, the caller's clock; NaN: not said)
@@ -181,6 +194,25 @@ class NetworkStepper:
     @property
     def relays(self) -> list[str]:
         return [r.name for r in self.controller.relays]
+
+    @property
+    def sources(self) -> list[str]:
+        return list(self.controller.sources)
+
+    @property
+    def stale(self) -> StaleSettings:
+        """The stale-input settings (every relay's)."""
+        return self.controller.relays[0].stepper.stale
+
+    def relay(self, name: str) -> LoopRelay:
+        """Relay ``name`` (its vehicle, its ``RelayStep``)."""
+        for r in self.controller.relays:
+            if r.name == name:
+                return r
+        raise ValueError(f"no relay {name!r} in the network ({', '.join(self.relays)})")
+
+    def _last(self) -> dict[str, np.ndarray]:
+        return {r.name: x for r in self.controller.relays if (x := r.stepper.last_state) is not None}
 
     def lose(self, relays, t: float = math.nan) -> None:
         """Take ``relays`` out of the network for good (a link that stayed down, a relay sent home): the routes
@@ -194,63 +226,148 @@ class NetworkStepper:
             raise ValueError(f"lose: no relay {sorted(unknown)} in the network ({', '.join(self.relays)})")
         self.lost |= new
         self.lost_at |= dict.fromkeys(sorted(new), float(t))
-        self.controller.lose(frozenset(self.lost), {n: xs[0:3].copy() for n, xs in self._last.items()},
+        self.controller.lose(frozenset(self.lost), {n: xs[0:3].copy() for n, xs in self._last().items()},
                              float(t) if math.isfinite(t) else 0.0)
 
+    def problem(self, t: float, name: str, x: np.ndarray | None, stamp: float) -> str | None:
+        """Why relay ``name``'s state ``x`` (stamped ``stamp``) cannot be flown at ``t``: missing, not trusted or stale
+        (older than ``hold_after_s``); None when it can (what a transport gates its first step on)."""
+        if x is None:
+            return "no relay state"
+        if t - stamp > self.stale.hold_after_s:
+            return f"relay state {t - stamp:.3f} s old"
+        return self.relay(name).stepper.problem(t, x, stamp)
+
+    def source_problem(self, t: float, source: SourceState | None) -> str | None:
+        """Why a source as known cannot be planned with at ``t``: missing, not finite, stamped ahead of the clock, or
+        older than ``hold_after_s``; None when it can."""
+        if source is None:
+            return "no source"
+        why = self.controller.relays[0].stepper.check.problem(t, None, t, source)
+        if why is None and source.stamp is not None and t - source.stamp > self.stale.hold_after_s:
+            why = f"source {t - source.stamp:.3f} s old"
+        return why
+
     def step(self, t: float, relay_states: Mapping[str, np.ndarray | None], sources: Mapping[str, SourceState | None],
-             *, readings: Mapping[str, float] | None = None) -> dict[str, Command]:
+             *, stamps: Mapping[str, float | None] | None = None,
+             readings: Mapping[str, float] | None = None) -> dict[str, Command]:
         """One control period at ``t`` (s): every relay's full state ``(p, eta, v, omega, Omega)`` (m, rad ZYX, m/s,
-        rad/s FLU, Hz) by name (None or absent: none arrived), every source as known by name; ``{relay: Command}``.
-        ``readings``: with ``jammer.localization = "estimated"``, what each receiver (a relay, the base station with
-        ``estimation.use_bs``) measured over the last period, interference plus noise (W), taken where the relays
-        were at the last step. A malformed state, a clock going backwards, or a first step without every state, is
-        a ValueError naming it."""
+        rad/s FLU, Hz) by name (None or absent: none arrived), measured at ``stamps[relay]`` (s; absent or None: ``t``),
+        every source as known by name; ``{relay: Command}``. ``readings``: with ``jammer.localization = "estimated"``,
+        what each receiver (a relay, the base station with ``estimation.use_bs``) measured over the last period,
+        interference plus noise (W), taken where the relays were at the last step."""
         t0 = time.perf_counter()
         t = float(t)
-        if not np.isfinite(t) or (self._t_last is not None and t < self._t_last):
-            raise ValueError(f"step: t = {t} s must be finite and not before the previous step's")
-        fresh = {}
-        for r in self.controller.relays:
-            given = relay_states.get(r.name)
-            if given is None:
-                continue
-            xs = np.asarray(given, float)
-            if xs.shape != (r.vehicle.nx,) or not np.all(np.isfinite(xs)):
-                raise ValueError(f"step: relay_states[{r.name!r}] must be {r.vehicle.nx} finite numbers (p, eta, v, omega, Omega)")
-            fresh[r.name] = xs
-        never = [n for n in self.relays if n not in fresh and n not in self._last]
-        if never:
-            raise ValueError(f"step: no state for {never} and none before: a network's first step needs every relay's")
-        src = {}
-        for name in self.controller.sources:
-            checked = checked_source(sources.get(name))
-            if checked is not None:
-                src[name] = PathState(checked.p, checked.v, checked.a)
-        self._t_last = t
-        self._last.update(fresh)
+        if not np.isfinite(t):
+            raise ValueError(f"step: t must be a finite time (s), got {t}")
+        if self._t_last is not None and t < self._t_last:
+            raise ValueError(f"step: t = {t:.6g} s is before the previous step's {self._t_last:.6g} s (the clock went backwards)")
         if readings:
-            if self.estimated is None:
-                raise ValueError("step: readings given, but the scenario's jammers are not estimated "
-                                 "(jammer.localization = 'estimated')")
-            at, states = self._read_at if self._read_at is not None else (t, dict(self._last))
+            self._check_readings(readings)
+        unknown = sorted(set(relay_states) - set(self.relays))
+        if unknown:
+            raise ValueError(f"step: no relay {unknown} in the network ({', '.join(self.relays)})")
+        given: dict[str, np.ndarray] = {}
+        for r in self.controller.relays:
+            state = relay_states.get(r.name)
+            if state is None:
+                continue
+            xs = np.asarray(state, float)
+            if xs.shape != (r.vehicle.nx,):
+                raise ValueError(f"step: relay_states[{r.name!r}] must be {r.vehicle.nx} numbers (p, eta, v, omega, Omega), "
+                                 f"got shape {xs.shape}")
+            given[r.name] = xs
+        src = {name: checked_source(sources.get(name)) for name in self.controller.sources}
+        stamp = {n: t if stamps is None or stamps.get(n) is None else float(stamps[n]) for n in given}  # type: ignore[arg-type]
+        # not trusted (Command.rejected says why), or merely stale (older than hold_after_s): either holds
+        rejected = {n: w for n, x in given.items() if (w := self.relay(n).stepper.problem(t, x, stamp[n])) is not None}
+        fresh = {n: x for n, x in given.items() if n not in rejected and t - stamp[n] <= self.stale.hold_after_s}
+        never = [n for n in self.relays if n not in fresh and not self.relay(n).stepper.has_state]
+        if never:
+            said = [f"{n}: {rejected.get(n) or ('no relay state' if n not in given else 'stale')}" for n in never]
+            raise ValueError(f"step: no trusted state for {never} and none before ({'; '.join(said)}): the first step "
+                             "needs every relay's (nothing to hold)")
+        self._t_last = t
+        source_why = {n: w for n, s in src.items() if (w := self.source_problem(t, s)) is not None}
+        for r in self.controller.relays:
+            if r.name in fresh:
+                r.stepper.accept(t, stamp[r.name], fresh[r.name])
+            if r.name not in fresh or source_why:  # no input of its NMPC this period: its observer restarts after
+                r.stepper.missed()
+        last = self._last()
+        if readings:
+            at, states = self._read_at if self._read_at is not None else (t, last)
+            assert self.estimated is not None
             self.estimated.add(at, states, readings)
-        self._read_at = (t, dict(self._last))
-        if len(src) < len(self.controller.sources):  # the network cannot plan without its sources: every relay holds
-            missing = [n for n in self.controller.sources if n not in src]
-            return {r.name: replace(r.stepper.hold_command(t, t0), rejected=f"no source {missing}") for r in self.controller.relays}
-        # a missing relay planned at its last state; a lost one not at all
-        x = {n: fresh.get(n, self._last[n]) for n in self.relays if n not in self.lost}
-        refs = self.controller.plan(t, x, src, self.jammers(t))
-        predicted = self.controller.predicted({**x, **{n: self._last[n] for n in self.lost}}, src)
+        self._read_at = (t, last)
+        if source_why:  # the network cannot plan without its sources: every relay holds
+            told = "; ".join(f"{n}: {w}" for n, w in source_why.items())
+            return {r.name: replace(r.stepper.hold_command(t, t0), rejected=f"source {told}") for r in self.controller.relays}
+        known = {n: PathState(s.p, s.v, s.a) for n, s in src.items() if s is not None}
+        # a relay without a fresh state planned at its last state; a lost one not at all
+        x = {n: last[n] for n in self.relays if n not in self.lost}
+        refs = self.controller.plan(t, x, known, self.jammers(t))
+        predicted = self.controller.predicted({**x, **{n: last[n] for n in self.lost}}, known)
         for n in self.lost & set(predicted):  # a lost relay still flies (it holds and lands): kept clear where it last was
-            predicted[n] = np.repeat(self._last[n][0:3, None], predicted[n].shape[1], axis=1)
+            predicted[n] = np.repeat(last[n][0:3, None], predicted[n].shape[1], axis=1)
         out = {}
         for r in self.controller.relays:
             if r.name not in fresh or r.name in self.lost:
-                out[r.name] = r.stepper.hold_command(t, t0)
+                cmd = r.stepper.hold_command(t, t0)
+                out[r.name] = replace(cmd, rejected=rejected[r.name]) if r.name in rejected else cmd
                 continue
-            r.stepper.remember(t, x[r.name])
             P = self.controller.parameters(r, refs[r.name], predicted, frozenset(), None)
             info: StepInfo = r.stepper.act(x[r.name], P)
             out[r.name] = r.stepper.command(t, x[r.name], info, refs[r.name], t0)
         return out
+
+    def _check_readings(self, readings: Mapping[str, float]) -> None:
+        if self.estimated is None:
+            raise ValueError("step: readings given, but the scenario's jammers are not estimated "
+                             "(jammer.localization = 'estimated')")
+        for name, w in readings.items():
+            if not (isinstance(w, int | float | np.floating) and np.isfinite(w) and w >= 0):
+                raise ValueError(f"step: readings[{name!r}] must be a finite power >= 0 W, got {w!r}")
+
+
+class OneRelay:
+    """``ar.controller`` on one relay and one source: ``step(t, relay_state, source)`` returns the relay's ``Command``,
+    a thin adapter over the network's ``Controller`` (``network``): ``step(t, {relay: x}, {source: s})[relay]``."""
+
+    def __init__(self, network: Controller):
+        if len(network.relays) != 1 or len(network.sources) != 1:
+            raise ValueError(f"OneRelay: one relay and one source, got relays {network.relays} and sources {network.sources}")
+        self.network = network
+        self.name, self.source = network.relays[0], network.sources[0]
+        self.part = network.relay(self.name)
+
+    @property
+    def vehicle(self) -> Multirotor:
+        return self.part.vehicle
+
+    @property
+    def period(self) -> float:
+        return self.network.period
+
+    @property
+    def stale(self) -> StaleSettings:
+        return self.network.stale
+
+    @property
+    def observer(self):
+        return self.part.stepper.observer
+
+    @property
+    def estimated(self) -> JammersFromReadings | None:
+        return self.network.estimated
+
+    def jammers(self, t: float) -> tuple:
+        return self.network.jammers(t)
+
+    def step(self, t: float, relay_state: np.ndarray | None, source: SourceState | None, *,
+             state_stamp: float | None = None, readings: Mapping[str, float] | None = None) -> Command:
+        """One control step at ``t`` (s): ``relay_state`` the full state ``(p, eta, v, omega, Omega)`` (m, rad ZYX, m/s,
+        rad/s FLU, Hz; None: no new state), measured at ``state_stamp`` (None: ``t``); ``source`` as the relay knows it;
+        ``readings`` as ``Controller.step`` takes them."""
+        return self.network.step(t, {self.name: relay_state}, {self.source: source}, stamps={self.name: state_stamp},
+                                 readings=readings)[self.name]

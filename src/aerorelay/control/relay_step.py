@@ -1,12 +1,9 @@
-"""The relay controller stepped from outside: ``ctrl = ar.controller(sc)``; each control period
-``cmd = ctrl.step(t, relay_state, source)`` with the relay's measured state and what it knows of the
-source, in aerorelay's frames (world ENU, body FLU; ``flight.frames`` converts at an autopilot's
-edge). ``cmd`` carries the rotor speeds and their rates (what aerorelay's plant flies) and the
-setpoints an autopilot accepts: position, velocity and acceleration, the attitude quaternion with the
-collective thrust normalized to hover, the body rates (the relay's state one control period ahead
-under the command, by its own model); the step's computation time and whether it met its deadline.
+"""One relay's part of the controller (``RelayStep``) and the step API's vocabulary: what a relay knows of a
+source (``SourceState``), when stale inputs hold and land (``StaleSettings``), one control step's output
+(``Command``), the telemetry check (``TelemetryCheck``) and the warnings for a state that can be stepped but
+not flown as meant (``StateSanity``). ``control.network.Controller`` steps every relay of any network with them.
 
-Inputs that go stale put it in a failsafe, the behaviour autopilots give: a relay state (or source)
+Inputs that go stale put a relay in a failsafe, the behaviour autopilots give: a relay state (or source)
 older than ``hold_after_s`` makes the command a position hold where the relay last was (no rotor
 command: the autopilot holds); older than ``land_after_s`` a landing straight down at ``land_speed_m_s``
 to the ground. A fresh state resumes the NMPC.
@@ -14,30 +11,24 @@ to the ground. A fresh state resumes the NMPC.
 Inputs are checked before they are flown (``TelemetryCheck``): a relay state or source with a
 non-finite entry, a stamp ahead of the clock or behind the last trusted one, or a jump from the last
 trusted state that no vehicle of this one's thrust can make in the time between them is not trusted:
-the step treats it as stale and says why (``Command.rejected``). A clock ``t`` that goes backwards
-or is not finite, or inputs of the wrong shape, are errors (``ValueError`` naming the argument).
-
-``ar.simulate`` flies the same steps (``prepare`` then ``act``) on aerorelay's plant: stepping
-``ar.controller(sc)`` over the plant reproduces it bit for bit (tested).
+the step treats it as stale and says why (``Command.rejected``).
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..control.nmpc import StepInfo
-from ..control.relay import RelayController
 from ..estimation.disturbance import ExternalAccelerationObserver
+from ..flight.frames import quaternion_wxyz
 from ..models.geometry import rotation_zyx
 from ..models.vehicle import Multirotor
-from ..planning.base import Planner, PlannerInput, Reference
-from .frames import quaternion_wxyz
-from .readings import JammersFromReadings
+from ..planning.base import Reference
+from .nmpc import StepInfo
+from .relay import RelayController
 
 MODES = ("nmpc", "fallback", "hold", "land")  # Command.mode
 log = logging.getLogger(__name__)
@@ -202,31 +193,23 @@ def checked_source(source: SourceState | None) -> SourceState | None:
     return SourceState(vecs["p"], vecs["v"], vecs["a"], stamp=stamp)
 
 
-JammerView = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray | None]]
+class RelayStep:
+    """One relay's part of the controller, whatever the network: its NMPC (no planner of its own: the network's
+    planner gives its reference), its telemetry check and state sanity, its external-force observer and its
+    stale-input failsafe (hold where it last was, then land). ``controller.network.Controller`` steps every relay's."""
 
-
-class RelayStepper:
-    """The planner and the NMPC of one relay, stepped from outside (see the module)."""
-
-    def __init__(self, *, vehicle: Multirotor, planner: Planner | None, controller: RelayController, period_s: float,
-                 jammers: JammerView, observer: ExternalAccelerationObserver | None = None,
-                 stale: StaleSettings = StaleSettings(), estimated: JammersFromReadings | None = None):
-        """``jammers(t)``: the jammers as the relay knows them at ``t``: positions ``(nJ, 3)`` m, the
-        powers it plans with (W) and the position std (m; None: known exactly). ``estimated``: the
-        jammers are estimated from the readings ``step`` is handed (then ``jammers`` is its view).
-        ``planner`` None: a relay of a network whose planner plans every relay (``parameters``)."""
-        self.vehicle, self.planner, self.controller, self.period = vehicle, planner, controller, period_s
-        self.jammers, self.observer, self.stale, self.estimated = jammers, observer, stale, estimated
-        # (time, state) of the last fresh step: where a hold holds and where the next step's readings were taken
+    def __init__(self, *, vehicle: Multirotor, controller: RelayController, period_s: float,
+                 observer: ExternalAccelerationObserver | None = None, stale: StaleSettings = StaleSettings()):
+        self.vehicle, self.controller, self.period = vehicle, controller, period_s
+        self.observer, self.stale = observer, stale
+        # (time, state) of the last fresh step: where a hold holds
         self._last_step: tuple[float, np.ndarray] | None = None
         self.shift = period_s >= controller.spec.ts - 1e-12
         self.u = np.zeros(vehicle.n_rotors)  # the input applied last (Hz/s)
-        self.planner_ms = 0.0
-        self._x_prev: np.ndarray | None = None
+        self._x_prev: np.ndarray | None = None  # the state of the previous step when it was fresh (the observer's)
         self._land_from: tuple[float, np.ndarray] | None = None
         self.check = TelemetryCheck(vehicle, stale)
         self.sanity = StateSanity(stale.ground_z_m)
-        self._t_last: float | None = None  # the clock of the last step (it must not go backwards)
         F, _ = vehicle.allocation()
         self._thrust_per_speed2 = F
 
@@ -235,35 +218,37 @@ class RelayStepper:
         """Whether a fresh relay state has been stepped (a hold needs a place to hold)."""
         return self._last_step is not None
 
-    # -- the NMPC's step in two phases (ar.simulate calls them with its own measurements) ---------------
-    def prepare(self, t: float, x: np.ndarray, source: SourceState, *, jammers=None,
-                a_ext: np.ndarray | None = None) -> tuple[Reference, np.ndarray]:
-        """The planner's reference and the NMPC's stage parameters for the relay at ``x``; ``jammers``:
-        ``(positions, powers, std)`` measured outside (default ``self.jammers(t)``); ``a_ext``: an
-        external-acceleration estimate made outside (default: this stepper's observer's, if any)."""
-        ref = self.plan(t, x, source, jammers=jammers)
-        if a_ext is None and self.observer is not None:
-            a_ext = self.observer.estimate
-        return ref, self.controller.parameters(ref, source.p, source.v, source.a, a_ext=a_ext)
+    @property
+    def last_state(self) -> np.ndarray | None:
+        """The last fresh state stepped (None before one)."""
+        return None if self._last_step is None else self._last_step[1]
 
-    def plan(self, t: float, x: np.ndarray, source: SourceState, *, jammers=None) -> Reference:
-        """This relay's planner's reference for the relay at ``x`` (its time in ``planner_ms``)."""
-        if self.planner is None:
-            raise ValueError("step: this relay's references come from its network's planner (it has none of its own)")
-        pj, powers, std = jammers if jammers is not None else self.jammers(t)
-        t0 = time.perf_counter()
-        ref = self.planner.update(PlannerInput(t=t, dt=self.period, p1=x[0:3].copy(), p2=source.p, v2=source.v, a2=source.a,
-                                               jammer_positions=pj, jammer_powers=powers, jammer_std_m=std,
-                                               psi1=float(x[5]), v1=x[6:9].copy()))
-        self.planner_ms = (time.perf_counter() - t0) * 1e3
-        return ref
+    def problem(self, t: float, x: np.ndarray | None, stamp: float) -> str | None:
+        """Why the relay state ``x`` (stamped ``stamp``) cannot be trusted at ``t`` (``TelemetryCheck``); None when it can."""
+        return self.check.problem(t, x, stamp, None)
+
+    def accept(self, t: float, stamp: float, x: np.ndarray) -> None:
+        """A fresh, trusted state ``x`` (measured at ``stamp``) for the step at ``t``: kept as the last trusted one,
+        checked for the mistakes of a user's simulator, folded into the observer (after a fresh step), where a later
+        hold holds."""
+        self.check.trust(stamp, x)
+        self.sanity.check(t, x)
+        if self.observer is not None and self._x_prev is not None:
+            self.observer.update(self._x_prev, self.u, x)
+        self._land_from = None
+        self._last_step = (t, x.copy())
+        self._x_prev = x.copy()
+
+    def missed(self) -> None:
+        """A step without a fresh state: the observer restarts from the next fresh one (a gap is not one period)."""
+        self._x_prev = None
 
     def parameters(self, ref: Reference, *, p2_path: np.ndarray, p0_path: np.ndarray | None = None,
                    others: np.ndarray | None = None, separation_m: float = 0.0,
                    a_ext: np.ndarray | None = None) -> np.ndarray:
-        """The NMPC's stage parameters for the reference ``ref`` of a relay in a network: its upstream node's
-        predicted positions ``p2_path`` ``(3, N + 1)`` (m, world), its downstream node's ``p0_path`` (when its
-        OCP takes it), the other vehicles' ``others`` and the separation to keep (m), ``a_ext`` (m/s^2)."""
+        """The NMPC's stage parameters for the reference ``ref``: its upstream node's predicted positions ``p2_path``
+        ``(3, N + 1)`` (m, world), its downstream node's ``p0_path`` (when its OCP takes it), the other vehicles'
+        ``others`` and the separation to keep (m), ``a_ext`` (m/s^2; default this relay's observer's estimate)."""
         if a_ext is None and self.observer is not None:
             a_ext = self.observer.estimate
         zero = np.zeros(3)
@@ -275,76 +260,6 @@ class RelayStepper:
         info = self.controller.step(x, self.u, P, shift=self.shift)
         self.u = info.u
         return info
-
-    # -- the step API -----------------------------------------------------------------------------------
-    def step(self, t: float, relay_state: np.ndarray | None, source: SourceState | None, *,
-             state_stamp: float | None = None, jammers=None, readings: Mapping[str, float] | None = None) -> Command:
-        """One control step at ``t`` (s): ``relay_state`` the full state ``(p, eta, v, omega, Omega)``
-        (m, rad ZYX, m/s, rad/s FLU, Hz; None: no new state), measured at ``state_stamp`` (None: ``t``).
-        ``readings``: with ``jammer.localization = "estimated"``, what each receiver (by node name: the
-        relay, the base station with ``estimation.use_bs``) measured over the last period, interference
-        plus noise in W, taken where the relay was at its last step (``flight/readings.py``)."""
-        t0 = time.perf_counter()
-        t = float(t)
-        if not np.isfinite(t):
-            raise ValueError(f"step: t must be a finite time (s), got {t}")
-        if self._t_last is not None and t < self._t_last:
-            raise ValueError(f"step: t = {t:.6g} s is before the previous step's {self._t_last:.6g} s (the clock went backwards)")
-        x = None
-        if relay_state is not None:
-            x = np.asarray(relay_state, float)
-            if x.shape != (self.vehicle.nx,):
-                raise ValueError(f"step: relay_state must have {self.vehicle.nx} entries (p, eta, v, omega, Omega), got {x.shape}")
-        source = checked_source(source)
-        self._t_last = t
-        stamp = t if state_stamp is None else float(state_stamp)
-        rejected = self.check.problem(t, x, stamp, source)
-        if readings:
-            self._fold(t, x if rejected is None else None, readings)
-        if rejected is not None or self.stale_reason(t, x, stamp, source) is not None:
-            self._x_prev = None  # the observer restarts from the next fresh state (a gap is not one period)
-            if rejected is not None and self._last_step is None:
-                raise ValueError(f"step: {rejected}, and no trusted relay state yet (nothing to hold)")
-            cmd = self._stale_command(t, t0)
-            return cmd if rejected is None else replace(cmd, rejected=rejected)
-        assert x is not None and source is not None
-        self.check.trust(stamp, x)
-        self.sanity.check(t, x)
-        if self.observer is not None and self._x_prev is not None:
-            self.observer.update(self._x_prev, self.u, x)
-        self._land_from = None
-        self._last_step = (t, x.copy())
-        ref, P = self.prepare(t, x, source, jammers=jammers)
-        info = self.act(x, P)
-        self._x_prev = x.copy()
-        return self.command(t, x, info, ref, t0)
-
-    def stale_reason(self, t: float, x: np.ndarray | None, stamp: float, source: SourceState | None) -> str | None:
-        """Why the relay state ``x`` (stamped ``stamp``) and ``source`` are not fresh at ``t`` (missing, or
-        older than ``hold_after_s``); None when both are."""
-        hold = self.stale.hold_after_s
-        if x is None:
-            return "no relay state"
-        if source is None:
-            return "no source"
-        if t - stamp > hold:
-            return f"relay state {t - stamp:.3f} s old"
-        if source.stamp is not None and t - source.stamp > hold:
-            return f"source {t - source.stamp:.3f} s old"
-        return None
-
-    def _fold(self, t: float, relay_state: np.ndarray | None, readings: Mapping[str, float]) -> None:
-        """Fold readings into the estimate: taken at the last step's time and pose (the current ones at the first)."""
-        if self.estimated is None:
-            raise ValueError("step: readings given, but the scenario's jammers are not estimated "
-                             "(jammer.localization = 'estimated')")
-        for name, w in readings.items():
-            if not (isinstance(w, int | float | np.floating) and np.isfinite(w) and w >= 0):
-                raise ValueError(f"step: readings[{name!r}] must be a finite power >= 0 W, got {w!r}")
-        if self._last_step is not None:
-            self.estimated.add(*self._last_step, readings)
-        elif relay_state is not None:
-            self.estimated.add(t, np.asarray(relay_state, float), readings)
 
     def command(self, t: float, x: np.ndarray, info: StepInfo, ref: Reference, t0: float) -> Command:
         """The ``Command`` of a step flown at ``x`` with ``info`` on ``ref`` (setpoints one period ahead by the model);
@@ -361,18 +276,14 @@ class RelayStepper:
                        body_rates_rad_s=x1[9:12], compute_ms=ms, deadline_met=ms <= self.period * 1e3, reference=ref, info=info)
 
     def remember(self, t: float, x: np.ndarray) -> None:
-        """A fresh state ``x`` flown at ``t`` (s) by a caller that steps this relay's NMPC itself (a network's
-        step): where a later hold holds, and the landing's clock restarts."""
+        """A fresh state ``x`` flown at ``t`` (s) by a caller that checks nothing (``ar.simulate``'s plant): where a
+        later hold holds, and the landing's clock restarts."""
         self._land_from = None
         self._last_step = (t, np.asarray(x, float).copy())
 
     def hold_command(self, t: float, t0: float) -> Command:
-        """The stale-input command at ``t`` (s): hold where the relay last was, land once stale for
-        ``land_after_s`` (``t0``: when the step began, ``time.perf_counter``)."""
-        return self._stale_command(t, t0)
-
-    def _stale_command(self, t: float, t0: float) -> Command:
-        """Hold where the relay last was (level, its last yaw); land straight down once the input stays stale."""
+        """The stale-input command at ``t`` (s): hold where the relay last was (level, its last yaw), land straight
+        down once stale for ``land_after_s`` (``t0``: when the step began, ``time.perf_counter``)."""
         if self._last_step is None:
             raise ValueError("step: no relay state and source received yet (nothing to hold)")
         since, x = self._last_step
@@ -392,4 +303,3 @@ class RelayStepper:
                        acceleration_m_s2=np.zeros(3), attitude_wxyz=quaternion_wxyz(rotation_zyx([0.0, 0.0, yaw])),
                        thrust_normalized=1.0,
                        body_rates_rad_s=np.zeros(3), compute_ms=ms, deadline_met=ms <= self.period * 1e3)
-
