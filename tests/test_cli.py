@@ -127,3 +127,44 @@ def test_reproduce_help_names_every_study_with_its_title():
     for f in sorted((ROOT / "experiments").glob("*.toml")):
         data = tomllib.loads(f.read_text())
         assert f"{data['name']}: {' '.join(data['title'].split())[:40]}" in text, data["name"]
+
+
+HANDOVER_ONE_RELAY = """
+name = "handover_one_relay"
+[[base_stations]]
+name = "west"
+position = [0.0, 0.0, 0.0]
+[[base_stations]]
+name = "east"
+position = [24.0, 0.0, 0.0]
+[[relays]]
+name = "r1"
+start = [3.0, 2.0, 2.0]
+[[sources]]
+name = "inspector"
+[sources.mission]
+waypoints = [[0.0, 4.0, 6.0, 3.0], [16.0, 20.0, 6.0, 3.0]]
+[network]
+routes = [["inspector", "r1", "any"]]
+[controller.workspace]
+min = [-2.0, -2.0, 0.5]
+max = [26.0, 10.0, 6.0]
+"""
+
+
+def test_command_line_options_apply_before_validation(tmp_path):
+    """A file valid only with the planner ``--planner`` names flies (the options are applied before the file is
+    validated, as ``--set`` is): one relay that may hand over between two base stations is refused for the paper's
+    generator (the default) and flies with ``--planner capacity``; ``--duration`` too is what is validated."""
+    f = tmp_path / "handover.toml"
+    f.write_text(HANDOVER_ONE_RELAY)
+    refused = runner.invoke(app, ["validate", str(f)])
+    assert refused.exit_code == 2 and "controller.planner" in refused.output
+    flown = runner.invoke(app, ["run", str(f), "--planner", "capacity", "--duration", "0.3", "--no-bound",
+                                "--out", str(tmp_path / "run")])
+    assert flown.exit_code == 0, flown.output
+    import tomllib
+    written = tomllib.loads((tmp_path / "run" / "scenario.toml").read_text())
+    assert written["controller"]["planner"] == "capacity" and written["sim"]["duration_s"] == 0.3
+    bad = runner.invoke(app, ["run", str(f), "--planner", "capacity", "--duration", "-1", "--out", str(tmp_path / "bad")])
+    assert bad.exit_code == 2 and "sim.duration_s" in bad.output and not (tmp_path / "bad").exists()

@@ -132,7 +132,7 @@ def test_a_fleet_runs_from_the_command_line_with_its_network_bound(tmp_path):
     from aerorelay.cli import app
 
     f = tmp_path / "chain.toml"
-    coarse = {**chain(), "bound": {"network_grid_m": 5.0, "network_dt_s": 10.0}}
+    coarse = {**chain(), "bound": {"grid_m": 5.0, "dt_s": 10.0}}
     f.write_text(parse_scenario(coarse).to_toml())
     res = CliRunner().invoke(app, ["bound", str(f), "--out", str(tmp_path / "b")])
     assert res.exit_code == 0 and "achieved" in res.output, res.output
@@ -184,3 +184,38 @@ def test_one_relay_written_as_a_network_gets_its_bound_and_its_capacity_planner(
     data["bound"] = {"grid_m": 1.0, "dt_s": 0.5}
     r = ar.simulate(parse_scenario(data), bound=True)
     assert not r.metrics["unsafe"] and 0 < r.metrics["capacity_efficiency_mean"] <= 1.05
+
+
+def test_a_networks_old_spellings_are_read_as_the_one_field_and_two_values_are_refused(caplog):
+    """``network.planner``, ``network.route_dt_s``, ``bound.network_grid_m`` and ``bound.network_dt_s`` (the network's
+    spellings before 2026-12-05) are read as ``controller.planner``, ``controller.capacity.route_dt_s``,
+    ``bound.grid_m`` and ``bound.dt_s`` with a warning naming both; one setting spelled twice with two values is a
+    named error; with the same value it is read once."""
+    def unplanned(**network) -> dict:
+        d = chain(**network)
+        del d["controller"]["planner"]
+        return d
+
+    old = {**unplanned(planner="capacity", route_dt_s=4.0), "bound": {"network_grid_m": 5.0, "network_dt_s": 10.0}}
+    new = unplanned()
+    new["controller"] |= {"planner": "capacity", "capacity": {"route_dt_s": 4.0}}
+    new["bound"] = {"grid_m": 5.0, "dt_s": 10.0}
+    with caplog.at_level("WARNING"):
+        a = parse_scenario(copy.deepcopy(old))
+    b = parse_scenario(new)
+    assert a.model_dump() == b.model_dump()
+    assert (a.planner, a.route_dt_s, a.bound_grid_m, a.bound_dt_s) == ("capacity", 4.0, 5.0, 10.0)
+    # a network's defaults, and one relay's, from the one field left unset
+    plain = parse_scenario(unplanned())
+    assert (plain.planner, plain.route_dt_s, plain.bound_grid_m, plain.bound_dt_s) == ("equidistant", 2.0, 2.0, 2.0)
+    nominal = ar.load_scenario("scenarios/nominal_tilted.toml")
+    assert (nominal.planner, nominal.route_dt_s, nominal.bound_grid_m, nominal.bound_dt_s) == \
+        ("trajectory_generator", 1.0, 0.5, 0.5)
+    twice = unplanned(planner="capacity")
+    twice["controller"]["planner"] = "equidistant"
+    with pytest.raises(ScenarioError, match=r"network\.planner = 'capacity' and controller\.planner = 'equidistant': one "
+                                            r"setting spelled twice"):
+        parse_scenario(twice)
+    same = unplanned(planner="paper")
+    same["controller"]["planner"] = "trajectory_generator"
+    assert parse_scenario(same).planner == "trajectory_generator"

@@ -37,8 +37,10 @@ from .assembly.parts import (
     check_bound_size,
     network_bound,
     nmpc_settings,
+    relay_view,
     scenario_bound,
 )
+from .assembly.planners import comms_aware
 from .assembly.vehicle import build_vehicle
 from .assembly.world import wind_field
 from .config import Scenario, ScenarioError
@@ -327,10 +329,10 @@ def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: i
     res = benchmark_closed_loop(build(sc, nmpc_settings=settings).closed_loop(), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
     if sc.is_network:
-        res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.network.planner} fleet planner)"
+        res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.planner} fleet planner)"
     else:
-        nmpc_kind = "comms-aware NMPC" if sc.controller.comms_aware else "tracking NMPC"
-        res["scenario"] = f"{sc.name} ({sc.controller.planner} planner, {nmpc_kind})"
+        nmpc_kind = "comms-aware NMPC" if comms_aware(relay_view(sc, 0)) else "tracking NMPC"
+        res["scenario"] = f"{sc.name} ({sc.planner} planner, {nmpc_kind})"
     return res
 
 

@@ -26,10 +26,16 @@ EXIT_UNSAFE = 3  # the run finished but the relay left its workspace or flipped 
 QUICK_BUDGET_MIN = 5.0  # reproduce --quick: minutes of estimated wall time (experiments/budget.py)
 
 
-def _load_or_exit(path: Path, sets: list[str] | None = None, unsets: list[str] | None = None) -> Scenario:
-    """The scenario file with the ``--set`` items applied and the ``--unset`` keys removed before it is
-    validated (as ``load_scenario(set=..., unset=...)``): exit 2 naming what is wrong."""
-    updates = parse_sets(sets)
+def _load_or_exit(path: Path, sets: list[str] | None = None, unsets: list[str] | None = None,
+                  options: dict | None = None) -> Scenario:
+    """The scenario file with the ``--set`` items, then the command-line ``options`` that were given (dotted keys,
+    None: not given; ``--planner``, ``--variant``, ``--duration``, ...), applied and the ``--unset`` keys removed before
+    it is validated (as ``load_scenario(set=..., unset=...)``: a file valid only with an option's value loads with
+    it): exit 2 naming what is wrong."""
+    try:
+        updates = {**parse_sets(sets), **{k: v for k, v in (options or {}).items() if v is not None}}
+    except ScenarioError as exc:
+        _fail(str(exc))
     try:
         return load_scenario(path, set=updates, unset=list(unsets or []))
     except ScenarioError as exc:
@@ -37,18 +43,6 @@ def _load_or_exit(path: Path, sets: list[str] | None = None, unsets: list[str] |
         for line in str(exc).splitlines():
             err_console.print(f"  {line}", markup=False, highlight=False)
         raise typer.Exit(EXIT_BAD_INPUT) from None
-
-
-def _with_overrides(sc: Scenario, overrides: dict, sets: list[str] | None = None) -> Scenario:
-    """``sc`` with the ``--set`` items and then the command-line options that were given (dotted
-    keys; None = not given), validated like a scenario file: a bad value exits 2 naming the field
-    and its allowed range."""
-    updates = {**parse_sets(sets), **{k: v for k, v in overrides.items() if v is not None}}
-    try:
-        return api.updated(sc, updates)
-    except ScenarioError as exc:
-        _fail(str(exc))
-        raise  # unreachable: _fail exits
 
 
 def _check_out(out: Path, kind: str) -> None:
@@ -102,7 +96,7 @@ def validate(
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
     """Validate a scenario and print it fully resolved (every default spelled out)."""
-    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {})
+    sc = _load_or_exit(scenario, set_, unset)
     print(f"# {scenario}: valid")
     if sc.channel.outage_threshold is None:
         print(f"# channel.outage_threshold (unset) resolves to {sc.channel.outage:g} {sc.channel.capacity_unit}")
@@ -153,7 +147,7 @@ def info(
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
     """Print the scenario's derived model quantities: hover, allocation rank, initial link budget."""
-    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {})
+    sc = _load_or_exit(scenario, set_, unset)
     console.print(model_summary(sc))
     t = Table(title=f"link budget at t=0 ({sc.channel.units} units, level attitudes, jammers at peak)", show_header=True)
     t.add_column("quantity")
@@ -179,8 +173,8 @@ def run(
 ):
     """Fly one closed-loop mission and write scenario.toml, timeseries.parquet, metrics.json, the
     capacity bound (bound.json, bound.parquet, efficiency in metrics.json) and figures."""
-    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {"controller.variant": variant, "controller.planner": planner,
-                                                                "sim.duration_s": duration})
+    sc = _load_or_exit(scenario, set_, unset, {"controller.variant": variant, "controller.planner": planner,
+                                               "sim.duration_s": duration})
     _check_run(sc, out, figures=not no_figures, bound=not no_bound)
     try:
         with api.output_lock(out, wait=wait):  # one writer per folder, from before the flight until it is saved
@@ -244,7 +238,7 @@ def bound(
 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {})
+    sc = _load_or_exit(scenario, set_, unset)
     _check_out(out, "bound")
     try:
         with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
@@ -401,9 +395,8 @@ def bench(
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
 
 
-    sc = _with_overrides(_load_or_exit(scenario, set_, unset), {"sim.duration_s": duration, "controller.variant": variant,
-                                                                "controller.planner": planner,
-                                                                "sim.control_rate_hz": control_rate_hz})
+    sc = _load_or_exit(scenario, set_, unset, {"sim.duration_s": duration, "controller.variant": variant,
+                                               "controller.planner": planner, "sim.control_rate_hz": control_rate_hz})
     try:
         settings = api.solver_settings(sc, backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
                                  warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,

@@ -29,8 +29,8 @@ CASES = {  # case -> (scenario file, dotted updates)
                                                             "jammer.inr_db_at_relay_start": 10.0}),
     "chain": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 2.0}),
     "two_sources": ("scenarios/two_sources.toml", {"sim.duration_s": 2.0}),
-    "chain_capacity": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 1.5, "network.planner": "capacity"}),
-    "two_sources_paper": ("scenarios/two_sources.toml", {"sim.duration_s": 1.5, "network.planner": "paper"}),
+    "chain_capacity": ("scenarios/chain_two_relays.toml", {"sim.duration_s": 1.5, "controller.planner": "capacity"}),
+    "two_sources_paper": ("scenarios/two_sources.toml", {"sim.duration_s": 1.5, "controller.planner": "paper"}),
 }
 
 

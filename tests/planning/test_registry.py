@@ -46,5 +46,5 @@ def test_an_unknown_planner_is_named_with_the_registered_ones():
 
 def test_the_papers_generator_has_one_name():
     assert ar.load_scenario(NOMINAL, set={"controller.planner": "paper"}).controller.planner == "trajectory_generator"
-    chain = ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": "paper"})
-    assert chain.network.planner == "trajectory_generator" and "paper" not in chain.to_toml().split("[network]")[1].split("\n[")[0]
+    chain = ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "paper"})
+    assert chain.planner == "trajectory_generator" and "paper" not in chain.to_toml().split("[controller]")[1].split("\n[")[0]

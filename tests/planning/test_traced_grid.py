@@ -62,7 +62,7 @@ def test_a_relay_scoring_on_the_traced_channel_flies():
 
 
 FLEET = {"channel.units": "physical", "channel.propagation.model": "ray_traced", "channel.propagation.scene": "empty",
-         "network.planner": "capacity", "controller.capacity.scoring": "traced"}
+         "controller.planner": "capacity", "controller.capacity.scoring": "traced"}
 
 
 @needs_rt
@@ -107,8 +107,8 @@ def test_a_fleet_scoring_on_the_traced_channel_flies_and_scores_traced():
 
 
 def test_traced_scoring_in_a_network_needs_its_capacity_planner():
-    with pytest.raises(ScenarioError, match=r"network\.planner = 'equidistant' scores none"):
-        updated(ar.load_scenario("scenarios/chain_two_relays.toml"), {**FLEET, "network.planner": "equidistant"})
+    with pytest.raises(ScenarioError, match=r"controller\.planner = 'equidistant' scores none"):
+        updated(ar.load_scenario("scenarios/chain_two_relays.toml"), {**FLEET, "controller.planner": "equidistant"})
 
 
 EMPTY = {**PHYSICAL, "channel.propagation.model": "ray_traced", "channel.propagation.scene": "empty",
@@ -187,7 +187,7 @@ def test_a_fleets_network_bound_on_the_traced_map_of_an_empty_scene_is_the_brute
     from aerorelay.planning.traced_network_bound import compute_traced_network_bound
     sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={
         "channel.propagation.model": "ray_traced", "channel.propagation.scene": "empty", "channel.propagation.max_depth": 0,
-        "channel.propagation.rays_per_source": 10_000, "bound.network_grid_m": 8.0, "bound.network_dt_s": 20.0,
+        "channel.propagation.rays_per_source": 10_000, "bound.grid_m": 8.0, "bound.dt_s": 20.0,
         "sim.duration_s": 20.0})
     pb = network_bound_problem(sc)
     bound = compute_traced_network_bound(pb, RayTracer(trace_settings(sc)), coherent=False)
@@ -241,8 +241,8 @@ def test_a_fleets_network_bound_on_the_traced_map_of_an_empty_scene_is_the_brute
 @needs_rt
 def test_a_fleets_network_bound_on_a_fine_traced_map_is_refused_naming_its_grid():
     from aerorelay.assembly.parts import check_bound_size
-    sc = ar.load_scenario("scenarios/street_canyon_chain.toml", set={"bound.network_grid_m": 2.0})
-    with pytest.raises(ScenarioError, match=r"bound\.network_grid_m: the bound would take"):
+    sc = ar.load_scenario("scenarios/street_canyon_chain.toml", set={"bound.grid_m": 2.0})
+    with pytest.raises(ScenarioError, match=r"bound\.grid_m: the bound would take"):
         check_bound_size(sc)
 
 

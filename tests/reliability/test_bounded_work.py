@@ -52,8 +52,8 @@ def test_a_one_relay_bound_over_a_200_m_box_is_refused_before_any_work():
 
 
 @pytest.mark.parametrize("updates,field", [
-    ({"relays": [{"name": f"r{i}", "start": [float(10 * i), 5.0, 5.0]} for i in range(1, 5)]} | BIG_BOX, "bound.network_grid_m"),
-    ({"bound.network_grid_m": 0.25}, "bound.network_grid_m"),
+    ({"relays": [{"name": f"r{i}", "start": [float(10 * i), 5.0, 5.0]} for i in range(1, 5)]} | BIG_BOX, "bound.grid_m"),
+    ({"bound.grid_m": 0.25}, "bound.grid_m"),
 ])
 def test_network_bounds_too_large_are_refused_naming_the_grid(updates, field):
     sc = ar.load_scenario(CHAIN, set={k: v for k, v in updates.items() if k != "relays"})

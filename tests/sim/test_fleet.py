@@ -180,7 +180,7 @@ def test_the_fleets_capacity_planner_beats_the_equidistant_chain_under_the_jamme
     docs/results/networks.md is the whole 47 s mission); the test keeps more than half of that gain."""
     means = {}
     for planner in ("equidistant", "capacity"):
-        sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": planner, "sim.duration_s": 10.0})
+        sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": planner, "sim.duration_s": 10.0})
         m = ar.simulate(sc).metrics
         assert not m["unsafe"], m["unsafe_reason"]
         means[planner] = m["c_mean"]

@@ -91,10 +91,11 @@ def test_a_users_one_relay_planner_flies_the_first_relay_of_a_chain_with_the_oth
 
 
 def test_a_registered_network_planner_is_named_from_the_scenario_file():
-    """``network.planner`` names any registered network planner (no list to edit); an unknown name is an
+    """``controller.planner`` names any registered network planner (no list to edit); an unknown name is an
     error naming the field and the registered ones, before any work."""
     from aerorelay.config import ScenarioError
-    from aerorelay.planning.fleet import NETWORK_PLANNERS, held_reference, register_network_planner
+    from aerorelay.planning.base import PLANNERS, register_network_planner
+    from aerorelay.planning.fleet import held_reference
 
     @register_network_planner("test_hold_all")
     def _hold_all(ctx):
@@ -104,15 +105,18 @@ def test_a_registered_network_planner_is_named_from_the_scenario_file():
         return HoldAll()
 
     try:
-        sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 0.3, "network.planner": "test_hold_all"})
+        sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"sim.duration_s": 0.3, "controller.planner": "test_hold_all"})
         df = ar.simulate(sc).timeseries
         for r in sc.relay_list:
             np.testing.assert_allclose(df[[f"{r.name}.pd_{a}" for a in "xyz"]].to_numpy(), np.tile(r.start, (len(df), 1)))
     finally:
-        NETWORK_PLANNERS.pop("test_hold_all")
-    with pytest.raises(ScenarioError, match=r"network.planner: no network planner registered as 'nope'; registered: capacity, "
-                                            r"equidistant, trajectory_generator"):
-        ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.planner": "nope"})
+        PLANNERS.pop("test_hold_all")
+    with pytest.raises(ScenarioError, match=r"controller.planner: no planner registered as 'nope'; registered: capacity, "
+                                            r"equidistant, isotropic, single_shot, trajectory_generator"):
+        ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "nope"})
+    # a planner registered for one relay only is refused for a network, by name
+    with pytest.raises(ScenarioError, match=r"controller.planner: .*'isotropic'.*one relay"):
+        ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "isotropic"})
 
 
 def test_a_run_folder_written_before_the_one_vocabulary_still_reports_and_exports(tmp_path):

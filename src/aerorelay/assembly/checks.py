@@ -21,6 +21,7 @@ from ..models.obstacles import obstacle_model, segment_clearance
 from ..models.propagation import RMA_AV_MAX_D2D_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MIN_HEIGHT_M
 from ..models.vehicle import HoverInfeasibleError
 from ..planning.bound_cost import TRACE_S_PER_RAY_RECEIVER, grid_cells
+from .planners import comms_aware
 from .vehicle import shared_vehicle
 
 REACH_MAX_TIMES = 300  # mission instants the alignment reachability check samples (1 s apart up to 299 s)
@@ -199,10 +200,10 @@ def _ray_traced_physics(sc: Scenario) -> None:
                          "set channel.propagation.model = 'ray_traced' (and its scene)")
     if traced_scoring and sc.is_network and sc.controller.capacity.scoring != "traced":
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: a network's candidates are scored by its fleet planner: "
-                         "set controller.capacity.scoring = 'traced' (with network.planner = 'capacity')")
-    if traced_scoring and sc.is_network and sc.network.planner != "capacity":
+                         "set controller.capacity.scoring = 'traced' (with controller.planner = 'capacity')")
+    if traced_scoring and sc.is_network and sc.planner != "capacity":
         raise ValueError(f"controller.capacity.scoring: 'traced' scores the capacity-seeking planners' candidates; "
-                         f"network.planner = {sc.network.planner!r} scores none: set network.planner = 'capacity'")
+                         f"controller.planner = {sc.planner!r} scores none: set controller.planner = 'capacity'")
     if traced_scoring and sc.has_handover:
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores the route to one base station; a route "
                          "to 'any' of several scores on free space so far")
@@ -226,7 +227,7 @@ def _traced_route_fits(sc: Scenario) -> None:
     cap = sc.controller.capacity
     ws = sc.controller.workspace
     lo, hi = np.asarray(ws.min, float) + cap.margin_m, np.asarray(ws.max, float) - cap.margin_m
-    dt = max(cap.route_dt_s, cap.route_grid_m / cap.speed_m_s)
+    dt = max(sc.route_dt_s, cap.route_grid_m / cap.speed_m_s)
     cells, instants = grid_cells(lo, hi, cap.route_grid_m), int(sc.duration_s / dt) + 2
     minutes = cells * instants * sc.channel.propagation.rays_per_source * TRACE_S_PER_RAY_RECEIVER / 60.0
     if minutes > sc.bound.max_minutes:
@@ -273,7 +274,7 @@ def _mu_reachable(sc: Scenario) -> None:
     if not sc.has_two_hops:  # a relay of a chain aligns with its route neighbours, not with the base station and MRAV-2
         return
     c, platform, mission = sc.controller_of(0), sc.platform_of(0), sc.source_list[0].mission
-    if not c.comms_aware or c.mu <= 0.0:
+    if c.mu <= 0.0 or not comms_aware(sc.model_copy(update={"controller": c})):
         return
     reach, times, tilt = _reachable_alignment(platform.model_dump_json(), mission.model_dump_json(),
                                               tuple(c.workspace.min), tuple(c.workspace.max), tuple(sc.first_station.position),

@@ -34,14 +34,12 @@ from ..models.raytrace import RayTracingUnavailable, check_scene
 from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import (
-    PLANNERS,
     CapacityPlannerSettings,
     CheckedPlanner,
     GeneratorSettings,
     Planner,
     PlannerContext,
     PlannerSettings,
-    planner_factory,
 )
 from ..planning.bound import BoundProblem, BoundResolution, CapacityBound, bound_key, cached_bound, compute_bound
 from ..planning.bound_cost import (
@@ -53,7 +51,7 @@ from ..planning.bound_cost import (
     traced_network_bound_cost,
 )
 from ..planning.capacity_planner import shaper_settings
-from ..planning.fleet import NETWORK_PLANNERS, FleetPlanner, NetworkPlannerContext, OneRelayPlanner
+from ..planning.fleet import FleetPlanner, NetworkPlannerContext, OneRelayPlanner
 from ..planning.home import HomeSettings
 from ..planning.keep_out import KeepOutFleetPlanner, KeepOutPlanner
 from ..planning.network_bound import (
@@ -72,6 +70,7 @@ from ..sim.jammer_sensing import JammerSensing
 from ..sim.perturbations import PerturbationSettings, large_scale_realization
 from . import world
 from .checks import check_physics
+from .planners import comms_aware, planner_of, tracking
 from .vehicle import build_vehicle
 
 LAND_SPEED_M_S = 0.5  # a spare without a battery table lands at this speed (m/s; the battery table's default)
@@ -246,8 +245,7 @@ def comms_aware_antennas(sc: Scenario) -> None:
     eq. 21-22): right for a doughnut (dipole, sin^n), wrong for a cosine or isotropic antenna; a relay
     with one of those is a named error there (it flies the capacity planner or the unconstrained NMPC)."""
     for i, r in enumerate(sc.relay_list):
-        flown = relay_view(sc, i).controller
-        if r.antenna is not None and not r.antenna.doughnut and flown.comms_aware:
+        if r.antenna is not None and not r.antenna.doughnut and comms_aware(relay_view(sc, i)):
             raise ScenarioError(f"relays[{i}].antenna: a {r.antenna.pattern} antenna on relay {r.name!r} with the paper's "
                                 "comms-aware NMPC, whose misalignment terms keep links off a doughnut antenna's axis; fly it "
                                 "with controller.planner = 'capacity' or controller.variant = 'unconstrained'")
@@ -263,28 +261,26 @@ def one_base_station_planners(sc: Scenario) -> None:
     if not sc.has_handover and len(ends) == 1:
         return
     why = "routes that end at 'any' base station" if sc.has_handover else f"routes ending at {sorted(ends)}"
-    field, name = ("network.planner", sc.network.planner) if sc.is_network else \
-        ("relays[0].controller.planner" if sc.relays is not None else "controller.planner", relay_view(sc, 0).controller.planner)
+    field = "relays[0].controller.planner" if not sc.is_network and sc.relays is not None and sc.relays[0].controller \
+        and sc.relays[0].controller.get("planner") else "controller.planner"
+    name = sc.planner
     if name in GENERATORS:
         raise ScenarioError(f"{field}: {name!r} plans toward one base station's position; with {why} fly "
                             "'capacity' (it scores every base station a route may end at)")
 
 
 def planner_registered(sc: Scenario) -> None:
-    """``controller.planner`` (and each relay's) names a registered planner (``planning.base.PLANNERS``:
-    the built-ins and any registered before loading), ``network.planner`` a registered network planner
-    (``planning.fleet.NETWORK_PLANNERS``); a named error listing them otherwise."""
-    named = [("controller.planner", sc.controller.planner)]
-    named += [(f"relays[{i}].controller.planner", r.controller["planner"]) for i, r in enumerate(sc.relay_list)
-              if r.controller and "planner" in r.controller]
-    for field, name in named:
-        if name not in PLANNERS:
-            raise ScenarioError(f"{field}: no planner registered as {name!r}; registered: {', '.join(sorted(PLANNERS))} "
-                                "(register yours with aerorelay.planning.base.register_planner before loading the scenario)")
-    if sc.network.planner not in NETWORK_PLANNERS:
-        raise ScenarioError(f"network.planner: no network planner registered as {sc.network.planner!r}; registered: "
-                            f"{', '.join(sorted(NETWORK_PLANNERS))} (register yours with "
-                            "aerorelay.planning.fleet.register_network_planner before loading the scenario)")
+    """``controller.planner`` names a registered planner (``planning.base.PLANNERS``: the built-ins and any registered
+    before loading) that can plan the scenario: a network's needs a network factory; a named error otherwise."""
+    try:
+        entry = planner_of(sc)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    if sc.is_network and entry.network is None:
+        raise ScenarioError(f"controller.planner: {sc.planner!r} plans one relay (registered with register_planner); a "
+                            f"network of {len(sc.relay_list)} relays and {len(sc.source_list)} sources needs a network "
+                            "planner (register_network_planner under the same name), or pass the object to "
+                            "ar.simulate(sc, planner=...) to fly the first relay with the others holding their starts")
 
 
 def path_gain(ch) -> PathGain:
@@ -322,7 +318,7 @@ def ocp_spec(sc: Scenario, vehicle: Multirotor | None = None, neighbours: int = 
     next node on the route, a stage parameter, instead of the base station)."""
     c = sc.controller
     lo, hi = _workspace(sc)
-    return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=c.comms_aware,
+    return OcpSpec(vehicle=vehicle or build_vehicle(sc.platform_of(0)), horizon=c.horizon, ts=c.ts_s, constrained=comms_aware(sc),
                    bs_position=_vec3(sc.first_station.position), workspace_min=_vec3(lo), workspace_max=_vec3(hi),
                    exact_input_rate=c.exact_input_rate, neighbours=neighbours, p0_parameter=p0_parameter,
                    disturbance=sc.wind is not None and sc.wind.observer, obstacles=len(sc.obstacle_list))
@@ -336,7 +332,7 @@ def weight_parameters(sc: Scenario, spec: OcpSpec) -> dict[str, np.ndarray]:
     """The ``sw_*`` stage parameters: square roots of the weights in columns 0..N-1 and of the
     terminal weights in column N (0 for terms without a terminal part and for slacks)."""
     w: dict[str, float] = sc.controller.weights.model_dump()
-    if sc.controller.planner == "capacity":  # a tracking NMPC under the capacity planner
+    if tracking(sc):  # the tracking NMPC: [controller.capacity]'s position weights
         cap = sc.controller.capacity
         w.update(position=cap.position_weight, position_terminal=cap.position_weight_terminal)
     out = {}
@@ -354,7 +350,7 @@ def nmpc_settings(sc: Scenario, **overrides) -> NmpcSettings:
     iteration cap (``[controller.capacity] qp_iter_max``, ``qp_accept_tol``), then ``overrides``
     (``NmpcSettings`` fields; None values ignored)."""
     base: dict = {}
-    if sc.controller.planner == "capacity":
+    if tracking(sc):
         cap = sc.controller.capacity
         base = {"iter_max": cap.qp_iter_max, "accept_tol": cap.qp_accept_tol}
     base.update({k: v for k, v in overrides.items() if v is not None})
@@ -407,7 +403,7 @@ def planner_settings(sc: Scenario) -> PlannerSettings:
         capacity=CapacityPlannerSettings(
             speed_m_s=cap.speed_m_s, replan_every=replans_every(sc), leash_m=cap.leash_m, lookahead_s=cap.lookahead,
             axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,
-            route_grid_m=cap.route_grid_m, route_dt_s=cap.route_dt_s, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
+            route_grid_m=cap.route_grid_m, route_dt_s=sc.route_dt_s, max_accel_m_s2=cap.max_accel_m_s2, brake_accel_m_s2=cap.brake_accel_m_s2,
             excursion_m=cap.excursion_m, excursion_std_m=cap.excursion_std_m, excursion_max_loss=cap.excursion_max_loss,
             yaw_rate_deg_s=cap.yaw_rate_deg_s, tilt_fraction=cap.tilt_fraction, boundary_axes=cap.boundary_axes,
             tracking_freq_rad_s=cap.tracking_freq_rad_s, scoring=cap.scoring))
@@ -423,8 +419,10 @@ def replans_every(sc: Scenario) -> int:
 
 
 def build_planner(sc: Scenario, vehicle: Multirotor, scene: RadioScene, source: SourceTrajectory) -> Planner:
-    """The planner named by ``controller.planner``."""
-    return planner_factory(sc.controller.planner)(planner_context(sc, vehicle, scene, source))
+    """The one-relay planner named by ``controller.planner``."""
+    factory = planner_of(sc).relay
+    assert factory is not None  # build() flies a planner without a one-relay factory through its network factory
+    return factory(planner_context(sc, vehicle, scene, source))
 
 
 def sim_settings(sc: Scenario) -> SimSettings:
@@ -442,16 +440,10 @@ def sim_settings(sc: Scenario) -> SimSettings:
 
 def relay_view(sc: Scenario, i: int) -> Scenario:
     """Relay ``i``'s view of the scenario: its own platform and controller (``[[relays]]``) as the scenario's,
-    so every part reads them where a file with ``nodes.relay`` has them; in a network, its controller is the
-    one its planner needs: under the paper's generator (``network.planner = "trajectory_generator"``) the
-    comms-aware NMPC (its alignment terms toward its two neighbours on its route), else the tracking NMPC of
-    the capacity planner."""
+    so every part reads them where a file with ``nodes.relay`` has them (its NMPC is the one its network's planner
+    declares: ``assembly.planners``)."""
     ctrl = sc.controller_of(i)
-    if sc.is_network:  # (a separation row in the paper's NMPC moved the nominal QP by 0.13% while inactive: one relay
-        # and its source keep theirs in the metrics, separation_min_m, not in the NMPC)
-        planner = "trajectory_generator" if sc.network.planner == "trajectory_generator" else "capacity"
-        ctrl = ctrl.model_copy(update={"planner": planner})
-    elif sc.relays is None or (sc.relays[i].platform is None and not sc.relays[i].controller):
+    if sc.relays is None or (sc.relays[i].platform is None and not sc.relays[i].controller):
         return sc
     return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
 
@@ -521,7 +513,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         vehicle = build_vehicle(view.platform)
         platforms[r.name] = (vehicle, view.platform)
         controller = build_controller(view, vehicle, nmpc_settings, others,
-                                      p0_parameter=(network or sc.has_handover) and view.controller.comms_aware)
+                                      p0_parameter=(network or sc.has_handover) and comms_aware(view))
         stepper = RelayStep(vehicle=vehicle, controller=controller, period_s=sc.control_period_s,
                             stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
         bat = view.platform.battery
@@ -541,7 +533,9 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     sources = {s.name: source_trajectory(s.mission) for s in sc.source_list}
     starts = {r.name: r.start for r in relays if r.spare is None}  # the network's relays (a spare waits outside it)
     relay_planner = None
-    if planner is not None or not network:  # a one-relay planner: the user's (checked at the boundary) or the scenario's
+    entry = planner_of(sc)
+    # a planner object passed in, or one relay flown by a planner with a one-relay factory: that planner flies relay 0
+    if planner is not None or (not network and entry.relay is not None):
         first = relays[0]
         route = next(r for r in sc.route_list if first.name in r)
         source = route[route.index(first.name) - 1]  # its upstream node: the paper's MRAV-2 for one relay
@@ -623,13 +617,13 @@ def bound_cost(sc: Scenario) -> BoundCost:
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
         fixed_ends = len(sc.source_list) + len(sc.jammer_configs)
         if traced:
-            return traced_network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays),
+            return traced_network_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, len(relays),
                                              len(hops), fixed_ends, rays)
-        return network_bound_cost(lo, hi, b.network_grid_m, b.network_dt_s, sc.duration_s, len(relays), len(hops))
+        return network_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, len(relays), len(hops))
     axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
     if traced:
-        return traced_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes, rays)
-    return single_bound_cost(lo, hi, b.grid_m, b.dt_s, sc.duration_s, axes)
+        return traced_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, axes, rays)
+    return single_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, axes)
 
 
 def check_bound_size(sc: Scenario) -> None:
@@ -640,15 +634,29 @@ def check_bound_size(sc: Scenario) -> None:
         raise ScenarioError("bound: routes that may end at several base stations ('any') are bounded on the analytic "
                             "channel only; the traced map's bound takes routes to one base station (name it), or fly "
                             "with --no-bound")
-    fields = ("bound.network_grid_m", "bound.network_dt_s") if sc.is_network else ("bound.grid_m", "bound.dt_s")
-    check_bound_cost(bound_cost(sc), max_minutes=sc.bound.max_minutes, grid_field=fields[0], dt_field=fields[1])
+    check_bound_cost(bound_cost(sc), max_minutes=sc.bound.max_minutes, grid_field="bound.grid_m", dt_field="bound.dt_s")
 
 
 def bound_resolution(sc: Scenario) -> BoundResolution:
     """The bound's typed resolution from ``[bound]``."""
     b = sc.bound
-    return BoundResolution(grid_m=b.grid_m, dt_s=b.dt_s, axis_step_deg=b.axis_step_deg, max_speed_m_s=b.max_speed_m_s,
+    return BoundResolution(grid_m=sc.bound_grid_m, dt_s=sc.bound_dt_s, axis_step_deg=b.axis_step_deg, max_speed_m_s=b.max_speed_m_s,
                            max_accel_m_s2=b.max_accel_m_s2)
+
+
+def _bound_key_tables(sc: Scenario, data: dict) -> dict:
+    """``data``'s ``bound`` (and ``network``) tables in the cache key's layout from before one spelling per setting
+    (``bound.grid_m`` / ``dt_s`` were the one relay's, ``network_grid_m`` / ``network_dt_s`` a network's;
+    ``network.planner`` and ``route_dt_s`` were in ``[network]``): a bound cached then keeps its key."""
+    bound = data["bound"]
+    one, net = (sc.bound_grid_m, sc.bound_dt_s), (2.0, 2.0)
+    if sc.is_network:
+        one, net = (0.5, 0.5), (sc.bound_grid_m, sc.bound_dt_s)
+    bound.update(grid_m=one[0], dt_s=one[1], network_grid_m=net[0], network_dt_s=net[1])
+    if "network" in data:
+        data["network"]["route_dt_s"] = sc.route_dt_s if sc.is_network else 2.0
+        data["network"]["planner"] = sc.planner if sc.is_network else "equidistant"
+    return data
 
 
 def scenario_bound_key(sc: Scenario) -> str:
@@ -656,8 +664,8 @@ def scenario_bound_key(sc: Scenario) -> str:
     sc = relay_view(sc, 0)
     fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
     fleet |= {"base_stations", "network"} if sc.base_stations is not None else set()  # a file with nodes.bs keeps its key
-    data = world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer", "jammers",
-                                                           "mission", "bound"} | fleet))
+    data = _bound_key_tables(sc, world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer",
+                                                                               "jammers", "mission", "bound"} | fleet)))
     data["bound"].pop("max_minutes", None)  # a limit on the work, not what the bound is
     data["workspace"] = sc.controller.workspace.model_dump()
     data["duration_s"] = sc.duration_s
@@ -677,7 +685,7 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
         build_scene(sc).without(lost), {s.name: source_trajectory(s.mission) for s in sc.source_list},
         {name: v.hover_tilt_limit for name, v in vehicles.items() if name not in lost and name not in sc.standby_names},
         lo, hi, sc.duration_s,
-        BoundResolution(grid_m=b.network_grid_m, dt_s=b.network_dt_s, axis_step_deg=b.axis_step_deg,
+        BoundResolution(grid_m=sc.bound_grid_m, dt_s=sc.bound_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
         next(iter(vehicles.values())).gravity, sc.channel.outage, sc.separation_m,
         {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost and not r.standby},
@@ -690,8 +698,9 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     on its own: the loss times are not in its key)."""
     check_bound_size(sc)
     stations = {"base_stations"} if sc.base_stations is not None else set()  # a file with nodes.bs keeps its key
-    data = world.bound_key_data(sc, sc.model_dump(include={"relays", "sources", "network", "antenna", "channel", "nodes",
-                                                           "jammer", "jammers", "bound", "platform"} | stations))
+    data = _bound_key_tables(sc, world.bound_key_data(sc, sc.model_dump(include={"relays", "sources", "network", "antenna", "channel",
+                                                                               "nodes", "jammer", "jammers", "bound", "platform"}
+                                                                      | stations)))
     for r in data.get("relays") or []:
         r.pop("lost_at_s", None)
     data["network"].pop("planner")  # the fleet's planner does not change the bound: its planners share one
@@ -731,7 +740,7 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 
 def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray],
                     t0: float = 0.0) -> FleetPlanner:
-    """The network's planner named by ``network.planner``, built from the scene's world view, its
+    """The network's planner named by ``controller.planner``, built from the scene's world view, its
     references starting at ``starts`` (m, world) at ``t0`` (s) and kept outside the obstacles' margins."""
     lo, hi = _workspace(sc)
     ctx = NetworkPlannerContext(scene=scene.world_view(), routes=sc.route_list, starts=starts,
@@ -740,7 +749,9 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
                                 settings=planner_settings(sc), surrogate_g_bar=sc.antenna.g_bar, separation_m=sc.separation_m,
                                 obstacles=world.obstacles(sc),
                                 sources={s.name: source_trajectory(s.mission) for s in sc.source_list},
-                                duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.network.route_dt_s, route=sc.network.route,
+                                duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.route_dt_s, route=sc.network.route,
                                 tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc))
-    planner = NETWORK_PLANNERS[sc.network.planner](ctx)
+    factory = planner_of(sc).network
+    assert factory is not None  # planner_registered refused a network's planner without a network factory
+    planner = factory(ctx)
     return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner

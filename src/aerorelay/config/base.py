@@ -23,6 +23,7 @@ class Strict(BaseModel):
 
 
 PAPER_PLANNER = "trajectory_generator"  # the paper's generator: one name for one relay and fleets ("paper" is read as it)
+NETWORK_PLANNER = "equidistant"  # a network's planner when controller.planner names none (one relay's: PAPER_PLANNER)
 
 
 def papers_generator_named(v):

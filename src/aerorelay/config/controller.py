@@ -87,9 +87,10 @@ class CapacityPlannerConfig(Strict):
     leash_m: float = Field(1.0, gt=0.0, le=20.0, description="the target stays this close to the pre-flight route, m")
     route_grid_m: float = Field(1.0, ge=0.1, le=20.0, description="grid of the pre-flight route, m (0.5 m: 9-11 s before "
                                 "take-off, 1 m: 0.3-0.6 s on this VM, capacity within 0.01 of the bound either way)")
-    route_dt_s: float = Field(1.0, ge=0.1, le=30.0, description="time step of the pre-flight route, s (at least "
-                              "route_grid_m / speed_m_s: a step moves at least one cell; with scoring = 'traced' each step "
-                              "traces every cell)")
+    route_dt_s: float | None = Field(None, ge=0.1, le=30.0, description="time step of the pre-flight route, s; default 1 s "
+                                     "for one relay (at least route_grid_m / speed_m_s: a step moves at least one cell; with "
+                                     "scoring = 'traced' each step traces every cell), 2 s for a network's route (each step's "
+                                     "configuration refined on the network's rate). network.route_dt_s is its old spelling")
     lookahead_s: float | None = Field(None, ge=0.0, le=10.0, description="MRAV-2 is predicted this far ahead for the "
                                       "target, s (default: 1 s up to 1 m/s, 1 m / speed_m_s above: a faster relay lags less)")
     axis_rate_deg_s: float = Field(30.0, gt=0.0, le=720.0, description="the antenna-axis reference turns at most this fast, deg/s")
@@ -144,12 +145,16 @@ class ControllerConfig(Strict):
     variant: Literal["constrained", "unconstrained"] = Field("constrained", description="constrained: the paper's "
                                                              "comms-aware NMPC (misalignment cost, alignment constraint); "
                                                              "unconstrained: the same NMPC without them")
-    planner: str = Field(
-        "trajectory_generator", min_length=1, max_length=64, pattern=r"^[a-z][a-z0-9_]*$",
-        description="a registered planner: trajectory_generator (the paper's generator; 'paper' is read as it), "
-        "isotropic (baseline A: isotropic surrogate), single_shot (baseline B: a single-shot plan), capacity (the "
-        "capacity-seeking planner, planning/capacity_planner.py), or one registered with "
-        "aerorelay.planning.base.register_planner before the scenario is loaded (docs/guide/extending.md)",
+    planner: str | None = Field(
+        None, min_length=1, max_length=64, pattern=r"^[a-z][a-z0-9_]*$",
+        description="the planner of the relay or of the whole network, a registered planner (its references decide the "
+        "NMPC: docs/guide/extending.md): trajectory_generator (the paper's generator, over every hop of every route in a "
+        "network, flown by the comms-aware NMPC; 'paper' is read as it), isotropic (baseline A: isotropic surrogate), "
+        "single_shot (baseline B: a single-shot plan), capacity (the capacity-seeking planner, one relay's or the "
+        "fleet's, flown by the tracking NMPC with its antenna-axis reference), equidistant (each relay evenly spaced on "
+        "the line from the base station to its source, tracking NMPC), or one registered with aerorelay.register_planner "
+        "(register_network_planner) before the scenario is loaded; default trajectory_generator for one relay and one "
+        "source, equidistant for a network. network.planner is its old spelling",
     )
 
     _one_name_per_planner = field_validator("planner", mode="before")(papers_generator_named)
@@ -173,23 +178,9 @@ class ControllerConfig(Strict):
     capacity: CapacityPlannerConfig = Field(default_factory=CapacityPlannerConfig)
 
     @model_validator(mode="after")
-    def _surrogate_defined(self):
-        if self.mu <= 0.0 and self.planner == "trajectory_generator":
-            raise ValueError("mu = 0 makes the trajectory generator's surrogate link H_bar = sqrt(mu) G_bar / d vanish "
-                             "(its inverse capacity is infinite); use mu > 0 with controller.planner = 'trajectory_generator'")
-        return self
-
-    @model_validator(mode="after")
     def _prediction_long_enough(self):
         if self.horizon * self.ts_s < MIN_PREDICTION_S - 1e-12:
             raise ValueError(f"horizon x ts_s = {self.horizon} x {self.ts_s:g} s = {self.horizon * self.ts_s:.3g} s: the NMPC "
                              f"must predict >= {MIN_PREDICTION_S} s to plan a stop inside the workspace (horizon >= "
                              f"{math.ceil(MIN_PREDICTION_S / self.ts_s - 1e-9)} at this ts_s)")
         return self
-
-    @property
-    def comms_aware(self) -> bool:
-        """Whether the NMPC carries the paper's comms-aware terms (constrained variant, and not
-        the capacity planner, whose antenna-axis reference replaces them)."""
-        return self.variant == "constrained" and self.planner != "capacity"
-

@@ -9,7 +9,7 @@ from typing import Any
 
 from pydantic import Field, field_validator
 
-from .base import Strict, Vec3, nonzero_direction, papers_generator_named
+from .base import Strict, Vec3, nonzero_direction
 from .mission import MissionConfig
 from .platform import PlatformConfig
 from .radio import NodeAntennaConfig
@@ -106,22 +106,6 @@ class NetworkConfig(Strict):
                                            "sources), m; default the vehicles' own size: twice the largest footprint radius "
                                            "of the relays' platforms (1.5 x the farthest rotor centre: the arm plus a rotor "
                                            "of half its length); a smaller value is refused")
-    planner: str = Field(
-        "equidistant", description="the fleet's planner, a registered network planner (yours with "
-        "aerorelay.planning.fleet.register_network_planner, tracked by the tracking NMPC): equidistant (each relay "
-        "evenly spaced on the line from the base station to its source), capacity (a pre-flight route for the whole fleet "
-        "from the sources' plans, then every replan each relay's goals and antenna axes around its goal scored on the "
-        "network's rate with the sources predicted ahead, the relays' best moves taken jointly; [controller.capacity] speed, "
-        "accelerations, axes, look-ahead, leash, replanning; network.route_dt_s), "
-        "both tracked by the tracking NMPC of controller.planner = capacity; or trajectory_generator (the paper's "
-        "generator over every hop of every route, eq. 15-19; controller.mu, governor_speed_m_s, hessian_eig_floor; "
-        "'paper' is read as this name), tracked by the comms-aware NMPC with each relay's alignment terms toward its "
-        "two neighbours on its first route")
-
-    route_dt_s: float = Field(2.0, ge=0.1, le=30.0, description="time step of the capacity planner's pre-flight route for "
-                              "the fleet (s): each step's configuration is refined on the network's rate (larger: a faster "
-                              "pre-flight, a coarser route)")
     route: bool = Field(True, description="the capacity planner flies near a pre-flight route (false: no route, no leash: "
                         "hill climbing from the starts alone)")
 
-    _one_name_per_planner = field_validator("planner", mode="before")(papers_generator_named)

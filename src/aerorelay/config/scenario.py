@@ -11,6 +11,7 @@ empty ``[section]`` is valid.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 from collections.abc import Callable
 from typing import Any
@@ -19,7 +20,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .base import ScenarioError, Strict, Vec3, on_the_earth
+from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth
 from .controller import ControllerConfig
 from .errors import format_errors
 from .mission import MissionConfig
@@ -40,6 +41,8 @@ from .radio import AntennaConfig, ChannelConfig, JammerConfig, NodesConfig
 from .sections import BoundConfig, EstimationConfig, PerturbationConfig, SimConfig, WorldConfig
 from .tomltext import compact_toml
 
+log = logging.getLogger(__name__)
+
 MIN_NODE_SEPARATION_M = 0.1
 
 
@@ -59,6 +62,23 @@ class GeoConfig(Strict):
                          "z up (m); every trajectory_plan / trajectory_gpx mission without its own geo_origin uses it")
 
     _on_the_earth = field_validator("origin")(on_the_earth)
+
+
+# a setting's old spellings (path in the file) -> its one field: read with a deprecation message naming it
+RENAMED: dict[tuple[str, ...], tuple[str, ...]] = {
+    ("network", "planner"): ("controller", "planner"),
+    ("network", "route_dt_s"): ("controller", "capacity", "route_dt_s"),
+    ("bound", "network_grid_m"): ("bound", "grid_m"),
+    ("bound", "network_dt_s"): ("bound", "dt_s"),
+}
+_SAID_RENAMED: set[str] = set()
+
+
+def said_renamed(old: str, new: str) -> None:
+    """The deprecation message of an old spelling, once per process."""
+    if old not in _SAID_RENAMED:
+        _SAID_RENAMED.add(old)
+        log.warning("%s is read as %s (one spelling for one relay or a network since 2026-12-05); write %s", old, new, new)
 
 
 class Scenario(Strict):
@@ -95,6 +115,34 @@ class Scenario(Strict):
     wind: WindConfig | None = Field(None, description="mean wind and Dryden gusts on every relay (default: still air)")
     obstacles: list[ObstacleConfig] | None = Field(None, max_length=64, description="boxes and vertical cylinders the "
                                                    "vehicles fly among (array of tables)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_spelling(cls, data):
+        """Old spellings of a setting read as its one field, with a deprecation message naming it (``RENAMED``); both
+        spellings with different values are a named error."""
+        if not isinstance(data, dict):
+            return data
+        data = copy.deepcopy(data)
+        for old, new in RENAMED.items():
+            table = data.get(old[0])
+            if not isinstance(table, dict) or old[1] not in table:
+                continue
+            value = table.pop(old[1])
+            if not table and old[0] == "network":
+                data.pop("network")
+            node = data
+            for part in new[:-1]:
+                node = node.setdefault(part, {}) if isinstance(node, dict) else node
+                if not isinstance(node, dict):
+                    raise ValueError(f"{'.'.join(new[:-1])}: must be a table (it takes {'.'.join(old)}'s value)")
+            same = (lambda v: "trajectory_generator" if v == "paper" else v) if new[-1] == "planner" else (lambda v: v)
+            if new[-1] in node and same(node[new[-1]]) != same(value):
+                raise ValueError(f"{'.'.join(old)} = {value!r} and {'.'.join(new)} = {node[new[-1]]!r}: one setting spelled "
+                                 f"twice with two values; write {'.'.join(new)} only ({'.'.join(old)} is its old spelling)")
+            node[new[-1]] = value
+            said_renamed('.'.join(old), '.'.join(new))
+        return data
 
     @model_validator(mode="before")
     @classmethod
@@ -155,6 +203,7 @@ class Scenario(Strict):
             if j.point_at in self.standby_names:
                 raise ValueError(f"{self.jammer_field(i)}.point_at: {j.point_at!r} is a spare, on no route at the start; aim "
                                  "the jammer at a node of the network")
+        self._one_planner()
         self._separation_holds()
         self._fading_has_its_strength()
         self._obstacles_hold()
@@ -241,6 +290,47 @@ class Scenario(Strict):
         return len(self.relay_list) + len(self.source_list) > 2
 
     @property
+    def planner(self) -> str:
+        """The planner's name (``controller.planner``; one relay's own ``relays[0].controller.planner``): by default
+        the paper's generator for one relay and one source, the equidistant planner for a network."""
+        named = self.controller_of(0).planner if not self.is_network else self.controller.planner
+        return named or (NETWORK_PLANNER if self.is_network else PAPER_PLANNER)
+
+    @property
+    def bound_grid_m(self) -> float:
+        """The bound's position grid (``bound.grid_m``; default 0.5 m for one relay, 2 m for a network's bound,
+        whose cost grows with the square of its cells)."""
+        return self.bound.grid_m if self.bound.grid_m is not None else (2.0 if self.is_network else 0.5)
+
+    @property
+    def bound_dt_s(self) -> float:
+        """The bound's time grid (``bound.dt_s``; default 0.5 s for one relay, 2 s for a network)."""
+        return self.bound.dt_s if self.bound.dt_s is not None else (2.0 if self.is_network else 0.5)
+
+    @property
+    def route_dt_s(self) -> float:
+        """The capacity planner's pre-flight route's time step (``controller.capacity.route_dt_s``; default 1 s for one
+        relay, 2 s for a network's route, refined on the network's rate at each step)."""
+        given = self.controller_of(0).capacity.route_dt_s if not self.is_network else self.controller.capacity.route_dt_s
+        return given if given is not None else (2.0 if self.is_network else 1.0)
+
+    def _one_planner(self) -> None:
+        """One planner plans a network: a relay's own ``controller.planner`` is refused there; the paper's generator
+        needs ``mu > 0``."""
+        if self.is_network:
+            for i, r in enumerate(self.relay_list):
+                if r.controller and r.controller.get("planner") is not None:
+                    raise ValueError(f"relays[{i}].controller.planner: one planner plans the whole network "
+                                     "(controller.planner); a relay of a network has none of its own")
+        for i in range(len(self.relay_list) if self.is_network else 1):
+            if self.planner == PAPER_PLANNER and self.controller_of(i).mu <= 0.0:
+                own = self.relay_list[i].controller or {}
+                field = f"relays[{i}].controller.mu" if "mu" in own else "controller.mu"
+                raise ValueError(f"{field}: mu = 0 makes the trajectory generator's surrogate link H_bar = sqrt(mu) G_bar / d "
+                                 "vanish (its inverse capacity is infinite); use mu > 0 with controller.planner = "
+                                 "'trajectory_generator'")
+
+    @property
     def has_two_hops(self) -> bool:
         """One route of two hops to one base station, the paper's (source -> relay -> base station)."""
         return len(self.route_list) == 1 and len(self.route_list[0]) == 3 and not self.has_handover
@@ -309,7 +399,13 @@ class Scenario(Strict):
         what a network planner is built for after relays are lost, gone home or taken over."""
         by_name = {r.name: r for r in self.relay_list}
         flying = [by_name[n].model_copy(update={"lost_at_s": None, "standby": False}) for n in relays]
-        return self.model_copy(update={"relays": flying, "network": self.network.model_copy(update={"routes": routes})})
+        # the network's planner and its route step, kept when one relay and one source are left (whose defaults are
+        # the one relay's)
+        controller = self.controller.model_copy(update={
+            "planner": self.planner,
+            "capacity": self.controller.capacity.model_copy(update={"route_dt_s": self.route_dt_s})})
+        return self.model_copy(update={"relays": flying, "network": self.network.model_copy(update={"routes": routes}),
+                                       "controller": controller})
 
     def _relay_field(self, i: int, what: str, *, legacy: str) -> str:
         return legacy if self.relays is None else f"relays[{i}].{what}"
@@ -388,10 +484,10 @@ class Scenario(Strict):
             raise ValueError(f"relays[{spares[0]}].standby: no relay of the network flies home ([platform.battery] with "
                              "go_home = true, its own or the shared one), so the spare would never launch")
         flying = len(self.relay_list) - len(spares)
-        if flying == 1 and len(self.source_list) == 1 and "planner" not in self.network.model_fields_set:
+        if flying == 1 and len(self.source_list) == 1 and self.controller.planner is None:
             raise ValueError(f"relays[{spares[0]}].standby: with a spare, one relay and one source are a network, planned by "
-                             "network.planner (not controller.planner) before and after the spare takes over; name it "
-                             "(network.planner = \"capacity\", \"equidistant\", ...)")
+                             "a network's planner before and after the spare takes over; name it (controller.planner = "
+                             "\"capacity\", \"equidistant\", ...)")
         for i in spares:
             if self.relay_list[i].lost_at_s is not None:
                 raise ValueError(f"relays[{i}].lost_at_s: a spare is not lost at a time (it is on no route until it takes over)")

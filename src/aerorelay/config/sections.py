@@ -46,15 +46,15 @@ class BoundConfig(Strict):
     """Resolution of the capacity bounds (``aerorelay bound``, planning/bound.py)."""
 
     max_speed_m_s: float = Field(1.0, gt=0.0, le=20.0, description="speed limit of the path bounds, m/s")
-    grid_m: float = Field(0.5, ge=0.1, le=20.0, description="position grid spacing, m (a ray-traced channel traces every "
-                          "cell: coarse, a few metres)")
-    dt_s: float = Field(0.5, ge=0.05, le=5.0, description="time grid spacing, s")
+    grid_m: float | None = Field(None, ge=0.1, le=20.0, description="position grid spacing, m: the one relay's grid, a "
+                                 "network's cubes (its cost grows with the square of the cells); default 0.5 m for one relay, "
+                                 "2 m for a network (a ray-traced channel traces every cell: coarse, a few metres). "
+                                 "bound.network_grid_m is its old spelling")
+    dt_s: float | None = Field(None, ge=0.05, le=30.0, description="time grid spacing, s; default 0.5 s for one relay, 2 s "
+                               "for a network. bound.network_dt_s is its old spelling")
     axis_step_deg: float = Field(5.0, ge=1.0, le=30.0, description="spacing of the relay antenna axes searched, deg")
     max_accel_m_s2: float = Field(4.0, gt=0.0, le=50.0, description="acceleration limit of the flyable paths (from rest "
                                   "at the start), m/s^2: the capacity planner's reference limit by default")
-    network_grid_m: float = Field(2.0, ge=0.25, le=10.0, description="position grid spacing of a fleet's network bound "
-                                  "(two or more relays: its cost grows with the square of the cells), m")
-    network_dt_s: float = Field(2.0, ge=0.05, le=30.0, description="time grid spacing of a fleet's network bound, s")
     max_minutes: float = Field(60.0, gt=0.0, le=10080.0, description="refuse, before any work, a bound estimated to take "
                                "longer than this on this machine (min; raise it to wait; a traced pre-flight route too); a "
                                "bound needing more than half of the machine's memory is always refused")

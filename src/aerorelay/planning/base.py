@@ -2,11 +2,14 @@
 
 A planner is an object with ``update(PlannerInput) -> Reference``, called once per control step
 with what the relay knows (``examples/own_planner.py`` is a template). A named planner
-(``controller.planner`` in a scenario) is built by the factory registered under its name from a
-``PlannerContext``, the parts the composition root (``assembly/parts.py``) made:
+(``controller.planner`` in a scenario, for one relay or a network) is built by the factory registered under
+its name from a ``PlannerContext``, the parts the composition root (``assembly/parts.py``) made, and declares
+what its references carry, which decides the NMPC that flies them (``REFERENCES``):
 
-    @register_planner("name")
+    @register_planner("name", references="position")
     def _mine(ctx: PlannerContext) -> Planner: ...
+
+(``register_network_planner`` registers a factory for any network under the same name, in the same registry).
 
 or pass a planner object to ``aerorelay.simulate(sc, planner=...)`` without registering it.
 """
@@ -172,31 +175,73 @@ class CheckedPlanner:
 
 
 PlannerFactory = Callable[[PlannerContext], Planner]
-PLANNERS: dict[str, PlannerFactory] = {}
 F = TypeVar("F")
 
+# what a planner's references carry, which decides the NMPC that flies them:
+#   "alignment": positions; the paper's comms-aware NMPC aligns each relay's antenna toward its neighbours itself
+#                (its misalignment terms, eq. 21-22, with controller.variant = "constrained")
+#   "axis":      positions and an antenna-axis reference; the tracking NMPC follows both
+#   "position":  positions only; the tracking NMPC follows them, the antenna where the flight tilts it
+REFERENCES = ("alignment", "axis", "position")
 
-def registrar(registry: dict[str, F], what: str) -> Callable[[str], Callable[[F], F]]:
-    """A decorator factory registering factories in ``registry`` by name (``what`` names the kind in the error
-    raised for a name registered twice)."""
-    def register(name: str) -> Callable[[F], F]:
+
+@dataclass(frozen=True)
+class PlannerEntry:
+    """A planner registered under a name (``controller.planner``): what its references carry (``REFERENCES``) and
+    its factories: ``relay`` builds it for one relay (``PlannerContext``), ``network`` for any network (a
+    ``planning.fleet.NetworkPlannerContext``). A network flies ``network`` (else ``relay`` on its first relay, the
+    others holding their starts); one relay and one source fly ``relay`` (else ``network``)."""
+
+    references: str
+    relay: PlannerFactory | None = None
+    network: Callable | None = None
+
+    @property
+    def tracking(self) -> bool:
+        """Whether the tracking NMPC flies its references (else the paper's comms-aware NMPC)."""
+        return self.references != "alignment"
+
+
+PLANNERS: dict[str, PlannerEntry] = {}
+
+
+def _registrar(kind: str) -> Callable[..., Callable[[F], F]]:
+    def register(name: str, *, references: str = "position") -> Callable[[F], F]:
+        if references not in REFERENCES:
+            raise ValueError(f"register {name!r}: references must be one of {', '.join(REFERENCES)}, got {references!r}")
+
         def deco(factory: F) -> F:
-            if name in registry:
-                raise ValueError(f"{what} {name!r} is registered twice")
-            registry[name] = factory
+            entry = PLANNERS.get(name, PlannerEntry(references))
+            if getattr(entry, kind) is not None:
+                raise ValueError(f"planner {name!r} is registered twice (for {'one relay' if kind == 'relay' else 'a network'})")
+            if entry.references != references:
+                raise ValueError(f"planner {name!r}: its {kind} factory says its references carry {references!r}, its other "
+                                 f"factory {entry.references!r} (one planner, one NMPC)")
+            PLANNERS[name] = replace(entry, relay=factory) if kind == "relay" else replace(entry, network=factory)  # type: ignore[arg-type]
             return factory
         return deco
-    register.__doc__ = (f"Register a {what} factory under ``name`` (a decorator: ``@register_...(\"mine\")`` above a "
-                        f"function taking the {what}'s context and returning it); a name registered twice is a ValueError.")
+    case = "for one relay (a function of a PlannerContext)" if kind == "relay" else \
+        "for any network (a function of a planning.fleet.NetworkPlannerContext)"
+    register.__doc__ = (f"Register a planner's factory {case} "
+                        "under ``name`` (a decorator: ``@register_...(\"mine\", references=\"position\")``); ``references`` "
+                        "says what its references carry and so which NMPC flies them (``REFERENCES``: \"alignment\", the paper's "
+                        "comms-aware NMPC; \"axis\" or \"position\", the tracking NMPC). A name registered twice for the same "
+                        "case, or with two declarations, is a ValueError.")
     return register
 
 
-register_planner = registrar(PLANNERS, "planner")  # a planner factory under a name (the built-ins: planning/registry.py)
+# a planner's one-relay factory under a name (the built-ins: planning/registry.py; register yours before loading the
+# scenario that names it)
+register_planner = _registrar("relay")
+# a planner's network factory under a name (the same registry: one name, one planner, one NMPC)
+register_network_planner = _registrar("network")
 
 
-def planner_factory(name: str) -> PlannerFactory:
-    """The factory registered under ``name``; a named error listing the registered ones otherwise."""
+def planner_entry(name: str) -> PlannerEntry:
+    """The planner registered under ``name``; a named error listing the registered ones otherwise."""
     try:
         return PLANNERS[name]
     except KeyError:
-        raise ValueError(f"controller.planner: unknown planner {name!r}; registered: {', '.join(sorted(PLANNERS))}") from None
+        raise ValueError(f"controller.planner: no planner registered as {name!r}; registered: {', '.join(sorted(PLANNERS))} "
+                         "(register yours with aerorelay.register_planner, or register_network_planner, before loading the "
+                         "scenario)") from None

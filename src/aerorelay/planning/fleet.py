@@ -19,7 +19,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.raytrace import RayTracer
 from ..models.vehicle import Multirotor
-from .base import Planner, PlannerInput, PlannerSettings, registrar
+from .base import Planner, PlannerInput, PlannerSettings
 from .trajectory_generator import Reference
 
 
@@ -75,12 +75,6 @@ class NetworkPlannerContext:
 
 
 NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]
-NETWORK_PLANNERS: dict[str, NetworkPlannerFactory] = {}
-
-
-# a network planner's factory under a name for ``network.planner`` (the built-ins: ``planning/registry.py``; register
-# yours before loading the scenario that names it)
-register_network_planner = registrar(NETWORK_PLANNERS, "network planner")
 
 
 def held_reference(position: np.ndarray) -> Reference:

@@ -1,14 +1,14 @@
-"""The built-in planners behind ``controller.planner`` (one relay, registered with ``planning.base``) and
-``network.planner`` (a network's, registered with ``planning.fleet``)."""
+"""The built-in planners behind ``controller.planner``, one registry (``planning.base.PLANNERS``): each name with
+what its references carry (the NMPC that flies them) and its factories for one relay and for a network."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .base import PlannerContext, PlannerInput, register_planner
+from .base import PlannerContext, PlannerInput, register_network_planner, register_planner
 from .baselines import PlannedReference, SingleShotPlanner
 from .capacity_planner import CapacityPlanner, holdable_axes, shaper_settings
-from .fleet import EquidistantPlanner, EquidistantSettings, NetworkPlannerContext, register_network_planner
+from .fleet import EquidistantPlanner, EquidistantSettings, NetworkPlannerContext
 from .fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_route
 from .network_generator import NetworkGenerator
 from .trajectory_generator import Reference, SurrogateParams, TrajectoryGenerator
@@ -43,25 +43,25 @@ def _generator(ctx: PlannerContext, mu: float) -> TrajectoryGenerator:
     )
 
 
-@register_planner("trajectory_generator")
+@register_planner("trajectory_generator", references="alignment")
 def _paper_generator(ctx: PlannerContext):
     return GeneratorPlanner(_generator(ctx, ctx.settings.generator.mu))
 
 
-@register_planner("isotropic")
+@register_planner("isotropic", references="alignment")
 def _baseline_a(ctx: PlannerContext):
     # baseline A plans with isotropic antennas: H_bar = G_bar / d, i.e. the surrogate with mu = 1
     return GeneratorPlanner(_generator(ctx, 1.0))
 
 
-@register_planner("single_shot")
+@register_planner("single_shot", references="alignment")
 def _baseline_b(ctx: PlannerContext):
     planner = SingleShotPlanner(ctx.scene, max_speed=ctx.settings.generator.governor_speed_m_s, gravity=ctx.vehicle.gravity)
     plan = planner.plan(ctx.source, ctx.relay_start, ctx.duration_s, ctx.workspace_min, ctx.workspace_max)
     return FixedPlanReference(PlannedReference(plan))
 
 
-@register_planner("capacity")
+@register_planner("capacity", references="axis")
 def _capacity_seeking(ctx: PlannerContext):
     return CapacityPlanner(ctx)
 
@@ -73,7 +73,7 @@ def _box(ctx: NetworkPlannerContext) -> dict:
     return {"workspace_min": tuple(float(v) for v in ctx.workspace_min), "workspace_max": tuple(float(v) for v in ctx.workspace_max)}
 
 
-@register_network_planner("equidistant")
+@register_network_planner("equidistant", references="position")
 def _equidistant(ctx: NetworkPlannerContext):
     cap = ctx.settings.capacity
     return EquidistantPlanner(ctx.scene.all_routes, ctx.starts, EquidistantSettings(speed_m_s=cap.speed_m_s,
@@ -81,7 +81,7 @@ def _equidistant(ctx: NetworkPlannerContext):
                               ctx.scene.handover)
 
 
-@register_network_planner("capacity")
+@register_network_planner("capacity", references="axis")
 def _fleet_capacity(ctx: NetworkPlannerContext):
     cap = ctx.settings.capacity
     # each relay's antenna axes it can hold at zero yaw toward each azimuth (its own limit there, times tilt_fraction), as
@@ -106,7 +106,7 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
                                 route, tracer=ctx.tracer, traced_coherent=ctx.traced_coherent)
 
 
-@register_network_planner("trajectory_generator")
+@register_network_planner("trajectory_generator", references="alignment")
 def _network_generator(ctx: NetworkPlannerContext):
     g = ctx.settings.generator
     return NetworkGenerator(SurrogateParams.of_scene(ctx.scene, g.mu, ctx.surrogate_g_bar), ctx.routes, list(ctx.starts),

@@ -85,8 +85,8 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
 def run_title(sc: Scenario) -> str:
     """Scenario, planner and NMPC variant (a network's: its relays, sources and planner): what flew."""
     if len(sc.relay_list) + len(sc.source_list) > 2:
-        return f"{sc.name} ({len(sc.relay_list)} relays, {len(sc.source_list)} sources, {sc.network.planner} planner)"
-    return f"{sc.name} ({sc.controller.planner} planner, {sc.controller.variant} NMPC)"
+        return f"{sc.name} ({len(sc.relay_list)} relays, {len(sc.source_list)} sources, {sc.planner} planner)"
+    return f"{sc.name} ({sc.planner} planner, {sc.controller.variant} NMPC)"
 
 
 def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = None):
