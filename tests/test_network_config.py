@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import tomllib
 
+import numpy as np
 import pytest
 
 import aerorelay as ar
@@ -80,6 +81,12 @@ def test_two_sources_sharing_two_relays():
     (lambda d: d["relays"][0].update(start=[100.0, 0.0, 5.0]), r"relays\[0\]\.start \[100\.0, 0\.0, 5\.0\] must lie inside controller\.workspace"),
     (lambda d: d["relays"][0].update(platform="tricopter"), r"relays\.0\.platform: .*unknown platform preset 'tricopter'"),
     (lambda d: d["relays"][0].update(controller={"mu": 3.0}), r"relays\[0\]\.controller\.mu: Input should be less than or equal to 1"),
+    (lambda d: d["relays"][0].update(controller={"mu": 0.3}), r"relays\[0\]\.controller\.mu: the network's planner plans every "
+                                                              r"relay with one controller\.mu"),
+    (lambda d: d["relays"][1].update(controller={"capacity": {"leash_m": 9.0}}),
+     r"relays\[1\]\.controller\.capacity\.leash_m: the network's planner"),
+    (lambda d: d["controller"].setdefault("capacity", {}).update(yaw_rate_deg_s=10.0), r"controller\.capacity\.yaw_rate_deg_s: only one "
+                                                                         r"relay's capacity planner"),
     (lambda d: d["relays"][0].update(name="r 1"), r"relays\.0\.name"),
     (lambda d: d["relays"][1].update(controller={"horizon": 45}),
      r"relays\[1\]\.controller\.horizon: every relay of a fleet predicts on the shared controller\.horizon = 30 .* got 45"),
@@ -93,10 +100,10 @@ def test_a_malformed_network_is_a_named_error(change, message):
 
 def test_a_relay_flies_its_own_platform_and_controller():
     data = chain()
-    data["relays"][0].update(platform="quad_x", controller={"mu": 0.3, "weights": {"yaw": 2.0}})
+    data["relays"][0].update(platform="quad_x", controller={"governor_speed_m_s": 0.3, "weights": {"yaw": 2.0}})
     sc = parse_scenario(data)
     assert sc.platform_of(0).rotors is not None and sc.platform_of(1) == sc.platform
-    assert sc.controller_of(0).mu == 0.3 and sc.controller_of(0).weights.yaw == 2.0
+    assert sc.controller_of(0).governor_speed_m_s == 0.3 and sc.controller_of(0).weights.yaw == 2.0
     assert sc.controller_of(0).weights.position == sc.controller.weights.position and sc.controller_of(1) == sc.controller
 
 
@@ -219,3 +226,35 @@ def test_a_networks_old_spellings_are_read_as_the_one_field_and_two_values_are_r
     same = unplanned(planner="paper")
     same["controller"]["planner"] = "trajectory_generator"
     assert parse_scenario(same).planner == "trajectory_generator"
+
+
+HETEROGENEOUS = {"quad": {"platform": "quad_x", "speed": 0.4, "governor": 0.3},
+                 "hexa": {"platform": "hexa_tilted", "speed": 1.6, "governor": 0.9}}
+
+
+@pytest.mark.parametrize("planner", ["equidistant", "capacity", "trajectory_generator"])
+def test_a_heterogeneous_chain_flies_each_relays_reference_within_its_own_speed_limit(planner):
+    """A quadrotor and a tilted hexarotor in one chain, each with its own platform, speed limit (and the paper's
+    generator's governor speed) and antenna: every planner moves each relay's reference at most at its own limit (+1%),
+    and the fast relay's reference moves faster than the slow one's limit (the shared limit is not flown)."""
+    data = chain()
+    data["controller"]["planner"] = planner
+    data["sim"] = {"duration_s": 3.0}
+    data["jammer"] = {"position": [15.0, -8.0, 2.0], "power_w": 4.0}
+    data["network"]["min_separation_m"] = 2.0
+    for r, (name, own) in zip(data["relays"], HETEROGENEOUS.items(), strict=True):
+        r.update(name=name, platform=own["platform"],
+                 controller={"capacity": {"speed_m_s": own["speed"]}, "governor_speed_m_s": own["governor"]})
+    data["relays"][0]["antenna"] = {"pattern": "sin_power", "exponent": 2.0}
+    data["network"]["routes"] = [["inspector", "quad", "hexa", "bs"]]
+    sc = parse_scenario(data)
+    r = ar.simulate(sc, bound=False)
+    df = r.timeseries
+    dt = np.diff(df.t.to_numpy())
+    fastest = {}
+    for name, own in HETEROGENEOUS.items():
+        p = df[[f"{name}.pd_{a}" for a in "xyz"]].to_numpy()
+        fastest[name] = float((np.linalg.norm(np.diff(p, axis=0), axis=1) / dt).max())
+        limit = own["governor"] if planner == "trajectory_generator" else own["speed"]
+        assert fastest[name] <= limit * 1.01, (name, fastest[name], limit)
+    assert fastest["hexa"] > HETEROGENEOUS["quad"]["speed" if planner != "trajectory_generator" else "governor"] * 1.05, fastest

@@ -750,7 +750,9 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
                                 obstacles=world.obstacles(sc),
                                 sources={s.name: source_trajectory(s.mission) for s in sc.source_list},
                                 duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.route_dt_s, route=sc.network.route,
-                                tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc))
+                                tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc),
+                                relay_settings={r.name: planner_settings(relay_view(sc, i))
+                                                for i, r in enumerate(sc.relay_list) if r.name in starts})
     factory = planner_of(sc).network
     assert factory is not None  # planner_registered refused a network's planner without a network factory
     planner = factory(ctx)

@@ -71,6 +71,15 @@ RENAMED: dict[tuple[str, ...], tuple[str, ...]] = {
     ("bound", "network_grid_m"): ("bound", "grid_m"),
     ("bound", "network_dt_s"): ("bound", "dt_s"),
 }
+# the settings a network's planner reads once for the whole network: a relay's own value is refused by name (every other
+# [relays.controller] field is honoured for that relay: its NMPC, its shaper's limits, its axes, its governor speed)
+NETWORK_WIDE: tuple[tuple[str, ...], ...] = (
+    ("mu",), ("hessian_eig_floor",),
+    *(("capacity", f) for f in ("margin_m", "leash_m", "route_grid_m", "route_dt_s", "lookahead_s", "yaw_rate_deg_s",
+                                "excursion_m", "excursion_std_m", "excursion_max_loss", "scoring", "replan_every")))
+# what only one relay's capacity planner does (yawing the platform, circling to localize a jammer), refused in a network
+# unless off (its value here)
+ONE_RELAY_ONLY: dict[str, float] = {"yaw_rate_deg_s": 0.0, "excursion_m": 0.0}
 _SAID_RENAMED: set[str] = set()
 
 
@@ -322,6 +331,22 @@ class Scenario(Strict):
                 if r.controller and r.controller.get("planner") is not None:
                     raise ValueError(f"relays[{i}].controller.planner: one planner plans the whole network "
                                      "(controller.planner); a relay of a network has none of its own")
+                own = self.controller_of(i)
+                for name, off in ONE_RELAY_ONLY.items():
+                    if getattr(own.capacity, name) != off:
+                        field = (f"relays[{i}].controller.capacity.{name}" if name in (r.controller or {}).get("capacity", {})
+                                 else f"controller.capacity.{name}")
+                        raise ValueError(f"{field}: only one relay's capacity planner does this (a network's planners do "
+                                         f"not: leave it at {off!r}); got {getattr(own.capacity, name)!r}")
+                for path in NETWORK_WIDE:
+                    mine, shared = own, self.controller
+                    for part in path:
+                        mine, shared = getattr(mine, part), getattr(shared, part)
+                    if mine != shared:
+                        name = ".".join(path)
+                        raise ValueError(f"relays[{i}].controller.{name}: the network's planner plans every relay with one "
+                                         f"controller.{name} = {shared!r} (a relay's own speed and acceleration limits, "
+                                         f"axes, tilt fraction, governor speed and NMPC are its own); got {mine!r}")
         for i in range(len(self.relay_list) if self.is_network else 1):
             if self.planner == PAPER_PLANNER and self.controller_of(i).mu <= 0.0:
                 own = self.relay_list[i].controller or {}

@@ -72,6 +72,12 @@ class NetworkPlannerContext:
     route: bool = True  # whether a planner that can plan a pre-flight route does
     tracer: RayTracer | None = None  # the scene's ray tracer when candidates are scored on the traced channel
     traced_coherent: bool = False  # ... and whether its paths are summed with their phases
+    relay_settings: Mapping[str, PlannerSettings] = field(default_factory=dict)  # a relay's own ([[relays.controller]])
+
+    def settings_of(self, name: str) -> PlannerSettings:
+        """Relay ``name``'s own planner settings (its ``[relays.controller]`` over ``[controller]``): its speed and
+        acceleration limits, tilt fraction, axes and governor; the network-wide ones are ``settings``'."""
+        return self.relay_settings.get(name, self.settings)
 
 
 NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]
@@ -115,6 +121,7 @@ class EquidistantSettings:
     inside the workspace box ``[workspace_min, workspace_max]`` (m, world)."""
 
     speed_m_s: float = 1.0
+    speeds_m_s: Mapping[str, float] = field(default_factory=dict)  # a relay's own limit, where it has one
     margin_m: float = 0.05
     workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
@@ -163,7 +170,7 @@ class EquidistantPlanner:
             goal = np.clip(targets[name], self.lo, self.hi)
             step = goal - ref
             dist = float(np.linalg.norm(step))
-            most = self.settings.speed_m_s * inp.dt
+            most = self.settings.speeds_m_s.get(name, self.settings.speed_m_s) * inp.dt
             if dist > most:
                 step = step * (most / dist)
             new = ref + step

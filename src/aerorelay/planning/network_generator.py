@@ -15,7 +15,7 @@ accelerations m/s^2.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import casadi as ca
 import numpy as np
@@ -59,7 +59,7 @@ class NetworkGenerator:
     neighbours."""
 
     def __init__(self, surrogate: SurrogateParams, routes: Sequence[Sequence[str]], relays: Sequence[str], bs_position, *,
-                 governor_speed: float, eig_floor: float, workspace_min, workspace_max, max_ref_accel: float = 2.0):
+                 governor_speed: float | Mapping[str, float], eig_floor: float, workspace_min, workspace_max, max_ref_accel: float = 2.0):
         self.routes = [list(r) for r in routes]
         self.relays = list(relays)
         self.sources = list(dict.fromkeys(r[0] for r in self.routes))
@@ -117,6 +117,8 @@ class NetworkGenerator:
         out = {}
         for i, n in enumerate(self.relays):
             p_opt, v_d, a_d = opt[0][i], opt[1][i], opt[2][i]
-            self.refs[n], v_ref, a_ref = governed(self.refs[n], p_opt, v_d, a_d, inp.dt, self.governor_speed, self.max_ref_accel)
+            self.refs[n], v_ref, a_ref = governed(self.refs[n], p_opt, v_d, a_d, inp.dt,
+                                                    self.governor_speed[n] if isinstance(self.governor_speed, Mapping)
+                                                    else self.governor_speed, self.max_ref_accel)
             out[n] = Reference(p_opt=p_opt, p_ref=self.refs[n].copy(), v_ref=v_ref, a_ref=a_ref)
         return out

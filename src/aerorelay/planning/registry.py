@@ -76,7 +76,8 @@ def _box(ctx: NetworkPlannerContext) -> dict:
 @register_network_planner("equidistant", references="position")
 def _equidistant(ctx: NetworkPlannerContext):
     cap = ctx.settings.capacity
-    return EquidistantPlanner(ctx.scene.all_routes, ctx.starts, EquidistantSettings(speed_m_s=cap.speed_m_s,
+    speeds = {name: ctx.settings_of(name).capacity.speed_m_s for name in ctx.starts}  # each relay's own limit
+    return EquidistantPlanner(ctx.scene.all_routes, ctx.starts, EquidistantSettings(speed_m_s=cap.speed_m_s, speeds_m_s=speeds,
                                                                                     margin_m=cap.margin_m, **_box(ctx)),
                               ctx.scene.handover)
 
@@ -86,17 +87,22 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
     cap = ctx.settings.capacity
     # each relay's antenna axes it can hold at zero yaw toward each azimuth (its own limit there, times tilt_fraction), as
     # the one relay's planner: its best azimuth's limit everywhere was not holdable (3 m tracking errors)
-    held = {name: holdable_axes(ctx.vehicles[name], cap.tilt_fraction, cap.axis_step_deg, cap.boundary_axes)
+    # (each relay's own tilt fraction, axes, speed and acceleration limits: its [relays.controller.capacity])
+    own = {name: ctx.settings_of(name).capacity for name in ctx.starts}
+    held = {name: holdable_axes(ctx.vehicles[name], own[name].tilt_fraction, own[name].axis_step_deg, own[name].boundary_axes)
             for name in ctx.starts}
     axes = {name: h[2] for name, h in held.items()}
-    shapers = {name: shaper_settings(cap, float(h[1].max()), ctx.vehicles[name].gravity) for name, h in held.items()}
+    shapers = {name: shaper_settings(own[name], float(h[1].max()), ctx.vehicles[name].gravity) for name, h in held.items()}
+    # the joint pre-flight route moves every relay at the slowest one's limits (each then chases it within its own)
+    route_speed = min(c.speed_m_s for c in own.values())
+    route_accel = min(c.max_accel_m_s2 for c in own.values())
     route = None
     if ctx.route and ctx.sources and ctx.duration_s > ctx.t0_s:
         def route(t0, starts, jammer_positions, jammer_powers):
             return fleet_route(ctx.scene, ctx.sources, starts, {n: float(h[1].max()) for n, h in held.items()},
                                ctx.workspace_min + cap.margin_m, ctx.workspace_max - cap.margin_m, t0=t0,
-                               duration_s=ctx.duration_s, dt_s=ctx.route_dt_s, speed_m_s=cap.speed_m_s,
-                               accel_m_s2=cap.max_accel_m_s2, gravity=next(iter(ctx.vehicles.values())).gravity,
+                               duration_s=ctx.duration_s, dt_s=ctx.route_dt_s, speed_m_s=route_speed,
+                               accel_m_s2=route_accel, gravity=next(iter(ctx.vehicles.values())).gravity,
                                separation_m=ctx.separation_m + FLEET_ROUTE_CLEARANCE_M if ctx.separation_m > 0 else 0.0,
                                obstacles=ctx.obstacles, jammer_positions=jammer_positions, jammer_powers=jammer_powers)
     return FleetCapacityPlanner(ctx.scene, ctx.starts, axes, shapers,
@@ -109,6 +115,7 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
 @register_network_planner("trajectory_generator", references="alignment")
 def _network_generator(ctx: NetworkPlannerContext):
     g = ctx.settings.generator
+    governors = {n: ctx.settings_of(n).generator.governor_speed_m_s for n in ctx.starts}  # each relay's own
     return NetworkGenerator(SurrogateParams.of_scene(ctx.scene, g.mu, ctx.surrogate_g_bar), ctx.routes, list(ctx.starts),
-                            tuple(float(v) for v in np.asarray(ctx.bs_position, float)), governor_speed=g.governor_speed_m_s,
+                            tuple(float(v) for v in np.asarray(ctx.bs_position, float)), governor_speed=governors,
                             eig_floor=g.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max)
