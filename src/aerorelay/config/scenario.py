@@ -339,7 +339,8 @@ class Scenario(Strict):
                         raise ValueError(f"{field}: only one relay's capacity planner does this (a network's planners do "
                                          f"not: leave it at {off!r}); got {getattr(own.capacity, name)!r}")
                 for path in NETWORK_WIDE:
-                    mine, shared = own, self.controller
+                    mine: object = own
+                    shared: object = self.controller
                     for part in path:
                         mine, shared = getattr(mine, part), getattr(shared, part)
                     if mine != shared:
@@ -349,8 +350,8 @@ class Scenario(Strict):
                                          f"axes, tilt fraction, governor speed and NMPC are its own); got {mine!r}")
         for i in range(len(self.relay_list) if self.is_network else 1):
             if self.planner == PAPER_PLANNER and self.controller_of(i).mu <= 0.0:
-                own = self.relay_list[i].controller or {}
-                field = f"relays[{i}].controller.mu" if "mu" in own else "controller.mu"
+                written = self.relay_list[i].controller or {}
+                field = f"relays[{i}].controller.mu" if "mu" in written else "controller.mu"
                 raise ValueError(f"{field}: mu = 0 makes the trajectory generator's surrogate link H_bar = sqrt(mu) G_bar / d "
                                  "vanish (its inverse capacity is infinite); use mu > 0 with controller.planner = "
                                  "'trajectory_generator'")
