@@ -168,3 +168,20 @@ def test_command_line_options_apply_before_validation(tmp_path):
     assert written["controller"]["planner"] == "capacity" and written["sim"]["duration_s"] == 0.3
     bad = runner.invoke(app, ["run", str(f), "--planner", "capacity", "--duration", "-1", "--out", str(tmp_path / "bad")])
     assert bad.exit_code == 2 and "sim.duration_s" in bad.output and not (tmp_path / "bad").exists()
+
+
+def test_info_describes_every_relay_with_its_own_platform_limits_and_antenna(tmp_path):
+    """``aerorelay info`` on a chain of a quadrotor (its own speed limit and antenna) and the shared hexarotor: each
+    relay's rotors, hover, speed limit and antenna, by name (before: the first relay's platform only)."""
+    f = tmp_path / "mixed.toml"
+    f.write_text((ROOT / "scenarios" / "chain_two_relays.toml").read_text())
+    res = runner.invoke(app, ["info", str(f), "--set", "relays.0.platform=quad_x", "--set",
+                              "relays.0.controller.capacity.speed_m_s=0.4", "--set", "relays.0.antenna.pattern=isotropic"])
+    assert res.exit_code == 0, res.output
+    import aerorelay as ar
+    sc = ar.load_scenario(f)
+    first, second = (r.name for r in sc.relay_list)
+    out = " ".join(res.output.split())
+    assert f"{first}: rotors / max axis tilt │ 4 (custom layout)" in out and f"{second}: rotors / max axis tilt │ 6" in out
+    assert f"{first}: speed limit / governor (m/s) │ 0.4" in out and f"{second}: speed limit / governor (m/s) │ 1 " in out
+    assert f"{first}: antenna │ isotropic (its own" in out and f"{second}: antenna │ dipole (shared)" in out

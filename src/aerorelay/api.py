@@ -23,6 +23,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ._version import __version__
@@ -306,6 +307,31 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
 def vehicle(sc: Scenario) -> Multirotor:
     """The relay's vehicle model (``[platform]``): allocation, hover speeds, tilt limits."""
     return build_vehicle(sc.platform_of(0))
+
+
+def relay_summaries(sc: Scenario) -> list[dict[str, object]]:
+    """Every relay's own platform, limits and antenna, as it flies (``aerorelay info``): its name, rotor count and
+    layout, largest rotor-axis tilt (deg), allocation rank, hover speeds (Hz) and shaft power (W), its reference speed
+    limit (m/s, ``controller.capacity.speed_m_s``; the paper's generator governs at ``governor_speed_m_s``), its antenna
+    and whether it is a spare."""
+    out: list[dict[str, object]] = []
+    for i, r in enumerate(sc.relay_list):
+        platform_cfg, ctrl = sc.platform_of(i), sc.controller_of(i)
+        veh = build_vehicle(platform_cfg)
+        F, M = veh.allocation()
+        hover = veh.hover_speeds()
+        own = r.antenna
+        antenna = (f"{own.pattern} (its own, g_bar {own.g_bar:g})" if own is not None
+                   else f"{sc.antenna.pattern} (shared)")
+        out.append({"name": r.name, "platform": r.platform if isinstance(r.platform, str) else
+                    ("its own table" if r.platform is not None else "shared"),
+                    "rotors": veh.n_rotors, "layout": "custom layout" if platform_cfg.rotors is not None else "star layout",
+                    "max_axis_tilt_deg": float(np.degrees(np.arccos(np.clip(veh.axes[:, 2], -1.0, 1.0))).max()),
+                    "allocation_rank": int(np.linalg.matrix_rank(np.vstack([F, M]))),
+                    "hover_hz": [float(h) for h in hover], "hover_shaft_power_w": float(veh.shaft_power(hover)),
+                    "speed_m_s": ctrl.capacity.speed_m_s, "governor_speed_m_s": ctrl.governor_speed_m_s,
+                    "antenna": antenna, "spare": r.standby})
+    return out
 
 
 def link_budget(sc: Scenario) -> dict[str, float]:

@@ -8,7 +8,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -107,19 +106,19 @@ def validate(
 
 def model_summary(sc: Scenario) -> Table:
     """A table of the derived physical quantities of a scenario (hover, allocation, channel at t=0)."""
-    veh = api.vehicle(sc)
-    F, M = veh.allocation()
-    hover = veh.hover_speeds()
     budget = api.link_budget(sc) if sc.has_two_hops else None  # the paper's Gamma_21, Gamma_10
     t = Table(title=f"model summary: {sc.name}", show_header=True)
     t.add_column("quantity")
     t.add_column("value", justify="right")
-    axis_tilt = np.degrees(np.arccos(np.clip(veh.axes[:, 2], -1.0, 1.0))).max()
-    layout = "custom layout" if sc.platform.rotors is not None else "star layout"
-    t.add_row("rotors / max axis tilt", f"{veh.n_rotors} ({layout}) / {axis_tilt:.1f} deg")
-    t.add_row("allocation rank [F; M]", str(np.linalg.matrix_rank(np.vstack([F, M]))))
-    t.add_row("hover speeds (Hz)", ", ".join(f"{h:.2f}" for h in hover))
-    t.add_row("hover shaft power (W)", f"{veh.shaft_power(hover):.1f}")
+    for r in api.relay_summaries(sc):  # every relay's own platform, limits and antenna
+        name = str(r["name"])
+        t.add_row(f"{name}: platform", str(r["platform"]))
+        t.add_row(f"{name}: rotors / max axis tilt", f"{r['rotors']} ({r['layout']}) / {r['max_axis_tilt_deg']:.1f} deg")
+        t.add_row(f"{name}: allocation rank [F; M]", str(r["allocation_rank"]))
+        t.add_row(f"{name}: hover speeds (Hz)", ", ".join(f"{h:.2f}" for h in r["hover_hz"]))  # type: ignore[attr-defined]
+        t.add_row(f"{name}: hover shaft power (W)", f"{r['hover_shaft_power_w']:.1f}")
+        t.add_row(f"{name}: speed limit / governor (m/s)", f"{r['speed_m_s']:g} / {r['governor_speed_m_s']:g}")
+        t.add_row(f"{name}: antenna", str(r["antenna"]))
     if budget is not None:
         t.add_row("Gamma_21 at t=0", f"{budget['gamma_21']:.4f}")
         t.add_row("Gamma_10 at t=0", f"{budget['gamma_10']:.4f}")
