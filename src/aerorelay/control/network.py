@@ -190,6 +190,7 @@ class Controller:
         self._read_at: tuple[float, dict[str, np.ndarray]] | None = None  # where the next readings were taken
         self.lost: set[str] = set()  # relays taken out of the network (``lose``)
         self.lost_at: dict[str, float] = {}  # when (s, the caller's clock; NaN: not said)
+        self._by_name = {r.name: r for r in controller.relays}
 
     @property
     def relays(self) -> list[str]:
@@ -206,10 +207,10 @@ class Controller:
 
     def relay(self, name: str) -> LoopRelay:
         """Relay ``name`` (its vehicle, its ``RelayStep``)."""
-        for r in self.controller.relays:
-            if r.name == name:
-                return r
-        raise ValueError(f"no relay {name!r} in the network ({', '.join(self.relays)})")
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise ValueError(f"no relay {name!r} in the network ({', '.join(self.relays)})") from None
 
     def _last(self) -> dict[str, np.ndarray]:
         return {r.name: x for r in self.controller.relays if (x := r.stepper.last_state) is not None}
@@ -234,7 +235,7 @@ class Controller:
         (older than ``hold_after_s``); None when it can (what a transport gates its first step on)."""
         if x is None:
             return "no relay state"
-        if t - stamp > self.stale.hold_after_s:
+        if self.stale.too_old(t, stamp):
             return f"relay state {t - stamp:.3f} s old"
         return self.relay(name).stepper.problem(t, x, stamp)
 
@@ -244,7 +245,7 @@ class Controller:
         if source is None:
             return "no source"
         why = self.controller.relays[0].stepper.check.problem(t, None, t, source)
-        if why is None and source.stamp is not None and t - source.stamp > self.stale.hold_after_s:
+        if why is None and source.stamp is not None and self.stale.too_old(t, source.stamp):
             why = f"source {t - source.stamp:.3f} s old"
         return why
 
@@ -281,7 +282,7 @@ class Controller:
         stamp = {n: t if stamps is None or stamps.get(n) is None else float(stamps[n]) for n in given}  # type: ignore[arg-type]
         # not trusted (Command.rejected says why), or merely stale (older than hold_after_s): either holds
         rejected = {n: w for n, x in given.items() if (w := self.relay(n).stepper.problem(t, x, stamp[n])) is not None}
-        fresh = {n: x for n, x in given.items() if n not in rejected and t - stamp[n] <= self.stale.hold_after_s}
+        fresh = {n: x for n, x in given.items() if n not in rejected and not self.stale.too_old(t, stamp[n])}
         never = [n for n in self.relays if n not in fresh and not self.relay(n).stepper.has_state]
         if never:
             said = [f"{n}: {rejected.get(n) or ('no relay state' if n not in given else 'stale')}" for n in never]

@@ -58,6 +58,10 @@ class StaleSettings:
     jump_tolerance_m: float = 0.5
     jump_tolerance_m_s: float = 5.0
 
+    def too_old(self, t: float, stamp: float) -> bool:
+        """Whether an input measured at ``stamp`` is stale at ``t`` (older than ``hold_after_s``): the one rule."""
+        return t - stamp > self.hold_after_s
+
     def __post_init__(self):
         if not 0 < self.hold_after_s < self.land_after_s or self.land_speed_m_s <= 0:
             raise ValueError(f"StaleSettings: need 0 < hold_after_s ({self.hold_after_s}) < land_after_s "
