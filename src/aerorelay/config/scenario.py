@@ -74,7 +74,7 @@ RENAMED: dict[tuple[str, ...], tuple[str, ...]] = {
 # the settings a network's planner reads once for the whole network: a relay's own value is refused by name (every other
 # [relays.controller] field is honoured for that relay: its NMPC, its shaper's limits, its axes, its governor speed)
 NETWORK_WIDE: tuple[tuple[str, ...], ...] = (
-    ("mu",), ("hessian_eig_floor",),
+    ("mu",), ("hessian_eig_floor",), ("senses_jammer_state",),
     *(("capacity", f) for f in ("margin_m", "leash_m", "route_grid_m", "route_dt_s", "lookahead_s", "yaw_rate_deg_s",
                                 "excursion_m", "excursion_std_m", "excursion_max_loss", "scoring", "replan_every")))
 # what only one relay's capacity planner does (yawing the platform, circling to localize a jammer), refused in a network

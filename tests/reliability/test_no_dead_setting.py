@@ -1,0 +1,125 @@
+"""No dead setting (issue 60, item 4), for every field of a relay's own controller (``[relays.controller]``, generated
+from the schema, not a hand list): written for one relay of a two-relay chain, each field either changes what is built
+(``fingerprint``) under at least one network planner, or is refused by name, or is in ``DESCRIPTIVE`` (reviewed).
+Before 2026-12-05 ``[relays.controller.capacity] speed_m_s`` was accepted and changed nothing any network planner
+built. Not yet checked here: a field honoured under one planner but silently unused under another (the next step is
+refusing what does not apply, as acados' make_consistent)."""
+
+from __future__ import annotations
+
+import functools
+import typing
+
+import pytest
+from pydantic import BaseModel
+
+import aerorelay as ar
+from aerorelay.assembly.parts import build
+from aerorelay.config import ScenarioError
+from aerorelay.config.controller import ControllerConfig
+
+from .fingerprint import fingerprint
+
+CHAIN = "scenarios/chain_two_relays.toml"
+PLANNERS = ("capacity", "trajectory_generator", "equidistant")
+DESCRIPTIVE: frozenset[str] = frozenset()  # fields that describe and change nothing built (reviewed): none yet
+
+
+def leaves(model: type[BaseModel], prefix: tuple[str, ...] = ()):
+    for name, f in model.model_fields.items():
+        ann = f.annotation
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            yield from leaves(ann, (*prefix, name))
+        else:
+            yield (*prefix, name), f
+
+
+def bounds(f) -> tuple[float, float]:
+    lo, hi = -1e9, 1e9
+    for m in f.metadata:
+        lo = max(lo, getattr(m, "ge", None) if getattr(m, "ge", None) is not None else lo)
+        hi = min(hi, getattr(m, "le", None) if getattr(m, "le", None) is not None else hi)
+        if getattr(m, "gt", None) is not None:
+            lo = max(lo, m.gt + 1e-9)
+    return lo, hi
+
+
+def changed(path: tuple[str, ...], f, shared) -> object:
+    """A valid value other than the shared one."""
+    ann = f.annotation
+    if typing.get_origin(ann) is typing.Literal:
+        return next(v for v in typing.get_args(ann) if v != shared)
+    if ann is bool:
+        return not shared
+    if path[-1] == "planner":
+        return "capacity"
+    if path[0] == "workspace":
+        return [shared[0] - 1.0 if path[-1] == "min" else shared[0] + 1.0, *shared[1:]]
+    lo, hi = bounds(f)
+    if ann is int:
+        return shared + 1 if shared + 1 <= hi else shared - 1
+    base = shared if shared is not None else min(max(1.0, lo), hi)
+    if shared is None:
+        return base
+    new = base * 0.7 if base > 0 else min(0.5, hi)
+    return new if lo <= new <= hi else min(base * 1.3, hi)
+
+
+FIELDS = [(p, f) for p, f in leaves(ControllerConfig)]
+
+
+QUICK = {"network.route": False, "bound.max_minutes": 60.0}  # no pre-flight route: the planners' settings are built alike
+
+
+@functools.cache
+def base_fingerprint(planner: str) -> str:
+    return fingerprint(build(ar.load_scenario(CHAIN, set={**QUICK, "controller.planner": planner})))
+
+
+@pytest.mark.parametrize("path", [".".join(p) for p, _ in FIELDS])
+def test_no_relay_setting_is_dead(path):
+    shared = ar.load_scenario(CHAIN).controller
+    dead, unnamed = [], []
+    for path_, f in FIELDS:
+        if ".".join(path_) != path:
+            continue
+        path = path_  # noqa: PLW2901
+        name = ".".join(path)
+        value = getattr(shared, path[0])
+        for part in path[1:]:
+            value = getattr(value, part)
+        new = changed(path, f, value)
+        alive = False
+        for planner in PLANNERS:
+            key = f"relays.0.controller.{name}"
+            try:
+                sc = ar.load_scenario(CHAIN, set={**QUICK, "controller.planner": planner, key: new})
+            except ScenarioError as exc:
+                if f"relays[0].controller.{name}" not in str(exc) and f"controller.{name}" not in str(exc):
+                    unnamed.append(f"{name}: {exc}")
+                alive = True
+                break
+            if fingerprint(build(sc)) != base_fingerprint(planner):
+                alive = True
+                break
+        if not alive and name not in DESCRIPTIVE:
+            dead.append(f"{name} = {new!r}")
+    assert not unnamed, f"refused without naming the field: {unnamed}"
+    assert not dead, f"accepted and changing nothing any network planner builds: {dead}"
+
+
+def test_the_fingerprint_is_one_per_file_and_sees_a_relays_speed_limit():
+    a = fingerprint(build(ar.load_scenario(CHAIN)))
+    assert fingerprint(build(ar.load_scenario(CHAIN))) == a
+    assert fingerprint(build(ar.load_scenario(CHAIN, set={"description": "words"}))) == a
+    assert fingerprint(build(ar.load_scenario(CHAIN, set={"relays.0.controller.capacity.speed_m_s": 0.4}))) != a
+
+
+@pytest.mark.parametrize("path", [".".join(p) for p, _ in FIELDS])
+def test_each_relay_field_has_a_changed_value_the_schema_accepts(path):
+    f = dict((".".join(p), f) for p, f in FIELDS)[path]
+    shared = ar.load_scenario(CHAIN).controller
+    value = shared
+    for part in path.split("."):
+        value = getattr(value, part)
+    assert changed(tuple(path.split(".")), f, value) != value
