@@ -32,14 +32,13 @@ from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
+    bound_of,
     build,
     build_scene,
     build_source,
     check_bound_size,
-    network_bound,
     nmpc_settings,
     relay_view,
-    scenario_bound,
 )
 from .assembly.planners import comms_aware
 from .assembly.vehicle import build_vehicle
@@ -301,7 +300,7 @@ def bound(sc: Scenario, progress: Callable[[int, int], None] | None = None) -> C
     """The scenario's capacity bounds (static and path), computed once per geometry and cached; a
     fleet's network bound (``planning/network_bound.py``: static upper bound and the refined
     configuration) for a fleet."""
-    return network_bound(sc, progress) if sc.is_network else scenario_bound(sc, progress)
+    return bound_of(sc, progress)
 
 
 def vehicle(sc: Scenario) -> Multirotor:

@@ -727,6 +727,14 @@ def network_bound(sc: Scenario, progress=None) -> NetworkBound:
     return parts[0][1] if len(parts) == 1 else spliced(parts)
 
 
+def bound_of(sc: Scenario, progress=None, vehicle: Multirotor | None = None,
+             scene: RadioScene | None = None) -> CapacityBound | NetworkBound:
+    """The scenario's capacity bound, cached per geometry: a network's (every relay's cubes at once, a min-sum over its
+    routes) or the one relay's (its grid and axes, exactly its path bound): the physics of the two bounds differs.
+    ``vehicle``/``scene``: the one relay's, passed in (a scene passed in is not in the cache key)."""
+    return network_bound(sc, progress) if sc.is_network else scenario_bound(sc, progress, vehicle, scene)
+
+
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:
     """The scenario's capacity bound, computed once per geometry and cached (a scene passed in is
     not part of the cache key: its bound is computed afresh)."""

@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 from pydantic import ValidationError
 
-from ..assembly.parts import build, jammer_table, network_bound, scenario_bound
+from ..assembly.parts import bound_of, build, jammer_table
 from ..assembly.world import obstacles as obstacle_shapes
 from ..config import JammerConfig, Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
@@ -261,8 +261,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)
     bound: CapacityBound | NetworkBound | None = None
     if with_bound:
-        bound = network_bound(sc, bound_progress) if sc.is_network else \
-            scenario_bound(sc, bound_progress, parts.vehicle, injected)
+        bound = bound_of(sc, bound_progress, parts.vehicle, injected)
     loop = parts.closed_loop()
     mission = loop.run(progress)
     df = log_frame(mission.log, loop.columns + [c for c in mission.log if c not in loop.columns],
