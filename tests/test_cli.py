@@ -129,27 +129,12 @@ def test_reproduce_help_names_every_study_with_its_title():
         assert f"{data['name']}: {' '.join(data['title'].split())[:40]}" in text, data["name"]
 
 
-HANDOVER_ONE_RELAY = """
-name = "handover_one_relay"
-[[base_stations]]
-name = "west"
-position = [0.0, 0.0, 0.0]
-[[base_stations]]
-name = "east"
-position = [24.0, 0.0, 0.0]
-[[relays]]
-name = "r1"
-start = [3.0, 2.0, 2.0]
-[[sources]]
-name = "inspector"
-[sources.mission]
-waypoints = [[0.0, 4.0, 6.0, 3.0], [16.0, 20.0, 6.0, 3.0]]
-[network]
-routes = [["inspector", "r1", "any"]]
-[controller.workspace]
-min = [-2.0, -2.0, 0.5]
-max = [26.0, 10.0, 6.0]
-"""
+def handover_one_relay() -> str:
+    """The handover test's crossing (one relay, routes to "any" of two base stations) with no planner named."""
+    from tests.sim.test_handover import CROSSING
+    named = '[controller]\nplanner = "capacity"\n'
+    assert named in CROSSING
+    return CROSSING.replace(named, "[controller]\n")
 
 
 def test_command_line_options_apply_before_validation(tmp_path):
@@ -157,7 +142,7 @@ def test_command_line_options_apply_before_validation(tmp_path):
     validated, as ``--set`` is): one relay that may hand over between two base stations is refused for the paper's
     generator (the default) and flies with ``--planner capacity``; ``--duration`` too is what is validated."""
     f = tmp_path / "handover.toml"
-    f.write_text(HANDOVER_ONE_RELAY)
+    f.write_text(handover_one_relay())
     refused = runner.invoke(app, ["validate", str(f)])
     assert refused.exit_code == 2 and "controller.planner" in refused.output
     flown = runner.invoke(app, ["run", str(f), "--planner", "capacity", "--duration", "0.3", "--no-bound",

@@ -20,7 +20,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth
+from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth, papers_generator_named
 from .controller import ControllerConfig
 from .errors import format_errors
 from .mission import MissionConfig
@@ -145,7 +145,7 @@ class Scenario(Strict):
                 node = node.setdefault(part, {}) if isinstance(node, dict) else node
                 if not isinstance(node, dict):
                     raise ValueError(f"{'.'.join(new[:-1])}: must be a table (it takes {'.'.join(old)}'s value)")
-            same = (lambda v: "trajectory_generator" if v == "paper" else v) if new[-1] == "planner" else (lambda v: v)
+            same = papers_generator_named if new[-1] == "planner" else (lambda v: v)
             if new[-1] in node and same(node[new[-1]]) != same(value):
                 raise ValueError(f"{'.'.join(old)} = {value!r} and {'.'.join(new)} = {node[new[-1]]!r}: one setting spelled "
                                  f"twice with two values; write {'.'.join(new)} only ({'.'.join(old)} is its old spelling)")
