@@ -37,7 +37,7 @@ def test_a_chain_reads_and_builds_its_scene():
 def test_a_file_with_nodes_relay_is_one_relay_and_one_source():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml")
     assert [r.name for r in sc.relay_list] == ["relay"] and [s.name for s in sc.source_list] == ["source"]
-    assert sc.route_list == [["source", "relay", "bs"]] and not sc.is_network and "[network]" not in sc.to_toml()
+    assert sc.route_list == [["source", "relay", "bs"]] and sc.shape.plans == "relay" and "[network]" not in sc.to_toml()
 
 
 def test_default_routes_go_through_every_relay_in_order():

@@ -79,3 +79,20 @@ def test_the_checks_see_a_cycle_and_a_hidden_import():
     assert _cycles({"a": {"b"}, "b": {"a"}}) == ["a -> b -> a"]
     edges, _ = _structure()
     assert "aerorelay.config" in edges["aerorelay.assembly.parts"] or "aerorelay.config.scenario" in edges["aerorelay.assembly.parts"]
+
+
+def test_the_number_of_relays_is_a_dimension_not_a_fork():
+    """Issue 60: at most five relay-count branches in the package (the issue's own pattern), each where the physics
+    differs. What differs between the paper's one relay and a network is data (``config.scenario.Shape``, chosen in
+    ``Scenario.shape``); outputs laid out as one relay's read one rule (``config.network.sole``)."""
+    import re
+
+    pattern = re.compile(r"is_network|has_two_hops|is_network_file|len\(.*relays.*\) *(==|>|<)"  # the issue's
+                         r"|len\([^()]*(relay_list|relays)\) *(==|!=|>|<)")  # and what it would miss
+    hits = [f"{p.relative_to(SRC)}:{i}" for p in (SRC / "aerorelay").rglob("*.py")
+            for i, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]
+    assert len(hits) <= 5, hits
+    counted = re.compile(r"len\((self\.)?relay_list\) *\+ *len\((self\.)?source_list\) *(==|!=|>|<)")  # the shape's, once
+    shapes = [f"{p.relative_to(SRC)}:{i}" for p in (SRC / "aerorelay").rglob("*.py")
+              for i, line in enumerate(p.read_text().splitlines(), 1) if counted.search(line)]
+    assert len(shapes) == 1, shapes

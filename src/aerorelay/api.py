@@ -122,7 +122,7 @@ def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale
     an autopilot flies (thrust along body z: a tilted platform's rotors untilted in the NMPC's model), for its
     setpoints."""
     ctrl = build_controller(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer, autopilot=autopilot)
-    return OneRelay(ctrl) if len(ctrl.relays) == 1 and len(ctrl.sources) == 1 else ctrl
+    return OneRelay(ctrl) if sc.shape.steps_one else ctrl
 
 
 def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None, *,
@@ -335,8 +335,8 @@ def relay_summaries(sc: Scenario) -> list[dict[str, object]]:
 
 def link_budget(sc: Scenario) -> dict[str, float]:
     """SINRs, capacity, alignment and interference-to-noise ratios at the initial geometry of the paper's
-    two hops (``Scenario.has_two_hops``; a network's budget, hop by hop, is ``link_budget_lines``)."""
-    if not sc.has_two_hops:
+    two hops (one route: source -> relay -> base station; a network's budget, hop by hop, is ``link_budget_lines``)."""
+    if not sc.has_two_hops:  # the paper's Gamma_21 and Gamma_10 are of two hops
         raise ScenarioError("link_budget: a network's start is given hop by hop by link_budget_lines")
     return initial_link_budget(build_scene(sc), sc.relay_list[0].start, sc.source_list[0].mission.start)
 
@@ -353,11 +353,9 @@ def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: i
     build(warm, nmpc_settings=settings).closed_loop().run()
     res = benchmark_closed_loop(build(sc, nmpc_settings=settings).closed_loop(), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-    if sc.is_network:
-        res["scenario"] = f"{sc.name} ({len(sc.relay_list)} relays, {sc.planner} fleet planner)"
-    else:
-        nmpc_kind = "comms-aware NMPC" if comms_aware(relay_view(sc, 0)) else "tracking NMPC"
-        res["scenario"] = f"{sc.name} ({sc.planner} planner, {nmpc_kind})"
+    kinds = sorted({"comms-aware NMPC" if comms_aware(relay_view(sc, i)) else "tracking NMPC" for i in range(len(sc.relay_list))})
+    n = len(sc.relay_list)
+    res["scenario"] = f"{sc.name} ({n} relay{'s' * (n != 1)}, {sc.planner} planner, {', '.join(kinds)})"
     return res
 
 
@@ -533,7 +531,7 @@ def write_bound(sc: Scenario, out: str | Path, progress: Callable[[int, int], No
         b = bound(sc, progress)
         tmp = new_sibling(folder)
         summary = write_bound_files(b, tmp)
-        (fig_network_bound if sc.is_network else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
+        (fig_network_bound if isinstance(b, NetworkBound) else fig_bound)(b.frame(), sc).savefig(tmp / "bound.png", dpi=110)
         swap_in(tmp, folder, "bound")
     return summary
 

@@ -14,6 +14,7 @@ from rich.table import Table
 
 from . import api
 from .api import CampaignBusyError, OutputBusyError, OutputError, Scenario, ScenarioError, StudyError, load_scenario
+from .config.network import sole
 from .flight.names import check_ros_namespace
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
@@ -106,7 +107,10 @@ def validate(
 
 def model_summary(sc: Scenario) -> Table:
     """A table of the derived physical quantities of a scenario (hover, allocation, channel at t=0)."""
-    budget = api.link_budget(sc) if sc.has_two_hops else None  # the paper's Gamma_21, Gamma_10
+    try:
+        budget: dict[str, float] | None = api.link_budget(sc)  # the paper's Gamma_21, Gamma_10
+    except ScenarioError:  # a network's start is said hop by hop (api.link_budget_lines)
+        budget = None
     t = Table(title=f"model summary: {sc.name}", show_header=True)
     t.add_column("quantity")
     t.add_column("value", justify="right")
@@ -301,7 +305,7 @@ def _unit_of(key: str, capacity_unit: str) -> str:
 def _fleet_keys(runs: dict[str, dict]) -> list[str]:
     """A fleet's key metrics (the network's rate and separation, each route's, each relay's), or []
     when every run flew one relay."""
-    fleets = [m for m in runs.values() if len(m.get("relays", {})) > 1 or len(m.get("routes", {})) > 1]
+    fleets = [m for m in runs.values() if (m.get("relays") and sole(m["relays"]) is None) or len(m.get("routes", {})) > 1]
     if not fleets:
         return []
     routes = sorted({s for m in fleets for s in m.get("routes", {})})
@@ -403,7 +407,7 @@ def bench(
     except ValueError as exc:
         _fail(str(exc))
     res = api.bench(sc, settings, ipopt_points=ipopt_points)
-    if len(res["relays"]) > 1:
+    if sole(res["relays"]) is None:
         _print_fleet_bench(res)
         if json_out is not None:
             json_out.write_text(api.strict_json_text(res))

@@ -198,16 +198,17 @@ def _ray_traced_physics(sc: Scenario) -> None:
     if traced_scoring and sc.channel.propagation.model != "ray_traced":
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores candidates on the ray-traced channel: "
                          "set channel.propagation.model = 'ray_traced' (and its scene)")
-    if traced_scoring and sc.is_network and sc.controller.capacity.scoring != "traced":
+    fleet = sc.shape.plans == "network"  # a network's candidates are scored by one fleet planner
+    if traced_scoring and fleet and sc.controller.capacity.scoring != "traced":
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: a network's candidates are scored by its fleet planner: "
                          "set controller.capacity.scoring = 'traced' (with controller.planner = 'capacity')")
-    if traced_scoring and sc.is_network and sc.planner != "capacity":
+    if traced_scoring and fleet and sc.planner != "capacity":
         raise ValueError(f"controller.capacity.scoring: 'traced' scores the capacity-seeking planners' candidates; "
                          f"controller.planner = {sc.planner!r} scores none: set controller.planner = 'capacity'")
     if traced_scoring and sc.has_handover:
         raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores the route to one base station; a route "
                          "to 'any' of several scores on free space so far")
-    if traced_scoring and not sc.is_network:
+    if traced_scoring and not fleet:
         _traced_route_fits(sc)
     if sc.channel.propagation.model != "ray_traced":
         return

@@ -261,7 +261,8 @@ def one_base_station_planners(sc: Scenario) -> None:
     if not sc.has_handover and len(ends) == 1:
         return
     why = "routes that end at 'any' base station" if sc.has_handover else f"routes ending at {sorted(ends)}"
-    field = "relays[0].controller.planner" if not sc.is_network and sc.relays is not None and sc.relays[0].controller \
+    # a relay's own planner is refused in a network (Scenario._one_planner): written there, it is the one relay's
+    field = "relays[0].controller.planner" if sc.relays is not None and sc.relays[0].controller \
         and sc.relays[0].controller.get("planner") else "controller.planner"
     name = sc.planner
     if name in GENERATORS:
@@ -276,7 +277,7 @@ def planner_registered(sc: Scenario) -> None:
         entry = planner_of(sc)
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
-    if sc.is_network and entry.network is None:
+    if getattr(entry, sc.shape.plans) is None:
         raise ScenarioError(f"controller.planner: {sc.planner!r} plans one relay (registered with register_planner); a "
                             f"network of {len(sc.relay_list)} relays and {len(sc.source_list)} sources needs a network "
                             "planner (register_network_planner under the same name), or pass the object to "
@@ -504,7 +505,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     holding their starts). The scenario's physics checks run first (once per content: ``assembly.checks``)."""
     check_physics(sc)
     scene = scene or build_scene(sc, jammers)
-    network = sc.is_network
+    network = sc.shape.neighbours
     # each relay of a network keeps min_separation_m from every other vehicle (none set: no separation row)
     others = len(sc.relay_list) - 1 + len(sc.source_list) if network and sc.separation_m > 0 else 0
     relays, platforms = [], {}
@@ -612,7 +613,7 @@ def bound_cost(sc: Scenario) -> BoundCost:
     b = sc.bound
     rays = sc.channel.propagation.rays_per_source
     traced = sc.channel.propagation.model == "ray_traced"
-    if sc.is_network:
+    if sc.shape.bound == "network":
         relays = {r.name for r in sc.relay_list}
         hops = {frozenset(h) for route in sc.route_list for h in zip(route, route[1:], strict=False) if set(h) <= relays}
         fixed_ends = len(sc.source_list) + len(sc.jammer_configs)
@@ -650,19 +651,20 @@ def _bound_key_tables(sc: Scenario, data: dict) -> dict:
     ``network.planner`` and ``route_dt_s`` were in ``[network]``): a bound cached then keeps its key."""
     bound = data["bound"]
     one, net = (sc.bound_grid_m, sc.bound_dt_s), (2.0, 2.0)
-    if sc.is_network:
+    networks = sc.shape.bound == "network"
+    if networks:
         one, net = (0.5, 0.5), (sc.bound_grid_m, sc.bound_dt_s)
     bound.update(grid_m=one[0], dt_s=one[1], network_grid_m=net[0], network_dt_s=net[1])
     if "network" in data:
-        data["network"]["route_dt_s"] = sc.route_dt_s if sc.is_network else 2.0
-        data["network"]["planner"] = sc.planner if sc.is_network else "equidistant"
+        data["network"]["route_dt_s"] = sc.route_dt_s if networks else 2.0
+        data["network"]["planner"] = sc.planner if networks else "equidistant"
     return data
 
 
 def scenario_bound_key(sc: Scenario) -> str:
     """Everything the bound depends on (not the controller, except its workspace box)."""
     sc = relay_view(sc, 0)
-    fleet = {"relays", "sources", "network"} if sc.is_network_file else set()  # a file with nodes.relay keeps its key
+    fleet = {"relays", "sources", "network"} if sc.names_its_fleet else set()  # a file with nodes.relay keeps its key
     fleet |= {"base_stations", "network"} if sc.base_stations is not None else set()  # a file with nodes.bs keeps its key
     data = _bound_key_tables(sc, world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer",
                                                                                "jammers", "mission", "bound"} | fleet)))
@@ -732,7 +734,9 @@ def bound_of(sc: Scenario, progress=None, vehicle: Multirotor | None = None,
     """The scenario's capacity bound, cached per geometry: a network's (every relay's cubes at once, a min-sum over its
     routes) or the one relay's (its grid and axes, exactly its path bound): the physics of the two bounds differs.
     ``vehicle``/``scene``: the one relay's, passed in (a scene passed in is not in the cache key)."""
-    return network_bound(sc, progress) if sc.is_network else scenario_bound(sc, progress, vehicle, scene)
+    if sc.shape.bound == "network":
+        return network_bound(sc, progress)
+    return scenario_bound(sc, progress, vehicle, scene)
 
 
 def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> CapacityBound:

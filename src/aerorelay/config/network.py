@@ -5,6 +5,7 @@ and ``[mission]`` is one relay named ``relay`` and one source named ``source``."
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from pydantic import Field, field_validator
@@ -17,6 +18,14 @@ from .radio import NodeAntennaConfig
 BASE_STATION = "bs"  # the base station's name in routes ([nodes] bs)
 ANY_BASE_STATION = "any"  # a route's end: whichever base station serves it best ([[base_stations]], the handover rule)
 LEGACY_RELAY, LEGACY_SOURCE = "relay", "source"  # the one relay and source of a file with [nodes] relay and [mission]
+
+
+def sole(names: Iterable[str]) -> str | None:
+    """The relay (or source) of a run that flew one, else None: the one rule by which outputs are laid out as one
+    relay's runs always were (its metrics and timing at the top level, its figures unsuffixed). Presentation only:
+    what is flown reads ``Scenario.shape``."""
+    names = list(names)
+    return names[0] if len(names) == 1 else None
 
 # platform presets a relay may name (``platform = "quad_x"``); an inline table is a [platform] table
 PLATFORM_PRESETS: dict[str, dict[str, Any]] = {

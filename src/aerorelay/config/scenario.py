@@ -14,7 +14,8 @@ import copy
 import logging
 import math
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
@@ -62,6 +63,26 @@ class GeoConfig(Strict):
                          "z up (m); every trajectory_plan / trajectory_gpx mission without its own geo_origin uses it")
 
     _on_the_earth = field_validator("origin")(on_the_earth)
+
+
+@dataclass(frozen=True)
+class Shape:
+    """What differs between the paper's problem (one relay carrying one source) and a network, field by field, each
+    for a reason of physics or cost; read as data (``Scenario.shape``), never as a branch on the number of relays."""
+
+    name: str
+    planner: str  # the default planner: the paper's generator plans one relay toward one source and one base station
+    bound_grid_m: float  # the bound's default grid: a network's bound grows with the square of its cells per relay pair
+    bound_dt_s: float  # the bound's default time step (as the grid)
+    route_dt_s: float  # the capacity planner's pre-flight route's step: a network's route is refined at each step
+    plans: Literal["relay", "network"]  # which factory of the planner's registry entry plans it (planning.base.PLANNERS)
+    bound: Literal["path", "network"]  # one relay's exact path bound (its grid and axes) or the network's cube bound
+    neighbours: bool  # each relay's NMPC looks at its moving route neighbours (and keeps apart from other vehicles)
+    steps_one: bool  # stepped from outside as one relay: ``step(t, x, source)`` (control.network.OneRelay)
+
+
+PAPERS_PROBLEM = Shape("one relay and one source", PAPER_PLANNER, 0.5, 0.5, 1.0, "relay", "path", False, True)
+NETWORK_PROBLEM = Shape("a network", NETWORK_PLANNER, 2.0, 2.0, 2.0, "network", "network", True, False)
 
 
 # a setting's old spellings (path in the file) -> its one field: read with a deprecation message naming it
@@ -231,8 +252,9 @@ class Scenario(Strict):
     # --- the fleet: relays, sources, routes (legacy files: one relay 'relay', one source 'source') ---
 
     @property
-    def is_network_file(self) -> bool:
-        """Whether the file names its fleet ([[relays]] / [[sources]]) instead of nodes.relay and [mission]."""
+    def names_its_fleet(self) -> bool:
+        """Whether the file names its fleet ([[relays]] / [[sources]], any number) instead of nodes.relay and
+        [mission] (a spelling: a file's layout, not its number of relays)."""
         return self.relays is not None or self.sources is not None
 
     @property
@@ -293,40 +315,41 @@ class Scenario(Strict):
         return {r.name: r.start for r in self.relay_list} | {s.name: s.mission.start for s in self.source_list}
 
     @property
-    def is_network(self) -> bool:
-        """More than the paper's one relay and one source: a network's planner (``network.planner``) plans
-        it, and each relay's NMPC looks at its route neighbours (``assembly.parts.build``)."""
-        return len(self.relay_list) + len(self.source_list) > 2
+    def shape(self) -> Shape:
+        """The paper's problem (one relay, one source) or a network: the one place the number of nodes decides
+        anything (``Shape``: defaults, the planner's factory, the bound, an NMPC's neighbours)."""
+        return NETWORK_PROBLEM if len(self.relay_list) + len(self.source_list) > 2 else PAPERS_PROBLEM
 
     @property
     def planner(self) -> str:
-        """The planner's name (``controller.planner``; one relay's own ``relays[0].controller.planner``): by default
-        the paper's generator for one relay and one source, the equidistant planner for a network."""
-        named = self.controller_of(0).planner if not self.is_network else self.controller.planner
-        return named or (NETWORK_PLANNER if self.is_network else PAPER_PLANNER)
+        """The planner's name (``controller.planner``; one relay's own ``relays[0].controller.planner``, refused for a
+        relay of a network): by default the paper's generator for one relay and one source, the equidistant planner
+        for a network (``Shape.planner``)."""
+        return self.controller_of(0).planner or self.shape.planner
 
     @property
     def bound_grid_m(self) -> float:
         """The bound's position grid (``bound.grid_m``; default 0.5 m for one relay, 2 m for a network's bound,
         whose cost grows with the square of its cells)."""
-        return self.bound.grid_m if self.bound.grid_m is not None else (2.0 if self.is_network else 0.5)
+        return self.bound.grid_m if self.bound.grid_m is not None else self.shape.bound_grid_m
 
     @property
     def bound_dt_s(self) -> float:
         """The bound's time grid (``bound.dt_s``; default 0.5 s for one relay, 2 s for a network)."""
-        return self.bound.dt_s if self.bound.dt_s is not None else (2.0 if self.is_network else 0.5)
+        return self.bound.dt_s if self.bound.dt_s is not None else self.shape.bound_dt_s
 
     @property
     def route_dt_s(self) -> float:
-        """The capacity planner's pre-flight route's time step (``controller.capacity.route_dt_s``; default 1 s for one
-        relay, 2 s for a network's route, refined on the network's rate at each step)."""
-        given = self.controller_of(0).capacity.route_dt_s if not self.is_network else self.controller.capacity.route_dt_s
-        return given if given is not None else (2.0 if self.is_network else 1.0)
+        """The capacity planner's pre-flight route's time step (``controller.capacity.route_dt_s``, one relay's own or
+        the network's: a relay of a network's is refused; default 1 s for one relay, 2 s for a network's route, refined
+        on the network's rate at each step)."""
+        given = self.controller_of(0).capacity.route_dt_s
+        return given if given is not None else self.shape.route_dt_s
 
     def _one_planner(self) -> None:
         """One planner plans a network: a relay's own ``controller.planner`` is refused there; the paper's generator
         needs ``mu > 0``."""
-        if self.is_network:
+        if self.shape.plans == "network":  # one planner reads these once for every relay
             for i, r in enumerate(self.relay_list):
                 if r.controller and r.controller.get("planner") is not None:
                     raise ValueError(f"relays[{i}].controller.planner: one planner plans the whole network "
@@ -348,7 +371,7 @@ class Scenario(Strict):
                         raise ValueError(f"relays[{i}].controller.{name}: the network's planner plans every relay with one "
                                          f"controller.{name} = {shared!r} (a relay's own speed and acceleration limits, "
                                          f"axes, tilt fraction, governor speed and NMPC are its own); got {mine!r}")
-        for i in range(len(self.relay_list) if self.is_network else 1):
+        for i in range(len(self.relay_list)):
             if self.planner == PAPER_PLANNER and self.controller_of(i).mu <= 0.0:
                 written = self.relay_list[i].controller or {}
                 field = f"relays[{i}].controller.mu" if "mu" in written else "controller.mu"
@@ -358,7 +381,9 @@ class Scenario(Strict):
 
     @property
     def has_two_hops(self) -> bool:
-        """One route of two hops to one base station, the paper's (source -> relay -> base station)."""
+        """One route of two hops to one base station, the paper's (source -> relay -> base station): the physics of its
+        two hops (the link budget's Gamma_21 and Gamma_10, the relay's reachable alignment between the source and the
+        base station) is the paper's; a chain's relay aligns with its route neighbours."""
         return len(self.route_list) == 1 and len(self.route_list[0]) == 3 and not self.has_handover
 
     def platform_of(self, i: int) -> PlatformConfig:
@@ -640,7 +665,7 @@ class Scenario(Strict):
             data.pop("mission", None)
         if self.base_stations is not None:
             data["nodes"].pop("bs", None)
-        if not self.is_network_file and self.network == NetworkConfig():
+        if not self.names_its_fleet and self.network == NetworkConfig():
             data.pop("network", None)
         if not self.injected:  # said only by a run flown with parts passed from Python
             data.pop("injected", None)

@@ -29,6 +29,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
+from ..config.network import sole
 from ..control.network import Controller
 from ..control.relay_step import Command
 from ..models.radio import RadioScene
@@ -86,7 +87,8 @@ class RelayNode(Node):
         if unknown:
             raise ValueError(f"topics: no relay or source {unknown} in the scenario ({', '.join(names)})")
         self.topic = {n: check_ros_namespace((topics or {}).get(n, n), f"{n}'s topic namespace") for n in names}
-        super().__init__("aerorelay" if len(controller.relays) > 1 else f"aerorelay_{self.topic[controller.relays[0]].replace('/', '_')}")
+        only = sole(controller.relays)  # one relay's node is named by its vehicle, so that nodes of several run side by side
+        super().__init__("aerorelay" if only is None else f"aerorelay_{self.topic[only].replace('/', '_')}")
         self.controller, self.scene = controller, scene
         self.relays, self.sources = list(controller.relays), list(controller.sources)
         self.loop = AutopilotLoop(controller, on_step=on_step)

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import matplotlib
 
+from ..config.network import sole  # noqa: E402
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -56,7 +58,7 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
     fig = plt.figure(figsize=(6, 5))
     ax = fig.add_subplot(projection="3d")
     relays, sources = _relays(df), sources_in(df.columns)
-    one = len(relays) == 1 and len(sources) == 1
+    one = sole(relays) is not None and sole(sources) is not None  # the paper's names: MRAV-1, MRAV-2
     for i, r in enumerate(relays):
         colour = RELAY if i == 0 else f"C{i}"
         ax.plot(*_xyz(df, r), color=colour, label="MRAV-1 (relay)" if one else f"relay {r}")
@@ -84,9 +86,9 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
 
 def run_title(sc: Scenario) -> str:
     """Scenario, planner and NMPC variant (a network's: its relays, sources and planner): what flew."""
-    if len(sc.relay_list) + len(sc.source_list) > 2:
-        return f"{sc.name} ({len(sc.relay_list)} relays, {len(sc.source_list)} sources, {sc.planner} planner)"
-    return f"{sc.name} ({sc.planner} planner, {sc.controller.variant} NMPC)"
+    n, m = len(sc.relay_list), len(sc.source_list)
+    return (f"{sc.name} ({n} relay{'s' * (n != 1)}, {m} source{'s' * (m != 1)}, {sc.planner} planner, "
+            f"{sc.controller.variant} NMPC)")
 
 
 def fig_capacity(df: pd.DataFrame, sc: Scenario, bound: pd.DataFrame | None = None):
@@ -152,7 +154,8 @@ def fig_constraints(df: pd.DataFrame, sc: Scenario, relay: str | None = None):
     mutual alignment against mu."""
     relays = _relays(df)
     relay = relay or relays[0]
-    p = sc.platform_of(relays.index(relay)) if relay in relays and len(sc.relay_list) == len(relays) else sc.platform
+    names = [r.name for r in sc.relay_list]
+    p = sc.platform_of(names.index(relay)) if relay in names else sc.platform
     fig, axes = plt.subplots(4, 1, figsize=(7, 8), sharex=True)
     for i in range(1, rotor_count(df.columns, relay) + 1):
         axes[0].plot(df["t"], df[f"{relay}.Omega_{i}"], lw=0.8, label=f"rotor {i}")
@@ -292,7 +295,7 @@ def write_run_figures(df: pd.DataFrame, sc: Scenario, out: Path, bound: pd.DataF
     figures = [("capacity.png", fig_capacity(df, sc, bound)), ("trajectory_3d.png", fig_trajectory_3d(df, sc)),
                ("paths.png", fig_paths(df, sc))]
     for r in relays:
-        tail = "" if len(relays) == 1 else f"_{r}"
+        tail = "" if sole(relays) is not None else f"_{r}"
         figures += [(f"constraints{tail}.png", fig_constraints(df, sc, r)), (f"tracking{tail}.png", fig_tracking(df, sc, r))]
     for name, fig in figures:
         fig.savefig(Path(out) / name, dpi=110)

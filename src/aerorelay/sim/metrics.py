@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..config.network import sole
 from ..control.nmpc import QpStatus
 from ..models.obstacles import clearance
 from ..models.vehicle import Multirotor
@@ -361,7 +362,7 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
         if lost_at:
             m["lost_at_s"] = lost_at[0]
         if m.get("unsafe"):  # a spare that never flew has no verdict
-            reasons.append(m["unsafe_reason"] if len(relays) == 1 else f"relay {name!r}: {m['unsafe_reason']}")
+            reasons.append(f"relay {name!r}: {m['unsafe_reason']}")
             statuses += [ExitStatus(v) for v in m["exit_statuses"]]
         out["relays"][name] = m
     if min_separation_m > 0 and sep.min() < min_separation_m:
@@ -370,7 +371,7 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
                        f"network.min_separation_m = {min_separation_m:g} m")
         statuses.append(ExitStatus.TOO_CLOSE)
     out["fleet_solve_ms"] = stats_ms(fleet_ms)
-    if len(relays) == 1:  # the one relay's metrics where its runs always had them
+    if sole(relays) is not None:  # the one relay's metrics where its runs always had them
         only = next(iter(out["relays"].values()))
         out |= {k: v for k, v in only.items() if k not in NETWORK_VERDICT}
         hops = [c for c in log if c.startswith("se.")]
