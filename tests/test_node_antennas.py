@@ -12,11 +12,13 @@ import tomllib
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import aerorelay as ar
 from aerorelay.assembly import parse_scenario
 from aerorelay.config import ScenarioError
-from aerorelay.models.antenna import CosinePattern, DipolePattern, SinPowerPattern
+from aerorelay.models.antenna import CosinePattern, DipolePattern, FlippedPattern, SinPowerPattern
 
 from .sim.test_fleet import CHAIN, _axis, _dipole
 
@@ -147,3 +149,46 @@ def test_a_jammer_a_table_cannot_say_is_named_as_injected():
     assert jammer_table(odd) is None
     r = ar.simulate(ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 0.15}), jammers=[odd])
     assert r.metrics["injected"] == ["jammers: jammer"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(pattern=st.sampled_from([CosinePattern(4.0, 2.0, 0.05), CosinePattern(2.0, 5.0, 0.0), SinPowerPattern(3.0, 2.0),
+                                DipolePattern(1.5)]),
+       a=st.floats(-1.0, 1.0), b=st.floats(-1.0, 1.0))
+def test_an_antenna_pointing_down_is_the_upward_one_mirrored(pattern, a, b):
+    """Reversing an antenna's axis reverses the cosine of every direction to it: G_down(c) = G_up(-c); its gain bounds
+    over [lo, hi] hold every sampled gain and are reached (the built-in patterns' extremes are at the ends or at 0)."""
+    down = FlippedPattern(pattern)
+    lo, hi = min(a, b), max(a, b)
+    c = np.linspace(lo, hi, 201)
+    g = down.gain_from_cos(c)
+    assert np.array_equal(g, pattern.gain_from_cos(-c))
+    least, most = down.gain_bounds(lo, hi)
+    assert least <= g.min() + 1e-12 and most >= g.max() - 1e-12
+    inside = np.append(c, 0.0) if lo <= 0.0 <= hi else c
+    assert least == pytest.approx(pattern.gain_from_cos(-inside).min(), abs=1e-12)
+    assert most == pytest.approx(pattern.gain_from_cos(-inside).max(), abs=1e-12)
+
+
+def test_a_patch_pointing_down_is_flown_with_the_link_equation_about_body_minus_z():
+    """``antenna.axis = [0, 0, -1]`` (a patch under the vehicle): r1 -> r2's logged SINR is the link equation with
+    G = 4 max(max(cos psi, 0)^2, 0.05), psi off r1's body -z (written here); an axis off body z is refused by name."""
+    sc = parse_scenario(_chain(r1=PATCH | {"axis": [0.0, 0.0, -2.0]}))
+    assert sc.relay_list[0].antenna.axis == [0.0, 0.0, -1.0]
+    r = ar.simulate(sc)
+    row = r.timeseries.iloc[len(r.timeseries) // 2]
+    p1, p2 = (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]) for n in ("r1", "r2"))
+    b1, b2 = (_axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]) for n in ("r1", "r2"))
+    d = p2 - p1
+    n = float(np.linalg.norm(d))
+    g1 = 4.0 * max(max(float(d @ -b1) / n, 0.0) ** 2, 0.05)
+    g2 = _dipole(float(-d @ b2) / n)
+    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+    dj = p2 - pj
+    nj = float(np.linalg.norm(dj))
+    interference = 4.0 * _dipole(float(-dj @ b2) / nj) / nj**2
+    assert row["sinr.r1.r2"] == pytest.approx(g1 * g2 / n**2 / (1.0 + interference), rel=1e-9)
+    up = ar.simulate(parse_scenario(_chain(r1=PATCH))).timeseries.iloc[len(r.timeseries) // 2]
+    assert row["sinr.r1.r2"] != pytest.approx(up["sinr.r1.r2"], rel=1e-3)  # the axis is not ignored
+    with pytest.raises(ScenarioError, match=r"relays\.0\.antenna\.axis: must be along the body z axis"):
+        parse_scenario(_chain(r1=PATCH | {"axis": [0.0, 0.3, -1.0]}))

@@ -320,7 +320,8 @@ def relay_summaries(sc: Scenario) -> list[dict[str, object]]:
         F, M = veh.allocation()
         hover = veh.hover_speeds()
         own = r.antenna
-        antenna = (f"{own.pattern} (its own, g_bar {own.g_bar:g})" if own is not None
+        antenna = (f"{own.pattern} (its own, g_bar {own.g_bar:g}, axis body {'-z: down' if own.down else '+z: up'})"
+                   if own is not None
                    else f"{sc.antenna.pattern} (shared)")
         out.append({"name": r.name, "platform": r.platform if isinstance(r.platform, str) else
                     ("its own table" if r.platform is not None else "shared"),

@@ -23,7 +23,15 @@ from ..control.relay import FailsafeSettings, RelayController
 from ..control.relay_step import RelayStep, StaleSettings
 from ..control.supervisor import SafetyEnvelope
 from ..estimation.jammer_estimator import EstimatorSettings, JammerEstimator, Receiver
-from ..models.antenna import AntennaPattern, CosinePattern, DipolePattern, IsotropicPattern, NodePatterns, SinPowerPattern
+from ..models.antenna import (
+    AntennaPattern,
+    CosinePattern,
+    DipolePattern,
+    FlippedPattern,
+    IsotropicPattern,
+    NodePatterns,
+    SinPowerPattern,
+)
 from ..models.axes import axis_cone
 from ..models.battery import Battery
 from ..models.jammer import AlwaysOn, Jammer, PeriodicOnOff
@@ -149,13 +157,16 @@ def own_pattern(cfg: NodeAntennaConfig | None, shared: AntennaConfig) -> Antenna
     dipoles scaled by ``[antenna] directivity`` as the shared ones are."""
     if cfg is None:
         return None
+    pattern: AntennaPattern
     if cfg.pattern == "dipole":
-        return DipolePattern(cfg.g_bar * shared.directivity)
-    if cfg.pattern == "sin_power":
-        return SinPowerPattern(cfg.exponent, cfg.g_bar)
-    if cfg.pattern == "isotropic":
-        return IsotropicPattern(cfg.g_bar)
-    return CosinePattern(cfg.g_bar, cfg.exponent, cfg.back_lobe)
+        pattern = DipolePattern(cfg.g_bar * shared.directivity)
+    elif cfg.pattern == "sin_power":
+        pattern = SinPowerPattern(cfg.exponent, cfg.g_bar)
+    elif cfg.pattern == "isotropic":
+        pattern = IsotropicPattern(cfg.g_bar)
+    else:
+        pattern = CosinePattern(cfg.g_bar, cfg.exponent, cfg.back_lobe)
+    return FlippedPattern(pattern) if cfg.down else pattern  # mounted down body z (axis = [0, 0, -1])
 
 
 def _base_station_node(b: BaseStationConfig, shared: AntennaConfig, shared_pattern: AntennaPattern) -> Node:

@@ -96,6 +96,14 @@ class BaseStationConfig(Strict):
 
     _nonzero_axis = field_validator("axis")(lambda v: v if v is None else nonzero_direction(v, "a base station's antenna axis"))
 
+    @field_validator("antenna")
+    @classmethod
+    def _axis_once(cls, v):
+        if v is not None and v.axis is not None:
+            raise ValueError("antenna.axis is a vehicle's, in its body frame; a base station's antenna axis is its own "
+                             "'axis' (world), beside 'antenna'")
+        return v
+
 
 class NetworkConfig(Strict):
     """How data flows: each route from a source through relays to the base station ``bs``; every

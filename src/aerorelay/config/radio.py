@@ -27,6 +27,26 @@ class NodeAntennaConfig(Strict):
                          "boresight for cosine, everywhere for isotropic")
     exponent: float = Field(2.0, ge=0.0, le=100.0, description="n of sin^n, or of the cosine pattern's cos^n")
     back_lobe: float = Field(0.01, ge=0.0, le=1.0, description="cosine: the gain floor relative to g_bar")
+    axis: Vec3 | None = Field(None, description="the antenna's axis (a cosine antenna's boresight) in the vehicle's body "
+                              "frame (x forward, y left, z up): [0, 0, 1] up (unset: up) or [0, 0, -1] down, e.g. a patch "
+                              "under the vehicle facing the ground. A mount off body z would point where the yaw takes it, "
+                              "which no planner plans: refused")
+
+    @field_validator("axis")
+    @classmethod
+    def _up_or_down(cls, v):
+        if v is None:
+            return v
+        n = math.hypot(*v)
+        if not math.isfinite(n) or n < 1e-9 or math.hypot(v[0], v[1]) > 1e-9 * n:
+            raise ValueError(f"must be along the body z axis: [0, 0, 1] (up) or [0, 0, -1] (down), got {v}")
+        return [0.0, 0.0, math.copysign(1.0, v[2])]
+
+    @property
+    def down(self) -> bool:
+        """Whether its axis points down the body z axis (its gain toward a direction is the upward one's toward the
+        direction mirrored through the body's xy plane: ``models.antenna.FlippedPattern``)."""
+        return self.axis is not None and self.axis[2] < 0.0
 
     @property
     def doughnut(self) -> bool:

@@ -150,6 +150,30 @@ class CosinePattern:
 
 
 @dataclass(frozen=True)
+class FlippedPattern:
+    """``inner`` mounted along body -z, said as a pattern about body +z: an antenna's gain depends on the cosine ``c``
+    of the angle between its axis and the direction, and reversing the axis reverses ``c``, so
+    ``G(c) = inner.G(-c)``. Every consumer that takes a relay's antenna along body z (the planners' axis references,
+    the bounds' axis cones, the NMPC) then honours a downward antenna exactly."""
+
+    inner: AntennaPattern
+
+    @property
+    def g_bar(self) -> float:
+        return self.inner.g_bar
+
+    def gain_from_cos(self, c):
+        return self.inner.gain_from_cos(-np.asarray(c, dtype=float))
+
+    def symbolic_gain_from_cos(self, c):
+        return self.inner.symbolic_gain_from_cos(-c)
+
+    def gain_bounds(self, lo, hi):
+        """Least and largest gain over the cosines ``[lo, hi]``: the inner pattern's over ``[-hi, -lo]``."""
+        return gain_bounds(self.inner, -np.asarray(hi, float), -np.asarray(lo, float))
+
+
+@dataclass(frozen=True)
 class NodePatterns:
     """The antenna pattern of each node: relay (MRAV-1), source (MRAV-2), base station."""
 
