@@ -96,3 +96,16 @@ def test_the_number_of_relays_is_a_dimension_not_a_fork():
     shapes = [f"{p.relative_to(SRC)}:{i}" for p in (SRC / "aerorelay").rglob("*.py")
               for i, line in enumerate(p.read_text().splitlines(), 1) if counted.search(line)]
     assert len(shapes) == 1, shapes
+
+
+def test_the_relay_state_is_read_by_name():
+    """Issue 60, item 5: no part reads a relay's state by literal offsets (``x[0:3]``, ``xs[r][6:9]``, ``x[5]``):
+    through ``models.state``'s named slices or ``unpack``."""
+    import re
+
+    literal = re.compile(r"\b(x|xs|x1|xa|xx|x0|xk|lbx|ubx|vals)(\[[a-z_.]+\])?\[(0:3|3:6|6:9|9:12|12:|0:12|3|4|5)(\]|,)"
+                         r"|plan\(\)\[0\]\[0:3\]|\)\[6:9\]")
+    hits = [f"{p.relative_to(SRC)}:{i}: {line.strip()}" for p in (SRC / "aerorelay").rglob("*.py")
+            if p.name not in ("state.py", "bound.py")  # bound.py's x is a cube's (x, y, z, tilt, azimuth), not a state
+            for i, line in enumerate(p.read_text().splitlines(), 1) if literal.search(line)]
+    assert not hits, hits

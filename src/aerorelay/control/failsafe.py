@@ -27,6 +27,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from ..models.geometry import E3, rotation_zyx
+from ..models.state import unpack
 from ..models.vehicle import Multirotor
 
 
@@ -109,7 +110,7 @@ class BrakeLaw:
         veh = self.veh
         if not np.all(np.isfinite(x)):
             return np.zeros(veh.n_rotors)  # nothing to measure: hold the motor speeds
-        p, eta, v, w, speeds = x[0:3], x[3:6], x[6:9], x[9:12], x[12:]
+        p, eta, v, w, speeds = unpack(x)
         R = rotation_zyx(eta)
         a_cmd = -hold.freq**2 * (p - hold.point) - 2.0 * hold.freq * v
         n, a_max = np.linalg.norm(a_cmd), self.g.max_accel if hold.upright else self.g.recovery_max_accel

@@ -18,6 +18,7 @@ from ..models.battery import Battery
 from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceState as PathState
 from ..models.radio import Node, RadioScene
+from ..models.state import ETA, YAW, P, V
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from ..planning.fleet import FleetInput, FleetPlanner
@@ -120,13 +121,13 @@ class NetworkController:
         if self.planner is None:
             self.planner_ms = 0.0
             return {}
-        eta = {**{n: xs[3:6] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in sources.items()}}
+        eta = {**{n: xs[ETA] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in sources.items()}}
         t0 = time.perf_counter()
         refs = self.planner.update(FleetInput(
-            t=t, dt=self.period, positions={**{n: xs[0:3].copy() for n, xs in x.items()}, **{n: s.p for n, s in sources.items()},
+            t=t, dt=self.period, positions={**{n: xs[P].copy() for n, xs in x.items()}, **{n: s.p for n, s in sources.items()},
                                             **self.stations},
-            velocities={**{n: xs[6:9].copy() for n, xs in x.items()}, **{n: s.v for n, s in sources.items()}},
-            axes={n: rotation_zyx(e)[:, 2] for n, e in eta.items()}, yaws={n: float(xs[5]) for n, xs in x.items()},
+            velocities={**{n: xs[V].copy() for n, xs in x.items()}, **{n: s.v for n, s in sources.items()}},
+            axes={n: rotation_zyx(e)[:, 2] for n, e in eta.items()}, yaws={n: float(xs[YAW]) for n, xs in x.items()},
             accelerations={n: s.a for n, s in sources.items()}, jammer_positions=pj, jammer_powers=powers, jammer_std_m=std))
         off_loop = float(getattr(self.planner, "off_loop_s", 0.0))  # a route planned beside the loop (planning.fleet_capacity)
         self.planner_ms = (time.perf_counter() - t0 - off_loop) * 1e3
@@ -140,9 +141,9 @@ class NetworkController:
         for r in self.relays if self.plans_needed else ():
             nmpc = r.controller.nmpc
             if nmpc.initialized:
-                out[r.name] = nmpc.plan()[0][0:3].copy()
+                out[r.name] = nmpc.plan()[0][P].copy()
             else:
-                out[r.name] = np.repeat(x[r.name][0:3, None], len(self.tk), axis=1)
+                out[r.name] = np.repeat(x[r.name][P, None], len(self.tk), axis=1)
         for name, s in sources.items():
             out[name] = constant_acceleration_path(s.p, s.v, s.a, self.tk)
         return out
@@ -227,7 +228,7 @@ class Controller:
             raise ValueError(f"lose: no relay {sorted(unknown)} in the network ({', '.join(self.relays)})")
         self.lost |= new
         self.lost_at |= dict.fromkeys(sorted(new), float(t))
-        self.controller.lose(frozenset(self.lost), {n: xs[0:3].copy() for n, xs in self._last().items()},
+        self.controller.lose(frozenset(self.lost), {n: xs[P].copy() for n, xs in self._last().items()},
                              float(t) if math.isfinite(t) else 0.0)
 
     def problem(self, t: float, name: str, x: np.ndarray | None, stamp: float) -> str | None:

@@ -22,6 +22,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from ..models.state import P
 from ..models.vehicle import Multirotor
 from .params import StageParams
 from .terms import CONSTRAINTS, COST_TERMS, KEEP_OUT, REFERENCE_SIGNALS, SEPARATION, Constraint, CostTerm, StageVars
@@ -216,8 +217,8 @@ def absolute_bounds(spec: OcpSpec) -> tuple[np.ndarray, np.ndarray]:
     Unbounded entries are +-INF."""
     v, N, nx, nw, nr = spec.vehicle, spec.horizon, spec.nx, spec.nw, spec.vehicle.n_rotors
     lbx, ubx = -INF * np.ones((nx, N + 1)), INF * np.ones((nx, N + 1))
-    lbx[0:3, 1:] = np.array(spec.workspace_min)[:, None]
-    ubx[0:3, 1:] = np.array(spec.workspace_max)[:, None]
+    lbx[P, 1:] = np.array(spec.workspace_min)[:, None]
+    ubx[P, 1:] = np.array(spec.workspace_max)[:, None]
     lbx[12 : 12 + nr, 1:], ubx[12 : 12 + nr, 1:] = v.omega_min, v.omega_max
     lbw, ubw = np.zeros((nw, N)), np.zeros((nw, N))
     lbw[:nr], ubw[:nr] = v.omega_dot_min, v.omega_dot_max

@@ -14,6 +14,7 @@ import numpy as np
 from ..estimation.jammer_estimator import JammerEstimator
 from ..models.geometry import rotation_zyx
 from ..models.radio import RadioScene
+from ..models.state import ETA, P
 
 
 class JammersFromReadings:
@@ -38,7 +39,7 @@ class JammersFromReadings:
                 rows.append(None)
                 continue
             x = states.get(name)
-            pose = self.scene.fixed_pose(name) if x is None else self.scene.pose(name, x[0:3], rotation_zyx(x[3:6]))
+            pose = self.scene.fixed_pose(name) if x is None else self.scene.pose(name, x[P], rotation_zyx(x[ETA]))
             rows.append((pose.position, pose.axis, float(readings[name])))
         self.estimator.add_readings(t, rows)
 

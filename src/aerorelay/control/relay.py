@@ -21,6 +21,7 @@ import numpy as np
 
 from ..models.geometry import constant_acceleration_path, realign_with_thrust, thrust_direction_from_acceleration
 from ..models.obstacles import Obstacle, separating_planes
+from ..models.state import ETA, P, V
 from .failsafe import BrakeLaw, Hold
 from .nmpc import NMPC, NmpcSettings, StepInfo
 from .ocp import OcpSpec
@@ -120,7 +121,7 @@ class RelayController:
         """``(4 obstacles, N + 1)``: per stage and obstacle the separating plane ``(n, c)`` through the
         grown obstacle's nearest point to the previous plan's position at that stage (before the first
         plan: to the reference ``p_ref`` ``(3, N + 1)``)."""
-        pos = self.nmpc.plan()[0][0:3] if self.nmpc.initialized else p_ref
+        pos = self.nmpc.plan()[0][P] if self.nmpc.initialized else p_ref
         out = np.empty((4 * len(self.obstacles), pos.shape[1]))
         for j, o in enumerate(self.obstacles):
             n, c = separating_planes(o, pos.T)
@@ -154,7 +155,7 @@ class RelayController:
         if not self.fallback_active:
             self.fallback_active = True
             self.fallback_episodes += 1
-            self._hold = self.brake.hold(x[0:3], x[6:9], x[3:6]) if np.all(np.isfinite(x[0:3])) else self.brake.hold(self._hold.point)
+            self._hold = self.brake.hold(x[P], x[V], x[ETA]) if np.all(np.isfinite(x[P])) else self.brake.hold(self._hold.point)
             log.warning("fail-safe: %s; brake law stops the relay at %s (%.1f rad/s)", why, np.round(self._hold.point, 2), self._hold.freq)
         self._successes = 0
         self._consecutive_failures = 0

@@ -25,6 +25,7 @@ import numpy as np
 from ..estimation.disturbance import ExternalAccelerationObserver
 from ..flight.frames import quaternion_wxyz
 from ..models.geometry import rotation_zyx
+from ..models.state import ETA, OMEGA, ROTORS, YAW, P, V
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from .nmpc import StepInfo
@@ -116,20 +117,20 @@ class StateSanity:
             log.warning("step: %s", text)
 
     def check(self, t: float, x: np.ndarray) -> None:
-        if np.all(x[12:] == 0.0):
+        if np.all(x[ROTORS] == 0.0):
             self._say("rotors", "the relay state's rotor speeds are all zero: the NMPC steps from motors at rest (an "
                                 "autopilot reports none: pass the speeds last commanded, as flight.autopilot_loop does)")
         if x[2] < self.ground - 0.5:
             self._say("frame", f"the relay state's z = {x[2]:.2f} m is below the ground ({self.ground:g} m): a NED position "
                                "passed as ENU? (flight.frames.ned_to_enu)")
         if self._last is not None and t > self._last[0]:
-            rate = float(np.linalg.norm(x[3:6] - self._last[1])) / (t - self._last[0])
-            self._still = self._still + 1 if rate > self.TURNING_RAD_S and not np.any(x[9:12]) else 0
+            rate = float(np.linalg.norm(x[ETA] - self._last[1])) / (t - self._last[0])
+            self._still = self._still + 1 if rate > self.TURNING_RAD_S and not np.any(x[OMEGA]) else 0
             if self._still >= self.STEPS:
                 self._say("rates", f"the relay's attitude turns at {rate:.2f} rad/s while its body rates read zero: the "
                                    "NMPC's model then disagrees with the vehicle (its QPs fail and the brake law flies); pass "
                                    "the measured body rates (rad/s, body FLU)")
-        self._last = (t, x[3:6].copy())
+        self._last = (t, x[ETA].copy())
 
 
 class TelemetryCheck:
@@ -163,8 +164,8 @@ class TelemetryCheck:
                 if stamp < s0:
                     return f"relay state stamped {s0 - stamp:.3f} s before the last trusted one (time went backwards)"
                 dt = stamp - s0
-                dp = float(np.linalg.norm(x[0:3] - p0 - v0 * dt))
-                dv = float(np.linalg.norm(x[6:9] - v0))
+                dp = float(np.linalg.norm(x[P] - p0 - v0 * dt))
+                dv = float(np.linalg.norm(x[V] - v0))
                 if dp > 0.5 * self.a_max * dt ** 2 + self.stale.jump_tolerance_m:
                     return f"relay position jumped {dp:.2f} m from the last trusted state in {dt:.3f} s (no vehicle reach)"
                 if dv > self.a_max * dt + self.stale.jump_tolerance_m_s:
@@ -178,7 +179,7 @@ class TelemetryCheck:
 
     def trust(self, stamp: float, x: np.ndarray) -> None:
         """Keep ``x`` (stamped ``stamp``) as the last trusted state."""
-        self.trusted = (stamp, x[0:3].copy(), x[6:9].copy())
+        self.trusted = (stamp, x[P].copy(), x[V].copy())
 
 
 def checked_source(source: SourceState | None) -> SourceState | None:
@@ -271,13 +272,13 @@ class RelayStep:
         veh = self.vehicle
         x1 = np.asarray(veh.rk4_step(x, info.u, self.period), float)  # one period ahead under the command
         a_ext = self.observer.estimate if self.observer is not None else np.zeros(3)
-        acc = np.asarray(veh.dynamics(x1, info.u, a_ext), float)[6:9]
-        thrust = float(np.linalg.norm(self._thrust_per_speed2 @ x1[12:] ** 2)) / (veh.mass * veh.gravity)
+        acc = np.asarray(veh.dynamics(x1, info.u, a_ext), float)[V]
+        thrust = float(np.linalg.norm(self._thrust_per_speed2 @ x1[ROTORS] ** 2)) / (veh.mass * veh.gravity)
         ms = (time.perf_counter() - t0) * 1e3
         return Command(t=t, mode="fallback" if info.fallback else "nmpc", omega_dot_hz_s=info.u.copy(),
-                       rotor_speeds_hz=x[12:] + info.u * self.period, position_m=x1[0:3], velocity_m_s=x1[6:9],
-                       acceleration_m_s2=acc, attitude_wxyz=quaternion_wxyz(rotation_zyx(x1[3:6])), thrust_normalized=thrust,
-                       body_rates_rad_s=x1[9:12], compute_ms=ms, deadline_met=ms <= self.period * 1e3, reference=ref, info=info)
+                       rotor_speeds_hz=x[ROTORS] + info.u * self.period, position_m=x1[P], velocity_m_s=x1[V],
+                       acceleration_m_s2=acc, attitude_wxyz=quaternion_wxyz(rotation_zyx(x1[ETA])), thrust_normalized=thrust,
+                       body_rates_rad_s=x1[OMEGA], compute_ms=ms, deadline_met=ms <= self.period * 1e3, reference=ref, info=info)
 
     def remember(self, t: float, x: np.ndarray) -> None:
         """A fresh state ``x`` flown at ``t`` (s) by a caller that checks nothing (``ar.simulate``'s plant): where a
@@ -291,7 +292,7 @@ class RelayStep:
         if self._last_step is None:
             raise ValueError("step: no relay state and source received yet (nothing to hold)")
         since, x = self._last_step
-        p, yaw = x[0:3], float(x[5])
+        p, yaw = x[P], float(x[YAW])
         mode, v = "hold", np.zeros(3)
         target = p.copy()
         if t - since > self.stale.land_after_s:

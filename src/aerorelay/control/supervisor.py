@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.obstacles import Obstacle
+from ..models.state import PITCH, ROLL, V, unpack
 from ..models.vehicle import Multirotor
 
 
@@ -56,8 +57,8 @@ class SafetyEnvelope:
     def at_rest(self, x: np.ndarray) -> bool:
         """Slow and nearly level: where the NMPC may take over again after a hand-over."""
         x = np.asarray(x, float)
-        tilt = np.degrees(np.arccos(np.clip(np.cos(x[3]) * np.cos(x[4]), -1.0, 1.0)))
-        return bool(np.linalg.norm(x[6:9]) < self.rest_speed_m_s and tilt < self.rest_tilt_deg)
+        tilt = np.degrees(np.arccos(np.clip(np.cos(x[ROLL]) * np.cos(x[PITCH]), -1.0, 1.0)))
+        return bool(np.linalg.norm(x[V]) < self.rest_speed_m_s and tilt < self.rest_tilt_deg)
 
     def violations(self, x: np.ndarray) -> list[str]:
         """What the state ``(p, eta, v, omega, Omega)`` violates (empty: inside the envelope).
@@ -67,25 +68,25 @@ class SafetyEnvelope:
             return ["non-finite state"]
         out = []
         lo, hi = self._lo, self._hi
-        outside = max(max(lo[i] - vals[i], vals[i] - hi[i]) for i in range(3))
+        pos, eta, vel, rates, speeds = unpack(vals)
+        outside = max(max(lo[i] - pos[i], pos[i] - hi[i]) for i in range(3))
         if outside > self.box_tolerance_m:
             out.append(f"{outside:.2f} m outside the workspace")
-        if vals[2] < self.ground_z_m:
-            out.append(f"below the ground ({vals[2] - self.ground_z_m:.2f} m)")
+        if pos[2] < self.ground_z_m:
+            out.append(f"below the ground ({pos[2] - self.ground_z_m:.2f} m)")
         for i, o in enumerate(self.obstacles):
-            depth = float(o.signed_distance(vals[0:3]))
+            depth = float(o.signed_distance(pos))
             if depth < 0:
                 out.append(f"{-depth:.2f} m inside obstacle {i}")
-        cos_tilt = math.cos(vals[3]) * math.cos(vals[4])
+        cos_tilt = math.cos(eta[0]) * math.cos(eta[1])  # roll, pitch
         if cos_tilt < self._cos_max_tilt:
             out.append(f"tilt {math.degrees(math.acos(max(-1.0, min(1.0, cos_tilt)))):.0f} deg > {self.max_tilt_deg:g}")
-        speed = math.sqrt(vals[6] ** 2 + vals[7] ** 2 + vals[8] ** 2)
+        speed = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
         if speed > self.max_speed_m_s:
             out.append(f"speed {speed:.1f} m/s > {self.max_speed_m_s:g}")
-        rate = max(abs(vals[9]), abs(vals[10]), abs(vals[11]))
+        rate = max(abs(rates[0]), abs(rates[1]), abs(rates[2]))
         if rate > self.max_body_rate_rad_s:
             out.append(f"body rate {rate:.1f} rad/s > {self.max_body_rate_rad_s:g}")
-        speeds = vals[12:]
         if min(speeds) < 0.99 * self.omega_min or max(speeds) > 1.01 * self.omega_max:
             out.append(f"motor speeds [{min(speeds):.1f}, {max(speeds):.1f}] Hz outside [{self.omega_min:g}, {self.omega_max:g}]")
         return out

@@ -23,6 +23,7 @@ import casadi as ca
 
 from ..models.channel import misalignment, mutual_alignment
 from ..models.geometry import rotation_zyx
+from ..models.state import ETA, OMEGA, P, V
 
 # Signals fed to every stage by the controller (name, size): the planner's reference and what
 # the relay knows of the others. Units: m, m/s, unit vector, m, dimensionless.
@@ -48,7 +49,7 @@ class StageVars:
     def __init__(self, spec, xa, w, p: dict[str, Any]):
         nr = spec.vehicle.n_rotors
         self.vehicle = spec.vehicle
-        self.pos, self.eta, self.vel, self.omega = xa[0:3], xa[3:6], xa[6:9], xa[9:12]
+        self.pos, self.eta, self.vel, self.omega = xa[P], xa[ETA], xa[V], xa[OMEGA]
         self.speeds = xa[12 : 12 + nr]
         self.u = None if w is None else w[:nr]
         self.slack = {} if w is None else {c.name: w[nr + i] for i, c in enumerate(spec.soft_constraints)}

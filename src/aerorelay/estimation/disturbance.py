@@ -16,6 +16,8 @@ import math
 import casadi as ca
 import numpy as np
 
+from ..models.state import V
+
 
 class ExternalAccelerationObserver:
     """``update(x_before, u, x_now)`` after each control step; ``estimate`` is ``a_hat`` (m/s^2, world).
@@ -33,8 +35,8 @@ class ExternalAccelerationObserver:
     def update(self, x_before: np.ndarray, u: np.ndarray, x_now: np.ndarray) -> np.ndarray:
         """The new estimate from the step flown from ``x_before`` with ``u`` to ``x_now``."""
         d = np.concatenate([self.estimate, np.zeros(3)])
-        v_pred = np.asarray(self.model_step(x_before, u, d)).ravel()[6:9]
-        innovation = (np.asarray(x_now, float)[6:9] - v_pred) / self.period
+        v_pred = np.asarray(self.model_step(x_before, u, d)).ravel()[V]
+        innovation = (np.asarray(x_now, float)[V] - v_pred) / self.period
         if np.all(np.isfinite(innovation)):
             self.estimate = self.estimate + self.gain * innovation
         return self.estimate

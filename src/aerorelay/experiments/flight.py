@@ -25,6 +25,7 @@ from ..flight.mavlink_bridge import OffboardBridge, VehicleLink
 from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
 from ..flight.sources import MavlinkSource
 from ..models.mission import SourceTrajectory, source_trajectory
+from ..models.state import P
 from ..sim.flight_record import FlightRecorder, flight_column_type, flight_metrics, telemetry_metrics
 from ..sim.units import metric_units
 from ..store.outputs import new_sibling, swap_in
@@ -137,7 +138,7 @@ def bridge_frame(rows: list[dict]) -> pd.DataFrame:
     """The bridge's log (one row per period: time, mode, arming, the vehicle's custom mode, the step's
     computation and deadline, the relay's position) as a DataFrame."""
     return pd.DataFrame([{k: v for k, v in r.items() if k != "x"} | ({} if r.get("x") is None else
-                         dict(zip(("p_x", "p_y", "p_z"), r["x"][0:3], strict=True))) for r in rows])
+                         dict(zip(("p_x", "p_y", "p_z"), r["x"][P], strict=True))) for r in rows])
 
 
 def check_flyable(sc: Scenario) -> None:

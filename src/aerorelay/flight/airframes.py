@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from ..models.geometry import E3, attitude_from_thrust, rotation_zyx
 from ..models.mission import SourceTrajectory
+from ..models.state import ETA, OMEGA, ROTORS, P, V
 from ..models.vehicle import Multirotor
 
 GRAVITY = 9.81
@@ -179,19 +180,19 @@ class MultirotorAirframe:
 
     @property
     def p(self) -> np.ndarray:
-        return self.x[0:3]
+        return self.x[P]
 
     @property
     def v(self) -> np.ndarray:
-        return self.x[6:9]
+        return self.x[V]
 
     @property
     def R(self) -> np.ndarray:
-        return rotation_zyx(self.x[3:6])
+        return rotation_zyx(self.x[ETA])
 
     @property
     def rates(self) -> np.ndarray:
-        return self.x[9:12]
+        return self.x[OMEGA]
 
     def _wrench(self, tg: Target) -> np.ndarray:
         """The body force and torque (N, N m) the autopilot asks for now."""
@@ -218,7 +219,7 @@ class MultirotorAirframe:
         n, h = substeps(dt, self.max_step)
         for _ in range(n):
             speeds2 = np.clip(self._wrench_to_speeds2 @ self._wrench(target), *self._bounds2)
-            u = np.clip((np.sqrt(speeds2) - self.x[12:]) / self.gains.motor_time_constant_s, veh.omega_dot_min, veh.omega_dot_max)
+            u = np.clip((np.sqrt(speeds2) - self.x[ROTORS]) / self.gains.motor_time_constant_s, veh.omega_dot_min, veh.omega_dot_max)
             self.x = np.asarray(veh.rk4_step(self.x, u, h), float).ravel()
 
 

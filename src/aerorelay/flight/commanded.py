@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..control.relay_step import Command
+from ..models.state import ETA, OMEGA
 from .frames import euler_zyx, matrix_from_wxyz
 
 
@@ -40,7 +41,7 @@ class CommandedState:
         """The state the NMPC steps from (see the module), from the ``measured`` one."""
         x = measured.copy()
         if not self.measured_attitude:
-            x[3:6], x[9:12] = self.plan
+            x[ETA], x[OMEGA] = self.plan
         return x
 
     def states(self, p, R, v, w) -> tuple[np.ndarray, np.ndarray]:

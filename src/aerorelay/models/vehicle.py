@@ -17,6 +17,7 @@ import numpy as np
 
 from .backend import is_symbolic, ops
 from .geometry import E3, euler_rate_matrix, rotation_zyx
+from .state import ROTORS, P, unpack
 
 # Representative arm length of a medium-scale research hexarotor (the paper does not give one).
 HEXAROTOR_ARM_LENGTH_M = 0.35
@@ -123,8 +124,8 @@ class Multirotor:
     def hover_state(self, position=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Equilibrium state at ``position`` with zero attitude, velocity and body rate."""
         x = np.zeros(self.nx)
-        x[0:3] = position
-        x[12:] = self.hover_speeds()
+        x[P] = position
+        x[ROTORS] = self.hover_speeds()
         return x
 
     def dynamics(self, x, u, a_ext=None):
@@ -133,7 +134,7 @@ class Multirotor:
         o = ops(x, u)
         sym = is_symbolic(x, u)
         F, M = self.allocation()
-        eta, v, w, Om = x[3:6], x[6:9], x[9:12], x[12:]
+        _, eta, v, w, Om = unpack(x)
         Om2 = Om * Om
         R = rotation_zyx(eta)
         J = self.inertia

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..estimation.disturbance import ExternalAccelerationObserver
 from ..models.drag import drag_acceleration
+from ..models.state import ETA, V
 from ..models.streams import stream
 from ..models.wind import DrydenTurbulence, low_altitude_parameters
 
@@ -104,7 +105,7 @@ class Air:
 
     def drag(self, name: str, x: np.ndarray) -> np.ndarray:
         r = self.relays[name]
-        return np.asarray(drag_acceleration(x[3:6], x[6:9], self.wind, r.drag, r.mass), float)
+        return np.asarray(drag_acceleration(x[ETA], x[V], self.wind, r.drag, r.mass), float)
 
     def columns(self, name: str, prefix: str = "") -> list[str]:
         """The relay's columns (``prefix``: ``"<name>."`` in a fleet's log)."""

@@ -26,6 +26,7 @@ from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
 from ..models.radio import ChannelState, RadioScene
+from ..models.state import ETA, ROTORS, P, V
 from ..models.streams import generator, stream
 from ..models.vehicle import Multirotor
 from ..planning.fleet import FleetPlanner
@@ -75,7 +76,7 @@ def plant_step_function(veh: Multirotor, plant_rate_hz: float, period_s: float, 
 
     def f(xx):
         dx = veh.dynamics(xx, u)
-        a = d[:3] if drag is None else d[:3] + drag_acceleration(xx[3:6], xx[6:9], wind, drag, veh.mass)
+        a = d[:3] if drag is None else d[:3] + drag_acceleration(xx[ETA], xx[V], wind, drag, veh.mass)
         return dx + ca.vertcat(ca.SX(3, 1), ca.SX(3, 1), a, d[3:], ca.SX(veh.n_rotors, 1))
 
     xk = x
@@ -284,9 +285,9 @@ class ClosedLoop:
         for r in self.relays:
             if r.home is None or r.battery is None or r.name not in flying or r.name in homing:
                 continue
-            p = x[r.name][0:3]
+            p = x[r.name][P]
             if r.battery.must_go_home(drawn[r.name], self._energy_home(r, p)):
-                homing[r.name] = HomeFlight(r.home, p, x[r.name][6:9])
+                homing[r.name] = HomeFlight(r.home, p, x[r.name][V])
                 turned.append(r.name)
         if not turned:
             return
@@ -303,7 +304,7 @@ class ClosedLoop:
             if relay in leaving and relay in net.node_names:
                 net = net.handed_to(relay, self.spares[spare])
                 del ferrying[spare]
-        self.control.recompose(net.without(leave), {n: xs[0:3].copy() for n, xs in x.items()}, t0)
+        self.control.recompose(net.without(leave), {n: xs[P].copy() for n, xs in x.items()}, t0)
         self.scene = self.control.scene
         self._links_now = self.perturbations.layout(self.scene)
 
@@ -319,10 +320,10 @@ class ClosedLoop:
                 return
             if r.home is None or r.battery is None or r.name in taken or r.name not in self.scene.node_names:
                 continue
-            p = x[r.name][0:3]
+            p = x[r.name][P]
             spare = min((s for s in self.relays if s.name in waiting), key=lambda s: float(np.linalg.norm(s.start - p)))
             assert spare.home is not None  # every spare has its way to a place (assembly.parts)
-            transit = transit_time_s(spare.start, p, x[r.name][6:9], spare.home.return_speed_m_s,
+            transit = transit_time_s(spare.start, p, x[r.name][V], spare.home.return_speed_m_s,
                                      self.control.separation_m + PLACE_CLEARANCE_M) + extra_time_s(spare.home)
             if r.battery.must_go_home(drawn[r.name] + r.battery.draw(self.hover_w[r.name], transit), self._energy_home(r, p)):
                 waiting.discard(spare.name)
@@ -333,8 +334,8 @@ class ClosedLoop:
         """Each spare flying to its relay: a reference beside that relay (``beside``), the separation and 1 m away."""
         out = {}
         for spare, (leaving, flight) in ferrying.items():
-            goal = beside(x[leaving][0:3], x[spare][0:3], self.control.separation_m + PLACE_CLEARANCE_M)
-            out[spare] = flight.reference(period, x[spare][0:3], x[spare][6:9], goal)
+            goal = beside(x[leaving][P], x[spare][P], self.control.separation_m + PLACE_CLEARANCE_M)
+            out[spare] = flight.reference(period, x[spare][P], x[spare][V], goal)
         return out
 
     def _hand_over(self, t: float, state: ChannelState, poses, gains, link_gains) -> tuple[ChannelState, dict]:
@@ -401,16 +402,16 @@ class ClosedLoop:
                 pj, powers, std = self._known_jammers(t)
                 if self.air is not None:
                     self.air.begin()
-                eta = {**{n: xs[3:6] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in truth.items()}}
+                eta = {**{n: xs[ETA] for n, xs in flying.items()}, **{n: s.attitude(self.gravity) for n, s in truth.items()}}
                 R = {n: rotation_zyx(e) for n, e in eta.items()}  # every vehicle's attitude, body to world
                 refs = self.control.plan(t, {n: xs for n, xs in flying.items() if n not in homing and n not in ferrying},
                                          src, (pj, powers, std))
-                refs |= {n: home.reference(period, x[n][0:3], x[n][6:9]) for n, home in homing.items() if n in flying}
+                refs |= {n: home.reference(period, x[n][P], x[n][V]) for n, home in homing.items() if n in flying}
                 refs |= self._ferry_references(period, x, ferrying)
                 self.planner_ms.append(self.control.planner_ms)
                 row: dict[str, object] = {"t": t}
                 predicted = self.control.predicted(x, src)  # every vehicle over the horizon: the relays' latest plans
-                true_positions = {**{n: xs[0:3] for n, xs in flying.items()}, **{n: s.p for n, s in truth.items()},
+                true_positions = {**{n: xs[P] for n, xs in flying.items()}, **{n: s.p for n, s in truth.items()},
                                   **self.stations}
                 inputs = {}
                 for r in self.relays:
@@ -432,9 +433,9 @@ class ClosedLoop:
                 poses = {n: self.scene.pose(n, true_positions[n], R[n]) for n in R if n in in_scene}
                 gains = None
                 if self.perturbations.active:  # fading and shadowing on every link, each its own
-                    velocities = {**{n: xs[6:9] if n in flying else np.zeros(3) for n, xs in x.items()},
+                    velocities = {**{n: xs[V] if n in flying else np.zeros(3) for n, xs in x.items()},
                                   **{n: s.v for n, s in truth.items()}, **{n: np.zeros(3) for n in self.stations}}
-                    every, values = self.perturbations.step(t, {**{n: xs[0:3] for n, xs in x.items()}, **true_positions},
+                    every, values = self.perturbations.step(t, {**{n: xs[P] for n, xs in x.items()}, **true_positions},
                                                             velocities)  # a lost relay's links at where it was lost
                     gains = None if every is None else every[self._links_now]
                     row |= values
@@ -464,7 +465,7 @@ class ClosedLoop:
                         if r.home is not None:
                             row[f"{r.name}.going_home"] = r.name in homing
                         if r.name not in gone:
-                            drawn[r.name] += r.battery.draw(float(r.vehicle.shaft_power(x[r.name][12:])), period)
+                            drawn[r.name] += r.battery.draw(float(r.vehicle.shaft_power(x[r.name][ROTORS])), period)
                 replaced |= {spare: leaving for spare, (leaving, _) in ferrying.items()}
                 for n in self.spares:
                     row |= {f"{n}.waiting": n in waiting, f"{n}.ferrying": n in ferrying, f"{n}.replaces": replaced.get(n, "")}
@@ -480,7 +481,7 @@ class ClosedLoop:
                         else:
                             assert r.plant is not None  # checked in __init__
                             x[r.name] = np.asarray(r.plant(x[r.name], inputs[r.name], d)).ravel()
-                landed |= {n for n, home in homing.items() if n not in landed and home.landed(x[n][0:3])}
+                landed |= {n for n, home in homing.items() if n not in landed and home.landed(x[n][P])}
                 bad = [n for n, xs in x.items() if n not in gone and not np.all(np.isfinite(xs))]
                 if bad:  # the steps flown are kept; the run is reported unsafe
                     aborted, flown = f"relay {bad[0]!r}: the plant's state became non-finite after t = {t:.3f} s", k + 1

@@ -26,6 +26,7 @@ from ..control.relay_step import SourceState as KnownSource
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceState
 from ..models.radio import RadioScene
+from ..models.state import ETA, P
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference
 from .air import AXES
@@ -70,11 +71,11 @@ class FlightRecorder:
         flying = [r for r in self.relays if r in xs]
         left = [r for r in self.relays if r not in xs]  # a relay without a state has left the network
         scene = self.scene.without(left) if left else self.scene
-        R = {r: rotation_zyx(xs[r][3:6]) for r in flying}
-        poses = {r: scene.pose(r, xs[r][0:3], R[r]) for r in flying}
+        R = {r: rotation_zyx(xs[r][ETA]) for r in flying}
+        poses = {r: scene.pose(r, xs[r][P], R[r]) for r in flying}
         poses |= {n: scene.pose(n, s.p, rotation_zyx(eta_src[n])) for n, s in src.items()}
         channel = scene.evaluate(t, poses)
-        where = {**self._fixed, **{n: s.p for n, s in src.items()}, **{r: xs[r][0:3] for r in flying}}
+        where = {**self._fixed, **{n: s.p for n, s in src.items()}, **{r: xs[r][P] for r in flying}}
         row: dict[str, object] = {"t": t}
         neighbours = route_neighbours(scene) if left else self.neighbours
         for r in self.relays:
@@ -95,7 +96,7 @@ class FlightRecorder:
         row |= link_row(scene, t, channel)
         self.columns += [c for c in row if c not in self.columns and c.startswith(("sinr.", "se.", "capacity."))]  # a hop taken
         # after a relay left the network
-        row["separation_min"] = separation_min(np.array([*(xs[r][0:3] for r in flying), *(src[n].p for n in self.sources)]))
+        row["separation_min"] = separation_min(np.array([*(xs[r][P] for r in flying), *(src[n].p for n in self.sources)]))
         modes = [cmds[r].mode for r in flying]
         row |= {"flight_mode": next((m for m in modes if m not in ("nmpc", "fallback")), modes[0]),
                 "compute_ms": max(cmds[r].compute_ms for r in flying),

@@ -37,9 +37,10 @@ import numpy as np
 from ..control.nmpc import StepInfo
 from ..models.channel import misalignment, mutual_alignment
 from ..models.radio import ChannelState, RadioScene
+from ..models.state import RIGID, RIGID_NAMES, ROTORS, P
 from ..planning.base import Reference
 
-VEHICLE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi", "v_x", "v_y", "v_z", "omega_x", "omega_y", "omega_z")
+VEHICLE_STATE = RIGID_NAMES  # the state's rigid-body part by name (models.state)
 SOURCE_STATE = ("p_x", "p_y", "p_z", "phi", "theta", "psi")
 RELAY_STEP = ("pd_x", "pd_y", "pd_z", "v_up", "v_down", "mutual_alignment", "slack_max", "solve_ms", "feedback_ms", "qp_ok",
               "qp_status", "fallback", "safety_violation", "taylor_rel_err")
@@ -108,9 +109,9 @@ def relay_row(name: str, x: np.ndarray, R: np.ndarray, info: StepInfo, ref: Refe
     n = info.u.shape[0]
     if x.shape != (12 + n,):
         raise ValueError(f"log row of {name!r}: state {x.shape} does not match the {n}-rotor input")
-    row: dict[str, object] = {f"{name}.{q}": float(v) for q, v in zip(VEHICLE_STATE, x[0:12], strict=True)}
-    row |= {f"{name}.{q}": float(v) for q, v in zip(rotor_quantities(n), np.r_[x[12:], info.u], strict=True)}
-    v_up, v_down = float(misalignment(x[0:3], R, p_up)), float(misalignment(x[0:3], R, p_down))
+    row: dict[str, object] = {f"{name}.{q}": float(v) for q, v in zip(VEHICLE_STATE, x[RIGID], strict=True)}
+    row |= {f"{name}.{q}": float(v) for q, v in zip(rotor_quantities(n), np.r_[x[ROTORS], info.u], strict=True)}
+    v_up, v_down = float(misalignment(x[P], R, p_up)), float(misalignment(x[P], R, p_down))
     step = {"pd_x": ref.p_ref[0], "pd_y": ref.p_ref[1], "pd_z": ref.p_ref[2], "v_up": v_up, "v_down": v_down,
             "mutual_alignment": float(mutual_alignment(v_up, v_down)), "slack_max": info.slack_max,
             "solve_ms": info.solve_ms, "feedback_ms": info.feedback_ms, "qp_ok": info.ok, "qp_status": info.status,
