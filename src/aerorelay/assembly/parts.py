@@ -272,9 +272,7 @@ def one_base_station_planners(sc: Scenario) -> None:
     if not sc.has_handover and len(ends) == 1:
         return
     why = "routes that end at 'any' base station" if sc.has_handover else f"routes ending at {sorted(ends)}"
-    # a relay's own planner is refused in a network (Scenario._one_planner): written there, it is the one relay's
-    field = "relays[0].controller.planner" if sc.relays is not None and sc.relays[0].controller \
-        and sc.relays[0].controller.get("planner") else "controller.planner"
+    field = sc.controller_field(0, ("planner",))  # a relay's own is refused in a network: written, it is the one relay's
     name = sc.planner
     if name in GENERATORS:
         raise ScenarioError(f"{field}: {name!r} plans toward one base station's position; with {why} fly "

@@ -100,6 +100,7 @@ NETWORK_WIDE: tuple[tuple[str, ...], ...] = (
                                 "excursion_m", "excursion_std_m", "excursion_max_loss", "scoring", "replan_every")))
 # what only one relay's capacity planner does (yawing the platform, circling to localize a jammer), refused in a network
 # unless off (its value here)
+ONE_TIME_GRID: tuple[tuple[str, ...], ...] = (("horizon",), ("ts_s",))  # every relay's NMPC's, for any network
 ONE_RELAY_ONLY: dict[str, float] = {"yaw_rate_deg_s": 0.0, "excursion_m": 0.0}
 _SAID_RENAMED: set[str] = set()
 
@@ -346,9 +347,34 @@ class Scenario(Strict):
         given = self.controller_of(0).capacity.route_dt_s
         return given if given is not None else self.shape.route_dt_s
 
+    def controller_field(self, i: int, path: tuple[str, ...]) -> str:
+        """Where relay ``i``'s controller setting ``path`` was written: ``relays[i].controller.<path>`` when its own
+        table says it, else ``controller.<path>`` (the shared one it inherits): the field a refusal names."""
+        node: object = self.relay_list[i].controller or {}
+        for part in path:
+            if not isinstance(node, dict) or part not in node:
+                return "controller." + ".".join(path)
+            node = node[part]
+        return f"relays[{i}].controller." + ".".join(path)
+
+    def _one_value(self, paths: tuple[tuple[str, ...], ...], why: str, because: str) -> None:
+        """Each controller setting of ``paths`` has one value for every relay, the shared one: a relay's own differing
+        value is refused naming its field and ``why``."""
+        for i in range(len(self.relay_list)):
+            own = self.controller_of(i)
+            for path in paths:
+                mine: object = own
+                shared: object = self.controller
+                for part in path:
+                    mine, shared = getattr(mine, part), getattr(shared, part)
+                if mine != shared:
+                    raise ValueError(f"{self.controller_field(i, path)}: {why} controller.{'.'.join(path)} = {shared!r} "
+                                     f"({because}); got {mine!r}")
+
     def _one_planner(self) -> None:
-        """One planner plans a network: a relay's own ``controller.planner`` is refused there; the paper's generator
-        needs ``mu > 0``."""
+        """One planner plans a network: a relay's own ``controller.planner`` and what the planner reads once for every
+        relay (``NETWORK_WIDE``) are refused there, as one relay's own capacity behaviours (``ONE_RELAY_ONLY``); the
+        paper's generator needs ``mu > 0``."""
         if self.shape.plans == "network":  # one planner reads these once for every relay
             for i, r in enumerate(self.relay_list):
                 if r.controller and r.controller.get("planner") is not None:
@@ -357,27 +383,16 @@ class Scenario(Strict):
                 own = self.controller_of(i)
                 for name, off in ONE_RELAY_ONLY.items():
                     if getattr(own.capacity, name) != off:
-                        field = (f"relays[{i}].controller.capacity.{name}" if name in (r.controller or {}).get("capacity", {})
-                                 else f"controller.capacity.{name}")
-                        raise ValueError(f"{field}: only one relay's capacity planner does this (a network's planners do "
-                                         f"not: leave it at {off!r}); got {getattr(own.capacity, name)!r}")
-                for path in NETWORK_WIDE:
-                    mine: object = own
-                    shared: object = self.controller
-                    for part in path:
-                        mine, shared = getattr(mine, part), getattr(shared, part)
-                    if mine != shared:
-                        name = ".".join(path)
-                        raise ValueError(f"relays[{i}].controller.{name}: the network's planner plans every relay with one "
-                                         f"controller.{name} = {shared!r} (a relay's own speed and acceleration limits, "
-                                         f"axes, tilt fraction, governor speed and NMPC are its own); got {mine!r}")
+                        raise ValueError(f"{self.controller_field(i, ('capacity', name))}: only one relay's capacity planner "
+                                         f"does this (a network's planners do not: leave it at {off!r}); got "
+                                         f"{getattr(own.capacity, name)!r}")
+            self._one_value(NETWORK_WIDE, "the network's planner plans every relay with one", "a relay's own speed and "
+                            "acceleration limits, axes, tilt fraction, governor speed and NMPC are its own")
         for i in range(len(self.relay_list)):
             if self.planner == PAPER_PLANNER and self.controller_of(i).mu <= 0.0:
-                written = self.relay_list[i].controller or {}
-                field = f"relays[{i}].controller.mu" if "mu" in written else "controller.mu"
-                raise ValueError(f"{field}: mu = 0 makes the trajectory generator's surrogate link H_bar = sqrt(mu) G_bar / d "
-                                 "vanish (its inverse capacity is infinite); use mu > 0 with controller.planner = "
-                                 "'trajectory_generator'")
+                raise ValueError(f"{self.controller_field(i, ('mu',))}: mu = 0 makes the trajectory generator's surrogate "
+                                 "link H_bar = sqrt(mu) G_bar / d vanish (its inverse capacity is infinite); use mu > 0 with "
+                                 "controller.planner = 'trajectory_generator'")
 
     @property
     def has_two_hops(self) -> bool:
@@ -407,13 +422,7 @@ class Scenario(Strict):
 
     def _one_time_grid(self) -> None:
         """Every relay's NMPC predicts on the shared horizon and step (the relays exchange their plans)."""
-        for i in range(len(self.relay_list)):
-            c = self.controller_of(i)
-            for f in ("horizon", "ts_s"):
-                if getattr(c, f) != getattr(self.controller, f):
-                    raise ValueError(f"relays[{i}].controller.{f}: every relay of a fleet predicts on the shared "
-                                     f"controller.{f} = {getattr(self.controller, f)} (they exchange their plans), got "
-                                     f"{getattr(c, f)}")
+        self._one_value(ONE_TIME_GRID, "every relay of a fleet predicts on the shared", "they exchange their plans")
 
     def _losses_hold(self) -> None:
         """``relays.lost_at_s``: one relay at least never lost, no jammer aimed at a relay that is lost. A
