@@ -38,7 +38,6 @@ from .assembly.parts import (
     build_source,
     check_bound_size,
     nmpc_settings,
-    relay_view,
 )
 from .assembly.planners import comms_aware
 from .assembly.vehicle import build_vehicle
@@ -354,7 +353,7 @@ def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: i
     build(warm, nmpc_settings=settings).closed_loop().run()
     res = benchmark_closed_loop(build(sc, nmpc_settings=settings).closed_loop(), ipopt_points=ipopt_points)
     res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
-    kinds = sorted({"comms-aware NMPC" if comms_aware(relay_view(sc, i)) else "tracking NMPC" for i in range(len(sc.relay_list))})
+    kinds = sorted({"comms-aware NMPC" if comms_aware(sc.relay_view(i)) else "tracking NMPC" for i in range(len(sc.relay_list))})
     n = len(sc.relay_list)
     res["scenario"] = f"{sc.name} ({n} relay{'s' * (n != 1)}, {sc.planner} planner, {', '.join(kinds)})"
     return res

@@ -274,8 +274,9 @@ def _mu_reachable(sc: Scenario) -> None:
     mu = 0.7 tilted and 0.5 coplanar, just above their reach, fly inside it)."""
     if not sc.has_two_hops:  # a relay of a chain aligns with its route neighbours, not with the base station and MRAV-2
         return
-    c, platform, mission = sc.controller_of(0), sc.platform_of(0), sc.source_list[0].mission
-    if c.mu <= 0.0 or not comms_aware(sc.model_copy(update={"controller": c})):
+    view = sc.relay_view(0)
+    c, platform, mission = view.controller, view.platform, sc.source_list[0].mission
+    if c.mu <= 0.0 or not comms_aware(view):
         return
     reach, times, tilt = _reachable_alignment(platform.model_dump_json(), mission.model_dump_json(),
                                               tuple(c.workspace.min), tuple(c.workspace.max), tuple(sc.first_station.position),

@@ -256,7 +256,7 @@ def comms_aware_antennas(sc: Scenario) -> None:
     eq. 21-22): right for a doughnut (dipole, sin^n), wrong for a cosine or isotropic antenna; a relay
     with one of those is a named error there (it flies the capacity planner or the unconstrained NMPC)."""
     for i, r in enumerate(sc.relay_list):
-        if r.antenna is not None and not r.antenna.doughnut and comms_aware(relay_view(sc, i)):
+        if r.antenna is not None and not r.antenna.doughnut and comms_aware(sc.relay_view(i)):
             raise ScenarioError(f"relays[{i}].antenna: a {r.antenna.pattern} antenna on relay {r.name!r} with the paper's "
                                 "comms-aware NMPC, whose misalignment terms keep links off a doughnut antenna's axis; fly it "
                                 "with controller.planner = 'capacity' or controller.variant = 'unconstrained'")
@@ -448,16 +448,6 @@ def sim_settings(sc: Scenario) -> SimSettings:
                        handover=HandoverRule(sc.network.handover_margin_db, sc.network.handover_dwell_s))
 
 
-def relay_view(sc: Scenario, i: int) -> Scenario:
-    """Relay ``i``'s view of the scenario: its own platform and controller (``[[relays]]``) as the scenario's,
-    so every part reads them where a file with ``nodes.relay`` has them (its NMPC is the one its network's planner
-    declares: ``assembly.planners``)."""
-    ctrl = sc.controller_of(i)
-    if sc.relays is None or (sc.relays[i].platform is None and not sc.relays[i].controller):
-        return sc
-    return sc.model_copy(update={"platform": sc.platform_of(i), "controller": ctrl})
-
-
 @dataclass
 class Parts:
     """Everything a mission is made of, built once from a scenario: the radio scene, every relay (its
@@ -519,7 +509,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     others = len(sc.relay_list) - 1 + len(sc.source_list) if network and sc.separation_m > 0 else 0
     relays, platforms = [], {}
     for i, r in enumerate(sc.relay_list):
-        view = relay_view(sc, i)
+        view = sc.relay_view(i)
         vehicle = build_vehicle(view.platform)
         platforms[r.name] = (vehicle, view.platform)
         controller = build_controller(view, vehicle, nmpc_settings, others,
@@ -553,7 +543,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
             raise ScenarioError(f"relays[0]: a one-relay planner flies the first relay, {first.name!r}, as the paper's relay "
                                 f"between a source and the base station; its upstream node {source!r} is a relay: list a "
                                 "relay next to a source first")
-        view = relay_view(sc, 0)
+        view = sc.relay_view(0)
         one: Planner = CheckedPlanner(planner, *_workspace(sc)) if planner is not None else \
             build_planner(view, first.vehicle, scene, sources[source])
         if sc.obstacles:  # every planner's references kept outside the obstacles' margins
@@ -605,7 +595,7 @@ def build_sensing(sc: Scenario, scene: RadioScene, sources: dict[str, SourceTraj
 def bound_problem(sc: Scenario, vehicle: Multirotor | None = None, scene: RadioScene | None = None) -> BoundProblem:
     """The bound of the run: its scene, and the run's own large-scale realization (shadowing field,
     LoS states) where the channel has one, the same the plant flies through (same seed)."""
-    sc = relay_view(sc, 0)
+    sc = sc.relay_view(0)
     lo, hi = _workspace(sc)
     scene = scene or build_scene(sc)
     noise = sim_settings(sc).channel_noise or PerturbationSettings()
@@ -672,7 +662,7 @@ def _bound_key_tables(sc: Scenario, data: dict) -> dict:
 
 def scenario_bound_key(sc: Scenario) -> str:
     """Everything the bound depends on (not the controller, except its workspace box)."""
-    sc = relay_view(sc, 0)
+    sc = sc.relay_view(0)
     fleet = {"relays", "sources", "network"} if sc.names_its_fleet else set()  # a file with nodes.relay keeps its key
     fleet |= {"base_stations", "network"} if sc.base_stations is not None else set()  # a file with nodes.bs keeps its key
     data = _bound_key_tables(sc, world.bound_key_data(sc, sc.model_dump(include={"platform", "antenna", "channel", "nodes", "jammer",
@@ -772,7 +762,7 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
                                 sources={s.name: source_trajectory(s.mission) for s in sc.source_list},
                                 duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.route_dt_s, route=sc.network.route,
                                 tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc),
-                                relay_settings={r.name: planner_settings(relay_view(sc, i))
+                                relay_settings={r.name: planner_settings(sc.relay_view(i))
                                                 for i, r in enumerate(sc.relay_list) if r.name in starts})
     factory = planner_of(sc).network
     assert factory is not None  # planner_registered refused a network's planner without a network factory

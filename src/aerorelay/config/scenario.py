@@ -401,6 +401,15 @@ class Scenario(Strict):
         base station) is the paper's; a chain's relay aligns with its route neighbours."""
         return len(self.route_list) == 1 and len(self.route_list[0]) == 3 and not self.has_handover
 
+    def relay_view(self, i: int) -> Scenario:
+        """Relay ``i``'s view of the scenario: its own platform and controller (``[[relays]]``) as the scenario's,
+        so every part reads them where a file with ``nodes.relay`` has them (its NMPC is the one its network's planner
+        declares: ``assembly.planners``)."""
+        ctrl = self.controller_of(i)
+        if self.relays is None or (self.relays[i].platform is None and not self.relays[i].controller):
+            return self
+        return self.model_copy(update={"platform": self.platform_of(i), "controller": ctrl})
+
     def platform_of(self, i: int) -> PlatformConfig:
         """Relay ``i``'s platform: its own (a preset or a table), else ``[platform]``."""
         p = self.relay_list[i].platform

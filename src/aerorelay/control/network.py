@@ -311,15 +311,15 @@ class Controller:
         refs = self.controller.plan(t, x, known, self.jammers(t))
         predicted = self.controller.predicted({**x, **{n: last[n] for n in self.lost}}, known)
         for n in self.lost & set(predicted):  # a lost relay still flies (it holds and lands): kept clear where it last was
-            predicted[n] = np.repeat(last[n][0:3, None], predicted[n].shape[1], axis=1)
+            predicted[n] = np.repeat(last[n][P, None], predicted[n].shape[1], axis=1)
         out = {}
         for r in self.controller.relays:
             if r.name not in fresh or r.name in self.lost:
                 cmd = r.stepper.hold_command(t, t0)
                 out[r.name] = replace(cmd, rejected=rejected[r.name]) if r.name in rejected else cmd
                 continue
-            P = self.controller.parameters(r, refs[r.name], predicted, frozenset(), None)
-            info: StepInfo = r.stepper.act(x[r.name], P)
+            params = self.controller.parameters(r, refs[r.name], predicted, frozenset(), None)
+            info: StepInfo = r.stepper.act(x[r.name], params)
             out[r.name] = r.stepper.command(t, x[r.name], info, refs[r.name], t0)
         return out
 

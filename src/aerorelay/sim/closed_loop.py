@@ -362,12 +362,12 @@ class ClosedLoop:
     def _relay_step(self, k: int, r: LoopRelay, x: np.ndarray, ref, predicted: dict, lost: frozenset[str]):
         """Relay ``r``'s control step at ``x`` on the reference ``ref``: its stage parameters, its NMPC's input
         (a bench point kept every ``BENCH_POINT_EVERY`` steps, its timings)."""
-        P = self.control.parameters(r, ref, predicted, lost, self.air.estimate(r.name) if self.air else None)
+        params = self.control.parameters(r, ref, predicted, lost, self.air.estimate(r.name) if self.air else None)
         if k % BENCH_POINT_EVERY == BENCH_POINT_OFFSET:  # samples for benchmarking a full solve at the same points
             nmpc = r.controller.nmpc
-            self.bench_points[r.name].append(BenchPoint(x.copy(), r.stepper.u.copy(), P.copy(),
+            self.bench_points[r.name].append(BenchPoint(x.copy(), r.stepper.u.copy(), params.copy(),
                                                         nmpc.guess() if nmpc.initialized else None))
-        info = r.stepper.act(x, P)
+        info = r.stepper.act(x, params)
         self.timings[r.name].append(StepTiming(info.prep_ms, info.feedback_ms, info.qp_iters, self.planner_ms[-1],
                                                self.sensing.last_ms if self.sensing else 0.0))
         return info
