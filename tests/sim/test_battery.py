@@ -13,7 +13,7 @@ import pytest
 
 import aerorelay as ar
 
-CAPACITY_WH, USABLE, RESERVE, AVIONICS_W = 0.06, 0.9, 0.2, 15.0
+CAPACITY_WH, USABLE, RESERVE, AVIONICS_W = 0.17, 0.9, 0.2, 15.0  # 2.3 s at hover: no empty battery in 2 s
 
 
 def _flown(duration_s=2.0, capacity_wh=CAPACITY_WH):
@@ -39,7 +39,7 @@ def test_the_state_of_charge_is_the_energy_drawn_by_the_rotors_and_the_avionics(
     t_end = float(df["t"].iloc[-1])
     assert 1.0 - df["relay.soc"].iloc[-1] == pytest.approx(hover_power * t_end / usable_j, rel=0.02)
     reached = df["relay.soc"].to_numpy() <= RESERVE
-    assert reached.any()  # 0.06 Wh: the reserve within 2 s
+    assert reached.any()  # 0.17 Wh: the reserve within 2 s
     assert r.metrics["battery_reserve_first_s"] == pytest.approx(float(df["t"].to_numpy()[np.argmax(reached)]))
     assert r.metrics["soc_final_fraction"] == pytest.approx(float(df["relay.soc"].iloc[-1]))
     assert df["relay.battery_reserve"].dtype == bool and r.metrics["units"]["soc_final_fraction"] == "1"
@@ -55,3 +55,39 @@ def test_a_battery_that_lasts_never_reaches_its_reserve_and_a_run_without_one_lo
 def test_a_battery_table_out_of_range_is_named():
     with pytest.raises(ar.ScenarioError, match=r"platform.battery.usable_fraction"):
         ar.load_scenario("scenarios/nominal_tilted.toml", set={"platform.battery": {"capacity_wh": 50.0, "usable_fraction": 1.5}})
+
+
+def test_a_battery_sure_to_run_empty_is_refused_before_the_flight():
+    """Issue 61: 0.01 Wh relays were flown on nothing (state of charge -109 at landing, reported safe). Hovering (the
+    least this model draws: 235 W here) 0.01 Wh cannot even land the relay from its start: refused naming the field;
+    without go_home a battery shorter than the mission at hover is refused naming go_home."""
+    hover = ar.api.vehicle(ar.load_scenario("scenarios/nominal_tilted.toml"))
+    draw_w = float(hover.shaft_power(hover.hover_speeds())) + AVIONICS_W
+    with pytest.raises(ar.ScenarioError, match=r"platform\.battery\.capacity_wh: 0\.01 Wh .* cannot land relay 'relay' from its "
+                                               r"start even drawing its reserve"):
+        ar.load_scenario("scenarios/nominal_tilted.toml", set={"platform.battery": {"capacity_wh": 0.01}})
+    lasts_s = CAPACITY_WH * 3600.0 * USABLE / draw_w  # 2.3 s at hover
+    with pytest.raises(ar.ScenarioError, match=rf"platform\.battery\.go_home: false, and {CAPACITY_WH:g} Wh .* lasts {lasts_s:.1f} s"):
+        _flown(duration_s=10.0)
+    _flown(duration_s=0.3)  # within it: flown
+
+
+def test_a_relay_that_flew_on_an_empty_battery_makes_the_run_unsafe():
+    """What hover cannot foresee (flying draws more) is caught in flight: a state of charge below 0 at a step flown is
+    unsafe (exit status battery_empty), whatever else went well."""
+    from aerorelay.sim.metrics import relay_metrics
+
+    sc, r = _flown(duration_s=0.3)
+    veh = ar.api.vehicle(sc)
+    c = sc.controller
+
+    def metrics(log):
+        return relay_metrics(log, "relay", veh, period_s=sc.control_period_s, mu=c.mu, workspace_min=c.workspace.min,
+                             workspace_max=c.workspace.max, box_tolerance_m=0.5, ground_z_m=sc.world.ground_z_m, obstacles=())
+
+    assert not metrics(r.timeseries)["unsafe"] and not r.metrics["unsafe"]
+    log = r.timeseries.copy()
+    log.loc[log.index[-3:], "relay.soc"] = [-0.01, -0.02, -0.03]
+    m = metrics(log)
+    assert m["unsafe"] and m["exit_status"] == "battery_empty" and m["exit_statuses"] == ["battery_empty"]
+    assert "flew on an empty battery" in m["unsafe_reason"] and "down to -3%" in m["unsafe_reason"]

@@ -15,10 +15,10 @@ import aerorelay as ar
 AVIONICS_W = 15.0
 
 
-def _with_battery(path, relay_index, capacity_wh, **settings):
+def _with_battery(path, relay_index, capacity_wh, go_home=True, **settings):
     sc = ar.load_scenario(path, set=settings)
     battery = {"capacity_wh": capacity_wh, "usable_fraction": 0.9, "reserve_fraction": 0.2, "avionics_w": AVIONICS_W,
-               "return_speed_m_s": 2.0, "land_speed_m_s": 0.5}
+               "return_speed_m_s": 2.0, "land_speed_m_s": 0.5, "go_home": go_home}
     if sc.relays is None:
         return sc.with_updates({"platform.battery": battery})
     relays = [r.model_dump() for r in sc.relays]
@@ -82,8 +82,5 @@ def test_one_relay_going_home_leaves_the_source_with_the_base_station():
 
 
 def test_without_go_home_the_relay_flies_on_past_its_reserve():
-    sc = _with_battery("scenarios/chain_two_relays.toml", 0, 1.0, **{"sim.duration_s": 3.0})
-    relays = [rr.model_dump() for rr in sc.relays]
-    relays[0]["platform"]["battery"]["go_home"] = False
-    r = ar.simulate(sc.with_updates({"relays": relays}))
+    r = ar.simulate(_with_battery("scenarios/chain_two_relays.toml", 0, 1.0, go_home=False, **{"sim.duration_s": 3.0}))
     assert "r1.going_home" not in r.timeseries and r.timeseries["r1.p_x"].notna().all()

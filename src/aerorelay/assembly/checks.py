@@ -37,7 +37,7 @@ def check_physics(sc: Scenario) -> Scenario:
         return sc
     for loc, check in (("scenario", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
                        ("scenario", _mu_reachable), ("scenario", _rma_av_geometry), ("scenario", _ray_traced_physics),
-                       ("scenario", _missions_clear_obstacles)):
+                       ("scenario", _missions_clear_obstacles), ("scenario", _batteries_last)):
         try:
             check(sc)
         except ValueError as exc:
@@ -60,6 +60,40 @@ def _hovers(sc: Scenario) -> None:
             _hovers_with_margin(p)
         except ValueError as exc:
             raise ValueError(f"{field}: {exc}") from None
+
+
+def _batteries_last(sc: Scenario) -> None:
+    """No relay is sent up on a battery that is sure to run empty in flight. At hover power (rotors' shaft power plus
+    the avionics; flying draws more in this model, so these are the least it can need): with ``go_home`` the usable
+    energy, its reserve too, covers landing from its start (``d = 0``, its height down to the workspace floor at
+    ``land_speed_m_s``), else it turns home at once and lands on nothing; without ``go_home`` the usable energy covers
+    the mission (a spare waits on the ground: it is not checked for the mission). What flying draws beyond hover is
+    caught in flight: a relay whose state of charge goes below 0 makes the run unsafe (``sim.metrics.flew_empty``)."""
+    for i, r in enumerate(sc.relay_list):
+        p = sc.platform_of(i)
+        bat = p.battery
+        if bat is None:
+            continue
+        field = f"relays[{i}].platform.battery" if sc.relays is not None and r.platform is not None else "platform.battery"
+        veh = shared_vehicle(p)
+        draw_w = float(veh.shaft_power(veh.hover_speeds())) + bat.avionics_w
+        usable_j = bat.capacity_wh * 3600.0 * bat.usable_fraction
+        hover_s = usable_j / draw_w
+        if bat.go_home:
+            height = max(float(r.start[2]) - float(sc.controller_of(i).workspace.min[2]), 0.0)
+            land_s = height / bat.land_speed_m_s
+            if usable_j < land_s * draw_w:
+                raise ValueError(f"{field}.capacity_wh: {bat.capacity_wh:g} Wh ({usable_j:.0f} J usable) cannot land relay "
+                                 f"{r.name!r} from its start even drawing its reserve: {height:.1f} m down at "
+                                 f"{bat.land_speed_m_s:g} m/s takes {land_s:.1f} s at {draw_w:.0f} W hovering "
+                                 f"({land_s * draw_w:.0f} J); it would fly on an empty battery: use more than "
+                                 f"{land_s * draw_w / 3600.0 / bat.usable_fraction:.3g} Wh")
+        elif not r.standby and hover_s < sc.duration_s:
+            raise ValueError(f"{field}.go_home: false, and {bat.capacity_wh:g} Wh ({usable_j:.0f} J usable) lasts "
+                             f"{hover_s:.1f} s even hovering ({draw_w:.0f} W), shorter than the {sc.duration_s:g} s mission: "
+                             f"relay {r.name!r} would fly on an empty battery; set go_home = true (it flies home in time), "
+                             f"capacity_wh >= {draw_w * sc.duration_s / 3600.0 / bat.usable_fraction:.3g}, or a shorter "
+                             "sim.duration_s")
 
 
 def _platforms(sc: Scenario) -> list[tuple[str, PlatformConfig]]:

@@ -17,6 +17,7 @@ class ExitStatus(StrEnum):
     FLIPPED = "flipped"
     IN_OBSTACLE = "in_obstacle"
     TOO_CLOSE = "too_close"
+    BATTERY_EMPTY = "battery_empty"
     ENDED_EARLY = "ended_early"
     METRICS_FAILED = "metrics_failed"
 
@@ -32,6 +33,7 @@ SENTENCES = {
     ExitStatus.BELOW_GROUND: "a relay went below the ground",
     ExitStatus.FLIPPED: "a relay flipped (tilt beyond 90 deg)",
     ExitStatus.IN_OBSTACLE: "a relay entered an obstacle",
+    ExitStatus.BATTERY_EMPTY: "a relay flew on an empty battery (its usable energy spent)",
     ExitStatus.TOO_CLOSE: "two vehicles came closer than the separation",
     ExitStatus.ENDED_EARLY: "the flight ended before its end (interrupted, or ended by the autopilot bridge)",
     ExitStatus.METRICS_FAILED: "its metrics could not be computed (the time series is kept)",

@@ -183,7 +183,7 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
     tilt = np.degrees(np.arccos(np.clip(np.cos(col("phi")) * np.cos(col("theta")), -1, 1)))
     solve, align = col("solve_ms"), col("mutual_alignment")
     slack = np.nan_to_num(col("slack_max"), nan=np.inf)
-    return {
+    out = {
         "alignment_ok_fraction": float(np.mean(align >= mu)),
         "alignment_within_slack_fraction": float(np.mean(align >= mu - ALIGNMENT_TOLERANCE)),
         "slack_active_fraction": float(np.mean(slack > SLACK_ACTIVE_FRACTION_OF_MU * max(mu, 1e-9))),
@@ -207,6 +207,25 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
         **battery_metrics(log, name),
         **spare_metrics(log, name),
     }
+    empty = flew_empty(log, name, period_s)
+    if empty:  # flying on an empty battery is unsafe whatever else went well
+        out["unsafe_reason"] = "; ".join(r for r in (out["unsafe_reason"], empty) if r)
+        out |= {"unsafe": True, **exit_fields([*map(ExitStatus, out["exit_statuses"]), ExitStatus.BATTERY_EMPTY])}
+    return out
+
+
+def flew_empty(log, name: str, period_s: float) -> str | None:
+    """Why relay ``name`` flew on an empty battery (its state of charge below 0 at a step it flew: the usable energy
+    spent), or None. No battery modelled: None."""
+    if f"{name}.soc" not in log:
+        return None
+    soc = np.asarray(log[f"{name}.soc"], float)
+    below = np.isfinite(soc) & (soc < 0.0)
+    if not below.any():
+        return None
+    t = np.asarray(log["t"], float)
+    return (f"flew on an empty battery from t = {float(t[np.argmax(below)]):.1f} s for {int(below.sum()) * period_s:.1f} s "
+            f"(state of charge down to {100.0 * float(soc[below].min()):.0f}% of the usable energy)")
 
 
 def battery_metrics(log, name: str) -> dict:
