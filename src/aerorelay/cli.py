@@ -278,7 +278,8 @@ KEY_METRICS = (
     # what a scenario's own features add (shown only where a run has them)
     "wind_speed_mean_m_s", "drag_accel_mean_m_s2", "observer_error_mean_m_s2", "obstacle_clearance_min_m",
     "estimation_error_final_m", "estimation_first_within_1m_s", "separation_min_m", "telemetry_rejected_periods",
-    "hold_fraction", "land_fraction", "exit_status",
+    "hold_fraction", "land_fraction", "soc_final_fraction", "battery_reserve_first_s", "went_home_at_s", "landed_at_s",
+    "exit_status",
 )
 
 
@@ -313,7 +314,9 @@ def _fleet_keys(runs: dict[str, dict]) -> list[str]:
     return (["c_min", "c_mean", "outage_fraction", "separation_min_m"]
             + [f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
-                                                          "solve_ms.mean", "solve_ms.p99")]
+                                                          "solve_ms.mean", "solve_ms.p99", "soc_final_fraction",
+                                                          "battery_reserve_first_s", "went_home_at_s", "landed_at_s",
+                                                          "exit_status")]
             + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "wall_s", "sim_s", "bound.static.mean", "bound.achieved.mean",
                "capacity_efficiency_mean", "capacity_efficiency_mean_achieved", "exit_status"])
 

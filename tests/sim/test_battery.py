@@ -63,8 +63,8 @@ def test_a_battery_sure_to_run_empty_is_refused_before_the_flight():
     without go_home a battery shorter than the mission at hover is refused naming go_home."""
     hover = ar.api.vehicle(ar.load_scenario("scenarios/nominal_tilted.toml"))
     draw_w = float(hover.shaft_power(hover.hover_speeds())) + AVIONICS_W
-    with pytest.raises(ar.ScenarioError, match=r"platform\.battery\.capacity_wh: 0\.01 Wh .* cannot land relay 'relay' from its "
-                                               r"start even drawing its reserve"):
+    with pytest.raises(ar.ScenarioError, match=r"platform\.battery\.capacity_wh: 0\.01 Wh .* cannot bring relay 'relay' "
+                                               r"home from its start with its reserve kept"):
         ar.load_scenario("scenarios/nominal_tilted.toml", set={"platform.battery": {"capacity_wh": 0.01}})
     lasts_s = CAPACITY_WH * 3600.0 * USABLE / draw_w  # 2.3 s at hover
     with pytest.raises(ar.ScenarioError, match=rf"platform\.battery\.go_home: false, and {CAPACITY_WH:g} Wh .* lasts {lasts_s:.1f} s"):
@@ -91,3 +91,36 @@ def test_a_relay_that_flew_on_an_empty_battery_makes_the_run_unsafe():
     m = metrics(log)
     assert m["unsafe"] and m["exit_status"] == "battery_empty" and m["exit_statuses"] == ["battery_empty"]
     assert "flew on an empty battery" in m["unsafe_reason"] and "down to -3%" in m["unsafe_reason"]
+
+
+def test_a_battery_that_empties_in_flight_ends_the_flight_there_logged_empty():
+    """Issue 61: the state of charge never goes below 0 in the log; the step it empties ends the flight (the steps
+    flown kept), exit status battery_empty. The battery is made small after the load's check (parts built from
+    Python), as a flight drawing more than the hover would."""
+    import dataclasses
+
+    from aerorelay.assembly.parts import build
+    from aerorelay.models.battery import Battery
+
+    sc, _ = _flown(duration_s=1.0)
+    parts = build(sc)
+    drawn_per_step = 235.0 * sc.control_period_s  # J, about: hovering
+    parts.relays[0] = dataclasses.replace(parts.relays[0], battery=Battery(20.5 * drawn_per_step, RESERVE, AVIONICS_W))
+    mission = parts.closed_loop().run()
+    soc = np.asarray(mission.log["relay.soc"], float)
+    assert mission.exit_status == "battery_empty" and "its battery is empty" in mission.aborted
+    assert soc.min() == 0.0 and soc[-1] == 0.0 and (soc[:-1] > 0.0).all()
+    assert 18 <= len(soc) <= 23 < int(round(1.0 / sc.control_period_s))  # ended about 21 steps in, of 67
+
+
+def test_the_run_summary_has_the_batterys_rows(tmp_path):
+    """Issue 61: the console's summary of a run says each relay's battery (its state of charge at the end)."""
+    from typer.testing import CliRunner
+
+    from aerorelay.cli import app
+
+    r = CliRunner().invoke(app, ["run", "scenarios/nominal_tilted.toml", "--out", str(tmp_path / "run"), "--duration", "0.3",
+                                 "--no-bound", "--no-figures", "--set", f"platform.battery.capacity_wh={CAPACITY_WH}",
+                                 "--set", "platform.battery.go_home=false"])
+    assert r.exit_code == 0, r.output
+    assert "soc_final_fraction" in r.output

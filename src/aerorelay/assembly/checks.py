@@ -65,8 +65,9 @@ def _hovers(sc: Scenario) -> None:
 def _batteries_last(sc: Scenario) -> None:
     """No relay is sent up on a battery that is sure to run empty in flight. At hover power (rotors' shaft power plus
     the avionics; flying draws more in this model, so these are the least it can need): with ``go_home`` the usable
-    energy, its reserve too, covers landing from its start (``d = 0``, its height down to the workspace floor at
-    ``land_speed_m_s``), else it turns home at once and lands on nothing; without ``go_home`` the usable energy covers
+    energy above its reserve covers landing from its start (``d = 0``, its height down to the workspace floor at
+    ``land_speed_m_s``), else it turns home at once and lands on its reserve or on nothing; without ``go_home`` the
+    usable energy covers
     the mission (a spare waits on the ground: it is not checked for the mission). What flying draws beyond hover is
     caught in flight: a relay whose state of charge goes below 0 makes the run unsafe (``sim.metrics.flew_empty``)."""
     for i, r in enumerate(sc.relay_list):
@@ -82,12 +83,13 @@ def _batteries_last(sc: Scenario) -> None:
         if bat.go_home:
             height = max(float(r.start[2]) - float(sc.controller_of(i).workspace.min[2]), 0.0)
             land_s = height / bat.land_speed_m_s
-            if usable_j < land_s * draw_w:
-                raise ValueError(f"{field}.capacity_wh: {bat.capacity_wh:g} Wh ({usable_j:.0f} J usable) cannot land relay "
-                                 f"{r.name!r} from its start even drawing its reserve: {height:.1f} m down at "
-                                 f"{bat.land_speed_m_s:g} m/s takes {land_s:.1f} s at {draw_w:.0f} W hovering "
-                                 f"({land_s * draw_w:.0f} J); it would fly on an empty battery: use more than "
-                                 f"{land_s * draw_w / 3600.0 / bat.usable_fraction:.3g} Wh")
+            above = usable_j * (1.0 - bat.reserve_fraction)
+            if above < land_s * draw_w:
+                raise ValueError(f"{field}.capacity_wh: {bat.capacity_wh:g} Wh ({usable_j:.0f} J usable, {above:.0f} J above "
+                                 f"its reserve) cannot bring relay {r.name!r} home from its start with its reserve kept: "
+                                 f"{height:.1f} m down at {bat.land_speed_m_s:g} m/s takes {land_s:.1f} s at {draw_w:.0f} W "
+                                 f"hovering ({land_s * draw_w:.0f} J); use more than "
+                                 f"{land_s * draw_w / (1.0 - bat.reserve_fraction) / 3600.0 / bat.usable_fraction:.3g} Wh")
         elif not r.standby and hover_s < sc.duration_s:
             raise ValueError(f"{field}.go_home: false, and {bat.capacity_wh:g} Wh ({usable_j:.0f} J usable) lasts "
                              f"{hover_s:.1f} s even hovering ({draw_w:.0f} W), shorter than the {sc.duration_s:g} s mission: "

@@ -458,9 +458,13 @@ class ClosedLoop:
                 row["separation_min"] = separation_min(np.array([true_positions[n] for n in (*flying, *truth)]))
                 if self.air is not None:
                     row |= self.air.wind_values()
+                empty = []
                 for r in self.relays:
                     if r.battery is not None:
                         soc = r.battery.state_of_charge(drawn[r.name]) if r.name not in gone else math.nan
+                        if soc < 0.0:  # its usable energy spent: it cannot fly on (logged empty, the flight ends here)
+                            empty.append(r.name)
+                            soc = 0.0
                         row |= {f"{r.name}.soc": soc, f"{r.name}.battery_reserve": bool(soc <= r.battery.reserve_fraction)}
                         if r.home is not None:
                             row[f"{r.name}.going_home"] = r.name in homing
@@ -470,6 +474,10 @@ class ClosedLoop:
                 for n in self.spares:
                     row |= {f"{n}.waiting": n in waiting, f"{n}.ferrying": n in ferrying, f"{n}.replaces": replaced.get(n, "")}
                 record_row(log, k, row, self.columns)
+                if empty:  # the steps flown are kept; the run is reported unsafe
+                    aborted, flown = f"relay {empty[0]!r}: its battery is empty at t = {t:.2f} s: it cannot fly on", k + 1
+                    exit_status = ExitStatus.BATTERY_EMPTY.value
+                    break
                 self._go_home(t, drawn, x, flying, homing, gone, ferrying)
                 if waiting:
                     self._launch(drawn, x, waiting, ferrying)

@@ -215,16 +215,17 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
 
 
 def flew_empty(log, name: str, period_s: float) -> str | None:
-    """Why relay ``name`` flew on an empty battery (its state of charge below 0 at a step it flew: the usable energy
-    spent), or None. No battery modelled: None."""
+    """Why relay ``name`` flew on an empty battery (its state of charge at or below 0 at a step it flew: the usable
+    energy spent; the simulation logs it empty and ends there, a flight's log may go below), or None. No battery
+    modelled: None."""
     if f"{name}.soc" not in log:
         return None
     soc = np.asarray(log[f"{name}.soc"], float)
-    below = np.isfinite(soc) & (soc < 0.0)
+    below = np.isfinite(soc) & (soc <= 0.0)
     if not below.any():
         return None
     t = np.asarray(log["t"], float)
-    return (f"flew on an empty battery from t = {float(t[np.argmax(below)]):.1f} s for {int(below.sum()) * period_s:.1f} s "
+    return (f"flew on an empty battery from t = {float(t[np.argmax(below)]):.2f} s for {int(below.sum()) * period_s:.2f} s "
             f"(state of charge down to {100.0 * float(soc[below].min()):.0f}% of the usable energy)")
 
 
