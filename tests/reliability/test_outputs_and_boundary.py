@@ -20,6 +20,7 @@ from aerorelay.assembly import load_scenario
 from aerorelay.cli import EXIT_BAD_INPUT, app
 from aerorelay.config import ScenarioError
 from aerorelay.models.checks import InvalidInput
+from aerorelay.planning.base import PlannerFailed
 from aerorelay.store import strict_json
 from aerorelay.store.outputs import OutputBusyError, clean_stale_siblings, lock_path, new_sibling, writing
 
@@ -226,16 +227,29 @@ class _Planner:
         return self.make(inp)
 
 
-@pytest.mark.parametrize("field,value", [("p_ref", np.zeros(2)), ("v_ref", np.full(3, np.nan)), ("a_ref", "up"),
-                                         ("axis", np.zeros(3))])
+@pytest.mark.parametrize("field,value", [("p_ref", np.zeros(2)), ("a_ref", "up"), ("axis", np.ones(4))])
 def test_a_planners_bad_reference_is_named(field, value):
     def make(inp):
         ref = dict(p_opt=inp.p1, p_ref=inp.p1, v_ref=np.zeros(3), a_ref=np.zeros(3))
         ref[field] = value
         return ar.Reference(**ref)
     sc = load_scenario(NOMINAL, set={"sim.duration_s": 0.3})
-    with pytest.raises(InvalidInput, match=f"Reference.{field}: must be"):
+    with pytest.raises(PlannerFailed, match=rf"planner '_Planner \(passed from Python\)' at t = 0\.000 s: relay 'relay': "
+                                            rf"Reference.{field}: must be 3 numbers"):
         ar.simulate(sc, planner=_Planner(make))
+
+
+@pytest.mark.parametrize("field,value", [("v_ref", np.full(3, np.nan)), ("axis", np.zeros(3))])
+def test_a_planners_non_finite_reference_holds_the_relay_counted(field, value):
+    """Issue 61: a reference that cannot be flown (non-finite, a zero axis) holds the relay where it is, counted."""
+    def make(inp):
+        ref = dict(p_opt=inp.p1, p_ref=inp.p1, v_ref=np.zeros(3), a_ref=np.zeros(3))
+        ref[field] = value
+        return ar.Reference(**ref)
+    sc = load_scenario(NOMINAL, set={"sim.duration_s": 0.3})
+    res = ar.simulate(sc, planner=_Planner(make))
+    assert res.metrics["reference_held_steps"] == res.metrics["steps"] and not res.metrics["unsafe"]
+    assert "non-finite reference" in res.metrics["reference_first"]["relay"]
 
 
 def test_a_reference_outside_the_workspace_is_clipped_and_counted():
@@ -245,7 +259,7 @@ def test_a_reference_outside_the_workspace_is_clipped_and_counted():
     sc = load_scenario(NOMINAL, set={"sim.duration_s": 0.3})
     res = ar.simulate(sc, planner=_Planner(make))
     assert res.metrics["reference_clipped_steps"] == res.metrics["steps"]
-    assert "outside the workspace" in res.metrics["reference_clipped_first"]
+    assert "outside the workspace" in res.metrics["reference_first"]["relay"]
     assert res.timeseries["relay.pd_z"].max() <= sc.controller.workspace.max[2]
 
 

@@ -74,7 +74,7 @@ def build_controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
                                            observer=world.observer(flown, r.vehicle) if observer else None))
               for r in parts.relays]
     control = NetworkController(scene=parts.scene, relays=relays, planner=parts.planner, period_s=sc.control_period_s,
-                                separation_m=parts.separation_m, replanner=parts.replanner)
+                                separation_m=parts.separation_m, replanner=parts.replanner, planner_name=parts.planner_name)
     senses = sc.controller.senses_jammer_state
     if parts.sensing is not None:  # estimated from the readings step() is handed, by every relay's receiver
         estimated = JammersFromReadings(parts.scene, parts.sensing.estimator, parts.sensing.receivers, senses)

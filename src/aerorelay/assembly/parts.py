@@ -43,7 +43,6 @@ from ..models.vehicle import Multirotor
 from ..planning import registry  # noqa: F401  (registers the built-in planners)
 from ..planning.base import (
     CapacityPlannerSettings,
-    CheckedPlanner,
     GeneratorSettings,
     Planner,
     PlannerContext,
@@ -464,6 +463,7 @@ class Parts:
     sensing: JammerSensing | None = None
     air: Air | None = None  # [wind]: the wind, each relay's plant with drag, its observer
     relay_planner: Planner | None = None
+    planner_name: str = "planner"  # the registered name (controller.planner), or the object's passed from Python
 
     @property
     def vehicle(self) -> Multirotor:
@@ -483,7 +483,7 @@ class Parts:
     def closed_loop(self) -> ClosedLoop:
         return ClosedLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,
                           settings=self.settings, separation_m=self.separation_m, losses=self.scenario.losses,
-                          replanner=self.replanner, sensing=self.sensing, air=self.air,
+                          replanner=self.replanner, sensing=self.sensing, air=self.air, planner_name=self.planner_name,
                           blockage=world.blockage(self.scenario), traced=world.traced_channel(self.scenario))
 
     def replanner(self, scene: RadioScene, positions, t0: float) -> FleetPlanner:
@@ -544,8 +544,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
                                 f"between a source and the base station; its upstream node {source!r} is a relay: list a "
                                 "relay next to a source first")
         view = sc.relay_view(0)
-        one: Planner = CheckedPlanner(planner, *_workspace(sc)) if planner is not None else \
-            build_planner(view, first.vehicle, scene, sources[source])
+        one: Planner = planner if planner is not None else build_planner(view, first.vehicle, scene, sources[source])
         if sc.obstacles:  # every planner's references kept outside the obstacles' margins
             one = KeepOutPlanner(one, world.obstacles(sc))
         relay_planner = one
@@ -554,8 +553,9 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     else:
         fleet = network_planner(sc, scene, relays, starts)
     sensing = build_sensing(sc, scene, sources) if sc.estimates_jammers and scene.jammers else None
+    name = sc.planner if planner is None else f"{type(planner).__name__} (passed from Python)"
     return Parts(sc, scene, relays, sources, fleet, sim_settings(sc), sc.separation_m, sensing, world.air(sc, platforms),
-                 relay_planner)
+                 relay_planner, name)
 
 
 SEARCH_MARGIN_M = 10.0  # the default search box: the nodes' box widened by this horizontally, 5 m up, from the ground

@@ -20,7 +20,7 @@ from ..models.mission import SourceState as PathState
 from ..models.radio import Node, RadioScene
 from ..models.state import ETA, YAW, P, V
 from ..models.vehicle import Multirotor
-from ..planning.base import Reference
+from ..planning.base import PlannerFailed, Reference, ReferenceCheck
 from ..planning.fleet import FleetInput, FleetPlanner
 from ..planning.home import HomeSettings
 from .nmpc import StepInfo
@@ -66,10 +66,15 @@ class NetworkController:
 
     def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner, period_s: float,
                  separation_m: float = 0.0,
-                 replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None):
+                 replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None,
+                 planner_name: str = "planner"):
         """``replanner(scene, positions, t0)``: the planner of the network ``scene`` (relays lost, gone home or taken
-        over), its references starting where its relays are (m, world) at ``t0`` (s)."""
+        over), its references starting where its relays are (m, world) at ``t0`` (s). ``planner_name``: how its
+        references' check names it (``planning.base.ReferenceCheck``; the registered name)."""
         self.scene, self.relays, self.period = scene, relays, period_s
+        self.check = ReferenceCheck(planner_name, {r.name: (np.asarray(r.controller.spec.workspace_min, float),
+                                                            np.asarray(r.controller.spec.workspace_max, float))
+                                                   for r in relays})
         self.planner: FleetPlanner | None = planner  # None once no relay is left in the network
         self.separation_m, self.replanner = separation_m, replanner
         self.neighbours_of = route_neighbours(scene)
@@ -123,15 +128,18 @@ class NetworkController:
             return {}
         eta = {**{n: xs[ETA] for n, xs in x.items()}, **{n: s.attitude(self.gravity) for n, s in sources.items()}}
         t0 = time.perf_counter()
-        refs = self.planner.update(FleetInput(
+        try:
+            refs = self.planner.update(FleetInput(
             t=t, dt=self.period, positions={**{n: xs[P].copy() for n, xs in x.items()}, **{n: s.p for n, s in sources.items()},
                                             **self.stations},
             velocities={**{n: xs[V].copy() for n, xs in x.items()}, **{n: s.v for n, s in sources.items()}},
             axes={n: rotation_zyx(e)[:, 2] for n, e in eta.items()}, yaws={n: float(xs[YAW]) for n, xs in x.items()},
             accelerations={n: s.a for n, s in sources.items()}, jammer_positions=pj, jammer_powers=powers, jammer_std_m=std))
+        except Exception as exc:  # a planner that raises is named (its own error kept as the cause)
+            raise PlannerFailed(f"planner {self.check.name!r} raised at t = {t:.3f} s: {type(exc).__name__}: {exc}") from exc
         off_loop = float(getattr(self.planner, "off_loop_s", 0.0))  # a route planned beside the loop (planning.fleet_capacity)
         self.planner_ms = (time.perf_counter() - t0 - off_loop) * 1e3
-        return refs
+        return self.check(t, refs, x)  # every relay present, finite, inside its workspace: else held or clipped
 
     def predicted(self, x: Mapping[str, np.ndarray], sources: Mapping) -> dict[str, np.ndarray]:
         """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest

@@ -20,7 +20,7 @@ from ..config import JammerConfig, Scenario, ScenarioError
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
-from ..planning.base import CheckedPlanner, Planner
+from ..planning.base import Planner
 from ..planning.bound import CapacityBound
 from ..planning.keep_out import KeepOutPlanner
 from ..planning.network_bound import NetworkBound
@@ -271,11 +271,9 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     except Exception as exc:  # nothing computed after a flight may lose it: the time series is kept, the run unsafe
         log.exception("the run's metrics failed; its time series is kept")
         metrics = failed_metrics(mission, exc)
-    checked = parts.relay_planner.planner if isinstance(parts.relay_planner, KeepOutPlanner) else parts.relay_planner
-    if isinstance(checked, CheckedPlanner):  # a user's planner: how often its position reference was clipped
-        metrics["reference_clipped_steps"] = checked.clipped_steps
-        if checked.first_clip is not None:
-            metrics["reference_clipped_first"] = checked.first_clip
+    metrics |= loop.control.check.metrics()  # every planner's references: how often clipped or held, and why first
+    for name, relay in metrics.get("relays", {}).items():
+        relay |= loop.control.check.relay_metrics(name)
     if isinstance(parts.relay_planner, KeepOutPlanner):  # how often a reference was moved out of an obstacle's margin
         metrics["reference_kept_out_steps"] = parts.relay_planner.kept_out_steps
     metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit

@@ -17,7 +17,8 @@ or pass a planner object to ``aerorelay.simulate(sc, planner=...)`` without regi
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Protocol, TypeVar
 
@@ -26,6 +27,7 @@ import numpy as np
 from ..models import checks
 from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
+from ..models.state import YAW, P
 from ..models.vehicle import Multirotor
 from .trajectory_generator import Reference
 
@@ -134,44 +136,97 @@ class Planner(Protocol):
 log = logging.getLogger(__name__)
 
 
-class CheckedPlanner:
-    """A user's planner behind the API's boundary check: every ``Reference`` it returns must carry
-    3-vectors of finite numbers (``p_opt``, ``p_ref``, ``v_ref``, ``a_ref``; ``axis`` None or a
-    non-zero 3-vector; finite ``yaw``), else InvalidInput naming the field and the step; a position
-    reference outside the workspace box is clipped into it, logged once, and counted
-    (``clipped_steps``, ``first_clip``: metrics.json's ``reference_clipped_steps``)."""
+class PlannerFailed(RuntimeError):
+    """A planner raised, or returned what is not a reference (``ReferenceCheck``): named by its registered name."""
 
-    def __init__(self, planner: Planner, workspace_min, workspace_max):
-        self.planner = planner
-        self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
-        self.clipped_steps = 0
-        self.first_clip: str | None = None
 
-    def __getattr__(self, name: str):  # the wrapped planner's own attributes (e.g. preflight_s for the bench)
-        if name == "planner":
-            raise AttributeError(name)
-        return getattr(self.planner, name)
+@dataclass
+class ReferenceCheck:
+    """Every planner's references checked each step, one relay's or a network's, built-in, registered or passed from
+    Python (``control.network.NetworkController.plan``), the planner named by ``name``:
 
-    def update(self, inp: PlannerInput) -> Reference:
-        ref = self.planner.update(inp)
-        who = f"planner {type(self.planner).__name__} at t = {inp.t:.3f} s: Reference"
-        if not isinstance(ref, Reference):
-            raise checks.InvalidInput(f"planner {type(self.planner).__name__}.update must return a Reference, "
-                                      f"got {type(ref).__name__}")
-        vecs = {f: checks.vector(who, f, getattr(ref, f)) for f in ("p_opt", "p_ref", "v_ref", "a_ref")}
-        if ref.axis is not None:
-            checks.vector(who, "axis", ref.axis, nonzero=True)
-        checks.number(who, "yaw", ref.yaw)
-        p = vecs["p_ref"]
-        clipped = np.clip(p, self.lo, self.hi)
-        if np.array_equal(clipped, p):
-            return ref
-        self.clipped_steps += 1
-        if self.first_clip is None:
-            self.first_clip = (f"t = {inp.t:.3f} s: p_ref {np.array2string(p, precision=3)} outside the workspace "
-                               f"[{self.lo.tolist()}, {self.hi.tolist()}], clipped to {np.array2string(clipped, precision=3)}")
-            log.warning("planner %s: %s (later clips counted in metrics.json)", type(self.planner).__name__, self.first_clip)
-        return replace(ref, p_ref=clipped)
+    - not a ``{relay: Reference}`` mapping, a reference not a ``Reference`` or a field not a 3-vector
+      (``p_opt``, ``p_ref``, ``v_ref``, ``a_ref``; ``axis`` None or one): ``PlannerFailed`` naming the planner,
+      the relay, the field and the time (a program error, not a flight's);
+    - a relay left out, or a reference with a non-finite number or a zero axis: the relay **holds** where it is
+      (its position, no speed, its yaw), counted (``held``) and said once per relay;
+    - a position reference outside the relay's workspace: **clipped** into it, counted (``clipped``) and said once
+      per relay.
+
+    ``workspaces``: each relay's ``(min, max)`` (m, world). ``first``: the first hold or clip said, per relay."""
+
+    name: str
+    workspaces: dict[str, tuple[np.ndarray, np.ndarray]]
+
+    def __post_init__(self):
+        self.clipped = dict.fromkeys(self.workspaces, 0)
+        self.held = dict.fromkeys(self.workspaces, 0)
+        self.first: dict[str, str] = {}
+
+    def _said(self, relay: str, what: str) -> None:
+        if relay not in self.first:
+            self.first[relay] = what
+            log.warning("planner %r: relay %r: %s (later ones counted in metrics.json)", self.name, relay, what)
+
+    def _vector(self, t: float, relay: str, field: str, value) -> np.ndarray:
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            v = None
+        if v is None or v.shape != (3,):
+            raise PlannerFailed(f"planner {self.name!r} at t = {t:.3f} s: relay {relay!r}: Reference.{field}: must be 3 "
+                                f"numbers (x, y, z; m, m/s, m/s^2 world), got {value!r}")
+        return v
+
+    def __call__(self, t: float, refs, states) -> dict[str, Reference]:
+        """The references to fly: ``refs`` (the planner's) checked for the relays ``states`` (``{relay: x}``, each
+        relay's state, ``models.state``) asked of it; references of relays not asked are kept as they are."""
+        if not isinstance(refs, Mapping):
+            raise PlannerFailed(f"planner {self.name!r} at t = {t:.3f} s: must return {{relay: Reference}}, got "
+                                f"{type(refs).__name__}")
+        out = dict(refs)
+        for relay, x in states.items():
+            ref = refs.get(relay)
+            why = None
+            if ref is None:
+                why = "left out of the planner's references: held where it is"
+            elif not isinstance(ref, Reference):
+                raise PlannerFailed(f"planner {self.name!r} at t = {t:.3f} s: relay {relay!r}: must be a Reference, got "
+                                    f"{type(ref).__name__}")
+            else:
+                vecs = {f: self._vector(t, relay, f, getattr(ref, f)) for f in ("p_opt", "p_ref", "v_ref", "a_ref")}
+                axis = None if ref.axis is None else self._vector(t, relay, "axis", ref.axis)
+                finite = all(np.isfinite(v).all() for v in vecs.values()) and math.isfinite(float(ref.yaw)) and \
+                    (axis is None or (np.isfinite(axis).all() and float(np.linalg.norm(axis)) > 1e-9))
+                if not finite:
+                    why = (f"a non-finite reference (or a zero axis) at t = {t:.3f} s: held where it is")
+            lo, hi = self.workspaces[relay]
+            if why is not None:
+                self.held[relay] += 1
+                self._said(relay, why)
+                p = np.clip(np.asarray(x[P], float), lo, hi)
+                out[relay] = Reference(p_opt=p, p_ref=p.copy(), v_ref=np.zeros(3), a_ref=np.zeros(3),
+                                       yaw=float(x[YAW]) if math.isfinite(float(x[YAW])) else 0.0)
+                continue
+            assert isinstance(ref, Reference)
+            p = vecs["p_ref"]
+            clipped = np.clip(p, lo, hi)
+            if not np.array_equal(clipped, p):
+                self.clipped[relay] += 1
+                self._said(relay, f"t = {t:.3f} s: p_ref {np.array2string(p, precision=3)} outside the workspace "
+                                  f"[{lo.tolist()}, {hi.tolist()}], clipped to {np.array2string(clipped, precision=3)}")
+                out[relay] = replace(ref, p_ref=clipped)
+        return out
+
+    def metrics(self) -> dict:
+        """``reference_clipped_steps`` and ``reference_held_steps`` summed over the relays, the first said per relay
+        (``reference_first``) and the planner's name (each relay's own counts: ``relay_metrics``)."""
+        return {"reference_clipped_steps": sum(self.clipped.values()), "reference_held_steps": sum(self.held.values()),
+                "reference_first": dict(self.first), "planner_name": self.name}
+
+    def relay_metrics(self, relay: str) -> dict:
+        """Relay ``relay``'s ``reference_clipped_steps`` and ``reference_held_steps``."""
+        return {"reference_clipped_steps": self.clipped.get(relay, 0), "reference_held_steps": self.held.get(relay, 0)}
 
 
 PlannerFactory = Callable[[PlannerContext], Planner]

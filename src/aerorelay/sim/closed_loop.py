@@ -180,8 +180,9 @@ class ClosedLoop:
                  losses: Sequence[tuple[float, frozenset[str]]] = (),
                  replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None,
                  sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None,
-                 traced: TracedChannel | None = None):
-        """``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(scene, positions, t0)``
+                 traced: TracedChannel | None = None, planner_name: str = "planner"):
+        """``planner_name``: how the check of its references names the planner (``planning.base.ReferenceCheck``).
+        ``losses``: ``(t, every relay lost by then)`` in time order (s); ``replanner(scene, positions, t0)``
         builds the planner of the network ``scene`` from its relays' positions (m, world) at ``t0`` (s);
         ``relays``: a spare (``LoopRelay.spare``) waits outside ``scene`` until it takes a relay's place;
         ``sensing``: the jammers estimated from the receivers' readings, one estimate every planner shares;
@@ -194,7 +195,7 @@ class ClosedLoop:
         self.losses = list(losses)
         # the controller side of each step: the network's planner, every relay's stage parameters and NMPC
         self.control = NetworkController(scene=scene, relays=relays, planner=planner, period_s=settings.period_s,
-                                         separation_m=separation_m, replanner=replanner)
+                                         separation_m=separation_m, replanner=replanner, planner_name=planner_name)
         self.sensing, self.air = sensing, air
         self.blockage = blockage if blockage is not None and blockage.active else None  # obstacles that block radio
         # the networks it may fly: after each scheduled loss, and with any relay that may fly home out of it

@@ -14,9 +14,9 @@ CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", 
                     "c_mean_after_loss", "c_min_after_takeover", "c_mean_before_takeover", "c_mean_after_takeover")
 SPECTRAL = "bit/s/Hz"
 COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "reference_clipped_steps",
-          "reference_kept_out_steps", "telemetry_rejected_periods", "handovers")
+          "reference_held_steps", "reference_kept_out_steps", "telemetry_rejected_periods", "handovers")
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
-                  "aborted", "reference_clipped_first", "bound", "losses", "telemetry_rejected_reason", "metrics_failed",
+                  "aborted", "reference_first", "planner_name", "bound", "losses", "telemetry_rejected_reason", "metrics_failed",
                   "exit_status", "exit_sentence", "exit_statuses", "injected", "lost_in_flight", "took_over_from",
                   "standby_only", "flew")
 
