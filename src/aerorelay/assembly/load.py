@@ -4,12 +4,16 @@ named errors."""
 
 from __future__ import annotations
 
+import logging
 import tomllib
 from pathlib import Path
 
 from ..config import Scenario, ScenarioError, validate_config
+from ..config.applies import dormant, refusal
 from .checks import check_physics
 from .parts import check_buildable
+
+log = logging.getLogger(__name__)
 
 
 def parse_sets(items: list[str] | None) -> dict:
@@ -118,13 +122,28 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
         sc = validate_config(data)
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
+    _what_does_not_apply(sc, path, updates)
     return check_buildable(check_physics(sc))
+
+
+def _what_does_not_apply(sc: Scenario, path: Path | None, updates: dict) -> None:
+    """``config.applies``: a setting that changes nothing here is refused by name when the file alone says it or an
+    update sets it; one of the file's made dormant by an update that switches what applies is named in a warning."""
+    keys = {k.replace("[", ".").replace("]", "") for k in updates}
+    for field, where, value, default in dormant(sc):
+        key = field.replace("[", ".").replace("]", "")
+        if not updates or key in keys:
+            raise ScenarioError(refusal(field, where, value, default))
+        log.warning("%s: %s = %r (from the file) applies only where %s: with %s it changes nothing", path, field, value,
+                    where, ", ".join(f"{k}={v!r}" for k, v in updates.items()))
 
 
 def parse_scenario(data: dict) -> Scenario:
     """Validate a scenario from a plain dict (as data, then its physics checks); raises
-    ScenarioError with one line per problem."""
-    return check_physics(validate_config(data))
+    ScenarioError with one line per problem (a setting that changes nothing here too: ``config.applies``)."""
+    sc = validate_config(data)
+    _what_does_not_apply(sc, None, {})
+    return check_physics(sc)
 
 
 def updated(sc: Scenario, updates: dict) -> Scenario:

@@ -396,7 +396,7 @@ class JammerConfig(Strict):
         elif circle:
             raise ValueError(f"{', '.join(circle)} apply to path = \"circle\" only")
         if self.pattern == "cosine" and (self.point_at is None) == (self.boresight is None):
-            raise ValueError("a cosine jammer needs exactly one of point_at (a node) and boresight (a direction)")
+            raise ValueError("pattern = 'cosine': a cosine jammer needs exactly one of point_at (a node) and boresight (a direction)")
         if self.pattern == "isotropic" and (self.point_at is not None or self.boresight is not None):
             raise ValueError("point_at / boresight apply to pattern = \"cosine\" only")
         if self.boresight is not None:

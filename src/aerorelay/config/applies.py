@@ -1,0 +1,99 @@
+"""Settings that apply only in some scenarios, in one table (as acados' ``make_consistent``): a setting given a
+value other than its default where it does not apply is refused by name, with where it would apply, instead of
+being accepted and changing nothing (``assembly.load``: a file, or a ``--set``, that says it; a setting of the file
+made dormant by a ``--set`` that switches what applies, e.g. a ray-traced file flown with ``--set
+channel.propagation.model=free_space``, is named in a warning instead). A default is never refused, so a fully
+resolved file (``aerorelay validate``, a run folder's ``scenario.toml``) loads again. Measured before this table (2026-12-06, ``tests/reliability/
+test_no_dead_setting.py``'s schema audit): 45 fields of the nominal preset and 44 of the chain accepted a changed
+value and built the same parts."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel
+
+
+@dataclass(frozen=True)
+class Applies:
+    """``fields`` of a section apply where ``when(section, scenario)``; ``where`` says it (for the refusal)."""
+
+    fields: tuple[str, ...]
+    when: Callable[[Any, Any], bool]
+    where: str
+
+
+CHANNEL = (
+    Applies(("bandwidth", "tx_power_w", "noise_power_w"), lambda c, sc: c.units == "normalized", "channel.units = 'normalized'"),
+    Applies(("bandwidth_hz", "tx_power_dbm", "noise_figure_db", "temperature_k"), lambda c, sc: c.units == "physical",
+            "channel.units = 'physical'"),
+)
+PROPAGATION = (
+    Applies(("origin_m", "yaw_deg", "max_depth", "rays_per_source", "reflection", "diffraction", "scattering", "refraction",
+             "paths_sum", "trace_period_s"), lambda p, sc: p.model == "ray_traced", "channel.propagation.model = 'ray_traced'"),
+    Applies(("exponent", "reference_distance_m", "reference_loss_db"), lambda p, sc: p.model == "log_distance",
+            "channel.propagation.model = 'log_distance'"),
+)
+ANTENNA = (
+    Applies(("exponent",), lambda a, sc: a.pattern == "sin_power", "antenna.pattern = 'sin_power'"),
+    Applies(("bs_g_max", "bs_exponent", "bs_back_lobe", "bs_tilt_deg", "bs_azimuth_deg"), lambda a, sc: a.bs_pattern == "cosine",
+            "antenna.bs_pattern = 'cosine'"),
+    Applies(("bs_axis",), lambda a, sc: a.bs_pattern != "cosine", "antenna.bs_pattern 'dipole' or 'isotropic' (a cosine "
+            "base station points by bs_tilt_deg and bs_azimuth_deg)"),
+)
+JAMMER = (
+    Applies(("path",), lambda j, sc: j.waypoints is not None or j.path == "circle", "it has waypoints (how it moves between "
+            "them) or path = 'circle'"),
+    Applies(("repeat",), lambda j, sc: j.waypoints is not None, "it has waypoints"),
+    Applies(("center_m", "radius_m", "period_s", "clockwise"), lambda j, sc: j.path == "circle", "its path = 'circle'"),
+    Applies(("on_s", "off_s"), lambda j, sc: j.schedule == "on_off", "its schedule = 'on_off'"),
+    Applies(("power_w",), lambda j, sc: j.inr_db_at_relay_start is None and j.power_dbm is None,
+            "neither power_dbm nor inr_db_at_relay_start sets its power"),
+    Applies(("g_max", "exponent", "back_lobe", "point_at", "boresight"), lambda j, sc: j.pattern == "cosine",
+            "its pattern = 'cosine'"),
+)
+ESTIMATION = (
+    Applies(("*",), lambda e, sc: sc.estimates_jammers, "a jammer's localization = 'estimated'"),
+)
+MISSION = (
+    Applies(("ulog_yaw_deg", "ulog_offset_m"), lambda m, sc: m.trajectory_ulog is not None, "a trajectory_ulog mission"),
+)
+
+
+def _sections(sc) -> Iterator[tuple[str, BaseModel, tuple[Applies, ...]]]:
+    """Every section the table covers, with the field path a refusal names."""
+    yield "channel", sc.channel, CHANNEL
+    yield "channel.propagation", sc.channel.propagation, PROPAGATION
+    yield "antenna", sc.antenna, ANTENNA
+    for i, j in enumerate(sc.jammer_configs):
+        yield sc.jammer_field(i), j, JAMMER
+    yield "estimation", sc.estimation, ESTIMATION
+    if sc.sources is None:
+        yield "mission", sc.mission, MISSION
+    for i, s in enumerate(sc.sources or []):
+        yield f"sources[{i}].mission", s.mission, MISSION
+
+
+def dormant(sc) -> list[tuple[str, str, Any, Any]]:
+    """Every setting given a value other than its default where it does not apply: ``(field, where it would apply,
+    value, default)``, the field as a refusal names it (``jammers[0].on_s``)."""
+    out = []
+    for path, section, table in _sections(sc):
+        given = section.model_fields_set
+        fields = type(section).model_fields
+        for rule in table:
+            if rule.when(section, sc):
+                continue
+            for name in (fields if rule.fields == ("*",) else rule.fields):
+                if name in given:
+                    value, default = getattr(section, name), fields[name].get_default(call_default_factory=True)
+                    if value != default:
+                        out.append((f"{path}.{name}", rule.where, value, default))
+    return out
+
+
+def refusal(field: str, where: str, value: Any, default: Any) -> str:
+    return (f"{field}: applies only where {where}; here it changes nothing (got {value!r}; its default {default!r}): "
+            "remove it, or set what it needs")
