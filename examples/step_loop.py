@@ -14,6 +14,7 @@ import numpy as np
 
 import aerorelay as ar
 from aerorelay.models.geometry import rotation_zyx
+from aerorelay.models.state import ETA, P  # the state by name: x = [p, eta, v, omega, Omega]
 from aerorelay.sim.closed_loop import plant_step_function
 
 SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
@@ -28,7 +29,7 @@ x, rates = vehicle.hover_state(sc.nodes.relay), []
 for k in range(int(DURATION / sc.control_period_s) + 1):
     t, s = k * sc.control_period_s, mission.state(k * sc.control_period_s)
     cmd = ctrl.step(t, x, ar.SourceState(s.p, s.v, s.a))                       # 1. the controller
-    poses = {"relay": scene.pose("relay", x[0:3], rotation_zyx(x[3:6])),
+    poses = {"relay": scene.pose("relay", x[P], rotation_zyx(x[ETA])),
              "source": scene.pose("source", s.p, rotation_zyx(s.attitude()))}
     rates.append(float(scene.evaluate(t, poses).capacity))                      # 2. the link at the flown poses
     x = np.asarray(plant(x, cmd.omega_dot_hz_s, np.zeros(6))).ravel()          # 3. your plant
@@ -43,4 +44,4 @@ for k in range(int(DURATION / sc.control_period_s) + 1):
     sources = {n: ar.SourceState(s.p, s.v, s.a) for n, path in parts.sources.items() for s in [path.state(t)]}
     cmds = ctrl.step(t, x, sources)
     x = {r.name: np.asarray(r.plant(x[r.name], cmds[r.name].omega_dot_hz_s, np.zeros(6))).ravel() for r in parts.relays}
-print("chain stepped: relays end at " + ", ".join(f"{n} {np.round(xs[0:3], 2).tolist()}" for n, xs in x.items()))
+print("chain stepped: relays end at " + ", ".join(f"{n} {np.round(xs[P], 2).tolist()}" for n, xs in x.items()))

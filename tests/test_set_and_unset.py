@@ -79,3 +79,20 @@ def test_the_run_summary_shows_the_features_a_run_has(tmp_path):
     assert "capacity_efficiency" not in plain.output and "after_loss" not in plain.output and "wind_speed" not in plain.output
     windy = runner.invoke(app, [*base, "--out", str(tmp_path / "b"), "--set", "wind.mean_m_s=[3.0, 0.0, 0.0]"])
     assert windy.exit_code == 0 and "wind_speed_mean_m_s" in windy.output and "drag_accel_mean_m_s2" in windy.output
+
+
+def test_unset_of_an_unknown_field_is_named_with_did_you_mean_and_of_an_absent_one_said(caplog):
+    """Issue 61: ``--unset controller.nope`` removed nothing and said nothing (``--set`` says "did you mean")."""
+    chain = ROOT / "scenarios" / "chain_two_relays.toml"
+    with pytest.raises(ScenarioError, match=r"^--unset controller\.muu: not a field of the scenario; did you mean 'controller\.mu'\?"):
+        ar.load_scenario(chain, unset=["controller.muu"])
+    with pytest.raises(ScenarioError, match=r"^--unset controler\.mu: not a field of the scenario; did you mean 'controller'\?"):
+        ar.load_scenario(chain, unset=["controler.mu"])
+    ar.load_scenario(chain, unset=["controller.mu"])  # a field the file leaves out: nothing to remove, said
+    assert any("--unset controller.mu: the file does not write it" in r.getMessage() for r in caplog.records)
+
+
+def test_a_list_index_past_the_files_list_is_named_with_its_length():
+    """Issue 61: ``--set relays.5.start`` said "'relays' is not a table"."""
+    with pytest.raises(ScenarioError, match=r"relays\.5\.start: the file lists 2 \[\[relays\]\] \(numbered 0 to 1\)"):
+        ar.load_scenario(ROOT / "scenarios" / "chain_two_relays.toml", set={"relays.5.start": [1.0, 2.0, 3.0]})

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..config import Scenario, ScenarioError, validate_config
 from ..config.applies import dormant, refusal
+from ..config.errors import did_you_mean, is_field
 from .checks import check_physics
 from .parts import check_buildable
 
@@ -56,6 +57,10 @@ def _apply_to_data(data: dict, updates: dict, unset: list[str]) -> None:
         for depth, part in enumerate(parts[:-1]):
             if isinstance(node, list) and part.isdigit() and int(part) < len(node):
                 node = node[int(part)]
+            elif isinstance(node, list) and part.isdigit():
+                table = ".".join(parts[:depth])
+                raise ScenarioError(f"{key}: the file lists {len(node)} [[{table}]] (numbered 0 to {len(node) - 1}); "
+                                    f"{table}.{part} is not one of them")
             elif isinstance(node, dict):
                 if part not in node:
                     if not create:
@@ -69,10 +74,15 @@ def _apply_to_data(data: dict, updates: dict, unset: list[str]) -> None:
         return node, parts[-1]
     for key in unset:
         node, last = walk(key, create=False)
-        if isinstance(node, dict):
-            node.pop(last, None)
+        if isinstance(node, dict) and last in node:
+            node.pop(last)
         elif isinstance(node, list) and last.isdigit() and int(last) < len(node):
             node.pop(int(last))
+        else:  # nothing removed: an unknown field is an error (as --set's), a known one the file leaves out is said
+            loc = tuple(int(p) if p.isdigit() else p for p in key.split("."))
+            if not is_field(loc, Scenario):
+                raise ScenarioError(f"--unset {key}: not a field of the scenario{did_you_mean(loc, Scenario)}")
+            log.warning("--unset %s: the file does not write it: nothing removed (its default applies)", key)
     for key, value in updates.items():
         node, last = walk(key, create=True)
         if isinstance(node, list) and last.isdigit() and int(last) < len(node):

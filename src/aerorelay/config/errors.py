@@ -45,6 +45,33 @@ def _allowed_range(loc: tuple, root: type[BaseModel]) -> str:
     return f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
 
 
+def is_field(loc: tuple, root: type[BaseModel]) -> bool:
+    """Whether ``loc`` (field names, list indices as ints) names a field of ``root``'s schema (a table or a value)."""
+    model: type[BaseModel] | None = root
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        if model is None or part not in model.model_fields:
+            return False
+        model = _submodel(model.model_fields[part].annotation)
+    return True
+
+
+def did_you_mean(loc: tuple, root: type[BaseModel]) -> str:
+    """'; did you mean X?' for the first unknown part of ``loc`` (as ``is_field``'s) close to a field of its table."""
+    model: type[BaseModel] | None = root
+    for i, part in enumerate(loc):
+        if isinstance(part, int):
+            continue
+        if model is None:
+            return ""
+        if part not in model.model_fields:
+            close = difflib.get_close_matches(str(part), list(model.model_fields), n=1, cutoff=0.6)
+            return f"; did you mean {'.'.join(map(str, (*loc[:i], close[0])))!r}?" if close else ""
+        model = _submodel(model.model_fields[part].annotation)
+    return ""
+
+
 def _did_you_mean(loc: tuple, root: type[BaseModel]) -> str:
     """'; did you mean X?' for an unknown field close to one of its table's fields."""
     model: type[BaseModel] | None = root
