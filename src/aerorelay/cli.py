@@ -455,13 +455,13 @@ def _print_fleet_bench(res: dict) -> None:
     for c in stats:
         t.add_column(c, justify="right")
     rows = [(f"{name}: {key.removesuffix('_ms')}", r[key]) for name, r in res["relays"].items()
-            for key in ("preparation_ms", "feedback_ms", "step_ms")]
+            for key in ("preparation_ms", "feedback_ms", "step_ms") if key in r]  # a spare that never flew: none
     rows += [("fleet planner", res["planner_ms"]), ("fleet, one computer", res["fleet_step_one_computer_ms"]),
              ("fleet, a computer per relay", res["fleet_step_own_computers_ms"])]
     for label, v in rows:
         t.add_row(label, *[f"{v[c]:.3f}" for c in stats])
     console.print(t)
-    misses = ", ".join(f"{n} {r['deadline_misses']}" for n, r in res["relays"].items())
+    misses = ", ".join(f"{n} {r.get('deadline_misses', 'never flew')}" for n, r in res["relays"].items())
     console.print(f"wall {res['wall_s']:.1f} s for {res['sim_s']:.1f} s simulated (x{res['real_time_factor']:.2f} real time); "
                   f"deadline misses vs {res['control_period_ms']:g} ms period: per relay {misses}; fleet on one computer "
                   f"{res['deadline_misses_one_computer']}, a computer per relay {res['deadline_misses_own_computers']}; "

@@ -44,6 +44,8 @@ def relay_timing(loop, relay, period_ms: float, *, ipopt_points: int) -> dict:
     step and with the network planner's step, deadline misses, QP iterations and caps; IPOPT at up to
     ``ipopt_points`` of the states it met (``BenchPoint``)."""
     timings = loop.timings[relay.name]
+    if not timings:  # a spare that never launched: nothing timed
+        return {"steps": 0, "flew": False}
     prep, feedback, iters, planner = (np.array([getattr(s, f) for s in timings], float)
                                       for f in ("prep_ms", "feedback_ms", "qp_iters", "planner_ms"))
     whole = prep + feedback
