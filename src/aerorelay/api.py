@@ -52,7 +52,7 @@ from .experiments.budget import left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
 from .experiments.run import RunResult, check_not_injected, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
-from .experiments.study import Study, StudyError, expand, find_studies
+from .experiments.study import Study, StudyError, expand, find_studies, read_studies
 from .flight.airframes import Airframe, MissionFlyer, MultirotorAirframe, RotorpyQuadrotor, still_air
 from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
@@ -283,10 +283,19 @@ def derived_values(sc: Scenario) -> list[str]:
     return out
 
 
-def list_studies(folder: str | Path, *, quick: bool = False) -> list[tuple[str, str, int]]:
-    """``(name, title, runs)`` of every study in ``folder`` (runs as ``reproduce`` would make them)."""
+def list_studies(folder: str | Path, *, quick: bool = False) -> list[tuple[str, str, int | None]]:
+    """``(name, title, runs)`` of every study in ``folder`` (runs as ``reproduce`` would make them); a study that
+    cannot be expanded here (a run needs an extra, a scenario is refused) is listed with why and ``runs`` None, a
+    file that is no study with its file name and why: one bad file does not hide the others."""
     folder = Path(folder)
-    return [(st.name, st.title, len(expand(st, folder.resolve().parent, quick=quick))) for st in find_studies(folder)]
+    studies, broken = read_studies(folder)
+    out: list[tuple[str, str, int | None]] = []
+    for st in studies:
+        try:
+            out.append((st.name, st.title, len(expand(st, folder.resolve().parent, quick=quick))))
+        except (StudyError, ScenarioError, ImportError) as exc:
+            out.append((st.name, f"cannot run here: {exc}", None))
+    return out + [(path.name, f"not a study: {why}", None) for path, why in broken.items()]
 
 
 def check_mavlink_url(url: str, option: str = "MAVLink URL") -> None:

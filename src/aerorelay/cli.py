@@ -513,7 +513,7 @@ def reproduce(
         for c in ("study", "runs", "title"):
             t.add_column(c, justify="right" if c == "runs" else "left")
         for name, title, runs in listed:
-            t.add_row(name, str(runs), title)
+            t.add_row(name, "-" if runs is None else str(runs), title)
         console.print(t)
         return
     if out is None:

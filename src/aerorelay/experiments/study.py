@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import logging
 import math
 import tomllib
 from dataclasses import dataclass
@@ -26,6 +27,8 @@ from ..assembly import load_scenario, parse_scenario, updated
 from ..config import Scenario, ScenarioError
 
 MAX_RUNS = 10_000  # runs one study may make (a 216,000-run grid spent minutes validating before any output)
+
+log = logging.getLogger(__name__)
 
 
 class StudyError(ValueError):
@@ -263,23 +266,49 @@ def _fmt(v) -> str:
 
 
 def load_study(path: Path) -> Study:
+    """A study file, or StudyError naming it: not a regular file (a FIFO or a device is refused before it is read),
+    not UTF-8, not TOML, not a study."""
+    path = Path(path)
     try:
-        return Study.model_validate(tomllib.loads(Path(path).read_text()))
+        if not path.is_file():
+            raise StudyError(f"{path}: not a regular file (a study is a TOML file)")
+        return Study.model_validate(tomllib.loads(path.read_text(encoding="utf-8")))
     except (ValidationError, tomllib.TOMLDecodeError) as exc:
         raise StudyError(f"{path}: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise StudyError(f"{path}: not UTF-8 text (byte {exc.start}): study files are UTF-8 TOML") from None
+    except (OSError, RecursionError) as exc:
+        raise StudyError(f"{path}: cannot be read: {exc}") from None
 
 
-def find_studies(folder: Path, names: list[str] | None = None) -> list[Study]:
-    """Studies in ``folder`` (all, or those named), in file-name order."""
+def read_studies(folder: Path) -> tuple[list[Study], dict[Path, str]]:
+    """Every study file in ``folder`` in file-name order, and why each file that is not a study cannot be one."""
     files = sorted(Path(folder).glob("*.toml"))
     if not files:
         raise StudyError(f"{folder}: no study files (*.toml) there" + ("" if Path(folder).is_dir() else " (no such folder)"))
-    studies = [load_study(f) for f in files]
+    studies, broken = [], {}
+    for f in files:
+        try:
+            studies.append(load_study(f))
+        except StudyError as exc:
+            broken[f] = str(exc)
+    return studies, broken
+
+
+def find_studies(folder: Path, names: list[str] | None = None) -> list[Study]:
+    """Studies in ``folder`` (all, or those named), in file-name order. A file that cannot be a study is an error when
+    every study is asked for; with names, only when a name is not found among the others (said with it)."""
+    studies, broken = read_studies(folder)
+    if broken and not names:
+        raise StudyError("; ".join(broken.values()))
     if names:
         known = {s.name: s for s in studies}
         missing = [n for n in names if n not in known]
         if missing:
-            raise StudyError(f"unknown study {missing}; available: {sorted(known)}")
+            unread = f"; files that are no study: {'; '.join(broken.values())}" if broken else ""
+            raise StudyError(f"unknown study {missing}; available: {sorted(known)}{unread}")
+        for why in broken.values():
+            log.warning("%s (the studies asked for are elsewhere)", why)
         studies = [known[n] for n in names]
     return studies
 
