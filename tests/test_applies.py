@@ -70,7 +70,10 @@ def test_a_default_is_never_refused_and_a_switch_by_set_warns(tmp_path, caplog):
     physical = tmp_path / "physical.toml"
     physical.write_text(ar.load_scenario(NOMINAL, set={"channel.units": "physical", "channel.bandwidth_hz": 1e7}).to_toml())
     with caplog.at_level(logging.WARNING):
-        ar.load_scenario(physical, set={"channel.units": "normalized"})
+        switched = ar.load_scenario(physical, set={"channel.units": "normalized"})
+    assert "bandwidth_hz" not in switched.to_toml()  # a run folder's text says what flies, and loads again
+    (tmp_path / "again.toml").write_text(switched.to_toml())
+    ar.load_scenario(tmp_path / "again.toml")
     assert any("channel.bandwidth_hz = 10000000.0 (from the file) applies only where channel.units = 'physical'"
                in r.getMessage() for r in caplog.records)
     normalized = physical.read_text().replace('units = "physical"', 'units = "normalized"')

@@ -31,3 +31,37 @@ def test_one_file_that_is_no_study_does_not_hide_the_others(tmp_path):
     assert "nominal" in r.output and "zz_latin1.toml" in r.output and "not UTF-8" in r.output
     r = runner.invoke(app, ["reproduce", "--studies-dir", str(studies), "--out", str(tmp_path / "c")])  # all: named
     assert r.exit_code == 2 and "zz_latin1.toml: not UTF-8 text" in r.output
+
+
+def test_special_files_are_refused_at_once_wherever_a_path_is_read(tmp_path):
+    """A FIFO as a run folder's metrics.json blocked export and compare; a symlink loop as the scenario or as --out
+    was a traceback; a FIFO or a folder as a mission CSV was 'no such file'."""
+    import os
+
+    import aerorelay as ar
+    from aerorelay.config import ScenarioError
+
+    loop_a, loop_b = tmp_path / "a", tmp_path / "b"
+    loop_a.symlink_to(loop_b)
+    loop_b.symlink_to(loop_a)
+    r = runner.invoke(app, ["validate", str(loop_a)])
+    assert r.exit_code == 2 and "a symlink loop" in r.output
+    r = runner.invoke(app, ["run", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(loop_a), "--duration", "0.1",
+                            "--no-bound", "--no-figures"])
+    assert r.exit_code == 2 and "--out" in r.output and "a symlink loop" in r.output
+    fifo = tmp_path / "mission.csv"
+    os.mkfifo(fifo)
+    try:
+        ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"mission.trajectory_csv": str(fifo)})
+        raise AssertionError("a FIFO as a mission CSV was read")
+    except ScenarioError as exc:
+        assert "mission.trajectory_csv" in str(exc) and "a FIFO" in str(exc)
+    run = tmp_path / "run"
+    r = runner.invoke(app, ["run", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(run), "--duration", "0.1",
+                            "--no-bound", "--no-figures"])
+    assert r.exit_code == 0, r.output
+    (run / "metrics.json").unlink()
+    os.mkfifo(run / "metrics.json")
+    for args in (["export", str(run)], ["compare", str(run), str(run)]):
+        r = runner.invoke(app, args)
+        assert r.exit_code == 2 and "metrics.json: a FIFO" in r.output, (args, r.output)

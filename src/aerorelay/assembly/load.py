@@ -11,6 +11,7 @@ from pathlib import Path
 from ..config import Scenario, ScenarioError, validate_config
 from ..config.applies import dormant, refusal
 from ..config.errors import did_you_mean, is_field
+from ..filecheck import not_a_file
 from .checks import check_physics
 from .parts import check_buildable
 
@@ -39,8 +40,9 @@ SCENARIO_MAX_BYTES = 4 * 2**20  # a scenario is a small TOML file: a larger one 
 def _scenario_text(path: Path) -> str:
     """The scenario file's text: a regular file (not a device such as /dev/zero, a FIFO that may never
     end, or a socket) of at most ``SCENARIO_MAX_BYTES``; ScenarioError naming it otherwise."""
-    if path.exists() and not path.is_dir() and not path.is_file():
-        raise ScenarioError(f"{path}: not a regular file (a device, a FIFO or a socket): scenario files are TOML files")
+    why = not_a_file(path)
+    if why is not None and why != "no such file" and why != "a folder, not a file":  # those two: said by the caller
+        raise ScenarioError(f"{path}: {why}: scenario files are TOML files")
     if path.is_file() and path.stat().st_size > SCENARIO_MAX_BYTES:
         raise ScenarioError(f"{path}: {path.stat().st_size:,} bytes, more than a scenario file holds (at most "
                             f"{SCENARIO_MAX_BYTES // 2**20} MiB of TOML)")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from pydantic import Field, field_validator, model_validator
 
+from ..filecheck import not_a_file
 from ..models.mission import CsvPath, GpxPath, PlanPath, UlogPath
 from .base import Strict, Vec3, Waypoint, check_waypoint_times, on_the_earth
 
@@ -34,8 +35,9 @@ def flight_path(kind: str, file: str, yaw_deg: float = 0.0, offset=(0.0, 0.0, 0.
 
 def readable_file(field: str, file: str, read) -> None:
     """``file`` (named by ``field``) exists and ``read()`` reads it; a ValueError naming the field otherwise."""
-    if not Path(file).is_file():
-        raise ValueError(f"{field}: no such file {file}")
+    why = not_a_file(file)
+    if why is not None:
+        raise ValueError(f"{field}: {why}: {file}")
     try:
         read()
     except ValueError as exc:
@@ -84,8 +86,9 @@ class MissionConfig(Strict):
     def _readable_csv(cls, v):
         if v is None:
             return v
-        if not Path(v).is_file():
-            raise ValueError(f"no such file {v}")
+        why = not_a_file(v)
+        if why is not None:
+            raise ValueError(f"{why}: {v}")
         flight_path("csv", v)  # finite numbers, >= 2 rows, increasing time, every column (ValueError names the problem)
         return v
 

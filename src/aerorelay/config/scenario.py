@@ -21,6 +21,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
+from .applies import dormant
 from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth, papers_generator_named
 from .controller import ControllerConfig
 from .errors import format_errors
@@ -659,8 +660,17 @@ class Scenario(Strict):
         """The resolved scenario as TOML text (every default spelled out), arrays on one line, with
         only the mission source that flies (no waypoints beside a CSV); ``mission_file`` replaces
         the CSV's path, ``source_files`` (source name -> file) each ``[[sources]]`` mission's,
-        ``jammer_files`` (jammer name -> file) each jammer's track (a run folder holds its own copies)."""
+        ``jammer_files`` (jammer name -> file) each jammer's track (a run folder holds its own copies). A setting that
+        changes nothing here (``config.applies``: dormant since a ``--set`` switched what applies) is left out: the
+        text says what flies, and loads again."""
         data = self._plain_data()
+        for field, *_ in dormant(self):
+            node: Any = data
+            parts = field.replace("[", ".").replace("]", "").split(".")
+            for part in parts[:-1]:
+                node = node[int(part)] if part.isdigit() else node.get(part, {})
+            if isinstance(node, dict):
+                node.pop(parts[-1], None)
         if "mission" in data:
             _only_what_flies(data["mission"], self.mission, mission_file)
         for cfg, m in zip(self.sources or [], data.get("sources", []), strict=True):

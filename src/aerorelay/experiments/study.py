@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from ..assembly import load_scenario, parse_scenario, updated
 from ..config import Scenario, ScenarioError
+from ..filecheck import not_a_file
 
 MAX_RUNS = 10_000  # runs one study may make (a 216,000-run grid spent minutes validating before any output)
 
@@ -270,8 +271,9 @@ def load_study(path: Path) -> Study:
     not UTF-8, not TOML, not a study."""
     path = Path(path)
     try:
-        if not path.is_file():
-            raise StudyError(f"{path}: not a regular file (a study is a TOML file)")
+        why = not_a_file(path)
+        if why is not None:
+            raise StudyError(f"{path}: {why} (a study is a TOML file)")
         return Study.model_validate(tomllib.loads(path.read_text(encoding="utf-8")))
     except (ValidationError, tomllib.TOMLDecodeError) as exc:
         raise StudyError(f"{path}: {exc}") from None

@@ -14,6 +14,7 @@ import pyarrow.parquet as pq
 
 from ..assembly import parse_scenario
 from ..config import Scenario, ScenarioError
+from ..filecheck import not_a_file
 from ..sim.log_schema import modern_columns, relays_in, sources_in
 from ..sim.units import metric_value_problem
 from ..store.outputs import OutputError
@@ -29,6 +30,9 @@ def read_metrics(folder: str | Path) -> dict:
     OutputError naming the file and the first bad entry otherwise."""
     folder = Path(folder)
     f = folder / METRICS_FILE
+    why = not_a_file(f)
+    if why is not None and why != "no such file":  # a FIFO would block the read, a loop raise
+        raise OutputError(f"{f}: {why}: not an aerorelay run folder's metrics")
     try:
         m = json.loads(f.read_text())
     except FileNotFoundError:
@@ -50,8 +54,10 @@ def read_timeseries(folder: str | Path, columns: list[str] | None = None) -> pd.
     the source, m) derived; OutputError naming the file when it is missing, damaged or lacks a column."""
     folder = Path(folder)
     f = folder / TIMESERIES_FILE
-    if not f.is_file():
-        raise OutputError(f"{f}: missing: the run's time series is not there; {_again(folder)}")
+    why = not_a_file(f)
+    if why is not None:
+        raise OutputError(f"{f}: {'missing' if why == 'no such file' else why}: the run's time series is not there; "
+                          f"{_again(folder)}")
     try:
         names = pq.read_schema(f).names
         rename = modern_columns(names)
@@ -80,6 +86,9 @@ def read_scenario(folder: str | Path) -> Scenario:
     """``scenario.toml`` of a run folder, validated; OutputError naming the file when it is missing or invalid."""
     folder = Path(folder)
     f = folder / SCENARIO_FILE
+    why = not_a_file(f)
+    if why is not None and why != "no such file":
+        raise OutputError(f"{f}: {why}: not an aerorelay run folder's scenario")
     try:
         return parse_scenario(tomllib.loads(f.read_text()))
     except FileNotFoundError:

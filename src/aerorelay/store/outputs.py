@@ -20,6 +20,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from ..filecheck import not_a_folder
+
 MARKER = ".aerorelay"
 LOCK_SUFFIX = ".lock"  # .NAME.lock beside a run or bound folder: its one writer holds it
 TMP_TAG = "tmp"  # temporary siblings are named .NAME.tmp-PID-XXXX: a later writer removes a dead process's
@@ -84,6 +86,9 @@ def check_output_folder(folder: str | Path, kind: str, *, option: str = "--out",
     """Raise OutputError unless ``folder`` can take this program's ``kind`` of output: not a file,
     not below a file, not a forbidden place, empty or one of its own folders, its parent writable,
     ``need_bytes`` free. A symbolic link is checked (and later written) where it points."""
+    loop = not_a_folder(folder)
+    if loop is not None and loop.startswith("a symlink"):
+        raise OutputError(f"{option} {folder}: {loop} (nothing was written)")
     folder = resolve_output(folder)
     above = _file_above(folder)
     if above is not None:
