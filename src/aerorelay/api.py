@@ -32,6 +32,7 @@ from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
 from .assembly.parts import (
+    bound_cost,
     bound_of,
     build,
     build_scene,
@@ -340,6 +341,12 @@ def relay_summaries(sc: Scenario) -> list[dict[str, object]]:
                     "speed_m_s": ctrl.capacity.speed_m_s, "governor_speed_m_s": ctrl.governor_speed_m_s,
                     "antenna": antenna, "spare": r.standby})
     return out
+
+
+def bound_estimate(sc: Scenario):
+    """What the scenario's capacity bound would cost here if not cached (``planning.bound_cost.BoundCost``: cells,
+    instants, relays, combinations of base-station ends, bytes held, estimated seconds)."""
+    return bound_cost(sc)
 
 
 def link_budget(sc: Scenario) -> dict[str, float]:

@@ -219,10 +219,21 @@ def _fly(sc: Scenario, no_bound: bool) -> api.Result:
                             if k % 50 == 0 or k == n else None)
 
 
+def _say_bound_estimate(sc: Scenario) -> None:
+    """Long work says its estimate: the bound's (``planning.bound_cost``), when above a few seconds, before it starts
+    (a bound cached for this geometry takes none of it)."""
+    cost = api.bound_estimate(sc)
+    if 5.0 < cost.seconds <= 60.0 * sc.bound.max_minutes:  # above its limit, the bound's refusal says it
+        ends = f" for {cost.combinations} combinations of base-station ends" if cost.combinations > 1 else ""
+        err_console.print(f"capacity bound: about {cost.seconds / 60.0:.1f} min estimated here{ends} unless cached "
+                          f"(bound.max_minutes = {sc.bound.max_minutes:g}; --no-bound skips it)", highlight=False)
+
+
 def _bound_with_progress(sc: Scenario):
     """The scenario's capacity bound (cached by geometry), with a progress bar when computed."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+    _say_bound_estimate(sc)
     with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
                   TimeElapsedColumn(), console=err_console, transient=True) as prog:
         task = prog.add_task("bound", total=1)
@@ -244,6 +255,7 @@ def bound(
     sc = _load_or_exit(scenario, set_, unset)
     _check_out(out, "bound")
     try:
+        _say_bound_estimate(sc)
         with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
                       TimeElapsedColumn(), console=err_console, transient=True) as prog:
             task = prog.add_task("bound", total=1)

@@ -65,3 +65,16 @@ def test_special_files_are_refused_at_once_wherever_a_path_is_read(tmp_path):
     for args in (["export", str(run)], ["compare", str(run), str(run)]):
         r = runner.invoke(app, args)
         assert r.exit_code == 2 and "metrics.json: a FIFO" in r.output, (args, r.output)
+
+
+def test_the_network_bounds_estimate_counts_every_combination_of_base_station_ends():
+    """8 stations x 2 sources ending at 'any' were 64 combinations bounded one by one, estimated as one (1.6 min
+    said, nothing for 300 s). The estimate is the one combination's times their number (each bounded on its own)."""
+    import aerorelay as ar
+    from aerorelay.assembly.parts import bound_cost
+
+    sc = ar.load_scenario(ROOT / "scenarios" / "relay_shifts.toml")  # one route to "any" of 2 base stations
+    one = bound_cost(sc.with_updates({"network.routes": [["inspector", "r1", "r2", sc.base_station_names[0]]]}))
+    both = bound_cost(sc)
+    assert both.combinations == 2 and one.combinations == 1
+    assert both.seconds == 2 * one.seconds

@@ -619,7 +619,9 @@ def bound_cost(sc: Scenario) -> BoundCost:
         if traced:
             return traced_network_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, len(relays),
                                              len(hops), fixed_ends, rays)
-        return network_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, len(relays), len(hops))
+        stations = len(sc.base_station_list)  # a route to "any" is bounded at each base station: every combination
+        combinations = math.prod(stations if r[-1] == ANY_BASE_STATION else 1 for r in sc.route_list)
+        return network_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, len(relays), len(hops), combinations)
     axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
     if traced:
         return traced_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, axes, rays)

@@ -59,6 +59,7 @@ class BoundCost:
     pair_hops: int
     bytes: float
     seconds: float
+    combinations: int = 1  # a network's combinations of base-station ends, each bounded on its own
 
 
 def grid_cells(lo, hi, step: float) -> int:
@@ -100,15 +101,17 @@ def traced_network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: fl
                      trace_s + instants * DP_PASSES * pair_hops * cells**2 / PAIR_EVALS_PER_S)
 
 
-def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int) -> BoundCost:
+def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int,
+                       combinations: int = 1) -> BoundCost:
     """A fleet's network bound's cost (``planning.network_bound.compute_network_bound``): its passes over every pair
-    of cubes and its branch and bound's worst case, each instant."""
+    of cubes and its branch and bound's worst case, each instant, for each of the ``combinations`` of base-station
+    ends its routes may take (each bounded on its own)."""
     cells, instants = cube_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
     held = CHUNK * cells * 8 * 3 + relays * cells * 8 * 8
     branch = (BRANCH_SEARCHES * 2 * BRANCH_LEVELS * BRANCH_PAIRS / BOX_PAIRS_PER_S) if pair_hops else 0.0
     seconds = instants * (DP_PASSES * pair_hops * float(cells) ** 2 / PAIR_EVALS_PER_S + relays * cells * 64 / SINGLE_EVALS_PER_S
-                          + branch)
-    return BoundCost(cells, 0, instants, relays, pair_hops, float(held), seconds)
+                          + branch) * combinations
+    return BoundCost(cells, 0, instants, relays, pair_hops, float(held), seconds, combinations)
 
 
 def machine_memory_bytes() -> int:
@@ -122,7 +125,8 @@ def check_bound_cost(cost: BoundCost, *, max_minutes: float, grid_field: str, dt
     this machine's memory or more than ``max_minutes`` of estimated time."""
     memory = machine_memory_bytes() if memory_bytes is None else memory_bytes
     size = (f"{cost.cells:,} cells" + (f" x {cost.axes} axes" if cost.axes else "") + f" x {cost.instants} instants"
-            + (f", {cost.relays} relays ({cost.pair_hops} relay-relay hops, cost ~ cells^2 each)" if cost.pair_hops else ""))
+            + (f", {cost.relays} relays ({cost.pair_hops} relay-relay hops, cost ~ cells^2 each)" if cost.pair_hops else "")
+            + (f", x {cost.combinations} combinations of base-station ends" if cost.combinations > 1 else ""))
     # the grid scales cells as step^-3 (memory, one-relay time) or step^-6 (pair terms): the coarsening that fits both
     over_memory, over_time = cost.bytes / (memory / 2), cost.seconds / (max_minutes * 60.0)
     if over_memory <= 1 and over_time <= 1:
@@ -133,6 +137,6 @@ def check_bound_cost(cost: BoundCost, *, max_minutes: float, grid_field: str, dt
         needs.append(f"holds ~{cost.bytes / 1e9:.3g} GB at once, more than half of this machine's {memory / 1e9:.0f} GB")
     if over_time > 1:
         needs.append(f"would take ~{cost.seconds / 60:.3g} min here, more than bound.max_minutes = {max_minutes:g}")
-    raise BoundTooLarge(f"{grid_field}: the bound {' and '.join(needs)} ({size}); a grid about {factor:.2g}x coarser fits "
+    raise BoundTooLarge(f"{grid_field}: the bound {' and '.join(needs)} ({size}); a grid about {factor:.3g}x coarser fits "
                         f"(or a coarser {dt_field}, a smaller controller.workspace, fewer relays"
                         + (", a larger bound.max_minutes" if over_memory <= 1 else "") + "; or --no-bound)")
