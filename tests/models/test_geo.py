@@ -146,3 +146,16 @@ def test_a_plan_mission_flies_and_its_run_folder_flies_it_again(tmp_path):
     again = ar.load_scenario(tmp_path / "run" / "scenario.toml")
     assert Path(again.mission.trajectory_plan).name == "mission.plan"
     assert np.array_equal(ar.simulate(again).timeseries["capacity"].to_numpy(), r.timeseries["capacity"].to_numpy())
+
+
+@pytest.mark.parametrize("items,hover_speed,said", [
+    ([_item(16, HOME[0], HOME[1], 10.0), _item(16, HOME[0], HOME[1], 10.0)], 5.0, "a mission of 0 s"),
+    ([_item(22, HOME[0], HOME[1], 10.0), _item(16, HOME[0] + _north(20), HOME[1], 10.0)], 1e9, "faster than any multirotor"),
+], ids=["one-place", "1e9-m-s"])
+def test_a_degenerate_plan_is_named_not_flown(tmp_path, items, hover_speed, said):
+    """Issue 61: a .plan whose items are all at one place, or flown at 1e9 m/s, flew a 0 s mission, exit 0."""
+    from aerorelay.config import ScenarioError
+
+    f = _plan(tmp_path, items, hover_speed)
+    with pytest.raises(ScenarioError, match=rf"mission[.:] ?trajectory_plan: .*{said}"):
+        ar.load_scenario("scenarios/nominal_tilted.toml", set={"mission.trajectory_plan": str(f), "geo.origin": list(HOME)})
