@@ -159,3 +159,17 @@ def test_a_degenerate_plan_is_named_not_flown(tmp_path, items, hover_speed, said
     f = _plan(tmp_path, items, hover_speed)
     with pytest.raises(ScenarioError, match=rf"mission[.:] ?trajectory_plan: .*{said}"):
         ar.load_scenario("scenarios/nominal_tilted.toml", set={"mission.trajectory_plan": str(f), "geo.origin": list(HOME)})
+
+
+def test_a_gpx_file_is_read_in_the_encoding_its_declaration_names_and_a_point_off_the_earth_is_named(tmp_path):
+    """Issue 61: a valid GPX file in ISO-8859-1 (its XML declaration says so) was refused as non-UTF-8; latitude 95
+    said "array must not contain infs or NaNs" (no file, no point)."""
+    pts = [(k * 2.0, HOME[0] + _north(3.0 * k), HOME[1], HOME[2] + 0.5 * k) for k in range(8)]
+    utf8 = _gpx(tmp_path, pts).read_text()
+    latin = tmp_path / "latin.gpx"
+    latin.write_bytes(utf8.replace('<?xml version="1.0"?>', '<?xml version="1.0" encoding="ISO-8859-1"?>')
+                      .replace('creator="test"', 'creator="caf\u00e9"').encode("latin-1"))
+    assert GpxPath(latin).duration == pytest.approx(14.0)
+    off = [(t, 95.0 if k == 3 else lat, lon, ele) for k, (t, lat, lon, ele) in enumerate(pts)]
+    with pytest.raises(ValueError, match=r"track\.gpx: track 0 segment 0 point 3: lat 95, lon .* is not on the earth"):
+        GpxPath(_gpx(tmp_path, off))

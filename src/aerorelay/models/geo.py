@@ -21,6 +21,7 @@ from __future__ import annotations
 import datetime
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -136,14 +137,23 @@ def read_plan(path: str | Path) -> tuple[tuple[float, float, float], list[GeoPoi
     return home_t, points
 
 
+def xml_text(data: bytes) -> str:
+    """An XML file's text in the encoding its declaration names (``<?xml ... encoding="ISO-8859-1"?>``; UTF-8 when it
+    names none, as XML defines), its declaration's encoding removed (the text is decoded already)."""
+    head = re.match(rb"\s*<\?xml[^>]*?encoding\s*=\s*[\"']([A-Za-z0-9._-]+)[\"']", data)
+    encoding = head.group(1).decode("ascii") if head else "utf-8"
+    text = data.decode(encoding)
+    return re.sub(r"(<\?xml[^>]*?)\s+encoding\s*=\s*[\"'][A-Za-z0-9._-]+[\"']", r"\1", text, count=1)
+
+
 def read_gpx(path: str | Path) -> list[GeoPoint]:
     """A GPX file's timed points (every track point, or else every route point), times from the first (s)."""
     import gpxpy  # the GPX standard's reader; imported where it is used
 
     path = Path(path)
     try:
-        doc = gpxpy.parse(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, gpxpy.gpx.GPXException) as exc:
+        doc = gpxpy.parse(xml_text(path.read_bytes()))
+    except (OSError, UnicodeDecodeError, LookupError, ValueError, gpxpy.gpx.GPXException) as exc:
         raise ValueError(f"{path}: not a readable GPX file ({type(exc).__name__}: {exc})") from None
     raw: list = [(f"track {i} segment {j} point {k}", p) for i, tr in enumerate(doc.tracks)
                  for j, seg in enumerate(tr.segments) for k, p in enumerate(seg.points)]
@@ -157,6 +167,10 @@ def read_gpx(path: str | Path) -> list[GeoPoint]:
             raise ValueError(f"{path}: {where}: no <time> (a timed track is needed to fly it)")
         if p.elevation is None:
             raise ValueError(f"{path}: {where}: no <ele> (an altitude is needed to fly it)")
+        if not (math.isfinite(p.latitude) and -90.0 <= p.latitude <= 90.0 and math.isfinite(p.longitude)
+                and -180.0 <= p.longitude <= 180.0):
+            raise ValueError(f"{path}: {where}: lat {p.latitude:g}, lon {p.longitude:g} is not on the earth (latitude in "
+                             "[-90, 90], longitude in [-180, 180] degrees)")
         stamp = p.time if p.time.tzinfo else p.time.replace(tzinfo=datetime.UTC)
         t0 = stamp if t0 is None else t0
         out.append(GeoPoint((stamp - t0).total_seconds(), float(p.latitude), float(p.longitude), float(p.elevation)))
