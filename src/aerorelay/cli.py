@@ -689,6 +689,9 @@ def fly(
     if set(urls) != set(names):
         _fail(f"--mavlink: no vehicle for the relays {sorted(set(names) - set(urls))} (one NAME=URL per relay)")
     sources = _named_urls(source_mavlink or [], [s.name for s in sc.source_list], "--source-mavlink", "source")
+    shared = sorted(set(urls.values()) & set(sources.values()))
+    if shared:
+        _fail(f"--source-mavlink: {shared[0]} is a relay's vehicle too (--mavlink): a source is another vehicle")
     try:
         origin = tuple(float(v) for v in source_origin.split(","))
     except ValueError:
@@ -729,6 +732,9 @@ def _named_urls(given: list[str], names: list[str], option: str, what: str) -> d
         if name in out:
             _fail(f"{option}: {what} {name!r} given twice")
         _check_url(url, f"{option} {name}=" if sep else option)
+        same = [n for n, u in out.items() if u == url]
+        if same:  # one vehicle flown by two controllers: refused before anything is armed
+            _fail(f"{option}: {what}s {same[0]!r} and {name!r} on one vehicle ({url}): one URL per {what}")
         out[name] = url
     return out
 

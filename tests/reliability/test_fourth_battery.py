@@ -78,3 +78,10 @@ def test_the_network_bounds_estimate_counts_every_combination_of_base_station_en
     both = bound_cost(sc)
     assert both.combinations == 2 and one.combinations == 1
     assert both.seconds == 2 * one.seconds
+
+
+def test_two_relays_on_one_vehicle_are_refused_before_arming():
+    """Two relays' --mavlink on one vehicle were flown, then 'unsafe' without the cause."""
+    chain = str(ROOT / "scenarios" / "chain_two_relays.toml")
+    r = runner.invoke(app, ["fly", chain, "--mavlink", "r1=udpout:127.0.0.1:14541", "--mavlink", "r2=udpout:127.0.0.1:14541"])
+    assert r.exit_code == 2 and "relays 'r1' and 'r2' on one vehicle (udpout:127.0.0.1:14541)" in r.output, r.output
