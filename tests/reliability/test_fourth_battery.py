@@ -85,3 +85,16 @@ def test_two_relays_on_one_vehicle_are_refused_before_arming():
     chain = str(ROOT / "scenarios" / "chain_two_relays.toml")
     r = runner.invoke(app, ["fly", chain, "--mavlink", "r1=udpout:127.0.0.1:14541", "--mavlink", "r2=udpout:127.0.0.1:14541"])
     assert r.exit_code == 2 and "relays 'r1' and 'r2' on one vehicle (udpout:127.0.0.1:14541)" in r.output, r.output
+
+
+def test_a_scene_file_not_found_says_where_it_looked():
+    """A scene given with --set is found from the working folder, one in the file beside the file: the error said
+    only "does not exist"."""
+    import pytest
+
+    import aerorelay as ar
+    from aerorelay.config import ScenarioError
+
+    pytest.importorskip("sionna.rt")
+    with pytest.raises(ScenarioError, match=r"scene file 'nowhere\.xml': no such file \(looked for /.*nowhere\.xml; "):
+        ar.load_scenario(ROOT / "scenarios" / "street_canyon_traced.toml", set={"channel.propagation.scene": "nowhere.xml"})

@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..filecheck import not_a_file
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, file_digest, publish_checked
 from .propagation import SPEED_OF_LIGHT_M_S
 
@@ -364,8 +365,10 @@ def scene_source(rt, scene: str) -> str | None:
     """The Mitsuba XML file a scene loads from (a shipped scene's by its name, ``rt.scene.<name>``, or the file
     given), None for ``"empty"``; ``ValueError`` naming the scene when it is none of these."""
     if Path(scene).suffix.lower() == ".xml":
-        if not Path(scene).is_file():
-            raise ValueError(f"ray tracer: scene file {scene!r} does not exist")
+        why = not_a_file(scene)
+        if why is not None:  # where it looked: a file's scene is the scenario file's neighbour, a --set's the shell's
+            raise ValueError(f"ray tracer: scene file {scene!r}: {why} (looked for {Path(scene).resolve()}; a scene named "
+                             "in a scenario file is found beside that file, one given with --set from the working folder)")
         return scene
     if scene == "empty":
         return None
