@@ -98,3 +98,21 @@ def test_a_scene_file_not_found_says_where_it_looked():
     pytest.importorskip("sionna.rt")
     with pytest.raises(ScenarioError, match=r"scene file 'nowhere\.xml': no such file \(looked for /.*nowhere\.xml; "):
         ar.load_scenario(ROOT / "scenarios" / "street_canyon_traced.toml", set={"channel.propagation.scene": "nowhere.xml"})
+
+
+def test_a_truncated_or_foreign_scene_file_is_refused_at_load(tmp_path):
+    """A truncated or binary scene XML, or a GPX file as a scene, validated and then crashed the run at its first
+    trace."""
+    import pytest
+
+    import aerorelay as ar
+    from aerorelay.config import ScenarioError
+
+    pytest.importorskip("sionna.rt")
+    cut = tmp_path / "cut.xml"
+    cut.write_text('<scene version="2.1.0"><shape type="ply" id="wall"><string name="filename"')
+    gpx = tmp_path / "track.xml"
+    gpx.write_text('<?xml version="1.0"?><gpx version="1.1"><trk/></gpx>')
+    for f, said in ((cut, "not well-formed XML"), (gpx, "its root element is <gpx>")):
+        with pytest.raises(ScenarioError, match=said):
+            ar.load_scenario(ROOT / "scenarios" / "street_canyon_traced.toml", set={"channel.propagation.scene": str(f)})

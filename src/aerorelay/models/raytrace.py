@@ -361,6 +361,20 @@ def scene_digest(rt, scene: str) -> str:
     return h.hexdigest()
 
 
+def _mitsuba_xml(scene: str) -> None:
+    """ValueError unless ``scene`` is well-formed XML whose root is a Mitsuba ``<scene>`` (a truncated or binary file,
+    or a GPX given as a scene, validated and then crashed the run at its first trace)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(scene).getroot()
+    except ET.ParseError as exc:
+        raise ValueError(f"ray tracer: scene file {scene!r}: not well-formed XML ({exc}): a Mitsuba scene is an XML "
+                         "file (truncated? binary?)") from None
+    if root.tag != "scene":
+        raise ValueError(f"ray tracer: scene file {scene!r}: its root element is <{root.tag}>, a Mitsuba scene's is <scene>")
+
+
 def scene_source(rt, scene: str) -> str | None:
     """The Mitsuba XML file a scene loads from (a shipped scene's by its name, ``rt.scene.<name>``, or the file
     given), None for ``"empty"``; ``ValueError`` naming the scene when it is none of these."""
@@ -369,6 +383,7 @@ def scene_source(rt, scene: str) -> str | None:
         if why is not None:  # where it looked: a file's scene is the scenario file's neighbour, a --set's the shell's
             raise ValueError(f"ray tracer: scene file {scene!r}: {why} (looked for {Path(scene).resolve()}; a scene named "
                              "in a scenario file is found beside that file, one given with --set from the working folder)")
+        _mitsuba_xml(scene)
         return scene
     if scene == "empty":
         return None
