@@ -116,3 +116,13 @@ def test_a_truncated_or_foreign_scene_file_is_refused_at_load(tmp_path):
     for f, said in ((cut, "not well-formed XML"), (gpx, "its root element is <gpx>")):
         with pytest.raises(ScenarioError, match=said):
             ar.load_scenario(ROOT / "scenarios" / "street_canyon_traced.toml", set={"channel.propagation.scene": str(f)})
+
+
+def test_a_closed_tcp_port_is_named_not_a_traceback():
+    """``--mavlink tcp:`` to a closed port was a ConnectionRefusedError traceback (left from the third battery)."""
+    import pytest
+
+    from aerorelay.flight.mavlink import MavlinkUrlError, connect
+
+    with pytest.raises(MavlinkUrlError, match=r"'tcp:127\.0\.0\.1:9': cannot connect"):  # a ValueError: `fly` exits 2
+        connect("tcp:127.0.0.1:9", system=1, component=1)

@@ -60,7 +60,11 @@ def connect(url: str, *, system: int, component: int):
     """A MAVLink 2 connection on ``url`` (pymavlink's URL forms: ``udpin:HOST:PORT``, ``udpout:HOST:PORT``,
     ``tcp:HOST:PORT``, a serial device) sending as ``system`` / ``component``; ``check_url`` first."""
     check_url(url)
-    return mavutil.mavlink_connection(url, source_system=system, source_component=component, dialect="common")
+    try:
+        return mavutil.mavlink_connection(url, source_system=system, source_component=component, dialect="common")
+    except OSError as exc:  # a closed TCP port, a serial device that refuses, an address not here: named, no traceback
+        raise MavlinkUrlError(f"{url!r}: cannot connect ({exc.strerror or exc}): is the autopilot (or SITL) listening "
+                              "there?") from None
 
 
 MAX_MESSAGES_PER_READ = 10_000  # a flood cannot keep a control period reading forever
