@@ -241,12 +241,16 @@ def fly(sc: Scenario, url: str | Mapping[str, str], *, arm: bool = False, setpoi
     try:
         bridge.run(sc.duration_s if duration_s is None else duration_s)
         aborted = bridge.ended
+        if aborted is None and not bridge.loop.started:  # e.g. a --source-mavlink that never answered: exit 0 before
+            aborted = f"the mission never started: {bridge.loop.waiting or 'the vehicles never all took OFFBOARD'}"
     except KeyboardInterrupt:
         aborted = "interrupted (Ctrl-C): the vehicles were asked to hold"
         raise
     finally:
         df = _flight.bridge_frame(bridge.log)
         result = recording.finish(df, aborted, lost_at=ctrl.lost_at)
+    if result is None and aborted is not None:  # not one period flown: said, not a flight reported done (exit 0 before)
+        raise ValueError(f"nothing was flown: {aborted}" + (f" (the bridge's log is in {out})" if out is not None else ""))
     return result, df
 
 

@@ -102,3 +102,25 @@ def test_fly_names_a_network_without_a_vehicle_for_every_relay():
     assert result.exit_code != 0 and "one NAME=URL per relay" in result.output
     result = CliRunner().invoke(app, ["sitl", chain, "--relay", "r9"])
     assert result.exit_code != 0 and "the scenario's relays are r1, r2" in result.output
+
+
+def test_a_flight_whose_source_never_answers_is_not_reported_flown(tmp_path):
+    """Issue 61 (left from the third battery): ``fly --source-mavlink`` with no source answering exited 0."""
+    port, silent = free_udp_port(), free_udp_port()
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    vehicle = subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "sitl", "scenarios/nominal_tilted.toml",
+                                "--listen", f"udpin:127.0.0.1:{port}", "--duration", "30"], env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        assert vehicle.stdout is not None
+        end = time.monotonic() + 60.0
+        while b"listening" not in vehicle.stdout.readline() and time.monotonic() < end:
+            pass
+        result = CliRunner().invoke(app, ["fly", "scenarios/nominal_tilted.toml", "--mavlink", f"udpout:127.0.0.1:{port}",
+                                          "--source-mavlink", f"udpout:127.0.0.1:{silent}", "--arm", "--duration", "3",
+                                          "--out", str(tmp_path)])
+        assert result.exit_code == 2, result.output
+        assert "nothing was flown: the mission never started" in result.output and "source" in result.output
+    finally:
+        vehicle.kill()
+        vehicle.wait()
