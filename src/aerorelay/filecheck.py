@@ -38,8 +38,8 @@ def not_a_folder(path: str | Path) -> str | None:
     """Why ``path`` cannot be used as a folder (None: it is one, or nothing is there yet): a symlink loop, a file."""
     try:
         st = os.stat(path)
-    except FileNotFoundError:
-        return None if not os.path.islink(path) else "a symlink to nothing"
+    except FileNotFoundError:  # nothing there yet (a link to nothing yet: written where it points)
+        return None
     except OSError as exc:
         if exc.errno == errno.ELOOP:
             return "a symlink loop, not a folder"

@@ -13,6 +13,7 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.assembly.parts import build_source
+from aerorelay.models.state import ETA, OMEGA, ROTORS
 
 NOMINAL = "scenarios/nominal_tilted.toml"
 
@@ -42,14 +43,14 @@ def test_a_state_that_cannot_be_flown_is_named_once(sc, caplog):
     x = ctrl.vehicle.hover_state(sc.nodes.relay)
     caplog.set_level(logging.WARNING, logger="aerorelay.control.relay_step")
     T = ctrl.period
-    for k in range(8):  # the attitude turning at 1 rad/s, the body rates read zero (a simulator without them)
+    for k in range(8):  # the attitude turning at 0.05 rad/s, the body rates read zero (a simulator without them)
         x = x.copy()
-        x[3:6] = [0.0, 0.0, 1.0 * k * T]
-        x[9:12] = 0.0
+        x[ETA] = [0.0, 0.0, 0.05 * k * T]
+        x[OMEGA] = 0.0
         ctrl.step(k * T, x, _source(sc, k * T))
     assert sum("body rates read zero" in r.message for r in caplog.records) == 1
     y = x.copy()
-    y[12:] = 0.0
+    y[ROTORS] = 0.0
     ctrl.step(8 * T, y, _source(sc, 8 * T))
     assert any("rotor speeds are all zero" in r.message for r in caplog.records)
     z = x.copy()

@@ -102,7 +102,9 @@ class StateSanity:
     ``flight.autopilot_loop.AutopilotLoop`` or ``CommandedState``), a position below the ground (a
     NED position passed as ENU)."""
 
-    TURNING_RAD_S = 0.3  # the attitude turning this fast while the rates read zero
+    TURNING_RAD_S = 0.005  # the attitude moving at all (0.3 deg/s) while the rates read exactly zero: a real vehicle's
+    # rates are never exactly 0.0 in flight; a simulator state without them put 42% of the steps on the brake law at an
+    # attitude turning slower than the 0.3 rad/s this was before (issue 61)
     STEPS = 5  # ... for this many steps in a row
 
     def __init__(self, ground_z_m: float):
