@@ -16,7 +16,7 @@ from ..config.errors import error_line
 from ..config.scenario import after_validation
 from ..models.axes import axis_cone
 from ..models.channel import reachable_mutual_alignment
-from ..models.mission import source_trajectory
+from ..models.mission import check_flies, source_trajectory
 from ..models.obstacles import obstacle_model, segment_clearance
 from ..models.propagation import RMA_AV_MAX_D2D_M, RMA_AV_MAX_HEIGHT_M, RMA_AV_MIN_HEIGHT_M
 from ..models.vehicle import HoverInfeasibleError
@@ -36,6 +36,7 @@ def check_physics(sc: Scenario) -> Scenario:
     if key in _PASSED:
         return sc
     for loc, check in (("scenario", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
+                       ("scenario", _missions_fly),
                        ("scenario", _mu_reachable), ("scenario", _rma_av_geometry), ("scenario", _ray_traced_physics),
                        ("scenario", _missions_clear_obstacles), ("scenario", _batteries_last)):
         try:
@@ -209,6 +210,18 @@ def _mission_near_workspace(sc: Scenario) -> None:
             raise ValueError(f"{what.format(k=k, k1=k + 1)}: MRAV-2 at {np.array2string(pts[k], precision=4)} is "
                              f"{d[k]:.4g} m from controller.workspace; its path must stay within "
                              f"world.mission_max_distance_m = {most:g} m")
+
+
+def _missions_fly(sc: Scenario) -> None:
+    """Every mission file's path is a mission: longer than 0 s and no faster than a multirotor flies
+    (``models.mission.check_flies``; after ``_mission_near_workspace``, which names a sample far away by its row)."""
+    for field, m in _missions(sc):
+        if m.flown_file is None:
+            continue
+        try:
+            check_flies(m.flight())
+        except ValueError as exc:
+            raise ValueError(f"{field}.{m.flown_field}: {exc}") from None
 
 
 def _flight_columns(field: str, m: MissionConfig) -> dict:

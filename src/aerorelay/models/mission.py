@@ -316,3 +316,19 @@ def source_trajectory(mission) -> SourceTrajectory:
     if mission.trajectory_csv:
         return CsvPath(mission.trajectory_csv)
     return MinimumJerkPath(mission.waypoints)
+
+
+MAX_FILE_SPEED_M_S = 100.0  # no multirotor (nor a jammer's car) flies a mission faster: a faster file is a units error
+
+
+def check_flies(path) -> None:
+    """A mission that is one: longer than 0 s, no faster than ``MAX_FILE_SPEED_M_S`` anywhere (sampled every 0.1 s
+    and at its points); ValueError saying which otherwise (a .plan with every item at one place flew a 0 s mission)."""
+    if not path.duration > 0.0:
+        raise ValueError(f"a mission of {path.duration:g} s: its points are all at one place or at one time (nothing to fly)")
+    t = np.linspace(0.0, path.duration, int(min(max(path.duration / 0.1, 2), 20000)) + 1)
+    speed = np.array([float(np.linalg.norm(path.state(float(k)).v)) for k in t])
+    k = int(np.argmax(speed))
+    if speed[k] > MAX_FILE_SPEED_M_S:
+        raise ValueError(f"flown at {speed[k]:.3g} m/s at t = {t[k]:.3g} s, faster than any multirotor mission "
+                         f"({MAX_FILE_SPEED_M_S:g} m/s): a units error? (a .plan's speed, a CSV's time column in ms)")
