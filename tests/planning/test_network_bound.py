@@ -373,7 +373,7 @@ def test_routes_that_may_end_at_either_base_station_are_bounded_by_the_best_comb
 
     def pb(scene):
         return NetworkBoundProblem(scene, {"s": source}, {r: 0.35 for r in names}, lo, hi, 8.0,
-                                   BoundResolution(grid_m=1.0, dt_s=1.0, axis_step_deg=10.0, max_speed_m_s=1.0,
+                                   BoundResolution(grid_m=1.0, dt_s=2.0, axis_step_deg=10.0, max_speed_m_s=1.0,
                                                    max_accel_m_s2=1.0), separation_m=1.0, starts=starts)
 
     b = compute_network_bound(pb(sc))
