@@ -35,6 +35,23 @@ def _chain(**relay_antennas):
     return d
 
 
+def _patch_link_sinr(row, along: float) -> float:
+    """r1 -> r2's SINR from the logged poses, written here: Gamma = G_r1 G_r2 / d^2 / (1 + P_J G_J / d_J^2), r1's
+    patch G = 4 max(max(cos psi, 0)^2, 0.05) with psi off ``along`` times its body z (+1 up, -1 down), r2's dipole,
+    the jammer isotropic at P_J = 4 W."""
+    p1, p2 = (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]) for n in ("r1", "r2"))
+    b1, b2 = (_axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]) for n in ("r1", "r2"))
+    d = p2 - p1
+    n = float(np.linalg.norm(d))
+    g1 = 4.0 * max(max(float(d @ (along * b1)) / n, 0.0) ** 2, 0.05)
+    g2 = _dipole(float(-d @ b2) / n)
+    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
+    dj = p2 - pj
+    nj = float(np.linalg.norm(dj))
+    interference = 4.0 * _dipole(float(-dj @ b2) / nj) / nj**2
+    return g1 * g2 / n**2 / (1.0 + interference)
+
+
 def test_each_vehicle_gets_its_own_pattern():
     d = _chain(r1=PATCH)
     d["sources"][0]["antenna"] = {"pattern": "sin_power", "exponent": 4.0, "g_bar": 2.0}
@@ -50,17 +67,7 @@ def test_the_logged_sinr_is_the_link_equation_with_the_patch(tmp_path):
     sc = parse_scenario(_chain(r1=PATCH))
     r = ar.simulate(sc)
     row = r.timeseries.iloc[len(r.timeseries) // 2]
-    p1, p2 = (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]) for n in ("r1", "r2"))
-    b1, b2 = (_axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]) for n in ("r1", "r2"))
-    d = p2 - p1
-    n = float(np.linalg.norm(d))
-    g1 = 4.0 * max(max(float(d @ b1) / n, 0.0) ** 2, 0.05)
-    g2 = _dipole(float(-d @ b2) / n)
-    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
-    dj = p2 - pj
-    nj = float(np.linalg.norm(dj))
-    interference = 4.0 * _dipole(float(-dj @ b2) / nj) / nj**2  # P_J = 4 W, the jammer isotropic
-    assert row["sinr.r1.r2"] == pytest.approx(g1 * g2 / n**2 / (1.0 + interference), rel=1e-9)
+    assert row["sinr.r1.r2"] == pytest.approx(_patch_link_sinr(row, +1.0), rel=1e-9)
     # the run folder's scenario.toml keeps the antenna: flown again from it, the same run
     r.save(tmp_path / "run")
     again = ar.load_scenario(tmp_path / "run" / "scenario.toml")
@@ -177,17 +184,7 @@ def test_a_patch_pointing_down_is_flown_with_the_link_equation_about_body_minus_
     assert sc.relay_list[0].antenna.axis == [0.0, 0.0, -1.0]
     r = ar.simulate(sc)
     row = r.timeseries.iloc[len(r.timeseries) // 2]
-    p1, p2 = (np.array([row[f"{n}.p_x"], row[f"{n}.p_y"], row[f"{n}.p_z"]]) for n in ("r1", "r2"))
-    b1, b2 = (_axis(row[f"{n}.phi"], row[f"{n}.theta"], row[f"{n}.psi"]) for n in ("r1", "r2"))
-    d = p2 - p1
-    n = float(np.linalg.norm(d))
-    g1 = 4.0 * max(max(float(d @ -b1) / n, 0.0) ** 2, 0.05)
-    g2 = _dipole(float(-d @ b2) / n)
-    pj = np.array([row["jam_jammer_x"], row["jam_jammer_y"], row["jam_jammer_z"]])
-    dj = p2 - pj
-    nj = float(np.linalg.norm(dj))
-    interference = 4.0 * _dipole(float(-dj @ b2) / nj) / nj**2
-    assert row["sinr.r1.r2"] == pytest.approx(g1 * g2 / n**2 / (1.0 + interference), rel=1e-9)
+    assert row["sinr.r1.r2"] == pytest.approx(_patch_link_sinr(row, -1.0), rel=1e-9)
     up = ar.simulate(parse_scenario(_chain(r1=PATCH))).timeseries.iloc[len(r.timeseries) // 2]
     assert row["sinr.r1.r2"] != pytest.approx(up["sinr.r1.r2"], rel=1e-3)  # the axis is not ignored
     with pytest.raises(ScenarioError, match=r"relays\.0\.antenna\.axis: must be along the body z axis"):

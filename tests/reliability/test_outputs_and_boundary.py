@@ -227,12 +227,18 @@ class _Planner:
         return self.make(inp)
 
 
-@pytest.mark.parametrize("field,value", [("p_ref", np.zeros(2)), ("a_ref", "up"), ("axis", np.ones(4))])
-def test_a_planners_bad_reference_is_named(field, value):
+def _holding_with(field, value):
+    """A planner's step: a reference holding the relay, with ``field`` set to ``value``."""
     def make(inp):
         ref = dict(p_opt=inp.p1, p_ref=inp.p1, v_ref=np.zeros(3), a_ref=np.zeros(3))
         ref[field] = value
         return ar.Reference(**ref)
+    return make
+
+
+@pytest.mark.parametrize("field,value", [("p_ref", np.zeros(2)), ("a_ref", "up"), ("axis", np.ones(4))])
+def test_a_planners_bad_reference_is_named(field, value):
+    make = _holding_with(field, value)
     sc = load_scenario(NOMINAL, set={"sim.duration_s": 0.3})
     with pytest.raises(PlannerFailed, match=rf"planner '_Planner \(passed from Python\)' at t = 0\.000 s: relay 'relay': "
                                             rf"Reference.{field}: must be 3 numbers"):
@@ -242,10 +248,7 @@ def test_a_planners_bad_reference_is_named(field, value):
 @pytest.mark.parametrize("field,value", [("v_ref", np.full(3, np.nan)), ("axis", np.zeros(3))])
 def test_a_planners_non_finite_reference_holds_the_relay_counted(field, value):
     """Issue 61: a reference that cannot be flown (non-finite, a zero axis) holds the relay where it is, counted."""
-    def make(inp):
-        ref = dict(p_opt=inp.p1, p_ref=inp.p1, v_ref=np.zeros(3), a_ref=np.zeros(3))
-        ref[field] = value
-        return ar.Reference(**ref)
+    make = _holding_with(field, value)
     sc = load_scenario(NOMINAL, set={"sim.duration_s": 0.3})
     res = ar.simulate(sc, planner=_Planner(make))
     assert res.metrics["reference_held_steps"] == res.metrics["steps"] and not res.metrics["unsafe"]

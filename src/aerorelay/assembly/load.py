@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 from ..config import Scenario, ScenarioError, validate_config
-from ..config.applies import dormant, refusal
+from ..config.applies import dormant, dotted, refusal
 from ..config.errors import did_you_mean, is_field
 from ..filecheck import not_a_file
 from .checks import check_physics
@@ -141,10 +141,9 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
 def _what_does_not_apply(sc: Scenario, path: Path | None, updates: dict) -> None:
     """``config.applies``: a setting that changes nothing here is refused by name when the file alone says it or an
     update sets it; one of the file's made dormant by an update that switches what applies is named in a warning."""
-    keys = {k.replace("[", ".").replace("]", "") for k in updates}
+    keys = {".".join(dotted(k)) for k in updates}
     for field, where, value, default in dormant(sc):
-        key = field.replace("[", ".").replace("]", "")
-        if not updates or key in keys:
+        if not updates or ".".join(dotted(field)) in keys:
             raise ScenarioError(refusal(field, where, value, default))
         log.warning("%s: %s = %r (from the file) applies only where %s: with %s it changes nothing", path, field, value,
                     where, ", ".join(f"{k}={v!r}" for k, v in updates.items()))

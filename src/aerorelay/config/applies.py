@@ -96,6 +96,11 @@ def dormant(sc) -> list[tuple[str, str, Any, Any]]:
     return out
 
 
+def dotted(field: str) -> list[str]:
+    """A field as ``dormant`` names it (``jammers[0].on_s``) as dotted-key parts (``["jammers", "0", "on_s"]``)."""
+    return field.replace("[", ".").replace("]", "").split(".")
+
+
 def refusal(field: str, where: str, value: Any, default: Any) -> str:
     return (f"{field}: applies only where {where}; here it changes nothing (got {value!r}; its default {default!r}): "
             "remove it, or set what it needs")

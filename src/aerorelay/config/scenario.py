@@ -21,7 +21,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .applies import dormant
+from .applies import dormant, dotted
 from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth, papers_generator_named
 from .controller import ControllerConfig
 from .errors import format_errors
@@ -666,7 +666,7 @@ class Scenario(Strict):
         data = self._plain_data()
         for field, *_ in dormant(self):
             node: Any = data
-            parts = field.replace("[", ".").replace("]", "").split(".")
+            parts = dotted(field)
             for part in parts[:-1]:
                 node = node[int(part)] if part.isdigit() else node.get(part, {})
             if isinstance(node, dict):
