@@ -7,7 +7,11 @@ again on 2026-12-04 by the code that rebuilt the fleet's capacity planner (issue
 joint moves, the one reference shaper), and on 2026-12-05 when a relay whose move loses the joint decision
 came to hold its goal within its leash (5e-4 m on r1 in these 1.5 s): deliberate changes of that planner's
 flights, recorded so the case keeps guarding the loop (``python tests/data/record_before_one_machinery.py
-chain_capacity`` from the root)."""
+chain_capacity`` from the root). The four ``nominal_*`` cases were recorded again on 2026-12-06 when the paper's one
+relay came to keep the separation from its source in its NMPC, as every fleet relay does (issue 61: a soft row, never
+active in these cases, that moves the interior-point QP's answer: the relay's position by at most 2.1e-4 m, 3.5e-3 m
+with the capacity planner, the capacity by at most 4.9e-4 relative; written under the old column names, the new log renamed back through
+``modern_columns``)."""
 
 from __future__ import annotations
 

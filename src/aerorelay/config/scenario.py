@@ -78,7 +78,7 @@ class Shape:
     route_dt_s: float  # the capacity planner's pre-flight route's step: a network's route is refined at each step
     plans: Literal["relay", "network"]  # which factory of the planner's registry entry plans it (planning.base.PLANNERS)
     bound: Literal["path", "network"]  # one relay's exact path bound (its grid and axes) or the network's cube bound
-    neighbours: bool  # each relay's NMPC looks at its moving route neighbours (and keeps apart from other vehicles)
+    neighbours: bool  # each relay's NMPC looks at its moving route neighbours (every relay keeps apart from every vehicle)
     steps_one: bool  # stepped from outside as one relay: ``step(t, x, source)`` (control.network.OneRelay)
 
 
