@@ -11,7 +11,9 @@ chain_capacity`` from the root). The four ``nominal_*`` cases were recorded agai
 relay came to keep the separation from its source in its NMPC, as every fleet relay does (issue 61: a soft row, never
 active in these cases, that moves the interior-point QP's answer: the relay's position by at most 2.1e-4 m, 3.5e-3 m
 with the capacity planner, the capacity by at most 4.9e-4 relative; written under the old column names, the new log renamed back through
-``modern_columns``)."""
+``modern_columns``); ``nominal_estimated`` again the same day when the jammer estimator came to read its residuals'
+scale robustly and to flag an estimate at its search box's edge (issue 61, item 5): the same flight, the estimate's
+columns changed."""
 
 from __future__ import annotations
 

@@ -40,10 +40,10 @@ def relay_pose(t):
     return p, a / np.linalg.norm(a)
 
 
-def fly(power_w, duration_s, *, schedule=lambda t: True, bs=True, seed=1):
+def fly(power_w, duration_s, *, schedule=lambda t: True, bs=True, seed=1, settings=None):
     """Feed ``duration_s`` of readings; return the estimator and per-step (t, estimate)."""
     receivers = [RELAY_RX] + ([BS_RX] if bs else [])
-    est = JammerEstimator(1, receivers, PathGain(), SETTINGS(), DT)
+    est = JammerEstimator(1, receivers, PathGain(), settings or SETTINGS(), DT)
     det = EnergyDetector(100, seed=seed)
     out = []
     for k in range(int(duration_s / DT)):

@@ -563,8 +563,10 @@ SEARCH_MARGIN_M = 10.0  # the default search box: the nodes' box widened by this
 
 
 def search_box(sc: Scenario, sources: dict[str, SourceTrajectory]) -> tuple[np.ndarray, np.ndarray]:
-    """Where the estimator looks for jammers (m, world): ``[estimation] search_min_m/max_m``, or the
-    box around the base station, the relays' starts and the sources' paths widened by 10 m (5 m up, z >= 0)."""
+    """Where the estimator looks for jammers (m, world): ``[estimation] search_min_m/max_m``, or the box around the
+    base stations, the relays' starts and the sources' paths widened by 10 m (5 m up, z >= 0), and the workspace.
+    (Half the nodes' extent wider, it let the nominal's estimate settle 24 m off in a far corner of the larger box.)
+    An estimate found at its edge is not trusted and says which setting to widen (``estimation.jammer_estimator``)."""
     est = sc.estimation
     if est.search_min_m is not None:
         return np.array(est.search_min_m, float), np.array(est.search_max_m, float)
@@ -573,7 +575,8 @@ def search_box(sc: Scenario, sources: dict[str, SourceTrajectory]) -> tuple[np.n
     pts = np.vstack(rows + [path.state(t).p for path in sources.values() for t in np.linspace(0.0, sc.duration_s, 50)])
     lo, hi = pts.min(axis=0) - SEARCH_MARGIN_M, pts.max(axis=0) + SEARCH_MARGIN_M
     lo[2], hi[2] = max(0.0, pts[:, 2].min() - SEARCH_MARGIN_M), pts[:, 2].max() + 0.5 * SEARCH_MARGIN_M
-    return lo, hi
+    ws = sc.controller.workspace
+    return np.minimum(lo, ws.min), np.maximum(hi, ws.max)
 
 
 def build_sensing(sc: Scenario, scene: RadioScene, sources: dict[str, SourceTrajectory]) -> JammerSensing:

@@ -79,7 +79,8 @@ class EstimationConfig(Strict):
                                   "std: near an antenna null a reading then says little about where the jammer is")
     jammer_speed_m_s: float = Field(0.0, ge=0.0, le=50.0, description="0: the jammers are static; > 0: each moves at a "
                                     "constant velocity the estimator fits, with this prior std per axis (m/s)")
-    search_min_m: Vec3 | None = Field(None, description="search box corner, m world (default: the nodes' box +- 10 m, z >= 0)")
+    search_min_m: Vec3 | None = Field(None, description="search box corner, m world (default: the nodes' box +- 10 m, "
+                                      "z >= 0, and the workspace; an estimate at its edge is not trusted)")
     search_max_m: Vec3 | None = Field(None, description="search box corner, m world")
     confident_std_m: float = Field(1.5, gt=0.0, le=100.0, description="the planner uses an estimate once its largest "
                                    "position std (m) is below this (before: plans without that jammer, as before tau_E)")

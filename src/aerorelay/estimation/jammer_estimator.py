@@ -13,7 +13,8 @@ world) and EIRP ``P_j`` (W):
 ``g`` is the one channel implementation's ``link_gain`` (``models/radio.py``), ``s_j`` whether
 jammer j radiates (a two-state Markov chain per jammer), ``e`` the detector's log noise plus
 ``model_error_db`` for what the model leaves out (fading, shadowing, a directional pattern): a
-floor, scaled up by the window's reduced chi-square when the residuals are larger; plus, per
+floor, scaled up by the residuals' own scale when they are larger (read robustly: ``residual_scale2``; the cuts,
+weights and ON/OFF flags are in those scaled sigmas, so a fade is not read as a switch); plus, per
 measurement, what the receiver's axis uncertainty (``axis_error_deg`` and the spread of the axes
 averaged into it) makes of the jammers' share of the reading: near an antenna null a reading says
 little about where the jammer is (the Gauss-Newton cost is that heteroscedastic likelihood).
@@ -39,11 +40,13 @@ The reported covariance is the inverse of the Gauss-Newton information plus a pr
 the search box, a wide log power: a direction the window says nothing about keeps the prior's
 spread), plus the grid posterior's spread about the estimate for a rival mode: an estimate the
 data do not pin down, or one with a rival mode, keeps a wide covariance instead of collapsing
-onto a wrong point.
+onto a wrong point. Residuals correlated in time (a lasting fade) divide the information by an AR(1) process's
+variance factor (``residual_inflation``). An estimate on the search box's face is not trusted (``at_edge``).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -59,6 +62,7 @@ from ..models.sensing import KAPPA_DB, detector_log_mean_db, detector_log_std_db
 from .pair_search import best_pair
 from .window import MeasurementWindow, PendingReadings, cell_grid
 
+log = logging.getLogger(__name__)
 _ISOTROPIC = IsotropicPattern(1.0)
 _MIN_DISTANCE_M = 0.3  # a candidate nearer a receiver than this has its gain capped (the gain's pole)
 _FD_STEP_M = 1e-6  # forward-difference step of the gain's position derivative
@@ -75,6 +79,9 @@ _LOG_POWER_PRIOR = 10.0  # std of ln EIRP in the covariance's prior (a factor e^
 _JOINT_EVERY = 8  # refinements between two joint searches for pairs of jammers
 _JOINT_CELLS = 256  # the pair search scores pairs among this many best single cells
 _JOINT_ROWS = 30  # window rows the pair search scores on (evenly thinned)
+_EDGE_CELLS = 0.25  # an estimate this many grid cells from a side or the top of the search box is at its edge
+_MIN_PAIRS = 8  # consecutive rows of one receiver below which the residuals' correlation is not estimated
+_MAX_RHO = 0.98  # their lag-1 correlation's cap: a variance 99x the independent rows'
 _JOINT_POLISH = 6  # Levenberg-Marquardt iterations on the best pair before it is compared with the estimate
 
 
@@ -122,6 +129,8 @@ class _LmStep(NamedTuple):
     cols: np.ndarray  # those columns
     chi2: float  # the window's reduced chi-square at the old iterate
     cost: float  # the window cost of the old iterate (_window_cost's)
+    inflation: float = 1.0  # the variance's factor for residuals correlated in time (``residual_inflation``)
+    scale2: float = 1.0  # the residuals' squared scale in model sigmas (``residual_scale2``)
 
 
 @dataclass(frozen=True)
@@ -141,7 +150,8 @@ class JammerEstimate:
     """The estimate at one instant, per jammer: ``positions`` ``(nJ, 3)`` m, ``powers`` ``(nJ,)`` W
     (EIRP), ``covariances`` ``(nJ, 3, 3)`` m^2 of the position, ``on_prob`` (that it radiates now),
     ``position_std`` (m: sqrt of each covariance's top eigenvalue), ``confident`` (``position_std``
-    below ``confident_std_m``)."""
+    below ``confident_std_m`` and not ``at_edge``), ``at_edge`` (found within a quarter grid cell of a side or the top of
+    the search box: the jammer may be outside it, and no spread the window gives covers that)."""
 
     positions: np.ndarray
     powers: np.ndarray
@@ -149,6 +159,7 @@ class JammerEstimate:
     on_prob: np.ndarray
     position_std: np.ndarray
     confident: np.ndarray
+    at_edge: np.ndarray | None = None
 
     def position_std_max(self) -> np.ndarray:
         """Largest position standard deviation per jammer (m), computed once with the covariance."""
@@ -208,6 +219,8 @@ class JammerEstimator:
         self.local_cov = np.tile(np.diag((self.hi - self.lo) ** 2 / 12.0), (n_jammers, 1, 1))
         self.lam = 1e-2
         self.chi2_scale = 1.0
+        self.inflation = 1.0
+        self.scale2 = 1.0
         self._fixed_cell_gains: dict[int, np.ndarray] = {}
         self._rounds = 0
         self._refines = 0
@@ -216,6 +229,7 @@ class JammerEstimator:
         self._posterior: np.ndarray | None = None
         self._candidate: _Candidate | None = None  # the joint pair search's restart, being polished
         self.pending = [PendingReadings() for _ in receivers]
+        self._edge_said = np.zeros(n_jammers, bool)
         self._estimate = self._summarize()
 
     # --- the measurement model ------------------------------------------------------------
@@ -325,7 +339,8 @@ class JammerEstimator:
                 r_on = z - KAPPA_DB * math.log(others + P[j] * g_est[j]) - self.log_mean
                 r_off = z - KAPPA_DB * math.log(others) - self.log_mean
                 # log odds: both likelihoods underflow when the estimate explains neither state
-                logit = math.log(prior / (1.0 - prior)) + 0.5 * (r_off**2 - r_on**2) / self.sigma2
+                # in the window's scaled sigmas, as the fit's flags: a fade is not a switch
+                logit = math.log(prior / (1.0 - prior)) + 0.5 * (r_off**2 - r_on**2) / (self.sigma2 * self.chi2_scale)
                 self.on_prob[j] = 1.0 / (1.0 + math.exp(-min(max(logit, -700.0), 700.0)))
             else:
                 self.on_prob[j] = prior
@@ -473,10 +488,14 @@ class JammerEstimator:
         g, _ = self._window_gains(theta, idx, jacobian=False)
         on = self._on_flags(theta, g, idx)
         z_hat, _ = self._model(theta, g, None, on, idx)
-        var = self._row_variance(theta, g, on, idx, found)
+        var = self._row_variance(theta, g, on, idx, found) * self.scale2
+        return self._scaled_cost(self.window.z[idx] - z_hat, var, theta, g, on, idx, z_hat, base, found)
+
+    def _scaled_cost(self, r, var, theta, g, on, idx, z_hat, base, found) -> float:
+        """The window's robust cost of residuals ``r`` under the variances ``var`` (the model's times the residuals'
+        squared scale: candidates are compared in one scale, the last fit's, ``scale2``)."""
         mixed = self._mixed_rows(theta, g, on, idx, z_hat, var, found)
-        return (self._huber(self.window.z[idx] - z_hat, base * ~mixed, var)[0] + self._mixed_cost(base, var, mixed)
-                + self._velocity_cost(theta))
+        return self._huber(r, base * ~mixed, var)[0] + self._mixed_cost(base, var, mixed) + self._velocity_cost(theta)
 
     def _reseed(self, idx: np.ndarray, base: np.ndarray) -> None:
         """Start Gauss-Newton at the grid's best cell at the first fit; afterwards, when the grid puts
@@ -539,12 +558,15 @@ class JammerEstimator:
         self.theta, self.lam, H, cols, chi2 = step.theta, step.lam, step.H, step.cols, step.chi2
         if chi2 != self.chi2_scale:
             self._posterior = None
-        self.chi2_scale = chi2
+        self.chi2_scale, self.scale2 = chi2, step.scale2
         cov = np.full((_NP * self.nj, _NP * self.nj), 0.0)
         # with the prior (the search box, a wide log power): a direction the window says nothing about
         # keeps the prior's spread. (pinv(H) gave it zero variance: a jammer flagged OFF in every row of
         # the window, whose columns of J are zero, was reported at std 0 m, 6-16 m off, "confident".)
-        cov[np.ix_(cols, cols)] = np.linalg.inv(H / chi2 + np.diag(self._prior_info[cols]))
+        # residuals correlated in time (a fade that changes slower than the readings come: Doppler fading at a relay
+        # that hovers, shadowing) carry fewer independent readings than rows: the information shrinks by that much
+        self.inflation = step.inflation
+        cov[np.ix_(cols, cols)] = np.linalg.inv(H / (chi2 * self.inflation) + np.diag(self._prior_info[cols]))
         self.local_cov = np.array([_clip_eigenvalues(cov[_NP * j:_NP * j + 3, _NP * j:_NP * j + 3], self._max_var)
                                    for j in range(self.nj)])
 
@@ -565,13 +587,20 @@ class JammerEstimator:
         cols = np.flatnonzero(free)
         J = J[:, cols]
         r = z - z_hat
-        var = self._row_variance(theta, g, on, idx, found)
+        var0 = self._row_variance(theta, g, on, idx, found)
+        window_cost = self._scaled_cost(r, var0 * self.scale2, theta, g, on, idx, z_hat, base, found)  # as _window_cost sums it
+        # the residuals' own scale (robust: 1.4826 x their median absolute size in model sigmas, at least 1): fading or
+        # shadowing the model leaves out put readings many model sigmas off, and with the cuts at 3 model sigmas a
+        # fade down read as a jammer switching within the row (left out of the fit) and Huber down-weighted the rest
+        # alike: the fit kept the fades up and settled tens of metres off at a 2 m spread. The cuts are in the
+        # scaled sigmas (Huber's proposal 2)
+        scale2 = residual_scale2(r / np.sqrt(var0), base)
+        var = var0 * scale2
         mixed = self._mixed_rows(theta, g, on, idx, z_hat, var, found)
-        fit = base * ~mixed
         fixed_cost = self._mixed_cost(base, var, mixed)
+        fit = base * ~mixed
         huber, robust = self._huber(r, fit, var)
         cost0 = huber + (self._velocity_cost(theta) + fixed_cost)
-        window_cost = huber + fixed_cost + self._velocity_cost(theta)  # summed as _window_cost sums it
         wr = fit / var * robust
         prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
         H = J.T @ (J * wr[:, None]) + np.diag(prior)
@@ -582,10 +611,13 @@ class JammerEstimator:
         trial[:, 3] = np.where(found, np.clip(trial[:, 3], -60.0, 60.0), trial[:, 3])
         g_try, _ = self._window_gains(trial, idx, jacobian=False)
         z_try, _ = self._model(trial, g_try, None, on, idx)
-        chi2 = max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
-        if self._huber(z - z_try, fit, self._row_variance(trial, g_try, on, idx, found))[0] + self._velocity_cost(trial) + fixed_cost < cost0:
-            return _LmStep(trial, max(lam / 3.0, 1e-6), H, cols, chi2, window_cost)
-        return _LmStep(theta, min(lam * 5.0, 1e6), H, cols, chi2, window_cost)
+        chi2 = scale2 * max(1.0, float(np.sum(wr * r * r) / max(np.sum(wr * var), 1e-12)))
+        H = H * scale2  # H / chi2 is the information: the rows' weights brought back to the model's variance
+        inflation = residual_inflation(r / np.sqrt(var), self.window.ri[idx], fit > 0)
+        var_try = scale2 * self._row_variance(trial, g_try, on, idx, found)
+        if self._huber(z - z_try, fit, var_try)[0] + self._velocity_cost(trial) + fixed_cost < cost0:
+            return _LmStep(trial, max(lam / 3.0, 1e-6), H, cols, chi2, window_cost, inflation, scale2)
+        return _LmStep(theta, min(lam * 5.0, 1e6), H, cols, chi2, window_cost, inflation, scale2)
 
     def _joint_search(self, idx: np.ndarray, base: np.ndarray) -> None:
         """Score every pair of grid cells for two jammers at once on the window (``pair_search.py``),
@@ -660,12 +692,51 @@ class JammerEstimator:
                 covs.append(d.T @ (d * post[:, None]))
         covs_a = np.array(covs)
         std = np.sqrt(np.maximum(np.linalg.eigvalsh(covs_a)[:, -1], 0.0))
+        p = self.theta[:, :3]
+        near = _EDGE_CELLS * self.spacing  # the fit clips to the box: an estimate the data pull outside sits on its face
+        edge = self.started & (np.any(p[:, :2] - self.lo[:2] < near, axis=1)
+                               | np.any(self.hi - p < near, axis=1))  # the floor is the ground: a jammer may sit on it
+        for k in np.flatnonzero(edge & (std < self.s.confident_std_m) & ~self._edge_said):  # what would have been trusted
+            self._edge_said[k] = True
+            log.warning("jammer estimate %d at %s m, at the edge of the search box [%s, %s]: not trusted (the jammer may "
+                        "be outside it); widen estimation.search_min_m / search_max_m", k, np.round(p[k], 1).tolist(),
+                        self.lo.tolist(), self.hi.tolist())
         return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta, self.started), covs_a, self.on_prob.copy(), std,
-                              self.started & (std < self.s.confident_std_m))
+                              self.started & (std < self.s.confident_std_m) & ~edge, edge)
 
     @property
     def estimate(self) -> JammerEstimate:
         return self._estimate
+
+
+def residual_scale2(u: np.ndarray, used: np.ndarray) -> float:
+    """The squared scale of standardized residuals ``u`` over the rows ``used`` (> 0): ``(1.4826 median |u|)^2``, the
+    normal distribution's sigma read robustly, at least 1 (the model's own noise)."""
+    a = np.abs(u[used > 0])
+    return max(1.0, (1.4826 * float(np.median(a))) ** 2) if a.size else 1.0
+
+
+def residual_inflation(e: np.ndarray, receiver: np.ndarray, used: np.ndarray) -> float:
+    """How much a fit's variance grows when its standardized residuals ``e`` (time-ordered rows, each from
+    ``receiver``; ``used`` the rows fitted) are correlated in time: an AR(1) process's ``(1 + rho) / (1 - rho)``, with
+    ``rho`` the lag-1 correlation of each receiver's consecutive fitted rows, taken when it exceeds its 95% band under
+    independence (``2 / sqrt(pairs)``: white residuals keep the factor 1) and capped at ``_MAX_RHO``."""
+    a_parts, b_parts = [], []
+    for rx in np.unique(receiver):
+        mine = e[(receiver == rx) & used]
+        a_parts.append(mine[:-1])
+        b_parts.append(mine[1:])
+    a, b = np.concatenate(a_parts), np.concatenate(b_parts)
+    n = a.size
+    if n < _MIN_PAIRS:
+        return 1.0
+    a, b = a - a.mean(), b - b.mean()
+    den = 0.5 * float(a @ a + b @ b)
+    rho = float(a @ b) / den if den > 0 else 0.0
+    if rho <= 2.0 / math.sqrt(n):
+        return 1.0
+    rho = min(rho, _MAX_RHO)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 def _clip_eigenvalues(cov: np.ndarray, most: float) -> np.ndarray:

@@ -29,7 +29,7 @@ SCALAR_METRICS = (
     "bound.flyable_mean.mean", "bound.flyable_maxmin.min", "bound.flyable_mean.outage_fraction",
     "estimation_first_within_1m_s", "estimation_within_1m_after_10s", "estimation_err_mean_m", "estimation_err_final_m",
     "estimation_std_final_m", "estimator_ms.mean", "estimator_ms.p99", "estimation_crlb_first_1m_s", "estimation_crlb_10s_m",
-    "estimation_within_1m_after_bound",
+    "estimation_within_1m_after_bound", "estimation_nees_final", "estimation_trusted_final",
     # networks (sim.metrics.compute_metrics): the network bound, the closest two vehicles, a relay lost in flight
     "capacity_efficiency_mean_achieved", "capacity_efficiency_min_achieved", "bound.static.mean", "bound.static.min",
     "bound.achieved.mean", "bound.flyable.mean", "bound.flyable.min", "bound.path_mean.min", "capacity_efficiency_mean_path",

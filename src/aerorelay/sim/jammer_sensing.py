@@ -49,7 +49,7 @@ class JammerSensing:
         self.names = [j.name for j in scene.jammers]
         self.columns = [f"meas_{r}_w" for r in receivers] + ["estimator_ms"] + [
             f"est_{n}_{q}" for n in self.names
-            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "err_m", "crlb_m", *(f"cov_{c}" for c, _, _ in _COV))]
+            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "trusted", "err_m", "crlb_m", *(f"cov_{c}" for c, _, _ in _COV))]
         self.last_ms = 0.0
         self.crlb = InformationMeter(estimator, scene)
 
@@ -75,7 +75,7 @@ class JammerSensing:
         for i, (n, k) in enumerate(zip(self.names, match, strict=True)):
             p = e.positions[k]
             values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[k],
-                           f"est_{n}_on_prob": e.on_prob[k], f"est_{n}_std_m": std[k],
+                           f"est_{n}_on_prob": e.on_prob[k], f"est_{n}_std_m": std[k], f"est_{n}_trusted": float(e.confident[k]),
                            f"est_{n}_err_m": err[i], f"est_{n}_crlb_m": crlb[i]})
             for c, a, b in _COV:
                 values[f"est_{n}_cov_{c}"] = e.covariances[k, a, b]

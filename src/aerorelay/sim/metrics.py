@@ -125,7 +125,10 @@ def estimation_metrics(log, period_s: float) -> dict:
     ``estimation_first_within_1m_s`` (first time the error is <= 1 m; the mission's length when
     never), ``estimation_within_1m_after_10s`` (fraction of steps from 10 s on with the error <=
     1 m), ``estimation_err_mean_m``/``_final_m``, ``estimation_std_final_m`` (largest position
-    std at the end) and ``estimator_ms`` (per control step); where the Cramer-Rao bound is logged
+    std at the end), ``estimation_nees_final`` (the error's squared Mahalanobis length under the reported covariance
+    at the end, ``e' P^-1 e``: chi-square with 3 degrees of freedom when the spread is true, below 7.8 in 95% of runs),
+    ``estimation_trusted_final`` (whether every estimate was trusted at the end: the planners plan with it) and
+    ``estimator_ms`` (per control step); where the Cramer-Rao bound is logged
     (``est_<name>_crlb_m``): ``estimation_crlb_first_1m_s`` (first time the bound is <= 1 m: before,
     no unbiased estimator has a position std below 1 m), ``estimation_crlb_10s_m`` (the bound at 10 s) and
     ``estimation_within_1m_after_bound`` (the worst jammer's fraction of steps from that time on with
@@ -135,7 +138,7 @@ def estimation_metrics(log, period_s: float) -> dict:
     if not names:
         return {}
     t = np.asarray(log["t"], float)
-    first, within, mean, final, std = [], [], [], [], []
+    first, within, mean, final, std, nees = [], [], [], [], [], []
     for n in names:
         err = np.asarray(log[f"est_{n}_err_m"], float)
         ok = err <= ESTIMATION_ERROR_M
@@ -145,9 +148,19 @@ def estimation_metrics(log, period_s: float) -> dict:
         mean.append(float(err.mean()))
         final.append(float(err[-1]))
         std.append(float(np.asarray(log[f"est_{n}_std_m"], float)[-1]))
+        if f"jam_{n}_x" in log and f"est_{n}_cov_xx" in log:
+            e = np.array([float(np.asarray(log[f"est_{n}_{a}"], float)[-1] - np.asarray(log[f"jam_{n}_{a}"], float)[-1])
+                          for a in "xyz"])
+            c = {k: float(np.asarray(log[f"est_{n}_cov_{k}"], float)[-1]) for k in ("xx", "yy", "zz", "xy", "xz", "yz")}
+            cov = np.array([[c["xx"], c["xy"], c["xz"]], [c["xy"], c["yy"], c["yz"]], [c["xz"], c["yz"], c["zz"]]])
+            nees.append(float(e @ np.linalg.lstsq(cov, e, rcond=None)[0]))
     out = {"estimation_first_within_1m_s": max(first), "estimation_within_1m_after_10s": min(within),
            "estimation_err_mean_m": max(mean), "estimation_err_final_m": max(final), "estimation_std_final_m": max(std),
            "estimator_ms": stats_ms(np.asarray(log["estimator_ms"], float))}
+    if nees:
+        out["estimation_nees_final"] = max(nees)
+    if all(f"est_{n}_trusted" in log for n in names):
+        out["estimation_trusted_final"] = bool(all(float(np.asarray(log[f"est_{n}_trusted"], float)[-1]) > 0.5 for n in names))
     bounds = [np.asarray(log[f"est_{n}_crlb_m"], float) for n in names if f"est_{n}_crlb_m" in log]
     if bounds and all(np.isfinite(b[-1]) for b in bounds):
         worst = np.max(bounds, axis=0)

@@ -18,7 +18,7 @@ COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "r
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
                   "aborted", "reference_first", "planner_name", "bound", "losses", "telemetry_rejected_reason", "metrics_failed",
                   "exit_status", "exit_sentence", "exit_statuses", "injected", "lost_in_flight", "took_over_from",
-                  "standby_only", "flew")
+                  "standby_only", "flew", "estimation_trusted_final")
 
 
 def metric_unit(key: str, capacity_unit: str) -> str | None:
@@ -29,7 +29,8 @@ def metric_unit(key: str, capacity_unit: str) -> str | None:
         return capacity_unit
     if key.startswith("se_"):
         return SPECTRAL
-    if key.startswith(("capacity_efficiency", "efficiency_")) or key in COUNTS or key.endswith("_rel_err_max") or key.startswith("estimation_within"):
+    if (key.startswith(("capacity_efficiency", "efficiency_", "estimation_within")) or key in COUNTS
+            or key.endswith("_rel_err_max") or key == "estimation_nees_final"):
         return DIMENSIONLESS
     for suffix, unit in SUFFIX_UNITS:
         if key.endswith(suffix):
