@@ -10,6 +10,7 @@ from typing import NoReturn
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from . import api
@@ -54,8 +55,6 @@ def _check_out(out: Path, kind: str) -> None:
 
 
 def _fail(message: str) -> NoReturn:
-    from rich.markup import escape
-
     err_console.print(f"[bold red]error[/] {escape(message)}", highlight=False)
     raise typer.Exit(EXIT_BAD_INPUT)
 
@@ -189,9 +188,10 @@ def run(
     console.print(f"wrote {out}", markup=False, highlight=False)
     console.print(_metrics_table({"value": result.metrics}))
     for name, why in result.metrics.get("optional_outputs_failed", {}).items():
-        err_console.print(f"[bold yellow]warning[/] {name} not written: {why} (the run is saved)", highlight=False)
+        err_console.print(f"[bold yellow]warning[/] {name} not written: {escape(str(why))} (the run is saved)", highlight=False)
     if result.metrics["unsafe"]:
-        err_console.print(f"[bold red]unsafe run[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
+        err_console.print(f"[bold red]unsafe run[/]: {escape(str(result.metrics['unsafe_reason']))} (exit {EXIT_UNSAFE})",
+                          highlight=False)
         raise typer.Exit(EXIT_UNSAFE)
 
 
@@ -275,6 +275,9 @@ def bound(
     console.print(f"wrote {out}", markup=False, highlight=False)
 
 
+# an estimated jammer's rows: its final error beside the spread the estimator reported, when it first came within 1 m
+ESTIMATION_KEYS = ("estimation_err_final_m", "estimation_std_final_m", "estimation_nees_final", "estimation_trusted_final",
+                   "estimation_first_within_1m_s")
 KEY_METRICS = (
     "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
     "alignment_within_slack_fraction",
@@ -289,7 +292,7 @@ KEY_METRICS = (
     "bound.flyable.mean", "c_mean_before_loss", "c_mean_after_loss", "capacity_efficiency_mean_after_loss",
     # what a scenario's own features add (shown only where a run has them)
     "wind_speed_mean_m_s", "drag_accel_mean_m_s2", "observer_error_mean_m_s2", "obstacle_clearance_min_m",
-    "estimation_error_final_m", "estimation_first_within_1m_s", "separation_min_m", "telemetry_rejected_periods",
+    *ESTIMATION_KEYS, "separation_min_m", "telemetry_rejected_periods",
     "hold_fraction", "land_fraction", "soc_final_fraction", "battery_reserve_first_s", "went_home_at_s", "landed_at_s",
     "exit_status",
 )
@@ -323,7 +326,7 @@ def _fleet_keys(runs: dict[str, dict]) -> list[str]:
         return []
     routes = sorted({s for m in fleets for s in m.get("routes", {})})
     relays = sorted({r for m in fleets for r in m["relays"]})
-    return (["c_min", "c_mean", "outage_fraction", "separation_min_m"]
+    return (["c_min", "c_mean", "outage_fraction", "separation_min_m", *ESTIMATION_KEYS]
             + [f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
                                                           "solve_ms.mean", "solve_ms.p99", "soc_final_fraction",
@@ -524,8 +527,8 @@ def reproduce(
         t = Table(title=f"studies in {folder}" + (" (--quick)" if quick else ""))
         for c in ("study", "runs", "title"):
             t.add_column(c, justify="right" if c == "runs" else "left")
-        for name, title, runs in listed:
-            t.add_row(name, "-" if runs is None else str(runs), title)
+        for name, title, runs in listed:  # a title may quote "pip install 'aerorelay[rt]'": not a style
+            t.add_row(escape(name), "-" if runs is None else str(runs), escape(title))
         console.print(t)
         return
     if out is None:
@@ -754,7 +757,8 @@ def _flown(fly: Callable[[], tuple], out: Path | None, who: str) -> tuple | None
 def _exit_if_unsafe(result) -> None:
     """Exit 3 (as ``run`` does) when a flight's metrics say it was unsafe or ended early, naming why."""
     if result is not None and result.metrics.get("unsafe"):
-        err_console.print(f"[bold red]unsafe flight[/]: {result.metrics['unsafe_reason']} (exit {EXIT_UNSAFE})", highlight=False)
+        err_console.print(f"[bold red]unsafe flight[/]: {escape(str(result.metrics['unsafe_reason']))} (exit {EXIT_UNSAFE})",
+                          highlight=False)
         raise typer.Exit(EXIT_UNSAFE)
 
 

@@ -135,3 +135,15 @@ def test_estimated_jammers_are_refused_by_the_bridge_before_any_vehicle_is_conta
         ar.api.fly(sc, "udpout:127.0.0.1:9")
     with pytest.raises(ar.ScenarioError, match="no radio hands the MAVLink bridge"):
         flight.fly_lockstep(sc, {"relay": PointMass(sc.nodes.relay)})
+
+
+def test_held_periods_the_bridge_flew_count_in_the_hold_fraction():
+    """A MAVLink flight held on bad telemetry for 191 of 324 periods was recorded with hold_fraction 0: a held
+    vehicle's periods are flown by its autopilot and were not among the controller's rows. The bridge's log (every
+    period, by relay and mode) decides: streaming, waiting and ended periods are no mission periods."""
+    stepper, rec = _stepped(NOMINAL, 3)
+    bridge_log = pd.DataFrame({"t": np.arange(9.0), "relay": ["relay"] * 9,
+                               "mode": ["stream", "wait", "nmpc", "hold", "hold", "hold", "nmpc", "land", "ended"]})
+    m = flight.flight_result(NOMINAL, rec, stepper, 1.0, bridge_log=bridge_log).metrics
+    assert m["hold_fraction"] == pytest.approx(3 / 6) and m["land_fraction"] == pytest.approx(1 / 6)
+    assert flight.flight_result(NOMINAL, rec, stepper, 1.0).metrics["hold_fraction"] == pytest.approx(0.25)  # no log: the rows

@@ -173,3 +173,14 @@ def test_a_gpx_file_is_read_in_the_encoding_its_declaration_names_and_a_point_of
     off = [(t, 95.0 if k == 3 else lat, lon, ele) for k, (t, lat, lon, ele) in enumerate(pts)]
     with pytest.raises(ValueError, match=r"track\.gpx: track 0 segment 0 point 3: lat 95, lon .* is not on the earth"):
         GpxPath(_gpx(tmp_path, off))
+
+
+def test_a_plan_point_from_another_place_is_named_by_its_distance_not_as_below_ground(tmp_path):
+    """A waypoint 1 degree (111 km) north of the others was 'MRAV-2's path goes below ground': the local frame's
+    ground falls away with the earth's curvature (970 m there). It is named by how far it is from the workspace."""
+    items = [_item(16, HOME[0] + _north(5.79), HOME[1] + _east(-3.04), 1.72),
+             _item(16, HOME[0] + 1.0, HOME[1] + _east(-2.0), 4.0)]
+    f = _plan(tmp_path, items, hover_speed=1.0)
+    with pytest.raises(ScenarioError, match=r"mission\.trajectory_plan sample \d+: MRAV-2 at .* is 1\.11\de\+05 m from "
+                                            r"controller\.workspace; .*world\.mission_max_distance_m = 1000 m"):
+        ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"mission.trajectory_plan": str(f), "geo.origin": list(HOME)})

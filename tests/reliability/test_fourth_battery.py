@@ -142,3 +142,54 @@ def test_the_paper_s_one_relay_keeps_the_separation_its_verdict_checks(tmp_path)
     m = json.loads((out / "metrics.json").read_text())
     assert r.exit_code == 0, r.output
     assert m["exit_status"] == "complete" and m["separation_min_m"] >= 1.05, m["separation_min_m"]
+
+
+def test_a_network_s_summary_shows_its_jammer_estimate(tmp_path):
+    """A chain that estimates its jammer printed no estimation rows (and one relay's summary asked for a metric
+    by a name metrics.json never had): the final error, the reported spread, its NEES and whether the planners
+    trust it are shown."""
+    r = runner.invoke(app, ["run", str(ROOT / "scenarios" / "chain_two_relays.toml"), "--out", str(tmp_path / "run"),
+                            "--duration", "3", "--no-figures", "--no-bound", "--set", 'jammer.localization="estimated"'])
+    assert r.exit_code == 0, r.output
+    for row in ("estimation_err_final_m", "estimation_std_final_m", "estimation_nees_final", "estimation_trusted_final"):
+        assert row in r.output, row
+
+
+def test_a_too_long_name_is_named_without_dumping_it():
+    """A jammer's name had no length or character rule (its log columns are ``jam_<name>_x``), and an error quoted
+    whatever input it was given, whole."""
+    long = "y" * 300
+    r = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "two_jammers.toml"), "--set", f'jammers.0.name="{long}"'])
+    assert r.exit_code == 2 and "jammers.0.name: String should have at most 32 characters" in r.output
+    assert "(302 characters)" in r.output and long not in r.output
+    r = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "two_jammers.toml"), "--set", 'jammers.0.name="south west"'])
+    assert r.exit_code == 2 and "jammers.0.name: String should match pattern" in r.output
+
+
+def test_reproduce_list_names_the_extra_a_study_needs(monkeypatch):
+    """Without Sionna RT the ray-traced study is listed with the extra to install, the others as runnable: the
+    message said "pip install 'aerorelay'" (the console read "[rt]" as a style and dropped it)."""
+    import aerorelay.models.raytrace as rtm
+
+    def missing():
+        raise rtm.RayTracingUnavailable(f"{rtm.RT_EXTRA} (No module named 'sionna')")
+
+    monkeypatch.setattr(rtm, "sionna_rt", missing)
+    r = runner.invoke(app, ["reproduce", "--list"])
+    assert r.exit_code == 0, r.output
+    flat = " ".join(r.output.replace("│", " ").split())
+    assert "aerorelay[rt]" in flat and "cannot run here" in flat
+    assert "nominal" in flat and "network" in flat
+
+
+def test_a_track_too_long_to_read_is_refused_by_its_size_before_it_is_read(tmp_path):
+    """A 3,000,000-row straight-line CSV was read for 150 s (1.6 GB) and refused as 'ill-posed'; a mission file
+    is now counted before it is read: its rows (a CSV) and its size (any track), each limit named."""
+    from aerorelay.models.mission import MAX_TRACK_ROWS
+
+    f = tmp_path / "long.csv"
+    n = MAX_TRACK_ROWS + 100
+    f.write_bytes(b"t,px,py,pz\n" + b"".join(b"%d,%d,0,5\n" % (k, k) for k in range(n)))
+    r = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--set", f'mission.trajectory_csv="{f}"'])
+    assert r.exit_code == 2, r.output
+    assert f"{n:,} rows, more than a mission file is read ({MAX_TRACK_ROWS:,}" in " ".join(r.output.split())

@@ -35,7 +35,8 @@ def check_physics(sc: Scenario) -> Scenario:
     key = sc.model_dump_json()
     if key in _PASSED:
         return sc
-    for loc, check in (("scenario", _hovers), ("scenario", _above_ground), ("scenario", _mission_near_workspace),
+    # the path's distance before the ground: a waypoint 111 km away is below the local ground by the earth's curvature
+    for loc, check in (("scenario", _hovers), ("scenario", _mission_near_workspace), ("scenario", _above_ground),
                        ("scenario", _missions_fly),
                        ("scenario", _mu_reachable), ("scenario", _rma_av_geometry), ("scenario", _ray_traced_physics),
                        ("scenario", _missions_clear_obstacles), ("scenario", _batteries_last)):

@@ -15,6 +15,9 @@ class ScenarioError(ValueError):
     """A scenario failed validation; ``str()`` lists one line per bad field."""
 
 
+NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]*$"  # a vehicle, station, jammer or obstacle name: a letter, then letters, digits, _ or -
+
+
 class Strict(BaseModel):
     """A configuration table: unknown fields rejected, no inf / NaN unless a field says so (fading
     K = inf means "no fading"), assignments validated."""

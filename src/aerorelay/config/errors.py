@@ -94,7 +94,7 @@ def format_errors(err: ValidationError, root: type[BaseModel]) -> str:
         loc = ".".join(str(p) for p in e["loc"]) or "scenario"
         msg = e["msg"].removeprefix("Value error, ")
         got = e.get("input")
-        shown = "" if isinstance(got, dict) or e["type"] == "missing" else f" (got {got!r})"
+        shown = "" if isinstance(got, dict) or e["type"] == "missing" else f" (got {_brief(got)})"
         if e["type"] == "extra_forbidden":
             msg, shown = "unknown field" + _did_you_mean(tuple(e["loc"]), root), ""
         elif e["type"] in _BOUND_ERRORS:
@@ -104,6 +104,17 @@ def format_errors(err: ValidationError, root: type[BaseModel]) -> str:
             msg = f"must be a finite number{' in ' + rng if rng else ''}"
         lines.append(error_line(loc, msg) + shown)
     return "\n".join(lines)
+
+
+SHOWN_CHARS = 80  # a value quoted in an error is cut to this many characters (a name of 300, a table of tables)
+
+
+def _brief(value) -> str:
+    """``repr(value)``, cut to ``SHOWN_CHARS`` with the length said: an error names the field, not the whole input."""
+    text = repr(value)
+    if len(text) <= SHOWN_CHARS:
+        return text
+    return f"{text[:SHOWN_CHARS]}... ({len(text)} characters)"
 
 
 def error_line(loc: str, msg: str) -> str:

@@ -10,7 +10,7 @@ from typing import Any
 
 from pydantic import Field, field_validator
 
-from .base import Strict, Vec3, nonzero_direction
+from .base import NAME_PATTERN, Strict, Vec3, nonzero_direction
 from .mission import MissionConfig
 from .platform import PlatformConfig
 from .radio import NodeAntennaConfig
@@ -36,7 +36,6 @@ PLATFORM_PRESETS: dict[str, dict[str, Any]] = {
                           for s, t, spin in ((1, 1, 1), (-1, 1, -1), (-1, -1, 1), (1, -1, -1))]},
 }
 
-NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]*$"
 
 
 class RelayConfig(Strict):

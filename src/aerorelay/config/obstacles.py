@@ -9,8 +9,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from .base import Strict, Vec3
-from .network import NAME_PATTERN
+from .base import NAME_PATTERN, Strict, Vec3
 
 
 class ObstacleConfig(Strict):

@@ -9,7 +9,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from .base import Strict, Vec3, Waypoint, check_waypoint_times, dbm_to_w, nonzero_direction, on_the_earth
+from .base import NAME_PATTERN, Strict, Vec3, Waypoint, check_waypoint_times, dbm_to_w, nonzero_direction, on_the_earth
 from .mission import FILE_KINDS, flight_path, readable_file
 
 LOOP_CLOSURE_M = 0.01  # a repeating jammer path's last waypoint within this of its first (m)
@@ -255,7 +255,8 @@ class JammerConfig(Strict):
     (the paper's) or ``cosine``: ``G(psi) = g_max max(max(cos psi, 0)^exponent, back_lobe)``,
     ``psi`` off boresight, pointed at a node (``point_at``, tracking it) or along ``boresight``."""
 
-    name: str = Field("jammer", min_length=1, description="names the jammer in logs and reports")
+    name: str = Field("jammer", min_length=1, max_length=32, pattern=NAME_PATTERN,
+                      description="names the jammer in logs and reports (its log columns: jam_<name>_x, est_<name>_x, ...)")
     position: Vec3 = Field(default_factory=lambda: [-6.95, -5.79, 1.72], description="m, world (the start when moving)")
     waypoints: list[Waypoint] | None = Field(None, min_length=2, description="timed path [[t_s, x, y, z], ...]")
     path: Literal["linear", "minimum_jerk", "circle"] = Field("linear", description="how the jammer moves between "

@@ -145,6 +145,24 @@ def smooth_derivatives(t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 POSITION_COLUMNS = ("t", "px", "py", "pz")
+MAX_TRACK_ROWS = 500_000  # a mission file's samples at most: 83 min at 100 Hz (a 3,000,000-row CSV took 150 s and 1.6 GB)
+MAX_TRACK_BYTES = 100 * 2**20  # ... and its size (a GPX or ULog: a track's XML or log, not a mission, above this)
+
+
+def check_track_size(path: str | Path, *, rows: bool) -> None:
+    """A mission file small enough to read in bounded time, before it is read: at most ``MAX_TRACK_BYTES`` and (a
+    text file of one sample per line, ``rows``) ``MAX_TRACK_ROWS`` lines; ValueError naming the file, its size and
+    the limit otherwise."""
+    size = Path(path).stat().st_size
+    if size > MAX_TRACK_BYTES:
+        raise ValueError(f"{path}: {size / 2**20:.0f} MiB, larger than a mission file is read ({MAX_TRACK_BYTES // 2**20} MiB): "
+                         "thin the track (every k-th sample) or cut it to the mission")
+    if rows:
+        with open(path, "rb") as f:
+            lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(2**20), b""))
+        if lines > MAX_TRACK_ROWS + 1:
+            raise ValueError(f"{path}: {lines - 1:,} rows, more than a mission file is read ({MAX_TRACK_ROWS:,}: "
+                             f"{MAX_TRACK_ROWS / 100 / 60:.0f} min at 100 Hz): thin the track (every k-th row)")
 
 
 class CsvPath(SampledPath):
@@ -152,6 +170,7 @@ class CsvPath(SampledPath):
     ``t,px,py,pz`` (velocity and acceleration then from a smoothing spline); linear interpolation."""
 
     def __init__(self, path: str | Path):
+        check_track_size(path, rows=True)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("error")  # numpy's warnings (empty file, ragged rows) become named errors
@@ -281,6 +300,7 @@ class PlanPath(MinimumJerkPath):
     timed waypoints in the local frame at ``origin`` (default the plan's home), minimum-jerk segments."""
 
     def __init__(self, path: str | Path, origin=None):
+        check_track_size(path, rows=False)
         home, points = read_plan(path)
         t, enu = local_samples(points, GeoFrame(origin if origin is not None else home))
         keep = np.concatenate([[True], np.diff(t) > 1e-9])  # two items at one place without a hold: one waypoint
@@ -293,7 +313,11 @@ class GpxPath(SampledPath):
     (default its first point), velocity and acceleration from a smoothing spline (as a positions-only CSV)."""
 
     def __init__(self, path: str | Path, origin=None):
+        check_track_size(path, rows=False)
         points = read_gpx(path)
+        if len(points) > MAX_TRACK_ROWS:
+            raise ValueError(f"{path}: {len(points):,} points, more than a mission file is read ({MAX_TRACK_ROWS:,}): "
+                             "thin the track (every k-th point)")
         first = (points[0].lat, points[0].lon, points[0].alt)
         t, p = local_samples(points, GeoFrame(origin if origin is not None else first))
         if t.size < 5:
