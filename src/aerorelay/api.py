@@ -49,7 +49,7 @@ from .control.network import Controller, OneRelay
 from .control.nmpc import NmpcSettings
 from .control.relay_step import StaleSettings
 from .experiments import flight as _flight
-from .experiments.budget import left_out_notices, within_budget
+from .experiments.budget import flight_seconds, left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
 from .experiments.run import RunResult, check_not_injected, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
@@ -537,6 +537,12 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
     if bound:
         check_bound_size(sc)
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
+
+
+def flight_estimate(sc: Scenario) -> tuple[float, int]:
+    """A flight's estimated wall time here (s, its bound left out) and the traces it takes (``experiments.budget``);
+    above ``sim.max_minutes`` the run is refused before any work (``check_run``)."""
+    return flight_seconds(sc)
 
 
 def check_output(out: str | Path, kind: str) -> None:

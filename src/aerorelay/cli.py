@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import tomllib
 from collections.abc import Callable
@@ -205,18 +206,18 @@ def _check_run(sc: Scenario, out: Path, *, figures: bool, bound: bool = False) -
 
 def _fly(sc: Scenario, no_bound: bool) -> api.Result:
     """The bound (unless ``no_bound``; cached per geometry), then the flight, with progress bars."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     if not no_bound:  # computed once per scenario geometry (cached), with its own progress bar
         _bound_with_progress(sc)
-    cols = (TextColumn(f"{sc.name} [{sc.controller.variant}]"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-            TimeElapsedColumn(), TimeRemainingColumn())
+    seconds, traces = api.flight_estimate(sc)
+    if seconds > 60.0:  # long work says its estimate
+        traced = f" ({traces} traces of its ray-traced channel)" if traces else ""
+        err_console.print(f"flight: about {seconds / 60.0:.1f} min estimated here{traced} (sim.max_minutes = "
+                          f"{sc.sim.max_minutes:g})", highlight=False)
     # no refresh thread: it would hold the GIL while the controller's C call returns and inflate
     # the measured step times; the bar is redrawn from the loop every 50 steps instead
-    with Progress(*cols, console=err_console, transient=False, auto_refresh=False) as prog:
-        task = prog.add_task("mission", total=1)
-        return api.simulate(sc, bound=not no_bound, progress=lambda k, n: prog.update(task, completed=k, total=n, refresh=True)
-                            if k % 50 == 0 or k == n else None)
+    with _progress(f"{escape(sc.name)} \\[{sc.controller.variant}]", "steps", transient=False) as update:
+        return api.simulate(sc, bound=not no_bound, progress=lambda k, n: update(k, n) if k % 50 == 0 or k == n else None)
 
 
 def _say_bound_estimate(sc: Scenario) -> None:
@@ -231,13 +232,41 @@ def _say_bound_estimate(sc: Scenario) -> None:
 
 def _bound_with_progress(sc: Scenario):
     """The scenario's capacity bound (cached by geometry), with a progress bar when computed."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     _say_bound_estimate(sc)
-    with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
-                  TimeElapsedColumn(), console=err_console, transient=True) as prog:
-        task = prog.add_task("bound", total=1)
-        return api.bound(sc, progress=lambda k, n: prog.update(task, completed=k, total=n))
+    with _progress("capacity bound", "instants") as update:
+        return api.bound(sc, progress=update)
+
+
+PLAIN_PROGRESS_S = 10.0  # without a terminal, a progress line at most this often (and at the end)
+
+
+@contextlib.contextmanager
+def _progress(label: str, unit: str, *, transient: bool = True):
+    """An ``update(done, total)`` for long work: a bar with the elapsed and remaining time on a terminal; without one
+    (a log, a pipe, CI), where a bar prints nothing until the end, a plain line at most every ``PLAIN_PROGRESS_S``
+    (a 48 min network bound printed nothing for its first 300 s)."""
+    import time
+
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    if not err_console.is_terminal:
+        t0, last = time.monotonic(), [-math.inf]
+
+        def plain(done: int, total: int) -> None:
+            now = time.monotonic()
+            if done < total and now - last[0] < PLAIN_PROGRESS_S:
+                return
+            last[0] = now
+            elapsed = now - t0
+            left = f", ~{elapsed / done * (total - done) / 60.0:.1f} min left" if 0 < done < total else ""
+            err_console.print(f"{label}: {done}/{total} {unit}, {elapsed / 60.0:.1f} min{left}", highlight=False)
+        yield plain
+        return
+    with Progress(TextColumn(label), BarColumn(), TextColumn(f"{{task.completed}}/{{task.total}} {unit}"), TimeElapsedColumn(),
+                  TimeRemainingColumn(), console=err_console, transient=transient, auto_refresh=False) as prog:
+        task = prog.add_task(unit, total=1)
+        yield lambda done, total: prog.update(task, completed=done, total=total, refresh=True)
 
 
 @app.command()
@@ -250,16 +279,13 @@ def bound(
     """The best link the physics allows on this scenario: static and path capacity bounds."""
     import json
 
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     sc = _load_or_exit(scenario, set_, unset)
     _check_out(out, "bound")
     try:
         _say_bound_estimate(sc)
-        with Progress(TextColumn("capacity bound"), BarColumn(), TextColumn("{task.completed}/{task.total} instants"),
-                      TimeElapsedColumn(), console=err_console, transient=True) as prog:
-            task = prog.add_task("bound", total=1)
-            summary = api.write_bound(sc, out, progress=lambda k, n: prog.update(task, completed=k, total=n))
+        with _progress("capacity bound", "instants") as update:
+            summary = api.write_bound(sc, out, progress=update)
     except (OutputBusyError, ScenarioError) as exc:
         _fail(str(exc))
     t = Table(title=f"capacity bounds: {sc.name}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from aerorelay.cli import app
@@ -193,3 +194,33 @@ def test_a_track_too_long_to_read_is_refused_by_its_size_before_it_is_read(tmp_p
     r = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--set", f'mission.trajectory_csv="{f}"'])
     assert r.exit_code == 2, r.output
     assert f"{n:,} rows, more than a mission file is read ({MAX_TRACK_ROWS:,}" in " ".join(r.output.split())
+
+
+def test_a_traced_flight_too_long_for_its_limit_is_refused_before_it_starts(tmp_path):
+    """A traced flight at rays_per_source = 1e8 ran unbounded with no estimate: 188 traces of ~100 s each. Its
+    estimate (the closed loop and every trace, in proportion to the rays) is refused above sim.max_minutes, naming
+    what to change, from the CLI and from Python, before any work."""
+    import aerorelay as ar
+    from aerorelay.config import ScenarioError
+
+    r = runner.invoke(app, ["run", str(ROOT / "scenarios" / "munich_roof.toml"), "--out", str(tmp_path / "run"), "--no-bound",
+                            "--set", "channel.propagation.rays_per_source=100000000"])
+    assert r.exit_code == 2, r.output
+    flat = " ".join(r.output.split())
+    assert "sim.max_minutes: this flight would take about 314 min here (188 traces" in flat and "rays_per_source" in flat
+    assert not (tmp_path / "run").exists()
+    sc = ar.load_scenario(ROOT / "scenarios" / "munich_roof.toml", set={"channel.propagation.rays_per_source": 100_000_000})
+    with pytest.raises(ScenarioError, match="sim.max_minutes"):
+        ar.simulate(sc, bound=False)
+    assert ar.api.flight_estimate(sc.with_updates({"sim.max_minutes": 400.0}))[1] == 188
+
+
+def test_long_work_shows_its_progress_without_a_terminal(tmp_path, monkeypatch):
+    """A 48 min network bound printed nothing for 300 s where its output was not a terminal (a log, CI): a bar
+    draws nothing there until the end. Without a terminal a plain line says how far the work is, at most every
+    10 s and at the end, for the bound and for the flight."""
+    monkeypatch.setenv("AERORELAY_CACHE", str(tmp_path / "cache"))  # the bound computed here, not found cached
+    r = runner.invoke(app, ["run", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(tmp_path / "run"),
+                            "--duration", "2", "--no-figures", "--set", "bound.dt_s=0.4"])
+    assert r.exit_code == 0, r.output
+    assert "capacity bound: 6/6 instants" in r.output and "nominal_tilted [constrained]: 134/134 steps" in r.output

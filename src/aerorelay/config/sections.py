@@ -25,6 +25,8 @@ class SimConfig(Strict):
     plant_rate_hz: float = Field(1000.0, gt=0.0, le=20000.0, description="RK4 rate of the simulated plant, Hz")
     control_rate_hz: float | None = Field(None, gt=0.0, le=500.0, description="default 1/Ts")
     duration_s: float | None = Field(None, gt=0.0, allow_inf_nan=False, description="default: the mission's length")
+    max_minutes: float = Field(60.0, gt=0.0, le=10080.0, description="refuse, before any work, a flight estimated to "
+                               "take longer here, min (its closed loop and its traced channel: experiments.budget)")
 
 
 class PerturbationConfig(Strict):

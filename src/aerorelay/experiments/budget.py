@@ -16,9 +16,11 @@ every link of one relay: 207 s against 21 s for the 47 s mission traced every 0.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ..assembly.parts import bound_cost, scenario_bound_key
+from ..config import Scenario, ScenarioError
 from .study import RunSpec, scenario_of
 
 SIM_S_PER_MISSION_S = 0.12
@@ -39,14 +41,38 @@ class BudgetChoice:
     estimated_s: float
 
 
+def flight_seconds(sc: Scenario) -> tuple[float, int]:
+    """A flight's estimated wall time here (s), its bound left out, and the traces it takes (0 on an analytic
+    channel): the closed loop per simulated second, each trace in proportion to ``rays_per_source``."""
+    cost = RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * sc.duration_s * len(sc.relay_list)
+    prop = sc.channel.propagation
+    if prop.model != "ray_traced":
+        return cost, 0
+    traces = math.ceil(sc.duration_s / max(prop.trace_period_s, sc.control_period_s))
+    per_trace = TRACE_S * max(prop.rays_per_source / 1e6, TRACE_FLOOR) * len(sc.relay_list)
+    return cost + TRACE_STARTUP_S + per_trace * traces, traces
+
+
+def check_flight_time(sc: Scenario) -> None:
+    """A named error (ScenarioError) before any work when the flight is estimated to take longer than
+    ``sim.max_minutes`` here, naming what to change (a traced channel's rays and trace period first)."""
+    seconds, traces = flight_seconds(sc)
+    most = sc.sim.max_minutes
+    if seconds <= 60.0 * most:
+        return
+    prop = sc.channel.propagation
+    what = (f"{traces} traces at channel.propagation.rays_per_source = {prop.rays_per_source:.3g} every "
+            f"trace_period_s = {prop.trace_period_s:g} s" if traces else f"{sc.duration_s:g} s of closed loop")
+    fix = ("fewer rays_per_source, a longer trace_period_s, a shorter sim.duration_s" if traces else "a shorter sim.duration_s")
+    raise ScenarioError(f"sim.max_minutes: this flight would take about {seconds / 60.0:.3g} min here ({what}), more "
+                        f"than sim.max_minutes = {most:g}; {fix}, or a larger sim.max_minutes")
+
+
 def run_cost_s(spec: RunSpec, bounds_seen: set[str]) -> float:
     """Estimated worker-seconds of one run (its bound counted once per geometry: ``bounds_seen``)."""
     sc = scenario_of(spec)
-    cost = RUN_OVERHEAD_S + SIM_S_PER_MISSION_S * sc.duration_s
+    cost, _ = flight_seconds(sc)
     prop = sc.channel.propagation
-    if prop.model == "ray_traced":
-        per_trace = TRACE_S * max(prop.rays_per_source / 1e6, TRACE_FLOOR)
-        cost += TRACE_STARTUP_S + per_trace * sc.duration_s / max(prop.trace_period_s, sc.control_period_s)
     if spec.bound:
         key = scenario_bound_key(sc)
         if key not in bounds_seen:

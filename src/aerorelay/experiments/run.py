@@ -32,6 +32,7 @@ from ..sim.units import metric_units
 from ..store.outputs import writing
 from ..store.run_folder import MISSION_CSV, add_optional, log_frame, publish_run, write_bound_files
 from ..store.strict_json import NULL_REASONS
+from .budget import check_flight_time
 
 
 @dataclass
@@ -115,7 +116,9 @@ def output_bytes(sc: Scenario, *, figures: bool) -> int:
 
 
 def check_run_size(sc: Scenario) -> None:
-    """A named error, before any work, when the log would not fit in half of this machine's memory."""
+    """A named error, before any work, when the log would not fit in half of this machine's memory or the flight
+    would take longer than ``sim.max_minutes`` (``experiments.budget.check_flight_time``)."""
+    check_flight_time(sc)
     need = log_bytes(sc)
     total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     if need > total // 2:
