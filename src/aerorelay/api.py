@@ -28,6 +28,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
+from .assembly.codegen import record_calls, write_tree
 from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
@@ -537,6 +538,18 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
     if bound:
         check_bound_size(sc)
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
+
+
+def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None) -> dict:
+    """Write the C tree of ``sc``'s first relay's NMPC into ``out`` (``assembly.codegen.write_tree``: a new or empty
+    folder); with ``record``, fly ``sc`` and record that NMPC's calls there (``ar_replay.c``'s events) and its commands
+    beside (``<record>.expected``). Returns the tree's summary."""
+    tree = write_tree(sc, Path(out))
+    summary = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr, "n_params": tree.n_params,
+               "horizon": tree.horizon}
+    if record is not None:
+        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=lambda s: simulate(s, bound=False))))
+    return summary
 
 
 def flight_estimate(sc: Scenario) -> tuple[float, int]:

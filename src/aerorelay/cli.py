@@ -270,6 +270,35 @@ def _progress(label: str, unit: str, *, transient: bool = True):
 
 
 @app.command()
+def codegen(
+    scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
+    out: Path = typer.Option(..., "--out", help="a new or empty folder for the C tree", show_default=False),
+    record: Path = typer.Option(None, "--record", help="also fly the scenario and record its first relay's NMPC calls "
+                                "here (replay's input; the Python commands in <record>.expected)", show_default=False),
+    duration: float = typer.Option(None, "--duration", help="with --record: simulate only this many seconds"),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
+):
+    """The scenario's first relay's NMPC as a self-contained C99 library (HPIPM engine, settings baked in), with a
+    Makefile, a CMake project and a replay program (see the tree's README.md)."""
+    _check_duration(duration)
+    sc = _load_or_exit(scenario, set_, unset)
+    if duration is not None:
+        sc = sc.with_updates({"sim.duration_s": duration})
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        _fail(f"--out: {out} exists and is not an empty folder")
+    try:
+        summary = api.codegen(sc, out, record=record)
+    except (ScenarioError, ValueError) as exc:
+        _fail(str(exc))
+    console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "
+                  f"parameters {summary['n_params']} x {summary['horizon'] + 1}); build: make -C {out}", markup=False,
+                  highlight=False)
+    if record is not None:
+        console.print(f"recorded {summary['recorded']} feedback calls in {record}", markup=False, highlight=False)
+
+
+@app.command()
 def bound(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
     out: Path = typer.Option(..., "--out", help="output folder: bound.json, bound.parquet, bound.png", show_default=False),

@@ -266,13 +266,14 @@ def test_the_flyable_fleet_path_flies_within_its_limits_and_reaches_the_refined_
     """Two isotropic relays start at the base station's side; the source holds still 24 m away. The
     flyable path starts at the starts, moves at most max_speed * dt per sample and changes its move by
     at most max_accel * dt^2, its rate is the scene's true rate at its poses, never above the static
-    bound, and once the relays have arrived it is the refined configuration's."""
+    bound, and once the relays have arrived it is the refined configuration's. (12 m and 14 s: the same
+    assertions as at 24 m and 30 s, a third of the time.)"""
     names = ["r1", "r2"]
-    src = np.array([24.0, 0.0, 2.0])
+    src = np.array([12.0, 0.0, 2.0])
     sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
     starts = {"r1": np.array([2.0, 1.0, 2.0]), "r2": np.array([1.0, -1.0, 2.0])}
     pb = NetworkBoundProblem(sc, {"s": still(src)}, {r: 0.35 for r in names}, np.array([-2.0, -3.0, 0.0]),
-                             np.array([26.0, 3.0, 4.0]), 30.0,
+                             np.array([14.0, 3.0, 4.0]), 14.0,
                              BoundResolution(grid_m=1.0, dt_s=1.0, axis_step_deg=10.0, max_speed_m_s=1.0, max_accel_m_s2=0.5),
                              starts=starts)
     b = compute_network_bound(pb)
@@ -282,11 +283,11 @@ def test_the_flyable_fleet_path_flies_within_its_limits_and_reaches_the_refined_
     assert np.linalg.norm(moves, axis=-1).max() <= 1.0 + 1e-9
     assert np.linalg.norm(np.diff(moves, axis=0), axis=-1).max() <= 0.5 + 1e-9
     assert np.all(b.flyable <= b.static * (1 + 1e-9))
-    for k in (0, 10, 30):
+    for k in (0, 7, 14):
         poses = {"s": NodePose(src, np.array([0.0, 0.0, 1.0])),
                  **{r: NodePose(P[k, i], b.flyable_axes[k, i]) for i, r in enumerate(names)}}
         assert b.flyable[k] == pytest.approx(float(sc.evaluate(float(k), poses).capacity), rel=1e-12)
-    assert b.flyable[-1] >= b.achieved[-1] * (1 - 1e-6)  # r1 flew 14 m in 30 s: arrived (jointly refined: no worse)
+    assert b.flyable[-1] >= b.achieved[-1] * (1 - 1e-6)  # r1 flew about 6 m in 14 s: arrived (jointly refined: no worse)
     assert b.summary()["flyable"]["mean"] == pytest.approx(b.flyable.mean())
     assert b.resolution["flyable_closest_m"] > 0
 

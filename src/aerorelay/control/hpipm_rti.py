@@ -122,9 +122,15 @@ def use_simd_kernels(requested: bool) -> tuple[bool, str]:
     return blasfeo_matches_avx2_kernels()
 
 
-def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels: bool = True) -> Path:
-    """Generate, check, compile (once, cached) and return the engine's shared library. With
-    ``simd_kernels`` (and ``use_simd_kernels``), ``blasfeo_avx2.c`` is compiled in (see there)."""
+ENGINE_FLAGS = ("-O3",)  # the engine's optimization (the exported C tree's Makefile and CMake use the same)
+SIMD_HEAD = "\n#define RTI_SIMD 1\nextern int aerorelay_simd_kernels_ran;\n"  # after blasfeo_avx2.c, before the macros
+
+
+def engine_parts(spec: OcpSpec) -> tuple[str, str, str]:
+    """The engine's C source in its three parts, checked against the OCP: the CasADi-generated stage and terminal
+    linearization, the dimension macros, and the driver (``rti_hpipm.c``). Compiled in this order (with
+    ``blasfeo_avx2.c`` and ``SIMD_HEAD`` before the macros when the AVX2 kernels go in), here and in the C tree
+    ``aerorelay codegen`` writes."""
     stage, term = stage_linearization(spec, dense=True), terminal_linearization(spec, dense=True)
     check_dimensions(spec, stage, term)
     macros = {
@@ -132,16 +138,40 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ("-O3",), simd_kernels
         "RTI_NG": spec.ng, "RTI_NP": spec.n_params, "RTI_NBX": len(stage_bounds(spec)[0]),
     }
     head = "".join(f"#define {k} {v}\n" for k, v in macros.items())
-    here = resources.files("aerorelay.control")
-    driver = here.joinpath("rti_hpipm.c").read_text()
+    driver = resources.files("aerorelay.control").joinpath("rti_hpipm.c").read_text()
+    return generated_c(stage, term), head, driver
+
+
+def simd_source() -> str:
+    """``blasfeo_avx2.c``: BLASFEO's two hottest kernels for AVX2/FMA (see there)."""
+    return resources.files("aerorelay.control").joinpath("blasfeo_avx2.c").read_text()
+
+
+def build_library(spec: OcpSpec, flags: tuple[str, ...] = ENGINE_FLAGS, simd_kernels: bool = True) -> Path:
+    """Generate, check, compile (once, cached) and return the engine's shared library. With
+    ``simd_kernels`` (and ``use_simd_kernels``), ``blasfeo_avx2.c`` is compiled in (see there)."""
+    generated, head, driver = engine_parts(spec)
     if simd_kernels:
-        head = here.joinpath("blasfeo_avx2.c").read_text() + "\n#define RTI_SIMD 1\nextern int aerorelay_simd_kernels_ran;\n" + head
-    source = generated_c(stage, term) + "\n" + head + driver
+        head = simd_source() + SIMD_HEAD + head
+    source = generated + "\n" + head + driver
     cdir = _casadi_dir()
     return shared_library(
         "nmpc_rti", source, spec.key(), flags=(*flags, f"-I{cdir / 'include'}"),
         link=(f"-L{cdir}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{cdir}", "-lm"),
     )
+
+
+def engine_settings(spec: OcpSpec, *, condensed_horizon: int = 0, iter_max: int = 50, tol_comp: float = 1e-4,
+                    warm_start: int = 2, hessian_reg: float = 1e-8, ric_alg: int = 1, feedback_mode: int = 0,
+                    accept_tol: float = 0.0, iter_continue: int = 0) -> np.ndarray:
+    """``rti_create``'s settings vector (``rti_hpipm.c``): the horizon HPIPM solves (``condensed_horizon`` stages, or
+    every one), the IPM's iteration cap, warm start, tolerance and regularization, the Riccati recursion, the
+    feedback mode and the capped-iterate acceptance."""
+    n2 = condensed_horizon if 0 < condensed_horizon < spec.horizon else spec.horizon
+    if feedback_mode == 1 and n2 < spec.horizon:
+        raise ValueError("the sensitivity feedback needs the uncondensed QP (condensed_horizon = 0)")
+    return np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg, feedback_mode, accept_tol,
+                     iter_continue], float)
 
 
 def stage_bounds(spec: OcpSpec) -> tuple[np.ndarray, ...]:
@@ -180,11 +210,9 @@ class HpipmRti:
         lib.rti_get_plan.argtypes = [ctypes.c_void_p, _dp, _dp, _dp, _dp]
         lib.rti_free.argtypes = [ctypes.c_void_p]
         self._lib = lib
-        n2 = condensed_horizon if 0 < condensed_horizon < spec.horizon else spec.horizon
-        if feedback_mode == 1 and n2 < spec.horizon:
-            raise ValueError("the sensitivity feedback needs the uncondensed QP (condensed_horizon = 0)")
-        settings = np.array([n2, iter_max, int(warm_start), tol_comp, hessian_reg, ric_alg, feedback_mode, accept_tol,
-                             iter_continue], float)
+        settings = engine_settings(spec, condensed_horizon=condensed_horizon, iter_max=iter_max, tol_comp=tol_comp,
+                                   warm_start=warm_start, hessian_reg=hessian_reg, ric_alg=ric_alg,
+                                   feedback_mode=feedback_mode, accept_tol=accept_tol, iter_continue=iter_continue)
         self._keep = list(stage_bounds(spec))
         self._mem = lib.rti_create(_ptr(settings), self._keep[0].ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
                                    *(_ptr(a) for a in self._keep[1:]))

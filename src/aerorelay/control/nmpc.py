@@ -135,6 +135,16 @@ class QpStatus(StrEnum):
     NAN_IN_SOLUTION = "NaN in solution"
 
 
+def rti_options(settings: NmpcSettings) -> dict:
+    """The compiled engine's options (``hpipm_rti.engine_settings``) from the NMPC's settings: the one mapping, for
+    the engine in this process and for the C tree ``aerorelay codegen`` writes."""
+    return {"condensed_horizon": settings.condensed_horizon, "iter_max": settings.iter_max, "tol_comp": settings.tol_comp,
+            "hessian_reg": HESSIAN_REG, "warm_start": {"none": 0, "primal": 1, "primal_dual": 2}[settings.warm_start],
+            "ric_alg": {"classical": 0, "square_root": 1}[settings.riccati],
+            "feedback_mode": int(settings.feedback == "sensitivity"), "accept_tol": settings.accept_tol,
+            "iter_continue": settings.iter_continue}
+
+
 class _HpipmEngine:
     """Compiled engine: linearization + HPIPM (+ partial condensing) + update, two C calls."""
 
@@ -142,13 +152,7 @@ class _HpipmEngine:
               4: QpStatus.INCONS_EQ}
 
     def __init__(self, spec: OcpSpec, settings: NmpcSettings):
-        self.rti = HpipmRti(spec, condensed_horizon=settings.condensed_horizon, iter_max=settings.iter_max,
-                            tol_comp=settings.tol_comp, hessian_reg=HESSIAN_REG,
-                            warm_start={"none": 0, "primal": 1, "primal_dual": 2}[settings.warm_start],
-                            ric_alg={"classical": 0, "square_root": 1}[settings.riccati],
-                            simd_kernels=settings.simd_kernels,
-                            feedback_mode=int(settings.feedback == "sensitivity"), accept_tol=settings.accept_tol,
-                            iter_continue=settings.iter_continue)
+        self.rti = HpipmRti(spec, simd_kernels=settings.simd_kernels, **rti_options(settings))
 
     def reset(self, X: np.ndarray, W: np.ndarray):
         self.rti.set_plan(X, W)

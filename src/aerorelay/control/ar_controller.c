@@ -1,0 +1,127 @@
+/* aerorelay: one relay's NMPC as a C library (written by `aerorelay codegen`, see its README.md).
+ *
+ * The real-time iteration of aerorelay.control.nmpc.NMPC with the compiled HPIPM engine: `ar_prepare` (before the
+ * measurement: the lagged input-rate rows of the stage parameters filled from the last input and the plan, then
+ * every stage linearized and HPIPM's QP filled) and `ar_feedback` (measurement in, input out: the QP solved for the
+ * measured state, the plan stepped and shifted, the first input clipped as the Python NMPC clips it: to the motor
+ * accelerations' bounds and to what keeps the first stage's rotor speeds within theirs). The scenario's settings
+ * are baked in (aerorelay_baked.h); nothing is allocated after `ar_create`. Bad input (a non-finite state, input
+ * or parameter) is refused with AR_BAD_INPUT before the engine sees it, and the command returned holds the rotor
+ * speeds (zero motor acceleration).
+ *
+ * This file is compiled after the engine (aerorelay_nmpc.c: the CasADi-generated linearization, the dimension
+ * macros and rti_hpipm.c), in one translation unit with it, as aerorelay compiles its own engine.
+ */
+#include "aerorelay_controller.h"
+
+struct ar_controller {
+  rti_mem *rti;
+  int initialized;
+  double P[AR_NP * (AR_N + 1)];
+  double Xb[(AR_N + 1) * AR_NXA], Wb[AR_N * RTI_NW], X[(AR_N + 1) * AR_NXA], W[AR_N * RTI_NW];
+  double xa0[AR_NXA];
+};
+
+static int ar_finite(const double *v, int n) {
+  for (int i = 0; i < n; i++)
+    if (!isfinite(v[i])) return 0;
+  return 1;
+}
+
+static void ar_hold(double *u) {
+  for (int i = 0; i < AR_NR; i++) u[i] = 0.0;
+}
+
+ar_controller *ar_create(void) {
+  ar_controller *c = calloc(1, sizeof(ar_controller));
+  if (!c) return NULL;
+  c->rti = rti_create(AR_ENGINE_SETTINGS, AR_IDXBX, AR_LBX, AR_UBX, AR_LBU, AR_UBU);
+  if (!c->rti) {
+    free(c);
+    return NULL;
+  }
+  return c;
+}
+
+void ar_destroy(ar_controller *c) {
+  if (!c) return;
+  rti_free(c->rti);
+  free(c);
+}
+
+/* The OCP's initial state: the plant state and, with the exact input-rate cost, the last input. */
+static void ar_initial_state(ar_controller *c, const double *x, const double *u_prev) {
+  for (int i = 0; i < AR_NX; i++) c->xa0[i] = x[i];
+  if (AR_EXACT_INPUT_RATE)
+    for (int i = 0; i < AR_NR; i++) c->xa0[AR_NX + i] = u_prev[i];
+}
+
+ar_status ar_reset(ar_controller *c, const double *xa0) {
+  if (!ar_finite(xa0, AR_NXA)) return AR_BAD_INPUT;
+  for (int k = 0; k <= AR_N; k++)
+    for (int i = 0; i < AR_NXA; i++) c->Xb[k * AR_NXA + i] = xa0[i];
+  for (int i = 0; i < AR_N * RTI_NW; i++) c->Wb[i] = 0.0;
+  rti_set_plan(c->rti, c->Xb, c->Wb);
+  c->initialized = 1;
+  return AR_OK;
+}
+
+ar_status ar_prepare(ar_controller *c, const double *P, const double *u_prev, const double *x_guess) {
+  if (!ar_finite(P, AR_NP * (AR_N + 1)) || !ar_finite(u_prev, AR_NR)) return AR_BAD_INPUT;
+  if (!c->initialized) {
+    if (!x_guess || !ar_finite(x_guess, AR_NX)) return AR_BAD_INPUT;
+    ar_initial_state(c, x_guess, u_prev);
+    ar_reset(c, c->xa0);
+  }
+  memcpy(c->P, P, sizeof(c->P));
+  if (!AR_EXACT_INPUT_RATE) { /* the lagged rows: the last input at stage 0, the plan's inputs after */
+    rti_get_plan(c->rti, c->Xb, c->Wb, c->X, c->W);
+    for (int j = 0; j < AR_NR; j++) {
+      int row = AR_UPREV_ROWS[j];
+      c->P[row] = u_prev[j];
+      for (int k = 1; k <= AR_N; k++) c->P[k * AR_NP + row] = c->Wb[(k - 1) * RTI_NW + j];
+    }
+  }
+  rti_prepare(c->rti, c->P);
+  return AR_OK;
+}
+
+ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, int shift, double *u, ar_info *info) {
+  rti_info ri;
+  ar_info none = {0, -2, 0, 0, 0.0};
+  if (info) *info = none;
+  if (!ar_finite(x, AR_NX) || !ar_finite(u_prev, AR_NR)) {
+    ar_hold(u);
+    return AR_BAD_INPUT;
+  }
+  if (!c->initialized) {
+    ar_hold(u);
+    return AR_NOT_PREPARED;
+  }
+  ar_initial_state(c, x, u_prev);
+  rti_feedback(c->rti, c->xa0, shift, u, &ri);
+  int finite = ar_finite(u, AR_NR);
+  int ok = ri.ok && finite;
+  for (int i = 0; i < AR_NR; i++) { /* numpy's nan_to_num, then the motor accelerations' bounds */
+    double v = u[i];
+    if (isnan(v)) v = 0.0;
+    else if (isinf(v)) v = v > 0 ? DBL_MAX : -DBL_MAX;
+    v = v < AR_OMEGA_DOT_MIN[i] ? AR_OMEGA_DOT_MIN[i] : (v > AR_OMEGA_DOT_MAX[i] ? AR_OMEGA_DOT_MAX[i] : v);
+    /* the first stage's rotor-speed bounds, exact in the input (Omega_1 = Omega_0 + u Ts) */
+    double speed = x[AR_OMEGA_OFFSET + i];
+    double lo = (AR_OMEGA_MIN[i] - speed) / AR_TS, hi = (AR_OMEGA_MAX[i] - speed) / AR_TS;
+    lo = lo < AR_OMEGA_DOT_MIN[i] ? AR_OMEGA_DOT_MIN[i] : (lo > AR_OMEGA_DOT_MAX[i] ? AR_OMEGA_DOT_MAX[i] : lo);
+    hi = hi < AR_OMEGA_DOT_MIN[i] ? AR_OMEGA_DOT_MIN[i] : (hi > AR_OMEGA_DOT_MAX[i] ? AR_OMEGA_DOT_MAX[i] : hi);
+    double top = lo > hi ? lo : hi;
+    v = v > lo ? v : lo;
+    u[i] = v < top ? v : top;
+  }
+  if (info) {
+    info->ok = ok;
+    info->qp_status = ri.status;
+    info->iterations = ri.iter;
+    info->capped = ri.capped;
+    info->slack_max = ok ? (ri.slack_max > 0.0 ? ri.slack_max : 0.0) : NAN;
+  }
+  return ok ? AR_OK : AR_QP_FAILED;
+}
