@@ -285,11 +285,9 @@ def codegen(
     sc = _load_or_exit(scenario, set_, unset)
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        _fail(f"--out: {out} exists and is not an empty folder")
     try:
         summary = api.codegen(sc, out, record=record)
-    except (ScenarioError, ValueError) as exc:
+    except (ScenarioError, ValueError, FileExistsError) as exc:
         _fail(str(exc))
     console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "
                   f"parameters {summary['n_params']} x {summary['horizon'] + 1}); build: make -C {out}", markup=False,

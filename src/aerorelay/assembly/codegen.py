@@ -55,16 +55,18 @@ def _first_nmpc(sc: Scenario) -> NMPC:
 
 
 def write_tree(sc: Scenario, out: Path) -> Tree:
-    """Write the C tree of ``sc``'s first relay's NMPC into ``out`` (created; must be new or empty)."""
+    """Write the C tree of ``sc``'s first relay's NMPC into ``out`` (created; must be new or empty: FileExistsError,
+    before any work, otherwise)."""
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise FileExistsError(f"--out: {out} exists and is not an empty folder (the C tree is written into a new or "
+                              "empty one)")
     nmpc = _first_nmpc(sc)
     spec, settings = nmpc.spec, nmpc.settings
     if settings.backend != "hpipm":
         raise ValueError(f"codegen: the NMPC's backend is {settings.backend!r}; the C tree is the compiled HPIPM engine")
     veh = spec.vehicle
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    if any(out.iterdir()):
-        raise FileExistsError(f"--out: {out} is not empty (the C tree is written into a new or empty folder)")
     generated, macros, driver = engine_parts(spec)
     idxbx, lbx, ubx, lbu, ubu = stage_bounds(spec)
     nr = spec.n_rotors
@@ -206,7 +208,10 @@ status, iterations and the command per feedback.
              "README.md": readme,
              "manifest.json": json.dumps({"scenario": sc.name, "relay": sc.relay_list[0].name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
-                                          "nxa": nxa, "ocp_key": spec.key()}, indent=2) + "\n"}
+                                          "nxa": nxa, "ocp_key": spec.key(),
+                                          # whether the engine here ran blasfeo_avx2.c: build with SIMD=1 for its bits
+                                          "simd_here": bool(getattr(getattr(nmpc.engine, "rti", None), "simd_compiled", False))},
+                                         indent=2) + "\n"}
     for name, text in files.items():
         (out / name).write_text(text)
     return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa)

@@ -588,7 +588,6 @@ class JammerEstimator:
         J = J[:, cols]
         r = z - z_hat
         var0 = self._row_variance(theta, g, on, idx, found)
-        window_cost = self._scaled_cost(r, var0 * self.scale2, theta, g, on, idx, z_hat, base, found)  # as _window_cost sums it
         # the residuals' own scale (robust: 1.4826 x their median absolute size in model sigmas, at least 1): fading or
         # shadowing the model leaves out put readings many model sigmas off, and with the cuts at 3 model sigmas a
         # fade down read as a jammer switching within the row (left out of the fit) and Huber down-weighted the rest
@@ -601,6 +600,10 @@ class JammerEstimator:
         fit = base * ~mixed
         huber, robust = self._huber(r, fit, var)
         cost0 = huber + (self._velocity_cost(theta) + fixed_cost)
+        # the window's cost in the last fit's scale, summed as _window_cost sums it (the same rows and variances when
+        # the scale has not changed: those terms are reused, not computed again)
+        window_cost = (huber + fixed_cost + self._velocity_cost(theta) if scale2 == self.scale2
+                       else self._scaled_cost(r, var0 * self.scale2, theta, g, on, idx, z_hat, base, found))
         wr = fit / var * robust
         prior = np.where(np.tile(np.arange(_NP) >= 4, self.nj)[cols], self._vel_info, 0.0)  # the velocity's prior
         H = J.T @ (J * wr[:, None]) + np.diag(prior)

@@ -29,8 +29,7 @@ from ..models.antenna import IsotropicPattern
 from ..models.radio import ChannelState, NodePose, RadioScene
 from ..models.sensing import EnergyDetector
 from ..models.streams import stream
-
-_COV = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
+from .log_schema import COV_ENTRIES
 
 
 class JammerSensing:
@@ -49,7 +48,7 @@ class JammerSensing:
         self.names = [j.name for j in scene.jammers]
         self.columns = [f"meas_{r}_w" for r in receivers] + ["estimator_ms"] + [
             f"est_{n}_{q}" for n in self.names
-            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "trusted", "err_m", "crlb_m", *(f"cov_{c}" for c, _, _ in _COV))]
+            for q in ("x", "y", "z", "power_w", "on_prob", "std_m", "trusted", "err_m", "crlb_m", *(f"cov_{c}" for c, _, _ in COV_ENTRIES))]
         self.last_ms = 0.0
         self.crlb = InformationMeter(estimator, scene)
 
@@ -77,7 +76,7 @@ class JammerSensing:
             values.update({f"est_{n}_x": p[0], f"est_{n}_y": p[1], f"est_{n}_z": p[2], f"est_{n}_power_w": e.powers[k],
                            f"est_{n}_on_prob": e.on_prob[k], f"est_{n}_std_m": std[k], f"est_{n}_trusted": float(e.confident[k]),
                            f"est_{n}_err_m": err[i], f"est_{n}_crlb_m": crlb[i]})
-            for c, a, b in _COV:
+            for c, a, b in COV_ENTRIES:
                 values[f"est_{n}_cov_{c}"] = e.covariances[k, a, b]
         return values
 

@@ -50,6 +50,16 @@ COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": 
                                  "going_home": bool, "base_station": str, "waiting": bool, "ferrying": bool,
                                  "replaces": str}
 NETWORK_COLUMNS = ("capacity", "jammer_on", "separation_min")
+# a jammer estimate's position covariance as logged: est_<name>_cov_<entry>, its six entries and where they sit
+COV_ENTRIES = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
+
+
+def logged_covariance(log, name: str, k: int = -1) -> np.ndarray:
+    """Jammer ``name``'s estimated position covariance ``(3, 3)`` (m^2) at row ``k``, from its six logged entries."""
+    cov = np.empty((3, 3))
+    for entry, a, b in COV_ENTRIES:
+        cov[a, b] = cov[b, a] = float(np.asarray(log[f"est_{name}_cov_{entry}"], float)[k])
+    return cov
 
 
 def column_type(name: str) -> type:

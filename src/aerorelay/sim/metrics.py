@@ -13,7 +13,7 @@ from ..models.obstacles import clearance
 from ..models.vehicle import Multirotor
 from ..stats import stats_ms
 from .exit_status import ExitStatus, exit_fields
-from .log_schema import rotor_count
+from .log_schema import logged_covariance, rotor_count
 
 # A slack below this fraction of mu is the interior-point solver's tolerance (complementarity
 # 1e-4), not a relaxation of the alignment constraint: on the nominal tilted mission the slack
@@ -151,9 +151,7 @@ def estimation_metrics(log, period_s: float) -> dict:
         if f"jam_{n}_x" in log and f"est_{n}_cov_xx" in log:
             e = np.array([float(np.asarray(log[f"est_{n}_{a}"], float)[-1] - np.asarray(log[f"jam_{n}_{a}"], float)[-1])
                           for a in "xyz"])
-            c = {k: float(np.asarray(log[f"est_{n}_cov_{k}"], float)[-1]) for k in ("xx", "yy", "zz", "xy", "xz", "yz")}
-            cov = np.array([[c["xx"], c["xy"], c["xz"]], [c["xy"], c["yy"], c["yz"]], [c["xz"], c["yz"], c["zz"]]])
-            nees.append(float(e @ np.linalg.lstsq(cov, e, rcond=None)[0]))
+            nees.append(float(e @ np.linalg.lstsq(logged_covariance(log, n), e, rcond=None)[0]))
     out = {"estimation_first_within_1m_s": max(first), "estimation_within_1m_after_10s": min(within),
            "estimation_err_mean_m": max(mean), "estimation_err_final_m": max(final), "estimation_std_final_m": max(std),
            "estimator_ms": stats_ms(np.asarray(log["estimator_ms"], float))}
