@@ -28,7 +28,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
-from .assembly.codegen import record_calls, write_tree
+from .assembly.codegen import CController, build_shared, flown_by_c, record_calls, write_tree
 from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
@@ -540,15 +540,39 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
 
 
-def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None) -> dict:
-    """Write the C tree of ``sc``'s first relay's NMPC into ``out`` (``assembly.codegen.write_tree``: a new or empty
-    folder); with ``record``, fly ``sc`` and record that NMPC's calls there (``ar_replay.c``'s events) and its commands
-    beside (``<record>.expected``). Returns the tree's summary."""
+def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, fly: bool = False) -> dict:
+    """Write the C tree of ``sc``'s first relay's controller into ``out`` (``assembly.codegen.write_tree``: a new or empty
+    folder). ``record``: fly ``sc`` and record that controller's steps there (``ar_replay.c``'s events) and the Python
+    controller's brake-law flags and commands beside (``<record>.expected``). ``fly``: build the tree's shared library
+    and fly ``sc`` with its commands (the Python controller beside it on the same inputs), the flight's metrics and the
+    largest difference from Python's commands in the summary and in ``out/fly.json``. Returns the tree's summary."""
     tree = write_tree(sc, Path(out))
-    summary = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr, "n_params": tree.n_params,
-               "horizon": tree.horizon}
+    summary: dict = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr,
+                     "n_params": tree.n_params, "horizon": tree.horizon}
+    flown: dict = {}
+
+    def fly_c(s: Scenario) -> RunResult:
+        simd = bool(json.loads((tree.folder / "manifest.json").read_text())["simd_here"])
+        controller = CController(build_shared(tree.folder, simd=simd), tree)
+        try:
+            with flown_by_c(controller) as shadow:
+                r = simulate(s, bound=False)
+        finally:
+            controller.close()
+        m = r.metrics
+        flown.update({k: m.get(k) for k in ("c_min", "c_mean", "unsafe", "unsafe_reason", "steps", "fallback_episodes")},
+                     simd=simd, c_steps=shadow.steps, c_fallback_steps=shadow.fallback_steps,
+                     max_difference=shadow.max_difference, fallback_disagreements=shadow.fallback_disagreements)
+        return r
+
+    fly_or_simulate = fly_c if fly else (lambda s: simulate(s, bound=False))
     if record is not None:
-        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=lambda s: simulate(s, bound=False))))
+        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=fly_or_simulate)))
+    elif fly:
+        fly_c(sc)
+    if fly:
+        summary["flown"] = flown
+        (tree.folder / "fly.json").write_text(json.dumps(flown, indent=2, default=float) + "\n")
     return summary
 
 

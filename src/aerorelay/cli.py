@@ -273,27 +273,39 @@ def _progress(label: str, unit: str, *, transient: bool = True):
 def codegen(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
     out: Path = typer.Option(..., "--out", help="a new or empty folder for the C tree", show_default=False),
-    record: Path = typer.Option(None, "--record", help="also fly the scenario and record its first relay's NMPC calls "
-                                "here (replay's input; the Python commands in <record>.expected)", show_default=False),
-    duration: float = typer.Option(None, "--duration", help="with --record: simulate only this many seconds"),
+    record: Path = typer.Option(None, "--record", help="also fly the scenario and record its first relay's controller "
+                                "steps here (replay's input; the Python commands in <record>.expected)", show_default=False),
+    fly: bool = typer.Option(False, "--fly", help="build the tree's shared library (make) and fly the scenario with its "
+                             "commands, the Python controller beside it: the flight's C_min and the largest difference "
+                             "(out/fly.json)"),
+    duration: float = typer.Option(None, "--duration", help="with --record or --fly: simulate only this many seconds"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
-    """The scenario's first relay's NMPC as a self-contained C99 library (HPIPM engine, settings baked in), with a
-    Makefile, a CMake project and a replay program (see the tree's README.md)."""
+    """The scenario's first relay's controller (the NMPC on the HPIPM engine, the supervisor's envelope, the fail-safe
+    brake law; settings baked in) as a self-contained C99 library, with a Makefile, a CMake project and a replay
+    program (see the tree's README.md)."""
     _check_duration(duration)
     sc = _load_or_exit(scenario, set_, unset)
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
     try:
-        summary = api.codegen(sc, out, record=record)
-    except (ScenarioError, ValueError, FileExistsError) as exc:
+        summary = api.codegen(sc, out, record=record, fly=fly)
+    except (ScenarioError, ValueError, FileExistsError, RuntimeError) as exc:
         _fail(str(exc))
     console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "
                   f"parameters {summary['n_params']} x {summary['horizon'] + 1}); build: make -C {out}", markup=False,
                   highlight=False)
     if record is not None:
-        console.print(f"recorded {summary['recorded']} feedback calls in {record}", markup=False, highlight=False)
+        console.print(f"recorded {summary['recorded']} controller steps in {record}", markup=False, highlight=False)
+    if fly:
+        f = summary["flown"]
+        console.print(f"flown with the C library ({f['c_steps']} steps, {f['c_fallback_steps']} on the brake law): C_min "
+                      f"{f['c_min']:.5g}, C_mean {f['c_mean']:.5g}, largest difference from Python's command "
+                      f"{f['max_difference']:.2g} (relative), brake law disagreements {f['fallback_disagreements']}"
+                      + (f"; UNSAFE: {f['unsafe_reason']}" if f["unsafe"] else ""), markup=False, highlight=False)
+        if f["unsafe"]:
+            raise typer.Exit(EXIT_UNSAFE)
 
 
 @app.command()

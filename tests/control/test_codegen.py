@@ -1,7 +1,8 @@
-"""``aerorelay codegen`` (issue 62, its first part): one relay's NMPC as a C tree that builds offline with make (and
-CMake where installed) against the HPIPM and BLASFEO in CasADi's wheel, and whose ``replay`` of a Python flight's
-NMPC calls gives the Python NMPC's commands (1e-9 relative; bit for bit when built with the same BLASFEO kernels);
-bad input is a status and a held command, never a crash."""
+"""``aerorelay codegen`` (issue 62): one relay's controller (the NMPC, the supervisor's envelope, the fail-safe brake
+law) as a C tree that builds offline with make (and CMake where installed) against the HPIPM and BLASFEO in CasADi's
+wheel, and whose ``replay`` of a Python flight's controller steps gives the Python controller's commands (1e-9
+relative; bit for bit where the NMPC flies with the same BLASFEO kernels), with QP failures forced by the file (an
+iteration cap) and hand-overs by the supervisor; bad input is a status and a held command, never a crash."""
 
 from __future__ import annotations
 
@@ -22,10 +23,10 @@ ROOT = Path(__file__).resolve().parents[2]
 runner = CliRunner()
 
 
-def _tree(tmp_path: Path, scenario: str, duration: float) -> tuple[Path, Path, bool]:
+def _tree(tmp_path: Path, scenario: str, duration: float, *args: str) -> tuple[Path, Path, bool]:
     out, calls = tmp_path / "tree", tmp_path / "calls.csv"
     r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / scenario), "--out", str(out), "--record", str(calls),
-                            "--duration", str(duration)])
+                            "--duration", str(duration), *args])
     assert r.exit_code == 0, r.output
     simd = json.loads((out / "manifest.json").read_text())["simd_here"]  # the kernels the recorded flight ran
     res = subprocess.run(["make", "-C", str(out), f"SIMD={int(simd)}"], capture_output=True, text=True)
@@ -43,36 +44,86 @@ def _replay(out: Path, calls: Path) -> subprocess.CompletedProcess:
     return subprocess.run([str(out / "build" / "replay"), str(calls)], capture_output=True, text=True)
 
 
-@pytest.mark.parametrize(("scenario", "duration"), [("nominal_tilted.toml", 2.0), ("quad_x.toml", 0.5)])
-def test_the_c_controller_gives_the_python_nmpc_s_commands(tmp_path, nominal_tree, scenario, duration):
-    out, calls, simd = nominal_tree if scenario == "nominal_tilted.toml" else _tree(tmp_path, scenario, duration)
+def _compare(out: Path, calls: Path, simd: bool, steps: int) -> np.ndarray:
+    """Replay ``calls`` through the C library; its rows (status, ok, HPIPM status, iterations, brake law, command), checked
+    against the Python controller's (brake law, command)."""
     res = _replay(out, calls)
     assert res.returncode == 0, res.stderr
     rows = np.array([[float(v) for v in line.split(",")] for line in res.stdout.splitlines()])
     expected = np.loadtxt(str(calls) + ".expected", delimiter=",", ndmin=2)
-    assert rows.shape[0] == expected.shape[0] == math.ceil(duration / 0.015 - 1e-9)  # every control period
+    assert rows.shape[0] == expected.shape[0] == steps  # every control period
+    np.testing.assert_array_equal(rows[:, 4], expected[:, 0])  # the brake law flies on the same steps
+    assert np.all((rows[:, 0] == 4) == (rows[:, 4] == 1))  # AR_FALLBACK exactly when the brake law flies
+    # 1e-9 relative; absolute 1e-10 Hz/s where the command is near zero: the brake law's is (sqrt(w2) - Omega) / tau,
+    # a difference of ~50 Hz rotor speeds over 0.05 s, and its allocation solved by another SVD than LAPACK's agrees
+    # to rounding (measured: 8e-12 Hz/s at most)
+    np.testing.assert_allclose(rows[:, 5:], expected[:, 1:], rtol=1e-9, atol=1e-10)
+    nmpc = rows[:, 4] == 0
+    if simd:  # where the NMPC flies, with the same BLASFEO kernels: the same floating-point operations
+        assert np.array_equal(rows[nmpc, 5:], expected[nmpc, 1:])
+    return rows
+
+
+@pytest.mark.parametrize(("scenario", "duration"), [("nominal_tilted.toml", 2.0), ("quad_x.toml", 0.5)])
+def test_the_c_controller_gives_the_python_controller_s_commands(tmp_path, nominal_tree, scenario, duration):
+    out, calls, simd = nominal_tree if scenario == "nominal_tilted.toml" else _tree(tmp_path, scenario, duration)
+    rows = _compare(out, calls, simd, math.ceil(duration / 0.015 - 1e-9))
     assert set(rows[:, 0]) <= {0.0, 1.0}  # AR_OK or AR_QP_FAILED (then the shifted plan's input, as in Python)
-    np.testing.assert_allclose(rows[:, 4:], expected, rtol=1e-9, atol=1e-12)
-    if simd:  # the same BLASFEO kernels: the same floating-point operations
-        assert np.array_equal(rows[:, 4:], expected)
+
+
+def test_the_nominal_mission_flown_by_the_c_library_keeps_its_c_min(tmp_path):
+    """The whole nominal tilted mission with the C library's commands (``--fly``): C_min 4.7317e-4, as the Python
+    controller flies it (docs/results/reliability.md); bit for bit with the same BLASFEO kernels."""
+    out = tmp_path / "tree"
+    r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(out), "--fly"])
+    assert r.exit_code == 0, r.output
+    flown = json.loads((out / "fly.json").read_text())
+    assert flown["c_steps"] == flown["steps"] > 3000 and flown["c_fallback_steps"] == 0 and not flown["unsafe"]
+    assert flown["c_min"] == pytest.approx(4.7317e-4, abs=5e-9)
+    assert flown["max_difference"] < 1e-9 and (flown["max_difference"] == 0.0 or not flown["simd"])
+
+
+@pytest.mark.parametrize("scenario", ["nominal_tilted.toml", "octo_tilted.toml"])
+def test_forced_qp_failures_fly_the_same_brake_law_and_hand_back_the_same(tmp_path, scenario):
+    """An iteration cap of 4 fails most QPs (the capacity planner's tracking NMPC): the hand-over after 3 failures, the
+    brake law (its bounded least-squares allocation: 8 rotors, 6 rows, so not unique on the octocopter: SciPy's BVLS
+    path itself) and the NMPC's return, step for step."""
+    out, calls, simd = _tree(tmp_path, scenario, 5.0, "--fly", "--set", "controller.planner=capacity",
+                             "--set", "controller.capacity.qp_iter_max=4")
+    rows = _compare(out, calls, simd, math.ceil(5.0 / 0.015))
+    statuses = set(rows[:, 0])
+    assert {1.0, 4.0} <= statuses  # QP failures and brake-law steps
+    assert 0.0 in statuses or scenario != "nominal_tilted.toml"  # the NMPC hands back
+    # --fly: the C library's commands flew the plant (the recorded steps are that flight's), Python's beside them
+    flown = json.loads((out / "fly.json").read_text())
+    assert flown["c_steps"] == rows.shape[0] and flown["c_fallback_steps"] == int(rows[:, 4].sum())
+    assert flown["fallback_disagreements"] == 0 and flown["max_difference"] < 1e-9 and not flown["unsafe"]
+
+
+def test_the_supervisor_s_hand_overs_are_the_same(tmp_path, monkeypatch):
+    """mu = 0.99 flips the relay (past validation): the envelope hands over at once, the recovery law rights it."""
+    monkeypatch.setattr("aerorelay.assembly.checks._mu_reachable", lambda sc: None)
+    out, calls, simd = _tree(tmp_path, "nominal_tilted.toml", 8.0, "--set", "controller.mu=0.99")
+    rows = _compare(out, calls, simd, math.ceil(8.0 / 0.015 - 1e-9))
+    assert 4.0 in set(rows[:, 0]) and 0.0 in set(rows[:, 0])
 
 
 def test_bad_input_is_a_status_and_a_held_command(tmp_path, nominal_tree):
     out, calls, _ = nominal_tree
     lines = calls.read_text().splitlines()
-    fb = next(k for k, line in enumerate(lines) if line.startswith("feedback,"))
-    nan_state = lines[fb].split(",")
+    nan_state = lines[0].split(",")
     nan_state[2] = "nan"  # the state's x
     bad = tmp_path / "bad.csv"
-    bad.write_text("\n".join([*lines[:fb], ",".join(nan_state), *lines[fb:]]) + "\n")
+    bad.write_text("\n".join([",".join(nan_state), *lines[:3]]) + "\n")
     res = _replay(out, bad)
     assert res.returncode == 0, res.stderr
-    first = [float(v) for v in res.stdout.splitlines()[0].split(",")]
-    assert first[0] == 2 and first[4:] == [0.0] * 6  # AR_BAD_INPUT, motor accelerations 0: the rotor speeds held
+    out_rows = [[float(v) for v in line.split(",")] for line in res.stdout.splitlines()]
+    assert out_rows[0][0] == 2 and out_rows[0][5:] == [0.0] * 6  # AR_BAD_INPUT, motor accelerations 0: speeds held
+    assert all(r[0] == 4 and r[4] == 1 for r in out_rows[1:])  # then the brake law, as after Python's non-finite state
     short = tmp_path / "short.csv"
-    short.write_text(lines[fb].rsplit(",", 1)[0] + "\n")
+    short.write_text(lines[0].rsplit(",", 1)[0] + "\n")
     res = _replay(out, short)
-    assert res.returncode == 2 and "line 1: 'feedback' with" in res.stderr
+    assert res.returncode == 2 and "line 1: 'step' with" in res.stderr
 
 
 @pytest.mark.skipif(shutil.which("cmake") is None and not os.environ.get("AERORELAY_REQUIRE_CMAKE"),

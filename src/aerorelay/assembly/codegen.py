@@ -1,28 +1,34 @@
-"""One relay's NMPC as a self-contained C99 tree (``aerorelay codegen``; issue 62, its first part).
+"""One relay's controller as a self-contained C99 tree (``aerorelay codegen``; issue 62).
 
-The tree holds what the Python NMPC of the scenario's first relay runs each control period, compiled from the same
-sources in the same order with the same flags: the CasADi-generated stage linearization, the HPIPM driver
-(``control/rti_hpipm.c``), and the NMPC's own steps around it (``control/ar_controller.c``: the lagged input-rate
-rows of the stage parameters, the initial state, the first input clipped to the motor limits), with the scenario's
-settings baked in; one header with a small C API; a Makefile and a CMake project that find HPIPM and BLASFEO at a
-prefix (default: the libraries in CasADi's wheel this tree was written with, so it builds offline); and ``replay``,
-which runs recorded calls through the library (``record_calls`` records them from a Python flight). Not in the tree
-yet: the stage parameters' producers (the planner, the reference governor), the supervisor and the fail-safe:
-the C library takes the stage parameters as input.
+The tree holds what the Python controller of the scenario's first relay runs each control period
+(``RelayController.step``), compiled from the same sources in the same order with the same flags: the
+CasADi-generated stage linearization, the HPIPM driver (``control/rti_hpipm.c``), the NMPC's own steps around it
+(``control/ar_controller.c``: the lagged input-rate rows of the stage parameters, the initial state, the first input
+clipped to the motor limits), and the step (``control/ar_failsafe.c``: the supervisor's envelope, the hand-over
+counts, the fail-safe brake law with SciPy's BVLS allocation), with the scenario's settings baked in; one header with
+a small C API; a Makefile and a CMake project that find HPIPM and BLASFEO at a prefix (default: the libraries in
+CasADi's wheel this tree was written with, so it builds offline); and ``replay``, which runs recorded steps through
+the library (``record_calls`` records them from a Python flight). ``flown_by_c`` flies a scenario with the tree's
+shared library's commands (``CController``). Not in the tree yet: the stage parameters' producers (the planner, the
+reference governor): the C library takes the stage parameters as input.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import json
-from dataclasses import dataclass
+import subprocess
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..config import Scenario
 from ..control.hpipm_rti import ENGINE_FLAGS, SIMD_HEAD, _casadi_dir, engine_parts, engine_settings, simd_source, stage_bounds
-from ..control.nmpc import NMPC, rti_options
+from ..control.nmpc import rti_options
+from ..control.relay import RelayController
+from ..models.obstacles import Box, VerticalCylinder
 from ..models.state import ROTORS
 from ..store.codegen import CASADI_VERSION
 from .parts import build
@@ -44,14 +50,71 @@ class Tree:
     nxa: int  # the OCP's initial state (the plant state, and the last input with the exact input-rate cost)
 
 
+def _c_number(v: float) -> str:
+    return "INFINITY" if v == np.inf else "-INFINITY" if v == -np.inf else "NAN" if v != v else repr(float(v))
+
+
 def _array(ctype: str, name: str, values) -> str:
     vals = np.atleast_1d(np.asarray(values, float if ctype == "double" else int)).ravel()
-    body = ", ".join(repr(float(v)) if ctype == "double" else str(int(v)) for v in vals)
+    body = ", ".join(_c_number(v) if ctype == "double" else str(int(v)) for v in vals)
     return f"static const {ctype} {name}[{max(len(vals), 1)}] = {{{body if len(vals) else '0'}}};\n"
 
 
-def _first_nmpc(sc: Scenario) -> NMPC:
-    return build(sc).relays[0].stepper.controller.nmpc
+def _defines(**values) -> str:
+    return "".join(f"#define AR_{k.upper()} {_c_number(float(v)) if isinstance(v, float) else int(v)}\n"
+                   for k, v in values.items())
+
+
+def _first_controller(sc: Scenario) -> RelayController:
+    return build(sc).relays[0].stepper.controller
+
+
+def _obstacle_rows(obstacles) -> tuple[list[int], list[float]]:
+    """The envelope's obstacles as ar_failsafe.c reads them: a kind (0 box, 1 vertical cylinder) and 7 numbers each."""
+    kinds, data = [], []
+    for o in obstacles:
+        if isinstance(o, Box):
+            kinds.append(0)
+            data += [*o.lo, *o.hi, o.margin]
+        elif isinstance(o, VerticalCylinder):
+            kinds.append(1)
+            data += [*o.centre, o.radius, o.z_min, o.z_max, 0.0, o.margin]
+        else:  # a new obstacle kind needs its signed distance in ar_failsafe.c
+            raise ValueError(f"codegen: the supervisor's obstacle {type(o).__name__} has no C signed distance")
+    return kinds, data
+
+
+def _failsafe_settings(rc: RelayController) -> str:
+    """The supervisor's envelope, the brake law and the hand-over counts of ``rc``, baked for ar_failsafe.c."""
+    env, brake, g, veh = rc.envelope, rc.brake, rc.brake.g, rc.spec.vehicle
+    kinds, data = _obstacle_rows(env.obstacles if env is not None else ())
+    (kr_up, kw_up), (kr_rec, kw_rec) = brake.gains[True], brake.gains[False]
+    ws_lo = env.workspace_min if env is not None else rc.spec.workspace_min
+    ws_hi = env.workspace_max if env is not None else rc.spec.workspace_max
+    return "".join([
+        "/* the supervisor's envelope, the brake law, the hand-over counts (RelayController, SafetyEnvelope, BrakeLaw) */\n",
+        _defines(supervisor=env is not None, failures_to_fallback=rc.failures_to_fallback,
+                 successes_to_resume=rc.successes_to_resume, n_obst=len(kinds),
+                 box_tolerance=float(env.box_tolerance_m if env else 0.0),
+                 ground_z=float(env.ground_z_m if env else -np.inf),
+                 cos_max_tilt=float(env._cos_max_tilt if env else -1.0),
+                 max_speed=float(env.max_speed_m_s if env else np.inf),
+                 max_body_rate=float(env.max_body_rate_rad_s if env else np.inf),
+                 rest_speed=float(env.rest_speed_m_s if env else np.inf),
+                 rest_tilt_deg=float(env.rest_tilt_deg if env else np.inf),
+                 max_handovers=env.max_handovers if env else 1,
+                 cos_recovery=float(brake.cos_recovery), brake_freq=float(g.freq), brake_max_freq=float(g.max_freq),
+                 brake_max_accel=float(g.max_accel), brake_recovery_max_accel=float(g.recovery_max_accel),
+                 brake_lag=float(g.attitude_lag_s), brake_tau=float(g.motor_time_constant),
+                 brake_moment_weight=float(g.moment_weight), mass=float(veh.mass), gravity=float(veh.gravity)),
+        _array("int", "AR_OBST_KIND", kinds), _array("double", "AR_OBST_DATA", data),
+        _array("double", "AR_WS_MIN", ws_lo), _array("double", "AR_WS_MAX", ws_hi),
+        _array("double", "AR_BRAKE_LO", brake.lo), _array("double", "AR_BRAKE_HI", brake.hi),
+        _array("double", "AR_ALLOC", brake.A), _array("double", "AR_W2_MIN", brake.bounds[0]),
+        _array("double", "AR_W2_MAX", brake.bounds[1]), _array("double", "AR_J", np.asarray(veh.inertia, float)),
+        _array("double", "AR_KR_UPRIGHT", kr_up), _array("double", "AR_KW_UPRIGHT", kw_up),
+        _array("double", "AR_KR_RECOVERY", kr_rec), _array("double", "AR_KW_RECOVERY", kw_rec),
+    ])
 
 
 def write_tree(sc: Scenario, out: Path) -> Tree:
@@ -61,7 +124,8 @@ def write_tree(sc: Scenario, out: Path) -> Tree:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise FileExistsError(f"--out: {out} exists and is not an empty folder (the C tree is written into a new or "
                               "empty one)")
-    nmpc = _first_nmpc(sc)
+    rc = _first_controller(sc)
+    nmpc = rc.nmpc
     spec, settings = nmpc.spec, nmpc.settings
     if settings.backend != "hpipm":
         raise ValueError(f"codegen: the NMPC's backend is {settings.backend!r}; the C tree is the compiled HPIPM engine")
@@ -84,6 +148,7 @@ def write_tree(sc: Scenario, out: Path) -> Tree:
         _array("double", "AR_OMEGA_DOT_MAX", np.broadcast_to(veh.omega_dot_max, nr)),
         f"#define AR_TS {float(spec.ts)!r}\n#define AR_EXACT_INPUT_RATE {int(spec.exact_input_rate)}\n",
         f"#define AR_OMEGA_OFFSET {ROTORS.start}\n",
+        _failsafe_settings(rc),
     ])
     here = Path(__file__).resolve().parent.parent / "control"
     header = f"""/* aerorelay: one relay's NMPC as a C library (scenario {sc.name!r}, written by aerorelay codegen).
@@ -97,7 +162,15 @@ def write_tree(sc: Scenario, out: Path) -> Tree:
 #define AR_N {spec.horizon}  /* horizon (stages) */
 #define AR_NXA {nxa}  /* the OCP's initial state (ar_reset) */
 
-typedef enum {{ AR_OK = 0, AR_QP_FAILED = 1, AR_BAD_INPUT = 2, AR_NOT_PREPARED = 3 }} ar_status;
+typedef enum {{
+  AR_OK = 0,           /* the NMPC's command */
+  AR_QP_FAILED = 1,    /* the QP failed: the previous plan's input, shifted (ar_step: fewer failures in a row than the
+                          hand-over needs) */
+  AR_BAD_INPUT = 2,    /* a non-finite state, input or parameter: ar_feedback holds (zero motor acceleration); ar_step
+                          hands over to the brake law (which holds when the state itself is not finite) */
+  AR_NOT_PREPARED = 3, /* ar_feedback before any ar_prepare: held */
+  AR_FALLBACK = 4      /* ar_step: the fail-safe brake law's command (the supervisor's envelope, QP failures) */
+}} ar_status;
 
 typedef struct {{
   int ok;          /* the QP solved and its input is finite */
@@ -105,6 +178,7 @@ typedef struct {{
   int iterations;  /* IPM iterations */
   int capped;      /* stopped at the iteration cap with residuals within accept_tol */
   double slack_max; /* largest slack of the solution (NaN when not ok) */
+  int fallback;    /* ar_step: the brake law flies */
 }} ar_info;
 
 typedef struct ar_controller ar_controller;
@@ -117,6 +191,11 @@ ar_status ar_reset(ar_controller *c, const double *xa0);
 ar_status ar_prepare(ar_controller *c, const double *P, const double *u_prev, const double *x_guess);
 /* feedback: the measured state in, the motor accelerations u out (AR_NR); bad input: AR_BAD_INPUT, u = 0 (hold) */
 ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, int shift, double *u, ar_info *info);
+/* one control step (aerorelay's RelayController.step): the supervisor's envelope, ar_prepare and ar_feedback, and the
+ * fail-safe brake law after AR_FAILURES_TO_FALLBACK QP failures in a row or at once outside the envelope; the NMPC
+ * resumes after AR_SUCCESSES_TO_RESUME successes from rest. shift: 1 when the period is the OCP's step. */
+ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const double *P, int shift, double *u,
+                  ar_info *info);
 
 #endif
 """
@@ -125,7 +204,7 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
         "#include <float.h>", generated,
         "#ifdef AR_SIMD /* BLASFEO's two hottest kernels for AVX2/FMA, over CasADi's generic BLASFEO (x86-64 only) */",
         '#include "blasfeo_avx2.c"', SIMD_HEAD, "#endif", macros + driver, baked,
-        (here / "ar_controller.c").read_text(),
+        (here / "ar_controller.c").read_text(), (here / "ar_failsafe.c").read_text(),
     ])
     cdir = _casadi_dir()
     flags = " ".join(ENGINE_FLAGS)
@@ -148,6 +227,13 @@ build/aerorelay_controller.o: src/{SOURCE} src/blasfeo_avx2.c include/{HEADER}
 \tmkdir -p build
 \t$(CC) $(CFLAGS) $(DEFS) $(INC) -c src/{SOURCE} -o $@
 
+# a shared library (aerorelay codegen --fly loads it to fly the scenario with the C commands)
+shared: build/libaerorelay_controller.so
+
+build/libaerorelay_controller.so: src/{SOURCE} src/blasfeo_avx2.c include/{HEADER}
+\tmkdir -p build
+\t$(CC) $(CFLAGS) $(DEFS) $(INC) -fPIC -shared src/{SOURCE} $(LIBS) $(RPATH) -o $@
+
 build/libaerorelay_controller.a: build/aerorelay_controller.o
 \tar rcs $@ $^
 
@@ -157,7 +243,7 @@ build/replay: tools/replay.c build/libaerorelay_controller.a
 clean:
 \trm -rf build
 
-.PHONY: all clean
+.PHONY: all shared clean
 """
     cmake = f"""cmake_minimum_required(VERSION 3.13)
 project(aerorelay_controller C)
@@ -181,24 +267,26 @@ target_link_libraries(replay PRIVATE aerorelay_controller)
 """
     readme = f"""# aerorelay controller: scenario `{sc.name}`, relay `{sc.relay_list[0].name}`
 
-Written by `aerorelay codegen` (aerorelay, CasADi {CASADI_VERSION}). One relay's NMPC (real-time iteration, HPIPM) as a
-C99 library with the scenario's settings baked in: the command it returns equals the Python NMPC's for the same
-calls (`replay`, below). The stage parameters `P` (the planner's references, the source's and the jammers' paths as
-the relay knows them) come from outside: the planner, the reference governor, the supervisor and the fail-safe
-are not in this tree yet.
+Written by `aerorelay codegen` (aerorelay, CasADi {CASADI_VERSION}). One relay's controller as a C99 library with the
+scenario's settings baked in: the NMPC (real-time iteration, HPIPM), the flight-safety supervisor's envelope and the
+fail-safe brake law. The command it returns equals the Python controller's for the same steps (`replay`, below).
+The stage parameters `P` (the planner's references, the source's and the jammers' paths as the relay knows them)
+come from outside: the planner and the reference governor are not in this tree yet.
 
 Build (HPIPM and BLASFEO from CasADi's wheel by default, or `HPIPM_PREFIX=/opt/acados`):
 
-    make                       # build/libaerorelay_controller.a and build/replay
+    make                       # build/libaerorelay_controller.a and build/replay (make shared: the .so)
     cmake -B build-cmake && cmake --build build-cmake
 
-API: `include/{HEADER}`. Each control period: `ar_prepare(c, P, u_prev, x)` before the measurement, then
-`ar_feedback(c, x, u_prev, 1, u, &info)`. Dimensions: state {veh.nx}, rotors {nr}, stage parameters {spec.n_params} x
-{spec.horizon + 1}.
+API: `include/{HEADER}`. Each control period `ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
+brake law when it must fly (`AR_FALLBACK`). Or the NMPC alone in two phases: `ar_prepare(c, P, u_prev, x)` before
+the measurement, then `ar_feedback(c, x, u_prev, 1, u, &info)`. Dimensions: state {veh.nx}, rotors {nr}, stage
+parameters {spec.n_params} x {spec.horizon + 1}.
 
-Check it against Python: `aerorelay codegen SCENARIO --out DIR --record calls.csv` writes the calls of a simulated
-flight and the Python NMPC's commands (`calls.csv.expected`); `build/replay calls.csv` prints status, ok, HPIPM
-status, iterations and the command per feedback.
+Check it against Python: `aerorelay codegen SCENARIO --out DIR --record steps.csv` writes the steps of a simulated
+flight and the Python controller's brake-law flags and commands (`steps.csv.expected`); `build/replay steps.csv`
+prints status, ok, HPIPM status, iterations, brake law and the command per step. `--fly` flies the scenario with this
+library's commands (`fly.json`: C_min, the largest difference from Python's).
 """
     (out / "include").mkdir()
     (out / "src").mkdir()
@@ -219,49 +307,34 @@ status, iterations and the command per feedback.
 
 @contextlib.contextmanager
 def _recording(lines: list[str], expected: list[np.ndarray]):
-    """Every call of the first NMPC that runs, as ``ar_replay.c`` reads them, and its commands."""
+    """Every step of the first relay controller that steps, as ``ar_replay.c`` reads them, and its commands (the
+    brake law's flag first)."""
     first: list[int] = []
-    reset, prepare, feedback = NMPC.reset, NMPC.prepare, NMPC.feedback
-
-    def mine(self) -> bool:
-        if not first:
-            first.append(id(self))
-        return first[0] == id(self)
+    step = RelayController.step
 
     def fmt(*arrays) -> str:
         return ",".join(repr(float(v)) for a in arrays for v in np.ravel(np.asarray(a, float), order="F"))
 
-    def rec_reset(self, xa0):
-        if mine(self):
-            lines.append("reset," + fmt(xa0))
-        return reset(self, xa0)
-
-    def rec_prepare(self, P, u_prev, x_guess=None):
-        out = prepare(self, P, u_prev, x_guess)  # a first call's reset is recorded (by rec_reset) before it
-        if mine(self):
-            lines.append("prepare," + fmt(x_guess if x_guess is not None else np.zeros(self.spec.vehicle.nx), u_prev, P))
-        return out
-
-    def rec_feedback(self, x, u_prev, shift=True):
-        info = feedback(self, x, u_prev, shift)
-        if mine(self):
-            lines.append(f"feedback,{int(bool(shift))}," + fmt(x, u_prev))
-            expected.append(np.asarray(info.u, float).copy())
+    def rec_step(self, x, u_prev, P, shift=True):
+        info = step(self, x, u_prev, P, shift)
+        if not first:
+            first.append(id(self))
+        if first[0] == id(self):
+            lines.append(f"step,{int(bool(shift))}," + fmt(x, u_prev, P))
+            expected.append(np.r_[float(info.fallback), np.asarray(info.u, float)])
         return info
 
-    patched = {"reset": rec_reset, "prepare": rec_prepare, "feedback": rec_feedback}
-    for name, fn in patched.items():
-        setattr(NMPC, name, fn)
+    RelayController.step = rec_step  # type: ignore[method-assign]
     try:
         yield
     finally:
-        for name, fn in {"reset": reset, "prepare": prepare, "feedback": feedback}.items():
-            setattr(NMPC, name, fn)
+        RelayController.step = step  # type: ignore[method-assign]
 
 
 def record_calls(sc: Scenario, out_csv: Path, *, simulate) -> np.ndarray:
-    """Fly ``sc`` (``simulate(sc)``) recording its first relay's NMPC calls into ``out_csv`` (``ar_replay.c``'s
-    events) and its commands into ``out_csv.expected`` (one row per feedback, %.17g); returns the commands."""
+    """Fly ``sc`` (``simulate(sc)``) recording its first relay's controller steps into ``out_csv`` (``ar_replay.c``'s
+    events) and what they returned into ``out_csv.expected`` (one row per step: the brake law's flag, the command;
+    %.17g); returns those rows."""
     lines: list[str] = []
     expected: list[np.ndarray] = []
     with _recording(lines, expected):
@@ -271,3 +344,96 @@ def record_calls(sc: Scenario, out_csv: Path, *, simulate) -> np.ndarray:
     u = np.array(expected)
     np.savetxt(str(out_csv) + ".expected", u, fmt="%.17g", delimiter=",")
     return u
+
+
+class _Info(ctypes.Structure):
+    _fields_ = [("ok", ctypes.c_int), ("qp_status", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("capped", ctypes.c_int), ("slack_max", ctypes.c_double), ("fallback", ctypes.c_int)]
+
+
+STATUS = {0: "AR_OK", 1: "AR_QP_FAILED", 2: "AR_BAD_INPUT", 3: "AR_NOT_PREPARED", 4: "AR_FALLBACK"}
+
+
+def build_shared(folder: Path, *, simd: bool) -> Path:
+    """``make shared`` in a written tree (``SIMD=1``: BLASFEO's AVX2 kernels); the shared library's path. A failed build
+    is a RuntimeError with make's last output."""
+    res = subprocess.run(["make", "-C", str(folder), f"SIMD={int(simd)}", "shared"], capture_output=True, text=True)
+    if res.returncode != 0:
+        raise RuntimeError(f"codegen: make shared failed in {folder}:\n{(res.stdout + res.stderr)[-2000:]}")
+    return Path(folder) / "build" / "libaerorelay_controller.so"
+
+
+class CController:
+    """One controller of a tree's shared library (``build_shared``) through ctypes: ``step`` is ``ar_step``."""
+
+    def __init__(self, library: Path, tree: Tree):
+        self.lib = ctypes.CDLL(str(library))
+        self.lib.ar_create.restype = ctypes.c_void_p
+        self.lib.ar_destroy.argtypes = [ctypes.c_void_p]
+        dbl = ctypes.POINTER(ctypes.c_double)
+        self.lib.ar_step.argtypes = [ctypes.c_void_p, dbl, dbl, dbl, ctypes.c_int, dbl, ctypes.POINTER(_Info)]
+        self.lib.ar_step.restype = ctypes.c_int
+        self.tree = tree
+        self.handle = self.lib.ar_create()
+        if not self.handle:
+            raise MemoryError("codegen: ar_create returned NULL")
+        self.u = np.zeros(tree.nr)
+
+    def step(self, x, u_prev, P, shift: bool) -> tuple[str, _Info, np.ndarray]:
+        """The C step for the state ``x``, the last input, the stage parameters ``P`` ``(n_params, N + 1)``."""
+        t = self.tree
+        x = np.ascontiguousarray(x, float).reshape(t.nx)
+        up = np.ascontiguousarray(u_prev, float).reshape(t.nr)
+        Pf = np.asfortranarray(np.asarray(P, float).reshape(t.n_params, t.horizon + 1)).ravel(order="F")
+        info = _Info()
+        ptr = ctypes.POINTER(ctypes.c_double)
+        status = self.lib.ar_step(self.handle, x.ctypes.data_as(ptr), up.ctypes.data_as(ptr), Pf.ctypes.data_as(ptr),
+                                  int(bool(shift)), self.u.ctypes.data_as(ptr), ctypes.byref(info))
+        return STATUS.get(status, str(status)), info, self.u.copy()
+
+    def close(self) -> None:
+        if self.handle:
+            self.lib.ar_destroy(self.handle)
+            self.handle = None
+
+
+@dataclass
+class Shadow:
+    """What flying with the C commands found: steps, the brake law's steps, the largest difference from the Python
+    controller's command on the same inputs (relative to max(|u|, 1 Hz/s)), and the steps where the two disagreed on
+    the brake law."""
+
+    steps: int = 0
+    fallback_steps: int = 0
+    max_difference: float = 0.0
+    fallback_disagreements: int = 0
+
+
+@contextlib.contextmanager
+def flown_by_c(controller: CController):
+    """The first relay controller that steps flies the C library's commands: the Python controller steps beside it on
+    the same inputs (its plan feeds the stage parameters that read one: obstacle planes, a fleet's predictions) and
+    each step's difference is kept in the yielded ``Shadow``."""
+    first: list[int] = []
+    step = RelayController.step
+    shadow = Shadow()
+
+    def c_step(self, x, u_prev, P, shift=True):
+        info = step(self, x, u_prev, P, shift)
+        if not first:
+            first.append(id(self))
+        if first[0] != id(self):
+            return info
+        status, cinfo, u = controller.step(x, u_prev, P, shift)
+        shadow.steps += 1
+        shadow.fallback_steps += bool(cinfo.fallback)
+        shadow.fallback_disagreements += bool(cinfo.fallback) != bool(info.fallback)
+        diff = np.abs(u - info.u) / np.maximum(np.abs(info.u), 1.0)
+        shadow.max_difference = max(shadow.max_difference, float(np.max(diff)))
+        return replace(info, u=u, ok=bool(cinfo.ok), fallback=bool(cinfo.fallback))
+
+    RelayController.step = c_step  # type: ignore[method-assign]
+    try:
+        yield shadow
+    finally:
+        RelayController.step = step  # type: ignore[method-assign]

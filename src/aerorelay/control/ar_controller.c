@@ -14,13 +14,25 @@
  */
 #include "aerorelay_controller.h"
 
+typedef struct { /* where and how stiffly the brake law stops (ar_failsafe.c) */
+  double point[3];
+  double freq;
+  int upright;
+} ar_hold_t;
+
 struct ar_controller {
   rti_mem *rti;
   int initialized;
   double P[AR_NP * (AR_N + 1)];
   double Xb[(AR_N + 1) * AR_NXA], Wb[AR_N * RTI_NW], X[(AR_N + 1) * AR_NXA], W[AR_N * RTI_NW];
   double xa0[AR_NXA];
+  int last_input_finite; /* the last QP's input was finite (before the clipping) */
+  /* the step's fail-safe (ar_failsafe.c) */
+  int fallback_active, fallback_episodes, consecutive_failures, successes, safety_handovers, last_unsafe;
+  ar_hold_t hold;
 };
+
+static void ar_failsafe_init(ar_controller *c);
 
 static int ar_finite(const double *v, int n) {
   for (int i = 0; i < n; i++)
@@ -40,6 +52,7 @@ ar_controller *ar_create(void) {
     free(c);
     return NULL;
   }
+  ar_failsafe_init(c);
   return c;
 }
 
@@ -88,7 +101,7 @@ ar_status ar_prepare(ar_controller *c, const double *P, const double *u_prev, co
 
 ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, int shift, double *u, ar_info *info) {
   rti_info ri;
-  ar_info none = {0, -2, 0, 0, 0.0};
+  ar_info none = {0, -2, 0, 0, 0.0, 0};
   if (info) *info = none;
   if (!ar_finite(x, AR_NX) || !ar_finite(u_prev, AR_NR)) {
     ar_hold(u);
@@ -101,6 +114,7 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
   ar_initial_state(c, x, u_prev);
   rti_feedback(c->rti, c->xa0, shift, u, &ri);
   int finite = ar_finite(u, AR_NR);
+  c->last_input_finite = finite;
   int ok = ri.ok && finite;
   for (int i = 0; i < AR_NR; i++) { /* numpy's nan_to_num, then the motor accelerations' bounds */
     double v = u[i];
