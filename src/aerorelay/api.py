@@ -29,6 +29,7 @@ import pandas as pd
 from ._version import __version__
 from .assembly import load_scenario
 from .assembly.codegen import CController, build_shared, flown_by_c, record_calls, write_tree
+from .assembly.codegen import bench_c as codegen_bench_c
 from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
 from .assembly.load import updated as _updated
@@ -377,6 +378,16 @@ def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: i
     kinds = sorted({"comms-aware NMPC" if comms_aware(sc.relay_view(i)) else "tracking NMPC" for i in range(len(sc.relay_list))})
     n = len(sc.relay_list)
     res["scenario"] = f"{sc.name} ({n} relay{'s' * (n != 1)}, {sc.planner} planner, {', '.join(kinds)})"
+    return res
+
+
+def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int = 3,
+            say: Callable[[str], None] = lambda s: None) -> dict:
+    """The first relay's controller step timed in Python and as the C tree of ``codegen`` on the same mission,
+    alternating, ``rounds`` times, pinned to one core (``assembly.codegen.bench_c``)."""
+    res = codegen_bench_c(sc, settings, rounds=rounds, say=say)
+    res["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
+    res["scenario"] = f"{sc.name} (relay {sc.relay_list[0].name}, {sc.planner} planner)"
     return res
 
 

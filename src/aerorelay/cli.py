@@ -460,9 +460,14 @@ def bench(
     planner: str = typer.Option(None, "--planner", show_default=False,
                                 help="trajectory_generator | isotropic | single_shot | capacity (overrides the scenario)"),
     control_rate_hz: float = typer.Option(None, "--control-rate-hz", help="controller rate (overrides sim.control_rate_hz)", show_default=False),
-    ipopt_points: int = typer.Option(3, "--ipopt-points", help="states at which a full IPOPT solve is timed"),
+    ipopt_points: int = typer.Option(None, "--ipopt-points", min=0, show_default=False,
+                                     help="states at which a full IPOPT solve is timed (default 3; not with --backend c)"),
     json_out: Path = typer.Option(None, "--json", help="also write the figures to this JSON file", show_default=False),
-    backend: str = typer.Option("hpipm", "--backend", help="QP route: hpipm (compiled engine) or casadi (casadi.conic)"),
+    backend: str = typer.Option("hpipm", "--backend", help="QP route: hpipm (compiled engine), casadi (casadi.conic), or "
+                                "c: the first relay's controller as the C tree of aerorelay codegen (HPIPM engine, these "
+                                "solver options baked in) against the Python one on the same mission, alternating, pinned"),
+    rounds: int = typer.Option(None, "--rounds", min=1, max=20, show_default=False,
+                               help="--backend c: rounds of Python then C (default 3)"),
     condense: int = typer.Option(0, "--condense", min=0, help="hpipm backend: partial condensing to this many stages (0: none)"),
     qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
@@ -483,6 +488,15 @@ def bench(
 
     sc = _load_or_exit(scenario, set_, unset, {"sim.duration_s": duration, "controller.variant": variant,
                                                "controller.planner": planner, "sim.control_rate_hz": control_rate_hz})
+    if backend == "c":
+        if ipopt_points is not None:
+            _fail("--ipopt-points: the C bench times the C tree's step only (no IPOPT); leave it out with --backend c")
+        _bench_c(sc, rounds if rounds is not None else 3, json_out, condensed_horizon=condense, tol_comp=tol,
+                 warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max, accept_tol=accept_tol)
+        return
+    if rounds is not None:
+        _fail(f"--rounds applies to --backend c (Python against the C tree), not to --backend {backend}")
+    ipopt_points = 3 if ipopt_points is None else ipopt_points
     try:
         settings = api.solver_settings(sc, backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
                                  warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,
@@ -523,6 +537,33 @@ def bench(
     if "ipopt_over_rti_mean" in res:
         console.print(f"full IPOPT solve / RTI step (means): x{res['ipopt_over_rti_mean']:.0f} "
                       f"(IPOPT converged {res['ipopt_converged']})", markup=False, highlight=False)
+    if json_out is not None:
+        json_out.write_text(api.strict_json_text(res))
+
+
+def _bench_c(sc, rounds: int, json_out: Path | None, **solver) -> None:
+    """``aerorelay bench --backend c``: the first relay's step in Python and as the C tree, alternating, pinned."""
+    try:
+        settings = api.solver_settings(sc, backend="hpipm", **solver)
+        res = api.bench_c(sc, settings, rounds=rounds, say=lambda s: console.print(s, markup=False, highlight=False))
+    except (ValueError, RuntimeError, ScenarioError) as exc:
+        _fail(str(exc))
+    stats = ("mean", "p50", "p95", "p99", "max")
+    t = Table(title=f"bench --backend c: {res['scenario']}, {res['steps']} steps, {rounds} rounds, pinned to core "
+                    f"{res['pinned_core']}")
+    t.add_column("timing (ms)")
+    for c in stats:
+        t.add_column(c, justify="right")
+    for i, r in enumerate(res["rounds"]):
+        for key, label in (("python_step_ms", "Python step"), ("python_preparation_ms", "  preparation"),
+                           ("python_feedback_ms", "  feedback"), ("c_step_ms", "C step (ar_step)"),
+                           ("c_preparation_ms", "  preparation"), ("c_feedback_ms", "  feedback")):
+            t.add_row(f"{i + 1}: {label}", *[f"{r[key][c]:.3f}" for c in stats])
+    console.print(t)
+    ratios = "; ".join(f"{r['c_step_ms']['mean'] / r['python_step_ms']['mean']:.2f} / "
+                       f"{r['c_step_ms']['p99'] / r['python_step_ms']['p99']:.2f}" for r in res["rounds"])
+    console.print(f"C step over Python step (mean / p99), per round: {ratios}; brake-law steps: {res['fallback_steps']}; "
+                  f"BLASFEO's AVX2 kernels: {'yes' if res['simd'] else 'no'}", markup=False, highlight=False)
     if json_out is not None:
         json_out.write_text(api.strict_json_text(res))
 

@@ -143,3 +143,24 @@ def test_codegen_refuses_a_folder_that_is_not_empty(tmp_path):
     r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(tmp_path)])
     assert r.exit_code == 2 and "not an empty folder" in r.output
     assert (tmp_path / "keep.txt").read_text() == "mine"
+
+
+def test_bench_backend_c_times_python_and_the_c_tree_on_the_same_steps(tmp_path):
+    """``aerorelay bench --backend c``: rounds of the Python step then the C tree's on the recorded steps (the numbers are
+    the bench's to say; here: they exist, for every step, and options that do not apply are refused)."""
+    scenario = str(ROOT / "scenarios" / "nominal_tilted.toml")
+    out = tmp_path / "bench.json"
+    r = runner.invoke(app, ["bench", scenario, "--backend", "c", "--duration", "0.3", "--rounds", "1", "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    res = json.loads(out.read_text())
+    # a step at t = 0, 0.015, ..., 0.3 s: 21
+    assert res["steps"] == 21 and len(res["rounds"]) == 1 and res["fallback_steps"] == 0
+    rnd = res["rounds"][0]
+    for key in ("python_step_ms", "python_preparation_ms", "python_feedback_ms", "c_step_ms", "c_preparation_ms",
+                "c_feedback_ms"):
+        assert 0 < rnd[key]["p50"] <= rnd[key]["p99"] <= rnd[key]["max"], key
+    assert "C step over Python step" in r.output
+    r = runner.invoke(app, ["bench", scenario, "--backend", "c", "--ipopt-points", "2"])
+    assert r.exit_code == 2 and "--ipopt-points" in r.output
+    r = runner.invoke(app, ["bench", scenario, "--rounds", "2"])
+    assert r.exit_code == 2 and "--rounds applies to --backend c" in r.output

@@ -18,7 +18,12 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import json
+import os
+import shutil
 import subprocess
+import tempfile
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -26,10 +31,11 @@ import numpy as np
 
 from ..config import Scenario
 from ..control.hpipm_rti import ENGINE_FLAGS, SIMD_HEAD, _casadi_dir, engine_parts, engine_settings, simd_source, stage_bounds
-from ..control.nmpc import rti_options
+from ..control.nmpc import NmpcSettings, rti_options
 from ..control.relay import RelayController
 from ..models.obstacles import Box, VerticalCylinder
 from ..models.state import ROTORS
+from ..stats import stats_ms
 from ..store.codegen import CASADI_VERSION
 from .parts import build
 
@@ -65,8 +71,8 @@ def _defines(**values) -> str:
                    for k, v in values.items())
 
 
-def _first_controller(sc: Scenario) -> RelayController:
-    return build(sc).relays[0].stepper.controller
+def _first_controller(sc: Scenario, settings: NmpcSettings | None) -> RelayController:
+    return build(sc, nmpc_settings=settings).relays[0].stepper.controller
 
 
 def _obstacle_rows(obstacles) -> tuple[list[int], list[float]]:
@@ -117,14 +123,14 @@ def _failsafe_settings(rc: RelayController) -> str:
     ])
 
 
-def write_tree(sc: Scenario, out: Path) -> Tree:
-    """Write the C tree of ``sc``'s first relay's NMPC into ``out`` (created; must be new or empty: FileExistsError,
-    before any work, otherwise)."""
+def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None) -> Tree:
+    """Write the C tree of ``sc``'s first relay's controller into ``out`` (created; must be new or empty:
+    FileExistsError, before any work, otherwise); ``settings``: the NMPC's solver settings (default: the scenario's)."""
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise FileExistsError(f"--out: {out} exists and is not an empty folder (the C tree is written into a new or "
                               "empty one)")
-    rc = _first_controller(sc)
+    rc = _first_controller(sc, settings)
     nmpc = rc.nmpc
     spec, settings = nmpc.spec, nmpc.settings
     if settings.backend != "hpipm":
@@ -221,7 +227,7 @@ INC := -Iinclude -Isrc -I$(HPIPM_PREFIX)/include -I$(HPIPM_PREFIX)/include/hpipm
 LIBS := -L$(HPIPM_PREFIX) -L$(HPIPM_PREFIX)/lib -L$(BLASFEO_PREFIX) -L$(BLASFEO_PREFIX)/lib -lhpipm -lblasfeo -lm
 RPATH := -Wl,-rpath,$(HPIPM_PREFIX) -Wl,-rpath,$(HPIPM_PREFIX)/lib -Wl,-rpath,$(BLASFEO_PREFIX) -Wl,-rpath,$(BLASFEO_PREFIX)/lib
 
-all: build/libaerorelay_controller.a build/replay
+all: build/libaerorelay_controller.a build/replay build/bench
 
 build/aerorelay_controller.o: src/{SOURCE} src/blasfeo_avx2.c include/{HEADER}
 \tmkdir -p build
@@ -239,6 +245,9 @@ build/libaerorelay_controller.a: build/aerorelay_controller.o
 
 build/replay: tools/replay.c build/libaerorelay_controller.a
 \t$(CC) $(CFLAGS) $(INC) tools/replay.c build/libaerorelay_controller.a $(LIBS) $(RPATH) -o $@
+
+build/bench: tools/bench.c build/libaerorelay_controller.a
+\t$(CC) $(CFLAGS) $(INC) tools/bench.c build/libaerorelay_controller.a $(LIBS) $(RPATH) -o $@
 
 clean:
 \trm -rf build
@@ -264,6 +273,9 @@ target_link_libraries(aerorelay_controller PUBLIC ${{HPIPM_LIB}} ${{BLASFEO_LIB}
 add_executable(replay tools/replay.c)
 target_compile_options(replay PRIVATE {flags})
 target_link_libraries(replay PRIVATE aerorelay_controller)
+add_executable(bench tools/bench.c)
+target_compile_options(bench PRIVATE {flags})
+target_link_libraries(bench PRIVATE aerorelay_controller)
 """
     readme = f"""# aerorelay controller: scenario `{sc.name}`, relay `{sc.relay_list[0].name}`
 
@@ -275,7 +287,7 @@ come from outside: the planner and the reference governor are not in this tree y
 
 Build (HPIPM and BLASFEO from CasADi's wheel by default, or `HPIPM_PREFIX=/opt/acados`):
 
-    make                       # build/libaerorelay_controller.a and build/replay (make shared: the .so)
+    make                       # build/libaerorelay_controller.a, build/replay, build/bench (make shared: the .so)
     cmake -B build-cmake && cmake --build build-cmake
 
 API: `include/{HEADER}`. Each control period `ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
@@ -286,13 +298,16 @@ parameters {spec.n_params} x {spec.horizon + 1}.
 Check it against Python: `aerorelay codegen SCENARIO --out DIR --record steps.csv` writes the steps of a simulated
 flight and the Python controller's brake-law flags and commands (`steps.csv.expected`); `build/replay steps.csv`
 prints status, ok, HPIPM status, iterations, brake law and the command per step. `--fly` flies the scenario with this
-library's commands (`fly.json`: C_min, the largest difference from Python's).
+library's commands (`fly.json`: C_min, the largest difference from Python's). `build/bench steps.csv 3` times
+every recorded step through the library, no Python in the loop (ns per step: whole, preparation, feedback);
+`aerorelay bench SCENARIO --backend c` runs it against the Python controller, alternating.
 """
     (out / "include").mkdir()
     (out / "src").mkdir()
     (out / "tools").mkdir()
     files = {f"include/{HEADER}": header, f"src/{SOURCE}": unit, "src/blasfeo_avx2.c": simd_source(),
-             "tools/replay.c": (here / "ar_replay.c").read_text(), "Makefile": makefile, "CMakeLists.txt": cmake,
+             "tools/replay.c": (here / "ar_replay.c").read_text(), "tools/bench.c": (here / "ar_bench.c").read_text(),
+             "Makefile": makefile, "CMakeLists.txt": cmake,
              "README.md": readme,
              "manifest.json": json.dumps({"scenario": sc.name, "relay": sc.relay_list[0].name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
@@ -306,9 +321,9 @@ library's commands (`fly.json`: C_min, the largest difference from Python's).
 
 
 @contextlib.contextmanager
-def _recording(lines: list[str], expected: list[np.ndarray]):
+def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None):
     """Every step of the first relay controller that steps, as ``ar_replay.c`` reads them, and its commands (the
-    brake law's flag first)."""
+    brake law's flag first); ``times_ms``: each step's time (``RelayController.step``, ms)."""
     first: list[int] = []
     step = RelayController.step
 
@@ -316,12 +331,17 @@ def _recording(lines: list[str], expected: list[np.ndarray]):
         return ",".join(repr(float(v)) for a in arrays for v in np.ravel(np.asarray(a, float), order="F"))
 
     def rec_step(self, x, u_prev, P, shift=True):
+        t0 = time.perf_counter()
         info = step(self, x, u_prev, P, shift)
+        dt = (time.perf_counter() - t0) * 1e3
         if not first:
             first.append(id(self))
         if first[0] == id(self):
-            lines.append(f"step,{int(bool(shift))}," + fmt(x, u_prev, P))
-            expected.append(np.r_[float(info.fallback), np.asarray(info.u, float)])
+            if times_ms is not None:
+                times_ms.append(dt)
+            if lines is not None and expected is not None:
+                lines.append(f"step,{int(bool(shift))}," + fmt(x, u_prev, P))
+                expected.append(np.r_[float(info.fallback), np.asarray(info.u, float)])
         return info
 
     RelayController.step = rec_step  # type: ignore[method-assign]
@@ -437,3 +457,75 @@ def flown_by_c(controller: CController):
         yield shadow
     finally:
         RelayController.step = step  # type: ignore[method-assign]
+
+
+def _pinned_core() -> set[int] | None:
+    """The last core this process may run on (the benchmark pins itself and the C program there), or None."""
+    try:
+        cores = os.sched_getaffinity(0)
+    except (AttributeError, OSError):
+        return None
+    return {max(cores)} if cores else None
+
+
+def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int = 3,
+            say: Callable[[str], None] = lambda s: None) -> dict:
+    """Time the first relay's controller step in Python and as the C tree (``tools/bench.c``, no Python in the loop) on
+    the same mission, alternating, ``rounds`` times, pinned to one core: per round Python's ``RelayController.step``
+    (ms) and its NMPC's preparation and feedback phases (as ``aerorelay bench`` times them), the C library's ``ar_step`` and its
+    preparation and feedback phases (ms), and the steps the brake law flew (the recorded steps of the first Python
+    flight are the C program's input; the C commands equal Python's, tests/control/test_codegen.py)."""
+    if rounds < 1:
+        raise ValueError(f"rounds must be >= 1, got {rounds}")
+    if shutil.which("make") is None:
+        raise RuntimeError("bench --backend c: make (and a C compiler) is needed to build the C tree")
+    pin, before = _pinned_core(), None
+    out: dict = {"rounds": [], "pinned_core": sorted(pin)[0] if pin else None}
+    with tempfile.TemporaryDirectory(prefix="aerorelay-bench-c-") as tmp_name:
+        tmp = Path(tmp_name)
+        tree = write_tree(sc, tmp / "tree", settings)
+        simd = bool(json.loads((tree.folder / "manifest.json").read_text())["simd_here"])
+        say(f"building the C tree (make SIMD={int(simd)})")
+        res = subprocess.run(["make", "-C", str(tree.folder), f"SIMD={int(simd)}", "build/bench"], capture_output=True,
+                             text=True)
+        if res.returncode != 0:
+            raise RuntimeError(f"bench --backend c: make failed:\n{(res.stdout + res.stderr)[-2000:]}")
+        warm = sc.with_updates({"sim.duration_s": 0.1})
+        build(warm, nmpc_settings=settings).closed_loop().run()  # the Python engine compiled or loaded first
+        steps = tmp / "steps.csv"
+        if pin:
+            before = os.sched_getaffinity(0)
+            os.sched_setaffinity(0, pin)
+        try:
+            for r in range(rounds):
+                lines: list[str] = []
+                expected: list[np.ndarray] = []
+                py_ms: list[float] = []
+                say(f"round {r + 1}/{rounds}: Python")
+                loop = build(sc, nmpc_settings=settings).closed_loop()
+                with _recording(lines if r == 0 else None, expected if r == 0 else None, py_ms):
+                    loop.run()
+                timings = loop.timings[loop.relays[0].name]
+                if r == 0:
+                    steps.write_text("\n".join(lines) + "\n")
+                    out["steps"] = len(lines)
+                    out["fallback_steps"] = int(sum(e[0] for e in expected))
+                say(f"round {r + 1}/{rounds}: C")
+                run = subprocess.run([str(tree.folder / "build" / "bench"), str(steps), "1"], capture_output=True,
+                                     text=True)
+                if run.returncode != 0:
+                    raise RuntimeError(f"bench --backend c: the C bench failed: {run.stderr[-1000:]}")
+                ns = np.array([[float(v) for v in line.split(",")[2:]] for line in run.stdout.splitlines()])
+                out["rounds"].append({
+                    "python_step_ms": stats_ms(py_ms),
+                    "python_preparation_ms": stats_ms([t.prep_ms for t in timings]),
+                    "python_feedback_ms": stats_ms([t.feedback_ms for t in timings]),
+                    "c_step_ms": stats_ms(ns[:, 0] * 1e-6),
+                    "c_preparation_ms": stats_ms(ns[:, 1] * 1e-6),
+                    "c_feedback_ms": stats_ms(ns[:, 2] * 1e-6),
+                })
+        finally:
+            if before is not None:
+                os.sched_setaffinity(0, before)
+    out["simd"] = simd
+    return out
