@@ -551,15 +551,19 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
     check_output_folder(out, "run", need_bytes=output_bytes(sc, figures=figures))
 
 
-def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, fly: bool = False) -> dict:
+def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, fly: bool = False,
+            planner: bool = True) -> dict:
     """Write the C tree of ``sc``'s first relay's controller into ``out`` (``assembly.codegen.write_tree``: a new or empty
     folder). ``record``: fly ``sc`` and record that controller's steps there (``ar_replay.c``'s events) and the Python
     controller's brake-law flags and commands beside (``<record>.expected``). ``fly``: build the tree's shared library
     and fly ``sc`` with its commands (the Python controller beside it on the same inputs), the flight's metrics and the
-    largest difference from Python's commands in the summary and in ``out/fly.json``. Returns the tree's summary."""
-    tree = write_tree(sc, Path(out))
+    largest difference from Python's commands in the summary and in ``out/fly.json``. ``planner``: the paper's planner
+    in the tree where the relay flies it (``ar_plan``: then ``record`` keeps what it was given and ``fly`` flies its
+    stage parameters). Returns the tree's summary."""
+    tree = write_tree(sc, Path(out), planner=planner)
     summary: dict = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr,
-                     "n_params": tree.n_params, "horizon": tree.horizon}
+                     "n_params": tree.n_params, "horizon": tree.horizon, "planner": tree.planner,
+                     "no_planner_because": tree.no_planner_because}
     flown: dict = {}
 
     def fly_c(s: Scenario) -> RunResult:
@@ -573,12 +577,13 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
         m = r.metrics
         flown.update({k: m.get(k) for k in ("c_min", "c_mean", "unsafe", "unsafe_reason", "steps", "fallback_episodes")},
                      simd=simd, c_steps=shadow.steps, c_fallback_steps=shadow.fallback_steps,
-                     max_difference=shadow.max_difference, fallback_disagreements=shadow.fallback_disagreements)
+                     max_difference=shadow.max_difference, fallback_disagreements=shadow.fallback_disagreements,
+                     planned_in_c=shadow.planned, max_parameter_difference=shadow.max_parameter_difference)
         return r
 
     fly_or_simulate = fly_c if fly else (lambda s: simulate(s, bound=False))
     if record is not None:
-        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=fly_or_simulate)))
+        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=fly_or_simulate, fly=tree.planner)))
     elif fly:
         fly_c(sc)
     if fly:

@@ -278,6 +278,9 @@ def codegen(
     fly: bool = typer.Option(False, "--fly", help="build the tree's shared library (make) and fly the scenario with its "
                              "commands, the Python controller beside it: the flight's C_min and the largest difference "
                              "(out/fly.json)"),
+    c_planner: bool = typer.Option(True, "--c-planner/--no-c-planner", help="the paper's planner in the tree where the "
+                                   "relay flies it (ar_plan: stage parameters from the source's and the jammers' states); "
+                                   "without: the stage parameters always come from outside"),
     duration: float = typer.Option(None, "--duration", help="with --record or --fly: simulate only this many seconds"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
@@ -290,12 +293,13 @@ def codegen(
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
     try:
-        summary = api.codegen(sc, out, record=record, fly=fly)
+        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner)
     except (ScenarioError, ValueError, FileExistsError, RuntimeError) as exc:
         _fail(str(exc))
+    planner_said = "the paper's (ar_plan)" if summary["planner"] else summary["no_planner_because"]
     console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "
-                  f"parameters {summary['n_params']} x {summary['horizon'] + 1}); build: make -C {out}", markup=False,
-                  highlight=False)
+                  f"parameters {summary['n_params']} x {summary['horizon'] + 1}; planner: {planner_said}); build: "
+                  f"make -C {out}", markup=False, highlight=False)
     if record is not None:
         console.print(f"recorded {summary['recorded']} controller steps in {record}", markup=False, highlight=False)
     if fly:
@@ -303,6 +307,8 @@ def codegen(
         console.print(f"flown with the C library ({f['c_steps']} steps, {f['c_fallback_steps']} on the brake law): C_min "
                       f"{f['c_min']:.5g}, C_mean {f['c_mean']:.5g}, largest difference from Python's command "
                       f"{f['max_difference']:.2g} (relative), brake law disagreements {f['fallback_disagreements']}"
+                      + (f"; stage parameters by the C planner, largest difference {f['max_parameter_difference']:.2g}"
+                         if f["planned_in_c"] else "")
                       + (f"; UNSAFE: {f['unsafe_reason']}" if f["unsafe"] else ""), markup=False, highlight=False)
         if f["unsafe"]:
             raise typer.Exit(EXIT_UNSAFE)

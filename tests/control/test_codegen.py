@@ -17,6 +17,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import aerorelay as ar
+from aerorelay.api import codegen
+from aerorelay.assembly import load_scenario
 from aerorelay.cli import app
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -37,7 +40,7 @@ def _tree(tmp_path: Path, scenario: str, duration: float, *args: str) -> tuple[P
 @pytest.fixture(scope="module")
 def nominal_tree(tmp_path_factory):
     """The nominal tilted mission's tree and 2 s of its recorded calls, built once for this module."""
-    return _tree(tmp_path_factory.mktemp("nominal"), "nominal_tilted.toml", 2.0)
+    return _tree(tmp_path_factory.mktemp("nominal"), "nominal_tilted.toml", 2.0, "--no-c-planner")
 
 
 def _replay(out: Path, calls: Path) -> subprocess.CompletedProcess:
@@ -66,7 +69,8 @@ def _compare(out: Path, calls: Path, simd: bool, steps: int) -> np.ndarray:
 
 @pytest.mark.parametrize(("scenario", "duration"), [("nominal_tilted.toml", 2.0), ("quad_x.toml", 0.5)])
 def test_the_c_controller_gives_the_python_controller_s_commands(tmp_path, nominal_tree, scenario, duration):
-    out, calls, simd = nominal_tree if scenario == "nominal_tilted.toml" else _tree(tmp_path, scenario, duration)
+    out, calls, simd = (nominal_tree if scenario == "nominal_tilted.toml" else
+                        _tree(tmp_path, scenario, duration, "--no-c-planner"))
     rows = _compare(out, calls, simd, math.ceil(duration / 0.015 - 1e-9))
     assert set(rows[:, 0]) <= {0.0, 1.0}  # AR_OK or AR_QP_FAILED (then the shifted plan's input, as in Python)
 
@@ -75,10 +79,12 @@ def test_the_nominal_mission_flown_by_the_c_library_keeps_its_c_min(tmp_path):
     """The whole nominal tilted mission with the C library's commands (``--fly``): C_min 4.7317e-4, as the Python
     controller flies it (docs/results/reliability.md); bit for bit with the same BLASFEO kernels."""
     out = tmp_path / "tree"
-    r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(out), "--fly"])
+    r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(out), "--fly",
+                            "--no-c-planner"])
     assert r.exit_code == 0, r.output
     flown = json.loads((out / "fly.json").read_text())
     assert flown["c_steps"] == flown["steps"] > 3000 and flown["c_fallback_steps"] == 0 and not flown["unsafe"]
+    assert not flown["planned_in_c"]
     assert flown["c_min"] == pytest.approx(4.7317e-4, abs=5e-9)
     assert flown["max_difference"] < 1e-9 and (flown["max_difference"] == 0.0 or not flown["simd"])
 
@@ -88,9 +94,10 @@ def test_forced_qp_failures_fly_the_same_brake_law_and_hand_back_the_same(tmp_pa
     """An iteration cap of 4 fails most QPs (the capacity planner's tracking NMPC): the hand-over after 3 failures, the
     brake law (its bounded least-squares allocation: 8 rotors, 6 rows, so not unique on the octocopter: SciPy's BVLS
     path itself) and the NMPC's return, step for step."""
-    out, calls, simd = _tree(tmp_path, scenario, 5.0, "--fly", "--set", "controller.planner=capacity",
+    duration = 5.0 if scenario == "nominal_tilted.toml" else 2.0  # the NMPC's return: after 4 s
+    out, calls, simd = _tree(tmp_path, scenario, duration, "--fly", "--set", "controller.planner=capacity",
                              "--set", "controller.capacity.qp_iter_max=4")
-    rows = _compare(out, calls, simd, math.ceil(5.0 / 0.015))
+    rows = _compare(out, calls, simd, math.ceil(duration / 0.015))
     statuses = set(rows[:, 0])
     assert {1.0, 4.0} <= statuses  # QP failures and brake-law steps
     assert 0.0 in statuses or scenario != "nominal_tilted.toml"  # the NMPC hands back
@@ -103,7 +110,7 @@ def test_forced_qp_failures_fly_the_same_brake_law_and_hand_back_the_same(tmp_pa
 def test_the_supervisor_s_hand_overs_are_the_same(tmp_path, monkeypatch):
     """mu = 0.99 flips the relay (past validation): the envelope hands over at once, the recovery law rights it."""
     monkeypatch.setattr("aerorelay.assembly.checks._mu_reachable", lambda sc: None)
-    out, calls, simd = _tree(tmp_path, "nominal_tilted.toml", 8.0, "--set", "controller.mu=0.99")
+    out, calls, simd = _tree(tmp_path, "nominal_tilted.toml", 8.0, "--no-c-planner", "--set", "controller.mu=0.99")
     rows = _compare(out, calls, simd, math.ceil(8.0 / 0.015 - 1e-9))
     assert 4.0 in set(rows[:, 0]) and 0.0 in set(rows[:, 0])
 
@@ -164,3 +171,37 @@ def test_bench_backend_c_times_python_and_the_c_tree_on_the_same_steps(tmp_path)
     assert r.exit_code == 2 and "--ipopt-points" in r.output
     r = runner.invoke(app, ["bench", scenario, "--rounds", "2"])
     assert r.exit_code == 2 and "--rounds applies to --backend c" in r.output
+
+
+def test_the_c_planner_makes_python_s_stage_parameters_and_flies_the_same_mission(tmp_path):
+    """The paper's planner in C (``ar_plan``: the trajectory generator, its governor, the reference check, the stage
+    parameters) from what the Python planner was given: its stage parameters equal Python's to rounding (numpy's
+    LAPACK and OpenBLAS order their operations otherwise: measured 4e-16, 8e-12 at most over the whole mission) and
+    the commands follow (the RTI carries those roundings on: 2e-10 Hz/s over 2 s); flown with the C planner and
+    step, the mission's C_min is Python's within 0.1% (the whole mission: 4.7308e-4 against 4.7317e-4)."""
+    out, calls, simd = _tree(tmp_path, "nominal_tilted.toml", 2.0)
+    assert json.loads((out / "manifest.json").read_text())["planner"]
+    assert calls.read_text().startswith("fly,")
+    res = subprocess.run([str(out / "build" / "replay"), "--params", str(calls)], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    rows = np.array([[float(v) for v in line.split(",")] for line in res.stdout.splitlines()])
+    expected = np.loadtxt(str(calls) + ".expected", delimiter=",", ndmin=2)
+    params = np.loadtxt(str(calls) + ".params", delimiter=",", ndmin=2)
+    assert rows.shape[0] == expected.shape[0] == params.shape[0] == 134 and set(rows[:, 0]) == {0.0}
+    assert np.max(np.abs(rows[:, 11:] - params) / np.maximum(np.abs(params), 1.0)) < 1e-12
+    np.testing.assert_allclose(rows[:, 5:11], expected[:, 1:], rtol=1e-8, atol=1e-8)
+    # a source that is not finite: AR_BAD_INPUT from the planner, the line still a step
+    fields = calls.read_text().splitlines()[5].split(",")
+    fields[2 + 1 + 18 + 6] = "nan"  # fly, t, shift, x (18), u_prev (6), the source's x
+    bad = tmp_path / "bad.csv"
+    bad.write_text(",".join(fields) + "\n")
+    res = subprocess.run([str(out / "build" / "replay"), str(bad)], capture_output=True, text=True)
+    assert res.returncode == 0 and res.stdout.split(",")[0] == "2", res.stdout + res.stderr
+    # flown: 6 s with the C planner and the C step against the Python flight
+    sc = load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"sim.duration_s": 6.0})
+    summary = codegen(sc, tmp_path / "flown", fly=True)
+    flown = summary["flown"]
+    assert flown["planned_in_c"] and flown["max_parameter_difference"] < 1e-12 and not flown["unsafe"]
+    python = ar.simulate(sc).metrics
+    assert flown["c_min"] == pytest.approx(python["c_min"], rel=1e-3)
+    assert flown["c_mean"] == pytest.approx(python["c_mean"], rel=1e-3)

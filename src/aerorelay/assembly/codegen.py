@@ -31,16 +31,20 @@ import numpy as np
 
 from ..config import Scenario
 from ..control.hpipm_rti import ENGINE_FLAGS, SIMD_HEAD, _casadi_dir, engine_parts, engine_settings, simd_source, stage_bounds
+from ..control.network import SEPARATION_MARGIN_M, NetworkController
 from ..control.nmpc import NmpcSettings, rti_options
 from ..control.relay import RelayController
+from ..control.relay_step import RelayStep
 from ..models.obstacles import Box, VerticalCylinder
 from ..models.state import ROTORS
+from ..planning.trajectory_generator import Reference, TrajectoryGenerator
 from ..stats import stats_ms
-from ..store.codegen import CASADI_VERSION
+from ..store.codegen import CASADI_VERSION, generated_c
 from .parts import build
 
 HEADER = "aerorelay_controller.h"
 SOURCE = "aerorelay_controller.c"
+PLANNER_SOURCE = "aerorelay_planner.c"  # the planner's CasADi-generated expansion: its own translation unit
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,8 @@ class Tree:
     n_params: int  # stage parameters per stage
     horizon: int
     nxa: int  # the OCP's initial state (the plant state, and the last input with the exact input-rate cost)
+    planner: bool = False  # the paper's planner is in the tree (ar_plan)
+    no_planner_because: str = ""
 
 
 def _c_number(v: float) -> str:
@@ -71,8 +77,54 @@ def _defines(**values) -> str:
                    for k, v in values.items())
 
 
-def _first_controller(sc: Scenario, settings: NmpcSettings | None) -> RelayController:
-    return build(sc, nmpc_settings=settings).relays[0].stepper.controller
+def _first_relay(sc: Scenario, settings: NmpcSettings | None) -> tuple[RelayController, NetworkController]:
+    """The first relay's controller and the network controller around it."""
+    control = build(sc, nmpc_settings=settings).closed_loop().control
+    return control.relays[0].stepper.controller, control
+
+
+def _c_planner(sc: Scenario, rc: RelayController, control: NetworkController) -> tuple[TrajectoryGenerator | None, str]:
+    """The paper's trajectory generator of ``sc``'s one relay when the C tree can carry it (then ``""``), else None and
+    why not: the C planner is the paper's one relay and source with that planner, its OCP without obstacles' planes
+    or a next node's path, a bare jammer estimate aside."""
+    planner = control.planner
+    inner = getattr(getattr(planner, "planner", None), "generator", None)
+    spec = rc.spec
+    why = ("the planner is not the paper's trajectory generator" if not isinstance(inner, TrajectoryGenerator) else
+           "a network of more than one relay or source" if len(control.relays) != 1 or len(control.sources) != 1 else
+           "obstacles (their separating planes read the plan)" if spec.obstacles else
+           "the OCP takes a next node's path" if spec.p0_parameter else
+           "the OCP keeps apart from more than the source" if spec.neighbours > 1 else "")
+    return (inner if not why else None), why
+
+
+def _planner_settings(rc: RelayController, control: NetworkController, gen: TrajectoryGenerator | None) -> tuple[str, str]:
+    """The C planner's baked settings and its generated expansion's C source (``""`` without a planner)."""
+    if gen is None:
+        return "#define AR_PLAN_SZ_IW 0\n#define AR_PLAN_SZ_W 0\n", ""
+    spec = rc.spec
+    fun = gen.function
+    zero = np.zeros(3)
+    others = np.zeros((3 * spec.neighbours, spec.horizon + 1)) if spec.neighbours else None
+    template = rc.parameters(Reference(p_opt=zero, p_ref=zero, v_ref=zero, a_ref=zero), zero, zero, zero, others,
+                             control.separation_m + SEPARATION_MARGIN_M)
+    row = {n: (spec.params[n].start if n in spec.params else -1) for n in
+           ("p_ref", "v_ref", "rho_d", "p2", "psi_ref", "p_others", "a_ext")}
+    baked = "".join([
+        "/* the paper's planner: the trajectory generator, its reference governor, the stage parameters' layout */\n",
+        _defines(plan_nz=fun.nnz_in(0), plan_sz_arg=fun.sz_arg(),
+                 plan_sz_res=fun.sz_res(), plan_sz_iw=fun.sz_iw(), plan_sz_w=fun.sz_w(),
+                 eig_floor=float(gen.eig_floor), governor_speed=float(gen.governor_speed),
+                 max_ref_accel=float(gen.max_ref_accel), period=float(control.period),
+                 **{f"row_{k}": v for k, v in row.items()}),
+        _array("double", "AR_BS_POSITION", gen.p0), _array("double", "AR_PLAN_LO", gen.lo),
+        _array("double", "AR_PLAN_HI", gen.hi), _array("double", "AR_WS_NMPC_MIN", spec.workspace_min),
+        _array("double", "AR_WS_NMPC_MAX", spec.workspace_max),
+        _array("double", "AR_TK", spec.ts * np.arange(spec.horizon + 1)),
+        _array("double", "AR_P_TEMPLATE", np.ravel(template, order="F")),
+    ])
+    return baked, generated_c(fun, name=PLANNER_SOURCE)
+
 
 
 def _obstacle_rows(obstacles) -> tuple[list[int], list[float]]:
@@ -123,14 +175,18 @@ def _failsafe_settings(rc: RelayController) -> str:
     ])
 
 
-def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None) -> Tree:
+def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *, planner: bool = True) -> Tree:
     """Write the C tree of ``sc``'s first relay's controller into ``out`` (created; must be new or empty:
-    FileExistsError, before any work, otherwise); ``settings``: the NMPC's solver settings (default: the scenario's)."""
+    FileExistsError, before any work, otherwise); ``settings``: the NMPC's solver settings (default: the scenario's);
+    ``planner``: with the paper's planner where the relay flies it (``ar_plan``; False: the stage parameters always
+    come from outside)."""
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise FileExistsError(f"--out: {out} exists and is not an empty folder (the C tree is written into a new or "
                               "empty one)")
-    rc = _first_controller(sc, settings)
+    rc, control = _first_relay(sc, settings)
+    gen, no_planner = _c_planner(sc, rc, control) if planner else (None, "left out (--no-c-planner)")
+    planner_baked, planner_source = _planner_settings(rc, control, gen)
     nmpc = rc.nmpc
     spec, settings = nmpc.spec, nmpc.settings
     if settings.backend != "hpipm":
@@ -154,9 +210,19 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None) ->
         _array("double", "AR_OMEGA_DOT_MAX", np.broadcast_to(veh.omega_dot_max, nr)),
         f"#define AR_TS {float(spec.ts)!r}\n#define AR_EXACT_INPUT_RATE {int(spec.exact_input_rate)}\n",
         f"#define AR_OMEGA_OFFSET {ROTORS.start}\n",
-        _failsafe_settings(rc),
+        _failsafe_settings(rc), planner_baked,
     ])
     here = Path(__file__).resolve().parent.parent / "control"
+    planner_api = (f"""
+#define AR_HAS_PLANNER 1
+#define AR_NJ {len(gen.sp.jam_gains)}  /* jammers the planner knows */
+/* the paper's planner (the trajectory generator, its reference governor) and the NMPC's stage parameters P for the
+ * next ar_step, from the relay's state x at time t, the source's position, velocity and acceleration (src_*), the
+ * jammers as known (jam_p: AR_NJ x 3, row by row, m; jam_w: AR_NJ powers, W) and the external acceleration a_ext
+ * (m/s^2, world; zeros without an estimate). Bad input: AR_BAD_INPUT, P untouched. */
+ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src_p, const double *src_v,
+                  const double *src_a, const double *jam_p, const double *jam_w, const double *a_ext, double *P);
+""" if gen is not None else f"\n#define AR_HAS_PLANNER 0  /* no planner in this tree: {no_planner} */\n")
     header = f"""/* aerorelay: one relay's NMPC as a C library (scenario {sc.name!r}, written by aerorelay codegen).
  * See README.md. Units: SI; angles rad; rotor speeds Hz; inputs: motor accelerations, Hz/s. */
 #ifndef AERORELAY_CONTROLLER_H
@@ -202,7 +268,7 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
  * resumes after AR_SUCCESSES_TO_RESUME successes from rest. shift: 1 when the period is the OCP's step. */
 ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const double *P, int shift, double *u,
                   ar_info *info);
-
+{planner_api}
 #endif
 """
     unit = "\n".join([
@@ -211,6 +277,7 @@ ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const
         "#ifdef AR_SIMD /* BLASFEO's two hottest kernels for AVX2/FMA, over CasADi's generic BLASFEO (x86-64 only) */",
         '#include "blasfeo_avx2.c"', SIMD_HEAD, "#endif", macros + driver, baked,
         (here / "ar_controller.c").read_text(), (here / "ar_failsafe.c").read_text(),
+        (here / "ar_planner.c").read_text() if gen is not None else "",
     ])
     cdir = _casadi_dir()
     flags = " ".join(ENGINE_FLAGS)
@@ -229,18 +296,22 @@ RPATH := -Wl,-rpath,$(HPIPM_PREFIX) -Wl,-rpath,$(HPIPM_PREFIX)/lib -Wl,-rpath,$(
 
 all: build/libaerorelay_controller.a build/replay build/bench
 
+# position-independent objects: one compile for the static and the shared library
 build/aerorelay_controller.o: src/{SOURCE} src/blasfeo_avx2.c include/{HEADER}
 \tmkdir -p build
-\t$(CC) $(CFLAGS) $(DEFS) $(INC) -c src/{SOURCE} -o $@
+\t$(CC) $(CFLAGS) $(DEFS) $(INC) -fPIC -c src/{SOURCE} -o $@
+
+build/aerorelay_planner.o: src/{PLANNER_SOURCE}
+\tmkdir -p build
+\t$(CC) $(CFLAGS) -fPIC -c src/{PLANNER_SOURCE} -o $@
 
 # a shared library (aerorelay codegen --fly loads it to fly the scenario with the C commands)
 shared: build/libaerorelay_controller.so
 
-build/libaerorelay_controller.so: src/{SOURCE} src/blasfeo_avx2.c include/{HEADER}
-\tmkdir -p build
-\t$(CC) $(CFLAGS) $(DEFS) $(INC) -fPIC -shared src/{SOURCE} $(LIBS) $(RPATH) -o $@
+build/libaerorelay_controller.so: build/aerorelay_controller.o build/aerorelay_planner.o
+\t$(CC) -shared $^ $(LIBS) $(RPATH) -o $@
 
-build/libaerorelay_controller.a: build/aerorelay_controller.o
+build/libaerorelay_controller.a: build/aerorelay_controller.o build/aerorelay_planner.o
 \tar rcs $@ $^
 
 build/replay: tools/replay.c build/libaerorelay_controller.a
@@ -262,7 +333,7 @@ set(BLASFEO_PREFIX "${{HPIPM_PREFIX}}" CACHE PATH "BLASFEO's install prefix")
 option(AR_SIMD "BLASFEO's two hottest kernels for AVX2/FMA (x86-64, CasADi's generic BLASFEO)" OFF)
 find_library(HPIPM_LIB hpipm PATHS ${{HPIPM_PREFIX}} ${{HPIPM_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
 find_library(BLASFEO_LIB blasfeo PATHS ${{BLASFEO_PREFIX}} ${{BLASFEO_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
-add_library(aerorelay_controller STATIC src/{SOURCE})
+add_library(aerorelay_controller STATIC src/{SOURCE} src/{PLANNER_SOURCE})
 target_compile_options(aerorelay_controller PRIVATE {flags})
 target_include_directories(aerorelay_controller PUBLIC include PRIVATE src ${{HPIPM_PREFIX}}/include
     ${{HPIPM_PREFIX}}/include/hpipm/include ${{BLASFEO_PREFIX}}/include ${{BLASFEO_PREFIX}}/include/blasfeo/include)
@@ -306,26 +377,66 @@ every recorded step through the library, no Python in the loop (ns per step: who
     (out / "src").mkdir()
     (out / "tools").mkdir()
     files = {f"include/{HEADER}": header, f"src/{SOURCE}": unit, "src/blasfeo_avx2.c": simd_source(),
+             f"src/{PLANNER_SOURCE}": planner_source or f"/* no planner in this tree: {no_planner} */\ntypedef int ar_no_planner;\n",
              "tools/replay.c": (here / "ar_replay.c").read_text(), "tools/bench.c": (here / "ar_bench.c").read_text(),
              "Makefile": makefile, "CMakeLists.txt": cmake,
              "README.md": readme,
              "manifest.json": json.dumps({"scenario": sc.name, "relay": sc.relay_list[0].name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
-                                          "nxa": nxa, "ocp_key": spec.key(),
+                                          "nxa": nxa, "ocp_key": spec.key(), "planner": gen is not None,
+                                          "no_planner_because": no_planner,
                                           # whether the engine here ran blasfeo_avx2.c: build with SIMD=1 for its bits
                                           "simd_here": bool(getattr(getattr(nmpc.engine, "rti", None), "simd_compiled", False))},
                                          indent=2) + "\n"}
     for name, text in files.items():
         (out / name).write_text(text)
-    return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa)
+    return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa, gen is not None, no_planner)
 
 
 @contextlib.contextmanager
-def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None):
-    """Every step of the first relay controller that steps, as ``ar_replay.c`` reads them, and its commands (the
-    brake law's flag first); ``times_ms``: each step's time (``RelayController.step``, ms)."""
+def _planner_inputs(seen: dict):
+    """Keep in ``seen`` what the network's planner is given each step (``plan``: t, the first source's state, the
+    jammers as known) and the external acceleration the relay's stage parameters take (``a_ext``): the paper's
+    planner's inputs, as ``ar_plan`` takes them."""
+    plan, parameters = NetworkController.plan, RelayStep.parameters
+
+    def rec_plan(self, t, x, sources, jammers):
+        seen["plan"] = (t, next(iter(sources.values())), jammers)
+        return plan(self, t, x, sources, jammers)
+
+    def rec_parameters(self, ref, *, p2_path, p0_path=None, others=None, separation_m=0.0, a_ext=None):
+        resolved = a_ext if a_ext is not None else (self.observer.estimate if self.observer is not None else np.zeros(3))
+        seen["a_ext"] = np.array(resolved, float)
+        return parameters(self, ref, p2_path=p2_path, p0_path=p0_path, others=others, separation_m=separation_m,
+                          a_ext=a_ext)
+
+    NetworkController.plan = rec_plan  # type: ignore[method-assign]
+    RelayStep.parameters = rec_parameters  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        NetworkController.plan = plan  # type: ignore[method-assign]
+        RelayStep.parameters = parameters  # type: ignore[method-assign]
+
+
+def _fly_numbers(seen: dict) -> tuple[float, list[np.ndarray]]:
+    """``ar_plan``'s inputs from ``seen``: t, then the source's p, v, a, the jammers' positions (row by row), their
+    powers, the external acceleration."""
+    t, src, (pj, powers, _) = seen["plan"]
+    return float(t), [np.asarray(src.p, float), np.asarray(src.v, float), np.asarray(src.a, float),
+                      np.ravel(np.asarray(pj, float)), np.ravel(np.asarray(powers, float)), seen["a_ext"]]
+
+
+@contextlib.contextmanager
+def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None, *,
+               fly: bool = False, params: list[np.ndarray] | None = None):
+    """Every step of the first relay controller that steps, as ``ar_replay.c`` reads them (``fly``: with what the
+    planner was given, for a tree with the paper's planner: ``fly`` lines; else ``step`` lines with the stage
+    parameters), its commands (the brake law's flag first) and ``params``: its stage parameters; ``times_ms``: each
+    step's time (``RelayController.step``, ms)."""
     first: list[int] = []
     step = RelayController.step
+    seen: dict = {}
 
     def fmt(*arrays) -> str:
         return ",".join(repr(float(v)) for a in arrays for v in np.ravel(np.asarray(a, float), order="F"))
@@ -340,29 +451,40 @@ def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times
             if times_ms is not None:
                 times_ms.append(dt)
             if lines is not None and expected is not None:
-                lines.append(f"step,{int(bool(shift))}," + fmt(x, u_prev, P))
+                if fly:
+                    t, rest = _fly_numbers(seen)
+                    lines.append(f"fly,{t!r},{int(bool(shift))}," + fmt(x, u_prev, *rest))
+                else:
+                    lines.append(f"step,{int(bool(shift))}," + fmt(x, u_prev, P))
                 expected.append(np.r_[float(info.fallback), np.asarray(info.u, float)])
+                if params is not None:
+                    params.append(np.ravel(np.asarray(P, float), order="F").copy())
         return info
 
     RelayController.step = rec_step  # type: ignore[method-assign]
     try:
-        yield
+        with _planner_inputs(seen):
+            yield
     finally:
         RelayController.step = step  # type: ignore[method-assign]
 
 
-def record_calls(sc: Scenario, out_csv: Path, *, simulate) -> np.ndarray:
+def record_calls(sc: Scenario, out_csv: Path, *, simulate, fly: bool = False) -> np.ndarray:
     """Fly ``sc`` (``simulate(sc)``) recording its first relay's controller steps into ``out_csv`` (``ar_replay.c``'s
-    events) and what they returned into ``out_csv.expected`` (one row per step: the brake law's flag, the command;
-    %.17g); returns those rows."""
+    lines: ``fly`` lines with what the planner was given when ``fly``, for a tree with the paper's planner, else
+    ``step`` lines), what they returned into ``out_csv.expected`` (one row per step: the brake law's flag, the
+    command; %.17g) and their stage parameters into ``out_csv.params`` (column-major, one row per step); returns the
+    ``expected`` rows."""
     lines: list[str] = []
     expected: list[np.ndarray] = []
-    with _recording(lines, expected):
+    params: list[np.ndarray] = []
+    with _recording(lines, expected, fly=fly, params=params):
         simulate(sc)
     out_csv = Path(out_csv)
     out_csv.write_text("\n".join(lines) + "\n")
     u = np.array(expected)
     np.savetxt(str(out_csv) + ".expected", u, fmt="%.17g", delimiter=",")
+    np.savetxt(str(out_csv) + ".params", np.array(params), fmt="%.17g", delimiter=",")
     return u
 
 
@@ -393,6 +515,9 @@ class CController:
         dbl = ctypes.POINTER(ctypes.c_double)
         self.lib.ar_step.argtypes = [ctypes.c_void_p, dbl, dbl, dbl, ctypes.c_int, dbl, ctypes.POINTER(_Info)]
         self.lib.ar_step.restype = ctypes.c_int
+        if tree.planner:
+            self.lib.ar_plan.argtypes = [ctypes.c_void_p, ctypes.c_double, *[dbl] * 8]
+            self.lib.ar_plan.restype = ctypes.c_int
         self.tree = tree
         self.handle = self.lib.ar_create()
         if not self.handle:
@@ -411,6 +536,16 @@ class CController:
                                   int(bool(shift)), self.u.ctypes.data_as(ptr), ctypes.byref(info))
         return STATUS.get(status, str(status)), info, self.u.copy()
 
+    def plan(self, t: float, x, numbers: list[np.ndarray]) -> tuple[str, np.ndarray]:
+        """``ar_plan``: the stage parameters ``(n_params, N + 1)`` the C planner makes at ``t`` for the state ``x`` from
+        ``numbers`` (the source's p, v, a, the jammers' positions and powers, the external acceleration)."""
+        tr = self.tree
+        ptr = ctypes.POINTER(ctypes.c_double)
+        args = [np.ascontiguousarray(a, float) for a in (x, *numbers)]
+        P = np.zeros(tr.n_params * (tr.horizon + 1))
+        status = self.lib.ar_plan(self.handle, float(t), *[a.ctypes.data_as(ptr) for a in args], P.ctypes.data_as(ptr))
+        return STATUS.get(status, str(status)), P.reshape(tr.n_params, tr.horizon + 1, order="F")
+
     def close(self) -> None:
         if self.handle:
             self.lib.ar_destroy(self.handle)
@@ -421,22 +556,27 @@ class CController:
 class Shadow:
     """What flying with the C commands found: steps, the brake law's steps, the largest difference from the Python
     controller's command on the same inputs (relative to max(|u|, 1 Hz/s)), and the steps where the two disagreed on
-    the brake law."""
+    the brake law; with the C planner, the largest difference of its stage parameters from Python's (relative to
+    max(|P|, 1))."""
 
     steps: int = 0
     fallback_steps: int = 0
     max_difference: float = 0.0
     fallback_disagreements: int = 0
+    planned: bool = False
+    max_parameter_difference: float = 0.0
 
 
 @contextlib.contextmanager
 def flown_by_c(controller: CController):
     """The first relay controller that steps flies the C library's commands: the Python controller steps beside it on
     the same inputs (its plan feeds the stage parameters that read one: obstacle planes, a fleet's predictions) and
-    each step's difference is kept in the yielded ``Shadow``."""
+    each step's difference is kept in the yielded ``Shadow``. With the paper's planner in the tree, the C planner
+    makes the C step's stage parameters (``ar_plan``, from what the Python planner was given)."""
     first: list[int] = []
     step = RelayController.step
-    shadow = Shadow()
+    shadow = Shadow(planned=controller.tree.planner)
+    seen: dict = {}
 
     def c_step(self, x, u_prev, P, shift=True):
         info = step(self, x, u_prev, P, shift)
@@ -444,6 +584,12 @@ def flown_by_c(controller: CController):
             first.append(id(self))
         if first[0] != id(self):
             return info
+        if controller.tree.planner:
+            t, numbers = _fly_numbers(seen)
+            _, P_c = controller.plan(t, x, numbers)
+            shadow.max_parameter_difference = max(shadow.max_parameter_difference,
+                                                  float(np.max(np.abs(P_c - P) / np.maximum(np.abs(P), 1.0))))
+            P = P_c
         status, cinfo, u = controller.step(x, u_prev, P, shift)
         shadow.steps += 1
         shadow.fallback_steps += bool(cinfo.fallback)
@@ -454,7 +600,8 @@ def flown_by_c(controller: CController):
 
     RelayController.step = c_step  # type: ignore[method-assign]
     try:
-        yield shadow
+        with _planner_inputs(seen):
+            yield shadow
     finally:
         RelayController.step = step  # type: ignore[method-assign]
 

@@ -30,6 +30,11 @@ struct ar_controller {
   /* the step's fail-safe (ar_failsafe.c) */
   int fallback_active, fallback_episodes, consecutive_failures, successes, safety_handovers, last_unsafe;
   ar_hold_t hold;
+  /* the paper's planner (ar_planner.c): the governed reference, the expansion's work */
+  double plan_ref[3];
+  int has_plan_ref;
+  long long int plan_iw[AR_PLAN_SZ_IW + 1];
+  double plan_w[AR_PLAN_SZ_W + 1];
 };
 
 static void ar_failsafe_init(ar_controller *c);

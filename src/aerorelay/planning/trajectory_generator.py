@@ -92,7 +92,8 @@ class TrajectoryGenerator:
         self.eig_floor = eig_floor
         self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
         self.max_ref_accel = max_ref_accel
-        self._call = BufferedCall(_build_expansion(surrogate))
+        self.function = _build_expansion(surrogate)  # z -> (f, g, vec(H)): what aerorelay codegen writes as C too
+        self._call = BufferedCall(self.function)
         self._z = self._call.arg
         self._z[6:9] = self.p0
         self._prev: tuple | None = None  # (kappa_e, f, g, H) of the last expansion

@@ -29,14 +29,15 @@ class CompileError(RuntimeError):
     """No C compiler, or the compiler rejected the source."""
 
 
-def generated_c(*funs: ca.Function) -> str:
-    """C source of ``funs`` from CasADi's code generator (no header, no main)."""
+def generated_c(*funs: ca.Function, name: str = "gen.c") -> str:
+    """C source of ``funs`` from CasADi's code generator (no header, no main); ``name``: the file's, which prefixes
+    the generated helpers (two generated sources in one program need two names)."""
     with tempfile.TemporaryDirectory() as tmp:
-        cg = ca.CodeGenerator("gen.c", {"with_header": False})
+        cg = ca.CodeGenerator(name, {"with_header": False})
         for f in funs:
             cg.add(f)
         cg.generate(tmp + os.sep)
-        return (Path(tmp) / "gen.c").read_text()
+        return (Path(tmp) / name).read_text()
 
 
 def shared_library(name: str, source: str, key: str, *, flags: tuple[str, ...] = ("-O2",),
