@@ -8,9 +8,10 @@ clipped to the motor limits), and the step (``control/ar_failsafe.c``: the super
 counts, the fail-safe brake law with SciPy's BVLS allocation), with the scenario's settings baked in; one header with
 a small C API; a Makefile and a CMake project that find HPIPM and BLASFEO at a prefix (default: the libraries in
 CasADi's wheel this tree was written with, so it builds offline); and ``replay``, which runs recorded steps through
-the library (``record_calls`` records them from a Python flight). ``flown_by_c`` flies a scenario with the tree's
-shared library's commands (``CController``). Not in the tree yet: the stage parameters' producers (the planner, the
-reference governor): the C library takes the stage parameters as input.
+the library (``record_calls`` records them from a Python flight). Where the relay flies the paper's planner, the
+tree carries it too (``control/ar_planner.c`` with the CasADi-generated expansion as its own translation unit:
+``ar_plan`` makes the stage parameters). ``flown_by_c`` flies a scenario with the tree's shared library's commands
+(``CController``).
 """
 
 from __future__ import annotations
@@ -348,20 +349,23 @@ add_executable(bench tools/bench.c)
 target_compile_options(bench PRIVATE {flags})
 target_link_libraries(bench PRIVATE aerorelay_controller)
 """
+    planner_said = ("the paper's trajectory generator and its reference governor are in the tree: `ar_plan` makes the "
+                    "stage parameters `P` from the source's and the jammers' states" if gen is not None else
+                    f"not in this tree ({no_planner}): the stage parameters `P` come from outside")
     readme = f"""# aerorelay controller: scenario `{sc.name}`, relay `{sc.relay_list[0].name}`
 
 Written by `aerorelay codegen` (aerorelay, CasADi {CASADI_VERSION}). One relay's controller as a C99 library with the
 scenario's settings baked in: the NMPC (real-time iteration, HPIPM), the flight-safety supervisor's envelope and the
 fail-safe brake law. The command it returns equals the Python controller's for the same steps (`replay`, below).
-The stage parameters `P` (the planner's references, the source's and the jammers' paths as the relay knows them)
-come from outside: the planner and the reference governor are not in this tree yet.
+Planner: {planner_said}.
 
 Build (HPIPM and BLASFEO from CasADi's wheel by default, or `HPIPM_PREFIX=/opt/acados`):
 
     make                       # build/libaerorelay_controller.a, build/replay, build/bench (make shared: the .so)
     cmake -B build-cmake && cmake --build build-cmake
 
-API: `include/{HEADER}`. Each control period `ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
+API: `include/{HEADER}`. Each control period (after `ar_plan` where the tree has the planner)
+`ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
 brake law when it must fly (`AR_FALLBACK`). Or the NMPC alone in two phases: `ar_prepare(c, P, u_prev, x)` before
 the measurement, then `ar_feedback(c, x, u_prev, 1, u, &info)`. Dimensions: state {veh.nx}, rotors {nr}, stage
 parameters {spec.n_params} x {spec.horizon + 1}.
