@@ -61,11 +61,16 @@ from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.sources import MavlinkSource
+from .models.geo import GeoFrame
 from .models.mission import SourceTrajectory, source_trajectory
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
 from .report.figures import fig_bound, fig_network_bound, write_run_figures
+from .report.flight_export import EXPORT_FOLDER, vehicles, write_geojson, write_kml, write_plan, write_ulog
+from .report.flight_export import FORMATS as EXPORT_FORMATS
+from .report.flight_export import GEOGRAPHIC as EXPORT_GEOGRAPHIC
+from .report.flight_export import write_csv as write_flight_csv
 from .report.folders import read_metrics, read_scenario, read_timeseries
 from .report.foxglove import LAYOUT_FILE, write_layout
 from .report.html import render_report
@@ -391,17 +396,52 @@ def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int =
     return res
 
 
-def export(run_dir: str | Path, fmt: str = "mcap") -> Path:
-    """Write ``run.mcap`` into an existing run folder (runs written before MCAP export, campaign runs)."""
+def export(run_dir: str | Path, fmt: str = "mcap", *, relay: str | None = None,
+           origin: tuple[float, float, float] | None = None) -> list[Path]:
+    """Write a run folder's flight in ``fmt``: ``mcap`` (``run.mcap`` with Foxglove's schemas, into the folder), or
+    ``csv``, ``plan``, ``geojson``, ``kml``, ``ulog`` into its ``export/`` (``report.flight_export``: per relay, or
+    every vehicle's track; ``relay``: that relay only). ``origin`` ``(lat_deg, lon_deg, alt_m)``: where the run's local
+    frame sits on the earth (default: its scenario's ``[geo] origin``); ``plan``, ``geojson`` and ``kml`` need one.
+    Every check (the folder, the format, the relay, the origin) runs before anything is written. Returns the files."""
     d = Path(run_dir)
-    if fmt != "mcap":
-        raise ValueError(f"--format: only 'mcap' is supported, got {fmt!r}")
+    if fmt not in ("mcap", *EXPORT_FORMATS):
+        raise ValueError(f"--format: one of mcap, {', '.join(EXPORT_FORMATS)}; got {fmt!r}")
     if not is_own_folder(d, "run"):
         raise OutputError(f"{d}: not an aerorelay run folder (no {SCENARIO_FILE} + {METRICS_FILE})")
     sc, _, df = read_scenario(d), read_metrics(d), read_timeseries(d)
-    write_layout(df.columns, sc.channel.capacity_unit, d / LAYOUT_FILE)  # the panels name this run's series
-    bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
-    return write_run_mcap(df, sc, d / MCAP_FILE, bound)
+    if fmt == "mcap":
+        if relay is not None or origin is not None:
+            raise ValueError("--relay and --origin apply to csv, plan, geojson, kml and ulog; run.mcap holds the whole run")
+        write_layout(df.columns, sc.channel.capacity_unit, d / LAYOUT_FILE)  # the panels name this run's series
+        bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
+        return [write_run_mcap(df, sc, d / MCAP_FILE, bound)]
+    relays = [r.name for r in sc.relay_list]
+    who = vehicles(df, relays, [s.name for s in sc.source_list])
+    if relay is not None and relay not in relays:
+        raise ValueError(f"--relay: no relay {relay!r} in this run ({', '.join(relays)})")
+    where = origin if origin is not None else (tuple(sc.geo.origin) if sc.geo is not None else None)
+    if where is not None and not (len(where) == 3 and -90.0 <= where[0] <= 90.0 and -180.0 <= where[1] <= 180.0
+                                  and math.isfinite(where[2])):
+        raise ValueError(f"--origin: lat in [-90, 90] deg, lon in [-180, 180] deg, a finite altitude (m); got {where}")
+    if where is None and fmt in EXPORT_GEOGRAPHIC:
+        raise ValueError(f"--format {fmt} needs the run's place on the earth: [geo] origin in its scenario, or --origin "
+                         "lat_deg,lon_deg,alt_m")
+    frame = GeoFrame(where) if where is not None else None
+    out = d / EXPORT_FOLDER
+    out.mkdir(exist_ok=True)
+    chosen = [relay] if relay is not None else [n for n, role in who.items() if role == "relay"]
+    if fmt == "csv":
+        return [write_flight_csv(df, n, frame, out / f"{n}.csv") for n in (chosen if relay else list(who))]
+    if fmt == "plan":
+        return [write_plan(df, n, frame, out / f"{n}.plan") for n in chosen if frame is not None]
+    if fmt == "ulog":
+        return [write_ulog(df, n, frame, out / f"{n}.ulg", __version__) for n in chosen]
+    tracks = {n: who[n] for n in chosen} if relay is not None else who
+    assert frame is not None
+    if fmt == "geojson":
+        return [write_geojson(df, tracks, frame, out / "tracks.geojson")]
+    start = datetime.datetime.fromtimestamp((d / SCENARIO_FILE).stat().st_mtime, datetime.UTC).isoformat()
+    return [write_kml(df, tracks, frame, out / "tracks.kml", start)]
 
 
 @dataclass

@@ -102,6 +102,10 @@ def validate(
         print(f"# channel.outage_threshold (unset) resolves to {sc.channel.outage:g} {sc.channel.capacity_unit}")
     for line in api.derived_values(sc):
         print(f"# {line}")
+    for field, local in sc.wgs84_resolved:  # written at lat/lon: what they are in the local frame
+        shown = [round(float(v), 4) for v in local] if not isinstance(local[0], list) else \
+            [[round(float(v), 4) for v in point] for point in local]
+        print(f"# {field}_wgs84 resolves to {field} = {shown} m (ENU at geo.origin)")
     print(sc.to_toml())
 
 
@@ -692,15 +696,32 @@ def reproduce(
 @app.command()
 def export(
     run_dir: Path = typer.Argument(..., help="a run folder (aerorelay run --out, or a campaign's runs/<study>/<run>/seed<k>)", show_default=False),
-    fmt: str = typer.Option("mcap", "--format", help="mcap: run.mcap with Foxglove's schemas"),
+    fmt: str = typer.Option("mcap", "--format", help="mcap: run.mcap with Foxglove's schemas; csv (per vehicle: ENU, NED, "
+                            "lat/lon/alt, attitude), plan (per relay: a QGroundControl mission), geojson or kml (every "
+                            "vehicle's track), ulog (per relay: a PX4 ULog): into the folder's export/"),
+    relay: str = typer.Option(None, "--relay", help="that relay only (csv, plan, geojson, kml, ulog)", show_default=False),
+    origin: str = typer.Option(None, "--origin", help="lat_deg,lon_deg,alt_m of the run's local frame (default: its "
+                               "scenario's [geo] origin; plan, geojson and kml need one)", show_default=False),
 ):
-    """Write run.mcap into a run folder: frames, the 3D scene and the time series for Foxglove."""
+    """Write a run's flight for Foxglove (mcap), autopilots (plan, ulog) and GIS tools (geojson, kml, csv)."""
+    where = None
+    if origin is not None:
+        try:
+            where = tuple(float(v) for v in origin.split(","))
+        except ValueError:
+            _fail(f"--origin: three numbers lat_deg,lon_deg,alt_m, got {origin!r}")
+        if len(where) != 3:
+            _fail(f"--origin: three numbers lat_deg,lon_deg,alt_m, got {origin!r}")
     try:
-        path = api.export(run_dir, fmt)
+        paths = api.export(run_dir, fmt, relay=relay, origin=where)  # type: ignore[arg-type]
     except (OutputError, ValueError) as exc:
         _fail(str(exc))
-    console.print(f"wrote {path} (open it in Foxglove and import the folder's foxglove_layout.json: its panels name this "
-                  "run's series)", markup=False, highlight=False)
+    if fmt == "mcap":
+        console.print(f"wrote {paths[0]} (open it in Foxglove and import the folder's foxglove_layout.json: its panels "
+                      "name this run's series)", markup=False, highlight=False)
+        return
+    for p in paths:
+        console.print(f"wrote {p}", markup=False, highlight=False)
 
 
 @app.command("report")

@@ -275,7 +275,7 @@ def test_the_flyable_fleet_path_flies_within_its_limits_and_reaches_the_refined_
     pb = NetworkBoundProblem(sc, {"s": still(src)}, {r: 0.35 for r in names}, np.array([-2.0, -3.0, 0.0]),
                              np.array([14.0, 3.0, 4.0]), 14.0,
                              BoundResolution(grid_m=1.0, dt_s=1.0, axis_step_deg=10.0, max_speed_m_s=1.0, max_accel_m_s2=0.5),
-                             starts=starts)
+                             starts=starts, branch_levels=1)  # the flyable path does not depend on the search's depth
     b = compute_network_bound(pb)
     P = b.flyable_positions
     np.testing.assert_allclose(P[0], [starts["r1"], starts["r2"]], atol=1e-12)
@@ -375,7 +375,8 @@ def test_routes_that_may_end_at_either_base_station_are_bounded_by_the_best_comb
     def pb(scene):
         return NetworkBoundProblem(scene, {"s": source}, {r: 0.35 for r in names}, lo, hi, 8.0,
                                    BoundResolution(grid_m=1.0, dt_s=2.0, axis_step_deg=10.0, max_speed_m_s=1.0,
-                                                   max_accel_m_s2=1.0), separation_m=1.0, starts=starts)
+                                                   max_accel_m_s2=1.0), separation_m=1.0, starts=starts,
+                                   branch_levels=1)  # one level: every level's bound is certified; the relations hold
 
     b = compute_network_bound(pb(sc))
     plain = replace(sc, handover=())

@@ -11,6 +11,7 @@ from pathlib import Path
 from ..config import Scenario, ScenarioError, validate_config
 from ..config.applies import dormant, dotted, refusal
 from ..config.errors import did_you_mean, is_field
+from ..config.scenario import WGS84_SUFFIX
 from ..filecheck import not_a_file
 from .checks import check_physics
 from .parts import check_buildable
@@ -91,6 +92,10 @@ def _apply_to_data(data: dict, updates: dict, unset: list[str]) -> None:
             node[int(last)] = value
         elif isinstance(node, dict):
             node[last] = value
+            # a position set at lat/lon replaces the file's local one, and the other way round (the same field)
+            other = last.removesuffix(WGS84_SUFFIX) if last.endswith(WGS84_SUFFIX) else last + WGS84_SUFFIX
+            if key[: len(key) - len(last)] + other not in updates:  # both set: refused by name at validation
+                node.pop(other, None)
         else:
             raise ScenarioError(f"{key}: not a field of the scenario here")
 

@@ -17,8 +17,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
+import numpy as np
+from pydantic import BaseModel, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
+from ..models.geo import GeoFrame
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
 from .applies import dormant, dotted
@@ -115,6 +117,14 @@ def said_renamed(old: str, new: str) -> None:
 
 class Scenario(Strict):
     """A complete, validated relay scenario."""
+
+    # the positions the file gave at lat/lon (``<field>_wgs84``) with their local values (m), for ``aerorelay validate``
+    _wgs84_resolved: list = PrivateAttr(default_factory=list)
+
+    @property
+    def wgs84_resolved(self) -> list[tuple[str, list]]:
+        """The positions written at lat/lon (``<field>_wgs84``) and their local values (m, ENU at ``[geo] origin``)."""
+        return list(self._wgs84_resolved)
 
     name: str = Field("scenario", description="names the scenario in outputs and reports")
     description: str = Field("", description="free text, shown in reports")
@@ -778,13 +788,87 @@ def geo_origin_to_missions(data: dict) -> None:
             m["geo_origin"] = origin
 
 
+WGS84_SUFFIX = "_wgs84"
+
+
+def _wgs84_fields(node, path: str = "") -> list[tuple[dict, str, str]]:
+    """Every ``<field>_wgs84`` key in the raw data: (its table, the key, its dotted place)."""
+    out: list[tuple[dict, str, str]] = []
+    if isinstance(node, dict):
+        for key, value in node.items():
+            where = f"{path}.{key}" if path else str(key)
+            if isinstance(key, str) and key.endswith(WGS84_SUFFIX):
+                out.append((node, key, where))
+            else:
+                out += _wgs84_fields(value, where)
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            out += _wgs84_fields(value, f"{path}[{i}]")
+    return out
+
+
+def _geodetic_point(value, where: str) -> tuple[float, float, float]:
+    if not (isinstance(value, list | tuple) and len(value) == 3 and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
+        raise ScenarioError(f"{where}: [lat_deg, lon_deg, alt_m] (WGS84, three finite numbers), got {value!r}")
+    lat, lon, alt = (float(v) for v in value)
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise ScenarioError(f"{where}: latitude {lat:g} must be in [-90, 90] deg and longitude {lon:g} in [-180, 180] deg")
+    return lat, lon, alt
+
+
+def wgs84_to_local(data: dict) -> list[tuple[str, list]]:
+    """Every position written as ``<field>_wgs84 = [lat_deg, lon_deg, alt_m]`` (or a list of such points, or of timed
+    waypoints ``[t_s, lat_deg, lon_deg, alt_m]``) replaced, in
+    ``data``, by ``<field>`` in the local frame (m, east-north-up at ``[geo] origin``: PROJ's exact ENU, as the
+    geographic mission files; ``models.geo.GeoFrame``); returns each resolved field (dotted) with its local value.
+    ScenarioError naming the field: no ``[geo] origin``, both forms given, not a point, out of range."""
+    found = _wgs84_fields(data)
+    if not found:
+        return []
+    geo = data.get("geo")
+    origin = geo.get("origin") if isinstance(geo, dict) else None
+    if origin is None:
+        raise ScenarioError(f"{found[0][2]}: a WGS84 position needs [geo] origin = [lat_deg, lon_deg, alt_m] (where the "
+                            "scenario's local frame sits)")
+    frame = GeoFrame(_geodetic_point(origin, "geo.origin"))
+    resolved = []
+    for table, key, where in found:
+        base = key[: -len(WGS84_SUFFIX)]
+        place = where[: -len(WGS84_SUFFIX)]
+        if base in table:
+            raise ScenarioError(f"{where}: give {base} (local, m) or {key} (WGS84), not both")
+        value = table.pop(key)
+        one = isinstance(value, list | tuple) and len(value) == 3 and not isinstance(value[0], list | tuple)
+        rows = [value] if one else value
+        if not isinstance(rows, list | tuple) or not rows or not all(isinstance(r, list | tuple) for r in rows):
+            raise ScenarioError(f"{where}: [lat_deg, lon_deg, alt_m], or a list of such points or of timed ones "
+                                f"[t_s, lat_deg, lon_deg, alt_m], got {value!r}")
+        timed = [len(r) == 4 for r in rows]
+        if any(timed) and not all(timed):
+            raise ScenarioError(f"{where}: every point timed [t_s, lat_deg, lon_deg, alt_m] or none")
+        geodetic = np.array([_geodetic_point(list(r[1:]) if len(r) == 4 else r, where if one else f"{where}[{i}]")
+                             for i, r in enumerate(rows)])
+        enu = frame.to_local(geodetic[:, 0], geodetic[:, 1], geodetic[:, 2])
+        local = [[*([float(r[0])] if len(r) == 4 else []), *(float(c) for c in p)] for r, p in zip(rows, enu, strict=True)]
+        table[base] = local[0] if one else local
+        resolved.append((place, table[base]))
+    return resolved
+
+
 def validate_config(data: dict) -> Scenario:
     """The scenario ``data`` validated as data (fields, ranges, cheap cross-field checks); raises
-    ScenarioError with one line per problem. ``assembly.parse_scenario`` adds the physics checks."""
-    if isinstance(data, dict) and isinstance(data.get("geo"), dict):  # copied only when there is an origin to hand on
+    ScenarioError with one line per problem. ``assembly.parse_scenario`` adds the physics checks. Positions written at
+    lat/lon (``<field>_wgs84``) are resolved to the local frame first (``wgs84_to_local``), kept in
+    ``Scenario.wgs84_resolved``."""
+    resolved: list = []
+    if isinstance(data, dict) and (isinstance(data.get("geo"), dict) or _wgs84_fields(data)):  # copied only when needed
         data = copy.deepcopy(data)
+        resolved = wgs84_to_local(data)
         geo_origin_to_missions(data)
     try:
-        return Scenario.model_validate(data)
+        sc = Scenario.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError(format_errors(exc, Scenario)) from None
+    sc._wgs84_resolved = resolved
+    return sc

@@ -75,6 +75,7 @@ class NetworkBoundProblem:
     separation_m: float = 0.0  # every relay at least this far (m) from the fixed nodes and its route neighbours
     starts: Mapping[str, np.ndarray] = field(default_factory=dict)  # each relay's start (m, world): the flyable path's
     obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no relay inside one
+    branch_levels: int = BRANCH_LEVELS  # the branch and bound's levels at most (every level's bound is certified)
 
 
 @dataclass
@@ -301,10 +302,11 @@ class NetworkBoundSolver:
     relays' cells, then branch and bound (cells that cannot hold the optimum dropped, the others split in
     eight) until the bound is within ``tolerance`` of a configuration the physics allows."""
 
-    def __init__(self, pb: NetworkBoundProblem, tolerance: float = 0.01, max_levels: int = BRANCH_LEVELS,
+    def __init__(self, pb: NetworkBoundProblem, tolerance: float = 0.01, max_levels: int | None = None,
                  max_pairs: float = BRANCH_PAIRS):
         self.pb, self.scene = pb, pb.scene
-        self.tolerance, self.max_levels, self.max_pairs = tolerance, max_levels, max_pairs
+        self.tolerance, self.max_pairs = tolerance, max_pairs
+        self.max_levels = pb.branch_levels if max_levels is None else max_levels
         self.relays = [n.name for n in pb.scene.nodes if n.role == "relay"]
         self.unary, self.pairs = relay_forest(pb.scene.all_routes, self.relays)
         aimed = [j.name for j in pb.scene.jammers if j.point_at in self.relays]
