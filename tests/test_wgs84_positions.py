@@ -1,6 +1,6 @@
 """Positions written at lat/lon (``<field>_wgs84``, issue 63 item 1): resolved once at load to the local frame at
 ``[geo] origin``, checked within 1 mm against an ECEF-to-ENU conversion written out in ``tests/geodesy.py`` (not the
-program's transform); every kind of position (a base station, a relay's start, a jammer and its timed track, an
+program's transform); every kind of position (base stations, a relay's start, a jammer and its timed track, an
 obstacle's corners); errors name the field before any work."""
 
 from __future__ import annotations
@@ -41,6 +41,11 @@ def test_every_kind_of_position_resolves_within_a_millimetre():
     chain = ar.load_scenario("scenarios/chain_two_relays.toml",
                              set={"geo.origin": ORIGIN, "relays.0.start_wgs84": _near(2.0, 4.0, 3.0)})
     assert np.max(np.abs(np.asarray(chain.relay_list[0].start) - enu_by_hand(ORIGIN, *_near(2.0, 4.0, 3.0))[0])) < 1e-3
+    corners = {"obstacles.0.min_m_wgs84": _near(9.6, -62.4, 0.01), "obstacles.0.max_m_wgs84": _near(20.0, -40.0, 15.0)}
+    canyon = ar.load_scenario("scenarios/street_canyon.toml", set={"geo.origin": ORIGIN, **corners})
+    box = canyon.obstacles[0]
+    for local, geo in ((box.min_m, corners["obstacles.0.min_m_wgs84"]), (box.max_m, corners["obstacles.0.max_m_wgs84"])):
+        assert np.max(np.abs(np.asarray(local) - enu_by_hand(ORIGIN, *geo)[0])) < 1e-3
 
 
 def test_a_file_at_lat_lon_flies_as_the_same_file_in_metres(tmp_path):

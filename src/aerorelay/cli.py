@@ -298,7 +298,7 @@ def codegen(
         sc = sc.with_updates({"sim.duration_s": duration})
     try:
         summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner)
-    except (ScenarioError, ValueError, FileExistsError, RuntimeError) as exc:
+    except (ScenarioError, ValueError, FileExistsError, RuntimeError, OutputError) as exc:
         _fail(str(exc))
     planner_said = "the paper's (ar_plan)" if summary["planner"] else summary["no_planner_because"]
     console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "

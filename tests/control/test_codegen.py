@@ -150,6 +150,10 @@ def test_codegen_refuses_a_folder_that_is_not_empty(tmp_path):
     r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(tmp_path)])
     assert r.exit_code == 2 and "not an empty folder" in r.output
     assert (tmp_path / "keep.txt").read_text() == "mine"
+    # the project's output rules: not below a file (nothing written)
+    r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out",
+                            str(tmp_path / "keep.txt" / "tree")])
+    assert r.exit_code == 2 and "is a file, so no folder can be made below it" in r.output
 
 
 def test_bench_backend_c_times_python_and_the_c_tree_on_the_same_steps(tmp_path):

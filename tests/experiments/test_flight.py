@@ -102,7 +102,7 @@ def test_the_failsafe_rows_carry_its_target_and_no_rotor_rates():
 
 def test_a_flight_whose_metrics_fail_keeps_its_logs(tmp_path, monkeypatch):
     stepper, rec = _stepped(NOMINAL, 2)
-    monkeypatch.setattr(flight, "flight_metrics", lambda log: 1 / 0)
+    monkeypatch.setattr(flight, "flight_metrics", lambda log, bridge_log=None: 1 / 0)
     bridge_log = pd.DataFrame({"t": [0.0, 1.0], "mode": ["stream", "nmpc"]})
     with pytest.raises(ZeroDivisionError):
         flight.save_flight(NOMINAL, tmp_path / "run", bridge_log, rec, stepper, 1.0)

@@ -41,6 +41,7 @@ from ..models.state import ROTORS
 from ..planning.trajectory_generator import Reference, TrajectoryGenerator
 from ..stats import stats_ms
 from ..store.codegen import CASADI_VERSION, generated_c
+from ..store.outputs import check_output_folder
 from .parts import build
 
 HEADER = "aerorelay_controller.h"
@@ -91,7 +92,9 @@ def _c_planner(sc: Scenario, rc: RelayController, control: NetworkController) ->
     planner = control.planner
     inner = getattr(getattr(planner, "planner", None), "generator", None)
     spec = rc.spec
+    lacking = [n for n in ("p_ref", "v_ref", "rho_d", "p2", "psi_ref") if n not in spec.params]
     why = ("the planner is not the paper's trajectory generator" if not isinstance(inner, TrajectoryGenerator) else
+           f"the OCP's stage parameters lack {', '.join(lacking)}" if lacking else
            "a network of more than one relay or source" if len(control.relays) != 1 or len(control.sources) != 1 else
            "obstacles (their separating planes read the plan)" if spec.obstacles else
            "the OCP takes a next node's path" if spec.p0_parameter else
@@ -182,9 +185,10 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
     ``planner``: with the paper's planner where the relay flies it (``ar_plan``; False: the stage parameters always
     come from outside)."""
     out = Path(out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+    if out.is_dir() and any(out.iterdir()):  # an earlier tree too: its build/ is make's, not this program's
         raise FileExistsError(f"--out: {out} exists and is not an empty folder (the C tree is written into a new or "
                               "empty one)")
+    check_output_folder(out, "codegen")  # the project's rules: not a file, no file above it, no forbidden place, writable
     rc, control = _first_relay(sc, settings)
     gen, no_planner = _c_planner(sc, rc, control) if planner else (None, "left out (--no-c-planner)")
     planner_baked, planner_source = _planner_settings(rc, control, gen)

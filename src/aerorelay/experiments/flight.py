@@ -26,7 +26,7 @@ from ..flight.mavlink_vehicle import MavlinkVehicle, VehicleSettings
 from ..flight.sources import MavlinkSource
 from ..models.mission import SourceTrajectory, source_trajectory
 from ..models.state import P
-from ..sim.flight_record import FlightRecorder, bridge_mode_metrics, flight_column_type, flight_metrics, telemetry_metrics
+from ..sim.flight_record import FlightRecorder, flight_column_type, flight_metrics, telemetry_metrics
 from ..sim.units import metric_units
 from ..store.outputs import new_sibling, swap_in
 from ..store.run_folder import TIMESERIES_FILE, log_frame
@@ -67,8 +67,8 @@ def flight_result(sc: Scenario, rec: FlightRecorder, stepper: Controller, wall_s
     mission = rec.mission(wall_s, controller=first.controller.nmpc.settings.fingerprint(),
                           fallback_episodes=sum(r.controller.fallback_episodes for r in relays.values()), aborted=aborted)
     df = log_frame(mission.log, rec.columns, {c: flight_column_type(c) for c in rec.columns if flight_column_type(c) is not float})
-    metrics = run_metrics(sc, mission, {n: r.vehicle for n, r in relays.items()}, None) | flight_metrics(mission.log) | \
-        bridge_mode_metrics(bridge_log) | telemetry_metrics(bridge_log)  # held periods as the bridge flew them
+    metrics = run_metrics(sc, mission, {n: r.vehicle for n, r in relays.items()}, None) | \
+        flight_metrics(mission.log, bridge_log) | telemetry_metrics(bridge_log)  # held periods as the bridge flew them
     if lost_at:
         metrics["lost_in_flight"] = [{"relay": n, "t_s": float(t)} for n, t in sorted(lost_at.items(), key=lambda kv: kv[1])]
         for n, t in lost_at.items():

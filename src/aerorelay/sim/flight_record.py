@@ -125,33 +125,28 @@ def _column(values: list, kind: type) -> np.ndarray:
     return np.array(values, dtype=object if kind is str else kind)
 
 
-def flight_metrics(log: dict) -> dict:
-    """A flight's own metrics: the share of control periods the stale-input failsafe held or landed,
-    the share that missed their deadline, the step's computation time (ms) and the relay state's age (s)."""
+NOT_MISSION_MODES = ("stream", "wait", "ended")  # a bridge log's periods before the mission, waiting, after a relay left
+
+
+def flight_metrics(log: dict, bridge_log=None) -> dict:
+    """A flight's own metrics: the share of control periods the stale-input failsafe held or landed, the share that
+    missed their deadline, the step's computation time (ms) and the relay state's age (s). The held and landed shares
+    come from the bridge's log when there is one (``flight.parquet``: one row per relay and period, its mode, over each
+    relay's mission periods, not streaming, waiting or ended): a held vehicle's periods are flown by its autopilot, not
+    recorded as the controller's rows, and counting those rows alone read 191 held periods of 324 as 0; else from
+    the controller's rows (a flight stepped without a bridge)."""
     mode = np.asarray(log["flight_mode"], dtype=object)
     ms = np.asarray(log["compute_ms"], float)
     age = np.asarray(log["state_age_s"], float)
+    if bridge_log is not None and "mode" in bridge_log and len(bridge_log):
+        bridge = bridge_log["mode"].astype(str).to_numpy()
+        in_mission = ~np.isin(bridge, NOT_MISSION_MODES)
+        if in_mission.any():
+            mode = bridge[in_mission]
     return {"hold_fraction": float(np.mean(mode == "hold")), "land_fraction": float(np.mean(mode == "land")),
             "deadline_missed_fraction": float(np.mean(~np.asarray(log["deadline_met"], bool))),
             "compute_ms": {"mean": float(ms.mean()), "p99": float(np.percentile(ms, 99)), "max": float(ms.max())},
             "state_age_max_s": float(age.max())}
-
-
-NOT_MISSION_MODES = ("stream", "wait", "ended")  # a bridge log's periods before the mission, waiting, after a relay left
-
-
-def bridge_mode_metrics(bridge_log) -> dict:
-    """``hold_fraction`` and ``land_fraction`` from a bridge's log (``flight.parquet``: one row per relay and period,
-    its mode), over each relay's mission periods (not streaming, waiting or ended): a held vehicle's periods are
-    flown by its autopilot, not recorded as the controller's rows, and counting those rows alone read 191 held
-    periods of 324 as ``hold_fraction`` 0. Empty without a log."""
-    if bridge_log is None or "mode" not in bridge_log or not len(bridge_log):
-        return {}
-    mode = bridge_log["mode"].astype(str).to_numpy()
-    mission = ~np.isin(mode, NOT_MISSION_MODES)
-    if not mission.any():
-        return {}
-    return {"hold_fraction": float(np.mean(mode[mission] == "hold")), "land_fraction": float(np.mean(mode[mission] == "land"))}
 
 
 def telemetry_metrics(bridge_log) -> dict:
