@@ -615,7 +615,8 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
         finally:
             controller.close()
         m = r.metrics
-        flown.update({k: m.get(k) for k in ("c_min", "c_mean", "unsafe", "unsafe_reason", "steps", "fallback_episodes")},
+        flown.update({k: m.get(k) for k in ("c_min", "c_mean", "unsafe", "unsafe_reason", "steps", "fallback_episodes",
+                                            "safety_violations")},
                      simd=simd, c_steps=shadow.steps, c_fallback_steps=shadow.fallback_steps,
                      max_difference=shadow.max_difference, fallback_disagreements=shadow.fallback_disagreements,
                      planned_in_c=shadow.planned, max_parameter_difference=shadow.max_parameter_difference)

@@ -84,6 +84,7 @@ def test_the_nominal_mission_flown_by_the_c_library_keeps_its_c_min(tmp_path):
     assert r.exit_code == 0, r.output
     flown = json.loads((out / "fly.json").read_text())
     assert flown["c_steps"] == flown["steps"] > 3000 and flown["c_fallback_steps"] == 0 and not flown["unsafe"]
+    assert flown["safety_violations"] == 0 and flown["fallback_episodes"] == 0  # the supervisor never triggers
     assert not flown["planned_in_c"]
     assert flown["c_min"] == pytest.approx(4.7317e-4, abs=5e-9)
     assert flown["max_difference"] < 1e-9 and (flown["max_difference"] == 0.0 or not flown["simd"])
