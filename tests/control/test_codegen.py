@@ -146,6 +146,22 @@ def test_the_tree_builds_with_cmake_too(tmp_path, nominal_tree):
     assert res.returncode == 0 and len(res.stdout.splitlines()) == math.ceil(2.0 / 0.015 - 1e-9)
 
 
+@pytest.mark.skipif(shutil.which("aarch64-linux-gnu-gcc") is None and not os.environ.get("AERORELAY_REQUIRE_CROSS"),
+                    reason="no aarch64 cross compiler (apt-get install gcc-aarch64-linux-gnu); CI installs it")
+def test_the_library_cross_builds_for_aarch64_with_the_tree_s_toolchain_file(tmp_path, nominal_tree):
+    """The tree is portable C: its library builds for a 64-bit ARM companion computer with cmake/aarch64-linux-gnu.cmake
+    (the programs need HPIPM and BLASFEO built for aarch64 to link)."""
+    out, _, _ = nominal_tree
+    build = tmp_path / "arm"
+    for cmd in (["cmake", "-S", str(out), "-B", str(build), f"-DCMAKE_TOOLCHAIN_FILE={out / 'cmake' / 'aarch64-linux-gnu.cmake'}"],
+                ["cmake", "--build", str(build), "--target", "aerorelay_controller"]):
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        assert res.returncode == 0, res.stdout[-1500:] + res.stderr[-1500:]
+    res = subprocess.run(["aarch64-linux-gnu-objdump", "-f", str(build / "libaerorelay_controller.a")], capture_output=True,
+                         text=True)
+    assert res.returncode == 0 and "elf64-littleaarch64" in res.stdout and "x86-64" not in res.stdout
+
+
 def test_codegen_refuses_a_folder_that_is_not_empty(tmp_path):
     (tmp_path / "keep.txt").write_text("mine")
     r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "nominal_tilted.toml"), "--out", str(tmp_path)])

@@ -47,6 +47,16 @@ from .parts import build
 HEADER = "aerorelay_controller.h"
 SOURCE = "aerorelay_controller.c"
 PLANNER_SOURCE = "aerorelay_planner.c"  # the planner's CasADi-generated expansion: its own translation unit
+AARCH64_TOOLCHAIN = """# aerorelay codegen: cross-compile the tree for a 64-bit ARM companion computer (Debian/Ubuntu: apt-get install
+# gcc-aarch64-linux-gnu). HPIPM_PREFIX / BLASFEO_PREFIX must then name HPIPM and BLASFEO built for aarch64 (their CMake
+# projects, or an acados install on the drone) to link the programs; the library builds without them:
+#   cmake -S . -B build-arm -DCMAKE_TOOLCHAIN_FILE=cmake/aarch64-linux-gnu.cmake -DHPIPM_PREFIX=/opt/aarch64/hpipm
+#   cmake --build build-arm --target aerorelay_controller
+set(CMAKE_SYSTEM_NAME Linux)
+set(CMAKE_SYSTEM_PROCESSOR aarch64)
+set(CMAKE_C_COMPILER aarch64-linux-gnu-gcc)
+set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
+"""
 
 
 @dataclass(frozen=True)
@@ -367,6 +377,7 @@ Build (HPIPM and BLASFEO from CasADi's wheel by default, or `HPIPM_PREFIX=/opt/a
 
     make                       # build/libaerorelay_controller.a, build/replay, build/bench (make shared: the .so)
     cmake -B build-cmake && cmake --build build-cmake
+    # for an aarch64 companion computer (HPIPM/BLASFEO built for it): see cmake/aarch64-linux-gnu.cmake
 
 API: `include/{HEADER}`. Each control period (after `ar_plan` where the tree has the planner)
 `ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
@@ -384,10 +395,11 @@ every recorded step through the library, no Python in the loop (ns per step: who
     (out / "include").mkdir()
     (out / "src").mkdir()
     (out / "tools").mkdir()
+    (out / "cmake").mkdir()
     files = {f"include/{HEADER}": header, f"src/{SOURCE}": unit, "src/blasfeo_avx2.c": simd_source(),
              f"src/{PLANNER_SOURCE}": planner_source or f"/* no planner in this tree: {no_planner} */\ntypedef int ar_no_planner;\n",
              "tools/replay.c": (here / "ar_replay.c").read_text(), "tools/bench.c": (here / "ar_bench.c").read_text(),
-             "Makefile": makefile, "CMakeLists.txt": cmake,
+             "Makefile": makefile, "CMakeLists.txt": cmake, "cmake/aarch64-linux-gnu.cmake": AARCH64_TOOLCHAIN,
              "README.md": readme,
              "manifest.json": json.dumps({"scenario": sc.name, "relay": sc.relay_list[0].name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
