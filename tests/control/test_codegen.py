@@ -146,6 +146,20 @@ def test_the_tree_builds_with_cmake_too(tmp_path, nominal_tree):
     assert res.returncode == 0 and len(res.stdout.splitlines()) == math.ceil(2.0 / 0.015 - 1e-9)
 
 
+def test_the_c_planner_takes_any_number_of_jammers(tmp_path):
+    """Two jammers (AR_NJ = 2): the C planner's parameters equal Python's to rounding over 1 s of recorded inputs."""
+    out, calls, _ = _tree(tmp_path, "two_jammers.toml", 1.0)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["planner"], manifest["no_planner_because"]
+    res = subprocess.run([str(out / "build" / "replay"), "--params", str(calls)], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    rows = np.array([[float(v) for v in line.split(",")] for line in res.stdout.splitlines()])
+    params = np.loadtxt(str(calls) + ".params", delimiter=",", ndmin=2)
+    nr = manifest["nr"]
+    assert rows.shape[0] == params.shape[0] == 67
+    assert np.max(np.abs(rows[:, 5 + nr:] - params) / np.maximum(np.abs(params), 1.0)) < 1e-12
+
+
 @pytest.mark.skipif(shutil.which("aarch64-linux-gnu-gcc") is None and not os.environ.get("AERORELAY_REQUIRE_CROSS"),
                     reason="no aarch64 cross compiler (apt-get install gcc-aarch64-linux-gnu); CI installs it")
 def test_the_library_cross_builds_for_aarch64_with_the_tree_s_toolchain_file(tmp_path, nominal_tree):
