@@ -1,5 +1,6 @@
-"""``[[obstacles]]``: the structures the vehicles fly among, as boxes (buildings) and vertical
-cylinders (towers, poles), each with a margin every relay keeps (``models/obstacles.py``). Radio
+"""``[[obstacles]]``: the structures the vehicles fly among, as boxes (axis-aligned buildings), prisms (a convex
+footprint of any orientation extruded to a height) and vertical cylinders (towers, poles), each with a margin every
+relay keeps (``models/obstacles.py``). Radio
 links pass through them unless ``nlos_loss_db`` is set (a stated loss on every link whose straight
 segment crosses the obstacle)."""
 
@@ -9,22 +10,27 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
+from ..models.obstacles import Prism
 from .base import NAME_PATTERN, Strict, Vec3
 
 
 class ObstacleConfig(Strict):
-    """One obstacle: ``kind = "box"`` with ``min_m`` / ``max_m``, or ``kind = "cylinder"`` with
-    ``centre_m`` (x, y), ``radius_m`` and ``z_min_m`` / ``z_max_m``."""
+    """One obstacle: ``kind = "box"`` with ``min_m`` / ``max_m``, ``kind = "prism"`` with ``footprint_m`` (its convex
+    footprint's corners (x, y) in order) and ``z_min_m`` / ``z_max_m``, or ``kind = "cylinder"`` with ``centre_m``
+    (x, y), ``radius_m`` and ``z_min_m`` / ``z_max_m``."""
 
     name: str | None = Field(None, max_length=32, pattern=NAME_PATTERN, description="names it in errors and logs; "
                              "default obstacle<i>")
-    kind: Literal["box", "cylinder"] = Field(description="box (axis-aligned) or cylinder (vertical)")
+    kind: Literal["box", "prism", "cylinder"] = Field(description="box (axis-aligned), prism (a convex footprint of any "
+                                                      "orientation, vertical) or cylinder (vertical)")
     min_m: Vec3 | None = Field(None, description="box: its lowest corner, m (world)")
     max_m: Vec3 | None = Field(None, description="box: its highest corner, m (world)")
     centre_m: list[float] | None = Field(None, min_length=2, max_length=2, description="cylinder: its axis (x, y), m")
     radius_m: float | None = Field(None, gt=0.0, le=1000.0, description="cylinder: its radius, m")
-    z_min_m: float | None = Field(None, description="cylinder: its bottom, m (world z)")
-    z_max_m: float | None = Field(None, description="cylinder: its top, m (world z)")
+    footprint_m: list[list[float]] | None = Field(None, min_length=3, max_length=64, description="prism: its footprint's "
+                                                  "corners [[x, y], ...], m (world), in order around it; convex")
+    z_min_m: float | None = Field(None, description="cylinder or prism: its bottom, m (world z)")
+    z_max_m: float | None = Field(None, description="cylinder or prism: its top, m (world z)")
     margin_m: float = Field(1.0, ge=0.0, le=50.0, description="how far from it every relay's planner and NMPC keep, m "
                             "(entering the obstacle itself makes a run unsafe)")
     nlos_loss_db: float = Field(0.0, ge=0.0, le=100.0, description="extra path loss of a radio link whose segment "
@@ -32,17 +38,23 @@ class ObstacleConfig(Strict):
 
     @model_validator(mode="after")
     def _shape(self):
-        box = ("min_m", "max_m")
-        cyl = ("centre_m", "radius_m", "z_min_m", "z_max_m")
-        need, other = (box, cyl) if self.kind == "box" else (cyl, box)
+        fields = {"box": ("min_m", "max_m"), "cylinder": ("centre_m", "radius_m", "z_min_m", "z_max_m"),
+                  "prism": ("footprint_m", "z_min_m", "z_max_m")}
+        need = fields[self.kind]
         missing = [f for f in need if getattr(self, f) is None]
         if missing:
             raise ValueError(f"a {self.kind} needs {', '.join(missing)}")
-        extra = [f for f in other if getattr(self, f) is not None]
+        extra = sorted({f for fs in fields.values() for f in fs} - set(need))
+        extra = [f for f in extra if getattr(self, f) is not None]
         if extra:
             raise ValueError(f"a {self.kind} has no {', '.join(extra)}")
         if self.kind == "box" and any(a >= b for a, b in zip(self.min_m, self.max_m, strict=True)):
             raise ValueError(f"min_m {self.min_m} must be below max_m {self.max_m} on every axis")
-        if self.kind == "cylinder" and self.z_min_m >= self.z_max_m:
+        if self.kind in ("cylinder", "prism") and self.z_min_m >= self.z_max_m:
             raise ValueError(f"z_min_m ({self.z_min_m}) must be below z_max_m ({self.z_max_m})")
+        if self.kind == "prism":
+            if any(len(c) != 2 for c in self.footprint_m):
+                raise ValueError(f"footprint_m: every corner is [x, y] (m), got {self.footprint_m}")
+            # the shape's own checks: convex, no repeated corner, not crossing itself (ValueError, named by validation)
+            Prism(tuple((float(x), float(y)) for x, y in self.footprint_m), self.z_min_m, self.z_max_m)
         return self

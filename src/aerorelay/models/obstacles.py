@@ -15,8 +15,27 @@ from dataclasses import dataclass
 import numpy as np
 
 
+class Grown:
+    """What every shape answers from its ``_core`` (the signed distance to the shape itself, its nearest surface point
+    and the outward normal there) and its ``margin`` (m): the grown shape's signed distance and nearest point."""
+
+    margin: float
+
+    def _core(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def signed_distance(self, p) -> np.ndarray:
+        """The signed distance (m) of points ``p`` ``(..., 3)`` to the grown shape (negative inside)."""
+        return self._core(np.asarray(p, float))[0] - self.margin
+
+    def closest_point(self, p) -> np.ndarray:
+        """The nearest point of the grown shape's surface (m, world)."""
+        _, q, n = self._core(np.asarray(p, float))
+        return q + self.margin * n
+
+
 @dataclass(frozen=True)
-class Box:
+class Box(Grown):
     """An axis-aligned box ``[lo, hi]`` (m, world) grown by ``margin`` m on every side (its corners
     rounded: the set of points within ``margin`` of the box)."""
 
@@ -46,17 +65,10 @@ class Box:
         face_normal = np.where(np.arange(3) == axis[..., None], np.where(p - c >= 0, 1.0, -1.0), 0.0)
         return outside + inside, nearest, _normal(p, nearest, outside, face_normal)
 
-    def signed_distance(self, p) -> np.ndarray:
-        return self._core(np.asarray(p, float))[0] - self.margin
-
-    def closest_point(self, p) -> np.ndarray:
-        """The nearest point of the grown box's surface (m, world)."""
-        _, q, n = self._core(np.asarray(p, float))
-        return q + self.margin * n
 
 
 @dataclass(frozen=True)
-class VerticalCylinder:
+class VerticalCylinder(Grown):
     """A vertical cylinder of ``radius`` m about ``(x, y) = centre`` from ``z_min`` to ``z_max`` (m,
     world) grown by ``margin`` m (edges rounded)."""
 
@@ -94,16 +106,72 @@ class VerticalCylinder:
         up = np.where(z >= zc, 1.0, -1.0)[..., None] * np.array([0.0, 0.0, 1.0])
         return outside + inside, nearest, _normal(p, nearest, outside, np.where((b > a)[..., None], up, side))
 
-    def signed_distance(self, p) -> np.ndarray:
-        return self._core(np.asarray(p, float))[0] - self.margin
-
-    def closest_point(self, p) -> np.ndarray:
-        """The nearest point of the grown cylinder's surface (m, world)."""
-        _, q, n = self._core(np.asarray(p, float))
-        return q + self.margin * n
 
 
-Obstacle = Box | VerticalCylinder
+@dataclass(frozen=True)
+class Prism(Grown):
+    """A vertical prism: a convex polygon ``footprint`` (its ``(x, y)`` corners, m, world, in order around it, either
+    way) extruded from ``z_min`` to ``z_max`` (m, world), grown by ``margin`` m (edges rounded): a building of any
+    orientation (a footprint turned 25 deg is not its bounding box)."""
+
+    footprint: tuple[tuple[float, float], ...]
+    z_min: float
+    z_max: float
+    margin: float = 0.0
+
+    def __post_init__(self):
+        v = np.asarray(self.footprint, float)
+        if v.ndim != 2 or v.shape[1] != 2 or len(v) < 3 or not np.all(np.isfinite(v)):
+            raise ValueError(f"prism: the footprint needs 3 or more finite (x, y) corners, got {self.footprint}")
+        if not (self.z_max > self.z_min) or self.margin < 0:
+            raise ValueError("prism: z_min < z_max and margin >= 0")
+        edges = np.roll(v, -1, axis=0) - v
+        if np.any(np.linalg.norm(edges, axis=1) <= 1e-9):
+            raise ValueError("prism: the footprint repeats a corner")
+        turn = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+        if not (np.all(turn > 1e-12) or np.all(turn < -1e-12)):
+            raise ValueError("prism: the footprint is not convex (or has three corners in a line): split it into convex "
+                             "parts, one prism each")
+        if turn[0] < 0:  # clockwise: counter-clockwise from here on (outward normals to the right of each edge)
+            v, edges = v[::-1].copy(), (np.roll(v[::-1], -1, axis=0) - v[::-1])
+        # the edges' winding number must be one turn: a star polygon turns the same way at every corner too
+        angles = np.arctan2(edges[:, 1], edges[:, 0])
+        total = np.sum(np.angle(np.exp(1j * (np.roll(angles, -1) - angles))))
+        if abs(total - 2 * np.pi) > 1e-6:
+            raise ValueError("prism: the footprint crosses itself")
+        object.__setattr__(self, "_v", v)
+        object.__setattr__(self, "_e", edges)
+        object.__setattr__(self, "_n", np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None])
+
+    def _core(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As ``Box._core``."""
+        v, e, nrm = self._v, self._e, self._n  # type: ignore[attr-defined]
+        xy = p[..., None, 0:2]  # (..., 1, 2) against every edge (n, 2)
+        s = np.clip(np.sum((xy - v) * e, axis=-1) / np.sum(e * e, axis=-1), 0.0, 1.0)
+        foot = v + s[..., None] * e  # the nearest point of each edge
+        d = np.linalg.norm(xy - foot, axis=-1)
+        k = np.argmin(d, axis=-1)
+        dist = np.take_along_axis(d, k[..., None], axis=-1)[..., 0]
+        near_xy = np.take_along_axis(foot, k[..., None, None].repeat(2, axis=-1), axis=-2)[..., 0, :]
+        inside_xy = np.all(np.sum((xy - v) * nrm, axis=-1) <= 0.0, axis=-1)
+        a = np.where(inside_xy, -dist, dist)  # the footprint's signed distance
+        zc, hz = 0.5 * (self.z_min + self.z_max), 0.5 * (self.z_max - self.z_min)
+        z = p[..., 2]
+        b = np.abs(z - zc) - hz
+        outside = np.hypot(np.maximum(a, 0.0), np.maximum(b, 0.0))
+        inside = np.minimum(np.maximum(a, b), 0.0)
+        cap = (a < 0) & (b < 0) & (b > a)
+        side_inside = (a < 0) & (b < 0) & (a >= b)
+        q_xy = np.where((a > 0)[..., None] | side_inside[..., None], near_xy, p[..., 0:2])
+        q_z = np.where(cap, np.where(z >= zc, self.z_max, self.z_min), np.clip(z, self.z_min, self.z_max))
+        nearest = np.concatenate([q_xy, q_z[..., None]], axis=-1)
+        side = np.concatenate([nrm[k], np.zeros_like(z[..., None])], axis=-1)  # the nearest edge's outward normal
+        up = np.where(z >= zc, 1.0, -1.0)[..., None] * np.array([0.0, 0.0, 1.0])
+        return outside + inside, nearest, _normal(p, nearest, outside, np.where((b > a)[..., None], up, side))
+
+
+
+Obstacle = Box | VerticalCylinder | Prism
 
 
 def _normal(p: np.ndarray, nearest: np.ndarray, outside: np.ndarray, on_surface: np.ndarray) -> np.ndarray:
@@ -134,6 +202,8 @@ def obstacle_model(cfg, margin: bool = True) -> Obstacle:
     m = cfg.margin_m if margin else 0.0
     if cfg.kind == "box":
         return Box(tuple(cfg.min_m), tuple(cfg.max_m), m)
+    if cfg.kind == "prism":
+        return Prism(tuple((float(x), float(y)) for x, y in cfg.footprint_m), cfg.z_min_m, cfg.z_max_m, m)
     return VerticalCylinder(tuple(cfg.centre_m), cfg.radius_m, cfg.z_min_m, cfg.z_max_m, m)
 
 
