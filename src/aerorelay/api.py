@@ -607,8 +607,7 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
     flown: dict = {}
 
     def fly_c(s: Scenario) -> RunResult:
-        simd = bool(json.loads((tree.folder / "manifest.json").read_text())["simd_here"])
-        controller = CController(build_shared(tree.folder, simd=simd), tree)
+        controller = CController(build_shared(tree), tree)
         try:
             with flown_by_c(controller) as shadow:
                 r = simulate(s, bound=False)
@@ -617,7 +616,7 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
         m = r.metrics
         flown.update({k: m.get(k) for k in ("c_min", "c_mean", "unsafe", "unsafe_reason", "steps", "fallback_episodes",
                                             "safety_violations")},
-                     simd=simd, c_steps=shadow.steps, c_fallback_steps=shadow.fallback_steps,
+                     simd=tree.simd, c_steps=shadow.steps, c_fallback_steps=shadow.fallback_steps,
                      max_difference=shadow.max_difference, fallback_disagreements=shadow.fallback_disagreements,
                      planned_in_c=shadow.planned, max_parameter_difference=shadow.max_parameter_difference)
         return r

@@ -72,6 +72,7 @@ class Tree:
     nxa: int  # the OCP's initial state (the plant state, and the last input with the exact input-rate cost)
     planner: bool = False  # the paper's planner is in the tree (ar_plan)
     no_planner_because: str = ""
+    simd: bool = False  # this process's engine ran blasfeo_avx2.c: build with SIMD=1 for its bits (manifest simd_here)
 
 
 def _c_number(v: float) -> str:
@@ -200,12 +201,13 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
                               "empty one)")
     check_output_folder(out, "codegen")  # the project's rules: not a file, no file above it, no forbidden place, writable
     rc, control = _first_relay(sc, settings)
-    gen, no_planner = _c_planner(sc, rc, control) if planner else (None, "left out (--no-c-planner)")
-    planner_baked, planner_source = _planner_settings(rc, control, gen)
     nmpc = rc.nmpc
     spec, settings = nmpc.spec, nmpc.settings
     if settings.backend != "hpipm":
         raise ValueError(f"codegen: the NMPC's backend is {settings.backend!r}; the C tree is the compiled HPIPM engine")
+    gen, no_planner = _c_planner(sc, rc, control) if planner else (None, "left out (--no-c-planner)")
+    planner_baked, planner_source = _planner_settings(rc, control, gen)
+    simd_here = bool(getattr(getattr(nmpc.engine, "rti", None), "simd_compiled", False))
     veh = spec.vehicle
     out.mkdir(parents=True, exist_ok=True)
     generated, macros, driver = engine_parts(spec)
@@ -406,11 +408,11 @@ every recorded step through the library, no Python in the loop (ns per step: who
                                           "nxa": nxa, "ocp_key": spec.key(), "planner": gen is not None,
                                           "no_planner_because": no_planner,
                                           # whether the engine here ran blasfeo_avx2.c: build with SIMD=1 for its bits
-                                          "simd_here": bool(getattr(getattr(nmpc.engine, "rti", None), "simd_compiled", False))},
+                                          "simd_here": simd_here},
                                          indent=2) + "\n"}
     for name, text in files.items():
         (out / name).write_text(text)
-    return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa, gen is not None, no_planner)
+    return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa, gen is not None, no_planner, simd_here)
 
 
 @contextlib.contextmanager
@@ -447,6 +449,18 @@ def _fly_numbers(seen: dict) -> tuple[float, list[np.ndarray]]:
                       np.ravel(np.asarray(pj, float)), np.ravel(np.asarray(powers, float)), seen["a_ext"]]
 
 
+def _first_stepping() -> Callable[[object], bool]:
+    """``mine(controller)``: whether ``controller`` is the first relay controller that stepped (the tree's relay)."""
+    first: list[int] = []
+
+    def mine(controller) -> bool:
+        if not first:
+            first.append(id(controller))
+        return first[0] == id(controller)
+
+    return mine
+
+
 @contextlib.contextmanager
 def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None, *,
                fly: bool = False, params: list[np.ndarray] | None = None):
@@ -454,7 +468,7 @@ def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times
     planner was given, for a tree with the paper's planner: ``fly`` lines; else ``step`` lines with the stage
     parameters), its commands (the brake law's flag first) and ``params``: its stage parameters; ``times_ms``: each
     step's time (``RelayController.step``, ms)."""
-    first: list[int] = []
+    mine = _first_stepping()
     step = RelayController.step
     seen: dict = {}
 
@@ -465,9 +479,7 @@ def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times
         t0 = time.perf_counter()
         info = step(self, x, u_prev, P, shift)
         dt = (time.perf_counter() - t0) * 1e3
-        if not first:
-            first.append(id(self))
-        if first[0] == id(self):
+        if mine(self):
             if times_ms is not None:
                 times_ms.append(dt)
             if lines is not None and expected is not None:
@@ -516,13 +528,22 @@ class _Info(ctypes.Structure):
 STATUS = {0: "AR_OK", 1: "AR_QP_FAILED", 2: "AR_BAD_INPUT", 3: "AR_NOT_PREPARED", 4: "AR_FALLBACK"}
 
 
-def build_shared(folder: Path, *, simd: bool) -> Path:
-    """``make shared`` in a written tree (``SIMD=1``: BLASFEO's AVX2 kernels); the shared library's path. A failed build
-    is a RuntimeError with make's last output."""
-    res = subprocess.run(["make", "-C", str(folder), f"SIMD={int(simd)}", "shared"], capture_output=True, text=True)
+def make(tree: Tree, target: str) -> Path:
+    """``make TARGET`` in a written tree with the BLASFEO kernels this process's engine ran (``Tree.simd``); the
+    target's path. No make, or a failed build: a RuntimeError with make's last output."""
+    if shutil.which("make") is None:
+        raise RuntimeError("codegen: make (and a C compiler) is needed to build the C tree")
+    res = subprocess.run(["make", "-C", str(tree.folder), f"SIMD={int(tree.simd)}", target], capture_output=True,
+                         text=True)
     if res.returncode != 0:
-        raise RuntimeError(f"codegen: make shared failed in {folder}:\n{(res.stdout + res.stderr)[-2000:]}")
-    return Path(folder) / "build" / "libaerorelay_controller.so"
+        raise RuntimeError(f"codegen: make {target} failed in {tree.folder}:\n{(res.stdout + res.stderr)[-2000:]}")
+    return tree.folder / target
+
+
+def build_shared(tree: Tree) -> Path:
+    """The tree's shared library (``make shared``)."""
+    make(tree, "shared")
+    return tree.folder / "build" / "libaerorelay_controller.so"
 
 
 class CController:
@@ -593,16 +614,14 @@ def flown_by_c(controller: CController):
     the same inputs (its plan feeds the stage parameters that read one: obstacle planes, a fleet's predictions) and
     each step's difference is kept in the yielded ``Shadow``. With the paper's planner in the tree, the C planner
     makes the C step's stage parameters (``ar_plan``, from what the Python planner was given)."""
-    first: list[int] = []
+    mine = _first_stepping()
     step = RelayController.step
     shadow = Shadow(planned=controller.tree.planner)
     seen: dict = {}
 
     def c_step(self, x, u_prev, P, shift=True):
         info = step(self, x, u_prev, P, shift)
-        if not first:
-            first.append(id(self))
-        if first[0] != id(self):
+        if not mine(self):
             return info
         if controller.tree.planner:
             t, numbers = _fly_numbers(seen)
@@ -644,19 +663,13 @@ def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int =
     flight are the C program's input; the C commands equal Python's, tests/control/test_codegen.py)."""
     if rounds < 1:
         raise ValueError(f"rounds must be >= 1, got {rounds}")
-    if shutil.which("make") is None:
-        raise RuntimeError("bench --backend c: make (and a C compiler) is needed to build the C tree")
     pin, before = _pinned_core(), None
     out: dict = {"rounds": [], "pinned_core": sorted(pin)[0] if pin else None}
     with tempfile.TemporaryDirectory(prefix="aerorelay-bench-c-") as tmp_name:
         tmp = Path(tmp_name)
         tree = write_tree(sc, tmp / "tree", settings)
-        simd = bool(json.loads((tree.folder / "manifest.json").read_text())["simd_here"])
-        say(f"building the C tree (make SIMD={int(simd)})")
-        res = subprocess.run(["make", "-C", str(tree.folder), f"SIMD={int(simd)}", "build/bench"], capture_output=True,
-                             text=True)
-        if res.returncode != 0:
-            raise RuntimeError(f"bench --backend c: make failed:\n{(res.stdout + res.stderr)[-2000:]}")
+        say(f"building the C tree (make SIMD={int(tree.simd)})")
+        bench = make(tree, "build/bench")
         warm = sc.with_updates({"sim.duration_s": 0.1})
         build(warm, nmpc_settings=settings).closed_loop().run()  # the Python engine compiled or loaded first
         steps = tmp / "steps.csv"
@@ -678,8 +691,7 @@ def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int =
                     out["steps"] = len(lines)
                     out["fallback_steps"] = int(sum(e[0] for e in expected))
                 say(f"round {r + 1}/{rounds}: C")
-                run = subprocess.run([str(tree.folder / "build" / "bench"), str(steps), "1"], capture_output=True,
-                                     text=True)
+                run = subprocess.run([str(bench), str(steps), "1"], capture_output=True, text=True)
                 if run.returncode != 0:
                     raise RuntimeError(f"bench --backend c: the C bench failed: {run.stderr[-1000:]}")
                 ns = np.array([[float(v) for v in line.split(",")[2:]] for line in run.stdout.splitlines()])
@@ -694,5 +706,5 @@ def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int =
         finally:
             if before is not None:
                 os.sched_setaffinity(0, before)
-    out["simd"] = simd
+    out["simd"] = tree.simd
     return out

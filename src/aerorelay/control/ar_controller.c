@@ -125,12 +125,11 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
     double v = u[i];
     if (isnan(v)) v = 0.0;
     else if (isinf(v)) v = v > 0 ? DBL_MAX : -DBL_MAX;
-    v = v < AR_OMEGA_DOT_MIN[i] ? AR_OMEGA_DOT_MIN[i] : (v > AR_OMEGA_DOT_MAX[i] ? AR_OMEGA_DOT_MAX[i] : v);
+    v = rti_clip(v, AR_OMEGA_DOT_MIN[i], AR_OMEGA_DOT_MAX[i]);
     /* the first stage's rotor-speed bounds, exact in the input (Omega_1 = Omega_0 + u Ts) */
     double speed = x[AR_OMEGA_OFFSET + i];
-    double lo = (AR_OMEGA_MIN[i] - speed) / AR_TS, hi = (AR_OMEGA_MAX[i] - speed) / AR_TS;
-    lo = lo < AR_OMEGA_DOT_MIN[i] ? AR_OMEGA_DOT_MIN[i] : (lo > AR_OMEGA_DOT_MAX[i] ? AR_OMEGA_DOT_MAX[i] : lo);
-    hi = hi < AR_OMEGA_DOT_MIN[i] ? AR_OMEGA_DOT_MIN[i] : (hi > AR_OMEGA_DOT_MAX[i] ? AR_OMEGA_DOT_MAX[i] : hi);
+    double lo = rti_clip((AR_OMEGA_MIN[i] - speed) / AR_TS, AR_OMEGA_DOT_MIN[i], AR_OMEGA_DOT_MAX[i]);
+    double hi = rti_clip((AR_OMEGA_MAX[i] - speed) / AR_TS, AR_OMEGA_DOT_MIN[i], AR_OMEGA_DOT_MAX[i]);
     double top = lo > hi ? lo : hi;
     v = v > lo ? v : lo;
     u[i] = v < top ? v : top;

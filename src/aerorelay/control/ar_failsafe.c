@@ -17,7 +17,6 @@ static void ar_cross3(const double *a, const double *b, double *o) {
   o[1] = a[2] * b[0] - a[0] * b[2];
   o[2] = a[0] * b[1] - a[1] * b[0];
 }
-static double ar_clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
 /* Body-to-world rotation R = Rz(psi) Ry(theta) Rx(phi), row-major (models.geometry.rotation_zyx). */
 static void ar_rotation_zyx(const double *eta, double R[9]) {
@@ -79,7 +78,7 @@ static int ar_violations(const double *x) {
 }
 
 static int ar_at_rest(const double *x) { /* slow and nearly level: where the NMPC may take over again */
-  double tilt = acos(ar_clip(cos(x[3]) * cos(x[4]), -1.0, 1.0)) * (180.0 / 3.141592653589793);
+  double tilt = acos(rti_clip(cos(x[3]) * cos(x[4]), -1.0, 1.0)) * (180.0 / 3.141592653589793);
   return ar_norm3(x + 6) < AR_REST_SPEED && tilt < AR_REST_TILT_DEG;
 }
 
@@ -95,7 +94,7 @@ static ar_hold_t ar_hold_at(const double *p, const double *v, const double *eta)
   double speed = ar_norm3(vel);
   h.freq = AR_BRAKE_FREQ;
   if (!h.upright || speed < 1e-9) {
-    for (int i = 0; i < 3; i++) h.point[i] = ar_clip(p[i], AR_BRAKE_LO[i], AR_BRAKE_HI[i]);
+    for (int i = 0; i < 3; i++) h.point[i] = rti_clip(p[i], AR_BRAKE_LO[i], AR_BRAKE_HI[i]);
     return h;
   }
   double need = -INFINITY;
@@ -106,8 +105,8 @@ static ar_hold_t ar_hold_at(const double *p, const double *v, const double *eta)
   }
   double cap = AR_BRAKE_MAX_FREQ < AR_BRAKE_MAX_ACCEL / speed ? AR_BRAKE_MAX_FREQ : AR_BRAKE_MAX_ACCEL / speed;
   cap = AR_BRAKE_FREQ > cap ? AR_BRAKE_FREQ : cap;
-  h.freq = ar_clip(need, AR_BRAKE_FREQ, cap);
-  for (int i = 0; i < 3; i++) h.point[i] = ar_clip(p[i] + vel[i] / h.freq, AR_BRAKE_LO[i], AR_BRAKE_HI[i]);
+  h.freq = rti_clip(need, AR_BRAKE_FREQ, cap);
+  for (int i = 0; i < 3; i++) h.point[i] = rti_clip(p[i] + vel[i] / h.freq, AR_BRAKE_LO[i], AR_BRAKE_HI[i]);
   return h;
 }
 
@@ -178,7 +177,6 @@ static double ar_kkt(const double *g, const double *on) { /* the largest violati
 static double ar_residual(const double *A, const double *b, const double *x, double *g) {
   double r[AR_M], cost = 0.0;
   for (int i = 0; i < AR_M; i++) {
-    r[i] = -b[i];
     double s = 0.0;
     for (int j = 0; j < AR_NR; j++) s += A[i * AR_NR + j] * x[j];
     r[i] = s - b[i];
@@ -322,7 +320,7 @@ static void ar_brake(const double *x, const ar_hold_t *h, double *u) {
     ar_cross3(z, b3, axis);
     double na = ar_norm3(axis);
     for (int i = 0; i < 3; i++) axis[i] = na > 1e-6 ? axis[i] / na : col0[i];
-    double angle = acos(ar_clip(zb, -1.0, 1.0));
+    double angle = acos(rti_clip(zb, -1.0, 1.0));
     for (int i = 0; i < 3; i++) eR[i] = -angle * (R[i] * axis[0] + R[3 + i] * axis[1] + R[6 + i] * axis[2]);
   }
   const double *kR = h->upright ? AR_KR_UPRIGHT : AR_KR_RECOVERY, *kw = h->upright ? AR_KW_UPRIGHT : AR_KW_RECOVERY;
@@ -348,7 +346,7 @@ static void ar_brake(const double *x, const ar_hold_t *h, double *u) {
   }
   ar_bvls(Aw, bw, AR_W2_MIN, AR_W2_MAX, w2);
   for (int i = 0; i < AR_NR; i++)
-    u[i] = ar_clip((sqrt(w2[i]) - speeds[i]) / AR_BRAKE_TAU, AR_OMEGA_DOT_MIN[i], AR_OMEGA_DOT_MAX[i]);
+    u[i] = rti_clip((sqrt(w2[i]) - speeds[i]) / AR_BRAKE_TAU, AR_OMEGA_DOT_MIN[i], AR_OMEGA_DOT_MAX[i]);
 }
 
 /* ---- the step ---- */

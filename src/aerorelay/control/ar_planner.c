@@ -132,7 +132,7 @@ ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src
     }
     ar_solve3(H11r, g, step);
     for (int i = 0; i < 3; i++) {
-      p_opt[i] = ar_clip(x[i] - step[i], AR_PLAN_LO[i], AR_PLAN_HI[i]);
+      p_opt[i] = rti_clip(x[i] - step[i], AR_PLAN_LO[i], AR_PLAN_HI[i]);
       vd[i] = 0.0, ad[i] = 0.0;
       for (int j = 0; j < 3; j++) vd[i] += Kcol[j][i] * src_v[j], ad[i] += Kcol[j][i] * src_a[j];
       vd[i] = -vd[i], ad[i] = -ad[i];
@@ -153,10 +153,10 @@ ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src
   }
   /* the reference check */
   if (!ar_finite(p_opt, 3) || !ar_finite(p_ref, 3) || !ar_finite(v_ref, 3) || !ar_finite(a_ref, 3)) {
-    for (int i = 0; i < 3; i++) p_ref[i] = ar_clip(x[i], AR_WS_NMPC_MIN[i], AR_WS_NMPC_MAX[i]), v_ref[i] = a_ref[i] = 0.0;
+    for (int i = 0; i < 3; i++) p_ref[i] = rti_clip(x[i], AR_WS_NMPC_MIN[i], AR_WS_NMPC_MAX[i]), v_ref[i] = a_ref[i] = 0.0;
     yaw = isfinite(x[5]) ? x[5] : 0.0;
   } else {
-    for (int i = 0; i < 3; i++) p_ref[i] = ar_clip(p_ref[i], AR_WS_NMPC_MIN[i], AR_WS_NMPC_MAX[i]);
+    for (int i = 0; i < 3; i++) p_ref[i] = rti_clip(p_ref[i], AR_WS_NMPC_MIN[i], AR_WS_NMPC_MAX[i]);
   }
   /* the stage parameters */
   double thrust[3];

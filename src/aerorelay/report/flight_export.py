@@ -51,14 +51,18 @@ def vehicles(df: pd.DataFrame, relays: list[str], sources: list[str]) -> dict[st
     return out | {n: "source" for n in sources if f"{n}.p_x" in df.columns}
 
 
-def track(df: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A vehicle's flown steps: times (s), positions ``(n, 3)`` ENU (m) and ZYX angles ``(n, 3)`` (rad), the steps
-    it did not fly (lost, a spare waiting: NaN) left out."""
+def flown(df: pd.DataFrame, name: str) -> np.ndarray:
+    """The log's rows where a vehicle flew (its position and attitude finite; lost, a spare waiting: NaN)."""
     p = df[[f"{name}.p_{a}" for a in "xyz"]].to_numpy(float)
     eta = df[[f"{name}.{a}" for a in ("phi", "theta", "psi")]].to_numpy(float)
-    t = df["t"].to_numpy(float)
-    flew = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(eta), axis=1)
-    return t[flew], p[flew], eta[flew]
+    return np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(eta), axis=1)
+
+
+def track(df: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A vehicle's flown steps (``flown``): times (s), positions ``(n, 3)`` ENU (m) and ZYX angles ``(n, 3)`` (rad)."""
+    rows = df[flown(df, name)]
+    return (rows["t"].to_numpy(float), rows[[f"{name}.p_{a}" for a in "xyz"]].to_numpy(float),
+            rows[[f"{name}.{a}" for a in ("phi", "theta", "psi")]].to_numpy(float))
 
 
 def write_csv(df: pd.DataFrame, name: str, frame: GeoFrame | None, path: Path) -> Path:
@@ -205,10 +209,9 @@ def write_ulog(df: pd.DataFrame, name: str, frame: GeoFrame | None, path: Path, 
     if len(t) == 0:
         raise ValueError(f"export: {name} flew no step; nothing to log")
     us = np.round(t * 1e6).astype(np.int64)
-    flew = df.index[np.all(np.isfinite(df[[f"{name}.p_{a}" for a in "xyz"]].to_numpy(float)), axis=1)
-                    & np.all(np.isfinite(df[[f"{name}.{a}" for a in ("phi", "theta", "psi")]].to_numpy(float)), axis=1)]
-    v = df.loc[flew, [f"{name}.v_{a}" for a in "xyz"]].to_numpy(float)
-    ref = df.loc[flew, [f"{name}.pd_{a}" for a in "xyz"]].to_numpy(float) if f"{name}.pd_x" in df.columns else None
+    rows = df[flown(df, name)]
+    v = rows[[f"{name}.v_{a}" for a in "xyz"]].to_numpy(float)
+    ref = rows[[f"{name}.pd_{a}" for a in "xyz"]].to_numpy(float) if f"{name}.pd_x" in df.columns else None
     topics = {k: f for k, f in ULOG_TOPICS.items() if frame is not None or k != "vehicle_global_position"}
     if ref is None:
         topics.pop("vehicle_local_position_setpoint")
