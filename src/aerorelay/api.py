@@ -592,15 +592,20 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
 
 
 def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, fly: bool = False,
-            planner: bool = True) -> dict:
+            planner: bool = True, offboard: bool = False) -> dict:
     """Write the C tree of ``sc``'s first relay's controller into ``out`` (``assembly.codegen.write_tree``: a new or empty
     folder). ``record``: fly ``sc`` and record that controller's steps there (``ar_replay.c``'s events) and the Python
     controller's brake-law flags and commands beside (``<record>.expected``). ``fly``: build the tree's shared library
     and fly ``sc`` with its commands (the Python controller beside it on the same inputs), the flight's metrics and the
     largest difference from Python's commands in the summary and in ``out/fly.json``. ``planner``: the paper's planner
     in the tree where the relay flies it (``ar_plan``: then ``record`` keeps what it was given and ``fly`` flies its
-    stage parameters). Returns the tree's summary."""
-    tree = write_tree(sc, Path(out), planner=planner)
+    stage parameters). ``offboard``: the tree of the vehicle an autopilot flies, with the example that flies a MAVLink
+    vehicle in OFFBOARD through the library (``tools/offboard.c``, ``make offboard``; not with ``record`` or ``fly``,
+    which fly aerorelay's own plant). Returns the tree's summary."""
+    if offboard and (record is not None or fly):
+        raise ValueError("codegen: --offboard writes the controller of the vehicle an autopilot flies (thrust along body "
+                         "z); --record and --fly fly aerorelay's own plant with the scenario's: write them as two trees")
+    tree = write_tree(sc, Path(out), planner=planner, offboard=offboard)
     summary: dict = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr,
                      "n_params": tree.n_params, "horizon": tree.horizon, "planner": tree.planner,
                      "no_planner_because": tree.no_planner_because}

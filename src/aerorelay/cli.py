@@ -285,7 +285,12 @@ def codegen(
     c_planner: bool = typer.Option(True, "--c-planner/--no-c-planner", help="the paper's planner in the tree where the "
                                    "relay flies it (ar_plan: stage parameters from the source's and the jammers' states); "
                                    "without: the stage parameters always come from outside"),
-    duration: float = typer.Option(None, "--duration", help="with --record or --fly: simulate only this many seconds"),
+    offboard: bool = typer.Option(False, "--offboard", help="the controller of the vehicle an autopilot flies (thrust "
+                                  "along body z, as aerorelay fly plans), with an example program that flies a MAVLink "
+                                  "vehicle in OFFBOARD through the library (tools/offboard.c: make -C OUT offboard) and "
+                                  "world.csv (the source and jammers on the mission's clock, over --duration)"),
+    duration: float = typer.Option(None, "--duration", help="with --record or --fly: simulate only this many seconds; "
+                                   "with --offboard: the mission's length world.csv covers"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
@@ -297,13 +302,14 @@ def codegen(
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
     try:
-        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner)
+        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner, offboard=offboard)
     except (ScenarioError, ValueError, FileExistsError, RuntimeError, OutputError) as exc:
         _fail(str(exc))
     planner_said = "the paper's (ar_plan)" if summary["planner"] else summary["no_planner_because"]
     console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "
                   f"parameters {summary['n_params']} x {summary['horizon'] + 1}; planner: {planner_said}); build: "
-                  f"make -C {out}", markup=False, highlight=False)
+                  f"make -C {out}" + (f"; the OFFBOARD example: make -C {out} offboard" if offboard else ""),
+                  markup=False, highlight=False)
     if record is not None:
         console.print(f"recorded {summary['recorded']} controller steps in {record}", markup=False, highlight=False)
     if fly:

@@ -13,23 +13,12 @@ from typer.testing import CliRunner
 
 from aerorelay.cli import app
 from aerorelay.experiments.flight import free_udp_port
-
-
-def _sitl_vehicle(port: int) -> subprocess.Popen:
-    """The in-repo MAVLink vehicle of the nominal preset listening on ``port``, once it says so."""
-    vehicle = subprocess.Popen([sys.executable, "-m", "aerorelay.cli", "sitl", "scenarios/nominal_tilted.toml",
-                                "--listen", f"udpin:127.0.0.1:{port}", "--duration", "30"],
-                               env={**os.environ, "PYTHONUNBUFFERED": "1"}, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    assert vehicle.stdout is not None
-    end = time.monotonic() + 60.0  # the vehicle's process starts (imports; slow on a loaded machine)
-    while b"listening" not in vehicle.stdout.readline() and time.monotonic() < end:
-        pass
-    return vehicle
+from tests.sitl import sitl_vehicle
 
 
 def test_fly_against_the_sitl_vehicle(tmp_path):
     port = free_udp_port()
-    vehicle = _sitl_vehicle(port)
+    vehicle = sitl_vehicle(port)
     try:
         result = CliRunner().invoke(app, ["fly", "scenarios/nominal_tilted.toml", "--mavlink", f"udpout:127.0.0.1:{port}",
                                           "--arm", "--duration", "6", "--out", str(tmp_path)])
@@ -112,7 +101,7 @@ def test_fly_names_a_network_without_a_vehicle_for_every_relay():
 def test_a_flight_whose_source_never_answers_is_not_reported_flown(tmp_path):
     """Issue 61 (left from the third battery): ``fly --source-mavlink`` with no source answering exited 0."""
     port, silent = free_udp_port(), free_udp_port()
-    vehicle = _sitl_vehicle(port)
+    vehicle = sitl_vehicle(port)
     try:
         result = CliRunner().invoke(app, ["fly", "scenarios/nominal_tilted.toml", "--mavlink", f"udpout:127.0.0.1:{port}",
                                           "--source-mavlink", f"udpout:127.0.0.1:{silent}", "--arm", "--duration", "3",

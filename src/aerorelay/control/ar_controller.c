@@ -143,3 +143,21 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
   }
   return ok ? AR_OK : AR_QP_FAILED;
 }
+
+/* An autopilot's setpoints (aerorelay's RelayStep.command): the model's RK4 step over one control period and the
+ * acceleration there, CasADi-generated in src/aerorelay_model.c. */
+extern int ar_model_setpoint(const double **arg, double **res, long long int *iw, double *w, int mem);
+
+ar_status ar_setpoint(const double *x, const double *u, const double *a_ext, double *x1, double *acc) {
+  if (!ar_finite(x, AR_NX) || !ar_finite(u, AR_NR) || !ar_finite(a_ext, 3)) {
+    memcpy(x1, x, sizeof(double) * AR_NX);
+    for (int i = 0; i < 3; i++) acc[i] = 0.0;
+    return AR_BAD_INPUT;
+  }
+  long long int iw[AR_MODEL_SZ_IW + 1];
+  double w[AR_MODEL_SZ_W + 1];
+  const double *arg[AR_MODEL_SZ_ARG + 1] = {x, u, a_ext};
+  double *res[AR_MODEL_SZ_RES + 1] = {x1, acc};
+  ar_model_setpoint(arg, res, iw, w, 0);
+  return AR_OK;
+}
