@@ -236,7 +236,7 @@ def world_table(sc: Scenario, control: NetworkController) -> np.ndarray:
     path = source_trajectory(sc.source_list[0].mission)
     senses = sc.controller.senses_jammer_state
     rows = []
-    for t in control.period * np.arange(int(np.floor(sc.sim.duration_s / control.period + 1e-9)) + 2):
+    for t in control.period * np.arange(int(np.floor(sc.duration_s / control.period + 1e-9)) + 2):
         s = path.state(float(t))
         positions, powers = known_jammers(control.scene, float(t), senses)
         rows.append(np.concatenate([[t], s.p, s.v, s.a, np.ravel(positions), powers]))
