@@ -106,6 +106,9 @@ def validate(
         shown = [round(float(v), 4) for v in local] if not isinstance(local[0], list) else \
             [[round(float(v), 4) for v in point] for point in local]
         print(f"# {field}_wgs84 resolves to {field} = {shown} m (ENU at geo.origin)")
+    if (b := sc.buildings_resolved) is not None:
+        print(f"# buildings.geojson {b['file']}: {b['footprints']} footprints, {b['kept']} within reach "
+              f"({b['left_out']} left out), {b['prisms']} convex prisms (the obstacles named building<i>)")
     print(sc.to_toml())
 
 

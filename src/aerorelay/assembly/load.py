@@ -133,6 +133,11 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
         scene = Path(prop["scene"])
         if scene.suffix.lower() == ".xml" and not scene.is_absolute():
             prop["scene"] = str((path.parent / scene).resolve())
+    buildings = data.get("buildings")
+    if isinstance(buildings, dict) and isinstance(buildings.get("geojson"), str):  # relative to the scenario file
+        f = Path(buildings["geojson"])
+        if not f.is_absolute():
+            buildings["geojson"] = str((path.parent / f).resolve())
     updates = parse_sets(set) if isinstance(set, list) else dict(set or {})
     _apply_to_data(data, updates, list(unset or []))
     try:

@@ -13,6 +13,8 @@ from pydantic import Field, model_validator
 from ..models.obstacles import Prism
 from .base import NAME_PATTERN, Strict, Vec3
 
+MAX_OBSTACLES = 64  # every obstacle is a separating plane per stage of every relay's NMPC
+
 
 class ObstacleConfig(Strict):
     """One obstacle: ``kind = "box"`` with ``min_m`` / ``max_m``, ``kind = "prism"`` with ``footprint_m`` (its convex
@@ -58,3 +60,28 @@ class ObstacleConfig(Strict):
             # the shape's own checks: convex, no repeated corner, not crossing itself (ValueError, named by validation)
             Prism(tuple((float(x), float(y)) for x, y in self.footprint_m), self.z_min_m, self.z_max_m)
         return self
+
+
+class BuildingsConfig(Strict):
+    """``[buildings]``: the buildings of a GeoJSON footprint file (lat/lon polygons with heights, as OpenStreetMap or a
+    city's cadastre exports them) as prisms from the ground to their heights, at load: each footprint in the local
+    frame of ``[geo] origin``, cut into convex pieces where it is not convex, one ``kind = "prism"`` obstacle each
+    (named ``building<i>`` / ``building<i>_<k>``, ``i`` the feature's index), with this table's margin and radio
+    loss. Footprints farther than ``reach_m`` from the box around the workspace, the base stations, the relays' starts
+    and the jammers are left out (``aerorelay validate`` says how many); with the file's other obstacles at most 64
+    prisms, or a named error."""
+
+    geojson: str = Field(description="the footprint file (GeoJSON FeatureCollection of Polygon / MultiPolygon features, "
+                         "WGS84 lon/lat), relative to the scenario file")
+    height_property: str = Field("height", min_length=1, description="the feature property holding the height, m")
+    levels_property: str = Field("building:levels", min_length=1, description="the feature property holding the "
+                                 "number of storeys, used when the height is missing")
+    level_height_m: float = Field(3.0, gt=0.0, le=10.0, description="a storey's height, m")
+    default_height_m: float | None = Field(None, gt=0.0, le=1000.0, description="the height of a footprint with "
+                                           "neither property, m (default: such a footprint is an error)")
+    margin_m: float = Field(1.0, ge=0.0, le=50.0, description="how far from every building the relays keep, m")
+    nlos_loss_db: float = Field(0.0, ge=0.0, le=100.0, description="extra path loss of a radio link whose segment "
+                                "crosses a building, dB (0: radio passes through; the ray-traced channel sees walls "
+                                "itself)")
+    reach_m: float = Field(30.0, ge=0.0, le=100_000.0, description="footprints farther than this (m, horizontally) "
+                           "from the box around the workspace, base stations, relays' starts and jammers are left out")

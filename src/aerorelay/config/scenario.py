@@ -20,6 +20,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
+from ..models.buildings import BuildingsError, convex_pieces, read_footprints
 from ..models.geo import GeoFrame
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
@@ -39,7 +40,7 @@ from .network import (
     RelayConfig,
     SourceConfig,
 )
-from .obstacles import ObstacleConfig
+from .obstacles import MAX_OBSTACLES, BuildingsConfig, ObstacleConfig
 from .platform import PlatformConfig
 from .radio import AntennaConfig, ChannelConfig, JammerConfig, NodesConfig
 from .sections import BoundConfig, EstimationConfig, PerturbationConfig, SimConfig, WorldConfig
@@ -120,11 +121,17 @@ class Scenario(Strict):
 
     # the positions the file gave at lat/lon (``<field>_wgs84``) with their local values (m), for ``aerorelay validate``
     _wgs84_resolved: list = PrivateAttr(default_factory=list)
+    _buildings_resolved: dict | None = PrivateAttr(default=None)
 
     @property
     def wgs84_resolved(self) -> list[tuple[str, list]]:
         """The positions written at lat/lon (``<field>_wgs84``) and their local values (m, ENU at ``[geo] origin``)."""
         return list(self._wgs84_resolved)
+
+    @property
+    def buildings_resolved(self) -> dict | None:
+        """What ``[buildings]`` became at load (its file, footprints kept and left out, prisms); None without it."""
+        return None if self._buildings_resolved is None else dict(self._buildings_resolved)
 
     name: str = Field("scenario", description="names the scenario in outputs and reports")
     description: str = Field("", description="free text, shown in reports")
@@ -155,8 +162,10 @@ class Scenario(Strict):
                                                          "at \"any\"")
     network: NetworkConfig = Field(default_factory=NetworkConfig)
     wind: WindConfig | None = Field(None, description="mean wind and Dryden gusts on every relay (default: still air)")
-    obstacles: list[ObstacleConfig] | None = Field(None, max_length=64, description="boxes and vertical cylinders the "
-                                                   "vehicles fly among (array of tables)")
+    obstacles: list[ObstacleConfig] | None = Field(None, max_length=MAX_OBSTACLES, description="boxes, prisms and "
+                                                   "vertical cylinders the vehicles fly among (array of tables)")
+    buildings: BuildingsConfig | None = Field(None, description="buildings from a GeoJSON footprint file, turned into "
+                                              "prism obstacles at load (needs [geo] origin)")
 
     @model_validator(mode="before")
     @classmethod
@@ -856,6 +865,47 @@ def wgs84_to_local(data: dict) -> list[tuple[str, list]]:
     return resolved
 
 
+def buildings_to_obstacles(sc: Scenario) -> tuple[list[dict], dict]:
+    """``[buildings]``'s footprints as prism obstacles (``config.obstacles.BuildingsConfig``) and what was done (the
+    file, its footprints, those kept and left out, the prisms). ScenarioError naming the field or the file."""
+    b = sc.buildings
+    assert b is not None
+    if sc.geo is None:
+        raise ScenarioError("buildings: a GeoJSON footprint file needs [geo] origin = [lat_deg, lon_deg, alt_m] (where "
+                            "the scenario's local frame sits)")
+    try:
+        footprints = read_footprints(b.geojson, GeoFrame(sc.geo.origin), height_property=b.height_property,
+                                     levels_property=b.levels_property, level_height_m=b.level_height_m,
+                                     default_height_m=b.default_height_m)
+    except BuildingsError as exc:
+        raise ScenarioError(f"buildings.geojson: {exc}") from None
+    ws = sc.controller.workspace
+    points = [ws.min, ws.max, *(s.position for s in sc.base_station_list), *(r.start for r in sc.relay_list),
+              *(j.position for j in sc.jammer_configs)]
+    xy = np.array([p[:2] for p in points], float)
+    lo, hi = xy.min(axis=0) - b.reach_m, xy.max(axis=0) + b.reach_m
+    ground = sc.world.ground_z_m
+    obstacles, kept = [], 0
+    for f in footprints:
+        corners = np.array(f.outline)
+        if np.any(corners.max(axis=0) < lo) or np.any(corners.min(axis=0) > hi):
+            continue
+        kept += 1
+        pieces = convex_pieces(f.outline)
+        for k, piece in enumerate(pieces):
+            obstacles.append({"name": f"building{f.index}" + (f"_{k}" if len(pieces) > 1 else ""), "kind": "prism",
+                              "footprint_m": [list(c) for c in piece], "z_min_m": ground, "z_max_m": ground + f.height_m,
+                              "margin_m": b.margin_m, "nlos_loss_db": b.nlos_loss_db})
+    own = len(sc.obstacles or [])
+    if own + len(obstacles) > MAX_OBSTACLES:
+        raise ScenarioError(f"buildings.geojson: {b.geojson}: {kept} footprints within reach_m = {b.reach_m:g} m make "
+                            f"{len(obstacles)} convex prisms, with the file's {own} obstacles more than the "
+                            f"{MAX_OBSTACLES} the NMPC keeps out of: lower buildings.reach_m or cut the file")
+    summary = {"file": b.geojson, "footprints": len(footprints), "kept": kept, "left_out": len(footprints) - kept,
+               "prisms": len(obstacles)}
+    return obstacles, summary
+
+
 def validate_config(data: dict) -> Scenario:
     """The scenario ``data`` validated as data (fields, ranges, cheap cross-field checks); raises
     ScenarioError with one line per problem. ``assembly.parse_scenario`` adds the physics checks. Positions written at
@@ -870,5 +920,15 @@ def validate_config(data: dict) -> Scenario:
         sc = Scenario.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError(format_errors(exc, Scenario)) from None
+    buildings: dict | None = None
+    if sc.buildings is not None:  # the footprints become prisms: the scenario holds them, not the file's name
+        prisms, buildings = buildings_to_obstacles(sc)
+        data = {k: v for k, v in data.items() if k != "buildings"}
+        data["obstacles"] = list(data.get("obstacles") or []) + prisms
+        try:
+            sc = Scenario.model_validate(data)
+        except ValidationError as exc:
+            raise ScenarioError(f"with the buildings of {buildings['file']}: " + format_errors(exc, Scenario)) from None
     sc._wgs84_resolved = resolved
+    sc._buildings_resolved = buildings
     return sc
