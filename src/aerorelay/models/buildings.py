@@ -83,6 +83,7 @@ def _rings(geometry, where: str) -> list[list]:
     if not isinstance(geometry, dict):
         raise BuildingsError(f"{where}: no geometry")
     kind, coords = geometry.get("type"), geometry.get("coordinates")
+    polys: object
     if kind == "Polygon":
         polys = [coords]
     elif kind == "MultiPolygon":
