@@ -53,6 +53,10 @@ HEADER = "aerorelay_controller.h"
 SOURCE = "aerorelay_controller.c"
 PLANNER_SOURCE = "aerorelay_planner.c"  # the planner's CasADi-generated expansion: its own translation unit
 MODEL_SOURCE = "aerorelay_model.c"  # the vehicle model's one-period-ahead step (ar_setpoint), CasADi-generated
+# BLASFEO and HPIPM as the tree's CMake fetches them (-DAR_FETCH_HPIPM=ON): the commits built and flown here on
+# 2026-12-06 (the whole nominal mission with the C library linked to them: docs/guide/companion-computer.md)
+BLASFEO_COMMIT = "0ab5db3259c009ea62318a5e35622fe6de7ae554"
+HPIPM_COMMIT = "87ef7a6ab773427a8c416030a2b9d075a744c223"
 AARCH64_TOOLCHAIN = """# aerorelay codegen: cross-compile the tree for a 64-bit ARM companion computer (Debian/Ubuntu: apt-get install
 # gcc-aarch64-linux-gnu). HPIPM_PREFIX / BLASFEO_PREFIX must then name HPIPM and BLASFEO built for aarch64 (their CMake
 # projects, or an acados install on the drone) to link the programs; the library builds without them:
@@ -444,11 +448,31 @@ build/bench: tools/bench.c build/libaerorelay_controller.a
     cmake = f"""cmake_minimum_required(VERSION 3.13)
 project(aerorelay_controller C)
 # aerorelay codegen: HPIPM and BLASFEO at a prefix (an acados install, or CasADi's wheel, the default)
+# or, with -DAR_FETCH_HPIPM=ON, BLASFEO and HPIPM fetched from their repositories at pinned commits and built with the
+# tree (a board without an acados install; needs the network, or FETCHCONTENT_SOURCE_DIR_BLASFEO / _HPIPM naming clones)
 set(HPIPM_PREFIX "{cdir}" CACHE PATH "HPIPM's install prefix")
 set(BLASFEO_PREFIX "${{HPIPM_PREFIX}}" CACHE PATH "BLASFEO's install prefix")
 option(AR_SIMD "BLASFEO's two hottest kernels for AVX2/FMA (x86-64, CasADi's generic BLASFEO)" OFF)
-find_library(HPIPM_LIB hpipm PATHS ${{HPIPM_PREFIX}} ${{HPIPM_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
-find_library(BLASFEO_LIB blasfeo PATHS ${{BLASFEO_PREFIX}} ${{BLASFEO_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
+option(AR_FETCH_HPIPM "fetch BLASFEO and HPIPM at pinned commits and build them here (instead of HPIPM_PREFIX)" OFF)
+set(AR_BLASFEO_TARGET "GENERIC" CACHE STRING "BLASFEO's TARGET when fetched (GENERIC, X64_INTEL_HASWELL, ARMV8A_ARM_CORTEX_A57, ...)")
+set(AR_HPIPM_TARGET "GENERIC" CACHE STRING "HPIPM's TARGET when fetched (GENERIC or AVX)")
+if(AR_FETCH_HPIPM)
+  include(FetchContent)
+  set(CMAKE_POSITION_INDEPENDENT_CODE ON)
+  set(BLASFEO_EXAMPLES OFF CACHE BOOL "" FORCE)
+  set(HPIPM_TESTING OFF CACHE BOOL "" FORCE)
+  FetchContent_Declare(blasfeo GIT_REPOSITORY https://github.com/giaf/blasfeo.git GIT_TAG {BLASFEO_COMMIT})
+  FetchContent_Declare(hpipm GIT_REPOSITORY https://github.com/giaf/hpipm.git GIT_TAG {HPIPM_COMMIT})
+  set(TARGET ${{AR_BLASFEO_TARGET}})  # each project reads its own TARGET
+  FetchContent_MakeAvailable(blasfeo)
+  set(TARGET ${{AR_HPIPM_TARGET}})
+  FetchContent_MakeAvailable(hpipm)
+  set(HPIPM_LIB hpipm)
+  set(BLASFEO_LIB blasfeo)
+else()
+  find_library(HPIPM_LIB hpipm PATHS ${{HPIPM_PREFIX}} ${{HPIPM_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
+  find_library(BLASFEO_LIB blasfeo PATHS ${{BLASFEO_PREFIX}} ${{BLASFEO_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
+endif()
 add_library(aerorelay_controller STATIC src/{SOURCE} src/{PLANNER_SOURCE} src/{MODEL_SOURCE})
 target_compile_options(aerorelay_controller PRIVATE {flags})
 target_include_directories(aerorelay_controller PUBLIC include PRIVATE src ${{HPIPM_PREFIX}}/include
