@@ -153,7 +153,8 @@ def _what_does_not_apply(sc: Scenario, path: Path | None, updates: dict) -> None
     update sets it; one of the file's made dormant by an update that switches what applies is named in a warning."""
     keys = {".".join(dotted(k)) for k in updates}
     for field, where, value, default in dormant(sc):
-        if not updates or ".".join(dotted(field)) in keys:
+        name = ".".join(dotted(field))
+        if not updates or any(name == k or name.startswith(k + ".") for k in keys):  # the update wrote it (or its table)
             raise ScenarioError(refusal(field, where, value, default))
         log.warning("%s: %s = %r (from the file) applies only where %s: with %s it changes nothing", path, field, value,
                     where, ", ".join(f"{k}={v!r}" for k, v in updates.items()))

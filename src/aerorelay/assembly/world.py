@@ -12,6 +12,7 @@ import numpy as np
 from ..config import PlatformConfig, Scenario
 from ..estimation.disturbance import ExternalAccelerationObserver
 from ..models.drag import drag_coefficients
+from ..models.generated_scene import GROUND_THICKNESS_M, solid, write_scene
 from ..models.obstacles import Obstacle, obstacle_model
 from ..models.raytrace import RayTracer, TraceSettings, scene_digest, sionna_rt
 from ..models.vehicle import Multirotor
@@ -19,6 +20,7 @@ from ..sim.air import Air, AirborneRelay, HeldWind, WindSeries, WindSettings
 from ..sim.blockage import Blockage
 from ..sim.closed_loop import plant_step_function
 from ..sim.traced import TracedChannel
+from ..store.cache import cache_dir
 
 
 def obstacles(sc: Scenario, margin: bool = True) -> tuple[Obstacle, ...]:
@@ -31,11 +33,30 @@ def blockage(sc: Scenario) -> Blockage:
     return Blockage(obstacles(sc, margin=False), [o.nlos_loss_db for o in sc.obstacle_list])
 
 
+GROUND_REACH_M = 200.0  # the generated ground reaches this far past every node and obstacle (m)
+
+
+def generated_scene_file(sc: Scenario) -> str:
+    """The Mitsuba XML file of the scene generated from ``sc``'s obstacles and ground (``scene = "obstacles"``,
+    ``models.generated_scene``), written into the cache folder once per content."""
+    prop = sc.channel.propagation
+    solids = [solid(o.name or f"obstacle{i}", obstacle_model(o, margin=False), o.material or prop.building_material,
+                    prop.wall_thickness_m) for i, o in enumerate(sc.obstacle_list)]
+    ground = None if prop.ground_material == "none" else (prop.ground_material, GROUND_THICKNESS_M)
+    ws = sc.controller.workspace
+    xy = [ws.min[:2], ws.max[:2], *(b.position[:2] for b in sc.base_station_list), *(r.start[:2] for r in sc.relay_list),
+          *(j.position[:2] for j in sc.jammer_configs), *(c[:2] for s in solids for c in s.footprint)]
+    lo, hi = np.min(xy, axis=0) - GROUND_REACH_M, np.max(xy, axis=0) + GROUND_REACH_M
+    return str(write_scene(cache_dir() / "scenes", solids, ground, lo, hi, sc.world.ground_z_m))
+
+
 def trace_settings(sc: Scenario) -> TraceSettings:
-    """What the plant's ray tracer traces (``[channel.propagation]``, model ``ray_traced``)."""
+    """What the plant's ray tracer traces (``[channel.propagation]``, model ``ray_traced``; the scene ``"obstacles"``:
+    the one generated from the scenario's obstacles, ``generated_scene_file``)."""
     prop = sc.channel.propagation
     assert prop.scene is not None
-    return TraceSettings(prop.scene, sc.channel.carrier_hz, origin_m=(prop.origin_m[0], prop.origin_m[1], prop.origin_m[2]), yaw_deg=prop.yaw_deg,
+    scene = generated_scene_file(sc) if prop.scene == "obstacles" else prop.scene
+    return TraceSettings(scene, sc.channel.carrier_hz, origin_m=(prop.origin_m[0], prop.origin_m[1], prop.origin_m[2]), yaw_deg=prop.yaw_deg,
                          max_depth=prop.max_depth, rays_per_source=prop.rays_per_source, reflection=prop.reflection, scattering=prop.scattering,
                          diffraction=prop.diffraction, refraction=prop.refraction)
 
@@ -74,7 +95,7 @@ def scene_key(sc: Scenario) -> dict:
     prop = sc.channel.propagation
     if prop.model != "ray_traced" or prop.scene is None:
         return {}
-    return {"scene_digest": scene_digest(sionna_rt(), prop.scene)}
+    return {"scene_digest": scene_digest(sionna_rt(), trace_settings(sc).scene)}
 
 
 def scoring_tracer(sc: Scenario) -> RayTracer | None:

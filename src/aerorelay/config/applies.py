@@ -37,7 +37,20 @@ PROPAGATION = (
              "paths_sum", "trace_period_s"), lambda p, sc: p.model == "ray_traced", "channel.propagation.model = 'ray_traced'"),
     Applies(("exponent", "reference_distance_m", "reference_loss_db"), lambda p, sc: p.model == "log_distance",
             "channel.propagation.model = 'log_distance'"),
+    Applies(("building_material", "wall_thickness_m", "ground_material"), lambda p, sc: generated_scene(sc),
+            "channel.propagation.model = 'ray_traced' with scene = 'obstacles'"),
 )
+OBSTACLE = (
+    Applies(("material",), lambda o, sc: generated_scene(sc), "channel.propagation.model = 'ray_traced' with scene = "
+            "'obstacles'"),
+)
+
+
+def generated_scene(sc) -> bool:
+    """Whether the radio is traced in the scene generated from the obstacles."""
+    p = sc.channel.propagation
+    return p.model == "ray_traced" and p.scene == "obstacles"
+
 ANTENNA = (
     Applies(("exponent",), lambda a, sc: a.pattern == "sin_power", "antenna.pattern = 'sin_power'"),
     Applies(("bs_g_max", "bs_exponent", "bs_back_lobe", "bs_tilt_deg", "bs_azimuth_deg"), lambda a, sc: a.bs_pattern == "cosine",
@@ -72,6 +85,8 @@ def _sections(sc) -> Iterator[tuple[str, BaseModel, tuple[Applies, ...]]]:
     for i, j in enumerate(sc.jammer_configs):
         yield sc.jammer_field(i), j, JAMMER
     yield "estimation", sc.estimation, ESTIMATION
+    for i, o in enumerate(sc.obstacles or []):
+        yield f"obstacles[{i}]", o, OBSTACLE
     if sc.sources is None:
         yield "mission", sc.mission, MISSION
     for i, s in enumerate(sc.sources or []):

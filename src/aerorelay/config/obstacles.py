@@ -12,6 +12,7 @@ from pydantic import Field, model_validator
 
 from ..models.obstacles import Prism
 from .base import NAME_PATTERN, Strict, Vec3
+from .radio import ItuMaterial
 
 MAX_OBSTACLES = 64  # every obstacle is a separating plane per stage of every relay's NMPC
 
@@ -37,6 +38,9 @@ class ObstacleConfig(Strict):
                             "(entering the obstacle itself makes a run unsafe)")
     nlos_loss_db: float = Field(0.0, ge=0.0, le=100.0, description="extra path loss of a radio link whose segment "
                                 "crosses it, dB (0: radio passes through it)")
+    material: ItuMaterial | None = Field(None, description="its ITU-R P.2040 material in the scene traced from the "
+                                         "obstacles (channel.propagation.scene = 'obstacles'; default: "
+                                         "channel.propagation.building_material)")
 
     @model_validator(mode="after")
     def _shape(self):
@@ -83,5 +87,7 @@ class BuildingsConfig(Strict):
     nlos_loss_db: float = Field(0.0, ge=0.0, le=100.0, description="extra path loss of a radio link whose segment "
                                 "crosses a building, dB (0: radio passes through; the ray-traced channel sees walls "
                                 "itself)")
+    material: ItuMaterial | None = Field(None, description="the buildings' ITU-R P.2040 material in the scene traced "
+                                         "from the obstacles (default: channel.propagation.building_material)")
     reach_m: float = Field(30.0, ge=0.0, le=100_000.0, description="footprints farther than this (m, horizontally) "
                            "from the box around the workspace, base stations, relays' starts and jammers are left out")

@@ -16,6 +16,10 @@ LOOP_CLOSURE_M = 0.01  # a repeating jammer path's last waypoint within this of 
 OUTAGE_SPECTRAL_EFFICIENCY = 1e-3  # bit/s/Hz: the paper's outage threshold (B = 1); times the bandwidth in physical units
 
 
+# ITU-R P.2040-3 Table 3's materials as Sionna RT names them (models.generated_scene.ITU_MATERIALS)
+ItuMaterial = Literal["concrete", "brick", "plasterboard", "wood", "glass", "ceiling_board", "chipboard", "plywood",
+                      "marble", "floorboard", "metal", "very_dry_ground", "medium_dry_ground", "wet_ground"]
+
 class NodeAntennaConfig(Strict):
     """One vehicle's own antenna (``[[relays]] antenna = {...}``, ``[[sources]] antenna = {...}``), its
     axis along the vehicle's body z: a half-wave dipole, sin(theta)^exponent, isotropic, or cosine (a
@@ -132,8 +136,16 @@ class PropagationConfig(Strict):
     model: Literal["free_space", "log_distance", "rma_av", "ray_traced"] = Field(
         "free_space", description="the path-gain model (see the table's text)")
     scene: str | None = Field(None, min_length=1, description="ray_traced: a Sionna RT scene by name (simple_street_canyon, "
-                              "munich, etoile, floor_wall, ...; 'empty': free space) or a Mitsuba XML file, named "
-                              "relative to the scenario file")
+                              "munich, etoile, floor_wall, ...; 'empty': free space), a Mitsuba XML file, named "
+                              "relative to the scenario file, or 'obstacles': a scene generated from the scenario's "
+                              "obstacles ([[obstacles]], [buildings]) and a flat ground")
+    building_material: ItuMaterial = Field("concrete", description="scene = 'obstacles': the ITU-R P.2040 material of "
+                                           "every obstacle without its own material")
+    wall_thickness_m: float = Field(0.2, gt=0.0, le=5.0, description="scene = 'obstacles': the obstacles' walls' "
+                                    "thickness, m (each surface a slab: reflection and transmission by ITU-R P.2040)")
+    ground_material: ItuMaterial | Literal["none"] = Field("medium_dry_ground", description="scene = 'obstacles': the "
+                                                           "ground's material at world.ground_z_m (a half space), or "
+                                                           "'none' (no ground: without obstacles, free space)")
     origin_m: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="ray_traced: where the scenario's origin "
                                                  "sits in the scene, m (scene coordinates)")
     yaw_deg: float = Field(0.0, ge=-360.0, le=360.0, description="ray_traced: the scenario's frame turned about z in "
@@ -167,6 +179,9 @@ class PropagationConfig(Strict):
         if self.model == "ray_traced" and self.scene is None:
             raise ValueError("channel.propagation.scene: model = 'ray_traced' needs a scene (a Sionna RT scene's name "
                              "such as 'simple_street_canyon', 'empty', or a Mitsuba XML file)")
+        if self.scene == "obstacles" and (any(v != 0 for v in self.origin_m) or self.yaw_deg != 0):
+            raise ValueError("channel.propagation.origin_m / yaw_deg: the scene generated from the obstacles is in the "
+                             "scenario's own frame; leave them at 0")
         if self.model == "ray_traced" and self.shadowing_std_db > 0:
             raise ValueError("channel.propagation.shadowing_std_db: the ray-traced channel's large-scale terms come "
                              "from the scene; leave it at 0")

@@ -24,7 +24,7 @@ from ..models.buildings import BuildingsError, convex_pieces, read_footprints
 from ..models.geo import GeoFrame
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .applies import dormant, dotted
+from .applies import dormant, dotted, generated_scene
 from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth, papers_generator_named
 from .controller import ControllerConfig
 from .errors import format_errors
@@ -879,6 +879,10 @@ def buildings_to_obstacles(sc: Scenario) -> tuple[list[dict], dict]:
                                      default_height_m=b.default_height_m)
     except BuildingsError as exc:
         raise ScenarioError(f"buildings.geojson: {exc}") from None
+    if b.material is not None and not generated_scene(sc):
+        raise ScenarioError(f"buildings.material: applies only where channel.propagation.model = 'ray_traced' with "
+                            f"scene = 'obstacles'; here it changes nothing (got {b.material!r}): remove it, or trace the "
+                            "buildings")
     ws = sc.controller.workspace
     points = [ws.min, ws.max, *(s.position for s in sc.base_station_list), *(r.start for r in sc.relay_list),
               *(j.position for j in sc.jammer_configs)]
@@ -895,7 +899,8 @@ def buildings_to_obstacles(sc: Scenario) -> tuple[list[dict], dict]:
         for k, piece in enumerate(pieces):
             obstacles.append({"name": f"building{f.index}" + (f"_{k}" if len(pieces) > 1 else ""), "kind": "prism",
                               "footprint_m": [list(c) for c in piece], "z_min_m": ground, "z_max_m": ground + f.height_m,
-                              "margin_m": b.margin_m, "nlos_loss_db": b.nlos_loss_db})
+                              "margin_m": b.margin_m, "nlos_loss_db": b.nlos_loss_db}
+                             | ({"material": b.material} if b.material is not None else {}))
     own = len(sc.obstacles or [])
     if own + len(obstacles) > MAX_OBSTACLES:
         raise ScenarioError(f"buildings.geojson: {b.geojson}: {kept} footprints within reach_m = {b.reach_m:g} m make "
