@@ -7,6 +7,7 @@ transmit at normal incidence (P.2040's slab formula, written out here); the file
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -131,3 +132,15 @@ def test_scene_settings_are_refused_where_they_change_nothing():
         ar.load_scenario("scenarios/nominal_tilted.toml", set={"obstacles": [block]})
     with pytest.raises(ScenarioError, match="scenario's own frame"):
         _scenario(**{"channel.propagation.origin_m": [1.0, 0.0, 0.0]})
+
+
+@needs_rt
+def test_the_district_preset_flies_among_its_footprint_files_buildings_on_their_traced_radio():
+    """``scenarios/district_chain.toml``: the GeoJSON's five footprints as six prisms (the L cut in two), the scene
+    traced generated from them, the fleet scoring on it (two decisions, reflections of depth 1: the suite's time)."""
+    sc = ar.load_scenario("scenarios/district_chain.toml", set={"sim.duration_s": 0.3, "channel.propagation.max_depth": 1})
+    names = sorted(o.name for o in sc.obstacle_list)
+    assert names == ["building0", "building1", "building2_0", "building2_1", "building3", "building4"]
+    assert "building2_0.ply" in "".join(p.name for p in Path(trace_settings(sc).scene).parent.glob("meshes/*"))
+    r = ar.simulate(sc)
+    assert not r.metrics["unsafe"] and r.metrics["c_min"] > 0

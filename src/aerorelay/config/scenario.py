@@ -123,6 +123,15 @@ class Scenario(Strict):
     _wgs84_resolved: list = PrivateAttr(default_factory=list)
     _buildings_resolved: dict | None = PrivateAttr(default=None)
 
+    def __eq__(self, other: object) -> bool:
+        """Equal settings: what the file resolved at load (its lat/lon positions, its footprint file) is where the
+        values came from, not part of them (a scenario written out and read again equals the one loaded)."""
+        if not isinstance(other, Scenario):
+            return NotImplemented
+        return self.__dict__ == other.__dict__
+
+    __hash__ = None  # type: ignore[assignment]  # mutable settings, as pydantic's models
+
     @property
     def wgs84_resolved(self) -> list[tuple[str, list]]:
         """The positions written at lat/lon (``<field>_wgs84``) and their local values (m, ENU at ``[geo] origin``)."""
