@@ -72,6 +72,12 @@ JAMMER = (
 ESTIMATION = (
     Applies(("*",), lambda e, sc: sc.estimates_jammers, "a jammer's localization = 'estimated'"),
 )
+BOUND = (
+    Applies(("global_seconds", "global_gap"), lambda b, sc: sc.shape.bound == "network"
+            and sc.channel.propagation.model != "ray_traced", "a network's bound (more than one relay or route) on a "
+            "channel that is not ray traced (one relay's bound is exact already; SCIP cannot trace rays)"),
+    Applies(("global_gap",), lambda b, sc: b.global_seconds > 0, "bound.global_seconds > 0"),
+)
 MISSION = (
     Applies(("ulog_yaw_deg", "ulog_offset_m"), lambda m, sc: m.trajectory_ulog is not None, "a trajectory_ulog mission"),
 )
@@ -85,6 +91,7 @@ def _sections(sc) -> Iterator[tuple[str, BaseModel, tuple[Applies, ...]]]:
     for i, j in enumerate(sc.jammer_configs):
         yield sc.jammer_field(i), j, JAMMER
     yield "estimation", sc.estimation, ESTIMATION
+    yield "bound", sc.bound, BOUND
     for i, o in enumerate(sc.obstacles or []):
         yield f"obstacles[{i}]", o, OBSTACLE
     if sc.sources is None:

@@ -60,6 +60,12 @@ class BoundConfig(Strict):
     max_minutes: float = Field(60.0, gt=0.0, le=10080.0, description="refuse, before any work, a bound estimated to take "
                                "longer than this on this machine (min; raise it to wait; a traced pre-flight route too); a "
                                "bound needing more than half of the machine's memory is always refused")
+    global_seconds: float = Field(0.0, ge=0.0, le=86400.0, description="a network's static bound also solved to global "
+                                  "optimality by SCIP at every instant, at most this long each (s; 0: not): the tighter "
+                                  "of SCIP's certified dual bound and the cube bound is kept, SCIP's configuration too "
+                                  "where it flies better (planning/network_bound_global.py)")
+    global_gap: float = Field(1e-3, ge=1e-6, le=0.5, description="SCIP stops once its bound is this close to its best "
+                              "configuration (relative)")
 
 
 class EstimationConfig(Strict):

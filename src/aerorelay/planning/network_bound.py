@@ -76,6 +76,8 @@ class NetworkBoundProblem:
     starts: Mapping[str, np.ndarray] = field(default_factory=dict)  # each relay's start (m, world): the flyable path's
     obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no relay inside one
     branch_levels: int = BRANCH_LEVELS  # the branch and bound's levels at most (every level's bound is certified)
+    global_seconds: float = 0.0  # SCIP's time per instant for the global static bound (0: not solved)
+    global_gap: float = 1e-3  # SCIP's relative gap to stop at
 
 
 @dataclass
@@ -689,6 +691,34 @@ def _instants(pb: NetworkBoundProblem, progress=None) -> _Instants:
     return _Instants(solver, times, static, sp, achieved, ap, ax, level0, searches)
 
 
+def _globally_tightened(part: _Instants, pb: NetworkBoundProblem) -> dict:
+    """``part``'s static bound at every instant lowered to SCIP's certified dual bound where that is tighter, and its
+    achieved configuration replaced by SCIP's where that flies better (its true rate: ``NetworkBoundSolver.rate``);
+    what SCIP did, per instant (``planning.network_bound_global``). Nothing where SCIP cannot express the scene."""
+    from .network_bound_global import expressible, solve_static
+
+    why = expressible(pb.scene)
+    if why is not None:
+        return {"solver": "SCIP", "used": False, "why_not": why}
+    solver = part.solver
+    rows: list[dict] = []
+    for k, t in enumerate(part.times):
+        poses = solver.fixed_poses(float(t))
+        r = solve_static(pb.scene, float(t), poses, solver.relays, solver.lo, solver.hi, pb.tilt_limits, pb.separation_m,
+                         time_limit_s=pb.global_seconds, gap=pb.global_gap)
+        rate = solver.rate(float(t), r.positions, r.axes, poses) if np.all(np.isfinite(r.positions)) else 0.0
+        inside = all(o.signed_distance(q) >= 0 for o in pb.obstacles for q in r.positions) if rate > 0 else False
+        cube = float(part.static[k])
+        if r.upper < cube:
+            part.static[k] = r.upper
+        if inside and rate > part.achieved[k]:
+            part.achieved[k], part.achieved_positions[k], part.achieved_axes[k] = rate, r.positions, r.axes
+        rows.append({"t": float(t), "upper": r.upper, "cube_upper": cube, "rate": rate, "status": r.status, "gap": r.gap,
+                     "seconds": r.seconds, "nodes": r.nodes})
+    return {"solver": "SCIP", "used": True, "time_limit_s": pb.global_seconds, "gap_limit": pb.global_gap,
+            "tighter_instants": int(sum(r["upper"] < r["cube_upper"] for r in rows)), "instants": rows}
+
+
 def _reachable_tightened(part: _Instants, feasible_sums: np.ndarray) -> tuple[list[dict[str, np.ndarray]], list[int]]:
     """Each instant's min-marginals kept to what the relays can reach, tightened by branch and bound
     (``NetworkBoundSolver.certify``) against ``feasible_sums`` ``(T,)``: the terms' sum of a flyable fleet's
@@ -728,6 +758,8 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                 progress(i * n + k, len(scenes) * n)
 
         parts.append(_instants(replace(pb, scene=scene), step))
+    glob = [_globally_tightened(p, replace(pb, scene=sc_)) for p, sc_ in zip(parts, scenes, strict=True)] \
+        if pb.global_seconds > 0 else []
     first = parts[0]
     times, solver = first.times, first.solver
     best = np.argmax(np.stack([p.static for p in parts]), axis=0)
@@ -751,6 +783,9 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                   "certified_gap_max": float(np.nanmax(gap, initial=0.0)),
                   "certified_gap_mean": float(np.nanmean(gap)) if np.isfinite(gap).any() else None,
                   "branch_levels_max": max((s["levels"] for s in searches), default=0)}
+    if glob:
+        resolution["global"] = glob[0] if len(glob) == 1 else glob
+        resolution["method"] = f"{resolution['method']}; per instant the tighter of it and SCIP's certified dual bound"
     if len(scenes) > 1:
         resolution["end_combinations"] = [[r[-1] for r in sc.all_routes] for sc in scenes]
     K = len(solver.relays)

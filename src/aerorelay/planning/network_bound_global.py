@@ -1,0 +1,250 @@
+"""The static network problem at one instant solved to global optimality by SCIP (spatial branch and bound with
+convex relaxations of products, quotients, powers, logarithms and cosines; ``pyscipopt``): its dual bound is a
+certified upper bound on the network's rate, its primal solution a configuration the physics allows.
+
+The problem (``NetworkBoundSolver``'s, written as the functions they are): each relay's position in the workspace
+box, at least the separation from the fixed nodes and its route neighbours; its antenna axis a unit vector within
+its tilt limit of the vertical (any yaw); each hop's SINR ``Gamma = P_U G_tx G_rx K d^-n / (sigma^2 + sum_j P_j
+G_j G_rx,j K d_j^-n)`` with each pattern's gain a function of the cosine ``c`` between its axis and the link
+(isotropic: constant; ``sin^n``: ``g (1 - c^2)^(n/2)``; the half-wave dipole: ``G (1 - c^2) = g cos^2(pi c / 2)`` with
+``G <= g (1 - c^2)``, which pins ``G`` to the pattern, 0 on the axis); the objective ``min sum_hops 1 / log2(1 +
+Gamma)`` (each hop once per route it is on), so the rate is ``B`` over it. Obstacles are left out (a relaxation:
+the bound stays an upper bound, looser where an obstacle holds the optimum).
+
+What SCIP cannot express here is refused by ``expressible`` (the cube bound then stays, and says so): a cosine or
+tabulated pattern, a path gain that is not ``K d^-n`` (RMa-AV, ray tracing), a jammer aiming at a relay, routes that
+may end at several base stations. SCIP's tolerances (feasibility 1e-6, relative gap ``gap``) bound how far its
+certificate is exact: its dual bound is a bound on the problem SCIP solved within them.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.antenna import DipolePattern, FlippedPattern, IsotropicPattern, SinPowerPattern
+from ..models.radio import NodePose, RadioScene
+
+TAU_MAX = 1e6  # a hop's 1 / log2(1 + Gamma) at most this (a hop this dead: rate below 1e-6 B)
+
+
+@dataclass(frozen=True)
+class GlobalResult:
+    """One instant: the certified upper bound on the rate (``B`` over SCIP's dual bound), the rate of SCIP's best
+    configuration by SCIP's own model (``primal``), that configuration (positions and axes ``(K, 3)``), SCIP's status,
+    its relative gap, the seconds it took and its branch-and-bound nodes."""
+
+    upper: float
+    primal: float
+    positions: np.ndarray
+    axes: np.ndarray
+    status: str
+    gap: float
+    seconds: float
+    nodes: int
+
+
+def _pattern(p):
+    """``(kind, g, exponent, flipped)`` of a pattern SCIP can be given, else None."""
+    flipped = False
+    if isinstance(p, FlippedPattern):
+        p, flipped = p.inner, True
+    if isinstance(p, IsotropicPattern):
+        return "iso", p.g_bar, 0.0, flipped
+    if isinstance(p, SinPowerPattern):
+        return "sin", p.g_bar, float(p.exponent), flipped
+    if isinstance(p, DipolePattern):
+        return "dipole", p.g_bar, 0.0, flipped
+    return None
+
+
+def expressible(scene: RadioScene) -> str | None:
+    """Why SCIP cannot be given this scene's static problem (see the module), None when it can."""
+    bad = [n.name for n in scene.nodes if _pattern(n.antenna.pattern) is None]
+    bad += [j.name for j in scene.jammers if _pattern(j.pattern) is None]
+    if bad:
+        return f"the antennas of {bad} are not isotropic, sin^n or a half-wave dipole"
+    pg = scene.path_gain
+    if type(pg).__name__ != "PathGain":
+        return f"the path gain ({type(pg).__name__}) is not K d^-n"
+    if any(scene.handover):
+        return "routes may end at several base stations"
+    relays = {n.name for n in scene.nodes if n.role == "relay"}
+    if any(j.point_at in relays for j in scene.jammers):
+        return "a jammer aims at a relay"
+    return None
+
+
+def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo, hi,
+                 tilt_limits: Mapping[str, float], separation_m: float = 0.0, *, time_limit_s: float = 60.0,
+                 gap: float = 1e-3, seed: int = 0) -> GlobalResult:
+    """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
+    result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad). Stops at ``gap`` (relative, SCIP's) or
+    ``time_limit_s``; the upper bound is SCIP's dual bound either way."""
+    from pyscipopt import Model, cos, log
+
+    why = expressible(scene)
+    if why is not None:
+        raise ValueError(f"global network bound: {why}")
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    m = Model("static_network")
+    m.hideOutput()
+    m.setParam("limits/time", float(time_limit_s))
+    m.setParam("limits/gap", float(gap))
+    m.setParam("randomization/randomseedshift", int(seed))
+    diag2 = float(np.sum((hi - lo) ** 2))
+    fixed = {n: p for n, p in poses.items() if n not in relays}
+    for p in fixed.values():  # the box's reach covers every fixed node too: the longest link
+        far = np.maximum(np.abs(np.asarray(p.position, float) - lo), np.abs(np.asarray(p.position, float) - hi))
+        diag2 = max(diag2, float(np.sum(far**2)))
+    P = {r: [m.addVar(f"p_{r}_{i}", lb=lo[i], ub=hi[i]) for i in range(3)] for r in relays}
+    A = {}
+    for r in relays:
+        cz = math.cos(tilt_limits[r])
+        a = [m.addVar(f"a_{r}_x", lb=-1, ub=1), m.addVar(f"a_{r}_y", lb=-1, ub=1), m.addVar(f"a_{r}_z", lb=cz, ub=1)]
+        m.addCons(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] == 1)
+        A[r] = a
+
+    def pos(n):
+        return P[n] if n in P else [float(v) for v in np.asarray(poses[n].position, float)]
+
+    def axis(n):
+        return A[n] if n in A else [float(v) for v in np.asarray(poses[n].axis, float)]
+
+    def is_var(n):
+        return n in P
+
+    sep2 = separation_m**2
+    neighbours = set()
+    for tx, rx in scene.hops:
+        if is_var(tx) and is_var(rx):
+            neighbours.add(tuple(sorted((tx, rx))))
+    count = [0]
+
+    def fresh(name, lb, ub):
+        count[0] += 1
+        return m.addVar(f"{name}_{count[0]}", lb=lb, ub=ub)
+
+    pg = scene.path_gain
+
+    def least_d2(fixed_ends: list) -> float:
+        """The least squared length of a link with these fixed ends (positions; the rest relays in the box): two fixed
+        ends their distance; one, its distance to the box, the separation at least; none, the separation."""
+        ends = [np.asarray(q, float) for q in fixed_ends]
+        if len(ends) == 2:
+            return float(np.sum((ends[1] - ends[0]) ** 2))
+        gap_ = max((float(np.sum(np.maximum(np.maximum(lo - q, q - hi), 0.0) ** 2)) for q in ends), default=0.0)
+        return max(gap_, sep2, 1e-6)
+
+    def link(p_from, p_to, fixed_ends: list):
+        """``(delta, d2, d)``: the link's vector (expressions), its squared length and length (variables)."""
+        delta = [p_to[i] - p_from[i] for i in range(3)]
+        d2_lo = least_d2(fixed_ends)
+        d2 = fresh("d2", d2_lo, max(diag2, d2_lo))
+        m.addCons(d2 == delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2])
+        d = fresh("d", math.sqrt(d2_lo), math.sqrt(max(diag2, d2_lo)))
+        m.addCons(d * d == d2)
+        return delta, d2, d
+
+    def gain(pattern, ax, delta, d, sign: float, ax_is_var: bool, delta_is_var: bool):
+        """The pattern's gain toward ``sign * delta`` with axis ``ax`` (a variable or a constant)."""
+        kind, g, n, flipped = _pattern(pattern)
+        if kind == "iso":
+            return g
+        s = -sign if flipped else sign
+        if not (ax_is_var or delta_is_var):  # both ends fixed: a number
+            dv = np.asarray([float(v) for v in delta])
+            return float(pattern.gain_from_cos(s * float(np.dot(ax, dv)) / float(np.linalg.norm(dv))))
+        c = fresh("c", -1.0, 1.0)
+        m.addCons(c * d == s * (ax[0] * delta[0] + ax[1] * delta[1] + ax[2] * delta[2]))
+        G = fresh("g", 0.0, g)
+        if kind == "sin":
+            s2 = fresh("s2", 0.0, 1.0)
+            m.addCons(s2 == 1 - c * c)
+            if n == 2:
+                m.addCons(G == g * s2)
+            else:
+                m.addCons(G == g * s2 ** (0.5 * n))
+        else:  # the half-wave dipole, exact (the module)
+            m.addCons(G * (1 - c * c) == g * cos(0.5 * math.pi * c) ** 2)
+            m.addCons(G <= g * (1 - c * c))
+        return G
+
+    def path(d2):
+        return pg.scale / d2 if pg.exponent == 2.0 else pg.scale * d2 ** (-0.5 * pg.exponent)
+
+    b = scene.budget
+    emitters = [e for e in scene.emitters(t, poses) if e.power > 0.0]
+    node_pat = {n.name: n.antenna.pattern for n in scene.nodes}
+    interference_at: dict[str, object] = {}
+
+    def interference(rx):
+        if rx in interference_at:
+            return interference_at[rx]
+        total: object = 0.0
+        for e in emitters:
+            ep = [float(v) for v in np.asarray(e.position, float)]
+            delta, d2, d = link(ep, pos(rx), [ep]) if is_var(rx) else (None, None, None)
+            if delta is None:  # a fixed receiver: a number
+                from ..models.radio import link_gain
+                total = total + e.power * float(link_gain(e.position, e.axis, e.pattern, poses[rx].position, poses[rx].axis,
+                                                          node_pat[rx], pg))
+                continue
+            gj = gain(e.pattern, [float(v) for v in e.axis], delta, d, 1.0, False, True)
+            gr = gain(node_pat[rx], axis(rx), delta, d, -1.0, True, True)
+            total = total + e.power * gj * gr * path(d2)
+        interference_at[rx] = total
+        return total
+
+    uses: dict[int, int] = {}
+    for hops in scene.route_hops():
+        for k in hops:
+            uses[k] = uses.get(k, 0) + 1
+    objective = 0.0
+    for k, (tx, rx) in enumerate(scene.hops):
+        if k not in uses:
+            continue
+        moving = is_var(tx) or is_var(rx)
+        delta, d2, d = link(pos(tx), pos(rx), [pos(n) for n in (tx, rx) if not is_var(n)])
+        gt = gain(node_pat[tx], axis(tx), delta, d, 1.0, is_var(tx), moving)
+        gr = gain(node_pat[rx], axis(rx), delta, d, -1.0, is_var(rx), moving)
+        g_most = _pattern(node_pat[tx])[1] * _pattern(node_pat[rx])[1]
+        gamma_max = b.tx_power * g_most * pg.scale / d2.getLbOriginal() ** (0.5 * pg.exponent) / b.noise_power
+        gamma = fresh("gamma", 0.0, gamma_max)
+        m.addCons(gamma * (b.noise_power + interference(rx)) <= b.tx_power * gt * gr * path(d2))
+        tau = fresh("tau", 1.0 / math.log2(1.0 + gamma_max), TAU_MAX)
+        m.addCons(tau * log(1 + gamma) >= math.log(2.0))
+        objective = objective + uses[k] * tau
+    for r in relays:  # the separation from the fixed nodes (the links above hold it for the route neighbours)
+        for p in fixed.values():
+            q = np.asarray(p.position, float)
+            if sep2 > 0:
+                m.addCons(sum((P[r][i] - float(q[i])) ** 2 for i in range(3)) >= sep2)
+    for a_, b_ in neighbours:
+        if sep2 > 0:
+            m.addCons(sum((P[a_][i] - P[b_][i]) ** 2 for i in range(3)) >= sep2)
+    z = m.addVar("objective", lb=0.0, ub=TAU_MAX * sum(uses.values()))
+    m.addCons(z >= objective)
+    m.setObjective(z, "minimize")
+    start = time.perf_counter()
+    m.optimize()
+    seconds = time.perf_counter() - start
+    status = m.getStatus()
+    dual = m.getDualbound()
+    upper = b.bandwidth / dual if dual > 0 else math.inf
+    if m.getNSols() > 0:
+        sol = m.getBestSol()
+        assert sol is not None
+        positions = np.array([[sol[v] for v in P[r]] for r in relays])
+        axes = np.array([[sol[v] for v in A[r]] for r in relays])
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        primal = b.bandwidth / m.getSolObjVal(sol)
+    else:
+        positions = axes = np.full((len(relays), 3), np.nan)
+        primal = 0.0
+    return GlobalResult(float(upper), float(primal), positions, axes, str(status), float(m.getGap()), seconds,
+                        int(m.getNNodes()))
