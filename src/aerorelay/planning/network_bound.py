@@ -691,7 +691,7 @@ def _instants(pb: NetworkBoundProblem, progress=None) -> _Instants:
     return _Instants(solver, times, static, sp, achieved, ap, ax, level0, searches)
 
 
-def _globally_tightened(part: _Instants, pb: NetworkBoundProblem) -> dict:
+def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None) -> dict:
     """``part``'s static bound at every instant lowered to SCIP's certified dual bound where that is tighter, and its
     achieved configuration replaced by SCIP's where that flies better (its true rate: ``NetworkBoundSolver.rate``);
     what SCIP did, per instant (``planning.network_bound_global``). Nothing where SCIP cannot express the scene."""
@@ -699,6 +699,8 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem) -> dict:
 
     why = expressible(pb.scene)
     if why is not None:
+        if progress is not None:
+            progress(len(part.times), len(part.times))
         return {"solver": "SCIP", "used": False, "why_not": why}
     solver = part.solver
     rows: list[dict] = []
@@ -715,6 +717,8 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem) -> dict:
             part.achieved[k], part.achieved_positions[k], part.achieved_axes[k] = rate, r.positions, r.axes
         rows.append({"t": float(t), "upper": r.upper, "cube_upper": cube, "rate": rate, "status": r.status, "gap": r.gap,
                      "seconds": r.seconds, "nodes": r.nodes})
+        if progress is not None:
+            progress(k + 1, len(part.times))
     return {"solver": "SCIP", "used": True, "time_limit_s": pb.global_seconds, "gap_limit": pb.global_gap,
             "tighter_instants": int(sum(r["upper"] < r["cube_upper"] for r in rows)), "instants": rows}
 
@@ -751,15 +755,22 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     every combination's terms at once (``NetworkBoundSolver.upper_path``), the flyable path the best
     combination's."""
     scenes = end_choices(pb.scene)
+    passes = 2 if pb.global_seconds > 0 else 1  # the cube bound's instants, then SCIP's
     parts = []
     for i, scene in enumerate(scenes):
         def step(k, n, i=i):
             if progress is not None:
-                progress(i * n + k, len(scenes) * n)
+                progress(i * passes * n + k, len(scenes) * passes * n)
 
         parts.append(_instants(replace(pb, scene=scene), step))
-    glob = [_globally_tightened(p, replace(pb, scene=sc_)) for p, sc_ in zip(parts, scenes, strict=True)] \
-        if pb.global_seconds > 0 else []
+    glob = []
+    if pb.global_seconds > 0:
+        for i, (part, scene) in enumerate(zip(parts, scenes, strict=True)):
+            def scip_step(k, n, i=i):
+                if progress is not None:
+                    progress((i * passes + 1) * n + k, len(scenes) * passes * n)
+
+            glob.append(_globally_tightened(part, replace(pb, scene=scene), scip_step))
     first = parts[0]
     times, solver = first.times, first.solver
     best = np.argmax(np.stack([p.static for p in parts]), axis=0)
