@@ -86,3 +86,36 @@ def test_the_global_bound_is_refused_where_it_changes_nothing():
     assert network_bound_problem(sc).global_seconds == 30.0
     base = bound_cost(ar.load_scenario("scenarios/chain_two_relays.toml"))
     assert bound_cost(sc).seconds == pytest.approx(base.seconds + 30.0 * base.instants)  # its worst case, estimated
+
+
+def test_the_best_speed_limited_fleet_path_over_three_instants():
+    """Two isotropic relays leaving the base station at 1 m/s toward a chain they cannot reach in 4 s: SCIP's joint
+    problem over three instants 2 s apart proves its best path (measured 2026-12-06: optimal in 1 s), which keeps the
+    speed limit from the starts, whose rate by the channel model is SCIP's, and which no random speed-limited path of
+    the same instants beats."""
+    from aerorelay.planning.network_bound_global import solve_path
+    names = ["r1", "r2"]
+    src = np.array([21.0, 0.3, 2.7])
+    sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
+    pb = problem(sc, {"s": still(src)}, names, [-1, -2, 0], [23, 2, 4], 2.0)
+    solver = NetworkBoundSolver(pb)
+    times = np.array([0.0, 2.0, 4.0])
+    poses = [solver.fixed_poses(float(t)) for t in times]
+    starts = {"r1": np.array([2.0, 0.0, 2.0]), "r2": np.array([1.0, 0.0, 2.0])}
+    r = solve_path(sc, times, poses, names, pb.workspace_min, pb.workspace_max, pb.tilt_limits, starts, 1.0,
+                   time_limit_s=120.0)
+    assert r.status == "optimal" and r.primal == pytest.approx(r.upper, rel=1e-3)
+    steps = np.linalg.norm(np.diff(np.concatenate([[[starts[n] for n in names]], r.positions]), axis=0), axis=2)
+    assert np.all(steps <= 2.0 + 1e-5)  # 1 m/s over 2 s, from the starts
+    rates = [solver.rate(float(t), r.positions[i], r.axes[i], poses[i]) for i, t in enumerate(times)]
+    assert np.mean(rates) == pytest.approx(r.primal, rel=1e-5)
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        P = [np.array([starts[n] for n in names])]
+        for _ in range(2):
+            d = rng.normal(size=(2, 3))
+            P.append(P[-1] + d / np.linalg.norm(d, axis=1, keepdims=True) * 2.0 * rng.random((2, 1)) ** 0.3)
+        A = np.tile([0.0, 0.0, 1.0], (2, 1))
+        mean = np.mean([solver.rate(float(t), np.clip(P[i], pb.workspace_min, pb.workspace_max), A, poses[i])
+                        for i, t in enumerate(times)])
+        assert mean <= r.upper * (1 + 1e-6)

@@ -79,33 +79,22 @@ def expressible(scene: RadioScene) -> str | None:
     return None
 
 
-def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo, hi,
-                 tilt_limits: Mapping[str, float], separation_m: float = 0.0, *, time_limit_s: float = 60.0,
-                 gap: float = 1e-3, seed: int = 0) -> GlobalResult:
-    """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
-    result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad). Stops at ``gap`` (relative, SCIP's) or
-    ``time_limit_s``; the upper bound is SCIP's dual bound either way."""
-    from pyscipopt import Model, cos, log
+def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo: np.ndarray,
+             hi: np.ndarray, tilt_limits: Mapping[str, float], separation_m: float, tag: str):
+    """The static problem at ``t`` added to the SCIP model ``m`` (variables named with ``tag``): each relay's position
+    and axis variables, and the expression ``sum_hops uses * 1/log2(1 + Gamma)`` with its most (see the module)."""
+    from pyscipopt import cos, log
 
-    why = expressible(scene)
-    if why is not None:
-        raise ValueError(f"global network bound: {why}")
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    m = Model("static_network")
-    m.hideOutput()
-    m.setParam("limits/time", float(time_limit_s))
-    m.setParam("limits/gap", float(gap))
-    m.setParam("randomization/randomseedshift", int(seed))
     diag2 = float(np.sum((hi - lo) ** 2))
     fixed = {n: p for n, p in poses.items() if n not in relays}
     for p in fixed.values():  # the box's reach covers every fixed node too: the longest link
         far = np.maximum(np.abs(np.asarray(p.position, float) - lo), np.abs(np.asarray(p.position, float) - hi))
         diag2 = max(diag2, float(np.sum(far**2)))
-    P = {r: [m.addVar(f"p_{r}_{i}", lb=lo[i], ub=hi[i]) for i in range(3)] for r in relays}
+    P = {r: [m.addVar(f"{tag}p_{r}_{i}", lb=lo[i], ub=hi[i]) for i in range(3)] for r in relays}
     A = {}
     for r in relays:
         cz = math.cos(tilt_limits[r])
-        a = [m.addVar(f"a_{r}_x", lb=-1, ub=1), m.addVar(f"a_{r}_y", lb=-1, ub=1), m.addVar(f"a_{r}_z", lb=cz, ub=1)]
+        a = [m.addVar(f"{tag}a_{r}_x", lb=-1, ub=1), m.addVar(f"{tag}a_{r}_y", lb=-1, ub=1), m.addVar(f"{tag}a_{r}_z", lb=cz, ub=1)]
         m.addCons(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] == 1)
         A[r] = a
 
@@ -127,7 +116,7 @@ def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], rel
 
     def fresh(name, lb, ub):
         count[0] += 1
-        return m.addVar(f"{name}_{count[0]}", lb=lb, ub=ub)
+        return m.addVar(f"{tag}{name}_{count[0]}", lb=lb, ub=ub)
 
     pg = scene.path_gain
 
@@ -227,7 +216,34 @@ def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], rel
     for a_, b_ in neighbours:
         if sep2 > 0:
             m.addCons(sum((P[a_][i] - P[b_][i]) ** 2 for i in range(3)) >= sep2)
-    z = m.addVar("objective", lb=0.0, ub=TAU_MAX * sum(uses.values()))
+    return P, A, objective, TAU_MAX * sum(uses.values())
+
+
+def _model(time_limit_s: float, gap: float, seed: int):
+    from pyscipopt import Model
+
+    m = Model("network")
+    m.hideOutput()
+    m.setParam("limits/time", float(time_limit_s))
+    m.setParam("limits/gap", float(gap))
+    m.setParam("randomization/randomseedshift", int(seed))
+    return m
+
+
+def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo, hi,
+                 tilt_limits: Mapping[str, float], separation_m: float = 0.0, *, time_limit_s: float = 60.0,
+                 gap: float = 1e-3, seed: int = 0) -> GlobalResult:
+    """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
+    result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad). Stops at ``gap`` (relative, SCIP's) or
+    ``time_limit_s``; the upper bound is SCIP's dual bound either way."""
+    why = expressible(scene)
+    if why is not None:
+        raise ValueError(f"global network bound: {why}")
+    m = _model(time_limit_s, gap, seed)
+    P, A, objective, most = _instant(m, scene, t, poses, relays, np.asarray(lo, float), np.asarray(hi, float),
+                                     tilt_limits, separation_m, "")
+    b = scene.budget
+    z = m.addVar("objective", lb=0.0, ub=most)
     m.addCons(z >= objective)
     m.setObjective(z, "minimize")
     start = time.perf_counter()
@@ -248,3 +264,72 @@ def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], rel
         primal = 0.0
     return GlobalResult(float(upper), float(primal), positions, axes, str(status), float(m.getGap()), seconds,
                         int(m.getNNodes()))
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """The best fleet path over a few instants (``solve_path``): SCIP's dual bound on the mean rate of every fleet path
+    from the starts within the speed limit (``upper``), its best such path's mean rate by SCIP's model (``primal``),
+    that path's positions and axes ``(T, K, 3)``, SCIP's status, relative gap, seconds and nodes."""
+
+    upper: float
+    primal: float
+    positions: np.ndarray
+    axes: np.ndarray
+    status: str
+    gap: float
+    seconds: float
+    nodes: int
+
+
+def solve_path(scene: RadioScene, times, poses: list[Mapping[str, NodePose]], relays: list[str], lo, hi,
+               tilt_limits: Mapping[str, float], starts: Mapping[str, np.ndarray], max_speed_m_s: float,
+               separation_m: float = 0.0, *, time_limit_s: float = 60.0, gap: float = 1e-3, seed: int = 0) -> PathResult:
+    """The time-coupled problem over ``times`` (s; the sources at ``poses[i]`` then): every instant's static problem
+    (``solve_static``), each relay at ``times[i]`` within ``max_speed_m_s * times[i]`` of its start (at it at 0) and
+    within ``max_speed_m_s * dt`` of where it was the instant before; the objective the mean of the instants' rates.
+    Its dual bound is an upper bound on the mean rate (over these instants) of every fleet path from the starts that
+    keeps the speed limit (the acceleration limit and the axis's lean with the path's thrust are left out: a
+    relaxation); its primal a path within those limits. Small K and few instants: SCIP's work grows fast with both."""
+    why = expressible(scene)
+    if why is not None:
+        raise ValueError(f"global network path bound: {why}")
+    times = np.asarray(times, float)
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    m = _model(time_limit_s, gap, seed)
+    b = scene.budget
+    Ps: list[dict] = []
+    As: list[dict] = []
+    rates: list = []
+    for i, t in enumerate(times):
+        P, A, objective, most = _instant(m, scene, float(t), poses[i], relays, lo, hi, tilt_limits, separation_m, f"t{i}_")
+        total = m.addVar(f"t{i}_sum", lb=1e-12, ub=most)
+        m.addCons(total >= objective)
+        rate = m.addVar(f"t{i}_rate", lb=0.0, ub=b.bandwidth * 1e12)
+        m.addCons(rate * total <= b.bandwidth)
+        for r in relays:
+            q = np.asarray(starts[r], float)
+            reach = max_speed_m_s * float(t)
+            m.addCons(sum((P[r][k] - float(q[k])) ** 2 for k in range(3)) <= reach**2)
+            if i > 0:
+                step = max_speed_m_s * float(t - times[i - 1])
+                m.addCons(sum((P[r][k] - Ps[-1][r][k]) ** 2 for k in range(3)) <= step**2)
+        Ps.append(P)
+        As.append(A)
+        rates.append(rate)
+    m.setObjective(sum(rates) / len(times), "maximize")
+    start = time.perf_counter()
+    m.optimize()
+    seconds = time.perf_counter() - start
+    T, K = len(times), len(relays)
+    positions = axes = np.full((T, K, 3), np.nan)
+    primal = 0.0
+    if m.getNSols() > 0:
+        sol = m.getBestSol()
+        assert sol is not None
+        positions = np.array([[[sol[v] for v in P[r]] for r in relays] for P in Ps])
+        axes = np.array([[[sol[v] for v in A[r]] for r in relays] for A in As])
+        axes /= np.linalg.norm(axes, axis=2, keepdims=True)
+        primal = float(m.getSolObjVal(sol))
+    return PathResult(float(m.getDualbound()), primal, positions, axes, str(m.getStatus()), float(m.getGap()), seconds,
+                      int(m.getNNodes()))
