@@ -42,6 +42,7 @@ from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
+from .network_bound_global import expressible, solve_static
 
 NETWORK_BOUND_VERSION = "7"  # bump when the computation changes: cached network bounds are recomputed
 CUBE_CORNERS = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)  # in half-sides
@@ -695,8 +696,6 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None)
     """``part``'s static bound at every instant lowered to SCIP's certified dual bound where that is tighter, and its
     achieved configuration replaced by SCIP's where that flies better (its true rate: ``NetworkBoundSolver.rate``);
     what SCIP did, per instant (``planning.network_bound_global``). Nothing where SCIP cannot express the scene."""
-    from .network_bound_global import expressible, solve_static
-
     why = expressible(pb.scene)
     if why is not None:
         if progress is not None:

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.antenna import DipolePattern, FlippedPattern, IsotropicPattern, SinPowerPattern
-from ..models.radio import NodePose, RadioScene
+from ..models.radio import NodePose, RadioScene, link_gain
 
 TAU_MAX = 1e6  # a hop's 1 / log2(1 + Gamma) at most this (a hop this dead: rate below 1e-6 B)
 
@@ -179,7 +179,6 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
             ep = [float(v) for v in np.asarray(e.position, float)]
             delta, d2, d = link(ep, pos(rx), [ep]) if is_var(rx) else (None, None, None)
             if delta is None:  # a fixed receiver: a number
-                from ..models.radio import link_gain
                 total = total + e.power * float(link_gain(e.position, e.axis, e.pattern, poses[rx].position, poses[rx].axis,
                                                           node_pat[rx], pg))
                 continue
