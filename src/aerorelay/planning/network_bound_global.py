@@ -34,9 +34,10 @@ TAU_MAX = 1e6  # a hop's 1 / log2(1 + Gamma) at most this (a hop this dead: rate
 
 @dataclass(frozen=True)
 class GlobalResult:
-    """One instant: the certified upper bound on the rate (``B`` over SCIP's dual bound), the rate of SCIP's best
-    configuration by SCIP's own model (``primal``), that configuration (positions and axes ``(K, 3)``), SCIP's status,
-    its relative gap, the seconds it took and its branch-and-bound nodes."""
+    """What SCIP proved and found: the certified upper bound on the rate (one instant, ``solve_static``: ``B`` over its
+    dual bound; a path, ``solve_path``: on the mean rate), the rate of its best configuration or path by its own model
+    (``primal``), that configuration's positions and axes (``(K, 3)``; a path's ``(T, K, 3)``), SCIP's status, its
+    relative gap, the seconds it took and its branch-and-bound nodes."""
 
     upper: float
     primal: float
@@ -265,25 +266,9 @@ def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], rel
                         int(m.getNNodes()))
 
 
-@dataclass(frozen=True)
-class PathResult:
-    """The best fleet path over a few instants (``solve_path``): SCIP's dual bound on the mean rate of every fleet path
-    from the starts within the speed limit (``upper``), its best such path's mean rate by SCIP's model (``primal``),
-    that path's positions and axes ``(T, K, 3)``, SCIP's status, relative gap, seconds and nodes."""
-
-    upper: float
-    primal: float
-    positions: np.ndarray
-    axes: np.ndarray
-    status: str
-    gap: float
-    seconds: float
-    nodes: int
-
-
 def solve_path(scene: RadioScene, times, poses: list[Mapping[str, NodePose]], relays: list[str], lo, hi,
                tilt_limits: Mapping[str, float], starts: Mapping[str, np.ndarray], max_speed_m_s: float,
-               separation_m: float = 0.0, *, time_limit_s: float = 60.0, gap: float = 1e-3, seed: int = 0) -> PathResult:
+               separation_m: float = 0.0, *, time_limit_s: float = 60.0, gap: float = 1e-3, seed: int = 0) -> GlobalResult:
     """The time-coupled problem over ``times`` (s; the sources at ``poses[i]`` then): every instant's static problem
     (``solve_static``), each relay at ``times[i]`` within ``max_speed_m_s * times[i]`` of its start (at it at 0) and
     within ``max_speed_m_s * dt`` of where it was the instant before; the objective the mean of the instants' rates.
@@ -330,5 +315,5 @@ def solve_path(scene: RadioScene, times, poses: list[Mapping[str, NodePose]], re
         axes = np.array([[[sol[v] for v in A[r]] for r in relays] for A in As])
         axes /= np.linalg.norm(axes, axis=2, keepdims=True)
         primal = float(m.getSolObjVal(sol))
-    return PathResult(float(m.getDualbound()), primal, positions, axes, str(m.getStatus()), float(m.getGap()), seconds,
+    return GlobalResult(float(m.getDualbound()), primal, positions, axes, str(m.getStatus()), float(m.getGap()), seconds,
                       int(m.getNNodes()))
