@@ -165,7 +165,9 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         return G
 
     def path(d2):
-        return pg.scale / d2 if pg.exponent == 2.0 else pg.scale * d2 ** (-0.5 * pg.exponent)
+        """The path gain's length term ``d^-n`` (its scale K is in the powers: every power is over the noise, so SCIP's
+        absolute tolerances (1e-6) do not swallow a physical link budget's 1e-13 W)."""
+        return 1.0 / d2 if pg.exponent == 2.0 else d2 ** (-0.5 * pg.exponent)
 
     b = scene.budget
     emitters = [e for e in scene.emitters(t, poses) if e.power > 0.0]
@@ -180,12 +182,12 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
             ep = [float(v) for v in np.asarray(e.position, float)]
             delta, d2, d = link(ep, pos(rx), [ep]) if is_var(rx) else (None, None, None)
             if delta is None:  # a fixed receiver: a number
-                total = total + e.power * float(link_gain(e.position, e.axis, e.pattern, poses[rx].position, poses[rx].axis,
+                total = total + e.power / b.noise_power * float(link_gain(e.position, e.axis, e.pattern, poses[rx].position, poses[rx].axis,
                                                           node_pat[rx], pg))
                 continue
             gj = gain(e.pattern, [float(v) for v in e.axis], delta, d, 1.0, False, True)
             gr = gain(node_pat[rx], axis(rx), delta, d, -1.0, True, True)
-            total = total + e.power * gj * gr * path(d2)
+            total = total + e.power * pg.scale / b.noise_power * gj * gr * path(d2)
         interference_at[rx] = total
         return total
 
@@ -204,7 +206,7 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         g_most = _pattern(node_pat[tx])[1] * _pattern(node_pat[rx])[1]
         gamma_max = b.tx_power * g_most * pg.scale / d2.getLbOriginal() ** (0.5 * pg.exponent) / b.noise_power
         gamma = fresh("gamma", 0.0, gamma_max)
-        m.addCons(gamma * (b.noise_power + interference(rx)) <= b.tx_power * gt * gr * path(d2))
+        m.addCons(gamma * (1.0 + interference(rx)) <= b.tx_power * pg.scale / b.noise_power * gt * gr * path(d2))
         tau = fresh("tau", 1.0 / math.log2(1.0 + gamma_max), TAU_MAX)
         m.addCons(tau * log(1 + gamma) >= math.log(2.0))
         objective = objective + uses[k] * tau
@@ -232,23 +234,31 @@ def _model(time_limit_s: float, gap: float, seed: int):
 
 def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo, hi,
                  tilt_limits: Mapping[str, float], separation_m: float = 0.0, *, time_limit_s: float = 60.0,
-                 gap: float = 1e-3, seed: int = 0) -> GlobalResult:
+                 gap: float = 1e-3, seed: int = 0, start: tuple[np.ndarray, np.ndarray] | None = None) -> GlobalResult:
     """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
     result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad). Stops at ``gap`` (relative, SCIP's) or
-    ``time_limit_s``; the upper bound is SCIP's dual bound either way."""
+    ``time_limit_s``; the upper bound is SCIP's dual bound either way. ``start``: a configuration (positions, axes
+    ``(K, 3)``) SCIP completes as its first solution (the cube bound's refined one), so it prunes from there."""
     why = expressible(scene)
     if why is not None:
         raise ValueError(f"global network bound: {why}")
     m = _model(time_limit_s, gap, seed)
-    P, A, objective, most = _instant(m, scene, t, poses, relays, np.asarray(lo, float), np.asarray(hi, float),
-                                     tilt_limits, separation_m, "")
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    P, A, objective, most = _instant(m, scene, t, poses, relays, lo, hi, tilt_limits, separation_m, "")
     b = scene.budget
     z = m.addVar("objective", lb=0.0, ub=most)
     m.addCons(z >= objective)
     m.setObjective(z, "minimize")
-    start = time.perf_counter()
+    if start is not None and np.all(np.isfinite(start[0])) and np.all(np.isfinite(start[1])):
+        sol = m.createPartialSol()
+        for k, r in enumerate(relays):
+            for i in range(3):
+                m.setSolVal(sol, P[r][i], float(np.clip(start[0][k][i], lo[i], hi[i])))
+                m.setSolVal(sol, A[r][i], float(start[1][k][i]))
+        m.addSol(sol)
+    begun = time.perf_counter()
     m.optimize()
-    seconds = time.perf_counter() - start
+    seconds = time.perf_counter() - begun
     status = m.getStatus()
     dual = m.getDualbound()
     upper = b.bandwidth / dual if dual > 0 else math.inf
