@@ -119,3 +119,19 @@ def test_the_best_speed_limited_fleet_path_over_three_instants():
         mean = np.mean([solver.rate(float(t), np.clip(P[i], pb.workspace_min, pb.workspace_max), A, poses[i])
                         for i, t in enumerate(times)])
         assert mean <= r.upper * (1 + 1e-6)
+
+
+def test_a_scip_bound_below_a_flyable_configuration_is_not_taken(monkeypatch):
+    """SCIP's numerics can fail (a root LP cut off as infeasible was seen on a physical-unit geometry): a bound
+    below a configuration the physics allows is not a bound, so the cube bound stays and the instant is counted."""
+    from aerorelay.planning import network_bound
+    from aerorelay.planning.network_bound_global import GlobalResult
+    nan = np.full((2, 3), np.nan)
+    monkeypatch.setattr(network_bound, "solve_static",
+                        lambda *a, **k: GlobalResult(1e-20, 0.0, nan, nan, "infeasible", 0.0, 0.0, 1))
+    names = ["r1", "r2"]
+    sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
+    pb = problem(sc, {"s": still([21.0, 0.3, 2.7])}, names, [-1, -2, 0], [23, 2, 4], 2.0)
+    b = compute_network_bound(replace(pb, global_seconds=1.0))
+    assert b.static[0] == compute_network_bound(pb).static[0] > b.achieved[0] > 0
+    assert b.resolution["global"]["untrusted_instants"] == 1 and b.resolution["global"]["tighter_instants"] == 0

@@ -710,16 +710,20 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None)
         rate = solver.rate(float(t), r.positions, r.axes, poses) if np.all(np.isfinite(r.positions)) else 0.0
         inside = all(o.signed_distance(q) >= 0 for o in pb.obstacles for q in r.positions) if rate > 0 else False
         cube = float(part.static[k])
-        if r.upper < cube:
+        # every bound is at least a configuration the physics allows: SCIP below one failed numerically (a root LP
+        # cut off as infeasible on a physical-unit geometry was seen): its bound is not taken
+        trusted = r.status != "infeasible" and r.upper >= max(part.achieved[k], rate) * (1 - 1e-9)
+        if trusted and r.upper < cube:
             part.static[k] = r.upper
         if inside and rate > part.achieved[k]:
             part.achieved[k], part.achieved_positions[k], part.achieved_axes[k] = rate, r.positions, r.axes
         rows.append({"t": float(t), "upper": r.upper, "cube_upper": cube, "rate": rate, "status": r.status, "gap": r.gap,
-                     "seconds": r.seconds, "nodes": r.nodes})
+                     "seconds": r.seconds, "nodes": r.nodes, "trusted": bool(trusted)})
         if progress is not None:
             progress(k + 1, len(part.times))
     return {"solver": "SCIP", "used": True, "time_limit_s": pb.global_seconds, "gap_limit": pb.global_gap,
-            "tighter_instants": int(sum(r["upper"] < r["cube_upper"] for r in rows)), "instants": rows}
+            "tighter_instants": int(sum(r["trusted"] and r["upper"] < r["cube_upper"] for r in rows)),
+            "untrusted_instants": int(sum(not r["trusted"] for r in rows)), "instants": rows}
 
 
 def _reachable_tightened(part: _Instants, feasible_sums: np.ndarray) -> tuple[list[dict[str, np.ndarray]], list[int]]:
