@@ -11,11 +11,11 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.config import ScenarioError
-from aerorelay.config.applies import ANTENNA, CHANNEL, ESTIMATION, JAMMER, MISSION, PROPAGATION
+from aerorelay.config.applies import ANTENNA, BOUND, CHANNEL, ESTIMATION, JAMMER, MISSION, PROPAGATION
 
 NOMINAL = "scenarios/nominal_tilted.toml"  # paper units, free space, a dipole, an always-on isotropic static oracle jammer
 SECTIONS = {"channel": CHANNEL, "channel.propagation": PROPAGATION, "antenna": ANTENNA, "jammer": JAMMER,
-            "estimation": ESTIMATION, "mission": MISSION}
+            "estimation": ESTIMATION, "mission": MISSION, "bound": BOUND}
 
 
 def _cases():
@@ -50,8 +50,8 @@ def test_a_setting_that_changes_nothing_here_is_refused_by_name(key):
         new = {"on_s": 3.0, "off_s": 2.0, "center_m": [1.0, 2.0, 3.0], "radius_m": 5.0, "period_s": 20.0,
                "point_at": "bs", "boresight": [1.0, 0.0, 0.0], "path": "minimum_jerk", "paths_sum": "coherent",
                "origin_m": [1.0, 0.0, 0.0], "ulog_offset_m": [1.0, 0.0, 0.0], "reference_loss_db": 40.0,
-               "bs_axis": [0.0, 1.0, 0.0], "search_min_m": [-50.0, -50.0, 0.0], "search_max_m": [50.0, 50.0, 20.0]
-               }.get(key.split(".")[-1])
+               "bs_axis": [0.0, 1.0, 0.0], "search_min_m": [-50.0, -50.0, 0.0], "search_max_m": [50.0, 50.0, 20.0],
+               "building_material": "glass", "ground_material": "wet_ground"}.get(key.split(".")[-1])
     if new is None:
         new = value * 0.5 if isinstance(value, (int, float)) and value else 0.5
         if isinstance(value, int):
