@@ -79,6 +79,7 @@ class NetworkBoundProblem:
     branch_levels: int = BRANCH_LEVELS  # the branch and bound's levels at most (every level's bound is certified)
     global_seconds: float = 0.0  # SCIP's time per instant for the global static bound (0: not solved)
     global_gap: float = 1e-3  # SCIP's relative gap to stop at
+    global_nodes: int | None = None  # SCIP's nodes at most per instant (None: the time limit alone; tests fix the work)
 
 
 @dataclass
@@ -706,7 +707,7 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None)
     for k, t in enumerate(part.times):
         poses = solver.fixed_poses(float(t))
         r = solve_static(pb.scene, float(t), poses, solver.relays, solver.lo, solver.hi, pb.tilt_limits, pb.separation_m,
-                         time_limit_s=pb.global_seconds, gap=pb.global_gap)
+                         time_limit_s=pb.global_seconds, gap=pb.global_gap, node_limit=pb.global_nodes)
         rate = solver.rate(float(t), r.positions, r.axes, poses) if np.all(np.isfinite(r.positions)) else 0.0
         inside = all(o.signed_distance(q) >= 0 for o in pb.obstacles for q in r.positions) if rate > 0 else False
         cube = float(part.static[k])

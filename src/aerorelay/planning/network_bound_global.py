@@ -221,10 +221,12 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
     return P, A, objective, TAU_MAX * sum(uses.values())
 
 
-def _model(time_limit_s: float, gap: float, seed: int):
+def _model(time_limit_s: float, gap: float, seed: int, node_limit: int | None = None):
     from pyscipopt import Model
 
     m = Model("network")
+    if node_limit is not None:  # a limit that does not depend on the machine's speed (tests)
+        m.setParam("limits/nodes", int(node_limit))
     m.hideOutput()
     m.setParam("limits/time", float(time_limit_s))
     m.setParam("limits/gap", float(gap))
@@ -234,15 +236,17 @@ def _model(time_limit_s: float, gap: float, seed: int):
 
 def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo, hi,
                  tilt_limits: Mapping[str, float], separation_m: float = 0.0, *, time_limit_s: float = 60.0,
-                 gap: float = 1e-3, seed: int = 0, start: tuple[np.ndarray, np.ndarray] | None = None) -> GlobalResult:
+                 gap: float = 1e-3, seed: int = 0, start: tuple[np.ndarray, np.ndarray] | None = None,
+                 node_limit: int | None = None) -> GlobalResult:
     """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
     result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad). Stops at ``gap`` (relative, SCIP's) or
     ``time_limit_s``; the upper bound is SCIP's dual bound either way. ``start``: a configuration (positions, axes
-    ``(K, 3)``) SCIP completes as its first solution (the cube bound's refined one), so it prunes from there."""
+    ``(K, 3)``) SCIP completes as its first solution (the cube bound's refined one), so it prunes from there.
+    ``node_limit``: SCIP's branch-and-bound nodes at most (its work the same on any machine)."""
     why = expressible(scene)
     if why is not None:
         raise ValueError(f"global network bound: {why}")
-    m = _model(time_limit_s, gap, seed)
+    m = _model(time_limit_s, gap, seed, node_limit)
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     P, A, objective, most = _instant(m, scene, t, poses, relays, lo, hi, tilt_limits, separation_m, "")
     b = scene.budget
