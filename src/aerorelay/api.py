@@ -61,8 +61,10 @@ from .flight.mavlink import check_url
 from .flight.mavlink_bridge import OffboardBridge
 from .flight.mavlink_vehicle import MavlinkVehicle
 from .flight.sources import MavlinkSource
+from .models.generated_scene import outline
 from .models.geo import GeoFrame
 from .models.mission import SourceTrajectory, source_trajectory
+from .models.obstacles import obstacle_model
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
@@ -438,10 +440,11 @@ def export(run_dir: str | Path, fmt: str = "mcap", *, relay: str | None = None,
         return [write_ulog(df, n, frame, out / f"{n}.ulg", __version__) for n in chosen]
     tracks = {n: who[n] for n in chosen} if relay is not None else who
     assert frame is not None
+    outlines = [(str(o.name), *outline(obstacle_model(o, margin=False))) for o in sc.obstacle_list]  # the buildings too
     if fmt == "geojson":
-        return [write_geojson(df, tracks, frame, out / "tracks.geojson")]
+        return [write_geojson(df, tracks, frame, out / "tracks.geojson", outlines)]
     start = datetime.datetime.fromtimestamp((d / SCENARIO_FILE).stat().st_mtime, datetime.UTC).isoformat()
-    return [write_kml(df, tracks, frame, out / "tracks.kml", start)]
+    return [write_kml(df, tracks, frame, out / "tracks.kml", start, outlines)]
 
 
 @dataclass

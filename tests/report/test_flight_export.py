@@ -142,3 +142,32 @@ def test_what_cannot_be_exported_is_refused_by_name(run, tmp_path):
     assert "lat_deg" not in pd.read_csv(plain / "export" / "relay.csv").columns
     _export(plain, "plan", "--origin", ",".join(str(v) for v in HOME))
     assert read_plan(plain / "export" / "relay.plan")[0] == HOME
+
+
+def test_geojson_and_kml_carry_the_obstacles_as_footprints_with_their_heights(tmp_path):
+    """A run among a turned prism (a building) and a cylinder: the GeoJSON has each footprint as a Polygon whose
+    corners are where the formula puts them, with its top in its properties; the KML has each roof extruded."""
+    wall = [[-5.9, 4.1], [-4.6, 5.6], [-4.4, 5.4], [-5.7, 3.9]]
+    obstacles = [{"name": "wall", "kind": "prism", "footprint_m": wall, "z_min_m": 0.0, "z_max_m": 3.0, "margin_m": 0.3},
+                 {"name": "mast", "kind": "cylinder", "centre_m": [3.0, -3.0], "radius_m": 0.5, "z_min_m": 0.0,
+                  "z_max_m": 8.0}]
+    out = tmp_path / "run"
+    sc = ar.load_scenario("scenarios/nominal_tilted.toml", set={"sim.duration_s": 1.0, "geo.origin": list(HOME),
+                                                                "obstacles": obstacles})
+    ar.simulate(sc).save(out, figures=False)
+    _export(out, "geojson")
+    _export(out, "kml")
+    feats = {f["properties"]["name"]: f for f in json.loads((out / "export" / "tracks.geojson").read_text())["features"]}
+    w = feats["wall"]
+    assert w["properties"]["role"] == "obstacle" and w["properties"]["z_max_m"] == 3.0
+    ring = np.array(w["geometry"]["coordinates"][0])
+    enu = _enu_by_hand(ring[:, 1], ring[:, 0], np.full(len(ring), HOME[2]))
+    assert np.allclose(ring[0], ring[-1])  # closed (RFC 7946)
+    got = enu[:-1, :2]
+    assert np.max(np.min(np.linalg.norm(got[:, None] - np.array(wall)[None], axis=-1), axis=1)) < 1e-3
+    mast = np.array(feats["mast"]["geometry"]["coordinates"][0])
+    r = np.linalg.norm(_enu_by_hand(mast[:, 1], mast[:, 0], np.full(len(mast), HOME[2]))[:, :2] - [3.0, -3.0], axis=1)
+    assert np.all(r >= 0.5 - 1e-3) and len(mast) == 33  # a 32-sided polygon around the circle
+    ns = {"k": "http://www.opengis.net/kml/2.2"}
+    polys = ET.parse(out / "export" / "tracks.kml").getroot().findall(".//k:Polygon", ns)
+    assert len(polys) == 2 and all(p.find("k:extrude", ns).text == "1" for p in polys)

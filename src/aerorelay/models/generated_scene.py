@@ -42,23 +42,29 @@ class Solid:
     thickness_m: float
 
 
-def solid(name: str, shape, material: str, thickness_m: float) -> Solid:
-    """The ``Solid`` of an obstacle's bare shape (``models.obstacles``: a box, a prism, a vertical cylinder)."""
+def outline(shape) -> tuple[tuple[tuple[float, float], ...], float, float]:
+    """An obstacle's bare shape (``models.obstacles``: a box, a prism, a vertical cylinder as the 32-sided prism that
+    holds it) as its footprint's corners (x, y, counter-clockwise, m) and its bottom and top (m)."""
     if isinstance(shape, Box):
         (x0, y0, z0), (x1, y1, z1) = shape.lo, shape.hi
-        foot: tuple = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
-        return Solid(name, foot, z0, z1, material, thickness_m)
+        return ((x0, y0), (x1, y0), (x1, y1), (x0, y1)), z0, z1
     if isinstance(shape, Prism):
         v = np.asarray(shape.footprint, float)
         area2 = np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
         v = v if area2 > 0 else v[::-1]
-        return Solid(name, tuple(map(tuple, v.tolist())), shape.z_min, shape.z_max, material, thickness_m)
+        return tuple(map(tuple, v.tolist())), shape.z_min, shape.z_max
     if isinstance(shape, VerticalCylinder):
         a = 2 * math.pi * np.arange(CYLINDER_SIDES) / CYLINDER_SIDES
         r = shape.radius / math.cos(math.pi / CYLINDER_SIDES)  # the polygon's sides touch the circle: it holds it
         foot = tuple((shape.centre[0] + r * math.cos(t), shape.centre[1] + r * math.sin(t)) for t in a)
-        return Solid(name, foot, shape.z_min, shape.z_max, material, thickness_m)
-    raise TypeError(f"no surface for an obstacle of type {type(shape).__name__}")
+        return foot, shape.z_min, shape.z_max
+    raise TypeError(f"no outline for an obstacle of type {type(shape).__name__}")
+
+
+def solid(name: str, shape, material: str, thickness_m: float) -> Solid:
+    """The ``Solid`` of an obstacle's bare shape (``outline``)."""
+    foot, z_min, z_max = outline(shape)
+    return Solid(name, foot, z_min, z_max, material, thickness_m)
 
 
 def prism_mesh(s: Solid) -> tuple[np.ndarray, np.ndarray]:

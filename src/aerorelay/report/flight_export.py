@@ -30,6 +30,7 @@ from __future__ import annotations
 import json
 import math
 import struct
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -144,8 +145,26 @@ def write_plan(df: pd.DataFrame, name: str, frame: GeoFrame, path: Path) -> Path
     return path
 
 
-def write_geojson(df: pd.DataFrame, who: dict[str, str], frame: GeoFrame, path: Path) -> Path:
+Outline = tuple[str, tuple, float, float]  # an obstacle's name, footprint corners (x, y m), bottom and top (m)
+
+
+def _ring(frame: GeoFrame, corners, z: float) -> np.ndarray:
+    """A closed ring of footprint corners at height ``z`` (local m) as (lat, lon, alt) rows."""
+    c = np.asarray(corners, float)
+    return frame.to_geodetic(np.column_stack([np.vstack([c, c[:1]]), np.full(len(c) + 1, z)]))
+
+
+def write_geojson(df: pd.DataFrame, who: dict[str, str], frame: GeoFrame, path: Path,
+                  outlines: Sequence[Outline] = ()) -> Path:
+    """Every vehicle's track as a LineString and every obstacle (``outlines``) as its footprint's Polygon at the ground
+    with its bottom and top (m above the frame's origin) in its properties, as GIS tools extrude buildings."""
     features = []
+    for name, corners, z_min, z_max in outlines:
+        ring = _ring(frame, corners, z_min)
+        features.append({"type": "Feature", "properties": {"name": name, "role": "obstacle", "z_min_m": float(z_min),
+                                                           "z_max_m": float(z_max), "height_m": float(z_max - z_min)},
+                         "geometry": {"type": "Polygon", "coordinates": [[[round(float(lon), 9), round(float(lat), 9)]
+                                                                           for lat, lon, _ in ring]]}})
     for name, role in who.items():
         t, p, _ = track(df, name)
         geo = frame.to_geodetic(p)
@@ -158,12 +177,20 @@ def write_geojson(df: pd.DataFrame, who: dict[str, str], frame: GeoFrame, path: 
     return path
 
 
-def write_kml(df: pd.DataFrame, who: dict[str, str], frame: GeoFrame, path: Path, start_utc: str) -> Path:
+def write_kml(df: pd.DataFrame, who: dict[str, str], frame: GeoFrame, path: Path, start_utc: str,
+              outlines: Sequence[Outline] = ()) -> Path:
+    """Every vehicle's track (a line and a timed gx:Track) and every obstacle (``outlines``) as its roof's polygon
+    extruded to the ground (Google Earth's buildings), altitudes absolute."""
     import datetime
 
     import simplekml  # KML's writer for Python; imported where it is used
 
     kml = simplekml.Kml(name=path.stem)
+    for name, corners, _, z_max in outlines:
+        roof = _ring(frame, corners, z_max)
+        poly = kml.newpolygon(name=name, outerboundaryis=[(float(lon), float(lat), float(alt)) for lat, lon, alt in roof])
+        poly.extrude = 1
+        poly.altitudemode = simplekml.AltitudeMode.absolute
     t0 = datetime.datetime.fromisoformat(start_utc)
     for name, role in who.items():
         t, p, _ = track(df, name)
