@@ -234,7 +234,7 @@ def _mavlink_headers(folder: Path) -> None:
 
 def world_table(sc: Scenario, control: NetworkController) -> np.ndarray:
     """What the relay knows of its source and the jammers on the mission's clock, one row per control period over
-    ``sim.duration_s``: t, the source's position, velocity and acceleration (its mission file), the jammers' positions
+    the scenario's duration (``Scenario.duration_s``): t, the source's position, velocity and acceleration (its mission file), the jammers' positions
     (row by row) and the powers the planner plans with (``sim.closed_loop.known_jammers``, as ``aerorelay fly`` tells
     them)."""
     path = source_trajectory(sc.source_list[0].mission)
@@ -337,11 +337,9 @@ ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src
 #define AR_CONTROL_PERIOD_S {_c_number(float(control.period))}  /* one ar_step per control period */
 #define AR_SHIFT {int(rc_step.shift)}  /* ar_step's shift argument: the control period is the OCP's step */
 #define AR_HOVER_SPEEDS {{{", ".join(_c_number(v) for v in rc_step.vehicle.hover_speeds())}}}  /* level hover (Hz) */
-/* aerorelay's stale-input rules (control.relay_step.StaleSettings): hold after, land after (s), descent (m/s), ground */
+/* aerorelay's stale-input rules (control.relay_step.StaleSettings): hold after, ask the autopilot to land after (s) */
 #define AR_HOLD_AFTER_S {_c_number(stale.hold_after_s)}
 #define AR_LAND_AFTER_S {_c_number(stale.land_after_s)}
-#define AR_LAND_SPEED_M_S {_c_number(stale.land_speed_m_s)}
-#define AR_GROUND_Z_M {_c_number(stale.ground_z_m)}
 
 typedef enum {{
   AR_OK = 0,           /* the NMPC's command */

@@ -40,8 +40,8 @@ def generated_scene_file(sc: Scenario) -> str:
     """The Mitsuba XML file of the scene generated from ``sc``'s obstacles and ground (``scene = "obstacles"``,
     ``models.generated_scene``), written into the cache folder once per content."""
     prop = sc.channel.propagation
-    solids = [solid(o.name or f"obstacle{i}", obstacle_model(o, margin=False), o.material or prop.building_material,
-                    prop.wall_thickness_m) for i, o in enumerate(sc.obstacle_list)]
+    solids = [solid(str(o.name), obstacle_model(o, margin=False), o.material or prop.building_material,
+                    prop.wall_thickness_m) for o in sc.obstacle_list]
     ground = None if prop.ground_material == "none" else (prop.ground_material, GROUND_THICKNESS_M)
     ws = sc.controller.workspace
     xy = [ws.min[:2], ws.max[:2], *(b.position[:2] for b in sc.base_station_list), *(r.start[:2] for r in sc.relay_list),

@@ -24,7 +24,7 @@ from ..models.buildings import BuildingsError, convex_pieces, read_footprints
 from ..models.geo import GeoFrame
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
-from .applies import dormant, dotted, generated_scene
+from .applies import OBSTACLE, dormant, dotted, generated_scene, refusal
 from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth, papers_generator_named
 from .controller import ControllerConfig
 from .errors import format_errors
@@ -888,10 +888,8 @@ def buildings_to_obstacles(sc: Scenario) -> tuple[list[dict], dict]:
                                      default_height_m=b.default_height_m)
     except BuildingsError as exc:
         raise ScenarioError(f"buildings.geojson: {exc}") from None
-    if b.material is not None and not generated_scene(sc):
-        raise ScenarioError(f"buildings.material: applies only where channel.propagation.model = 'ray_traced' with "
-                            f"scene = 'obstacles'; here it changes nothing (got {b.material!r}): remove it, or trace the "
-                            "buildings")
+    if b.material is not None and not generated_scene(sc):  # as an obstacle's own material (the table is consumed here)
+        raise ScenarioError(refusal("buildings.material", OBSTACLE[0].where, b.material, None))
     ws = sc.controller.workspace
     points = [ws.min, ws.max, *(s.position for s in sc.base_station_list), *(r.start for r in sc.relay_list),
               *(j.position for j in sc.jammer_configs)]

@@ -44,10 +44,6 @@ class Footprint:
     outline: tuple[tuple[float, float], ...]
     height_m: float
 
-    def polygon(self):
-        from shapely.geometry import Polygon
-        return Polygon(self.outline)
-
 
 def _height(props: dict, where: str, height_property: str, levels_property: str, level_height_m: float,
             default_height_m: float | None) -> float:

@@ -712,8 +712,8 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None)
         inside = all(o.signed_distance(q) >= 0 for o in pb.obstacles for q in r.positions) if rate > 0 else False
         cube = float(part.static[k])
         # every bound is at least a configuration the physics allows: SCIP below one failed numerically (a root LP
-        # cut off as infeasible on a physical-unit geometry was seen): its bound is not taken
-        trusted = r.status != "infeasible" and r.upper >= max(part.achieved[k], rate) * (1 - 1e-9)
+        # cut off as infeasible on a physical-unit geometry was seen: its dual bound then reads 1e20): not taken
+        trusted = r.upper >= max(part.achieved[k], rate) * (1 - 1e-9)
         if trusted and r.upper < cube:
             part.static[k] = r.upper
         if inside and rate > part.achieved[k]:

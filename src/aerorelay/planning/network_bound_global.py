@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.antenna import DipolePattern, FlippedPattern, IsotropicPattern, SinPowerPattern
+from ..models.propagation import PathGain
 from ..models.radio import NodePose, RadioScene, link_gain
 
 TAU_MAX = 1e6  # a hop's 1 / log2(1 + Gamma) at most this (a hop this dead: rate below 1e-6 B)
@@ -70,7 +71,7 @@ def expressible(scene: RadioScene) -> str | None:
     if bad:
         return f"the antennas of {bad} are not isotropic, sin^n or a half-wave dipole"
     pg = scene.path_gain
-    if type(pg).__name__ != "PathGain":
+    if type(pg) is not PathGain:  # a subclass (RMa-AV) is not K d^-n
         return f"the path gain ({type(pg).__name__}) is not K d^-n"
     if any(scene.handover):
         return "routes may end at several base stations"
@@ -109,10 +110,6 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         return n in P
 
     sep2 = separation_m**2
-    neighbours = set()
-    for tx, rx in scene.hops:
-        if is_var(tx) and is_var(rx):
-            neighbours.add(tuple(sorted((tx, rx))))
     count = [0]
 
     def fresh(name, lb, ub):
@@ -210,14 +207,11 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         tau = fresh("tau", 1.0 / math.log2(1.0 + gamma_max), TAU_MAX)
         m.addCons(tau * log(1 + gamma) >= math.log(2.0))
         objective = objective + uses[k] * tau
-    for r in relays:  # the separation from the fixed nodes (the links above hold it for the route neighbours)
-        for p in fixed.values():
-            q = np.asarray(p.position, float)
-            if sep2 > 0:
+    if sep2 > 0:  # the separation from every fixed node (a route neighbour's: the link's least length above)
+        for r in relays:
+            for p in fixed.values():
+                q = np.asarray(p.position, float)
                 m.addCons(sum((P[r][i] - float(q[i])) ** 2 for i in range(3)) >= sep2)
-    for a_, b_ in neighbours:
-        if sep2 > 0:
-            m.addCons(sum((P[a_][i] - P[b_][i]) ** 2 for i in range(3)) >= sep2)
     return P, A, objective, TAU_MAX * sum(uses.values())
 
 
@@ -234,15 +228,32 @@ def _model(time_limit_s: float, gap: float, seed: int, node_limit: int | None = 
     return m
 
 
+def _optimize(m) -> float:
+    """Run SCIP on ``m``; the seconds it took."""
+    begun = time.perf_counter()
+    m.optimize()
+    return time.perf_counter() - begun
+
+
+def _best(m, Ps: list[dict], As: list[dict], relays: list[str]) -> tuple[np.ndarray, np.ndarray, float]:
+    """SCIP's best solution: the relays' positions and unit axes ``(T, K, 3)`` at each instant's variables (``Ps``,
+    ``As``) and its objective's value; NaNs and 0 without one."""
+    if m.getNSols() == 0:
+        return np.full((len(Ps), len(relays), 3), np.nan), np.full((len(As), len(relays), 3), np.nan), 0.0
+    sol = m.getBestSol()
+    assert sol is not None
+    positions = np.array([[[sol[v] for v in P[r]] for r in relays] for P in Ps])
+    axes = np.array([[[sol[v] for v in A[r]] for r in relays] for A in As])
+    return positions, axes / np.linalg.norm(axes, axis=2, keepdims=True), float(m.getSolObjVal(sol))
+
+
 def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], relays: list[str], lo, hi,
                  tilt_limits: Mapping[str, float], separation_m: float = 0.0, *, time_limit_s: float = 60.0,
-                 gap: float = 1e-3, seed: int = 0, start: tuple[np.ndarray, np.ndarray] | None = None,
-                 node_limit: int | None = None) -> GlobalResult:
+                 gap: float = 1e-3, seed: int = 0, node_limit: int | None = None) -> GlobalResult:
     """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
     result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad). Stops at ``gap`` (relative, SCIP's) or
-    ``time_limit_s``; the upper bound is SCIP's dual bound either way. ``start``: a configuration (positions, axes
-    ``(K, 3)``) SCIP completes as its first solution (the cube bound's refined one), so it prunes from there.
-    ``node_limit``: SCIP's branch-and-bound nodes at most (its work the same on any machine)."""
+    ``time_limit_s``; the upper bound is SCIP's dual bound either way. ``node_limit``: SCIP's branch-and-bound nodes
+    at most (its work the same on any machine)."""
     why = expressible(scene)
     if why is not None:
         raise ValueError(f"global network bound: {why}")
@@ -253,31 +264,12 @@ def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], rel
     z = m.addVar("objective", lb=0.0, ub=most)
     m.addCons(z >= objective)
     m.setObjective(z, "minimize")
-    if start is not None and np.all(np.isfinite(start[0])) and np.all(np.isfinite(start[1])):
-        sol = m.createPartialSol()
-        for k, r in enumerate(relays):
-            for i in range(3):
-                m.setSolVal(sol, P[r][i], float(np.clip(start[0][k][i], lo[i], hi[i])))
-                m.setSolVal(sol, A[r][i], float(start[1][k][i]))
-        m.addSol(sol)
-    begun = time.perf_counter()
-    m.optimize()
-    seconds = time.perf_counter() - begun
-    status = m.getStatus()
+    seconds = _optimize(m)
     dual = m.getDualbound()
-    upper = b.bandwidth / dual if dual > 0 else math.inf
-    if m.getNSols() > 0:
-        sol = m.getBestSol()
-        assert sol is not None
-        positions = np.array([[sol[v] for v in P[r]] for r in relays])
-        axes = np.array([[sol[v] for v in A[r]] for r in relays])
-        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-        primal = b.bandwidth / m.getSolObjVal(sol)
-    else:
-        positions = axes = np.full((len(relays), 3), np.nan)
-        primal = 0.0
-    return GlobalResult(float(upper), float(primal), positions, axes, str(status), float(m.getGap()), seconds,
-                        int(m.getNNodes()))
+    positions, axes, objective_value = _best(m, [P], [A], relays)
+    primal = b.bandwidth / objective_value if objective_value > 0 else 0.0
+    return GlobalResult(b.bandwidth / dual if dual > 0 else math.inf, primal, positions[0], axes[0], str(m.getStatus()),
+                        float(m.getGap()), seconds, int(m.getNNodes()))
 
 
 def solve_path(scene: RadioScene, times, poses: list[Mapping[str, NodePose]], relays: list[str], lo, hi,
@@ -316,18 +308,7 @@ def solve_path(scene: RadioScene, times, poses: list[Mapping[str, NodePose]], re
         As.append(A)
         rates.append(rate)
     m.setObjective(sum(rates) / len(times), "maximize")
-    start = time.perf_counter()
-    m.optimize()
-    seconds = time.perf_counter() - start
-    T, K = len(times), len(relays)
-    positions = axes = np.full((T, K, 3), np.nan)
-    primal = 0.0
-    if m.getNSols() > 0:
-        sol = m.getBestSol()
-        assert sol is not None
-        positions = np.array([[[sol[v] for v in P[r]] for r in relays] for P in Ps])
-        axes = np.array([[[sol[v] for v in A[r]] for r in relays] for A in As])
-        axes /= np.linalg.norm(axes, axis=2, keepdims=True)
-        primal = float(m.getSolObjVal(sol))
+    seconds = _optimize(m)
+    positions, axes, primal = _best(m, Ps, As, relays)
     return GlobalResult(float(m.getDualbound()), primal, positions, axes, str(m.getStatus()), float(m.getGap()), seconds,
-                      int(m.getNNodes()))
+                        int(m.getNNodes()))
