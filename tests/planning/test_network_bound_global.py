@@ -17,7 +17,8 @@ from aerorelay.config import ScenarioError
 from aerorelay.models.antenna import CosinePattern, DipolePattern, IsotropicPattern
 from aerorelay.models.axes import tilted_axes
 from aerorelay.models.jammer import Jammer
-from aerorelay.planning.network_bound import NetworkBoundSolver, compute_network_bound
+from aerorelay.planning.bound import BoundResolution
+from aerorelay.planning.network_bound import NetworkBoundProblem, NetworkBoundSolver, compute_network_bound
 from aerorelay.planning.network_bound_global import expressible
 from tests.planning.test_network_bound import BS, problem, scene, still
 
@@ -43,8 +44,8 @@ def test_k_relays_the_global_bound_is_within_one_percent_above_the_formulas_opti
 def test_under_a_jammer_in_the_relays_cones_no_configuration_beats_the_global_bound():
     """Dipole relays, the jammer under their places (inside their tilt cones: a relay may put its null on it). 5000
     random chains (half near the jammer, upright) never beat SCIP's bound, which is below the cube bound; SCIP's best
-    configuration's rate by the channel model is the achieved rate (measured 2026-12-06: 4.4% above it after 2500
-    branch-and-bound nodes, about 20 s here; 3.3% at 40 s; the cube bound 17.6%). The work is fixed in nodes, not
+    configuration's rate by the channel model is the achieved rate (measured 2026-12-06: 3.3% above it after 2500
+    branch-and-bound nodes, about 25 s here, 4.4% with the dipole's squared cosine; the cube bound 17.6%). The work is fixed in nodes, not
     seconds, so a slower machine runs the same search."""
     jammer = [9.0, 0.5, 0.5]
     sc = scene(["r1", "r2"], DipolePattern(), [["s", "r1", "r2", "bs"]], jammer=jammer)
@@ -87,7 +88,7 @@ def test_the_global_bound_is_refused_where_it_changes_nothing():
     from aerorelay.assembly.parts import bound_cost, network_bound_problem
     assert network_bound_problem(sc).global_seconds == 30.0
     base = bound_cost(ar.load_scenario("scenarios/chain_two_relays.toml"))
-    assert bound_cost(sc).seconds == pytest.approx(base.seconds + 30.0 * base.instants)  # its worst case, estimated
+    assert bound_cost(sc).seconds == pytest.approx(base.seconds + 2 * 30.0 * base.instants)  # its worst case (two problems)
 
 
 def test_the_best_speed_limited_fleet_path_over_three_instants():
@@ -106,11 +107,11 @@ def test_the_best_speed_limited_fleet_path_over_three_instants():
     starts = {"r1": np.array([2.0, 0.0, 2.0]), "r2": np.array([1.0, 0.0, 2.0])}
     r = solve_path(sc, times, poses, names, pb.workspace_min, pb.workspace_max, pb.tilt_limits, starts, 1.0,
                    time_limit_s=120.0)
-    assert r.status == "optimal" and r.primal == pytest.approx(r.upper, rel=1e-3)
+    assert r.status in ("optimal", "gaplimit") and r.primal == pytest.approx(r.upper, rel=1e-3)  # proved to 1e-3
     steps = np.linalg.norm(np.diff(np.concatenate([[[starts[n] for n in names]], r.positions]), axis=0), axis=2)
     assert np.all(steps <= 2.0 + 1e-5)  # 1 m/s over 2 s, from the starts
     rates = [solver.rate(float(t), r.positions[i], r.axes[i], poses[i]) for i, t in enumerate(times)]
-    assert np.mean(rates) == pytest.approx(r.primal, rel=1e-5)
+    assert np.mean(rates) == pytest.approx(r.primal, rel=1e-3)  # within SCIP's tolerances (1.5e-4 measured)
     rng = np.random.default_rng(3)
     for _ in range(300):
         P = [np.array([starts[n] for n in names])]
@@ -125,7 +126,8 @@ def test_the_best_speed_limited_fleet_path_over_three_instants():
 
 def test_a_scip_bound_below_a_flyable_configuration_is_not_taken(monkeypatch):
     """SCIP's numerics can fail (a root LP cut off as infeasible was seen on a physical-unit geometry): a bound
-    below a configuration the physics allows is not a bound, so the cube bound stays and the instant is counted."""
+    below a configuration the physics allows is not a bound, so the cube bound stays and the instant is counted;
+    the same for the reach-limited bound against the flyable fleet path's rate (the upper path bound's cap)."""
     from aerorelay.planning import network_bound
     from aerorelay.planning.network_bound_global import GlobalResult
     nan = np.full((2, 3), np.nan)
@@ -134,6 +136,45 @@ def test_a_scip_bound_below_a_flyable_configuration_is_not_taken(monkeypatch):
     names = ["r1", "r2"]
     sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
     pb = problem(sc, {"s": still([21.0, 0.3, 2.7])}, names, [-1, -2, 0], [23, 2, 4], 2.0)
-    b = compute_network_bound(replace(pb, global_seconds=1.0))
-    assert b.static[0] == compute_network_bound(pb).static[0] > b.achieved[0] > 0
-    assert b.resolution["global"]["untrusted_instants"] == 1 and b.resolution["global"]["tighter_instants"] == 0
+    pb = replace(pb, starts={"r1": np.array([2.0, 0.0, 2.0]), "r2": np.array([1.0, 0.0, 2.0])})
+    b, cubes = compute_network_bound(replace(pb, global_seconds=1.0)), compute_network_bound(pb)
+    assert b.static[0] == cubes.static[0] > b.achieved[0] > 0
+    g = b.resolution["global"]
+    assert g["untrusted_instants"] == 1 and g["tighter_instants"] == 0
+    assert not g["instants"][0]["reach_trusted"] and g["reach_tighter_instants"] == 0  # nor as the path bound's cap
+    assert b.path_mean[0] == cubes.path_mean[0] >= b.flyable[0] > 0
+
+
+def test_the_reach_limited_global_bound_caps_the_upper_path_bound():
+    """Two isotropic relays start beside the base station, the source holds still 24 m away (the upper path bound's
+    test in test_network_bound.py): SCIP's bound with every relay within its reach from rest of its start caps the
+    upper path bound at each instant. At t = 0 the relays are at their starts, so the bound there is the rate of the
+    starts by the formula (B / sum_hops 1 / log2(1 + 1/d^2)). The capped path bound is below the cube terms' alone,
+    above 40 random flyable fleets and within 1% of the flyable fleet path: the best fleet path is known to 1%
+    (measured 2026-12-06: 0.2% over 8 s; 6% between the cube terms' path bound and the flyable path)."""
+    from tests.planning.test_network_bound import _random_flyable_fleets
+    names = ["r1", "r2"]
+    sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
+    starts = {"r1": np.array([2.0, 1.0, 2.0]), "r2": np.array([1.0, -1.0, 2.0])}
+    src = np.array([24.0, 0.0, 2.0])
+    lo, hi = np.array([-1.0, -3.0, 0.0]), np.array([25.0, 3.0, 4.0])
+    pb = NetworkBoundProblem(sc, {"s": still(src)}, {r: 0.35 for r in names}, lo, hi, 5.0,
+                             BoundResolution(grid_m=1.0, dt_s=1.0, axis_step_deg=10.0, max_speed_m_s=1.0, max_accel_m_s2=1.0),
+                             separation_m=1.0, starts=starts, global_seconds=600.0, global_nodes=200)
+    b = compute_network_bound(pb)
+    g = b.resolution["global"]
+    hops = [src - starts["r1"], starts["r1"] - starts["r2"], starts["r2"] - BS]
+    at_starts = 1.0 / sum(1.0 / np.log2(1.0 + 1.0 / float(np.sum(h**2))) for h in hops)
+    assert at_starts <= b.path_mean[0] <= at_starts * (1 + 1e-3)
+    assert all(r["reach_trusted"] for r in g["instants"]) and g["reach_tighter_instants"] >= 1
+    assert b.flyable.mean() <= b.path_mean.mean() <= 1.01 * b.flyable.mean()
+    assert b.path_mean.mean() < g["path_mean_without_reach"]
+    assert np.all(b.path_mean <= b.static * (1 + 1e-12))
+    solver = NetworkBoundSolver(pb)
+    rng = np.random.default_rng(3)
+    best = 0.0
+    for path in _random_flyable_fleets(pb, b.t, 40, rng):
+        rates = [solver.rate(float(t), path[i], np.tile([0.0, 0.0, 1.0], (2, 1)), solver.fixed_poses(float(t)))
+                 for i, t in enumerate(b.t)]
+        best = max(best, float(np.mean(rates)))
+    assert best <= b.path_mean.mean()

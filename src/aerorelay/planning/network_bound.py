@@ -42,7 +42,7 @@ from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
-from .network_bound_global import expressible, solve_static
+from .network_bound_global import GlobalResult, expressible, solve_static
 
 NETWORK_BOUND_VERSION = "7"  # bump when the computation changes: cached network bounds are recomputed
 CUBE_CORNERS = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)  # in half-sides
@@ -579,7 +579,7 @@ class NetworkBoundSolver:
         return out
 
     def upper_path(self, times: np.ndarray, marginals: Sequence[Sequence[Mapping[str, np.ndarray]]],
-                   static: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, str]:
+                   static: Sequence[np.ndarray], reach_cap: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, str]:
         """The upper path bound: no fleet flying from the starts at most ``max_speed_m_s`` (and speeding up at most
         ``max_accel_m_s2`` from rest) has a higher mean rate over ``times``.
 
@@ -595,7 +595,10 @@ class NetworkBoundSolver:
 
         ``marginals`` and ``static`` are given per network the fleet may be (one; or, with routes that may end at
         several base stations, one per combination of ends, ``end_choices``): the fleet's rate is then the best
-        combination's, at most ``max_e u_{e,k,t}(c)``, which the values take (the cubes are the same grid)."""
+        combination's, at most ``max_e u_{e,k,t}(c)``, which the values take (the cubes are the same grid).
+
+        ``reach_cap`` ``(T,)``: a certified bound on the rate of every configuration with each relay within its reach
+        from rest of its start at that instant (SCIP's, ``_globally_tightened``); every value is capped by it there."""
         res, bw = self.pb.resolution, self.scene.budget.bandwidth
         dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
         footprint = cube_footprint(res.max_speed_m_s * dt, res.grid_m)
@@ -609,6 +612,8 @@ class NetworkBoundSolver:
                         u = np.minimum(bw / m_e[i][r], s_e[i])
                     u[~np.isfinite(m_e[i][r])] = -np.inf  # out of reach (or where no relay may be)
                     values[i] = np.maximum(values[i], u)
+            if reach_cap is not None:
+                values = np.minimum(values, np.asarray(reach_cap, float)[:, None])
             cell0 = tuple(int(v) for v in np.clip(np.floor((start - self.lo) / res.grid_m), 0, np.array(self.shape) - 1))
             idx = _dp(values.reshape(len(times), *self.shape), cell0, footprint, "mean")
             flat = np.array([np.ravel_multi_index(ix, self.shape) for ix in idx])
@@ -718,13 +723,59 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None)
             part.static[k] = r.upper
         if inside and rate > part.achieved[k]:
             part.achieved[k], part.achieved_positions[k], part.achieved_axes[k] = rate, r.positions, r.axes
-        rows.append({"t": float(t), "upper": r.upper, "cube_upper": cube, "rate": rate, "status": r.status, "gap": r.gap,
-                     "seconds": r.seconds, "nodes": r.nodes, "trusted": bool(trusted)})
+        row = {"t": float(t), "upper": r.upper, "cube_upper": cube, "rate": rate, "status": r.status, "gap": r.gap,
+               "seconds": r.seconds, "nodes": r.nodes, "trusted": bool(trusted)}
+        if set(pb.starts) >= set(solver.relays):  # the path bound's: every relay within its reach from rest of its start
+            row |= _reach_limited(solver, pb, float(t), poses, r)
+        rows.append(row)
         if progress is not None:
             progress(k + 1, len(part.times))
     return {"solver": "SCIP", "used": True, "time_limit_s": pb.global_seconds, "gap_limit": pb.global_gap,
             "tighter_instants": int(sum(r["trusted"] and r["upper"] < r["cube_upper"] for r in rows)),
             "untrusted_instants": int(sum(not r["trusted"] for r in rows)), "instants": rows}
+
+
+def _reach_limited(solver: NetworkBoundSolver, pb: NetworkBoundProblem, t: float, poses, static: GlobalResult) -> dict:
+    """SCIP's bound at ``t`` with every relay within its reach from rest of its start (``reach_from_rest``, as
+    ``NetworkBoundSolver.out_of_reach``): the upper path bound's cap there (``upper_path``'s ``reach_cap``). Where
+    every relay's reach covers the box it is the static problem's (``static``), solved once. SCIP's best configuration
+    there (``reach_positions``) is within the reach: the flyable path's second start (``compute_network_bound``)."""
+    res = pb.resolution
+    reach = float(reach_from_rest(np.array([t]), res.max_speed_m_s, res.max_accel_m_s2)[0])
+    starts = {r: np.asarray(pb.starts[r], float) for r in solver.relays}
+    far = max(float(np.linalg.norm(np.maximum(np.abs(solver.lo - q), np.abs(solver.hi - q)))) for q in starts.values())
+    if reach >= far:
+        return {"reach_m": reach, "reach_upper": static.upper, "reach_seconds": 0.0, "reach_positions": static.positions.tolist()}
+    r = solve_static(pb.scene, t, poses, solver.relays, solver.lo, solver.hi, pb.tilt_limits, pb.separation_m,
+                     time_limit_s=pb.global_seconds, gap=pb.global_gap, node_limit=pb.global_nodes,
+                     within={k: (q, reach) for k, q in starts.items()})
+    return {"reach_m": reach, "reach_upper": r.upper, "reach_seconds": r.seconds, "reach_status": r.status,
+            "reach_positions": r.positions.tolist()}
+
+
+def _reach_targets(glob: dict) -> np.ndarray | None:
+    """SCIP's best configuration within the relays' reach at every instant ``(T, K, 3)`` (``_reach_limited``); None
+    where an instant has none."""
+    rows = glob.get("instants", [])
+    if not rows or not all("reach_positions" in r for r in rows):
+        return None
+    P = np.array([r["reach_positions"] for r in rows], float)
+    return P if np.all(np.isfinite(P)) else None
+
+
+def _reach_caps(glob: dict, flyable: np.ndarray) -> np.ndarray | None:
+    """The per-instant caps of the upper path bound from SCIP's reach-limited bounds (``_reach_limited``), each taken
+    only where it is at least the flyable fleet's rate there (a configuration within the reach: below it SCIP failed
+    numerically); None without them. Marks each row ``reach_trusted``."""
+    rows = glob.get("instants", [])
+    if not rows or not all("reach_upper" in r for r in rows) or len(rows) != len(flyable):
+        return None
+    caps = np.full(len(rows), np.inf)
+    for i, (row, f) in enumerate(zip(rows, flyable, strict=True)):
+        row["reach_trusted"] = bool(np.isfinite(f) and row["reach_upper"] >= f * (1 - 1e-9))
+        if row["reach_trusted"]:
+            caps[i] = row["reach_upper"]
+    return caps
 
 
 def _reachable_tightened(part: _Instants, feasible_sums: np.ndarray) -> tuple[list[dict[str, np.ndarray]], list[int]]:
@@ -808,11 +859,21 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     upper, up = np.empty(0), np.empty((0, 3))
     if set(pb.starts) >= set(solver.relays):
         flown = [p.solver.flyable(times, p.achieved_positions) for p in parts]
+        reached = _reach_targets(glob[0]) if len(glob) == 1 and glob[0].get("used") and not pb.obstacles else None
+        if reached is not None:  # the best configurations within the relays' reach (SCIP's model has no obstacles: only
+            # without them): a second start for the flyable path
+            flown.append(solver.flyable(times, reached))
+            glob[0]["flyable_from_reach_mean"] = float(np.mean(flown[-1][0]))
         fr, fp, fa, closest, status = max(flown, key=lambda f: float(np.mean(f[0])))  # the best combination's
         with np.errstate(divide="ignore"):
             sums = pb.scene.budget.bandwidth / fr  # the flyable fleet's terms' sum at each instant
         tightened = [_reachable_tightened(p, sums) for p in parts]
-        upper, up, binding = solver.upper_path(times, [m for m, _ in tightened], [p.static for p in parts])
+        caps = _reach_caps(glob[0], fr) if len(glob) == 1 and glob[0].get("used") else None
+        upper, up, binding = solver.upper_path(times, [m for m, _ in tightened], [p.static for p in parts], caps)
+        if caps is not None:
+            cubes, _, _ = solver.upper_path(times, [m for m, _ in tightened], [p.static for p in parts])
+            glob[0]["reach_tighter_instants"] = int(np.sum(caps < cubes))
+            glob[0]["path_mean_without_reach"] = float(np.mean(cubes))
         levels = [lv for _, lvs in tightened for lv in lvs]
         resolution["path_branch_levels_max"] = max(levels, default=0)
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,
