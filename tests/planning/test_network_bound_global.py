@@ -45,8 +45,8 @@ def test_under_a_jammer_in_the_relays_cones_no_configuration_beats_the_global_bo
     """Dipole relays, the jammer under their places (inside their tilt cones: a relay may put its null on it). 5000
     random chains (half near the jammer, upright) never beat SCIP's bound, which is below the cube bound; SCIP's best
     configuration's rate by the channel model is the achieved rate (measured 2026-12-06: 3.3% above it after 2500
-    branch-and-bound nodes, about 25 s here, 4.4% with the dipole's squared cosine; the cube bound 17.6%). The work is fixed in nodes, not
-    seconds, so a slower machine runs the same search."""
+    branch-and-bound nodes, about 25 s here, 4.4% with the dipole's squared cosine; the cube bound 17.6%). The work
+    is fixed in nodes, not seconds, so a slower machine runs the same search."""
     jammer = [9.0, 0.5, 0.5]
     sc = scene(["r1", "r2"], DipolePattern(), [["s", "r1", "r2", "bs"]], jammer=jammer)
     lo, hi = np.array([0.0, -4.0, 1.0]), np.array([20.0, 4.0, 7.0])

@@ -44,7 +44,7 @@ from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 from .network_bound_global import GlobalResult, expressible, solve_static
 
-NETWORK_BOUND_VERSION = "7"  # bump when the computation changes: cached network bounds are recomputed
+NETWORK_BOUND_VERSION = "8"  # bump when the computation changes: cached network bounds are recomputed
 CUBE_CORNERS = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)  # in half-sides
 CHUNK = 256  # rows of a pair-term block (cells x cells, float64): 256 measured 1.5x faster than 2048 (cache)
 
@@ -567,11 +567,16 @@ class NetworkBoundSolver:
         """Each relay's best holdable cone axis ``(K, 3)`` for the relays at ``P`` (``FleetConfigurations.best_axes``)."""
         return self.configurations.best_axes(t, P, poses, thrust)
 
+    def reach(self, t: float) -> float:
+        """How far (m) a relay at rest at its start at ``t = 0`` can be by ``t`` (s) within the speed and acceleration
+        limits (``reach_from_rest``)."""
+        res = self.pb.resolution
+        return float(reach_from_rest(np.array([t]), res.max_speed_m_s, res.max_accel_m_s2)[0])
+
     def out_of_reach(self, t: float) -> dict[str, np.ndarray]:
         """``{relay: (M,)}``: inf at the grid's cubes no point of which a relay at rest at its start at ``t = 0``
-        can reach by ``t`` (s) within the speed and acceleration limits (``reach_from_rest``), 0 elsewhere."""
-        res = self.pb.resolution
-        reach = float(reach_from_rest(np.array([t]), res.max_speed_m_s, res.max_accel_m_s2)[0])
+        can reach by ``t`` (s) (``reach``), 0 elsewhere."""
+        reach = self.reach(t)
         out = {}
         for r in self.relays:
             gap = np.linalg.norm(np.maximum(np.abs(self.cells - np.asarray(self.pb.starts[r], float)) - self.half, 0.0), axis=1)
@@ -737,11 +742,10 @@ def _globally_tightened(part: _Instants, pb: NetworkBoundProblem, progress=None)
 
 def _reach_limited(solver: NetworkBoundSolver, pb: NetworkBoundProblem, t: float, poses, static: GlobalResult) -> dict:
     """SCIP's bound at ``t`` with every relay within its reach from rest of its start (``reach_from_rest``, as
-    ``NetworkBoundSolver.out_of_reach``): the upper path bound's cap there (``upper_path``'s ``reach_cap``). Where
+    ``NetworkBoundSolver.reach``): the upper path bound's cap there (``upper_path``'s ``reach_cap``). Where
     every relay's reach covers the box it is the static problem's (``static``), solved once. SCIP's best configuration
     there (``reach_positions``) is within the reach: the flyable path's second start (``compute_network_bound``)."""
-    res = pb.resolution
-    reach = float(reach_from_rest(np.array([t]), res.max_speed_m_s, res.max_accel_m_s2)[0])
+    reach = solver.reach(t)
     starts = {r: np.asarray(pb.starts[r], float) for r in solver.relays}
     far = max(float(np.linalg.norm(np.maximum(np.abs(solver.lo - q), np.abs(solver.hi - q)))) for q in starts.values())
     if reach >= far:
@@ -753,23 +757,17 @@ def _reach_limited(solver: NetworkBoundSolver, pb: NetworkBoundProblem, t: float
             "reach_positions": r.positions.tolist()}
 
 
-def _reach_targets(glob: dict) -> np.ndarray | None:
-    """SCIP's best configuration within the relays' reach at every instant ``(T, K, 3)`` (``_reach_limited``); None
-    where an instant has none."""
-    rows = glob.get("instants", [])
-    if not rows or not all("reach_positions" in r for r in rows):
-        return None
+def _reach_targets(rows: list[dict]) -> np.ndarray | None:
+    """SCIP's best configuration within the relays' reach at every instant ``(T, K, 3)`` (the rows of
+    ``_reach_limited``); None where an instant has none."""
     P = np.array([r["reach_positions"] for r in rows], float)
     return P if np.all(np.isfinite(P)) else None
 
 
-def _reach_caps(glob: dict, flyable: np.ndarray) -> np.ndarray | None:
-    """The per-instant caps of the upper path bound from SCIP's reach-limited bounds (``_reach_limited``), each taken
-    only where it is at least the flyable fleet's rate there (a configuration within the reach: below it SCIP failed
-    numerically); None without them. Marks each row ``reach_trusted``."""
-    rows = glob.get("instants", [])
-    if not rows or not all("reach_upper" in r for r in rows) or len(rows) != len(flyable):
-        return None
+def _reach_caps(rows: list[dict], flyable: np.ndarray) -> np.ndarray:
+    """The per-instant caps of the upper path bound from SCIP's reach-limited bounds (the rows of ``_reach_limited``),
+    each taken only where it is at least the flyable fleet's rate there (a configuration within the reach: below it
+    SCIP failed numerically), inf elsewhere. Marks each row ``reach_trusted``."""
     caps = np.full(len(rows), np.inf)
     for i, (row, f) in enumerate(zip(rows, flyable, strict=True)):
         row["reach_trusted"] = bool(np.isfinite(f) and row["reach_upper"] >= f * (1 - 1e-9))
@@ -859,21 +857,23 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     upper, up = np.empty(0), np.empty((0, 3))
     if set(pb.starts) >= set(solver.relays):
         flown = [p.solver.flyable(times, p.achieved_positions) for p in parts]
-        reached = _reach_targets(glob[0]) if len(glob) == 1 and glob[0].get("used") and not pb.obstacles else None
-        if reached is not None:  # the best configurations within the relays' reach (SCIP's model has no obstacles: only
-            # without them): a second start for the flyable path
+        scip = glob[0] if len(glob) == 1 and glob[0].get("used") else None  # SCIP's rows (one network: expressible)
+        # the best configurations within the relays' reach: a second start for the flyable path (SCIP's model has no
+        # obstacles: only without them)
+        reached = _reach_targets(scip["instants"]) if scip is not None and not pb.obstacles else None
+        if scip is not None and reached is not None:
             flown.append(solver.flyable(times, reached))
-            glob[0]["flyable_from_reach_mean"] = float(np.mean(flown[-1][0]))
+            scip["flyable_from_reach_mean"] = float(np.mean(flown[-1][0]))
         fr, fp, fa, closest, status = max(flown, key=lambda f: float(np.mean(f[0])))  # the best combination's
         with np.errstate(divide="ignore"):
             sums = pb.scene.budget.bandwidth / fr  # the flyable fleet's terms' sum at each instant
         tightened = [_reachable_tightened(p, sums) for p in parts]
-        caps = _reach_caps(glob[0], fr) if len(glob) == 1 and glob[0].get("used") else None
+        caps = _reach_caps(scip["instants"], fr) if scip is not None else None
         upper, up, binding = solver.upper_path(times, [m for m, _ in tightened], [p.static for p in parts], caps)
-        if caps is not None:
+        if scip is not None:  # what the caps did: the cube terms' path bound alone, for the record
             cubes, _, _ = solver.upper_path(times, [m for m, _ in tightened], [p.static for p in parts])
-            glob[0]["reach_tighter_instants"] = int(np.sum(caps < cubes))
-            glob[0]["path_mean_without_reach"] = float(np.mean(cubes))
+            scip["reach_tighter_instants"] = int(np.sum(caps < cubes))
+            scip["path_mean_without_reach"] = float(np.mean(cubes))
         levels = [lv for _, lvs in tightened for lv in lvs]
         resolution["path_branch_levels_max"] = max(levels, default=0)
         resolution |= {"flyable_max_speed_m_s": res.max_speed_m_s, "flyable_max_accel_m_s2": res.max_accel_m_s2,

@@ -9,8 +9,7 @@ G_j G_rx,j K d_j^-n)`` with each pattern's gain a function of the cosine ``c`` b
 (isotropic: constant; ``sin^n``: ``g (1 - c^2)^(n/2)``; the half-wave dipole: ``G (1 - c^2) = g cos^2(pi c / 2)``,
 written ``g (1 + cos(pi c)) / 2`` (SCIP 10's propagation of ``cos(.)^2`` cut off feasible boxes: a relay kept to a
 2 m box was declared infeasible), with ``G <= g (1 - c^2)``, which pins ``G`` to the pattern, 0 on the axis); the
-objective ``min sum_hops 1 / log2(1 +
-Gamma)`` (each hop once per route it is on), so the rate is ``B`` over it. Obstacles are left out (a relaxation:
+objective ``min sum_hops 1 / log2(1 + Gamma)`` (each hop once per route it is on), so the rate is ``B`` over it. Obstacles are left out (a relaxation:
 the bound stays an upper bound, looser where an obstacle holds the optimum).
 
 What SCIP cannot express here is refused by ``expressible`` (the cube bound then stays, and says so): a cosine or
@@ -133,8 +132,7 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
     def extent(n) -> tuple[np.ndarray, np.ndarray]:
         if n in box:
             return box[n]
-        q = np.asarray(poses[n].position, float) if n in poses else None
-        assert q is not None
+        q = np.asarray(poses[n].position, float)
         return q, q
 
     ulo, uhi = np.min([b[0] for b in box.values()], axis=0), np.max([b[1] for b in box.values()], axis=0)
@@ -152,8 +150,8 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
     def d2_range(a: str | np.ndarray, b: str | np.ndarray) -> tuple[float, float]:
         """The least and most squared length of a link between ``a`` and ``b`` (a node's name or a fixed point): the
         least from their boxes (a relay's at least the separation from any other node), the most every link's
-        (``diag2``, or this link's farthest where that is more; each link's own most alone gave SCIP a 35% looser bound after 2500 nodes on the jammer
-        test's problem, measured 2026-12-06)."""
+        (``diag2``, or this link's farthest where that is more; each link's own most alone gave SCIP a 35% looser
+        bound after 2500 nodes on the jammer test's problem, measured 2026-12-06)."""
         (alo, ahi), (blo, bhi) = [extent(x) if isinstance(x, str) else (np.asarray(x, float),) * 2 for x in (a, b)]
         gap = np.maximum(np.maximum(alo - bhi, blo - ahi), 0.0)
         least = float(np.sum(gap**2))
@@ -294,8 +292,8 @@ def solve_static(scene: RadioScene, t: float, poses: Mapping[str, NodePose], rel
                  within: Mapping[str, tuple] | None = None) -> GlobalResult:
     """The static problem at ``t`` (see the module) with the fixed nodes and sources at ``poses``; ``relays`` in the
     result's order, each in ``[lo, hi]`` (m) within ``tilt_limits`` (rad); with ``within`` (``{relay: (centre,
-    radius)}``, m) each such relay also in that ball (where a fleet from its starts can be at ``t``). Stops at ``gap`` (relative, SCIP's) or
-    ``time_limit_s``; the upper bound is SCIP's dual bound either way. ``node_limit``: SCIP's branch-and-bound nodes
+    radius)}``, m) each such relay also in that ball (where a fleet from its starts can be at ``t``). Stops at
+    ``gap`` (relative, SCIP's) or ``time_limit_s``; the upper bound is SCIP's dual bound either way. ``node_limit``: SCIP's branch-and-bound nodes
     at most (its work the same on any machine)."""
     why = expressible(scene)
     if why is not None:
