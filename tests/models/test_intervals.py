@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aerorelay.models.antenna import CosinePattern, DipolePattern, IsotropicPattern, SinPowerPattern, TabulatedPattern, gain_bounds
-from aerorelay.models.intervals import axis_cos_range, cone_cos_range, distance_range, elevation_range
+from aerorelay.models.intervals import axis_cos_range, cone_cos_range, distance_range, elevation_range, link_ranges
 
 coord = st.floats(-30.0, 30.0, allow_nan=False)
 size = st.floats(0.01, 8.0, allow_nan=False)
@@ -47,6 +47,11 @@ def test_distance_and_elevation_ranges_hold_every_point_of_the_box_and_are_reach
     # holds the origin (a zero-length link: every direction, [-1, 1] said)
     if not np.all((d_lo <= 0.0) & (d_hi >= 0.0)):
         assert s_hi - s.max() < 0.05 and s.min() - s_lo < 0.05
+    # link_ranges: both at once, and the reverse link's (-d) sines from the samples of the reversed box
+    ranges = link_ranges(d_lo, d_hi)
+    assert np.allclose(ranges, (r_min, r_max, s_lo, s_hi), rtol=0.0, atol=0.0)
+    rev_lo, rev_hi = elevation_range(-d_hi, -d_lo)
+    assert rev_lo == -s_hi and rev_hi == -s_lo
 
 
 @settings(max_examples=150, deadline=None)

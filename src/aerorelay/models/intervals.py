@@ -26,18 +26,15 @@ from __future__ import annotations
 import numpy as np
 
 
-def _horizontal_range(d_lo: np.ndarray, d_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The least and largest horizontal distance ``sqrt(d_x^2 + d_y^2)`` over the box."""
+def _nearest_farthest(d_lo: np.ndarray, d_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per axis, the least and largest ``|d_i|`` over the boxes ``[d_lo, d_hi]`` ``(..., 3)``."""
     nearest = np.where((d_lo <= 0.0) & (d_hi >= 0.0), 0.0, np.minimum(np.abs(d_lo), np.abs(d_hi)))
-    farthest = np.maximum(np.abs(d_lo), np.abs(d_hi))
-    return np.hypot(nearest[..., 0], nearest[..., 1]), np.hypot(farthest[..., 0], farthest[..., 1])
+    return nearest, np.maximum(np.abs(d_lo), np.abs(d_hi))
 
 
 def distance_range(d_lo, d_hi) -> tuple[np.ndarray, np.ndarray]:
     """The least and largest ``|d|`` (m) over the boxes ``[d_lo, d_hi]`` ``(..., 3)``."""
-    d_lo, d_hi = np.asarray(d_lo, float), np.asarray(d_hi, float)
-    nearest = np.where((d_lo <= 0.0) & (d_hi >= 0.0), 0.0, np.minimum(np.abs(d_lo), np.abs(d_hi)))
-    farthest = np.maximum(np.abs(d_lo), np.abs(d_hi))
+    nearest, farthest = _nearest_farthest(np.asarray(d_lo, float), np.asarray(d_hi, float))
     return np.linalg.norm(nearest, axis=-1), np.linalg.norm(farthest, axis=-1)
 
 
@@ -50,7 +47,21 @@ def elevation_range(d_lo, d_hi) -> tuple[np.ndarray, np.ndarray]:
     """The least and largest ``sin e = d_z / |d|`` over the boxes ``[d_lo, d_hi]`` ``(..., 3)``; a box
     holding the origin spans ``[-1, 1]`` (every direction)."""
     d_lo, d_hi = np.asarray(d_lo, float), np.asarray(d_hi, float)
-    h_min, h_max = _horizontal_range(d_lo, d_hi)
+    return _elevation(d_lo, d_hi, *_nearest_farthest(d_lo, d_hi))
+
+
+def link_ranges(d_lo, d_hi) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``distance_range`` and ``elevation_range`` of the boxes ``[d_lo, d_hi]`` at once (the nearest and farthest
+    points found once): least and largest ``|d|`` (m), least and largest ``sin e``. The reverse link's (``-d``)
+    sines are ``-sin_hi, -sin_lo``."""
+    d_lo, d_hi = np.asarray(d_lo, float), np.asarray(d_hi, float)
+    nearest, farthest = _nearest_farthest(d_lo, d_hi)
+    return (np.linalg.norm(nearest, axis=-1), np.linalg.norm(farthest, axis=-1),
+            *_elevation(d_lo, d_hi, nearest, farthest))
+
+
+def _elevation(d_lo, d_hi, nearest, farthest) -> tuple[np.ndarray, np.ndarray]:
+    h_min, h_max = np.hypot(nearest[..., 0], nearest[..., 1]), np.hypot(farthest[..., 0], farthest[..., 1])
     z_lo, z_hi = d_lo[..., 2], d_hi[..., 2]
     # largest: the highest z with the nearest horizontal distance when it is >= 0, the farthest when below
     top = np.where(z_hi >= 0.0, _sin_elevation(h_min, z_hi), _sin_elevation(h_max, z_hi))

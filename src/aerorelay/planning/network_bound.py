@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ..models.antenna import gain_bounds
-from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, elevation_range
+from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, link_ranges
 from ..models.mission import SourceTrajectory
 from ..models.radio import NodePose, RadioScene, spectral_efficiency
 from .bound import BoundResolution, _dp
@@ -358,10 +358,9 @@ class NetworkBoundSolver:
         pg = self.scene.path_gain
         return np.asarray(pg.gain_from_d2(r_max * r_max), float) if pg.distance_only else np.zeros(np.shape(r_max))
 
-    def relay_gains(self, relay: str, to_lo, to_hi) -> tuple[np.ndarray, np.ndarray]:
-        """Least and largest gain of ``relay``'s antenna toward the boxes of directions ``[to_lo, to_hi]`` over
-        every axis it can hold (tilt up to its hover limit, any yaw)."""
-        s_lo, s_hi = elevation_range(to_lo, to_hi)
+    def relay_gains(self, relay: str, s_lo, s_hi) -> tuple[np.ndarray, np.ndarray]:
+        """Least and largest gain of ``relay``'s antenna toward directions whose elevations' sines are within
+        ``[s_lo, s_hi]`` (``intervals.link_ranges``) over every axis it can hold (tilt up to its hover limit, any yaw)."""
         return gain_bounds(self.scene.node(relay).antenna.pattern, *cone_cos_range(s_lo, s_hi, self.pb.tilt_limits[relay]))
 
     def least_interference(self, t: float, relay: str, poses: Mapping[str, NodePose], centres=None, half=None) -> np.ndarray:
@@ -374,9 +373,9 @@ class NetworkBoundSolver:
             if e.power == 0.0:
                 continue
             lo, hi = centres - half - e.position, centres + half - e.position  # jammer -> cube
-            _, r_max = distance_range(lo, hi)
+            _, r_max, s_lo, s_hi = link_ranges(lo, hi)
             g_j = gain_bounds(e.pattern, *axis_cos_range(lo, hi, e.axis))[0]
-            g_r = self.relay_gains(relay, -hi, -lo)[0]  # the relay toward the jammer
+            g_r = self.relay_gains(relay, -s_hi, -s_lo)[0]  # the relay toward the jammer
             out = out + e.power * g_j * g_r * self._path_least(r_max)
         return out
 
@@ -416,8 +415,8 @@ class NetworkBoundSolver:
             o = poses[other]
             pat_o = self.scene.node(other).antenna.pattern
             lo, hi = centres - half - o.position, centres + half - o.position  # the node -> the cube
-            r_min, _ = distance_range(lo, hi)
-            g = gain_bounds(pat_o, *axis_cos_range(lo, hi, o.axis))[1] * self.relay_gains(r, -hi, -lo)[1]
+            r_min, _, s_lo, s_hi = link_ranges(lo, hi)
+            g = gain_bounds(pat_o, *axis_cos_range(lo, hi, o.axis))[1] * self.relay_gains(r, -s_hi, -s_lo)[1]
             if is_tx:  # relay -> fixed node: the node's own interference
                 i_rx = self.scene.interference(self.scene.emitters(t, poses), o, pat_o) if self.scene.jammers else 0.0
             else:
@@ -434,8 +433,8 @@ class NetworkBoundSolver:
         directions, the path gain at the least length (at least the separation); 0 where the two relays
         would be closer than the separation everywhere."""
         lo, hi = d_centre - spread, d_centre + spread
-        r_min, r_max = distance_range(lo, hi)
-        g = self.relay_gains(tx, lo, hi)[1] * self.relay_gains(rx, -hi, -lo)[1]
+        r_min, r_max, s_lo, s_hi = link_ranges(lo, hi)
+        g = self.relay_gains(tx, s_lo, s_hi)[1] * self.relay_gains(rx, -s_hi, -s_lo)[1]
         with np.errstate(invalid="ignore"):
             s = np.nan_to_num(g * self._path_most(r_min) * self.scene.budget.tx_power, nan=np.inf)
         if self.pb.separation_m > 0:
