@@ -85,7 +85,7 @@ def test_two_sources_sharing_two_relays():
                                                               r"relay with one controller\.mu"),
     (lambda d: d["relays"][1].update(controller={"capacity": {"leash_m": 9.0}}),
      r"relays\[1\]\.controller\.capacity\.leash_m: the network's planner"),
-    (lambda d: d["controller"].setdefault("capacity", {}).update(yaw_rate_deg_s=10.0), r"controller\.capacity\.yaw_rate_deg_s: only one "
+    (lambda d: d["controller"].setdefault("capacity", {}).update(excursion_m=2.0), r"controller\.capacity\.excursion_m: only one "
                                                                          r"relay's capacity planner"),
     (lambda d: d["relays"][0].update(name="r 1"), r"relays\.0\.name"),
     (lambda d: d["relays"][1].update(controller={"horizon": 45}),

@@ -102,10 +102,10 @@ NETWORK_WIDE: tuple[tuple[str, ...], ...] = (
     ("mu",), ("hessian_eig_floor",), ("senses_jammer_state",),
     *(("capacity", f) for f in ("margin_m", "leash_m", "route_grid_m", "route_dt_s", "lookahead_s", "yaw_rate_deg_s",
                                 "excursion_m", "excursion_std_m", "excursion_max_loss", "scoring", "replan_every")))
-# what only one relay's capacity planner does (yawing the platform, circling to localize a jammer), refused in a network
-# unless off (its value here)
+# what only one relay's capacity planner does (circling to localize a jammer), refused in a network unless off (its
+# value here); a fleet's planner yaws its relays as the one relay's does (planning.fleet_capacity)
 ONE_TIME_GRID: tuple[tuple[str, ...], ...] = (("horizon",), ("ts_s",))  # every relay's NMPC's, for any network
-ONE_RELAY_ONLY: dict[str, float] = {"yaw_rate_deg_s": 0.0, "excursion_m": 0.0}
+ONE_RELAY_ONLY: dict[str, float] = {"excursion_m": 0.0}
 _SAID_RENAMED: set[str] = set()
 
 

@@ -22,6 +22,13 @@ behind it for the rest of the network study's 120 m mission after 4.5 s of lost 
 Each relay's reference follows its goal through its own
 ``shaper.ReferenceShaper`` (speed, acceleration, braking on the goal, acceleration feed-forward, axis
 rate, the level-only tracking law), the one relay's planner's.
+
+**Yaw** (``yaw_rate_deg_s`` > 0, tilted platforms; ``planning.platform_yaw``, as the one relay's planner): a
+relay's candidates are scored with the axes it holds at its yaw goal, and at its best goal every yaw's holdable
+axes too; a better yaw travels with the move (taken in the joint decision with it), the yaw reference turns at
+<= ``yaw_rate_deg_s`` and the axis reference is clipped to what the relay holds at its measured yaw. The bounds
+let a relay yaw freely: at zero yaw the network study's two relays at 120 m had 7.7% less at their own places
+(docs/results/networks.md).
 """
 
 from __future__ import annotations
@@ -41,6 +48,7 @@ from ..models.radio import NodePose, RadioScene
 from ..models.raytrace import RayTracer
 from .fleet import FleetInput, equidistant_targets
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
+from .platform_yaw import PlatformYaw
 from .relay_grid import CompiledConfigurations, CompiledRelayGrid
 from .shaper import ReferenceShaper, ShaperSettings
 from .traced_grid import TracedConfigurations, TracedRelayGrid
@@ -128,14 +136,15 @@ class FleetCapacityPlanner:
     def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], candidate_axes: Mapping[str, np.ndarray],
                  shapers: Mapping[str, ShaperSettings], settings: FleetCapacitySettings,
                  route_builder: Callable[..., FleetRoute] | None = None, tracer: RayTracer | None = None,
-                 traced_coherent: bool = False):
+                 traced_coherent: bool = False, yaws: Mapping[str, PlatformYaw] | None = None):
         """``candidate_axes``: each relay's holdable antenna axes ``(n, 3)`` (unit, world); ``shapers`` each relay's
         reference limits; ``route_builder(t0, starts, jammer_positions, jammer_powers)`` plans the route (None: no
         route, no leash): before the first step with what the fleet knows then, and again when a jammer
         becomes known in flight (its power from 0 to above; ``preflight_s`` the first, ``reroute_s`` the others,
         s). ``tracer``: the candidates and the joint moves scored on the ray-traced channel of the scene's map
         (``planning.traced_grid``; ``traced_coherent``: its paths summed with their phases), the route planned on
-        the scene's analytic channel (IPOPT through thousands of traces is not flyable on a CPU)."""
+        the scene's analytic channel (IPOPT through thousands of traces is not flyable on a CPU). ``yaws``: the
+        relays that may yaw, each one's ``PlatformYaw`` (its ``body_axes`` its ``candidate_axes``)."""
         self.scene, self.settings, self.route_builder = scene, settings, route_builder
         self.route: FleetRoute | None = None
         self.preflight_s, self.reroute_s = 0.0, list[float]()
@@ -160,6 +169,10 @@ class FleetCapacityPlanner:
         else:
             self.grids = {n: TracedRelayGrid(scene, tracer, source=self.sources[0], relay=n, moving=self._moving(n),
                                              coherent=traced_coherent) for n in self.relays}
+        self.yaws = dict(yaws or {})
+        # every yaw's holdable axes at a relay's best goal, one compiled call
+        self.yaw_grids = {n: (CompiledRelayGrid(scene, 1, len(y.all_axes()), source=self.sources[0], relay=n, moving=self._moving(n))
+                              if tracer is None else self.grids[n]) for n, y in self.yaws.items()}
         K = len(self.relays)
         # the joint moves' configurations: every non-empty subset of the relays up to JOINT_SUBSETS_MAX_RELAYS, beyond
         # it all relays together and each alone
@@ -170,6 +183,7 @@ class FleetCapacityPlanner:
                                TracedConfigurations(scene, tracer, tuple(self.relays), tuple(self.sources), coherent=traced_coherent))
         self.cycle = max(settings.replan_every, K)  # steps between two decisions
         self.scored: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
+        self.scored_yaw: dict[int, float] = {}  # a relay's better yaw goal (rad), taken with its move
         self.held: dict[int, np.ndarray] = {}
         self.gravity = next(iter(shapers.values())).gravity if shapers else 9.81
         self.k = 0
@@ -223,12 +237,23 @@ class FleetCapacityPlanner:
         n, others = self.relays[j], self._others(inp)
         cand = self._candidates(inp.t + self.settings.lookahead_s, j)
         here = {**others, **{m: NodePose(self.goals[m], self.axis_goals[m]) for m in self.relays}}
-        rate = self.grids[n](cand, self.axes[n], here[self.sources[0]], *self._jammers(inp), tuple(here[m] for m in self._moving(n)))
+        yaw = self.yaws.get(n)
+        axes = self.axes[n] if yaw is None else yaw.axes()
+        moving = tuple(here[m] for m in self._moving(n))
+        rate = self.grids[n](cand, axes, here[self.sources[0]], *self._jammers(inp), moving)
         rate = np.nan_to_num(rate, nan=-np.inf)
         vehicles = np.array([np.asarray(p.position, float) for p in others.values()]).reshape(-1, 3)
         rate[self._blocked(cand, np.concatenate([vehicles, *[self.goals[m][None] for m in self.relays if m != n]]))] = -np.inf
         i, b = np.unravel_index(int(np.argmax(rate)), rate.shape)
-        self.scored[j] = (cand[i].copy(), self.axes[n][b].copy(), float(rate[i, b]))
+        self.scored[j] = (cand[i].copy(), axes[b].copy(), float(rate[i, b]))
+        self.scored_yaw.pop(j, None)
+        if yaw is not None and np.isfinite(rate[i, b]):  # every yaw's axes at the best goal: a better yaw goes with the move
+            every = yaw.all_axes()
+            c = np.nan_to_num(self.yaw_grids[n](cand[i:i + 1], every, here[self.sources[0]], *self._jammers(inp), moving)[0],
+                              nan=-np.inf)
+            k = yaw.better(c, float(rate[i, b]))
+            if k is not None:
+                self.scored[j], self.scored_yaw[j] = (cand[i].copy(), every[k].copy(), float(c[k])), yaw.yaw_of(k)
         # holding: the goal brought within the leash (the route moves on: a relay whose move is not taken still follows it)
         self.held[j] = cand[_HOLD].copy() if np.isfinite(rate[_HOLD]).any() else self.goals[n].copy()
 
@@ -244,7 +269,10 @@ class FleetCapacityPlanner:
             for j in chosen:
                 n = self.relays[j]
                 self.goals[n], self.axis_goals[n] = self.scored[j][0].copy(), self.scored[j][1].copy()
+                if j in self.scored_yaw:
+                    self.yaws[n].goal = self.scored_yaw[j]
         self.scored.clear()
+        self.scored_yaw.clear()
         self.held.clear()
 
     def _joint(self, inp: FleetInput, movers: list[int]) -> list[int]:
@@ -309,8 +337,13 @@ class FleetCapacityPlanner:
             sh = self.shapers[n]
             v_ref = sh.advance(self.goals[n], inp.dt)
             sh.turn_axis(self.axis_goals[n], inp.dt)
-            axis = sh.held_axis(sh.axis)
+            yaw, axis_now = 0.0, sh.axis
+            if n in self.yaws:  # the axis the relay holds at its measured yaw while it turns
+                yaw = self.yaws[n].advance(inp.dt)
+                axis_now = self.yaws[n].clip(sh.axis, float(inp.yaws.get(n, 0.0)))
+            axis = sh.held_axis(axis_now)
             assert sh.p_ref is not None
             out[n] = Reference(p_opt=self.goals[n].copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref,
-                               a_ref=sh.acceleration(inp.positions.get(n, sh.p_ref), inp.velocities.get(n), axis), axis=axis)
+                               a_ref=sh.acceleration(inp.positions.get(n, sh.p_ref), inp.velocities.get(n), axis), axis=axis,
+                               yaw=yaw)
         return out

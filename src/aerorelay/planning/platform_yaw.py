@@ -44,13 +44,21 @@ class PlatformYaw:
         """``(len(yaws) * K, 3)``: the holdable axes at every yaw, yaw by yaw (computed once)."""
         return self._all_axes
 
-    def choose(self, capacities: np.ndarray, current: float) -> int | None:
-        """Given the capacities of ``all_axes()`` at one position, move the goal to the best yaw when
-        it beats the goal's ``current`` best by the relative ``gain``; the index of its best axis."""
+    def better(self, capacities: np.ndarray, current: float) -> int | None:
+        """Given the capacities of ``all_axes()`` at one position, the index of the best axis when it beats the
+        goal's ``current`` best by the relative ``gain`` (its yaw: ``yaw_of``), else None; the goal unchanged."""
         k = int(np.argmax(capacities))
-        if capacities[k] <= current * (1.0 + self.gain):
-            return None
-        self.goal = float(self.yaws[k // len(self.body_axes)])
+        return None if capacities[k] <= current * (1.0 + self.gain) else k
+
+    def yaw_of(self, k: int) -> float:
+        """The yaw (rad) of ``all_axes()[k]``."""
+        return float(self.yaws[k // len(self.body_axes)])
+
+    def choose(self, capacities: np.ndarray, current: float) -> int | None:
+        """``better``, the goal moved to its yaw."""
+        k = self.better(capacities, current)
+        if k is not None:
+            self.goal = self.yaw_of(k)
         return k
 
     def advance(self, dt: float) -> float:

@@ -11,6 +11,7 @@ from .capacity_planner import CapacityPlanner, holdable_axes, shaper_settings
 from .fleet import EquidistantPlanner, EquidistantSettings, NetworkPlannerContext
 from .fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_route
 from .network_generator import NetworkGenerator
+from .platform_yaw import PlatformYaw
 from .trajectory_generator import Reference, SurrogateParams, TrajectoryGenerator
 
 
@@ -109,7 +110,9 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
                                 FleetCapacitySettings(step_m=cap.step_m, replan_every=cap.replan_every,
                                                       lookahead_s=cap.lookahead_s, leash_m=cap.leash_m, margin_m=cap.margin_m,
                                                       separation_m=ctx.separation_m, obstacles=ctx.obstacles, **_box(ctx)),
-                                route, tracer=ctx.tracer, traced_coherent=ctx.traced_coherent)
+                                route, tracer=ctx.tracer, traced_coherent=ctx.traced_coherent,
+                                yaws={name: PlatformYaw(h[2], h[0], h[1], rate=np.radians(own[name].yaw_rate_deg_s))
+                                      for name, h in held.items() if own[name].yaw_rate_deg_s > 0 and float(h[1].max()) > 0})
 
 
 @register_network_planner("trajectory_generator", references="alignment")
