@@ -9,9 +9,16 @@ settings.load_profile("aerorelay")
 
 
 @pytest.fixture(scope="session", autouse=True)
-def fresh_codegen_cache(tmp_path_factory):
-    """Every test session compiles the NMPC code from scratch (as a fresh machine would)."""
+def fresh_codegen_cache(tmp_path_factory, request):
+    """Every test run compiles the NMPC code from scratch (as a fresh machine would), once: pytest-xdist's workers
+    share one cache folder (its builders serialize on a file lock and publish whole libraries, as dask workers do:
+    ``store.codegen.shared_library``), so no C source is compiled by both."""
     mp = pytest.MonkeyPatch()
-    mp.setenv("AERORELAY_CACHE", str(tmp_path_factory.mktemp("codegen")))
+    if not hasattr(request.config, "workerinput"):  # not a pytest-xdist worker
+        folder = tmp_path_factory.mktemp("codegen")
+    else:  # the workers' temporary folders share this run's parent
+        folder = tmp_path_factory.getbasetemp().parent / "codegen"
+        folder.mkdir(exist_ok=True)
+    mp.setenv("AERORELAY_CACHE", str(folder))
     yield
     mp.undo()
