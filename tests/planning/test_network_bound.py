@@ -318,8 +318,8 @@ def _random_flyable_fleets(pb, times, n, rng):
 
 
 def _upright_rate(solver, t: float, P: np.ndarray) -> float:
-    """The true rate of isotropic relays at ``P`` ``(K, 3)``: their axes change nothing (checked against two tilted
-    axes), so upright ones stand for the best (``best_axes`` searches them: most of a test's time)."""
+    """The true rate of isotropic relays at ``P`` ``(K, 3)``: their axes change nothing (checked against a tilted
+    one), so upright ones stand for the best (``best_axes`` searches them: most of a test's time)."""
     poses = solver.fixed_poses(t)
     rate = solver.rate(t, P, np.tile([0.0, 0.0, 1.0], (len(P), 1)), poses)
     tilted = np.tile([np.sin(0.3), 0.0, np.cos(0.3)], (len(P), 1))

@@ -203,11 +203,8 @@ class CapacityPlanner:
         self._k += 1
         v_ref = sh.advance(self._goal(inp), inp.dt)
         sh.turn_axis(self.axis_goal, inp.dt)
-        yaw = 0.0
-        axis_now = sh.axis
-        if self.yaw is not None:  # the axis the platform holds at its measured yaw while it turns
-            yaw = self.yaw.advance(inp.dt)
-            axis_now = self.yaw.clip(sh.axis, inp.psi1)
+        # the axis the platform holds at its measured yaw while it turns
+        yaw, axis_now = (0.0, sh.axis) if self.yaw is None else self.yaw.turn(sh.axis, inp.psi1, inp.dt)
         # a coplanar relay tilts only by accelerating (rho_d from a_ref); a tilted one holds the
         # antenna axis relative to the thrust its acceleration needs
         axis = sh.held_axis(axis_now)

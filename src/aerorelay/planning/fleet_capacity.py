@@ -337,10 +337,9 @@ class FleetCapacityPlanner:
             sh = self.shapers[n]
             v_ref = sh.advance(self.goals[n], inp.dt)
             sh.turn_axis(self.axis_goals[n], inp.dt)
-            yaw, axis_now = 0.0, sh.axis
-            if n in self.yaws:  # the axis the relay holds at its measured yaw while it turns
-                yaw = self.yaws[n].advance(inp.dt)
-                axis_now = self.yaws[n].clip(sh.axis, float(inp.yaws.get(n, 0.0)))
+            # the axis the relay holds at its measured yaw while it turns
+            yaw, axis_now = ((0.0, sh.axis) if n not in self.yaws else
+                             self.yaws[n].turn(sh.axis, float(inp.yaws.get(n, 0.0)), inp.dt))
             axis = sh.held_axis(axis_now)
             assert sh.p_ref is not None
             out[n] = Reference(p_opt=self.goals[n].copy(), p_ref=sh.p_ref.copy(), v_ref=v_ref,

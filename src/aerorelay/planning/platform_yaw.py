@@ -67,6 +67,11 @@ class PlatformYaw:
         self.ref += float(np.clip(d, -self.rate * dt, self.rate * dt))
         return self.ref
 
+    def turn(self, axis: np.ndarray, psi: float, dt: float) -> tuple[float, np.ndarray]:
+        """One control step: the yaw reference after ``dt`` s (``advance``) and ``axis`` clipped to what the
+        platform holds at its measured yaw ``psi`` while it turns (``clip``)."""
+        return self.advance(dt), self.clip(axis, psi)
+
     def clip(self, axis: np.ndarray, psi: float) -> np.ndarray:
         """``axis`` with its tilt reduced to what the platform holds at yaw ``psi`` (the measured one)."""
         b = rotate_z(axis, -psi)
