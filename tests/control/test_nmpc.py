@@ -287,3 +287,22 @@ def test_sensitivity_feedback_needs_the_uncondensed_engine():
     with pytest.raises(ValueError, match="NmpcSettings.feedback"):
         NmpcSettings(feedback="sensitivity", backend="casadi")
     assert NmpcSettings(backend="casadi").feedback == "solve" and NmpcSettings().feedback == "sensitivity"
+
+
+def test_ocps_that_differ_only_in_the_workspace_share_one_library_and_each_keeps_its_own(plant):
+    """The engine's library is keyed by its C source alone; the workspace is not in it (its bounds reach the engine
+    when it is made), so a scenario that moves its walls compiles nothing, and each engine keeps its own walls:
+    told to climb 3 m, the relay under a ceiling 0.5 m above it stops there (2.50005 m measured), the one without
+    climbs past it (3.10 m in the 150 steps)."""
+    from dataclasses import replace
+
+    from aerorelay.control.hpipm_rti import build_library
+    ceiling = HOME[2] + 0.5
+    low = replace(SPEC, workspace_max=(*SPEC.workspace_max[:2], ceiling))
+    assert build_library(low) == build_library(SPEC)
+    heights = {}
+    for name, spec in (("low", low), ("high", SPEC)):
+        _, hist = fly(NMPC(spec, NmpcSettings(backend="hpipm")), plant, VEH.hover_state(HOME), 150,
+                      lambda k, spec=spec: params(HOME + np.array([0.0, 0.0, 3.0]), spec=spec))
+        heights[name] = max(h[0][2] for h in hist)
+    assert heights["low"] <= ceiling + 0.02 < ceiling + 0.5 < heights["high"]

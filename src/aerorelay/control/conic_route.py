@@ -83,7 +83,7 @@ class ConicEngine:
         self.spec = spec
         N, nx, nw = spec.horizon, spec.nx, spec.nw
         prep = build_preparation(spec)
-        self.prep = compiled(prep, spec.key()) if settings.compile else prep
+        self.prep = compiled(prep, "")  # keyed by its source, which holds every constant if settings.compile else prep
         self.update = build_update(spec)
         sp = {"h": prep.sparsity_out("H"), "a": prep.sparsity_out("A")}
         ng = [0] + [spec.ng] * (N - 1) + [0]

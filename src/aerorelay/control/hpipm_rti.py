@@ -155,8 +155,10 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ENGINE_FLAGS, simd_ker
         head = simd_source() + SIMD_HEAD + head
     source = generated + "\n" + head + driver
     cdir = _casadi_dir()
+    # keyed by the source alone: it holds every constant of the engine (the workspace, bounds and settings that are
+    # not in it reach the engine at run time), so OCPs that differ only there share one library
     return shared_library(
-        "nmpc_rti", source, spec.key(), flags=(*flags, f"-I{cdir / 'include'}"),
+        "nmpc_rti", source, "", flags=(*flags, f"-I{cdir / 'include'}"),
         link=(f"-L{cdir}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{cdir}", "-lm"),
     )
 

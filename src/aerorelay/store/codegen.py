@@ -1,9 +1,11 @@
 """Compile C code (CasADi-generated or ours) to shared libraries, cached on disk.
 
 The cache folder is ``$AERORELAY_CACHE`` or ``~/.cache/aerorelay``; a library is keyed by a hash
-of its complete C source (which embeds the expression graph), the caller's key, the CasADi
-version and the compiler flags, so any change to the model or the code generating it builds a
-new library. When no C compiler is available the caller falls back (a warning is logged).
+of its complete C source (which embeds the expression graph and every constant in it), the
+caller's key (what the library depends on beyond its source; the generated engines have none),
+the CasADi version and the compiler flags, so any change to the model or the code generating it
+builds a new library, and two models with one source (OCPs that differ only in run-time bounds,
+e.g. the workspace) share one. When no C compiler is available the caller falls back (a warning is logged).
 """
 
 from __future__ import annotations
