@@ -113,8 +113,12 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         for r, (c, rad) in within.items():
             if r in P and rad < float(np.linalg.norm(box[r][1] - box[r][0])) / 2:  # the ball cuts the box
                 m.addCons(sum((P[r][i] - float(c[i])) ** 2 for i in range(3)) <= float(rad) ** 2)
-    A = {}
+    node_pat = {n.name: n.antenna.pattern for n in scene.nodes}
+    A: dict[str, list] = {}
     for r in relays:
+        if _pattern(node_pat[r])[0] == "iso":  # its axis changes no gain: no variables (SCIP branched on the sphere)
+            A[r] = [0.0, 0.0, 1.0]
+            continue
         cz = math.cos(tilt_limits[r])
         a = [m.addVar(f"{tag}a_{r}_x", lb=-1, ub=1), m.addVar(f"{tag}a_{r}_y", lb=-1, ub=1), m.addVar(f"{tag}a_{r}_z", lb=cz, ub=1)]
         m.addCons(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] == 1)
@@ -161,15 +165,18 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         far = float(np.sum(np.maximum(np.abs(ahi - blo), np.abs(bhi - alo)) ** 2))  # a jammer beyond diag2's nodes
         return least, max(diag2, far, least)
 
-    def link(a, b):
+    def link(a, b, with_length: bool = True):
         """``(delta, d2, d)`` of the link from ``a`` to ``b`` (names or fixed points): its vector (expressions), its
-        squared length and length (variables)."""
+        squared length and length (variables; without ``with_length`` no length: only a pattern's cosine needs it,
+        and an unused ``d * d == d2`` is one more nonconvex equality SCIP branches on)."""
         p_from = pos(a) if isinstance(a, str) else [float(v) for v in a]
         p_to = pos(b) if isinstance(b, str) else [float(v) for v in b]
         delta = [p_to[i] - p_from[i] for i in range(3)]
         d2_lo, d2_hi = d2_range(a, b)
         d2 = fresh("d2", d2_lo, d2_hi)
         m.addCons(d2 == delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2])
+        if not with_length:
+            return delta, d2, None
         d = fresh("d", math.sqrt(d2_lo), math.sqrt(d2_hi))
         m.addCons(d * d == d2)
         return delta, d2, d
@@ -207,7 +214,6 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
 
     b = scene.budget
     emitters = [e for e in scene.emitters(t, poses) if e.power > 0.0]
-    node_pat = {n.name: n.antenna.pattern for n in scene.nodes}
     interference_at: dict[str, object] = {}
 
     def interference(rx):
@@ -216,7 +222,8 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         total: object = 0.0
         for e in emitters:
             ep = [float(v) for v in np.asarray(e.position, float)]
-            delta, d2, d = link(ep, rx) if is_var(rx) else (None, None, None)
+            iso = _pattern(e.pattern)[0] == _pattern(node_pat[rx])[0] == "iso"
+            delta, d2, d = link(ep, rx, not iso) if is_var(rx) else (None, None, None)
             if delta is None:  # a fixed receiver: a number
                 total = total + e.power / b.noise_power * float(link_gain(e.position, e.axis, e.pattern, poses[rx].position, poses[rx].axis,
                                                           node_pat[rx], pg))
@@ -236,7 +243,7 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         if k not in uses:
             continue
         moving = is_var(tx) or is_var(rx)
-        delta, d2, d = link(tx, rx)
+        delta, d2, d = link(tx, rx, not _pattern(node_pat[tx])[0] == _pattern(node_pat[rx])[0] == "iso")
         gt = gain(node_pat[tx], axis(tx), delta, d, 1.0, is_var(tx), moving)
         gr = gain(node_pat[rx], axis(rx), delta, d, -1.0, is_var(rx), moving)
         g_most = _pattern(node_pat[tx])[1] * _pattern(node_pat[rx])[1]
@@ -282,7 +289,7 @@ def _best(m, Ps: list[dict], As: list[dict], relays: list[str]) -> tuple[np.ndar
     sol = m.getBestSol()
     assert sol is not None
     positions = np.array([[[sol[v] for v in P[r]] for r in relays] for P in Ps])
-    axes = np.array([[[sol[v] for v in A[r]] for r in relays] for A in As])
+    axes = np.array([[[v if isinstance(v, float) else sol[v] for v in A[r]] for r in relays] for A in As])
     return positions, axes / np.linalg.norm(axes, axis=2, keepdims=True), float(m.getSolObjVal(sol))
 
 
