@@ -139,7 +139,7 @@ def test_a_fleet_runs_from_the_command_line_with_its_network_bound(tmp_path):
     from aerorelay.cli import app
 
     f = tmp_path / "chain.toml"
-    coarse = {**chain(), "bound": {"grid_m": 5.0, "dt_s": 10.0}}
+    coarse = {**chain(), "bound": {"grid_m": 5.0, "dt_s": 10.0}, "sim": {"duration_s": 0.5}}  # the run reuses the bound
     f.write_text(parse_scenario(coarse).to_toml())
     res = CliRunner().invoke(app, ["bound", str(f), "--out", str(tmp_path / "b")])
     assert res.exit_code == 0 and "achieved" in res.output, res.output
