@@ -306,3 +306,9 @@ def test_ocps_that_differ_only_in_the_workspace_share_one_library_and_each_keeps
                       lambda k, spec=spec: params(HOME + np.array([0.0, 0.0, 3.0]), spec=spec))
         heights[name] = max(h[0][2] for h in hist)
     assert heights["low"] <= ceiling + 0.02 < ceiling + 0.5 < heights["high"]
+
+
+@pytest.mark.parametrize("compile_it,kind", [(True, "External"), (False, "MXFunction")])
+def test_the_casadi_route_compiles_its_preparation_only_when_told(compile_it, kind):
+    """``NmpcSettings.compile`` on the casadi.conic route: a compiled library, or CasADi's own function."""
+    assert NMPC(SPEC, NmpcSettings(backend="casadi", compile=compile_it)).engine.prep.class_name() == kind
