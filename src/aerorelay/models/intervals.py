@@ -63,10 +63,11 @@ def link_ranges(d_lo, d_hi) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndar
 def _elevation(d_lo, d_hi, nearest, farthest) -> tuple[np.ndarray, np.ndarray]:
     h_min, h_max = np.hypot(nearest[..., 0], nearest[..., 1]), np.hypot(farthest[..., 0], farthest[..., 1])
     z_lo, z_hi = d_lo[..., 2], d_hi[..., 2]
-    # largest: the highest z with the nearest horizontal distance when it is >= 0, the farthest when below
-    top = np.where(z_hi >= 0.0, _sin_elevation(h_min, z_hi), _sin_elevation(h_max, z_hi))
-    bottom = np.where(z_lo <= 0.0, _sin_elevation(h_min, z_lo), _sin_elevation(h_max, z_lo))
-    holds_origin = np.all((d_lo <= 0.0) & (d_hi >= 0.0), axis=-1)
+    # largest: the highest z with the nearest horizontal distance when it is >= 0, the farthest when below (the
+    # distance chosen first, one sine computed)
+    top = _sin_elevation(np.where(z_hi >= 0.0, h_min, h_max), z_hi)
+    bottom = _sin_elevation(np.where(z_lo <= 0.0, h_min, h_max), z_lo)
+    holds_origin = np.all(nearest == 0.0, axis=-1)  # every axis's nearest 0: the box straddles the origin
     top = np.where(holds_origin | ((h_min == 0.0) & (z_hi > 0.0)), 1.0, top)
     bottom = np.where(holds_origin | ((h_min == 0.0) & (z_lo < 0.0)), -1.0, bottom)
     return bottom, top
