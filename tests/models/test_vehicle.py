@@ -148,3 +148,20 @@ def test_attitude_from_thrust_points_body_z():
         eta = attitude_from_thrust(d, yaw)
         np.testing.assert_allclose(rotation_zyx(eta)[:, 2], d / np.linalg.norm(d), atol=1e-12)
         assert eta[2] == pytest.approx(yaw)
+
+
+def test_hover_tilt_limits_are_the_largest_holdable_tilts_and_follow_the_vehicle():
+    """Toward each azimuth the limit is holdable and 0.2 deg more is not (the LP itself, not the limit's code); an
+    equal vehicle gets the same (kept) limits, a heavier one its own: the kept value follows what decides it."""
+    from dataclasses import replace
+
+    az = np.radians([0.0, 30.0, 75.0])
+    veh = hexarotor(20.0)
+    limits = veh.hover_tilt_limits(az)
+    for a, lim in zip(az, limits, strict=True):
+        assert veh.can_hover_tilted(lim, a) and not veh.can_hover_tilted(lim + np.radians(0.2), a)
+    assert np.array_equal(hexarotor(20.0).hover_tilt_limits(az), limits)
+    heavy = replace(veh, mass=1.3 * veh.mass)
+    assert not np.array_equal(heavy.hover_tilt_limits(az), limits)
+    for a, lim in zip(az, heavy.hover_tilt_limits(az), strict=True):
+        assert heavy.can_hover_tilted(lim, a) and not heavy.can_hover_tilted(lim + np.radians(0.2), a)

@@ -79,9 +79,10 @@ def test_yawing_relay_stays_on_its_reference_and_inside_its_limits():
 
 def test_a_fleet_yaws_its_relays_when_told_and_stays_on_its_references():
     """The network study's two relays at 120 m (tilted hexarotors, the jammer to the south-east), the fleet's capacity
-    planner allowed to yaw at 30 deg/s for 8 s (measured 2026-12-06: 29.7 deg turned, 6.2 deg at 0 deg/s): a relay turns (its tilt toward the jammer's null is held only at some
+    planner allowed to yaw at 30 deg/s for 8 s: a relay turns (its tilt toward the jammer's null is held only at some
     yaws), on its position reference, without a fallback or a safety violation; told 0 deg/s, no relay turns by more
-    than the NMPC's own drift (the setting is honoured, not ignored, for a fleet)."""
+    than the NMPC's own drift (the setting is honoured, not ignored, for a fleet). Measured 2026-12-06: 29.7 deg
+    turned at 30 deg/s, 6.2 deg at 0."""
     relays = [{"name": "r1", "start": [8.0, 2.0, 6.0]}, {"name": "r2", "start": [4.0, -2.0, 6.0]}]
     turned = {}
     for rate in (0.0, 30.0):
