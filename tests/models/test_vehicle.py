@@ -165,3 +165,17 @@ def test_hover_tilt_limits_are_the_largest_holdable_tilts_and_follow_the_vehicle
     assert not np.array_equal(heavy.hover_tilt_limits(az), limits)
     for a, lim in zip(az, heavy.hover_tilt_limits(az), strict=True):
         assert heavy.can_hover_tilted(lim, a) and not heavy.can_hover_tilted(lim + np.radians(0.2), a)
+
+
+def test_the_hover_tilt_limit_is_the_best_azimuths_and_follows_the_vehicle():
+    """The yaw-free limit is holdable toward some azimuth of its 72 and 0.2 deg more toward none; an equal vehicle
+    gets the same, a heavier one its own (0 for a coplanar layout)."""
+    from dataclasses import replace
+
+    az = np.radians(np.arange(0.0, 360.0, 5.0))
+    for veh in (hexarotor(20.0), replace(hexarotor(20.0), mass=3.3)):
+        lim = veh.hover_tilt_limit
+        assert any(veh.can_hover_tilted(lim, a) for a in az)
+        assert not any(veh.can_hover_tilted(lim + np.radians(0.2), a) for a in az)
+    assert hexarotor(20.0).hover_tilt_limit == hexarotor(20.0).hover_tilt_limit != replace(hexarotor(20.0), mass=3.3).hover_tilt_limit
+    assert hexarotor(0.0).hover_tilt_limit == 0.0

@@ -117,21 +117,30 @@ class Multirotor:
         yaw, the antenna axis tilts the vehicle can hold toward each world azimuth. Found once per
         process for equal vehicles (``_TILT_LIMITS``: about 400 LPs, 0.6 s, for 36 azimuths)."""
         az = np.asarray(azimuths, float)
-        F, M = self.allocation()
-        key = (F.tobytes(), M.tobytes(), self.mass, self.gravity, self.omega_min, self.omega_max, az.tobytes())
+        key = self._hover_key + (az.tobytes(),)
         if key not in _TILT_LIMITS:
             _TILT_LIMITS[key] = np.array([self._tilt_limit_toward(a) for a in az])
             _TILT_LIMITS[key].setflags(write=False)
         return _TILT_LIMITS[key]
 
     @cached_property
+    def _hover_key(self) -> tuple:
+        """What decides whether a tilted hover is holdable (``can_hover_tilted``): the allocation, weight, motor range."""
+        F, M = self.allocation()
+        return (F.tobytes(), M.tobytes(), self.mass, self.gravity, self.omega_min, self.omega_max)
+
+    @cached_property
     def hover_tilt_limit(self) -> float:
         """Largest body tilt (rad) the vehicle can hold in hover toward its best body azimuth (yaw
-        free, so any world azimuth): 0 for a coplanar layout. Bisection to 0.1 deg over 72 azimuths."""
-        best = 0.0
-        for az in np.radians(np.arange(0.0, 360.0, 5.0)):
-            best = self._tilt_limit_toward(az, best)
-        return float(best)
+        free, so any world azimuth): 0 for a coplanar layout. Bisection to 0.1 deg over 72 azimuths
+        (found once per process for equal vehicles)."""
+        key = self._hover_key + ("best",)
+        if key not in _TILT_LIMITS:
+            best = 0.0
+            for az in np.radians(np.arange(0.0, 360.0, 5.0)):
+                best = self._tilt_limit_toward(az, best)
+            _TILT_LIMITS[key] = np.array(best)
+        return float(_TILT_LIMITS[key])
 
     def hover_state(self, position=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Equilibrium state at ``position`` with zero attitude, velocity and body rate."""
