@@ -123,9 +123,10 @@ def use_simd_kernels(requested: bool) -> tuple[bool, str]:
 
 
 ENGINE_FLAGS = ("-O3",)  # the engine's optimization (the exported C tree's Makefile and CMake use the same)
-# CasADi's stage code is straight-line arithmetic: GCC's -O1 makes it as fast as -O3 (53 us a stage call either way,
-# bit-identical outputs: IEEE arithmetic, no contraction on x86-64's baseline) and compiles it in 1.3 s instead of
-# 2.0 s (measured 2026-12-06); the driver and kernels keep ENGINE_FLAGS
+# The simulator's engine compiles CasADi's stage code (straight-line arithmetic) at GCC's -O1, the driver and kernels
+# at ENGINE_FLAGS: outputs bit-identical (IEEE arithmetic, no contraction on x86-64's baseline), an engine built in
+# 2.2 s instead of 3.0 s, its preparation 1-2% slower (0.679 / 0.666 ms a step, measured 2026-12-06,
+# docs/results/controller-speed.md). The C tree for the flight computer (``aerorelay codegen``) keeps -O3 throughout.
 GENERATED_OPT = ('#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC push_options\n#pragma GCC optimize ("O1")\n'
                  '#endif\n', '\n#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC pop_options\n#endif\n')
 SIMD_HEAD = "\n#define RTI_SIMD 1\nextern int aerorelay_simd_kernels_ran;\n"  # after blasfeo_avx2.c, before the macros
@@ -144,7 +145,7 @@ def engine_parts(spec: OcpSpec) -> tuple[str, str, str]:
     }
     head = "".join(f"#define {k} {v}\n" for k, v in macros.items())
     driver = resources.files("aerorelay.control").joinpath("rti_hpipm.c").read_text()
-    return GENERATED_OPT[0] + generated_c(stage, term) + GENERATED_OPT[1], head, driver
+    return generated_c(stage, term), head, driver
 
 
 def simd_source() -> str:
@@ -156,6 +157,7 @@ def build_library(spec: OcpSpec, flags: tuple[str, ...] = ENGINE_FLAGS, simd_ker
     """Generate, check, compile (once, cached) and return the engine's shared library. With
     ``simd_kernels`` (and ``use_simd_kernels``), ``blasfeo_avx2.c`` is compiled in (see there)."""
     generated, head, driver = engine_parts(spec)
+    generated = GENERATED_OPT[0] + generated + GENERATED_OPT[1]
     if simd_kernels:
         head = simd_source() + SIMD_HEAD + head
     source = generated + "\n" + head + driver
