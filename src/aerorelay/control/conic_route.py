@@ -83,7 +83,8 @@ class ConicEngine:
         self.spec = spec
         N, nx, nw = spec.horizon, spec.nx, spec.nw
         prep = build_preparation(spec)
-        # keyed by its source, which holds every constant; straight-line code: -O1 as fast as -O2, sooner compiled
+        # keyed by its source, which holds every constant; straight-line code at -O1, sooner compiled (the route's
+        # preparation measured 0-4% slower than at -O2: docs/results/controller-speed.md, "Building an engine")
         self.prep = compiled(prep, "", flags=("-O1",)) if settings.compile else prep
         self.update = build_update(spec)
         sp = {"h": prep.sparsity_out("H"), "a": prep.sparsity_out("A")}

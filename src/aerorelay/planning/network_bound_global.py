@@ -114,9 +114,14 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
             if r in P and rad < float(np.linalg.norm(box[r][1] - box[r][0])) / 2:  # the ball cuts the box
                 m.addCons(sum((P[r][i] - float(c[i])) ** 2 for i in range(3)) <= float(rad) ** 2)
     node_pat = {n.name: n.antenna.pattern for n in scene.nodes}
+
+    def isotropic(*patterns) -> bool:
+        """Whether every one of ``patterns`` is isotropic: its axis and a link's direction change no gain."""
+        return all(_pattern(p)[0] == "iso" for p in patterns)
+
     A: dict[str, list] = {}
     for r in relays:
-        if _pattern(node_pat[r])[0] == "iso":  # its axis changes no gain: no variables (SCIP branched on the sphere)
+        if isotropic(node_pat[r]):  # its axis changes no gain: no variables (SCIP branched on the sphere)
             A[r] = [0.0, 0.0, 1.0]
             continue
         cz = math.cos(tilt_limits[r])
@@ -222,8 +227,7 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         total: object = 0.0
         for e in emitters:
             ep = [float(v) for v in np.asarray(e.position, float)]
-            iso = _pattern(e.pattern)[0] == _pattern(node_pat[rx])[0] == "iso"
-            delta, d2, d = link(ep, rx, not iso) if is_var(rx) else (None, None, None)
+            delta, d2, d = link(ep, rx, not isotropic(e.pattern, node_pat[rx])) if is_var(rx) else (None, None, None)
             if delta is None:  # a fixed receiver: a number
                 total = total + e.power / b.noise_power * float(link_gain(e.position, e.axis, e.pattern, poses[rx].position, poses[rx].axis,
                                                           node_pat[rx], pg))
@@ -243,7 +247,7 @@ def _instant(m, scene: RadioScene, t: float, poses: Mapping[str, NodePose], rela
         if k not in uses:
             continue
         moving = is_var(tx) or is_var(rx)
-        delta, d2, d = link(tx, rx, not _pattern(node_pat[tx])[0] == _pattern(node_pat[rx])[0] == "iso")
+        delta, d2, d = link(tx, rx, not isotropic(node_pat[tx], node_pat[rx]))
         gt = gain(node_pat[tx], axis(tx), delta, d, 1.0, is_var(tx), moving)
         gr = gain(node_pat[rx], axis(rx), delta, d, -1.0, is_var(rx), moving)
         g_most = _pattern(node_pat[tx])[1] * _pattern(node_pat[rx])[1]
