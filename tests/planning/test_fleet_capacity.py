@@ -1,9 +1,12 @@
 """The fleet's capacity planner (planning/fleet_capacity.py): its pre-flight route is flyable and reaches
-the chain's even spacing, its compiled scoring picks what scoring each candidate alone picks, its joint moves take
-the best subset, and every relay's reference keeps the shaper's limits."""
+the chain's even spacing, its first guesses across the line find the way around a jammer the even places cannot
+pass, a route planned in flight replaces the one flown only when it plans more, its compiled scoring picks what
+scoring each candidate alone picks, its joint moves take the best subset, and every relay's reference keeps the
+shaper's limits."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -15,7 +18,15 @@ from aerorelay.models.jammer import Jammer
 from aerorelay.models.mission import LinearPath
 from aerorelay.models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene
 from aerorelay.planning.fleet import FleetInput
-from aerorelay.planning.fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_route
+from aerorelay.planning.fleet_capacity import (
+    ROUTE_LATENCY_S,
+    ROUTE_STARTS,
+    FleetCapacityPlanner,
+    FleetCapacitySettings,
+    FleetRoute,
+    fleet_route,
+    fleet_routes,
+)
 from aerorelay.planning.shaper import ShaperSettings
 
 BS = np.array([0.0, 0.0, 2.0])
@@ -48,6 +59,72 @@ def test_the_route_is_flyable_and_reaches_the_even_spacing():
     assert np.linalg.norm(P[1:, 0] - P[1:, 1], axis=-1).min() >= 1.0 - 1e-6
     np.testing.assert_allclose(P[-1], [BS + (SRC - BS) * 2 / 3, BS + (SRC - BS) / 3], atol=0.3)
     np.testing.assert_allclose(route.at(29.5)["r1"], 0.5 * (P[-2, 0] + P[-1, 0]))  # linear between its points
+
+
+def test_the_route_from_across_the_line_passes_a_jammer_the_even_places_cannot():
+    """Two isotropic relays start on the line from the base station to the still source (24 m), a jammer on the
+    line at x = 8 m, where the even places put r2. Everything is symmetric about the line, so IPOPT from the even
+    places stays on it and r2 cannot pass the jammer; from the places shifted a quarter of the workspace's width to
+    either side the relays go around it: the two routes are mirror images (the same rate), well above the line's.
+    ``fleet_route`` flies the best; each route's planned mean rate is the scene's rate along it."""
+    starts = {"r1": np.array([2.0, 0.0, 2.0]), "r2": np.array([1.0, 0.0, 2.0])}
+    jammer = np.array([8.0, 0.0, 2.0])
+    sc = chain(IsotropicPattern(1.0), jammer=jammer)
+    source = {"s": LinearPath(np.array([[0.0, *SRC], [40.0, *SRC]]))}
+    lo, hi = np.array([-1.0, -3.0, 0.0]), np.array([25.0, 3.0, 4.0])
+    kw = dict(t0=0.0, duration_s=30.0, dt_s=1.0, speed_m_s=1.0, accel_m_s2=1.0, gravity=9.81, separation_m=1.0,
+              jammer_positions=jammer[None], jammer_powers=np.array([5.0]))
+    routes = fleet_routes(sc, source, starts, {"r1": 0.3, "r2": 0.3}, lo, hi, **kw)
+    assert ROUTE_STARTS[0] == 0.0 and len(routes) == len(ROUTE_STARTS) == 3
+    line, left, right = routes
+    assert np.abs(line.positions[..., 1]).max() < 1e-6 and line.positions[:, 1, 0].max() <= jammer[0]  # r2 never passes
+    assert right.positions[-1, 1, 0] > jammer[0] + 2.0  # around it
+    np.testing.assert_allclose(left.positions[..., 1], -right.positions[..., 1], atol=1e-3)
+    np.testing.assert_allclose(left.positions[..., [0, 2]], right.positions[..., [0, 2]], atol=1e-3)
+    assert left.mean_rate == pytest.approx(right.mean_rate, rel=1e-4) and left.mean_rate > 3.0 * line.mean_rate
+    for r in routes:  # the planned mean rate is the scene's along the route (isotropic: any axis)
+        up = np.array([0.0, 0.0, 1.0])
+        rates = [sc.evaluate(float(t), {"s": NodePose(SRC, up), "bs": NodePose(BS, up), "r1": NodePose(r.positions[i, 0], up),
+                                        "r2": NodePose(r.positions[i, 1], up)},
+                             jammer_positions=jammer[None], jammer_powers=np.array([5.0])).capacity for i, t in enumerate(r.t)]
+        assert r.mean_rate == pytest.approx(float(np.mean(rates)), rel=1e-9)
+    assert fleet_route(sc, source, starts, {"r1": 0.3, "r2": 0.3}, lo, hi, **kw).mean_rate == max(r.mean_rate for r in routes)
+
+
+@pytest.mark.parametrize("order", ["worse_first", "better_first"])
+def test_a_route_planned_in_flight_is_flown_when_ready_and_replaced_only_by_a_better_one(order):
+    """Before take-off the best route is flown at once; when the jammer becomes known (t = 1 s) the goals are
+    unleashed (no route) until the first new route is ready ``ROUTE_LATENCY_S`` later, and the second, ready
+    ``ROUTE_LATENCY_S`` after it, replaces it only if it plans a higher mean rate."""
+    t = np.arange(0.0, 21.0, 1.0)
+    start = np.stack([STARTS["r1"], STARTS["r2"]])[None].repeat(len(t), axis=0)
+    low, high = FleetRoute(t, start, ("r1", "r2"), 1.0), FleetRoute(t, start + 0.1, ("r1", "r2"), 2.0)
+    calls = []
+
+    def builder(t0, starts, jammer_positions, jammer_powers):
+        calls.append(t0)
+        return [low, high] if order == "worse_first" else [high, low]
+
+    planner = _planner(chain(DipolePattern(), jammer=[8.0, -4.0, 1.0]))
+    planner.route_builder = builder
+    flown = []
+    for k in range(400):
+        inp = _input(0.015 * k)
+        if inp.t < 1.0:
+            inp = dataclasses.replace(inp, jammer_positions=None, jammer_powers=None)
+        planner.update(inp)
+        flown.append((inp.t, planner.route))
+    assert calls == [0.0, pytest.approx(1.005)]
+    known = calls[1]
+    for tt, route in flown:
+        if tt < known:
+            assert route is high  # the best before take-off
+        elif tt < known + ROUTE_LATENCY_S - 1e-9:
+            assert route is None  # unleashed while the new routes are planned
+        elif tt < known + 2 * ROUTE_LATENCY_S - 1e-9:
+            assert route is (low if order == "worse_first" else high)
+        else:
+            assert route is high
 
 
 def _planner(scene, joint=True):

@@ -1,12 +1,19 @@
 """The fleet's capacity-seeking planner: what the one relay's has, for every relay of a network.
 
-**Before take-off** (``fleet_route``, from the sources' mission plans and the jammers as the fleet
+**Before take-off** (``fleet_routes``, from the sources' mission plans and the jammers as the fleet
 knows them at its first step, silent where not localized yet; planned again when a jammer becomes
-known in flight, flown ``ROUTE_LATENCY_S`` later, the goals unleashed meanwhile): every
+known in flight, the goals unleashed until the first new route is ready): every
 ``route_dt_s`` the relays' evenly spaced places on their routes, chased from the relays' starts
 within the speed and acceleration limits, with each relay's best holdable axis
 (``fleet_configuration.FleetConfigurations.best_axes``), then every relay's path optimized jointly on
 the network's rate at those limits (``feasible_path.best_feasible_fleet_path``, with the separation): the route the fleet flies near.
+That optimization is local, and a jammer splits the places into branches (above it, nulling it with the
+antenna's tilt, or on the line's far side): IPOPT from the even places picks one by a hair (two runs of the
+network study's two relays at 120 m, their starts 0.1 m apart when the jammer became known, went to opposite
+sides). So the route is optimized from ``ROUTE_STARTS``: the even places, and the same shifted to either side of
+the line, across it by a quarter of the workspace's width there; the best mean rate is flown. In flight the
+solves run one after another beside the control loop, each ready ``ROUTE_LATENCY_S`` after the previous, and a
+route replaces the one flown when its mean rate is higher (the first is flown as soon as it is ready).
 
 **In flight**, once every ``max(replan_every, K)`` control steps, the sources predicted
 ``lookahead_s`` ahead at constant acceleration (their antennas along their thrust): every relay's
@@ -36,7 +43,7 @@ from __future__ import annotations
 import itertools
 import logging
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,9 +64,13 @@ from .trajectory_generator import Reference
 log = logging.getLogger(__name__)
 
 GOAL_CLEARANCE_M = 0.5  # a goal's extra clearance over the separation (m): the NMPC's own margin stays unused
-# a route planned again in flight is flown this long after the jammer became known (s): it runs beside the control loop
-# (0.73 s for two relays, 1.27 s for three over the 47 s mission on the 2-core VM, 2026-12-04)
+# a route solved in flight is flown this long after the jammer became known, or after the previous solve (s): it runs
+# beside the control loop (one solve: 0.73 s for two relays, 1.27 s for three over the 47 s mission on the 2-core VM,
+# 2026-12-04; 0.6-0.9 s for two relays 2026-12-07)
 ROUTE_LATENCY_S = 1.5
+# the route's first guesses: the even places shifted across the source-base station line by these fractions of the
+# workspace's width across it (0: the even places themselves), solved in this order
+ROUTE_STARTS = (0.0, -0.25, 0.25)
 JOINT_SUBSETS_MAX_RELAYS = 4  # every subset of the relays' moves scored up to this many relays (2^K configurations)
 _OFFSETS = np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=3)))
 _HOLD = 13  # the stencil's centre (offset 0): the goal held, brought within the leash
@@ -88,11 +99,12 @@ class FleetCapacitySettings:
 @dataclass(frozen=True)
 class FleetRoute:
     """A pre-flight route: times ``(T,)`` (s) and every relay's positions ``(T, K, 3)`` (m, world), relays
-    in ``relays`` order."""
+    in ``relays`` order, and its planned mean rate."""
 
     t: np.ndarray
     positions: np.ndarray
     relays: tuple[str, ...]
+    mean_rate: float = float("nan")  # the network's mean rate along it as planned (bit/s; nan: not scored)
 
     def at(self, t: float) -> dict[str, np.ndarray]:
         """Every relay's place on the route at ``t`` (s), linear between its points."""
@@ -100,32 +112,66 @@ class FleetRoute:
                 for k, r in enumerate(self.relays)}
 
 
-def fleet_route(scene: RadioScene, sources: Mapping[str, SourceTrajectory], starts: Mapping[str, np.ndarray],
-                tilt_limits: Mapping[str, float], lo, hi, *, t0: float, duration_s: float, dt_s: float, speed_m_s: float,
-                accel_m_s2: float, gravity: float, separation_m: float = 0.0, obstacles: tuple = (),
-                axis_step_deg: float = 10.0, jammer_positions=None, jammer_powers=None) -> FleetRoute:
-    """The fleet's route (module docstring) from ``t0`` to ``duration_s`` (s) every ``dt_s``, the relays starting at
-    rest at ``starts`` (m), the jammers where the fleet knows them (``jammer_positions`` ``(nJ, 3)`` m,
-    ``jammer_powers`` ``(nJ,)`` W; None: silent, not localized yet)."""
+def across_line(scene: RadioScene, positions: Mapping[str, np.ndarray], relays: Sequence[str]) -> dict[str, np.ndarray]:
+    """Each relay's horizontal unit vector across its route's line (source to base station, the first route it is
+    on; the x axis where the source is straight above its base station)."""
+    out: dict[str, np.ndarray] = {}
+    for route in scene.all_routes:
+        d = np.asarray(positions[route[0]], float) - np.asarray(positions[route[-1]], float)
+        h = float(np.hypot(d[0], d[1]))
+        n = np.array([-d[1] / h, d[0] / h, 0.0]) if h > 1e-9 else np.array([1.0, 0.0, 0.0])
+        for r in route[1:-1]:
+            out.setdefault(r, n)
+    return {r: out.get(r, np.array([1.0, 0.0, 0.0])) for r in relays}
+
+
+def fleet_routes(scene: RadioScene, sources: Mapping[str, SourceTrajectory], starts: Mapping[str, np.ndarray],
+                 tilt_limits: Mapping[str, float], lo, hi, *, t0: float, duration_s: float, dt_s: float, speed_m_s: float,
+                 accel_m_s2: float, gravity: float, separation_m: float = 0.0, obstacles: tuple = (),
+                 axis_step_deg: float = 10.0, jammer_positions=None, jammer_powers=None,
+                 route_starts: Sequence[float] = ROUTE_STARTS) -> list[FleetRoute]:
+    """The fleet's routes (module docstring), one per first guess in ``route_starts``, in that order, from ``t0`` to
+    ``duration_s`` (s) every ``dt_s``, the relays starting at rest at ``starts`` (m), the jammers where the fleet
+    knows them (``jammer_positions`` ``(nJ, 3)`` m, ``jammer_powers`` ``(nJ,)`` W; None: silent, not localized yet)."""
     relays = list(starts)
     times = np.arange(t0, max(duration_s, t0) + 1e-9, dt_s)
+    if len(times) < 2:
+        return [FleetRoute(times, np.clip(np.stack([starts[r] for r in relays])[None], lo, hi), tuple(relays))]
     silent = np.zeros(len(scene.jammers)) if jammer_powers is None else np.asarray(jammer_powers, float)
     configs = FleetConfigurations(scene, relays, lo, hi, tilt_limits, np.radians(axis_step_deg), separation_m, obstacles,
                                   jammer_positions=jammer_positions, jammer_powers=silent)
     poses = [mission_poses(scene, sources, float(t), gravity) for t in times]
     # evenly spaced places at every instant, chased from the starts: IPOPT's first guess (a per-instant refinement
     # of the places on the network's rate first gave the same route, 6x slower: docs/decisions.md)
-    places = np.empty((len(times), len(relays), 3))
+    places, across = np.empty((len(times), len(relays), 3)), np.empty((len(times), len(relays), 3))
+    width = np.asarray(hi, float) - np.asarray(lo, float)
     for i in range(len(times)):
-        even = equidistant_targets(scene.all_routes, {n: p.position for n, p in poses[i].items()}, scene.handover)
+        at = {n: p.position for n, p in poses[i].items()}
+        even = equidistant_targets(scene.all_routes, at, scene.handover)
         places[i] = np.stack([even[r] for r in relays])
-    if len(times) < 2:
-        return FleetRoute(times, np.clip(np.stack([starts[r] for r in relays])[None], lo, hi), tuple(relays))
-    fleet = flyable_fleet_path(configs, times, places, np.stack([starts[r] for r in relays]), poses, speed_m_s=speed_m_s,
-                               accel_m_s2=accel_m_s2, gravity=gravity, max_iter=200)
-    log.info("fleet route: %d instants from %.1f s, mean rate %.6g, %s", len(times), t0, float(np.mean(fleet.capacity)),
-             fleet.status)
-    return FleetRoute(times, fleet.position, tuple(relays))
+        n = across_line(scene, at, relays)
+        across[i] = np.stack([n[r] * float(np.abs(n[r]) @ width) for r in relays])
+    if not np.isfinite(across).all():  # an unbounded workspace: no width to shift by, the even places alone
+        across, route_starts = np.zeros_like(across), route_starts[:1]
+    out = []
+    for shift in route_starts:
+        fleet = flyable_fleet_path(configs, times, places + shift * across, np.stack([starts[r] for r in relays]), poses,
+                                   speed_m_s=speed_m_s, accel_m_s2=accel_m_s2, gravity=gravity, max_iter=200)
+        mean = float(np.mean(fleet.capacity))
+        log.info("fleet route from %+.2f of the width across: %d instants from %.1f s, mean rate %.6g, %s", shift,
+                 len(times), t0, mean, fleet.status)
+        out.append(FleetRoute(times, fleet.position, tuple(relays), mean))
+    return out
+
+
+def best_route(routes: Sequence[FleetRoute]) -> FleetRoute:
+    """The route of highest planned mean rate (the first of equals; an unscored route loses to a scored one)."""
+    return max(routes, key=lambda r: -np.inf if np.isnan(r.mean_rate) else r.mean_rate)
+
+
+def fleet_route(*args, **kwargs) -> FleetRoute:
+    """The best of ``fleet_routes`` (same arguments): the route flown before take-off."""
+    return best_route(fleet_routes(*args, **kwargs))
 
 
 class FleetCapacityPlanner:
@@ -135,21 +181,22 @@ class FleetCapacityPlanner:
 
     def __init__(self, scene: RadioScene, relay_starts: Mapping[str, np.ndarray], candidate_axes: Mapping[str, np.ndarray],
                  shapers: Mapping[str, ShaperSettings], settings: FleetCapacitySettings,
-                 route_builder: Callable[..., FleetRoute] | None = None, tracer: RayTracer | None = None,
+                 route_builder: Callable[..., Sequence[FleetRoute]] | None = None, tracer: RayTracer | None = None,
                  traced_coherent: bool = False, yaws: Mapping[str, PlatformYaw] | None = None):
         """``candidate_axes``: each relay's holdable antenna axes ``(n, 3)`` (unit, world); ``shapers`` each relay's
-        reference limits; ``route_builder(t0, starts, jammer_positions, jammer_powers)`` plans the route (None: no
-        route, no leash): before the first step with what the fleet knows then, and again when a jammer
-        becomes known in flight (its power from 0 to above; ``preflight_s`` the first, ``reroute_s`` the others,
-        s). ``tracer``: the candidates and the joint moves scored on the ray-traced channel of the scene's map
-        (``planning.traced_grid``; ``traced_coherent``: its paths summed with their phases), the route planned on
-        the scene's analytic channel (IPOPT through thousands of traces is not flyable on a CPU). ``yaws``: the
-        relays that may yaw, each one's ``PlatformYaw`` (its ``body_axes`` its ``candidate_axes``)."""
+        reference limits; ``route_builder(t0, starts, jammer_positions, jammer_powers)`` plans the routes
+        (``fleet_routes``, in the order they are solved; None: no route, no leash): before the first step with what
+        the fleet knows then, and again when a jammer becomes known in flight (its power from 0 to above;
+        ``preflight_s`` the first, ``reroute_s`` the others, s). ``tracer``: the candidates and the joint moves scored
+        on the ray-traced channel of the scene's map (``planning.traced_grid``; ``traced_coherent``: its paths summed
+        with their phases), the route planned on the scene's analytic channel (IPOPT through thousands of traces is
+        not flyable on a CPU). ``yaws``: the relays that may yaw, each one's ``PlatformYaw`` (its ``body_axes`` its
+        ``candidate_axes``)."""
         self.scene, self.settings, self.route_builder = scene, settings, route_builder
         self.route: FleetRoute | None = None
         self.preflight_s, self.reroute_s = 0.0, list[float]()
         self.known: tuple[bool, ...] | None = None
-        self.pending: tuple[float, FleetRoute] | None = None  # a route planned in flight: when it is flown (s), the route
+        self.pending: list[tuple[float, FleetRoute]] = []  # routes planned in flight: when each is ready (s), the route
         self.off_loop_s = 0.0  # this step's work beside the control loop (s)
         self.relays = list(relay_starts)
         self.shapers = {n: ReferenceShaper(shapers[n]) for n in self.relays}
@@ -301,27 +348,31 @@ class FleetCapacityPlanner:
         return list(self.subsets[int(np.argmax(rate))])
 
     def _route_with_what_is_known(self, inp: FleetInput) -> None:
-        """The route planned at the first step (before take-off, ``preflight_s``), and planned again from the
-        references' places when a jammer becomes known (``reroute_s``): work a flight computer runs beside
-        the control loop, so its time is kept apart (``off_loop_s``, not in the step's) and the new route is
-        flown from ``ROUTE_LATENCY_S`` after the jammer became known (meanwhile the goals climb unleashed: the old
-        route did not know the jammer)."""
+        """The routes planned at the first step (before take-off, ``preflight_s``: the best is flown), and planned
+        again from the references' places when a jammer becomes known (``reroute_s``): work a flight computer runs
+        beside the control loop, so its time is kept apart (``off_loop_s``, not in the step's). The old route did not
+        know the jammer, so the goals climb unleashed until the first new route is ready, ``ROUTE_LATENCY_S`` after
+        the jammer became known; each further route is ready ``ROUTE_LATENCY_S`` after the previous (one solve each)
+        and replaces the one flown when it plans a higher mean rate."""
         self.off_loop_s = 0.0
-        if self.pending is not None and inp.t >= self.pending[0] - 1e-9:
-            self.route, self.pending = self.pending[1], None
+        while self.pending and inp.t >= self.pending[0][0] - 1e-9:
+            route = self.pending.pop(0)[1]
+            if self.route is None or route.mean_rate > self.route.mean_rate:
+                self.route = route
         known = None if inp.jammer_powers is None else tuple(bool(p > 0) for p in np.asarray(inp.jammer_powers, float))
         if self.route_builder is None or (self.k > 0 and known == self.known):
             return
         first, self.known = self.k == 0, known
         t0 = time.perf_counter()
         starts = {n: self.shapers[n].p_ref.copy() for n in self.relays}  # type: ignore[union-attr]
-        route = self.route_builder(inp.t, starts, inp.jammer_positions, inp.jammer_powers)
+        routes = list(self.route_builder(inp.t, starts, inp.jammer_positions, inp.jammer_powers))
         self.off_loop_s = time.perf_counter() - t0
         if first and inp.t <= 1e-9:  # before take-off
-            self.route, self.preflight_s = route, self.off_loop_s
+            self.route, self.preflight_s, self.pending = best_route(routes), self.off_loop_s, []
         else:  # in flight (a jammer newly known, or a smaller fleet's planner after a loss): the old route, planned
-            # without what is known now, no longer leashes the goals while the new one is planned
-            self.route, self.pending = None, (inp.t + ROUTE_LATENCY_S, route)
+            # without what is known now, no longer leashes the goals while the new ones are planned
+            self.route = None
+            self.pending = [(inp.t + (i + 1) * ROUTE_LATENCY_S, r) for i, r in enumerate(routes)]
             self.reroute_s.append(self.off_loop_s)
 
     def update(self, inp: FleetInput) -> dict[str, Reference]:

@@ -9,7 +9,7 @@ from .base import PlannerContext, PlannerInput, register_network_planner, regist
 from .baselines import PlannedReference, SingleShotPlanner
 from .capacity_planner import CapacityPlanner, holdable_axes, shaper_settings
 from .fleet import EquidistantPlanner, EquidistantSettings, NetworkPlannerContext
-from .fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_route
+from .fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_routes
 from .network_generator import NetworkGenerator
 from .platform_yaw import PlatformYaw
 from .trajectory_generator import Reference, SurrogateParams, TrajectoryGenerator
@@ -100,12 +100,12 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
     route = None
     if ctx.route and ctx.sources and ctx.duration_s > ctx.t0_s:
         def route(t0, starts, jammer_positions, jammer_powers):
-            return fleet_route(ctx.scene, ctx.sources, starts, {n: float(h[1].max()) for n, h in held.items()},
-                               ctx.workspace_min + cap.margin_m, ctx.workspace_max - cap.margin_m, t0=t0,
-                               duration_s=ctx.duration_s, dt_s=ctx.route_dt_s, speed_m_s=route_speed,
-                               accel_m_s2=route_accel, gravity=next(iter(ctx.vehicles.values())).gravity,
-                               separation_m=ctx.separation_m + FLEET_ROUTE_CLEARANCE_M if ctx.separation_m > 0 else 0.0,
-                               obstacles=ctx.obstacles, jammer_positions=jammer_positions, jammer_powers=jammer_powers)
+            return fleet_routes(ctx.scene, ctx.sources, starts, {n: float(h[1].max()) for n, h in held.items()},
+                                ctx.workspace_min + cap.margin_m, ctx.workspace_max - cap.margin_m, t0=t0,
+                                duration_s=ctx.duration_s, dt_s=ctx.route_dt_s, speed_m_s=route_speed,
+                                accel_m_s2=route_accel, gravity=next(iter(ctx.vehicles.values())).gravity,
+                                separation_m=ctx.separation_m + FLEET_ROUTE_CLEARANCE_M if ctx.separation_m > 0 else 0.0,
+                                obstacles=ctx.obstacles, jammer_positions=jammer_positions, jammer_powers=jammer_powers)
     return FleetCapacityPlanner(ctx.scene, ctx.starts, axes, shapers,
                                 FleetCapacitySettings(step_m=cap.step_m, replan_every=cap.replan_every,
                                                       lookahead_s=cap.lookahead_s, leash_m=cap.leash_m, margin_m=cap.margin_m,
