@@ -91,6 +91,16 @@ def test_the_route_from_across_the_line_passes_a_jammer_the_even_places_cannot()
     assert fleet_route(sc, source, starts, {"r1": 0.3, "r2": 0.3}, lo, hi, **kw).mean_rate == max(r.mean_rate for r in routes)
 
 
+def test_a_workspace_unbounded_across_the_line_gets_the_even_places_alone():
+    """No width across the line to shift by: one route, from the even places; unbounded only upward (an axis the
+    horizontal shift does not cross), all three."""
+    source = {"s": LinearPath(np.array([[0.0, *SRC], [40.0, *SRC]]))}
+    kw = dict(t0=0.0, duration_s=4.0, dt_s=1.0, speed_m_s=1.0, accel_m_s2=1.0, gravity=9.81)
+    lo = np.array([-1.0, -3.0, 0.0])
+    for hi, n in ((np.array([25.0, np.inf, 4.0]), 1), (np.array([25.0, 3.0, np.inf]), len(ROUTE_STARTS))):
+        assert len(fleet_routes(chain(IsotropicPattern(1.0)), source, STARTS, {"r1": 0.3, "r2": 0.3}, lo, hi, **kw)) == n
+
+
 @pytest.mark.parametrize("order", ["worse_first", "better_first"])
 def test_a_route_planned_in_flight_is_flown_when_ready_and_replaced_only_by_a_better_one(order):
     """Before take-off the best route is flown at once; when the jammer becomes known (t = 1 s) the goals are

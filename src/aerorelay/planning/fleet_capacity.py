@@ -150,8 +150,10 @@ def fleet_routes(scene: RadioScene, sources: Mapping[str, SourceTrajectory], sta
         even = equidistant_targets(scene.all_routes, at, scene.handover)
         places[i] = np.stack([even[r] for r in relays])
         n = across_line(scene, at, relays)
-        across[i] = np.stack([n[r] * float(np.abs(n[r]) @ width) for r in relays])
-    if not np.isfinite(across).all():  # an unbounded workspace: no width to shift by, the even places alone
+        for k, r in enumerate(relays):  # the workspace's width along n (its unbounded axes n does not cross aside)
+            w = float(np.sum(np.abs(n[r]) * np.where(n[r] != 0.0, width, 0.0)))
+            across[i, k] = n[r] * w if np.isfinite(w) else np.nan
+    if not np.isfinite(across).all():  # unbounded across the line: no width to shift by, the even places alone
         across, route_starts = np.zeros_like(across), route_starts[:1]
     out = []
     for shift in route_starts:
