@@ -359,8 +359,7 @@ class FleetCapacityPlanner:
         self.off_loop_s = 0.0
         while self.pending and inp.t >= self.pending[0][0] - 1e-9:
             route = self.pending.pop(0)[1]
-            if self.route is None or route.mean_rate > self.route.mean_rate:
-                self.route = route
+            self.route = route if self.route is None else best_route([self.route, route])  # the one flown wins ties
         known = None if inp.jammer_powers is None else tuple(bool(p > 0) for p in np.asarray(inp.jammer_powers, float))
         if self.route_builder is None or (self.k > 0 and known == self.known):
             return
