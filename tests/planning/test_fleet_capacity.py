@@ -17,13 +17,14 @@ from aerorelay.models.axes import axis_cone
 from aerorelay.models.jammer import Jammer
 from aerorelay.models.mission import LinearPath
 from aerorelay.models.radio import Antenna, LinkBudget, Node, NodePose, RadioScene
-from aerorelay.planning.fleet import FleetInput
+from aerorelay.planning.fleet import FleetInput, equidistant_targets
 from aerorelay.planning.fleet_capacity import (
     ROUTE_LATENCY_S,
     ROUTE_STARTS,
     FleetCapacityPlanner,
     FleetCapacitySettings,
     FleetRoute,
+    across_line,
     fleet_route,
     fleet_routes,
 )
@@ -99,6 +100,28 @@ def test_a_workspace_unbounded_across_the_line_gets_the_even_places_alone():
     lo = np.array([-1.0, -3.0, 0.0])
     for hi, n in ((np.array([25.0, np.inf, 4.0]), 1), (np.array([25.0, 3.0, np.inf]), len(ROUTE_STARTS))):
         assert len(fleet_routes(chain(IsotropicPattern(1.0)), source, STARTS, {"r1": 0.3, "r2": 0.3}, lo, hi, **kw)) == n
+
+
+def test_the_sideways_guesses_cross_the_line_the_even_places_lie_on_when_a_route_may_hand_over():
+    """A route that may end at either of two base stations: its own end ``far`` 40 m to the side, ``near`` under
+    the source's line. The even places lie on the line to the nearer one, and the sideways first guesses must
+    shift across that line (perpendicular to it, horizontal), not across the line to the route's own end."""
+    up = Antenna(IsotropicPattern(1.0))
+    nodes = (Node("far", "base_station", up, np.array([0.0, -40.0, 2.0])), Node("near", "base_station", up, BS),
+             Node("s", "source", up), Node("r1", "relay", up), Node("r2", "relay", up))
+    sc = RadioScene(nodes, (), LinkBudget(1.0, 1.0, 1.0), ("s", "r1", "r2", "far"), handover=(("far", "near"),))
+    at = {"s": SRC, "far": np.array([0.0, -40.0, 2.0]), "near": BS}
+    even = equidistant_targets(sc.all_routes, at, sc.handover)
+    line = even["r1"] - even["r2"]
+    assert np.linalg.norm(line[:2]) > 1.0  # the places span a horizontal line
+    n = across_line(sc, at, ["r1", "r2"])
+    for r in ("r1", "r2"):
+        assert np.linalg.norm(n[r]) == pytest.approx(1.0) and n[r][2] == 0.0
+        assert float(n[r] @ line) == pytest.approx(0.0, abs=1e-9)
+    # without handover the route's own end decides both, and they agree again
+    plain = dataclasses.replace(sc, handover=())
+    line = np.subtract(*(lambda e: (e["r1"], e["r2"]))(equidistant_targets(plain.all_routes, at, plain.handover)))
+    assert float(across_line(plain, at, ["r1"])["r1"] @ line) == pytest.approx(0.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("order", ["worse_first", "better_first"])

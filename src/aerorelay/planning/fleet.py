@@ -127,6 +127,22 @@ class EquidistantSettings:
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
 
 
+def placed_routes(routes: Sequence[Sequence[str]], positions: Mapping[str, np.ndarray],
+                  ends: Sequence[Sequence[str]] = ()) -> list[tuple[str, ...]]:
+    """Each route as the planners lay their relays along it: ``[source, relay, ..., bs]`` with ``bs`` the base
+    station nearest its source among those it may end at (``ends[i]``, ``RadioScene.handover``; empty or
+    missing: its own end). The one place that decides which line a route's relays are placed on."""
+    out = []
+    for i, route in enumerate(routes):
+        route = tuple(route)
+        if i < len(ends) and ends[i]:
+            p_src = np.asarray(positions[route[0]], float)
+            bs = min(ends[i], key=lambda b: float(np.linalg.norm(np.asarray(positions[b], float) - p_src)))
+            route = (*route[:-1], bs)
+        out.append(route)
+    return out
+
+
 def equidistant_targets(routes: Sequence[Sequence[str]], positions: Mapping[str, np.ndarray],
                         ends: Sequence[Sequence[str]] = ()) -> dict[str, np.ndarray]:
     """Each relay's place on its route: relay ``k`` (1-based from the base station) of a route with
@@ -135,12 +151,9 @@ def equidistant_targets(routes: Sequence[Sequence[str]], positions: Mapping[str,
     stations' (m, world); ``ends``: per route, the base stations it may end at (``RadioScene.handover``;
     empty: its own end): the one nearest its source is its ``bs``."""
     places: dict[str, list[np.ndarray]] = {}
-    for i, route in enumerate(routes):
+    for route in placed_routes(routes, positions, ends):
         src, relays, bs = route[0], list(route[1:-1]), route[-1]
-        p_src = np.asarray(positions[src], float)
-        if i < len(ends) and ends[i]:
-            bs = min(ends[i], key=lambda b: float(np.linalg.norm(np.asarray(positions[b], float) - p_src)))
-        p_bs = np.asarray(positions[bs], float)
+        p_src, p_bs = np.asarray(positions[src], float), np.asarray(positions[bs], float)
         n = len(relays)
         for k, name in enumerate(reversed(relays), start=1):  # counted from the base station
             places.setdefault(name, []).append(p_bs + k / (n + 1) * (p_src - p_bs))

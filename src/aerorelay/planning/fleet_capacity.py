@@ -53,7 +53,7 @@ from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
 from ..models.raytrace import RayTracer
-from .fleet import FleetInput, equidistant_targets
+from .fleet import FleetInput, equidistant_targets, placed_routes
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 from .platform_yaw import PlatformYaw
 from .relay_grid import CompiledConfigurations, CompiledRelayGrid
@@ -114,9 +114,10 @@ class FleetRoute:
 
 def across_line(scene: RadioScene, positions: Mapping[str, np.ndarray], relays: Sequence[str]) -> dict[str, np.ndarray]:
     """Each relay's horizontal unit vector across its route's line (source to base station, the first route it is
-    on; the x axis where the source is straight above its base station)."""
+    on, ending where ``equidistant_targets`` places it: ``fleet.placed_routes``; the x axis where the source is
+    straight above its base station)."""
     out: dict[str, np.ndarray] = {}
-    for route in scene.all_routes:
+    for route in placed_routes(scene.all_routes, positions, scene.handover):
         d = np.asarray(positions[route[0]], float) - np.asarray(positions[route[-1]], float)
         h = float(np.hypot(d[0], d[1]))
         n = np.array([-d[1] / h, d[0] / h, 0.0]) if h > 1e-9 else np.array([1.0, 0.0, 0.0])
