@@ -401,3 +401,45 @@ def test_routes_that_may_end_at_either_base_station_are_bounded_by_the_best_comb
         rates = [max(_upright_rate(s, float(t), path[i]) for s in solvers) for i, t in enumerate(b.t)]
         best = max(best, float(np.mean(rates)))
     assert best <= b.path_mean.mean(), (best, b.path_mean.mean())
+
+
+def test_the_branch_and_bounds_work_is_a_setting_honoured_and_every_level_stays_above_the_optimum():
+    """The two-relay chain 21 m long (its optimum off the 2 m grid, from the formula): with no level
+    (``branch_levels`` 0) the bound is the grid's cubes' alone; with one level of at most 2,000 pair terms it
+    is tighter, and with the default work tighter still; every one at or above the formula's optimum."""
+    from dataclasses import replace
+
+    names = ["r1", "r2"]
+    src = np.array([21.0, 0.3, 2.7])
+    sc = scene(names, IsotropicPattern(1.0), [["s", *names, "bs"]])
+    pb = problem(sc, {"s": still(src)}, names, [-1, -2, 0], [23, 2, 4], 2.0)
+    want = 1.0 / (3 / np.log2(1.0 + 1.0 / (float(np.linalg.norm(src - BS)) / 3) ** 2))
+    grid = compute_network_bound(replace(pb, branch_levels=0))
+    small = compute_network_bound(replace(pb, branch_levels=1, branch_pairs=2e3))
+    full = compute_network_bound(pb)
+    assert grid.resolution["branch_levels_max"] == 0 and grid.resolution["branch_levels"] == 0
+    assert small.resolution["branch_levels_max"] == 1 and small.resolution["branch_pairs"] == 2e3
+    assert full.resolution["branch_levels_max"] > 1
+    assert grid.static[0] > small.static[0] > full.static[0] >= want
+    assert NetworkBoundSolver(replace(pb, branch_pairs=2e3)).max_pairs == 2e3
+
+
+def test_the_branch_settings_are_estimated_and_refused_where_nothing_branches():
+    import aerorelay as ar
+    from aerorelay.assembly.parts import bound_cost, network_bound_problem
+    from aerorelay.config import ScenarioError
+    from aerorelay.config.sections import BoundConfig
+    from aerorelay.planning.bound_cost import BOX_PAIRS_PER_S, BRANCH_LEVELS, BRANCH_PAIRS, BRANCH_SEARCHES
+
+    assert (BoundConfig().branch_levels, BoundConfig().branch_pairs) == (BRANCH_LEVELS, BRANCH_PAIRS)  # one default
+    with pytest.raises(ScenarioError, match="bound.branch_pairs: applies only where a network's bound"):
+        ar.load_scenario("scenarios/nominal_tilted.toml", set={"bound.branch_pairs": 1e7})
+    with pytest.raises(ScenarioError, match="branch_levels"):
+        ar.load_scenario("scenarios/chain_two_relays.toml", set={"bound.branch_levels": 21})
+    base = ar.load_scenario("scenarios/chain_two_relays.toml")
+    sc = base.with_updates({"bound.branch_pairs": 1e7, "bound.branch_levels": 10})
+    pb = network_bound_problem(sc)
+    assert (pb.branch_pairs, pb.branch_levels) == (1e7, 10)
+    # the estimate's branch and bound part: levels x pairs a level, two sides of each search, BRANCH_SEARCHES searches
+    extra = BRANCH_SEARCHES * 2 * (10 * 1e7 - BRANCH_LEVELS * BRANCH_PAIRS) / BOX_PAIRS_PER_S
+    assert bound_cost(sc).seconds == pytest.approx(bound_cost(base).seconds + extra * bound_cost(base).instants)

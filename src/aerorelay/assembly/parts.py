@@ -626,7 +626,8 @@ def bound_cost(sc: Scenario) -> BoundCost:
         stations = len(sc.base_station_list)  # a route to "any" is bounded at each base station: every combination
         combinations = math.prod(stations if r[-1] == ANY_BASE_STATION else 1 for r in sc.route_list)
         return network_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, len(relays), len(hops), combinations,
-                                  global_seconds=b.global_seconds)
+                                  global_seconds=b.global_seconds, branch_levels=b.branch_levels,
+                                  branch_pairs=b.branch_pairs)
     axes = len(axis_cone(build_vehicle(sc.platform_of(0)).hover_tilt_limit, np.radians(b.axis_step_deg)))
     if traced:
         return traced_bound_cost(lo, hi, sc.bound_grid_m, sc.bound_dt_s, sc.duration_s, axes, rays)
@@ -697,7 +698,8 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
         next(iter(vehicles.values())).gravity, sc.channel.outage, sc.separation_m,
         {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost and not r.standby},
-        world.obstacles(sc), global_seconds=b.global_seconds, global_gap=b.global_gap)
+        world.obstacles(sc), branch_levels=b.branch_levels, branch_pairs=b.branch_pairs, global_seconds=b.global_seconds,
+        global_gap=b.global_gap)
 
 
 def network_bound(sc: Scenario, progress=None) -> NetworkBound:

@@ -73,9 +73,10 @@ ESTIMATION = (
     Applies(("*",), lambda e, sc: sc.estimates_jammers, "a jammer's localization = 'estimated'"),
 )
 BOUND = (
-    Applies(("global_seconds", "global_gap"), lambda b, sc: sc.shape.bound == "network"
+    Applies(("global_seconds", "global_gap", "branch_pairs", "branch_levels"), lambda b, sc: sc.shape.bound == "network"
             and sc.channel.propagation.model != "ray_traced", "a network's bound (more than one relay or route) on a "
-            "channel that is not ray traced (one relay's bound is exact already; SCIP cannot trace rays)"),
+            "channel that is not ray traced (one relay's bound is exact already; SCIP cannot trace rays, and the traced "
+            "network bound does not branch)"),
     Applies(("global_gap",), lambda b, sc: b.global_seconds > 0, "bound.global_seconds > 0"),
 )
 MISSION = (

@@ -102,14 +102,16 @@ def traced_network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: fl
 
 
 def network_bound_cost(lo, hi, grid_m: float, dt_s: float, duration_s: float, relays: int, pair_hops: int,
-                       combinations: int = 1, *, global_seconds: float = 0.0) -> BoundCost:
+                       combinations: int = 1, *, global_seconds: float = 0.0, branch_levels: int = BRANCH_LEVELS,
+                       branch_pairs: float = BRANCH_PAIRS) -> BoundCost:
     """A fleet's network bound's cost (``planning.network_bound.compute_network_bound``): its passes over every pair
     of cubes and its branch and bound's worst case, each instant, for each of the ``combinations`` of base-station
-    ends its routes may take (each bounded on its own); with ``global_seconds``, SCIP's time limit twice at every
+    ends its routes may take (each bounded on its own; the branch and bound's worst case: ``branch_levels`` levels of
+    ``branch_pairs`` pair terms, twice a search); with ``global_seconds``, SCIP's time limit twice at every
     instant too (its worst case: the static problem and the one kept to the relays' reach, ``_reach_limited``)."""
     cells, instants = cube_cells(lo, hi, grid_m), int(duration_s / dt_s + 1e-9) + 1
     held = CHUNK * cells * 8 * 3 + relays * cells * 8 * 8
-    branch = (BRANCH_SEARCHES * 2 * BRANCH_LEVELS * BRANCH_PAIRS / BOX_PAIRS_PER_S) if pair_hops else 0.0
+    branch = (BRANCH_SEARCHES * 2 * branch_levels * branch_pairs / BOX_PAIRS_PER_S) if pair_hops else 0.0
     seconds = instants * (DP_PASSES * pair_hops * float(cells) ** 2 / PAIR_EVALS_PER_S + relays * cells * 64 / SINGLE_EVALS_PER_S
                           + branch + 2 * global_seconds) * combinations
     return BoundCost(cells, 0, instants, relays, pair_hops, float(held), seconds, combinations)

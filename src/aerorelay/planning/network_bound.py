@@ -77,6 +77,7 @@ class NetworkBoundProblem:
     starts: Mapping[str, np.ndarray] = field(default_factory=dict)  # each relay's start (m, world): the flyable path's
     obstacles: tuple = ()  # models.obstacles shapes grown by their margins: no relay inside one
     branch_levels: int = BRANCH_LEVELS  # the branch and bound's levels at most (every level's bound is certified)
+    branch_pairs: float = BRANCH_PAIRS  # ... and the pair terms one level may bound at most
     global_seconds: float = 0.0  # SCIP's time per instant for the global static bound (0: not solved)
     global_gap: float = 1e-3  # SCIP's relative gap to stop at
     global_nodes: int | None = None  # SCIP's nodes at most per instant (None: the time limit alone; tests fix the work)
@@ -307,9 +308,9 @@ class NetworkBoundSolver:
     eight) until the bound is within ``tolerance`` of a configuration the physics allows."""
 
     def __init__(self, pb: NetworkBoundProblem, tolerance: float = 0.01, max_levels: int | None = None,
-                 max_pairs: float = BRANCH_PAIRS):
+                 max_pairs: float | None = None):
         self.pb, self.scene = pb, pb.scene
-        self.tolerance, self.max_pairs = tolerance, max_pairs
+        self.tolerance, self.max_pairs = tolerance, pb.branch_pairs if max_pairs is None else max_pairs
         self.max_levels = pb.branch_levels if max_levels is None else max_levels
         self.relays = [n.name for n in pb.scene.nodes if n.role == "relay"]
         self.unary, self.pairs = relay_forest(pb.scene.all_routes, self.relays)
@@ -845,7 +846,8 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
                   "separation_m": pb.separation_m, "grid_excess": max(excess, 0.0),
                   "certified_gap_max": float(np.nanmax(gap, initial=0.0)),
                   "certified_gap_mean": float(np.nanmean(gap)) if np.isfinite(gap).any() else None,
-                  "branch_levels_max": max((s["levels"] for s in searches), default=0)}
+                  "branch_levels_max": max((s["levels"] for s in searches), default=0),
+                  "branch_levels": pb.branch_levels, "branch_pairs": pb.branch_pairs}
     if glob:
         resolution["global"] = glob[0] if len(glob) == 1 else glob
         resolution["method"] = f"{resolution['method']}; per instant the tighter of it and SCIP's certified dual bound"
