@@ -120,7 +120,8 @@ def test_the_sideways_guesses_cross_the_line_the_even_places_lie_on_when_a_route
         assert float(n[r] @ line) == pytest.approx(0.0, abs=1e-9)
     # without handover the route's own end decides both, and they agree again
     plain = dataclasses.replace(sc, handover=())
-    line = np.subtract(*(lambda e: (e["r1"], e["r2"]))(equidistant_targets(plain.all_routes, at, plain.handover)))
+    even = equidistant_targets(plain.all_routes, at, plain.handover)
+    line = even["r1"] - even["r2"]
     assert float(across_line(plain, at, ["r1"])["r1"] @ line) == pytest.approx(0.0, abs=1e-9)
 
 

@@ -135,9 +135,10 @@ def fleet_routes(scene: RadioScene, sources: Mapping[str, SourceTrajectory], sta
     ``duration_s`` (s) every ``dt_s``, the relays starting at rest at ``starts`` (m), the jammers where the fleet
     knows them (``jammer_positions`` ``(nJ, 3)`` m, ``jammer_powers`` ``(nJ,)`` W; None: silent, not localized yet)."""
     relays = list(starts)
+    p0 = np.stack([starts[r] for r in relays])
     times = np.arange(t0, max(duration_s, t0) + 1e-9, dt_s)
     if len(times) < 2:
-        return [FleetRoute(times, np.clip(np.stack([starts[r] for r in relays])[None], lo, hi), tuple(relays))]
+        return [FleetRoute(times, np.clip(p0[None], lo, hi), tuple(relays))]
     silent = np.zeros(len(scene.jammers)) if jammer_powers is None else np.asarray(jammer_powers, float)
     configs = FleetConfigurations(scene, relays, lo, hi, tilt_limits, np.radians(axis_step_deg), separation_m, obstacles,
                                   jammer_positions=jammer_positions, jammer_powers=silent)
@@ -158,7 +159,7 @@ def fleet_routes(scene: RadioScene, sources: Mapping[str, SourceTrajectory], sta
         across, route_starts = np.zeros_like(across), route_starts[:1]
     out = []
     for shift in route_starts:
-        fleet = flyable_fleet_path(configs, times, places + shift * across, np.stack([starts[r] for r in relays]), poses,
+        fleet = flyable_fleet_path(configs, times, places + shift * across, p0, poses,
                                    speed_m_s=speed_m_s, accel_m_s2=accel_m_s2, gravity=gravity, max_iter=200)
         mean = float(np.mean(fleet.capacity))
         log.info("fleet route from %+.2f of the width across: %d instants from %.1f s, mean rate %.6g, %s", shift,
