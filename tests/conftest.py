@@ -20,5 +20,8 @@ def fresh_codegen_cache(tmp_path_factory, request):
         folder = tmp_path_factory.getbasetemp().parent / "codegen"
         folder.mkdir(exist_ok=True)
     mp.setenv("AERORELAY_CACHE", str(folder))
+    # pytest-xdist runs a worker per core: their fleets step their relays one after another (threads measured apart:
+    # tests/sim/test_networks_at_scale.py)
+    mp.setenv("AERORELAY_RELAY_THREADS", "1")
     yield
     mp.undo()

@@ -13,6 +13,7 @@ import aerorelay as ar
 from aerorelay.cli import app
 from aerorelay.config import ScenarioError
 from tests.geodesy import enu_by_hand
+from tests.rt_marks import needs_rt
 
 ORIGIN = [47.3977, 8.5456, 488.0]
 runner = CliRunner()
@@ -23,6 +24,7 @@ def _near(lat_m: float, lon_m: float, up_m: float) -> list[float]:
     return [ORIGIN[0] + lat_m / 111_200.0, ORIGIN[1] + lon_m / 75_100.0, ORIGIN[2] + up_m]
 
 
+@needs_rt  # street_canyon.toml is traced: loading it needs the rt extra
 def test_every_kind_of_position_resolves_within_a_millimetre():
     points = {"nodes.bs_wgs84": _near(0.5, -0.3, 0.01), "jammer.position_wgs84": _near(-5.0, -6.0, 1.7),
               "nodes.relay_wgs84": _near(5.5, -6.5, 1.9)}

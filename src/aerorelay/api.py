@@ -53,6 +53,7 @@ from .control.relay_step import StaleSettings
 from .experiments import flight as _flight
 from .experiments.budget import flight_seconds, left_out_notices, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
+from .experiments.chains import long_chain
 from .experiments.run import RunResult, check_not_injected, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies, read_studies
@@ -386,6 +387,49 @@ def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: i
     n = len(sc.relay_list)
     res["scenario"] = f"{sc.name} ({n} relay{'s' * (n != 1)}, {sc.planner} planner, {', '.join(kinds)})"
     return res
+
+
+def bench_chains(base: str | Path, relays: list[int], length_m: float, *, updates: dict | None = None,
+                 settings_of: Callable[[Scenario], NmpcSettings] | None = None, rounds: int = 1,
+                 say: Callable[[str], None] = lambda s: None) -> dict:
+    """``bench`` on generated long chains (``experiments.chains.long_chain``) of each count in ``relays`` over
+    ``length_m`` (m), the base file's settings with ``updates``: every relay's step (mean and p99, ms; its brake-law
+    and failed-QP shares), the fleet's step on one computer and on a computer per relay. Each relay's mean step over
+    the one-relay chain's of the same round (``relay_step_over_one``) says whether a relay's cost grows with the
+    network. ``rounds``: the counts flown in turn this many times (timings drift over minutes: compare within a
+    round), ``out["rounds"][i][str(k)]``. Chains are built first (bad input fails before any flight)."""
+    chains = {k: long_chain(base, k, length_m, updates=updates) for k in relays}
+    out: dict = {"length_m": length_m, "rounds": []}
+    for i in range(rounds):
+        out["rounds"].append(_bench_round(chains, length_m, settings_of, f"round {i + 1} of {rounds}: " if rounds > 1 else "", say))
+    out["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}".strip()
+    return out
+
+
+def _bench_round(chains: dict[int, Scenario], length_m: float, settings_of, label: str, say) -> dict:
+    """One round of ``bench_chains``: each chain benched in turn."""
+    out: dict = {}
+    for k, sc in chains.items():
+        say(f"{label}chain of {k} relay{'s' * (k != 1)} over {length_m:g} m: {sc.duration_s:g} s of flight")
+        res = bench(sc, settings_of(sc) if settings_of else None, ipopt_points=0)
+        flown = {n: r for n, r in res["relays"].items() if "step_ms" in r}
+        out[str(k)] = {
+            "relays": {n: {"step_ms": r["step_ms"], "fallback_fraction": r["fallback_fraction"],
+                           "qp_failure_fraction": r["qp_failure_fraction"], "qp_iterations": r["qp_iterations"]}
+                       for n, r in flown.items()},
+            "relay_step_mean_ms": float(np.mean([r["step_ms"]["mean"] for r in flown.values()])),
+            "relay_step_worst_mean_ms": float(max(r["step_ms"]["mean"] for r in flown.values())),
+            "relay_step_worst_p99_ms": float(max(r["step_ms"]["p99"] for r in flown.values())),
+            "fallback_fraction_max": float(max(r["fallback_fraction"] for r in flown.values())),
+            "qp_failure_fraction_max": float(max(r["qp_failure_fraction"] for r in flown.values())),
+            "planner_ms": res["planner_ms"], "fleet_step_one_computer_ms": res["fleet_step_one_computer_ms"],
+            "fleet_step_own_computers_ms": res["fleet_step_own_computers_ms"], "wall_s": res["wall_s"], "sim_s": res["sim_s"],
+            "scenario": res["scenario"]}
+    if "1" in out:
+        one = out["1"]["relay_step_mean_ms"]
+        for c in out.values():
+            c["relay_step_over_one"] = c["relay_step_worst_mean_ms"] / one
+    return out
 
 
 def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int = 3,

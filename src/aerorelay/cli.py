@@ -25,6 +25,7 @@ err_console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSAFE = 3  # the run finished but the relay left its workspace or flipped (metrics.json: unsafe, unsafe_reason)
+EXIT_FELL_BACK = 4  # safe, but a relay's controller did not fly it (metrics.json: exit_status fell_back, fell_back_reason)
 QUICK_BUDGET_MIN = 5.0  # reproduce --quick: minutes of estimated wall time (experiments/budget.py)
 
 
@@ -197,10 +198,7 @@ def run(
     console.print(_metrics_table({"value": result.metrics}))
     for name, why in result.metrics.get("optional_outputs_failed", {}).items():
         err_console.print(f"[bold yellow]warning[/] {name} not written: {escape(str(why))} (the run is saved)", highlight=False)
-    if result.metrics["unsafe"]:
-        err_console.print(f"[bold red]unsafe run[/]: {escape(str(result.metrics['unsafe_reason']))} (exit {EXIT_UNSAFE})",
-                          highlight=False)
-        raise typer.Exit(EXIT_UNSAFE)
+    _exit_if_unsafe(result, "run")
 
 
 def _check_run(sc: Scenario, out: Path, *, figures: bool, bound: bool = False) -> None:
@@ -413,7 +411,8 @@ def _fleet_keys(runs: dict[str, dict]) -> list[str]:
     return (["c_min", "c_mean", "outage_fraction", "separation_min_m", *ESTIMATION_KEYS]
             + [f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
-                                                          "solve_ms.mean", "solve_ms.p99", "soc_final_fraction",
+                                                          "solve_ms.mean", "solve_ms.p99", "fallback_fraction",
+                                                          "infeasible_fraction", "soc_final_fraction",
                                                           "battery_reserve_first_s", "went_home_at_s", "landed_at_s",
                                                           "exit_status")]
             + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "wall_s", "sim_s", "bound.static.mean", "bound.achieved.mean",
@@ -486,7 +485,7 @@ def bench(
                                 "c: the first relay's controller as the C tree of aerorelay codegen (HPIPM engine, these "
                                 "solver options baked in) against the Python one on the same mission, alternating, pinned"),
     rounds: int = typer.Option(None, "--rounds", min=1, max=20, show_default=False,
-                               help="--backend c: rounds of Python then C (default 3)"),
+                               help="--backend c: rounds of Python then C (default 3); --chain: rounds of the counts in turn (default 1)"),
     condense: int = typer.Option(0, "--condense", min=0, help="hpipm backend: partial condensing to this many stages (0: none)"),
     qp_solver: str = typer.Option("hpipm", "--qp-solver", help="casadi backend: the casadi.conic plugin"),
     tol: float = typer.Option(1e-3, "--tol", help="QP complementarity tolerance (HPIPM)"),
@@ -501,10 +500,21 @@ def bench(
                                  help="solve | sensitivity (default: sensitivity on the uncondensed hpipm engine)"),
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
+    chain: str = typer.Option(None, "--chain", show_default=False,
+                              help="relay counts, e.g. 1,2,4,8,16: the scenario's network replaced by a generated long chain "
+                                   "of each count (experiments.chains; its other settings kept), each relay's step and the "
+                                   "fleet's timed per count"),
+    chain_length: float = typer.Option(250.0, "--chain-length", help="--chain: the chain's length, m"),
 ):
     """Time the controller on a mission: preparation vs feedback phase, planner, percentiles, deadline misses, IPOPT ratio."""
-
-
+    if chain is not None:
+        _bench_chains(scenario, chain, chain_length, json_out, set_, unset,
+                      {"sim.duration_s": duration, "controller.variant": variant, "controller.planner": planner,
+                       "sim.control_rate_hz": control_rate_hz},
+                      dict(backend=backend, condensed_horizon=condense, qp_solver=qp_solver, tol_comp=tol,
+                           warm_start=warm_start, simd_kernels=simd, feedback=feedback, iter_max=iter_max,
+                           accept_tol=accept_tol), refused={"--ipopt-points": ipopt_points, "--rounds": rounds})
+        return
     sc = _load_or_exit(scenario, set_, unset, {"sim.duration_s": duration, "controller.variant": variant,
                                                "controller.planner": planner, "sim.control_rate_hz": control_rate_hz})
     if backend == "c":
@@ -560,6 +570,45 @@ def bench(
         json_out.write_text(api.strict_json_text(res))
 
 
+def _bench_chains(base: Path, counts: str, length_m: float, json_out: Path | None, sets, unsets, options: dict,
+                  solver: dict, refused: dict) -> None:
+    """``aerorelay bench --chain 1,2,4,8``: generated long chains of each count, each relay's step and the fleet's."""
+    rounds = refused.pop("--rounds") or 1
+    for opt, value in refused.items():
+        if value is not None:
+            _fail(f"{opt}: not with --chain (a chain bench times every relay's RTI step and the fleet's)")
+    if unsets:
+        _fail("--unset: not with --chain (the chain writes its network anew; --set changes the rest)")
+    if solver["backend"] == "c":
+        _fail("--backend c: not with --chain (the C tree is one relay's controller)")
+    try:
+        ks = [int(v) for v in counts.split(",") if v.strip()]
+    except ValueError:
+        _fail(f"--chain: relay counts separated by commas, e.g. 1,2,4,8,16; got {counts!r}")
+    if not ks or any(not 1 <= k <= 16 for k in ks) or len(set(ks)) != len(ks):
+        _fail(f"--chain: distinct relay counts in 1..16, e.g. 1,2,4,8,16; got {counts!r}")
+    updates = {**api.parse_sets(sets or []), **{k: v for k, v in options.items() if v is not None}}
+    try:
+        res = api.bench_chains(base, ks, length_m, updates=updates, rounds=rounds,
+                               settings_of=lambda sc: api.solver_settings(sc, **solver),
+                               say=lambda s: console.print(s, markup=False, highlight=False))
+    except (ScenarioError, ValueError) as exc:
+        _fail(str(exc))
+    t = Table(title=f"bench --chain: generated chains over {length_m:g} m ({res['machine']}); ms")
+    for c in ("round", "K", "relay step", "worst relay mean / p99", "worst / one's", "brake law / failed QPs",
+              "planner", "one computer mean / p99", "a computer each mean / p99"):
+        t.add_column(c, justify="right")
+    for i, k, c in ((i, k, c) for i, r in enumerate(res["rounds"]) for k, c in r.items()):
+        one, own = c["fleet_step_one_computer_ms"], c["fleet_step_own_computers_ms"]
+        t.add_row(str(i + 1), k, f"{c['relay_step_mean_ms']:.3f}", f"{c['relay_step_worst_mean_ms']:.3f} / {c['relay_step_worst_p99_ms']:.3f}",
+                  f"{c['relay_step_over_one']:.2f}" if "relay_step_over_one" in c else "-",
+                  f"{c['fallback_fraction_max']:.1%} / {c['qp_failure_fraction_max']:.1%}", f"{c['planner_ms']['mean']:.3f}",
+                  f"{one['mean']:.2f} / {one['p99']:.2f}", f"{own['mean']:.2f} / {own['p99']:.2f}")
+    console.print(t)
+    if json_out is not None:
+        json_out.write_text(api.strict_json_text(res))
+
+
 def _bench_c(sc, rounds: int, json_out: Path | None, **solver) -> None:
     """``aerorelay bench --backend c``: the first relay's step in Python and as the C tree, alternating, pinned."""
     try:
@@ -601,6 +650,9 @@ def _print_fleet_bench(res: dict) -> None:
     for label, v in rows:
         t.add_row(label, *[f"{v[c]:.3f}" for c in stats])
     console.print(t)
+    shares = ", ".join(f"{n} {r['fallback_fraction']:.1%} / {r['qp_failure_fraction']:.1%}" for n, r in res["relays"].items()
+                       if "fallback_fraction" in r)
+    console.print(f"brake law / failed QPs, share of each relay's steps: {shares}", markup=False, highlight=False)
     misses = ", ".join(f"{n} {r.get('deadline_misses', 'never flew')}" for n, r in res["relays"].items())
     console.print(f"wall {res['wall_s']:.1f} s for {res['sim_s']:.1f} s simulated (x{res['real_time_factor']:.2f} real time); "
                   f"deadline misses vs {res['control_period_ms']:g} ms period: per relay {misses}; fleet on one computer "
@@ -896,12 +948,20 @@ def _flown(fly: Callable[[], tuple], out: Path | None, who: str) -> tuple | None
     return None
 
 
-def _exit_if_unsafe(result) -> None:
-    """Exit 3 (as ``run`` does) when a flight's metrics say it was unsafe or ended early, naming why."""
-    if result is not None and result.metrics.get("unsafe"):
-        err_console.print(f"[bold red]unsafe flight[/]: {escape(str(result.metrics['unsafe_reason']))} (exit {EXIT_UNSAFE})",
+def _exit_if_unsafe(result, what: str = "flight") -> None:
+    """Exit 3 when a run's or flight's metrics say it was unsafe or ended early, 4 when a relay's controller did not
+    fly it (``fell_back``), naming why."""
+    if result is None:
+        return
+    m = result.metrics
+    if m.get("unsafe"):
+        err_console.print(f"[bold red]unsafe {what}[/]: {escape(str(m['unsafe_reason']))} (exit {EXIT_UNSAFE})",
                           highlight=False)
         raise typer.Exit(EXIT_UNSAFE)
+    if m.get("fell_back"):
+        err_console.print(f"[bold yellow]{what} fell back[/]: {escape(str(m['fell_back_reason']))} (exit {EXIT_FELL_BACK})",
+                          highlight=False)
+        raise typer.Exit(EXIT_FELL_BACK)
 
 
 @app.command()

@@ -13,7 +13,10 @@ active in these cases, that moves the interior-point QP's answer: the relay's po
 with the capacity planner, the capacity by at most 4.9e-4 relative; written under the old column names, the new log renamed back through
 ``modern_columns``); ``nominal_estimated`` again the same day when the jammer estimator came to read its residuals'
 scale robustly and to flag an estimate at its search box's edge (issue 61, item 5): the same flight, the estimate's
-columns changed."""
+columns changed. Every case was recorded again on 2026-12-07 (issue 76: the separation row bounded, 2 d^2 (r^2 - d^2) /
+(r^2 + d^2)), on a CPU without AVX-512 with ``OPENBLAS_CORETYPE=Haswell`` and ``NPY_DISABLE_CPU_FEATURES="X86_V4
+AVX512_ICL AVX512_SPR"`` (the test command's pins: numpy's and OpenBLAS's kernels differ by CPU, and the capacity
+planner's choices amplify a rounding difference to 5e-4 m); the nominal cases kept under their old column names."""
 
 from __future__ import annotations
 

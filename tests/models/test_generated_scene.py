@@ -111,6 +111,7 @@ def test_a_building_between_two_nodes_lets_through_two_concrete_slabs():
     assert shut.trace(tx, rx).paths[0] == 0
 
 
+@needs_rt
 def test_the_scene_is_written_once_per_content(tmp_path, monkeypatch):
     monkeypatch.setenv("AERORELAY_CACHE", str(tmp_path))
     block = {"name": "block", "kind": "box", "min_m": [-3.0, -5.0, 0.0], "max_m": [-2.0, -4.0, 3.0]}

@@ -8,6 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aerorelay.cli import app
+from tests.rt_marks import needs_rt
 
 ROOT = Path(__file__).resolve().parents[2]
 runner = CliRunner()
@@ -88,6 +89,7 @@ def test_two_relays_on_one_vehicle_are_refused_before_arming():
     assert r.exit_code == 2 and "relays 'r1' and 'r2' on one vehicle (udpout:127.0.0.1:14541)" in r.output, r.output
 
 
+@needs_rt
 def test_a_scene_file_not_found_says_where_it_looked():
     """A scene given with --set is found from the working folder, one in the file beside the file: the error said
     only "does not exist"."""
@@ -96,11 +98,11 @@ def test_a_scene_file_not_found_says_where_it_looked():
     import aerorelay as ar
     from aerorelay.config import ScenarioError
 
-    pytest.importorskip("sionna.rt")
     with pytest.raises(ScenarioError, match=r"scene file 'nowhere\.xml': no such file \(looked for /.*nowhere\.xml; "):
         ar.load_scenario(ROOT / "scenarios" / "street_canyon_traced.toml", set={"channel.propagation.scene": "nowhere.xml"})
 
 
+@needs_rt
 def test_a_truncated_or_foreign_scene_file_is_refused_at_load(tmp_path):
     """A truncated or binary scene XML, or a GPX file as a scene, validated and then crashed the run at its first
     trace."""
@@ -109,7 +111,6 @@ def test_a_truncated_or_foreign_scene_file_is_refused_at_load(tmp_path):
     import aerorelay as ar
     from aerorelay.config import ScenarioError
 
-    pytest.importorskip("sionna.rt")
     cut = tmp_path / "cut.xml"
     cut.write_text('<scene version="2.1.0"><shape type="ply" id="wall"><string name="filename"')
     gpx = tmp_path / "track.xml"
@@ -196,6 +197,7 @@ def test_a_track_too_long_to_read_is_refused_by_its_size_before_it_is_read(tmp_p
     assert f"{n:,} rows, more than a mission file is read ({MAX_TRACK_ROWS:,}" in " ".join(r.output.split())
 
 
+@needs_rt
 def test_a_traced_flight_too_long_for_its_limit_is_refused_before_it_starts(tmp_path):
     """A traced flight at rays_per_source = 1e8 ran unbounded with no estimate: 188 traces of ~100 s each. Its
     estimate (the closed loop and every trace, in proportion to the rays) is refused above sim.max_minutes, naming

@@ -1,11 +1,13 @@
 """One machinery (issue 46): every run, one relay or a fleet, flies the one closed loop
-(``sim.closed_loop.ClosedLoop``). The logs recorded by the code before the change (the one-relay loop
-and the fleet loop, commit 05e1bca; ``tests/data/record_before_one_machinery.py``) are flown again and
-compared column by column under the old names read through ``sim.log_schema.modern_columns``: the
-nominal preset with the paper's planner and with the capacity planner, with fading, CSI and process
-noise and gusty wind, with an estimated jammer, a chain of two relays and two sources sharing it
-(``chain_capacity`` recorded again when issue 47 rebuilt the fleet's capacity planner, 2026-12-04, and when its
-hold came to keep a relay's goal within its leash, 2026-12-05)."""
+(``sim.closed_loop.ClosedLoop``). Its flights are compared column by column (1e-9 relative) with recorded logs
+(``tests/data/record_before_one_machinery.py``), the one-relay cases under the old names read through
+``sim.log_schema.modern_columns``: the nominal preset with the paper's planner and with the capacity planner, with
+fading, CSI and process noise and gusty wind, with an estimated jammer, a chain of two relays and two sources sharing
+it. **They are golden masters, not a second implementation**: recorded first by the two loops before issue 46
+(05e1bca), every case was recorded again by the one loop when a deliberate change moved its flights, last on
+2026-12-07 (issue 76: the bounded separation row; relay positions moved by at most 7 mm in these seconds, capacities
+by 4.9e-4 relative). They guard the loop against an unintended change, on CPUs whose floating-point paths the test
+command pins (``make test``: OpenBLAS's Haswell kernels, numpy without AVX-512)."""
 
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ TIMINGS = ("solve_ms", "feedback_ms", "estimator_ms")  # wall-clock measurements
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_the_one_loop_flies_what_both_loops_flew(case):
+def test_the_one_loop_flies_its_recorded_flights(case):
     path, updates = CASES[case]
     before = pd.read_parquet(DATA / "before_one_machinery" / f"{case}.parquet")
     before = before.rename(columns=modern_columns(before.columns))

@@ -160,6 +160,11 @@ def _what_does_not_apply(sc: Scenario, path: Path | None, updates: dict) -> None
                     where, ", ".join(f"{k}={v!r}" for k, v in updates.items()))
 
 
+def apply_updates(data: dict, updates: dict) -> None:
+    """Dotted-key ``updates`` (as ``--set`` gives them) written into a scenario's plain ``data`` before it is validated."""
+    _apply_to_data(data, updates, [])
+
+
 def parse_scenario(data: dict) -> Scenario:
     """Validate a scenario from a plain dict (as data, then its physics checks); raises
     ScenarioError with one line per problem (a setting that changes nothing here too: ``config.applies``)."""

@@ -505,9 +505,10 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     check_physics(sc)
     scene = scene or build_scene(sc, jammers)
     network = sc.shape.neighbours
-    # every relay keeps min_separation_m from every other vehicle, the paper's one relay from its source too: the
-    # verdict checks it (a planner's goal alone left the tracking lag: 1.01 m of 1.05 on a sector base station)
-    others = len(sc.relay_list) - 1 + len(sc.source_list) if sc.separation_m > 0 else 0
+    # every relay keeps min_separation_m from the other vehicles, the paper's one relay from its source too: the
+    # verdict checks it (a planner's goal alone left the tracking lag: 1.01 m of 1.05 on a sector base station); a
+    # row for each of the nearest network.separation_neighbours, whatever the network's size
+    others = min(len(sc.relay_list) - 1 + len(sc.source_list), sc.network.separation_neighbours) if sc.separation_m > 0 else 0
     relays, platforms = [], {}
     for i, r in enumerate(sc.relay_list):
         view = sc.relay_view(i)
@@ -761,8 +762,11 @@ def scenario_bound(sc: Scenario, progress=None, vehicle: Multirotor | None = Non
 def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], starts: dict[str, np.ndarray],
                     t0: float = 0.0) -> FleetPlanner:
     """The network's planner named by ``controller.planner``, built from the scene's world view, its
-    references starting at ``starts`` (m, world) at ``t0`` (s) and kept outside the obstacles' margins."""
-    lo, hi = _workspace(sc)
+    references starting at ``starts`` (m, world) at ``t0`` (s) and kept outside the obstacles' margins, each relay
+    inside its own workspace (the pre-flight route inside the box around them all)."""
+    boxes = {r.name: _workspace(sc.relay_view(i)) for i, r in enumerate(sc.relay_list) if r.name in starts}
+    lo = np.min([b[0] for b in boxes.values()], axis=0) if boxes else _workspace(sc)[0]
+    hi = np.max([b[1] for b in boxes.values()], axis=0) if boxes else _workspace(sc)[1]
     ctx = NetworkPlannerContext(scene=scene.world_view(), routes=sc.route_list, starts=starts,
                                 vehicles={r.name: r.vehicle for r in relays if r.name in starts},
                                 bs_position=np.asarray(sc.first_station.position, float), workspace_min=lo, workspace_max=hi,
@@ -772,7 +776,7 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
                                 duration_s=sc.duration_s, t0_s=t0, route_dt_s=sc.route_dt_s, route=sc.network.route,
                                 tracer=world.scoring_tracer(sc), traced_coherent=world.traced_coherent(sc),
                                 relay_settings={r.name: planner_settings(sc.relay_view(i))
-                                                for i, r in enumerate(sc.relay_list) if r.name in starts})
+                                                for i, r in enumerate(sc.relay_list) if r.name in starts}, boxes=boxes)
     factory = planner_of(sc).network
     assert factory is not None  # planner_registered refused a network's planner without a network factory
     planner = factory(ctx)

@@ -79,6 +79,10 @@ BOUND = (
             "network bound does not branch)"),
     Applies(("global_gap",), lambda b, sc: b.global_seconds > 0, "bound.global_seconds > 0"),
 )
+NETWORK = (
+    Applies(("separation_neighbours",), lambda n, sc: len(sc.relay_list) - 1 + len(sc.source_list) > n.separation_neighbours,
+            "a relay has more other vehicles (relays and sources) than network.separation_neighbours"),
+)
 MISSION = (
     Applies(("ulog_yaw_deg", "ulog_offset_m"), lambda m, sc: m.trajectory_ulog is not None, "a trajectory_ulog mission"),
 )
@@ -93,6 +97,7 @@ def _sections(sc) -> Iterator[tuple[str, BaseModel, tuple[Applies, ...]]]:
         yield sc.jammer_field(i), j, JAMMER
     yield "estimation", sc.estimation, ESTIMATION
     yield "bound", sc.bound, BOUND
+    yield "network", sc.network, NETWORK
     for i, o in enumerate(sc.obstacles or []):
         yield f"obstacles[{i}]", o, OBSTACLE
     if sc.sources is None:

@@ -122,6 +122,11 @@ class NetworkConfig(Strict):
                                            "sources), m; default the vehicles' own size: twice the largest footprint radius "
                                            "of the relays' platforms (1.5 x the farthest rotor centre: the arm plus a rotor "
                                            "of half its length); a smaller value is refused")
+    separation_neighbours: int = Field(4, ge=1, le=32, description="each relay's NMPC keeps min_separation_m from at most "
+                                       "this many other vehicles at a time: the nearest over its horizon, by their predicted "
+                                       "paths (a row each; a vehicle beyond them is counted in the relay's "
+                                       "separation_unguarded_steps when it comes within twice the separation). A relay's "
+                                       "step then costs the same in a network of any size (docs/results/networks.md)")
     route: bool = Field(True, description="the capacity planner flies near a pre-flight route (false: no route, no leash: "
                         "hill climbing from the starts alone)")
 

@@ -43,7 +43,7 @@ from .network import (
 from .obstacles import MAX_OBSTACLES, BuildingsConfig, ObstacleConfig
 from .platform import PlatformConfig
 from .radio import AntennaConfig, ChannelConfig, JammerConfig, NodesConfig
-from .sections import BoundConfig, EstimationConfig, PerturbationConfig, SimConfig, WorldConfig
+from .sections import BoundConfig, EstimationConfig, PerturbationConfig, SimConfig, VerdictConfig, WorldConfig
 from .tomltext import compact_toml
 
 log = logging.getLogger(__name__)
@@ -161,6 +161,7 @@ class Scenario(Strict):
     bound: BoundConfig = Field(default_factory=BoundConfig)
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
     world: WorldConfig = Field(default_factory=WorldConfig)
+    verdict: VerdictConfig = Field(default_factory=VerdictConfig)
     geo: GeoConfig | None = Field(None, description="where the scenario's local frame sits on the earth (geographic mission files)")
     relays: list[RelayConfig] | None = Field(None, min_length=1, max_length=16, description="the relays of a network "
                                              "(replaces nodes.relay)")
@@ -250,11 +251,13 @@ class Scenario(Strict):
         modes = {j.localization for j in self.jammer_configs}
         if len(modes) > 1:
             raise ValueError("jammer.localization: every jammer must use the same mode (oracle or estimated)")
-        ws = self.controller.workspace
-        for i, r in enumerate(self.relay_list):
+        for i, r in enumerate(self.relay_list):  # inside its own workspace, the one its NMPC and the verdict keep it in
+            ws = self.controller_of(i).workspace
             if not ws.contains(r.start):
                 where = self._relay_field(i, "start", legacy="nodes.relay")
-                raise ValueError(f"{where} {r.start} must lie inside controller.workspace [{ws.min}, {ws.max}]")
+                box = (f"relays[{i}].controller.workspace" if self.relays and "workspace" in (self.relays[i].controller or {})
+                       else "controller.workspace")
+                raise ValueError(f"{where} {r.start} must lie inside {box} [{ws.min}, {ws.max}]")
         self._routes_hold()
         nodes = self.base_station_names + [r.name for r in self.relay_list] + [s.name for s in self.source_list]
         for i, j in enumerate(self.jammer_configs):

@@ -1,5 +1,5 @@
-"""The smaller tables as data: ``[world]``, ``[sim]``, ``[perturbations]``, ``[bound]`` and
-``[estimation]``."""
+"""The smaller tables as data: ``[world]``, ``[sim]``, ``[perturbations]``, ``[bound]``, ``[estimation]`` and
+``[verdict]``."""
 
 from __future__ import annotations
 
@@ -112,3 +112,11 @@ class EstimationConfig(Strict):
 REACH_MAX_TIMES = 300  # mission instants the alignment reachability check samples (1 s apart up to 299 s)
 REACH_MAX_WORK = 6e7  # grid points x axes x instants it evaluates (~0.6 s on the project's VM; nominal: 2.5e7)
 REACH_MAX_POINTS = 10_000  # relay positions it searches at most (1 m apart up to this, then coarser)
+
+
+class VerdictConfig(Strict):
+    """What a run must have done to read ``complete`` besides staying safe (``sim.exit_status``)."""
+
+    fallback_fraction_max: float = Field(0.05, ge=0.0, le=1.0, description="a relay that flew more than this fraction "
+                                         "of its steps on the brake law, or with failed QPs, ends the run 'fell_back' (exit "
+                                         "4): its controller did not fly it (1: never)")

@@ -110,7 +110,7 @@ static ar_hold_t ar_hold_at(const double *p, const double *v, const double *eta)
   return h;
 }
 
-#define AR_M 6 /* the allocation's rows: force (3), moment (3) */
+#define AR_M (6 + AR_NR) /* the allocation's rows: force (3), moment (3), a rotor's change each (its uniqueness) */
 
 /* Minimum-norm least squares min |A[:, cols] z - b| (A: AR_M x AR_NR, row-major), singular values below rcond times
  * the largest dropped, as LAPACK's gelsd: a one-sided Jacobi SVD of the k columns. */
@@ -339,10 +339,14 @@ static void ar_brake(const double *x, const ar_hold_t *h, double *u) {
   } else {
     for (int i = 0; i < 3; i++) target[i] = R[i] * fd[0] + R[3 + i] * fd[1] + R[6 + i] * fd[2];
   }
-  for (int i = 0; i < AR_M; i++) rows[i] = i < 3 ? w_force : AR_BRAKE_MOMENT_WEIGHT;
-  for (int i = 0; i < AR_M; i++) {
+  for (int i = 0; i < 6; i++) rows[i] = i < 3 ? w_force : AR_BRAKE_MOMENT_WEIGHT;
+  for (int i = 0; i < 6; i++) {
     bw[i] = target[i] * rows[i];
     for (int j = 0; j < AR_NR; j++) Aw[i * AR_NR + j] = AR_ALLOC[i * AR_NR + j] * rows[i];
+  }
+  for (int i = 6; i < AR_M; i++) { /* the pull toward the rotors' speeds now: one solution (failsafe.BrakeGains) */
+    bw[i] = AR_BRAKE_ALLOC_REG * speeds[i - 6] * speeds[i - 6];
+    for (int j = 0; j < AR_NR; j++) Aw[i * AR_NR + j] = i - 6 == j ? AR_BRAKE_ALLOC_REG : 0.0;
   }
   ar_bvls(Aw, bw, AR_W2_MIN, AR_W2_MAX, w2);
   for (int i = 0; i < AR_NR; i++)

@@ -108,6 +108,9 @@ def benchmark_closed_loop(loop, *, ipopt_points: int = 3) -> dict:
         summed[flew] += np.asarray(log[f"{r.name}.solve_ms"], float)[flew]
         slowest = np.maximum(slowest, np.where(flew, np.asarray(log[f"{r.name}.solve_ms"], float), 0.0))
         relays[r.name] = relay_timing(loop, r, period_ms, ipopt_points=ipopt_points)
+        if flew.any():  # the shares the verdict reads (verdict.fallback_fraction_max)
+            relays[r.name]["fallback_fraction"] = float(np.mean(np.asarray(log[f"{r.name}.fallback"], bool)[flew]))
+            relays[r.name]["qp_failure_fraction"] = float(np.mean(~np.asarray(log[f"{r.name}.qp_ok"], bool)[flew]))
     own = slowest + planner
     out = {
         "steps": int(len(planner)),

@@ -5,7 +5,8 @@ on position and velocity gives the desired force ``f_d = m (a_cmd + g e3)`` (wor
 axis is aligned with it (keeping the current heading), a PD law on the rotation error gives the desired moment,
 and the motor speeds come from a bounded least-squares allocation ``[F; M] Omega^2 = [R' f_d;
 M_d]`` with ``Omega`` in its bounds (a fully-actuated platform uses its lateral force too; a
-coplanar one has zero rows there). The motors are driven toward those speeds at a rate inside
+coplanar one has zero rows there), made unique by a faint pull toward the rotors' speeds now
+(``BrakeGains.allocation_reg``). The motors are driven toward those speeds at a rate inside
 ``[omega_dot_min, omega_dot_max]``.
 
 Where and how stiffly it stops depends on the velocity at the hand-over (``BrakeLaw.hold``): a
@@ -51,6 +52,11 @@ class BrakeGains:
     max_freq: float = 2.5  # a quarter of the attitude loop's: the cascade stays separated
     motor_time_constant: float = 0.05
     moment_weight: float = 10.0  # allocation: a moment row (N m) against a force row (N); moments first under saturation
+    # allocation: a row per rotor weighting its squared speed's change from now (per Hz^2, against a force row's N): among
+    # the allocations that give the wrench equally (8 rotors for 6 rows on the octocopter), the one nearest the rotors'
+    # speeds now. Unique, so the C tree's BVLS finds Python's point (without it the two picked different ones of the
+    # set: 82 Hz/s apart on one octocopter step); 1000 Hz^2 of change weighs 1e-3 N
+    allocation_reg: float = 1e-6
 
 
 @dataclass(frozen=True)
@@ -144,6 +150,9 @@ class BrakeLaw:
             w_force, f_body = 0.1, np.array([0.0, 0.0, 0.5 * veh.mass * veh.gravity])
         rows = np.r_[np.full(3, w_force), np.full(3, self.g.moment_weight)]
         target = np.concatenate([f_body, M_d])
-        w2 = lsq_linear(self.A * rows[:, None], target * rows, bounds=self.bounds, method="bvls").x
+        reg = self.g.allocation_reg
+        A = np.vstack([self.A * rows[:, None], reg * np.eye(veh.n_rotors)])
+        b = np.concatenate([target * rows, reg * speeds**2])
+        w2 = lsq_linear(A, b, bounds=self.bounds, method="bvls").x
         u = (np.sqrt(w2) - speeds) / self.g.motor_time_constant
         return np.clip(u, veh.omega_dot_min, veh.omega_dot_max)

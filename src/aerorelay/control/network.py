@@ -6,10 +6,14 @@ it to one relay and one source."""
 
 from __future__ import annotations
 
+import logging
 import math
+import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import casadi as ca
 import numpy as np
@@ -27,9 +31,46 @@ from .nmpc import StepInfo
 from .readings import JammersFromReadings
 from .relay_step import Command, RelayStep, SourceState, StaleSettings, checked_source
 
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+R = TypeVar("R")
+
 SEPARATION_MARGIN_M = 0.1  # each relay's NMPC keeps this much more than min_separation_m: its soft constraint's slack stays inside
-GONE_CLEARANCE_M = 10.0  # a lost relay in another's separation constraint: the separation plus this below that relay's own
-# plan, never reached within a step (a fixed point 100 m or 1 km away scaled the constraint until the QP stopped converging)
+UNUSED_ROW_OFFSET_M = 1000.0  # a separation row with no vehicle to fill it looks at a point this far below the relay's own
+# plan: the bounded row (control.terms.separation_margin) reads 2 d^2 there, constant to 1e-7, and never binds
+UNGUARDED_FACTOR = 2.0  # a vehicle left out of a relay's rows is counted when its path comes within this many separations
+
+
+THREADS_VARIABLE = "AERORELAY_RELAY_THREADS"
+
+
+def relay_threads() -> int:
+    """How many relays' controllers step at once: ``AERORELAY_RELAY_THREADS`` (0: one per core, up to the relays; 1:
+    one after another), default 0. A resource of the machine, not of the scenario: the flight is the same either way,
+    bit for bit (a campaign's workers, a process per core already, step their relays one after another)."""
+    text = os.environ.get(THREADS_VARIABLE, "0").strip()
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if not 0 <= n <= 256:
+        raise ValueError(f"{THREADS_VARIABLE} must be a whole number 0..256 (0: one thread per core), got {text!r}")
+    return n
+
+
+def separation_rows(own: np.ndarray, others: Mapping[str, np.ndarray], rows: int, separation_m: float
+                    ) -> tuple[np.ndarray, list[str], list[str]]:
+    """A relay's separation rows: the ``rows`` vehicles of ``others`` (name -> predicted positions ``(3, N + 1)``, m)
+    whose paths come nearest to its own ``own`` over the horizon, stacked ``(3 rows, N + 1)`` (a row without a vehicle
+    looks far below ``own``); their names, and the names of the vehicles left out whose paths come within
+    ``UNGUARDED_FACTOR`` separations of ``own`` (no row keeps the relay from them)."""
+    near = sorted(others, key=lambda n: float(np.min(np.linalg.norm(others[n] - own, axis=0))))
+    kept, left = near[:rows], near[rows:]
+    far = own - np.array([[0.0], [0.0], [UNUSED_ROW_OFFSET_M]])
+    stacked = np.vstack([others[n] for n in kept] + [far] * (rows - len(kept)))
+    close = UNGUARDED_FACTOR * separation_m
+    unguarded = [n for n in left if float(np.min(np.linalg.norm(others[n] - own, axis=0))) < close]
+    return stacked, kept, unguarded
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,10 +108,11 @@ class NetworkController:
     def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner, period_s: float,
                  separation_m: float = 0.0,
                  replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None,
-                 planner_name: str = "planner"):
+                 planner_name: str = "planner", threads: int | None = None):
         """``replanner(scene, positions, t0)``: the planner of the network ``scene`` (relays lost, gone home or taken
         over), its references starting where its relays are (m, world) at ``t0`` (s). ``planner_name``: how its
-        references' check names it (``planning.base.ReferenceCheck``; the registered name)."""
+        references' check names it (``planning.base.ReferenceCheck``; the registered name). ``threads``: how many
+        relays' controllers step at once (``each``; 0: one per core, up to the relays; None: ``relay_threads()``)."""
         self.scene, self.relays, self.period = scene, relays, period_s
         self.check = ReferenceCheck(planner_name, {r.name: (np.asarray(r.controller.spec.workspace_min, float),
                                                             np.asarray(r.controller.spec.workspace_max, float))
@@ -91,6 +133,29 @@ class NetworkController:
         # more than one relay), the separation rows
         self.plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)
         self.planner_ms = 0.0  # the last step's planner time (ms; without work the planner runs beside the loop: off_loop_s)
+        # per relay, the steps on which a vehicle came within UNGUARDED_FACTOR separations beyond its separation rows
+        self.unguarded: dict[str, int] = dict.fromkeys((r.name for r in relays), 0)
+        threads = relay_threads() if threads is None else threads
+        self.threads = min(len(relays), os.cpu_count() or 1) if threads == 0 else min(threads, len(relays))
+        self._pool: ThreadPoolExecutor | None = None
+
+    def each(self, step: Callable[[T], R], items: Iterable[T]) -> list[R]:
+        """``[step(item) for item in items]``, on ``threads`` threads when there are several: every relay's step reads
+        what the control period shares (the references, the predicted plans) and writes only its own controller, and
+        its NMPC runs in C without Python's lock, so the relays step at once as on a computer each (the results are
+        the same, bit for bit, in the same order)."""
+        items = list(items)
+        if self.threads <= 1 or len(items) < 2:
+            return [step(i) for i in items]
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="relay")
+        return list(self._pool.map(step, items))
+
+    def close(self) -> None:
+        """Stop the relays' threads (a flight's end; ``each`` starts them again when called)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     def lose(self, lost: frozenset[str], positions: Mapping[str, np.ndarray], t0: float = 0.0) -> None:
         """The relays ``lost`` are gone: the scene's routes skip them, the planner is rebuilt for the
@@ -158,12 +223,20 @@ class NetworkController:
 
     def parameters(self, r: LoopRelay, ref: Reference, predicted: Mapping[str, np.ndarray], lost: frozenset[str],
                    a_ext: np.ndarray | None) -> np.ndarray:
-        """Relay ``r``'s stage parameters on ``ref``: its neighbours on its route, the other vehicles' plans."""
+        """Relay ``r``'s stage parameters on ``ref``: its neighbours on its route, the nearest other vehicles' plans
+        (``separation_rows``; ``lost``: out of the flight, in no row)."""
         up, down = self.neighbours(r.name)
         others = None
         if r.controller.spec.neighbours:
-            gone = predicted[r.name] - [[0.0], [0.0], [self.separation_m + GONE_CLEARANCE_M]]  # out of reach
-            others = np.vstack([gone if n in lost else q for n, q in predicted.items() if n != r.name])
+            own = predicted[r.name]
+            candidates = {n: q for n, q in predicted.items() if n != r.name and n not in lost}
+            others, _, unguarded = separation_rows(own, candidates, r.controller.spec.neighbours, self.separation_m)
+            if unguarded:
+                if not self.unguarded[r.name]:
+                    log.warning("relay %r: %s within %g m of its plan but beyond its %d separation rows "
+                                "(network.separation_neighbours)", r.name, ", ".join(unguarded),
+                                UNGUARDED_FACTOR * self.separation_m, r.controller.spec.neighbours)
+                self.unguarded[r.name] += 1
         return r.stepper.parameters(ref, p2_path=predicted.get(up, self.bs_path),
                                     p0_path=predicted.get(down, self.station_paths.get(down, self.bs_path)), others=others,
                                     separation_m=self.separation_m + SEPARATION_MARGIN_M, a_ext=a_ext)
@@ -320,16 +393,15 @@ class Controller:
         predicted = self.controller.predicted({**x, **{n: last[n] for n in self.lost}}, known)
         for n in self.lost & set(predicted):  # a lost relay still flies (it holds and lands): kept clear where it last was
             predicted[n] = np.repeat(last[n][P, None], predicted[n].shape[1], axis=1)
-        out = {}
-        for r in self.controller.relays:
+        def command(r: LoopRelay) -> Command:
             if r.name not in fresh or r.name in self.lost:
                 cmd = r.stepper.hold_command(t, t0)
-                out[r.name] = replace(cmd, rejected=rejected[r.name]) if r.name in rejected else cmd
-                continue
+                return replace(cmd, rejected=rejected[r.name]) if r.name in rejected else cmd
             params = self.controller.parameters(r, refs[r.name], predicted, frozenset(), None)
             info: StepInfo = r.stepper.act(x[r.name], params)
-            out[r.name] = r.stepper.command(t, x[r.name], info, refs[r.name], t0)
-        return out
+            return r.stepper.command(t, x[r.name], info, refs[r.name], t0)
+        relays = self.controller.relays
+        return dict(zip((r.name for r in relays), self.controller.each(command, relays), strict=True))
 
     def _check_readings(self, readings: Mapping[str, float]) -> None:
         if self.estimated is None:

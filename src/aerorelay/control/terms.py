@@ -39,6 +39,17 @@ REFERENCE_SIGNALS: tuple[tuple[str, int], ...] = (
 # its route (the next relay's latest plan or the base station), m, world; v_10 is the cosine toward it.
 
 
+def separation_margin(r2, d2):
+    """The separation row's value for a squared distance ``r2`` and a squared separation ``d2`` (m^2; numpy or
+    CasADi): ``2 d^2 (r^2 - d^2) / (r^2 + d^2)``. It is zero exactly where ``r = d`` and has the gradient of
+    ``r^2 - d^2`` there (``2 d`` per metre), so a violation costs the slack what it did; but it stays within
+    ``(-2 d^2, 2 d^2)``: a vehicle 100 m away reads ``~2 d^2``, nearly constant. The unbounded ``r^2 - d^2`` read
+    1.7e3-3.2e4 m^2 for the neighbours of a 250 m chain, next to rows of order 1: the interior-point method's
+    complementarity (absolute, ``tol_comp``) then took 47 iterations on average and most QPs ended at the cap
+    (docs/results/networks.md, 'Networks at scale')."""
+    return 2.0 * d2 * (r2 - d2) / (r2 + d2)
+
+
 class StageVars:
     """Named quantities of one stage for the term and constraint expressions (CasADi symbols).
 
@@ -80,12 +91,16 @@ class StageVars:
 
     @cached_property
     def separation_margins(self):
-        """``|p - q_j|^2 - d^2`` (m^2) for every other vehicle ``j`` at its predicted position ``q_j``
-        (``p_others``, 3 per vehicle) and the separation ``d`` (``separation_m``)."""
+        """``separation_margin(|p - q_j|^2, d^2)`` (m^2) for every other vehicle ``j`` in the relay's separation
+        rows at its predicted position ``q_j`` (``p_others``, 3 per vehicle) and the separation ``d``
+        (``separation_m``)."""
         q = self.p["p_others"]
-        n = q.shape[0] // 3
-        d = [self.pos - q[3 * j : 3 * j + 3] for j in range(n)]
-        return ca.vertcat(*[ca.dot(e, e) - self.p["separation_m"] ** 2 for e in d])
+        d2 = self.p["separation_m"] ** 2
+        rows = []
+        for j in range(q.shape[0] // 3):
+            e = self.pos - q[3 * j : 3 * j + 3]
+            rows.append(separation_margin(ca.dot(e, e), d2))
+        return ca.vertcat(*rows)
 
     @cached_property
     def keep_out_margins(self):
@@ -147,10 +162,12 @@ COST_TERMS: tuple[CostTerm, ...] = (
              terminal=None, strictly_positive=True),
 )
 
-# A fleet's relays keep apart: present in the OCP of a relay that has neighbours (``OcpSpec.neighbours``),
-# whose predicted positions come as the stage parameter ``p_others`` (their latest plans, one step old).
+# A fleet's relays keep apart: present in the OCP of a relay that has neighbours (``OcpSpec.neighbours``: its rows, one
+# per other vehicle it keeps apart from, the nearest ones), whose predicted positions come as the stage parameter
+# ``p_others`` (their latest plans, one step old).
 SEPARATION = Constraint("separation", lambda s: s.separation_margins,
-                        "|p - q_j|^2 - d^2 >= -pi for every other vehicle j (network.min_separation_m)", comms_aware=False)
+                        "2 d^2 (|p - q_j|^2 - d^2) / (|p - q_j|^2 + d^2) >= -pi for the nearest other vehicles j "
+                        "(network.min_separation_m, network.separation_neighbours)", comms_aware=False)
 
 # A relay among obstacles (``OcpSpec.obstacles``) keeps out: one plane per obstacle and stage, chosen from its
 # previous plan (the plane through the grown obstacle's nearest point, normal toward the plan): a linear row

@@ -26,6 +26,7 @@ from dask.distributed import Client, LocalCluster, as_completed
 
 from .._version import __version__
 from ..assembly.parts import nmpc_settings
+from ..control.network import THREADS_VARIABLE
 from ..sim.units import metric_value_problem
 from ..store import strict_json
 from ..store.outputs import check_output_folder, mark, write_atomic
@@ -99,15 +100,20 @@ def is_finished(out: Path, spec: RunSpec) -> bool:
 def execute_run(spec: RunSpec, out: str) -> dict:
     """Fly one run and write its folder; never raises (errors are returned). Runs on a worker."""
     t0 = time.perf_counter()
+    os.environ.setdefault(THREADS_VARIABLE, "1")  # a worker per core already: its relays step one after another
     record = {"key": spec.key, "study": spec.study, "group": spec.group, "seed": spec.seed,
               "scenario_hash": spec.scenario_hash, "version": __version__, "pid": os.getpid()}
     try:
         result = simulate(scenario_of(spec), with_bound=spec.bound)
         result.save(run_dir(Path(out), spec))
-        unsafe = result.metrics["unsafe"]
-        record.update(status=RunStatus.UNSAFE if unsafe else RunStatus.DONE, wall_s=time.perf_counter() - t0, c_min=result.metrics["c_min"])
+        m = result.metrics
+        unsafe, fell_back = m["unsafe"], bool(m.get("fell_back"))
+        status = RunStatus.UNSAFE if unsafe else (RunStatus.FELL_BACK if fell_back else RunStatus.DONE)
+        record.update(status=status, wall_s=time.perf_counter() - t0, c_min=m["c_min"])
         if unsafe:
-            record["error"] = f"unsafe: {result.metrics['unsafe_reason']}"
+            record["error"] = f"unsafe: {m['unsafe_reason']}"
+        elif fell_back:
+            record["error"] = f"fell back: {m['fell_back_reason']}"
     except Exception as exc:  # recorded, the campaign goes on
         record.update(status=RunStatus.FAILED, wall_s=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}",
                       traceback=traceback.format_exc(limit=8))
@@ -128,6 +134,7 @@ class RunStatus(StrEnum):
     or flown but unsafe (left its world; its numbers are not used)."""
 
     DONE = "done"
+    FELL_BACK = "fell_back"  # flown and safe, but a relay's controller did not fly it (its numbers kept, marked)
     FAILED = "failed"
     UNSAFE = "unsafe"
 

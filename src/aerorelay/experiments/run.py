@@ -147,17 +147,29 @@ def failed_metrics(mission: MissionResult, exc: Exception) -> dict:
             "controller": mission.controller, "aborted": mission.aborted, **exit_fields([ExitStatus.METRICS_FAILED])}
 
 
+def relay_workspaces(sc: Scenario) -> dict[str, tuple[tuple, tuple, float]]:
+    """Each relay's own workspace and box tolerance (its ``[relays.controller]``, else ``[controller]``'s), as its
+    NMPC flies it and the verdict checks it."""
+    out = {}
+    for i, r in enumerate(sc.relay_list):
+        c = sc.relay_view(i).controller
+        out[r.name] = (tuple(c.workspace.min), tuple(c.workspace.max), c.failsafe.box_tolerance_m)
+    return out
+
+
 def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: CapacityBound | NetworkBound | None) -> dict:
     """``metrics.json`` of a mission flown by ``relays`` (name -> vehicle), with its efficiency against the
     bound when given (``single_efficiency``, ``network_efficiency``)."""
-    ws = sc.controller.workspace
     m = compute_metrics(mission.log, relays=relays, sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
                         outage_threshold=sc.channel.outage, mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
-                        min_separation_m=sc.separation_m, workspace_min=ws.min, workspace_max=ws.max,
-                        box_tolerance_m=sc.controller.failsafe.box_tolerance_m, ground_z_m=sc.world.ground_z_m,
-                        losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False))
+                        min_separation_m=sc.separation_m, workspaces=relay_workspaces(sc), ground_z_m=sc.world.ground_z_m,
+                        losses=sc.losses, obstacles=obstacle_shapes(sc, margin=False),
+                        fallback_fraction_max=sc.verdict.fallback_fraction_max)
     m["controller"] = mission.controller
     m["fallback_episodes"] = mission.fallback_episodes
+    for name, steps in mission.separation_unguarded.items():
+        if name in m["relays"]:
+            m["relays"][name]["separation_unguarded_steps"] = int(steps)
     mark_aborted(m, mission)
     if isinstance(bound, NetworkBound):
         network_efficiency(m, bound)

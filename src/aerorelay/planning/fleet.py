@@ -73,11 +73,18 @@ class NetworkPlannerContext:
     tracer: RayTracer | None = None  # the scene's ray tracer when candidates are scored on the traced channel
     traced_coherent: bool = False  # ... and whether its paths are summed with their phases
     relay_settings: Mapping[str, PlannerSettings] = field(default_factory=dict)  # a relay's own ([[relays.controller]])
+    # a relay's own workspace ([relays.controller.workspace]) as (min, max), m; workspace_min/max then bound them all
+    boxes: Mapping[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def settings_of(self, name: str) -> PlannerSettings:
         """Relay ``name``'s own planner settings (its ``[relays.controller]`` over ``[controller]``): its speed and
         acceleration limits, tilt fraction, axes and governor; the network-wide ones are ``settings``'."""
         return self.relay_settings.get(name, self.settings)
+
+    def box_of(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Relay ``name``'s workspace (min, max), m: its own, else the network's."""
+        lo, hi = self.boxes.get(name, (self.workspace_min, self.workspace_max))
+        return np.asarray(lo, float), np.asarray(hi, float)
 
 
 NetworkPlannerFactory = Callable[[NetworkPlannerContext], FleetPlanner]
@@ -125,6 +132,12 @@ class EquidistantSettings:
     margin_m: float = 0.05
     workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
+    boxes: Mapping[str, tuple] = field(default_factory=dict)  # a relay's own workspace (min, max), where it has one
+
+
+def inner_box(box, margin_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """``box`` = (min, max) (m) shrunk by ``margin_m`` on every side."""
+    return np.asarray(box[0], float) + margin_m, np.asarray(box[1], float) - margin_m
 
 
 def placed_routes(routes: Sequence[Sequence[str]], positions: Mapping[str, np.ndarray],
@@ -173,14 +186,14 @@ class EquidistantPlanner:
         self.ends = [list(e) for e in ends]
         self.settings = settings
         self.refs = {n: np.asarray(p, float).copy() for n, p in relay_starts.items()}
-        lo, hi = np.asarray(settings.workspace_min, float), np.asarray(settings.workspace_max, float)
-        self.lo, self.hi = lo + settings.margin_m, hi - settings.margin_m
+        self.box = {n: inner_box(settings.boxes.get(n, (settings.workspace_min, settings.workspace_max)), settings.margin_m)
+                    for n in self.refs}
 
     def update(self, inp: FleetInput) -> dict[str, Reference]:
         targets = equidistant_targets(self.routes, inp.positions, self.ends)
         out = {}
         for name, ref in self.refs.items():
-            goal = np.clip(targets[name], self.lo, self.hi)
+            goal = np.clip(targets[name], *self.box[name])
             step = goal - ref
             dist = float(np.linalg.norm(step))
             most = self.settings.speeds_m_s.get(name, self.settings.speed_m_s) * inp.dt

@@ -44,7 +44,7 @@ import itertools
 import logging
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,7 +53,7 @@ from ..models.mission import SourceTrajectory
 from ..models.obstacles import inside_any
 from ..models.radio import NodePose, RadioScene
 from ..models.raytrace import RayTracer
-from .fleet import FleetInput, equidistant_targets, placed_routes
+from .fleet import FleetInput, equidistant_targets, inner_box, placed_routes
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
 from .platform_yaw import PlatformYaw
 from .relay_grid import CompiledConfigurations, CompiledRelayGrid
@@ -91,6 +91,7 @@ class FleetCapacitySettings:
     margin_m: float = 0.05
     workspace_min: tuple[float, float, float] = (-np.inf, -np.inf, -np.inf)
     workspace_max: tuple[float, float, float] = (np.inf, np.inf, np.inf)
+    boxes: Mapping[str, tuple] = field(default_factory=dict)  # a relay's own workspace (min, max), where it has one
     separation_m: float = 0.0
     obstacles: tuple = ()
     joint: bool = True
@@ -204,10 +205,10 @@ class FleetCapacityPlanner:
         self.off_loop_s = 0.0  # this step's work beside the control loop (s)
         self.relays = list(relay_starts)
         self.shapers = {n: ReferenceShaper(shapers[n]) for n in self.relays}
-        lo, hi = np.asarray(settings.workspace_min, float), np.asarray(settings.workspace_max, float)
-        self.lo, self.hi = lo + settings.margin_m, hi - settings.margin_m
+        self.box = {n: inner_box(settings.boxes.get(n, (settings.workspace_min, settings.workspace_max)), settings.margin_m)
+                    for n in self.relays}
         for n, p in relay_starts.items():
-            self.shapers[n].p_ref = np.clip(np.asarray(p, float), self.lo, self.hi)
+            self.shapers[n].p_ref = np.clip(np.asarray(p, float), *self.box[n])
         self.goals = {n: self.shapers[n].p_ref.copy() for n in self.relays}  # type: ignore[union-attr]
         self.axis_goals = {n: E3.copy() for n in self.relays}
         self.axes = {n: np.asarray(candidate_axes[n], float) for n in self.relays}
@@ -265,7 +266,7 @@ class FleetCapacityPlanner:
             d = np.linalg.norm(off, axis=1, keepdims=True)
             lim = self.settings.leash_m
             cand = np.where(d > lim, anchor + off * (lim / np.maximum(d, 1e-12)), cand)
-        return np.clip(cand, self.lo, self.hi)
+        return np.clip(cand, *self.box[n])
 
     def _blocked(self, P: np.ndarray, others: np.ndarray) -> np.ndarray:
         """True where a goal (``P (..., 3)``) is too close to a vehicle in ``others (M, 3)`` or inside an obstacle."""

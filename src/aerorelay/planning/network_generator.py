@@ -59,7 +59,9 @@ class NetworkGenerator:
     neighbours."""
 
     def __init__(self, surrogate: SurrogateParams, routes: Sequence[Sequence[str]], relays: Sequence[str], bs_position, *,
-                 governor_speed: float | Mapping[str, float], eig_floor: float, workspace_min, workspace_max, max_ref_accel: float = 2.0):
+                 governor_speed: float | Mapping[str, float], eig_floor: float, workspace_min, workspace_max, max_ref_accel: float = 2.0,
+                 boxes: Mapping[str, tuple] | None = None):
+        """``boxes``: a relay's own workspace (min, max), m, where it has one (else ``workspace_min``/``max``)."""
         self.routes = [list(r) for r in routes]
         self.relays = list(relays)
         self.sources = list(dict.fromkeys(r[0] for r in self.routes))
@@ -67,7 +69,9 @@ class NetworkGenerator:
         if len(bs) != 1:
             raise ValueError(f"NetworkGenerator: every route must end at the one base station, got {sorted(bs)}")
         self.governor_speed, self.eig_floor, self.max_ref_accel = governor_speed, eig_floor, max_ref_accel
-        self.lo, self.hi = np.asarray(workspace_min, float), np.asarray(workspace_max, float)
+        own = boxes or {}
+        self.lo = np.array([own.get(n, (workspace_min, workspace_max))[0] for n in self.relays], float)  # (K, 3)
+        self.hi = np.array([own.get(n, (workspace_min, workspace_max))[1] for n in self.relays], float)
         self.nj = len(surrogate.jam_gains)
         self._call = BufferedCall(_build_expansion(surrogate, self.relays, self.sources, bs.pop(), bs_position, self.routes))
         self.refs: dict[str, np.ndarray] = {}

@@ -71,7 +71,9 @@ FLEET_ROUTE_CLEARANCE_M = 0.5  # the pre-flight route keeps this much more than 
 
 
 def _box(ctx: NetworkPlannerContext) -> dict:
-    return {"workspace_min": tuple(float(v) for v in ctx.workspace_min), "workspace_max": tuple(float(v) for v in ctx.workspace_max)}
+    """The network's workspace and each relay's own (``NetworkPlannerContext.boxes``) as a planner's settings."""
+    return {"workspace_min": tuple(float(v) for v in ctx.workspace_min), "workspace_max": tuple(float(v) for v in ctx.workspace_max),
+            "boxes": {n: ctx.box_of(n) for n in ctx.starts}}
 
 
 @register_network_planner("equidistant", references="position")
@@ -121,4 +123,5 @@ def _network_generator(ctx: NetworkPlannerContext):
     governors = {n: ctx.settings_of(n).generator.governor_speed_m_s for n in ctx.starts}  # each relay's own
     return NetworkGenerator(SurrogateParams.of_scene(ctx.scene, g.mu, ctx.surrogate_g_bar), ctx.routes, list(ctx.starts),
                             tuple(float(v) for v in np.asarray(ctx.bs_position, float)), governor_speed=governors,
-                            eig_floor=g.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max)
+                            eig_floor=g.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max,
+                            boxes={n: ctx.box_of(n) for n in ctx.starts})

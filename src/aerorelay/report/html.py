@@ -318,10 +318,13 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                              "estimator_ms.mean")
                  if any(k in g for g in groups.values())]
         main = list(MAIN_METRICS) + extra
-        more = [c for c in (*TABLE_METRICS, "fallback_fraction") if c not in main]
+        more = [c for c in (*TABLE_METRICS, "fallback_fraction", "worst_relay_fallback_fraction",
+                            "worst_relay_infeasible_fraction") if c not in main]
         unit = capacity_unit(specs)
         for cols, title in ((main, "<h3>Runs (means over seeds)</h3>"), (more, None)):
-            rows = [[_breakable(g), str(v["n"])] + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
+            rows = [[_breakable(g) + (f' <span class="warn" title="{len(v["fell_back_runs"])} run(s) fell back">(fell back)'
+                                      '</span>' if v.get("fell_back_runs") else ""), str(v["n"])]
+                    + [_fmt(v.get(c)) for c in cols] for g, v in groups.items()]
             table = _table(["run", "n"] + _headers(cols, unit), rows)
             parts.append(title + table if title else f"<details><summary>more columns: {', '.join(HEADERS.get(c, c) for c in cols)}"
                                                       f"</summary>{table}</details>")
@@ -339,6 +342,12 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
     if failed or study_sum["missing_runs"]:
         items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in failed)
         parts.append(f'<div class="warn">{len(study_sum["missing_runs"])} run(s) without results.<ul>{items}</ul></div>')
+    fell = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == RunStatus.FELL_BACK]
+    if fell:
+        items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in fell)
+        parts.append(f'<div class="warn">{len(fell)} run(s) fell back: a relay flew more than '
+                     f'verdict.fallback_fraction_max of its steps on the brake law or with failed QPs; their numbers are '
+                     f'what the fail-safe flew, not the controller.<ul>{items}</ul></div>')
     unsafe = [r for r in manifest.values() if r.get("study") == study.name and r.get("status") == RunStatus.UNSAFE]
     if unsafe:
         items = "".join(f"<li><code>{html.escape(r['key'])}</code>: {html.escape(r.get('error', ''))}</li>" for r in unsafe)

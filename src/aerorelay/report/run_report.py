@@ -63,6 +63,9 @@ def render_run_report(run: Path) -> str:
     verdict = (f'<p class="no">unsafe: {html.escape(str(m.get("unsafe_reason", "")))}</p>' if m.get("unsafe")
                else '<p class="yes">safe: every relay stayed in its workspace, above the ground, upright, and no two '
                     'vehicles came closer than network.min_separation_m</p>')
+    if m.get("fell_back"):  # safe, but not what its controller flew
+        verdict += f'<p class="no">fell back: {html.escape(str(m.get("fell_back_reason", "")))}</p>'
+    keys += [k for k in ("worst_relay_fallback_fraction", "worst_relay_infeasible_fraction") if k in m]
     missing = m.get("optional_outputs_failed") or {}
     warn = "".join(f'<p class="warn">{html.escape(k)} not written: {html.escape(v)}</p>' for k, v in missing.items())
     figs = [_png(fig_capacity(df, sc, bound), "capacity"), _png(fig_paths(df, sc), "paths")]

@@ -22,7 +22,8 @@ SCALAR_METRICS = (
     "outage_duration_max_s", "alignment_ok_fraction",
     "alignment_within_slack_fraction", "slack_active_fraction",
     "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m", "distance_m", "energy_kJ",
-    "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "fallback_fraction", "motor_saturation_fraction",
+    "final_z_m", "max_tilt_deg", "taylor_rel_err_max", "fallback_fraction", "worst_relay_fallback_fraction",
+    "worst_relay_infeasible_fraction", "motor_saturation_fraction",
     "rate_saturation_fraction", "min_altitude_m", "box_violation_max_m", "capacity_efficiency_mean",
     "capacity_efficiency_min", "bound.path_mean.mean", "bound.path_maxmin.min", "bound.path_mean.outage_fraction",
     "bound.path_maxmin.outage_fraction", "capacity_efficiency_mean_flyable", "capacity_efficiency_min_flyable",
@@ -100,15 +101,20 @@ def summarize_study(study: Study, specs: list[RunSpec], out: Path) -> dict:
     missing: list[str] = []
     for g, runs in groups.items():
         ms: list[dict] = []
+        fell_back: list[str] = []
         for r in runs:
             m = _load_metrics(out, r)
             if m is not None:
                 ms.append(m)
+                if m.get("fell_back"):  # flown safely, but a relay's controller did not fly it: the table marks it
+                    fell_back.append(r.key)
             else:
                 missing.append(r.key)
         if not ms:
             continue
         entry: dict = {"n": len(ms), "runs": [r.key for r in runs]}
+        if fell_back:
+            entry["fell_back_runs"] = fell_back
         for key in SCALAR_METRICS:
             if not all(has_metric(m, key) for m in ms):  # e.g. efficiency only where a bound was computed
                 continue

@@ -16,12 +16,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from contextlib import closing
+from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
 
 from ..control.network import LoopRelay, NetworkController
+from ..control.nmpc import StepInfo
 from ..models.drag import drag_acceleration
 from ..models.geometry import rotation_zyx
 from ..models.mission import SourceTrajectory
@@ -128,6 +130,8 @@ class MissionResult:
     fallback_episodes: int = 0
     aborted: str | None = None  # why the flight stopped early (the log holds the steps flown), None: flown to the end
     exit_status: str | None = None  # sim.exit_status.ExitStatus value of an early stop (None: flown to the end)
+    # per relay, the steps a vehicle came near beyond its separation rows (control.network.separation_rows)
+    separation_unguarded: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -373,6 +377,13 @@ class ClosedLoop:
                                                self.sensing.last_ms if self.sensing else 0.0))
         return info
 
+    def _relay_steps(self, k: int, relays: list[LoopRelay], x: dict, refs: dict, predicted: dict,
+                     lost: frozenset[str]) -> dict[str, StepInfo]:
+        """Every flying relay's control step of period ``k`` (``_relay_step``), on the controller's threads."""
+        def one(r: LoopRelay) -> StepInfo:
+            return self._relay_step(k, r, x[r.name], refs[r.name], predicted, lost)
+        return dict(zip((r.name for r in relays), self.control.each(one, relays), strict=True))
+
     def run(self, progress=None) -> MissionResult:
         st = self.settings
         period = st.period_s
@@ -389,7 +400,8 @@ class ClosedLoop:
         replaced: dict[str, str] = {}  # spare -> the relay whose place it flies to or took
         wall0 = time.perf_counter()
         aborted, flown, exit_status = None, n_steps, None
-        with full_collections_paused():  # a full collection took 70-100 ms of one step (sim/realtime.py)
+        # a full collection took 70-100 ms of one step (sim/realtime.py); the relays' threads stop with the flight
+        with full_collections_paused(), closing(self.control):
             for k in range(n_steps):
                 t = k * period
                 while pending and t >= pending[0][0] - 1e-9:
@@ -415,13 +427,14 @@ class ClosedLoop:
                 true_positions = {**{n: xs[P] for n, xs in flying.items()}, **{n: s.p for n, s in truth.items()},
                                   **self.stations}
                 inputs = {}
+                infos = self._relay_steps(k, [r for r in self.relays if r.name not in gone], x, refs, predicted, gone)
                 for r in self.relays:
                     if r.name in gone:
                         row |= gone_row(r.name, r.vehicle.n_rotors, "standby" if r.name in waiting else "lost")
                         if self.air is not None:
                             row |= dict.fromkeys(self.air.columns(r.name, f"{r.name}."), math.nan)
                         continue
-                    info = self._relay_step(k, r, x[r.name], refs[r.name], predicted, gone)
+                    info = infos[r.name]
                     inputs[r.name] = info.u
                     up, down = self.control.neighbours(r.name)
                     row |= relay_row(r.name, x[r.name], R[r.name], info, refs[r.name], true_positions[up],
@@ -506,4 +519,4 @@ class ClosedLoop:
                              qp_failures=sum(r.controller.nmpc.failures for r in self.relays),
                              controller=first.nmpc.settings.fingerprint(),
                              fallback_episodes=sum(r.controller.fallback_episodes for r in self.relays), aborted=aborted,
-                             exit_status=exit_status)
+                             exit_status=exit_status, separation_unguarded=dict(self.control.unguarded))

@@ -8,7 +8,9 @@ from enum import StrEnum
 
 
 class ExitStatus(StrEnum):
-    """A run's end. Every status but ``COMPLETE`` makes the run unsafe."""
+    """A run's end. Every status but ``COMPLETE`` and ``FELL_BACK`` makes the run unsafe; ``FELL_BACK`` (a relay
+    flew more than ``verdict.fallback_fraction_max`` of its steps on the brake law or with failed QPs) is safe but
+    not complete: its controller did not fly it."""
 
     COMPLETE = "complete"
     NON_FINITE = "non_finite"
@@ -20,6 +22,11 @@ class ExitStatus(StrEnum):
     BATTERY_EMPTY = "battery_empty"
     ENDED_EARLY = "ended_early"
     METRICS_FAILED = "metrics_failed"
+    FELL_BACK = "fell_back"
+
+    @property
+    def unsafe(self) -> bool:
+        return self not in (ExitStatus.COMPLETE, ExitStatus.FELL_BACK)
 
     @property
     def sentence(self) -> str:
@@ -37,6 +44,8 @@ SENTENCES = {
     ExitStatus.TOO_CLOSE: "two vehicles came closer than the separation",
     ExitStatus.ENDED_EARLY: "the flight ended before its end (interrupted, or ended by the autopilot bridge)",
     ExitStatus.METRICS_FAILED: "its metrics could not be computed (the time series is kept)",
+    ExitStatus.FELL_BACK: "a relay's controller did not fly it (the brake law or failed QPs beyond "
+                          "verdict.fallback_fraction_max of its steps)",
 }
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -173,10 +173,12 @@ def estimation_metrics(log, period_s: float) -> dict:
 
 
 def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float, workspace_min, workspace_max,
-                  box_tolerance_m: float, ground_z_m: float, obstacles: tuple) -> dict:
-    """One relay's metrics over the steps it flew (a lost relay's steps read NaN): its safety (``safety_metrics``),
-    alignment (``mutual_alignment >= mu``, within ``ALIGNMENT_TOLERANCE``), slack, QP and fallback shares,
-    step times (ms), tracking error (m), distance (m), shaft energy (kJ), rotor ranges and saturation, wind."""
+                  box_tolerance_m: float, ground_z_m: float, obstacles: tuple, fallback_fraction_max: float = 1.0) -> dict:
+    """One relay's metrics over the steps it flew (a lost relay's steps read NaN): its safety (``safety_metrics``, in
+    its own workspace), alignment (``mutual_alignment >= mu``, within ``ALIGNMENT_TOLERANCE``), slack, QP and fallback
+    shares, step times (ms), tracking error (m), distance (m), shaft energy (kJ), rotor ranges and saturation, wind.
+    More than ``fallback_fraction_max`` of its steps on the brake law or with failed QPs: ``fell_back_reason`` says
+    so and its exit statuses end with ``fell_back`` (its controller did not fly it; safe, not complete)."""
     flew = np.isfinite(np.asarray(log[f"{name}.p_x"], float))
     if not flew.any():  # a spare that never launched
         return spare_metrics(log, name) or {"flew": False}
@@ -219,9 +221,19 @@ def relay_metrics(log, name: str, veh: Multirotor, *, period_s: float, mu: float
         **spare_metrics(log, name),
     }
     empty = flew_empty(log, name, period_s)
+    statuses = [ExitStatus(s) for s in out["exit_statuses"]]
     if empty:  # flying on an empty battery is unsafe whatever else went well
         out["unsafe_reason"] = "; ".join(r for r in (out["unsafe_reason"], empty) if r)
-        out |= {"unsafe": True, **exit_fields([*map(ExitStatus, out["exit_statuses"]), ExitStatus.BATTERY_EMPTY])}
+        out["unsafe"] = True
+        statuses.append(ExitStatus.BATTERY_EMPTY)
+    worst = max(out["fallback_fraction"], out["infeasible_fraction"])
+    if worst > fallback_fraction_max:
+        what = "on the brake law" if out["fallback_fraction"] >= out["infeasible_fraction"] else "with failed QPs"
+        out["fell_back_reason"] = (f"flew {worst:.1%} of its steps {what} (brake law {out['fallback_fraction']:.1%}, QPs "
+                                   f"failed {out['infeasible_fraction']:.1%}), more than verdict.fallback_fraction_max = "
+                                   f"{fallback_fraction_max:g}")
+        statuses.append(ExitStatus.FELL_BACK)
+    out |= exit_fields(statuses)
     return out
 
 
@@ -301,7 +313,7 @@ def spare_metrics(log, name: str) -> dict:
     return out
 
 
-NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses")  # the network's, not a relay's
+NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses", "fell_back_reason")  # the network's, not a relay's
 
 
 def _mean_taken(values: np.ndarray) -> float:
@@ -356,7 +368,8 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
                     outage_threshold: float, mu: float, wall_s: float, sim_s: float, min_separation_m: float = 0.0,
                     workspace_min=(-np.inf,) * 3, workspace_max=(np.inf,) * 3, box_tolerance_m: float = 0.05,
                     ground_z_m: float = -np.inf, losses: Sequence[tuple[float, frozenset[str]]] = (),
-                    obstacles: tuple = ()) -> dict:
+                    obstacles: tuple = (), workspaces: Mapping[str, tuple[Sequence[float], Sequence[float], float]] | None = None,
+                    fallback_fraction_max: float = 1.0) -> dict:
     """Metrics of a run (``sim.log_schema`` log) of any network: the network's rate (``c_min``, ``c_mean``,
     outage below ``outage_threshold``), every route's (``routes``), every hop's mean spectral efficiency
     (``se_mean``, by ``<tx>-><rx>``), the smallest separation between two vehicles (m), per relay
@@ -382,11 +395,13 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
     out["separation_min_m"] = float(sep.min())
     fleet_ms = np.zeros(cap.size)
     reasons: list[str] = []
+    fell_back: list[str] = []
     statuses: list[ExitStatus] = []
     out["relays"] = {}
     for name, veh in relays.items():
-        m = relay_metrics(log, name, veh, period_s=period_s, mu=mu, workspace_min=workspace_min, workspace_max=workspace_max,
-                          box_tolerance_m=box_tolerance_m, ground_z_m=ground_z_m, obstacles=obstacles)
+        lo, hi, tol = (workspaces or {}).get(name, (workspace_min, workspace_max, box_tolerance_m))
+        m = relay_metrics(log, name, veh, period_s=period_s, mu=mu, workspace_min=lo, workspace_max=hi, box_tolerance_m=tol,
+                          ground_z_m=ground_z_m, obstacles=obstacles, fallback_fraction_max=fallback_fraction_max)
         solve = np.asarray(log[f"{name}.solve_ms"], float)
         fleet_ms += np.nan_to_num(solve, nan=0.0)
         lost_at = [tl for tl, lost in losses if name in lost]
@@ -394,7 +409,9 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
             m["lost_at_s"] = lost_at[0]
         if m.get("unsafe"):  # a spare that never flew has no verdict
             reasons.append(f"relay {name!r}: {m['unsafe_reason']}")
-            statuses += [ExitStatus(v) for v in m["exit_statuses"]]
+        if m.get("fell_back_reason"):
+            fell_back.append(f"relay {name!r}: {m['fell_back_reason']}")
+        statuses += [ExitStatus(v) for v in m.get("exit_statuses", []) if v != ExitStatus.COMPLETE.value]
         out["relays"][name] = m
     if min_separation_m > 0 and sep.min() < min_separation_m:
         k = int(np.argmin(sep))
@@ -402,6 +419,10 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
                        f"network.min_separation_m = {min_separation_m:g} m")
         statuses.append(ExitStatus.TOO_CLOSE)
     out["fleet_solve_ms"] = stats_ms(fleet_ms)
+    flown = [m for m in out["relays"].values() if "fallback_fraction" in m]  # a spare that never flew has none
+    # the worst relay's share of brake-law steps and of failed QPs (whatever the network's size: the verdict's inputs)
+    out["worst_relay_fallback_fraction"] = max((m["fallback_fraction"] for m in flown), default=0.0)
+    out["worst_relay_infeasible_fraction"] = max((m["infeasible_fraction"] for m in flown), default=0.0)
     if sole(relays) is not None:  # the one relay's metrics where its runs always had them
         only = next(iter(out["relays"].values()))
         out |= {k: v for k, v in only.items() if k not in NETWORK_VERDICT}
@@ -417,6 +438,8 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
             out["routes"][s] |= m
     out["unsafe"] = bool(reasons)
     out["unsafe_reason"] = "; ".join(reasons)
-    out |= exit_fields(statuses)
+    out["fell_back"] = bool(fell_back)
+    out["fell_back_reason"] = "; ".join(fell_back)
+    out |= exit_fields(sorted(statuses, key=lambda s: not s.unsafe))  # what made it unsafe first
     out["steps"], out["wall_s"], out["sim_s"] = int(cap.size), float(wall_s), float(sim_s)
     return out

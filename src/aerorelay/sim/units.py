@@ -13,12 +13,12 @@ SUFFIX_UNITS = (("_m_s2", "m/s^2"), ("_m_s", "m/s"), ("_hz_s", "Hz/s"), ("_fract
 CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", "c_mean_before_loss", "c_min_after_loss",
                     "c_mean_after_loss", "c_min_after_takeover", "c_mean_before_takeover", "c_mean_after_takeover")
 SPECTRAL = "bit/s/Hz"
-COUNTS = ("steps", "safety_violations", "fallback_episodes", "outage_events", "reference_clipped_steps",
+COUNTS = ("steps", "safety_violations", "fallback_episodes", "separation_unguarded_steps", "outage_events", "reference_clipped_steps",
           "reference_held_steps", "reference_kept_out_steps", "telemetry_rejected_periods", "handovers")
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
                   "aborted", "reference_first", "planner_name", "bound", "losses", "telemetry_rejected_reason", "metrics_failed",
                   "exit_status", "exit_sentence", "exit_statuses", "injected", "lost_in_flight", "took_over_from",
-                  "standby_only", "flew", "estimation_trusted_final")
+                  "standby_only", "flew", "estimation_trusted_final", "fell_back", "fell_back_reason")
 
 
 def metric_unit(key: str, capacity_unit: str) -> str | None:
