@@ -28,7 +28,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
-from .assembly.codegen import CController, build_shared, flown_by_c, record_calls, write_tree
+from .assembly.codegen import CController, build_shared, flown_by_c, is_recording, record_calls, write_tree
 from .assembly.codegen import bench_c as codegen_bench_c
 from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
@@ -70,7 +70,7 @@ from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
 from .report.figures import fig_bound, fig_network_bound, write_run_figures
-from .report.flight_export import EXPORT_FOLDER, vehicles, write_geojson, write_kml, write_plan, write_ulog
+from .report.flight_export import EXPORT_FOLDER, missing_columns, vehicles, write_geojson, write_kml, write_plan, write_ulog
 from .report.flight_export import FORMATS as EXPORT_FORMATS
 from .report.flight_export import GEOGRAPHIC as EXPORT_GEOGRAPHIC
 from .report.flight_export import write_csv as write_flight_csv
@@ -90,6 +90,7 @@ from .store.outputs import (
     OutputBusyError,
     OutputError,
     check_output_folder,
+    check_own_file,
     folder_kind,
     is_own_folder,
     mark,
@@ -98,7 +99,7 @@ from .store.outputs import (
     write_atomic,
     writing,
 )
-from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, write_bound_files
+from .store.run_folder import BOUND_PARQUET, METRICS_FILE, SCENARIO_FILE, TIMESERIES_FILE, write_bound_files
 
 Result = RunResult  # the one result class: ``ar.simulate`` attaches the figure and MCAP writer
 
@@ -462,9 +463,16 @@ def export(run_dir: str | Path, fmt: str = "mcap", *, relay: str | None = None,
         bound = pd.read_parquet(d / BOUND_PARQUET) if (d / BOUND_PARQUET).is_file() else None
         return [write_run_mcap(df, sc, d / MCAP_FILE, bound)]
     relays = [r.name for r in sc.relay_list]
-    who = vehicles(df, relays, [s.name for s in sc.source_list])
     if relay is not None and relay not in relays:
         raise ValueError(f"--relay: no relay {relay!r} in this run ({', '.join(relays)})")
+    gone = missing_columns(df, [relay] if relay is not None else [*relays, *(s.name for s in sc.source_list)])
+    if gone:
+        raise OutputError(f"{d / TIMESERIES_FILE}: the columns {', '.join(gone[:6])}{' ...' if len(gone) > 6 else ''} "
+                          "are missing: not a whole run's time series (nothing was written)")
+    who = vehicles(df, relays, [s.name for s in sc.source_list])  # the vehicles that flew (a spare that waited: none)
+    if relay is not None and relay not in who:
+        raise OutputError(f"--relay: {relay!r} never flew in this run (a spare that waited, or its columns are missing): "
+                          "nothing to export")
     where = origin if origin is not None else (tuple(sc.geo.origin) if sc.geo is not None else None)
     if where is not None and not (len(where) == 3 and -90.0 <= where[0] <= 90.0 and -180.0 <= where[1] <= 180.0
                                   and math.isfinite(where[2])):
@@ -474,8 +482,13 @@ def export(run_dir: str | Path, fmt: str = "mcap", *, relay: str | None = None,
                          "lat_deg,lon_deg,alt_m")
     frame = GeoFrame(where) if where is not None else None
     out = d / EXPORT_FOLDER
+    if out.is_symlink() or (os.path.lexists(out) and not out.is_dir()):  # never written through, never replaced
+        raise OutputError(f"{out}: {'a symbolic link' if out.is_symlink() else 'a file'} is in the way of the run "
+                          "folder's export folder: move it away (nothing was written)")
     out.mkdir(exist_ok=True)
     chosen = [relay] if relay is not None else [n for n, role in who.items() if role == "relay"]
+    if not chosen:
+        raise OutputError(f"{d}: no relay of this run flew: nothing to export")
     if fmt == "csv":
         return [write_flight_csv(df, n, frame, out / f"{n}.csv") for n in (chosen if relay else list(who))]
     if fmt == "plan":
@@ -652,6 +665,9 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
     if offboard and (record is not None or fly):
         raise ValueError("codegen: --offboard writes the controller of the vehicle an autopilot flies (thrust along body "
                          "z); --record and --fly fly aerorelay's own plant with the scenario's: write them as two trees")
+    if record is not None:  # the recording and its two sidecars: new, or an earlier recording of this program's
+        for f in (Path(record), Path(f"{record}.expected"), Path(f"{record}.params")):
+            check_own_file(f, "--record", is_recording, "a recording of controller steps")
     tree = write_tree(sc, Path(out), planner=planner, offboard=offboard)
     summary: dict = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr,
                      "n_params": tree.n_params, "horizon": tree.horizon, "planner": tree.planner,

@@ -639,6 +639,25 @@ def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times
         RelayController.step = step  # type: ignore[method-assign]
 
 
+def is_recording(path: Path) -> bool:
+    """Whether ``path`` is a file ``record_calls`` wrote: a recording (its first line a ``step`` or ``fly`` event) or one
+    of its sidecars (``.expected``, ``.params``: rows of numbers). Read from its first line only."""
+    with open(path, "rb") as f:
+        first = f.readline(1 << 20).decode("ascii").strip()
+    fields = first.split(",")
+    if str(path).endswith((".expected", ".params")):
+        return bool(first) and all(_number(v) for v in fields)
+    return fields[0] in ("step", "fly") and all(_number(v) for v in fields[1:])
+
+
+def _number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def record_calls(sc: Scenario, out_csv: Path, *, simulate, fly: bool = False) -> np.ndarray:
     """Fly ``sc`` (``simulate(sc)``) recording its first relay's controller steps into ``out_csv`` (``ar_replay.c``'s
     lines: ``fly`` lines with what the planner was given when ``fly``, for a tree with the paper's planner, else

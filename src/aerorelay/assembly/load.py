@@ -118,26 +118,7 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
-    given = data.get("sources")
-    sources: list = given if isinstance(given, list) else []  # a wrong type is named by validation
-    missions = [data.get("mission")] + [s.get("mission") for s in sources if isinstance(s, dict)]
-    jammers = [data.get("jammer")] + (data["jammers"] if isinstance(data.get("jammers"), list) else [])
-    for mission in (m for m in missions + jammers if isinstance(m, dict)):  # files are named relative to the scenario file
-        for key in ("trajectory_csv", "trajectory_ulog", "trajectory_plan", "trajectory_gpx"):
-            f = mission.get(key)
-            if isinstance(f, str) and f and not Path(f).is_absolute():
-                mission[key] = str((path.parent / f).resolve())
-    channel = data.get("channel")
-    prop = channel.get("propagation") if isinstance(channel, dict) else None
-    if isinstance(prop, dict) and isinstance(prop.get("scene"), str):  # a scene file is named relative to the scenario file
-        scene = Path(prop["scene"])
-        if scene.suffix.lower() == ".xml" and not scene.is_absolute():
-            prop["scene"] = str((path.parent / scene).resolve())
-    buildings = data.get("buildings")
-    if isinstance(buildings, dict) and isinstance(buildings.get("geojson"), str):  # relative to the scenario file
-        f = Path(buildings["geojson"])
-        if not f.is_absolute():
-            buildings["geojson"] = str((path.parent / f).resolve())
+    resolve_files(data, path.parent)
     updates = parse_sets(set) if isinstance(set, list) else dict(set or {})
     _apply_to_data(data, updates, list(unset or []))
     try:
@@ -146,6 +127,31 @@ def load_scenario(path: str | Path, set: dict | list[str] | None = None,  # noqa
         raise ScenarioError(f"{path}: tables nested too deeply to be a scenario") from None
     _what_does_not_apply(sc, path, updates)
     return check_buildable(check_physics(sc))
+
+
+def resolve_files(data: dict, folder: Path) -> None:
+    """The files a scenario's plain ``data`` names (missions, jammer tracks, a scene, buildings) made absolute,
+    relative to ``folder`` (the scenario file's): a run folder's copies re-open from anywhere."""
+    given = data.get("sources")
+    sources: list = given if isinstance(given, list) else []  # a wrong type is named by validation
+    missions = [data.get("mission")] + [s.get("mission") for s in sources if isinstance(s, dict)]
+    jammers = [data.get("jammer")] + (data["jammers"] if isinstance(data.get("jammers"), list) else [])
+    for mission in (m for m in missions + jammers if isinstance(m, dict)):  # files are named relative to the scenario file
+        for key in ("trajectory_csv", "trajectory_ulog", "trajectory_plan", "trajectory_gpx"):
+            f = mission.get(key)
+            if isinstance(f, str) and f and not Path(f).is_absolute():
+                mission[key] = str((folder / f).resolve())
+    channel = data.get("channel")
+    prop = channel.get("propagation") if isinstance(channel, dict) else None
+    if isinstance(prop, dict) and isinstance(prop.get("scene"), str):  # a scene file is named relative to the scenario file
+        scene = Path(prop["scene"])
+        if scene.suffix.lower() == ".xml" and not scene.is_absolute():
+            prop["scene"] = str((folder / scene).resolve())
+    buildings = data.get("buildings")
+    if isinstance(buildings, dict) and isinstance(buildings.get("geojson"), str):  # relative to the scenario file
+        f = Path(buildings["geojson"])
+        if not f.is_absolute():
+            buildings["geojson"] = str((folder / f).resolve())
 
 
 def _what_does_not_apply(sc: Scenario, path: Path | None, updates: dict) -> None:

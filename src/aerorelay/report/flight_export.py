@@ -46,10 +46,22 @@ PLAN_TOLERANCE_M = 0.05  # the .plan's waypoint polyline keeps the flown path wi
 EXPORT_FOLDER = "export"
 
 
+TRACK_QUANTITIES = ("p_x", "p_y", "p_z", "phi", "theta", "psi")  # a vehicle's columns every export reads
+
+
+def missing_columns(df: pd.DataFrame, names: list[str]) -> list[str]:
+    """The columns an export of the vehicles ``names`` needs that the log lacks (``t`` and each one's pose)."""
+    need = ["t", *(f"{n}.{q}" for n in names for q in TRACK_QUANTITIES)]
+    return [c for c in need if c not in df.columns]
+
+
 def vehicles(df: pd.DataFrame, relays: list[str], sources: list[str]) -> dict[str, str]:
-    """The vehicles of the log with a position (``{name}.p_x``...): name -> role (``relay`` or ``source``)."""
-    out = {n: "relay" for n in relays if f"{n}.p_x" in df.columns}
-    return out | {n: "source" for n in sources if f"{n}.p_x" in df.columns}
+    """The vehicles of the log that flew (a position at some step; a spare that never launched has none): name -> role
+    (``relay`` or ``source``)."""
+    def flew(n: str) -> bool:
+        return not missing_columns(df, [n]) and bool(flown(df, n).any())
+    out = {n: "relay" for n in relays if flew(n)}
+    return out | {n: "source" for n in sources if flew(n)}
 
 
 def flown(df: pd.DataFrame, name: str) -> np.ndarray:

@@ -13,6 +13,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from ..assembly import parse_scenario
+from ..assembly.load import resolve_files
 from ..config import Scenario, ScenarioError
 from ..filecheck import not_a_file
 from ..sim.log_schema import modern_columns, relays_in, sources_in
@@ -90,7 +91,9 @@ def read_scenario(folder: str | Path) -> Scenario:
     if why is not None and why != "no such file":
         raise OutputError(f"{f}: {why}: not an aerorelay run folder's scenario")
     try:
-        return parse_scenario(tomllib.loads(f.read_text()))
+        data = tomllib.loads(f.read_text())
+        resolve_files(data, folder)  # its copied files (mission.csv, ...) beside it, wherever it is read from
+        return parse_scenario(data)
     except FileNotFoundError:
         raise OutputError(f"{f}: missing (not an aerorelay run folder)") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, ScenarioError) as exc:

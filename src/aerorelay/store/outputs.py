@@ -16,7 +16,7 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -80,6 +80,30 @@ def _file_above(folder: Path) -> Path | None:
         if parent.exists():
             return None if parent.is_dir() else parent
     return None
+
+
+def check_own_file(path: str | Path, option: str, own: Callable[[Path], bool], what: str) -> Path:
+    """Raise OutputError unless ``path`` can be written by this program: new, or a regular file ``own(path)`` says it
+    wrote (``what`` names such a file). A symbolic link, a folder or any other file in the way is refused by name:
+    nothing of the user's is replaced (the run folders' rule, for single files)."""
+    p = Path(path)
+    if p.is_symlink():
+        raise OutputError(f"{option} {p}: a symbolic link is in the way (it would write where it points): choose a new "
+                          "name (nothing was written)")
+    if p.exists() or os.path.lexists(p):
+        if not p.is_file():
+            raise OutputError(f"{option} {p}: exists and is not a file (nothing was written)")
+        try:
+            mine = own(p)
+        except (OSError, UnicodeDecodeError, ValueError):
+            mine = False
+        if not mine:
+            raise OutputError(f"{option} {p}: exists and is not {what} this program wrote: choose a new name, or remove "
+                              "it yourself (nothing was written)")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise OutputError(f"{option} {p}: its folder {parent} does not exist (nothing was written)")
+    return p
 
 
 def check_output_folder(folder: str | Path, kind: str, *, option: str = "--out", need_bytes: int = 0) -> Path:

@@ -1,0 +1,116 @@
+"""The fifth fault battery's cases (issue 77) on the newer surfaces: nothing of the user's overwritten (``--record``,
+``export/``), run folders that re-open from anywhere, exports of runs with a spare that never flew or a damaged time
+series. Each case: a named error or a correct result, no traceback, no file of the user's lost."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from aerorelay.cli import app
+
+ROOT = Path(__file__).resolve().parents[2]
+runner = CliRunner()
+
+
+def _csv_run(tmp_path: Path) -> Path:
+    """A short run whose scenario names a CSV mission (copied into the run folder as mission.csv)."""
+    t = np.linspace(0.0, 2.0, 21)
+    path = np.c_[t, -3.04 + 0.2 * t, 5.79 + 0.0 * t, 1.72 + 0.3 * t]
+    (tmp_path / "path.csv").write_text("t,px,py,pz\n" + "\n".join(",".join(f"{v:.6g}" for v in row) for row in path) + "\n")
+    (tmp_path / "sc.toml").write_text('[mission]\ntrajectory_csv = "path.csv"\n[sim]\nduration_s = 0.3\n')
+    r = runner.invoke(app, ["run", str(tmp_path / "sc.toml"), "--out", str(tmp_path / "run"), "--no-bound", "--no-figures"])
+    assert r.exit_code == 0, r.output
+    return tmp_path / "run"
+
+
+def test_a_run_folder_re_opens_from_anywhere_after_it_moved(tmp_path, monkeypatch):
+    """report and export of a run whose scenario names its copied mission.csv: from another working folder, and
+    after the folder moved (they said "no such file: mission.csv" unless run from inside the folder)."""
+    run = _csv_run(tmp_path)
+    assert (run / "mission.csv").is_file()
+    moved = tmp_path / "elsewhere" / "moved"
+    moved.parent.mkdir()
+    shutil.move(str(run), str(moved))
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    for args in (["report", str(moved)], ["export", str(moved), "--format", "csv"]):
+        r = runner.invoke(app, args)
+        assert r.exit_code == 0, r.output
+    assert (moved / "report.html").is_file() and (moved / "export" / "relay.csv").is_file()
+
+
+def test_export_never_writes_through_a_link_or_over_a_file_in_its_place(tmp_path):
+    run = _csv_run(tmp_path)
+    users = tmp_path / "users"
+    users.mkdir()
+    (users / "relay.csv").write_text("mine\n")
+    (run / "export").symlink_to(users)
+    r = runner.invoke(app, ["export", str(run), "--format", "csv"])
+    assert r.exit_code == 2 and "symbolic link" in r.output and "Traceback" not in r.output
+    assert (users / "relay.csv").read_text() == "mine\n"  # the user's file untouched
+    (run / "export").unlink()
+    (run / "export").write_text("a file\n")
+    r = runner.invoke(app, ["export", str(run), "--format", "csv"])
+    assert r.exit_code == 2 and "a file is in the way" in " ".join(r.output.split()), r.output
+    assert (run / "export").read_text() == "a file\n"
+
+
+def test_an_export_of_a_damaged_time_series_names_the_missing_columns(tmp_path):
+    run = _csv_run(tmp_path)
+    df = pd.read_parquet(run / "timeseries.parquet")
+    df.drop(columns=["relay.p_z"]).to_parquet(run / "timeseries.parquet")
+    for fmt in ("csv", "plan", "kml"):
+        r = runner.invoke(app, ["export", str(run), "--format", fmt, "--origin", "47.39,8.54,400"])
+        assert r.exit_code == 2, r.output
+        assert "relay.p_z" in r.output and "missing" in r.output and "Traceback" not in r.output
+
+
+def test_codegen_record_never_replaces_a_file_it_did_not_write(tmp_path):
+    mine = tmp_path / "notes.csv"
+    mine.write_text("my notes\n")
+    r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "quad_x.toml"), "--out", str(tmp_path / "tree"),
+                            "--record", str(mine), "--duration", "0.1", "--no-c-planner"])
+    assert r.exit_code == 2 and "not a recording of controller steps this program wrote" in " ".join(r.output.split())
+    assert mine.read_text() == "my notes\n" and not (tmp_path / "tree").exists()  # checked before any work
+    link = tmp_path / "link.csv"
+    link.symlink_to(mine)
+    r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "quad_x.toml"), "--out", str(tmp_path / "tree"),
+                            "--record", str(link), "--duration", "0.1", "--no-c-planner"])
+    assert r.exit_code == 2 and "symbolic link" in r.output
+    # its own recording, made again, is replaced
+    own = tmp_path / "calls.csv"
+    for tree in ("t1", "t2"):
+        r = runner.invoke(app, ["codegen", str(ROOT / "scenarios" / "quad_x.toml"), "--out", str(tmp_path / tree),
+                                "--record", str(own), "--duration", "0.1", "--no-c-planner"])
+        assert r.exit_code == 0, r.output
+    assert own.read_text().startswith("step,") and os.path.getsize(str(own) + ".expected") > 0
+
+
+def test_an_export_of_a_run_whose_spare_never_flew_skips_it_and_names_it_when_asked_for(tmp_path):
+    data = (ROOT / "scenarios" / "chain_two_relays.toml").read_text()
+    data = data.replace('[[sources]]', '[[relays]]\nname = "r3"\nstart = [2.0, 3.0, 1.0]\nstandby = true\n\n[[sources]]')
+    data += "\n[platform.battery]\ncapacity_wh = 200.0\ngo_home = true\n\n[sim]\nduration_s = 0.3\n"
+    (tmp_path / "spare.toml").write_text(data)
+    r = runner.invoke(app, ["run", str(tmp_path / "spare.toml"), "--out", str(tmp_path / "run"), "--no-bound", "--no-figures"])
+    assert r.exit_code == 0, r.output
+    for fmt in ("geojson", "kml", "plan", "csv", "ulog"):
+        r = runner.invoke(app, ["export", str(tmp_path / "run"), "--format", fmt, "--origin", "47.39,8.54,400"])
+        assert r.exit_code == 0, (fmt, r.output)
+    assert not (tmp_path / "run" / "export" / "r3.csv").exists()
+    r = runner.invoke(app, ["export", str(tmp_path / "run"), "--format", "plan", "--relay", "r3", "--origin", "47.39,8.54,400"])
+    assert r.exit_code == 2 and "'r3' never flew" in r.output
+
+
+@pytest.mark.parametrize("args", [["compare", "{run}", "{tmp}"], ["compare", "{tmp}", "{run}"]])
+def test_compare_against_a_folder_that_is_no_run_says_so(tmp_path, args):
+    run = _csv_run(tmp_path)
+    other = tmp_path / "other"
+    other.mkdir()
+    r = runner.invoke(app, [a.format(run=run, tmp=other) for a in args])
+    assert r.exit_code == 2 and "not an aerorelay run folder" in r.output and "unit" not in r.output
