@@ -60,10 +60,10 @@ def _apply_to_data(data: dict, updates: dict, unset: list[str]) -> None:
         for depth, part in enumerate(parts[:-1]):
             if isinstance(node, list) and part.isdigit() and int(part) < len(node):
                 node = node[int(part)]
-            elif isinstance(node, list) and part.isdigit():
+            elif isinstance(node, list):
                 table = ".".join(parts[:depth])
-                raise ScenarioError(f"{key}: the file lists {len(node)} [[{table}]] (numbered 0 to {len(node) - 1}); "
-                                    f"{table}.{part} is not one of them")
+                raise ScenarioError(f"{key}: the file lists {len(node)} [[{table}]], numbered 0 to {len(node) - 1}; "
+                                    f"{table}.{part} is not one of them (an item by its number, from 0)")
             elif isinstance(node, dict):
                 if part not in node:
                     if not create:

@@ -64,6 +64,8 @@ JAMMER = (
     Applies(("repeat",), lambda j, sc: j.waypoints is not None, "it has waypoints"),
     Applies(("center_m", "radius_m", "period_s", "clockwise"), lambda j, sc: j.path == "circle", "its path = 'circle'"),
     Applies(("on_s", "off_s"), lambda j, sc: j.schedule == "on_off", "its schedule = 'on_off'"),
+    Applies(("localization_delay_s",), lambda j, sc: j.localization != "estimated", "its localization = 'oracle' (an "
+            "estimated jammer is known when the estimator finds it)"),
     Applies(("power_w",), lambda j, sc: j.inr_db_at_relay_start is None and j.power_dbm is None,
             "neither power_dbm nor inr_db_at_relay_start sets its power"),
     Applies(("g_max", "exponent", "back_lobe", "point_at", "boresight"), lambda j, sc: j.pattern == "cosine",
@@ -83,6 +85,9 @@ NETWORK = (
     Applies(("separation_neighbours",), lambda n, sc: len(sc.relay_list) - 1 + len(sc.source_list) > n.separation_neighbours,
             "a relay has more other vehicles (relays and sources) than network.separation_neighbours"),
 )
+WIND = (
+    Applies(("gust_w20_m_s",), lambda w, sc: w.gusts, "wind.gusts = true (it sets the gusts' intensity)"),
+)
 MISSION = (
     Applies(("ulog_yaw_deg", "ulog_offset_m"), lambda m, sc: m.trajectory_ulog is not None, "a trajectory_ulog mission"),
 )
@@ -98,6 +103,8 @@ def _sections(sc) -> Iterator[tuple[str, BaseModel, tuple[Applies, ...]]]:
     yield "estimation", sc.estimation, ESTIMATION
     yield "bound", sc.bound, BOUND
     yield "network", sc.network, NETWORK
+    if sc.wind is not None:
+        yield "wind", sc.wind, WIND
     for i, o in enumerate(sc.obstacles or []):
         yield f"obstacles[{i}]", o, OBSTACLE
     if sc.sources is None:

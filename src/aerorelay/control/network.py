@@ -22,7 +22,7 @@ from ..models.battery import Battery
 from ..models.geometry import constant_acceleration_path, rotation_zyx
 from ..models.mission import SourceState as PathState
 from ..models.radio import Node, RadioScene
-from ..models.state import ETA, YAW, P, V
+from ..models.state import ETA, YAW, P, V, state_vector
 from ..models.vehicle import Multirotor
 from ..planning.base import PlannerFailed, Reference, ReferenceCheck
 from ..planning.fleet import FleetInput, FleetPlanner
@@ -347,6 +347,11 @@ class Controller:
             raise ValueError(f"step: t = {t:.6g} s is before the previous step's {self._t_last:.6g} s (the clock went backwards)")
         if readings:
             self._check_readings(readings)
+        for what, given_map in (("relay_states", relay_states), ("sources", sources)):
+            if not hasattr(given_map, "keys"):
+                raise ValueError(f"step: {what} must map each name to its {'state' if what == 'relay_states' else 'source'} "
+                                 f"(relays {', '.join(self.relays)}; sources {', '.join(self.sources)}), got "
+                                 f"{type(given_map).__name__} (one relay and one source: ar.controller(...).step(t, x, source))")
         unknown = sorted(set(relay_states) - set(self.relays))
         if unknown:
             raise ValueError(f"step: no relay {unknown} in the network ({', '.join(self.relays)})")
@@ -355,11 +360,7 @@ class Controller:
             state = relay_states.get(r.name)
             if state is None:
                 continue
-            xs = np.asarray(state, float)
-            if xs.shape != (r.vehicle.nx,):
-                raise ValueError(f"step: relay_states[{r.name!r}] must be {r.vehicle.nx} numbers (p, eta, v, omega, Omega), "
-                                 f"got shape {xs.shape}")
-            given[r.name] = xs
+            given[r.name] = state_vector(state, r.vehicle.n_rotors, f"step: relay_states[{r.name!r}]")
         src = {name: checked_source(sources.get(name)) for name in self.controller.sources}
         stamp = {n: t if stamps is None or stamps.get(n) is None else float(stamps[n]) for n in given}  # type: ignore[arg-type]
         # not trusted (Command.rejected says why), or merely stale (older than hold_after_s): either holds

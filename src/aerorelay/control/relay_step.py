@@ -188,6 +188,12 @@ def checked_source(source: SourceState | None) -> SourceState | None:
     """``source`` with its vectors as float arrays; a ValueError naming the field when one is not three numbers."""
     if source is None:
         return None
+    if not isinstance(source, SourceState):
+        if hasattr(source, "keys") and {"p", "v", "a"} <= set(source):  # a mapping by name, as a state may be
+            source = SourceState(source["p"], source["v"], source["a"], source.get("stamp"))
+        else:
+            raise ValueError(f"step: a source must be an aerorelay.SourceState(p, v, a[, stamp]) or a mapping with 'p', 'v' "
+                             f"and 'a' (m, m/s, m/s^2 ENU), got {type(source).__name__}")
     vecs = {}
     for name in ("p", "v", "a"):
         try:

@@ -95,6 +95,7 @@ class AutopilotLoop:
     from the measured attitude (``flight.commanded``)."""
 
     def __init__(self, controller: Controller, *, measured_attitude: bool = False, on_step: StepHook | None = None):
+        controller = getattr(controller, "network", controller)  # ar.controller of one relay: its network's controller
         self.controller, self.on_step = controller, on_step
         self.relays = {r.name: r for r in controller.controller.relays}
         self.commanded = {n: CommandedState(r.vehicle.hover_speeds(), measured_attitude=measured_attitude)
