@@ -155,3 +155,32 @@ def test_a_dormant_setting_is_refused_by_name(sets, field):
 def test_a_list_item_out_of_range_says_how_the_items_are_numbered():
     r = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "chain_two_relays.toml"), "--set", "relays.-1.start=[1, 2, 3]"])
     assert r.exit_code == 2 and "numbered 0 to 1" in r.output and "not a table" not in r.output
+
+
+def _square(lon0: float, lat0: float, d: float) -> list:
+    return [[lon0, lat0], [lon0 + d, lat0], [lon0 + d, lat0 + d], [lon0, lat0 + d], [lon0, lat0]]
+
+
+def test_a_multipolygon_footprint_is_a_building_per_polygon_and_a_fifo_or_folder_is_named(tmp_path):
+    """A valid MultiPolygon (two blocks of one feature) was refused as 'names must be unique'; a FIFO given as the
+    footprint file blocked validate; a folder was a traceback."""
+    import json
+
+    import aerorelay as ar
+    from aerorelay.config import ScenarioError
+
+    origin = [47.3977, 8.5456, 488.0]
+    lon, lat = origin[1] + 10.0 / 75_100.0, origin[0] - 3.0 / 111_200.0  # about 10 m east, 3 m south of the base station
+    feature = {"type": "Feature", "properties": {"name": "twins", "height": 8.0},
+               "geometry": {"type": "MultiPolygon", "coordinates": [[_square(lon, lat, 2e-5)], [_square(lon + 6e-5, lat, 2e-5)]]}}
+    f = tmp_path / "twins.geojson"
+    f.write_text(json.dumps({"type": "FeatureCollection", "features": [feature]}))
+    sc = ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml",
+                          set={"geo.origin": origin, "buildings.geojson": str(f), "buildings.margin_m": 0.2})
+    names = [o.name for o in sc.obstacles]
+    assert len(names) == 2 and len(set(names)) == 2, names
+    fifo = tmp_path / "pipe.geojson"
+    os.mkfifo(fifo)
+    for bad, said in ((fifo, "FIFO"), (tmp_path, "a folder")):
+        with pytest.raises(ScenarioError, match=f"buildings.geojson: .*{said}"):
+            ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"geo.origin": origin, "buildings.geojson": str(bad)})

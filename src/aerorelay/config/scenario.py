@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import logging
 import math
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -900,14 +901,19 @@ def buildings_to_obstacles(sc: Scenario) -> tuple[list[dict], dict]:
     lo, hi = xy.min(axis=0) - b.reach_m, xy.max(axis=0) + b.reach_m
     ground = sc.world.ground_z_m
     obstacles, kept = [], 0
+    parts = Counter(f.index for f in footprints)  # a MultiPolygon feature: one footprint per polygon, each named apart
+    seen: Counter = Counter()
     for f in footprints:
+        part = seen[f.index]
+        seen[f.index] += 1
         corners = np.array(f.outline)
         if np.any(corners.max(axis=0) < lo) or np.any(corners.min(axis=0) > hi):
             continue
         kept += 1
         pieces = convex_pieces(f.outline)
         for k, piece in enumerate(pieces):
-            obstacles.append({"name": f"building{f.index}" + (f"_{k}" if len(pieces) > 1 else ""), "kind": "prism",
+            name = f"building{f.index}" + (f"p{part}" if parts[f.index] > 1 else "") + (f"_{k}" if len(pieces) > 1 else "")
+            obstacles.append({"name": name, "kind": "prism",
                               "footprint_m": [list(c) for c in piece], "z_min_m": ground, "z_max_m": ground + f.height_m,
                               "margin_m": b.margin_m, "nlos_loss_db": b.nlos_loss_db}
                              | ({"material": b.material} if b.material is not None else {}))

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..filecheck import not_a_file
 from .geo import GeoFrame
 
 MAX_FILE_BYTES = 200_000_000  # a district's footprints are a few MB; a country's are refused before reading
@@ -122,6 +123,9 @@ def read_footprints(path: str | Path, frame: GeoFrame, *, height_property: str =
     from shapely.validation import explain_validity
 
     path = Path(path)
+    why = not_a_file(path)  # a FIFO would block the read, a folder would raise
+    if why is not None:
+        raise BuildingsError(f"{path}: {'no such footprint file' if why.startswith('no such file') else why}")
     try:
         size = path.stat().st_size
     except FileNotFoundError:
