@@ -184,3 +184,28 @@ def test_a_multipolygon_footprint_is_a_building_per_polygon_and_a_fifo_or_folder
     for bad, said in ((fifo, "FIFO"), (tmp_path, "a folder")):
         with pytest.raises(ScenarioError, match=f"buildings.geojson: .*{said}"):
             ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"geo.origin": origin, "buildings.geojson": str(bad)})
+
+
+def test_a_gpx_point_whose_elevation_is_not_a_number_is_named():
+    import tempfile
+
+    from aerorelay.models.geo import read_gpx
+    pts = "".join(f'<trkpt lat="47.3977" lon="{8.5456 + 1e-5 * k}"><ele>{"NaN" if k == 1 else 490}</ele>'
+                  f"<time>2026-01-01T00:00:0{k}Z</time></trkpt>" for k in range(3))
+    with tempfile.NamedTemporaryFile("w", suffix=".gpx", delete=False) as f:
+        f.write(f'<?xml version="1.0"?><gpx version="1.1" creator="t"><trk><trkseg>{pts}</trkseg></trk></gpx>')
+    with pytest.raises(ValueError, match=r"\.gpx: track 0 segment 0 point 1: <ele> nan is not a number"):
+        read_gpx(f.name)
+    os.unlink(f.name)
+
+
+def test_a_cache_entry_whose_checksum_sidecar_holds_random_bytes_is_rebuilt_not_a_crash(tmp_path):
+    from aerorelay.store.cache import entry_is_intact, publish_checked
+
+    tmp = tmp_path / "entry.tmp"
+    tmp.write_bytes(b"a cached trace")
+    entry = tmp_path / "entry.npz"
+    publish_checked(tmp, entry)
+    assert entry_is_intact(entry)
+    (tmp_path / "entry.npz.sha256").write_bytes(os.urandom(64) + b"\xff\xfe")
+    assert not entry_is_intact(entry)  # not used: the caller traces again

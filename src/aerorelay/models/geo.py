@@ -165,8 +165,9 @@ def read_gpx(path: str | Path) -> list[GeoPoint]:
     for where, p in raw:
         if p.time is None:
             raise ValueError(f"{path}: {where}: no <time> (a timed track is needed to fly it)")
-        if p.elevation is None:
-            raise ValueError(f"{path}: {where}: no <ele> (an altitude is needed to fly it)")
+        if p.elevation is None or not math.isfinite(p.elevation):
+            raise ValueError(f"{path}: {where}: " + ("no <ele>" if p.elevation is None else f"<ele> {p.elevation} is not a "
+                             "number") + " (an altitude is needed to fly it)")
         if not (math.isfinite(p.latitude) and -90.0 <= p.latitude <= 90.0 and math.isfinite(p.longitude)
                 and -180.0 <= p.longitude <= 180.0):
             raise ValueError(f"{path}: {where}: lat {p.latitude:g}, lon {p.longitude:g} is not on the earth (latitude in "

@@ -64,8 +64,8 @@ def entry_is_intact(entry: Path) -> bool:
     altered file, or one without its checksum, is not used: the caller rebuilds it)."""
     side = entry.with_name(entry.name + ".sha256")
     try:
-        return entry.is_file() and side.read_text().strip() == file_digest(entry)
-    except OSError:
+        return entry.is_file() and side.read_bytes().decode("ascii").strip() == file_digest(entry)
+    except (OSError, UnicodeDecodeError):  # a sidecar of random bytes is an altered entry as any other
         return False
 
 
