@@ -256,17 +256,39 @@ def _progress(label: str, unit: str, *, transient: bool = True):
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     if not err_console.is_terminal:
-        t0, last = time.monotonic(), [-math.inf]
+        import threading
 
-        def plain(done: int, total: int) -> None:
+        t0, last, state = time.monotonic(), [-math.inf], [0, 0]
+        lock, stop = threading.Lock(), threading.Event()
+
+        def say(done: int, total: int) -> None:
             now = time.monotonic()
-            if done < total and now - last[0] < PLAIN_PROGRESS_S:
-                return
             last[0] = now
             elapsed = now - t0
             left = f", ~{elapsed / done * (total - done) / 60.0:.1f} min left" if 0 < done < total else ""
-            err_console.print(f"{label}: {done}/{total} {unit}, {elapsed / 60.0:.1f} min{left}", highlight=False)
-        yield plain
+            of = f"{done}/{total}" if total else "starting,"
+            err_console.print(f"{label}: {of} {unit}, {elapsed / 60.0:.1f} min{left}", highlight=False)
+
+        def plain(done: int, total: int) -> None:
+            with lock:
+                state[:] = [done, total]
+                if done >= total or time.monotonic() - last[0] >= PLAIN_PROGRESS_S:
+                    say(done, total)
+
+        def beat() -> None:  # a line every PLAIN_PROGRESS_S even while one step (a trace, a route) takes minutes
+            while not stop.wait(PLAIN_PROGRESS_S / 4):
+                with lock:
+                    if time.monotonic() - last[0] >= PLAIN_PROGRESS_S:
+                        say(*state)
+
+        last[0] = t0
+        heart = threading.Thread(target=beat, name="progress", daemon=True)
+        heart.start()
+        try:
+            yield plain
+        finally:
+            stop.set()
+            heart.join()
         return
     with Progress(TextColumn(label), BarColumn(), TextColumn(f"{{task.completed}}/{{task.total}} {unit}"), TimeElapsedColumn(),
                   TimeRemainingColumn(), console=err_console, transient=transient, auto_refresh=False) as prog:

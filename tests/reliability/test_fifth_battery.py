@@ -209,3 +209,19 @@ def test_a_cache_entry_whose_checksum_sidecar_holds_random_bytes_is_rebuilt_not_
     assert entry_is_intact(entry)
     (tmp_path / "entry.npz.sha256").write_bytes(os.urandom(64) + b"\xff\xfe")
     assert not entry_is_intact(entry)  # not used: the caller traces again
+
+
+def test_long_work_without_a_terminal_prints_a_line_while_one_step_takes_long(monkeypatch, capsys):
+    """K = 16 and a 1e8-ray trace printed their estimate, then nothing for 300 s in a log: the plain progress printed
+    only when the loop reported a step, and one step (a trace, the pre-flight route) took minutes."""
+    import time
+
+    from aerorelay import cli
+
+    monkeypatch.setattr(cli, "PLAIN_PROGRESS_S", 0.2)
+    with cli._progress("flight", "steps") as update:
+        update(0, 10)
+        time.sleep(1.0)  # one long step: no update for five periods
+        update(10, 10)
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("flight:")]
+    assert len(lines) >= 4 and lines[-1].startswith("flight: 10/10 steps"), lines
