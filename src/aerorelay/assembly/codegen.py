@@ -321,7 +321,8 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
 /* the paper's planner (the trajectory generator, its reference governor) and the NMPC's stage parameters P for the
  * next ar_step, from the relay's state x at time t, the source's position, velocity and acceleration (src_*), the
  * jammers as known (jam_p: AR_NJ x 3, row by row, m; jam_w: AR_NJ powers, W) and the external acceleration a_ext
- * (m/s^2, world; zeros without an estimate). Bad input: AR_BAD_INPUT, P untouched. */
+ * (m/s^2, world; zeros without an estimate). Bad input (t or a value not finite, a jammer's power below 0, a NULL
+ * array): AR_BAD_INPUT, P untouched. */
 ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src_p, const double *src_v,
                   const double *src_a, const double *jam_p, const double *jam_w, const double *a_ext, double *P);
 """ if gen is not None else f"\n#define AR_HAS_PLANNER 0  /* no planner in this tree: {no_planner} */\n")
@@ -363,6 +364,10 @@ typedef struct {{
 
 typedef struct ar_controller ar_controller;
 
+/* The pointer contract: every call with a controller that is not alive (NULL, destroyed, never created) or a NULL
+ * array returns AR_BAD_INPUT, never dereferencing it (a command array given is then held at zero motor acceleration);
+ * a controller is alive from ar_create to ar_destroy, at most 64 at once in a process; ar_destroy of one not alive
+ * does nothing. */
 ar_controller *ar_create(void);  /* NULL when memory cannot be had; no allocation afterwards */
 void ar_destroy(ar_controller *c);
 /* the plan: xa0 held over the horizon, zero inputs (done by the first ar_prepare from its x_guess) */
@@ -378,8 +383,8 @@ ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const
                   ar_info *info);
 /* an autopilot's setpoints for the command u stepped at x (aerorelay's Command): the relay's state one control
  * period ahead by the model's RK4 step, x1 (AR_NX: position, attitude ZYX, velocity, body rates, rotor speeds), and
- * its acceleration there with the external acceleration a_ext (m/s^2, world; zeros without an estimate). Bad input:
- * AR_BAD_INPUT, x1 = x and acc = 0. */
+ * its acceleration there with the external acceleration a_ext (m/s^2, world; zeros without an estimate). Bad input,
+ * or a command no vehicle flies (the step not finite): AR_BAD_INPUT, x1 = x and acc = 0. */
 ar_status ar_setpoint(const double *x, const double *u, const double *a_ext, double *x1, double *acc);
 {planner_api}
 #endif

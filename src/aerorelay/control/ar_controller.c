@@ -5,12 +5,13 @@
  * every stage linearized and HPIPM's QP filled) and `ar_feedback` (measurement in, input out: the QP solved for the
  * measured state, the plan stepped and shifted, the first input clipped as the Python NMPC clips it: to the motor
  * accelerations' bounds and to what keeps the first stage's rotor speeds within theirs). The scenario's settings
- * are baked in (aerorelay_baked.h); nothing is allocated after `ar_create`. Bad input (a non-finite state, input
+ * are baked in (the macros aerorelay codegen writes before this file); nothing is allocated after `ar_create`. Bad input (a non-finite state, input
  * or parameter) is refused with AR_BAD_INPUT before the engine sees it, and the command returned holds the rotor
  * speeds (zero motor acceleration).
  *
- * This file is compiled after the engine (aerorelay_nmpc.c: the CasADi-generated linearization, the dimension
- * macros and rti_hpipm.c), in one translation unit with it, as aerorelay compiles its own engine.
+ * This file is compiled after the engine (the CasADi-generated linearization, the dimension macros and
+ * rti_hpipm.c), in one translation unit with it (the tree's src/aerorelay_controller.c), as aerorelay compiles its own
+ * engine. The pointer contract (the header's): a controller not alive, or a NULL array, is AR_BAD_INPUT.
  */
 #include "aerorelay_controller.h"
 
@@ -39,6 +40,18 @@ struct ar_controller {
 
 static void ar_failsafe_init(ar_controller *c);
 
+/* The controllers alive in this process (ar_create to ar_destroy): a call with any other pointer (NULL, destroyed,
+ * never created) is AR_BAD_INPUT, never a dereference. */
+#define AR_MAX_LIVE 64
+static ar_controller *ar_live_set[AR_MAX_LIVE];
+
+static int ar_live(const ar_controller *c) {
+  if (!c) return 0;
+  for (int i = 0; i < AR_MAX_LIVE; i++)
+    if (__atomic_load_n(&ar_live_set[i], __ATOMIC_ACQUIRE) == c) return 1;
+  return 0;
+}
+
 static int ar_finite(const double *v, int n) {
   for (int i = 0; i < n; i++)
     if (!isfinite(v[i])) return 0;
@@ -58,13 +71,25 @@ ar_controller *ar_create(void) {
     return NULL;
   }
   ar_failsafe_init(c);
-  return c;
+  for (int i = 0; i < AR_MAX_LIVE; i++) {
+    ar_controller *none = NULL;
+    if (__atomic_compare_exchange_n(&ar_live_set[i], &none, c, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) return c;
+  }
+  rti_free(c->rti); /* AR_MAX_LIVE controllers alive already */
+  free(c);
+  return NULL;
 }
 
 void ar_destroy(ar_controller *c) {
   if (!c) return;
-  rti_free(c->rti);
-  free(c);
+  for (int i = 0; i < AR_MAX_LIVE; i++) {
+    ar_controller *mine = c;
+    if (__atomic_compare_exchange_n(&ar_live_set[i], &mine, NULL, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) {
+      rti_free(c->rti); /* alive until now: freed once; a second ar_destroy finds it gone and does nothing */
+      free(c);
+      return;
+    }
+  }
 }
 
 /* The OCP's initial state: the plant state and, with the exact input-rate cost, the last input. */
@@ -75,7 +100,7 @@ static void ar_initial_state(ar_controller *c, const double *x, const double *u_
 }
 
 ar_status ar_reset(ar_controller *c, const double *xa0) {
-  if (!ar_finite(xa0, AR_NXA)) return AR_BAD_INPUT;
+  if (!ar_live(c) || !xa0 || !ar_finite(xa0, AR_NXA)) return AR_BAD_INPUT;
   for (int k = 0; k <= AR_N; k++)
     for (int i = 0; i < AR_NXA; i++) c->Xb[k * AR_NXA + i] = xa0[i];
   for (int i = 0; i < AR_N * RTI_NW; i++) c->Wb[i] = 0.0;
@@ -85,7 +110,7 @@ ar_status ar_reset(ar_controller *c, const double *xa0) {
 }
 
 ar_status ar_prepare(ar_controller *c, const double *P, const double *u_prev, const double *x_guess) {
-  if (!ar_finite(P, AR_NP * (AR_N + 1)) || !ar_finite(u_prev, AR_NR)) return AR_BAD_INPUT;
+  if (!ar_live(c) || !P || !u_prev || !ar_finite(P, AR_NP * (AR_N + 1)) || !ar_finite(u_prev, AR_NR)) return AR_BAD_INPUT;
   if (!c->initialized) {
     if (!x_guess || !ar_finite(x_guess, AR_NX)) return AR_BAD_INPUT;
     ar_initial_state(c, x_guess, u_prev);
@@ -108,7 +133,8 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
   rti_info ri;
   ar_info none = {0, -2, 0, 0, 0.0, 0};
   if (info) *info = none;
-  if (!ar_finite(x, AR_NX) || !ar_finite(u_prev, AR_NR)) {
+  if (!u) return AR_BAD_INPUT;
+  if (!ar_live(c) || !x || !u_prev || !ar_finite(x, AR_NX) || !ar_finite(u_prev, AR_NR)) {
     ar_hold(u);
     return AR_BAD_INPUT;
   }
@@ -149,6 +175,12 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
 extern int ar_model_setpoint(const double **arg, double **res, long long int *iw, double *w, int mem);
 
 ar_status ar_setpoint(const double *x, const double *u, const double *a_ext, double *x1, double *acc) {
+  if (!x1 || !acc) return AR_BAD_INPUT;
+  if (!x || !u || !a_ext) {
+    for (int i = 0; i < AR_NX; i++) x1[i] = x ? x[i] : NAN;
+    for (int i = 0; i < 3; i++) acc[i] = 0.0;
+    return AR_BAD_INPUT;
+  }
   if (!ar_finite(x, AR_NX) || !ar_finite(u, AR_NR) || !ar_finite(a_ext, 3)) {
     memcpy(x1, x, sizeof(double) * AR_NX);
     for (int i = 0; i < 3; i++) acc[i] = 0.0;
@@ -159,5 +191,10 @@ ar_status ar_setpoint(const double *x, const double *u, const double *a_ext, dou
   const double *arg[AR_MODEL_SZ_ARG + 1] = {x, u, a_ext};
   double *res[AR_MODEL_SZ_RES + 1] = {x1, acc};
   ar_model_setpoint(arg, res, iw, w, 0);
+  if (!ar_finite(x1, AR_NX) || !ar_finite(acc, 3)) { /* a finite but absurd command (u = 1e308): no setpoint */
+    memcpy(x1, x, sizeof(double) * AR_NX);
+    for (int i = 0; i < 3; i++) acc[i] = 0.0;
+    return AR_BAD_INPUT;
+  }
   return AR_OK;
 }

@@ -378,10 +378,15 @@ ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const
                   ar_info *info) {
   ar_info none = {0, -2, 0, 0, NAN, 0};
   ar_info mine;
-  ar_hold_t *h = &c->hold;
   if (!info) info = &mine;
   *info = none;
-  if (!ar_finite(x, AR_NX) || !ar_finite(u_prev, AR_NR) || !ar_finite(P, AR_NP * (AR_N + 1))) {
+  if (!u) return AR_BAD_INPUT;
+  if (!ar_live(c) || !x) { /* no controller, or no state to brake from: hold */
+    ar_hold(u);
+    return AR_BAD_INPUT;
+  }
+  ar_hold_t *h = &c->hold;
+  if (!u_prev || !P || !ar_finite(x, AR_NX) || !ar_finite(u_prev, AR_NR) || !ar_finite(P, AR_NP * (AR_N + 1))) {
     /* nothing to fly the NMPC from: the brake law (a held command, zero motor acceleration, when the state itself
      * is not finite) */
     ar_enter_fallback(c, x);

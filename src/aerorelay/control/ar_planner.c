@@ -96,10 +96,13 @@ static void ar_clip_norm(const double *v, double limit, double *out) {
 
 ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src_p, const double *src_v,
                   const double *src_a, const double *jam_p, const double *jam_w, const double *a_ext, double *P) {
-  (void)t;
-  if (!ar_finite(x, AR_NX) || !ar_finite(src_p, 3) || !ar_finite(src_v, 3) || !ar_finite(src_a, 3) ||
+  if (!ar_live(c) || !x || !src_p || !src_v || !src_a || (AR_NJ > 0 && (!jam_p || !jam_w)) || !a_ext || !P)
+    return AR_BAD_INPUT;
+  if (!isfinite(t) || !ar_finite(x, AR_NX) || !ar_finite(src_p, 3) || !ar_finite(src_v, 3) || !ar_finite(src_a, 3) ||
       !ar_finite(jam_p, 3 * AR_NJ) || !ar_finite(jam_w, AR_NJ) || !ar_finite(a_ext, 3))
     return AR_BAD_INPUT;
+  for (int i = 0; i < AR_NJ; i++)
+    if (jam_w[i] < 0.0) return AR_BAD_INPUT; /* a power below zero is no jammer */
   double p_opt[3], p_ref[3], v_ref[3] = {0, 0, 0}, a_ref[3] = {0, 0, 0}, yaw = 0.0;
   /* the trajectory generator: eq. 17-19 at kappa = (relay, source), then the governor */
   double z[AR_PLAN_NZ], out[1 + 6 + 36];
