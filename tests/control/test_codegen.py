@@ -244,3 +244,24 @@ def test_the_c_planner_makes_python_s_stage_parameters_and_flies_the_same_missio
     python = ar.simulate(sc).metrics
     assert flown["c_min"] == pytest.approx(python["c_min"], rel=1e-3)
     assert flown["c_mean"] == pytest.approx(python["c_mean"], rel=1e-3)
+
+
+def test_bench_reads_what_record_writes_and_replay_reads_whole_numbers_only(tmp_path):
+    """The guide's first command records ``fly`` events (the tree has the paper's planner): ``build/bench`` refused them
+    ("line 1 is not a step"); it now reads their stage parameters from the recording's ``.params``. ``replay`` read
+    "-6.951.5abc" as -6.951."""
+    out, calls, _ = _tree(tmp_path, "nominal_tilted.toml", 0.3)
+    assert calls.read_text().startswith("fly,")
+    res = subprocess.run([str(out / "build" / "bench"), str(calls), "1"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    rows = np.loadtxt(res.stdout.splitlines(), delimiter=",", ndmin=2)
+    assert rows.shape == (len(calls.read_text().splitlines()), 5) and np.all(rows[:, 2] > 0)  # every step timed
+    for rounds in ("0", "2x"):
+        assert subprocess.run([str(out / "build" / "bench"), str(calls), rounds], capture_output=True, text=True).returncode == 2
+    bad = tmp_path / "bad.csv"
+    lines = calls.read_text().splitlines()
+    fields = lines[0].split(",")
+    fields[3] = fields[3] + ".5abc"  # the state's first number spoiled
+    bad.write_text(",".join(fields) + "\n")
+    res = _replay(out, bad)
+    assert res.returncode == 2 and "no step" in res.stderr

@@ -133,7 +133,20 @@ def test_the_offboard_program_names_bad_arguments(offboard_tree, tmp_path):
                        (["127.0.0.1", "14999", "3", "--world", world, "--fast"], "unknown argument")]:
         res = subprocess.run([prog, *args], capture_output=True, text=True, timeout=30)
         assert res.returncode == 2 and said in res.stderr, (args, res.stderr)
+    text = (offboard_tree / "world.csv").read_text()
+    head, first = text.splitlines()[:2]
     bad = tmp_path / "bad.csv"
-    bad.write_text((offboard_tree / "world.csv").read_text().splitlines()[0] + "\n0.0,1,2\n")
-    res = subprocess.run([prog, "127.0.0.1", "14999", "3", "--world", str(bad)], capture_output=True, text=True, timeout=30)
-    assert res.returncode == 2 and "fewer than" in res.stderr
+    cases = [(head + "\n0.0,1,2\n", "row 1 has 3 numbers"),
+             (head + "\n", "a header and no row"),  # exited 2 with no message
+             (head + "\n" + ",".join(["0.0", "1.5abc", *first.split(",")[2:]]) + "\n", "field 2: '1.5abc' is not a finite"),
+             # a two-jammer world for this one-jammer tree: its jammer 1 read as jammer 0's power by position
+             (head + ",jammer1_x,jammer1_y,jammer1_z,jammer1_w\n" + first + ",1,2,3,4\n", "column jammer1_x is not this tree's"),
+             (head.replace("jammer0_w", "power") + "\n" + first + "\n", "no column jammer0_w")]
+    for content, said in cases:
+        bad.write_text(content)
+        res = subprocess.run([prog, "127.0.0.1", "14999", "3", "--world", str(bad)], capture_output=True, text=True, timeout=30)
+        assert res.returncode == 2 and said in res.stderr, (said, res.stderr)
+    for args, said in [(["127.0.0.1", "70000", "3", "--world", world], "PORT in 1-65535"),  # wrapped to 4464
+                       (["127.0.0.1", "14999", "10abc", "--world", world], "DURATION_S")]:  # read as 10
+        res = subprocess.run([prog, *args], capture_output=True, text=True, timeout=30)
+        assert res.returncode == 2 and said in res.stderr, (args, res.stderr)

@@ -2,7 +2,9 @@
  *
  *   bench STEPS.csv [ROUNDS]
  *
- * Reads every `step` line of STEPS.csv (replay's input) into memory first, then, ROUNDS times (default 3), runs them
+ * Reads every line of STEPS.csv (what `aerorelay codegen --record` writes: `step` lines, or `fly` lines for a tree
+ * with the paper's planner, whose stage parameters it then reads from STEPS.csv.params, the recording's sidecar) into
+ * memory first, then, ROUNDS times (default 3), runs them
  * through a fresh controller twice: once with ar_step (the whole step: the supervisor's envelope, the NMPC, the brake
  * law when it flies) and once with the NMPC's two phases (ar_prepare, then ar_feedback), each call timed with
  * CLOCK_MONOTONIC. Writes one line per step and round to stdout: round, step, the whole step, the preparation and the
@@ -30,17 +32,20 @@ int main(int argc, char **argv) {
     return 2;
   }
   FILE *in = fopen(argv[1], "r");
-  int rounds = argc > 2 ? atoi(argv[2]) : 3;
-  if (!in || rounds < 1) {
-    fprintf(stderr, "bench: cannot open %s or rounds < 1\n", argv[1]);
+  char *rend = NULL;
+  long rounds = argc > 2 ? strtol(argv[2], &rend, 10) : 3;
+  if (!in || rounds < 1 || rounds > 1000 || (rend && *rend != '\0')) {
+    fprintf(stderr, "bench: cannot open %s, or ROUNDS is not a whole number 1..1000\n", argv[1]);
     return 2;
   }
+  FILE *params = NULL; /* fly lines: their stage parameters, one row per step (STEPS.csv.params) */
   static char line[1 << 20];
   long n = 0, cap = 1024;
   double *steps = malloc(sizeof(double) * STEP_NUMBERS * cap);
   while (steps && fgets(line, sizeof line, in)) {
-    if (strncmp(line, "step,", 5)) {
-      fprintf(stderr, "bench: line %ld is not a step\n", n + 1);
+    int fly = !strncmp(line, "fly,", 4);
+    if (strncmp(line, "step,", 5) && !fly) {
+      fprintf(stderr, "bench: line %ld is neither a step nor a fly event\n", n + 1);
       return 2;
     }
     if (n == cap) {
@@ -51,6 +56,44 @@ int main(int argc, char **argv) {
     }
     double *v = steps + n * STEP_NUMBERS;
     char *p = line + 5, *end;
+    if (fly) { /* t, shift, x, u_prev, ... : the step's shift, state and last input; P from the sidecar's row */
+      double head[2 + AR_NX + AR_NR];
+      p = line + 4;
+      for (int i = 0; i < 2 + AR_NX + AR_NR; i++, p = end + 1) {
+        head[i] = strtod(p, &end);
+        if (end == p || *end != ',') {
+          fprintf(stderr, "bench: line %ld: a fly event needs its time, shift, state and last input\n", n + 1);
+          return 2;
+        }
+      }
+      v[0] = head[1];
+      memcpy(v + 1, head + 2, sizeof(double) * (AR_NX + AR_NR));
+      if (!params) {
+        char name[4096];
+        snprintf(name, sizeof name, "%s.params", argv[1]);
+        params = fopen(name, "r");
+        if (!params) {
+          fprintf(stderr, "bench: %s has fly events; their stage parameters are in %s, which cannot be opened\n", argv[1], name);
+          return 2;
+        }
+      }
+      static char row[1 << 20];
+      if (!fgets(row, sizeof row, params)) {
+        fprintf(stderr, "bench: %s.params has fewer rows than %s has steps (%ld)\n", argv[1], argv[1], n + 1);
+        return 2;
+      }
+      p = row;
+      for (int i = 0; i < AR_NP * (AR_N + 1); i++, p = end + 1) {
+        v[1 + AR_NX + AR_NR + i] = strtod(p, &end);
+        if (end == p || (i < AR_NP * (AR_N + 1) - 1 && *end != ',')) {
+          fprintf(stderr, "bench: %s.params row %ld: %d numbers, a step's parameters are %d\n", argv[1], n + 1, i,
+                  AR_NP * (AR_N + 1));
+          return 2;
+        }
+      }
+      n++;
+      continue;
+    }
     for (int i = 0; i < STEP_NUMBERS; i++, p = end + 1) {
       v[i] = strtod(p, &end);
       if (end == p || (i < STEP_NUMBERS - 1 && *end != ',')) {
@@ -61,6 +104,11 @@ int main(int argc, char **argv) {
     n++;
   }
   fclose(in);
+  if (params) fclose(params);
+  if (n == 0) {
+    fprintf(stderr, "bench: %s has no step\n", argv[1]);
+    return 2;
+  }
   long long *whole = malloc(sizeof(long long) * n), *prep = malloc(sizeof(long long) * n),
             *fb = malloc(sizeof(long long) * n);
   if (!steps || !whole || !prep || !fb) {

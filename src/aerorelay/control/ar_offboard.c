@@ -145,36 +145,87 @@ typedef struct {
   double *data; /* rows x WORLD_COLS */
 } world_t;
 
+/* The name of the world table's column k as aerorelay codegen writes it: t, source_{p,v,a}_{x,y,z}, then each
+ * jammer's position jammer<j>_{x,y,z}, then each jammer's power jammer<j>_w. */
+static void world_column(int k, char *name, size_t size) {
+  static const char *axis = "xyz", *kind = "pva";
+  if (k == 0) snprintf(name, size, "t");
+  else if (k < 10) snprintf(name, size, "source_%c_%c", kind[(k - 1) / 3], axis[(k - 1) % 3]);
+  else if (k < 10 + 3 * AR_NJ) snprintf(name, size, "jammer%d_%c", (k - 10) / 3, axis[(k - 10) % 3]);
+  else snprintf(name, size, "jammer%d_w", k - 10 - 3 * AR_NJ);
+}
+
+#define WORLD_MAX_FIELDS 256
+
 static int read_world(const char *path, world_t *w) {
   FILE *f = fopen(path, "r");
   if (!f) {
     fprintf(stderr, "offboard: cannot open --world %s\n", path);
     return 0;
   }
-  char line[8192];
-  int cap = 1024;
+  static char line[1 << 16];
+  int cap = 1024, nf = 0, where[WORLD_COLS];
+  char *fields[WORLD_MAX_FIELDS];
   w->rows = 0;
   w->data = malloc(sizeof(double) * WORLD_COLS * cap);
-  if (!fgets(line, sizeof line, f)) { /* the header */
+  if (!w->data || !fgets(line, sizeof line, f)) {
+    fprintf(stderr, "offboard: --world %s: empty (a header line of column names, then a row per time)\n", path);
     fclose(f);
     return 0;
+  }
+  for (char *tok = strtok(line, ",\n\r"); tok && nf < WORLD_MAX_FIELDS; tok = strtok(NULL, ",\n\r")) fields[nf++] = tok;
+  for (int k = 0; k < WORLD_COLS; k++) { /* every column read by its name: a table of other jammers is refused */
+    char name[32];
+    world_column(k, name, sizeof name);
+    where[k] = -1;
+    for (int i = 0; i < nf; i++)
+      if (!strcmp(fields[i], name)) where[k] = i;
+    if (where[k] < 0) {
+      fprintf(stderr, "offboard: --world %s: no column %s (this tree's world: t, the source's p, v, a, and %d jammer(s))\n",
+              path, name, AR_NJ);
+      fclose(f);
+      return 0;
+    }
+  }
+  for (int i = 0; i < nf; i++) {
+    int known = 0;
+    for (int k = 0; k < WORLD_COLS; k++) known |= where[k] == i;
+    if (!known) {
+      fprintf(stderr, "offboard: --world %s: column %s is not this tree's (it knows %d jammer(s)): a world written for "
+              "another scenario?\n", path, fields[i], AR_NJ);
+      fclose(f);
+      return 0;
+    }
   }
   while (fgets(line, sizeof line, f)) {
     if (w->rows == cap) {
       cap *= 2;
-      w->data = realloc(w->data, sizeof(double) * WORLD_COLS * cap);
-    }
-    char *s = line;
-    for (int k = 0; k < WORLD_COLS; k++) {
-      char *end;
-      w->data[w->rows * WORLD_COLS + k] = strtod(s, &end);
-      if (end == s) {
-        fprintf(stderr, "offboard: --world %s: row %d has fewer than %d numbers\n", path, w->rows + 1, WORLD_COLS);
+      double *more = realloc(w->data, sizeof(double) * WORLD_COLS * cap);
+      if (!more) {
+        fprintf(stderr, "offboard: --world %s: no memory for %d rows\n", path, cap);
         fclose(f);
         return 0;
       }
-      s = end + (*end == ',');
+      w->data = more;
     }
+    double row[WORLD_MAX_FIELDS];
+    int n = 0;
+    for (char *tok = strtok(line, ",\n\r"); tok; tok = strtok(NULL, ",\n\r")) {
+      char *end;
+      double v = n < WORLD_MAX_FIELDS ? strtod(tok, &end) : 0.0;
+      if (n >= WORLD_MAX_FIELDS || end == tok || *end != '\0' || !isfinite(v)) {
+        fprintf(stderr, "offboard: --world %s: row %d, field %d: '%s' is not a finite number\n", path, w->rows + 1, n + 1, tok);
+        fclose(f);
+        return 0;
+      }
+      row[n++] = v;
+    }
+    if (n != nf) {
+      fprintf(stderr, "offboard: --world %s: row %d has %d numbers, the header %d columns\n", path, w->rows + 1, n, nf);
+      fclose(f);
+      return 0;
+    }
+    for (int k = 0; k < WORLD_COLS; k++) w->data[w->rows * WORLD_COLS + k] = row[where[k]];
     if (w->rows > 0 && !(w->data[w->rows * WORLD_COLS] > w->data[(w->rows - 1) * WORLD_COLS])) {
       fprintf(stderr, "offboard: --world %s: the times must increase (row %d)\n", path, w->rows + 1);
       fclose(f);
@@ -183,6 +234,7 @@ static int read_world(const char *path, world_t *w) {
     w->rows++;
   }
   fclose(f);
+  if (w->rows == 0) fprintf(stderr, "offboard: --world %s: a header and no row: the world needs a row per time\n", path);
   return w->rows > 0;
 }
 
@@ -208,7 +260,9 @@ int main(int argc, char **argv) {
   }
   const char *world_path = "world.csv", *log_path = NULL;
   int arm = 0;
-  double duration = strtod(argv[3], NULL);
+  char *end;
+  double duration = strtod(argv[3], &end);
+  if (end == argv[3] || *end != '\0') duration = NAN; /* "10abc" is no number of seconds */
   for (int i = 4; i < argc; i++) {
     if (!strcmp(argv[i], "--arm")) arm = 1;
     else if (!strcmp(argv[i], "--world") && i + 1 < argc) world_path = argv[++i];
@@ -228,8 +282,10 @@ int main(int argc, char **argv) {
   memset(&l, 0, sizeof l);
   l.fd = socket(AF_INET, SOCK_DGRAM, 0);
   l.to.sin_family = AF_INET;
-  l.to.sin_port = htons((uint16_t)atoi(argv[2]));
-  if (l.fd < 0 || inet_pton(AF_INET, argv[1], &l.to.sin_addr) != 1 || l.to.sin_port == 0) {
+  long port = strtol(argv[2], &end, 10);
+  if (end == argv[2] || *end != '\0' || port < 1 || port > 65535) port = 0; /* 70000 would wrap to 4464 */
+  l.to.sin_port = htons((uint16_t)port);
+  if (l.fd < 0 || inet_pton(AF_INET, argv[1], &l.to.sin_addr) != 1 || port == 0) {
     fprintf(stderr, "offboard: HOST must be an IPv4 address and PORT in 1-65535, got %s %s\n", argv[1], argv[2]);
     return 2;
   }

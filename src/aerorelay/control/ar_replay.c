@@ -32,7 +32,7 @@ static int parse(char *rest, double *v, int most) {
     char *end;
     if (n >= most) return -1;
     v[n++] = strtod(tok, &end);
-    if (end == tok) return -1;
+    if (end == tok || *end != '\0') return -1; /* a number, all of the field: "-6.951.5abc" is none */
     tok = strtok(NULL, ",\n\r");
   }
   return n;
