@@ -225,3 +225,31 @@ def test_long_work_without_a_terminal_prints_a_line_while_one_step_takes_long(mo
         update(10, 10)
     lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("flight:")]
     assert len(lines) >= 4 and lines[-1].startswith("flight: 10/10 steps"), lines
+
+
+@pytest.mark.parametrize("scenario", ["nominal_tilted.toml", "chain_two_relays.toml"])
+def test_a_source_that_jumps_a_kilometre_is_not_planned_on(scenario):
+    """A 1 km jump of the source's reported position was planned on by one relay and by a chain alike: it is held as a
+    relay state's jump is (its reach, StaleSettings.source_accel_max_m_s2), and the next report near where it was flies."""
+    import aerorelay as ar
+
+    sc = ar.load_scenario(ROOT / "scenarios" / scenario, set={"sim.duration_s": 1.0})
+    made = ar.controller(sc)
+    ctrl = getattr(made, "network", made)  # the network's controller (one relay: under its adapter)
+    states = {}
+    for r in sc.relay_list:
+        x = np.zeros(12 + ctrl.relay(r.name).vehicle.n_rotors)
+        x[:3], x[12:] = r.start, ctrl.relay(r.name).vehicle.hover_speeds()
+        states[r.name] = x
+    name = sc.source_list[0].name
+    p0 = np.asarray(sc.source_list[0].mission.start, float)
+    step = 0.015
+
+    def src(p):
+        return {name: ar.SourceState(np.asarray(p, float), np.zeros(3), np.zeros(3))}
+    first = ctrl.step(0.0, states, src(p0))
+    assert all(c.rejected is None for c in first.values())
+    jumped = ctrl.step(step, states, src(p0 + [1000.0, 0.0, 0.0]))
+    assert all(c.mode == "hold" and "source position jumped" in (c.rejected or "") for c in jumped.values())
+    back = ctrl.step(2 * step, states, src(p0))
+    assert all(c.rejected is None and c.mode == "nmpc" for c in back.values())

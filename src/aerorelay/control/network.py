@@ -29,7 +29,7 @@ from ..planning.fleet import FleetInput, FleetPlanner
 from ..planning.home import HomeSettings
 from .nmpc import StepInfo
 from .readings import JammersFromReadings
-from .relay_step import Command, RelayStep, SourceState, StaleSettings, checked_source
+from .relay_step import Command, RelayStep, SourceState, StaleSettings, beyond_reach, checked_source
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -273,6 +273,7 @@ class Controller:
         self.lost: set[str] = set()  # relays taken out of the network (``lose``)
         self.lost_at: dict[str, float] = {}  # when (s, the caller's clock; NaN: not said)
         self._by_name = {r.name: r for r in controller.relays}
+        self._source_trusted: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}  # each source's last trusted report
 
     @property
     def relays(self) -> list[str]:
@@ -331,6 +332,17 @@ class Controller:
             why = f"source {t - source.stamp:.3f} s old"
         return why
 
+    def _source_reach(self, t: float, name: str, source: SourceState) -> str | None:
+        """Why source ``name``'s report cannot follow its last trusted one (``relay_step.beyond_reach`` with
+        ``StaleSettings.source_accel_max_m_s2``); a report that can is kept as the trusted one."""
+        stamp = t if source.stamp is None else float(source.stamp)
+        last = self._source_trusted.get(name)
+        why = None if last is None else beyond_reach(last, stamp, source.p, source.v, self.stale.source_accel_max_m_s2,
+                                                     self.stale, "source")
+        if why is None:
+            self._source_trusted[name] = (stamp, np.asarray(source.p, float).copy(), np.asarray(source.v, float).copy())
+        return why
+
     def step(self, t: float, relay_states: Mapping[str, np.ndarray | None], sources: Mapping[str, SourceState | None],
              *, stamps: Mapping[str, float | None] | None = None,
              readings: Mapping[str, float] | None = None) -> dict[str, Command]:
@@ -373,6 +385,8 @@ class Controller:
                              "needs every relay's (nothing to hold)")
         self._t_last = t
         source_why = {n: w for n, s in src.items() if (w := self.source_problem(t, s)) is not None}
+        source_why |= {n: w for n, s in src.items() if s is not None and n not in source_why
+                       and (w := self._source_reach(t, n, s)) is not None}
         for r in self.controller.relays:
             if r.name in fresh:
                 r.stepper.accept(t, stamp[r.name], fresh[r.name])

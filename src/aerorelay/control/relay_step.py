@@ -58,6 +58,9 @@ class StaleSettings:
     # what a measured state may differ from the kinematic reach of the last trusted one (noise, m and m/s)
     jump_tolerance_m: float = 0.5
     jump_tolerance_m_s: float = 5.0
+    # a source's reach between two of its reports (m/s^2: a multirotor inspector's, about 3 g): a farther jump is not
+    # planned on (a 1 km jump of the source's reported position was planned on by one relay and by a chain alike)
+    source_accel_max_m_s2: float = 30.0
 
     def too_old(self, t: float, stamp: float) -> bool:
         """Whether an input measured at ``stamp`` is stale at ``t`` (older than ``hold_after_s``): the one rule."""
@@ -67,9 +70,9 @@ class StaleSettings:
         if not 0 < self.hold_after_s < self.land_after_s or self.land_speed_m_s <= 0:
             raise ValueError(f"StaleSettings: need 0 < hold_after_s ({self.hold_after_s}) < land_after_s "
                              f"({self.land_after_s}) and land_speed_m_s > 0 ({self.land_speed_m_s})")
-        if not (self.jump_tolerance_m > 0 and self.jump_tolerance_m_s > 0):
-            raise ValueError(f"StaleSettings: need jump_tolerance_m > 0 ({self.jump_tolerance_m}) and "
-                             f"jump_tolerance_m_s > 0 ({self.jump_tolerance_m_s})")
+        if not (self.jump_tolerance_m > 0 and self.jump_tolerance_m_s > 0 and self.source_accel_max_m_s2 > 0):
+            raise ValueError(f"StaleSettings: need jump_tolerance_m > 0 ({self.jump_tolerance_m}), jump_tolerance_m_s > 0 "
+                             f"({self.jump_tolerance_m_s}) and source_accel_max_m_s2 > 0 ({self.source_accel_max_m_s2})")
 
 
 @dataclass(frozen=True)
@@ -162,16 +165,9 @@ class TelemetryCheck:
             if stamp > t + ahead:
                 return f"relay state stamped {stamp - t:.3f} s ahead of the clock"
             if self.trusted is not None:
-                s0, p0, v0 = self.trusted
-                if stamp < s0:
-                    return f"relay state stamped {s0 - stamp:.3f} s before the last trusted one (time went backwards)"
-                dt = stamp - s0
-                dp = float(np.linalg.norm(x[P] - p0 - v0 * dt))
-                dv = float(np.linalg.norm(x[V] - v0))
-                if dp > 0.5 * self.a_max * dt ** 2 + self.stale.jump_tolerance_m:
-                    return f"relay position jumped {dp:.2f} m from the last trusted state in {dt:.3f} s (no vehicle reach)"
-                if dv > self.a_max * dt + self.stale.jump_tolerance_m_s:
-                    return f"relay velocity jumped {dv:.2f} m/s from the last trusted state in {dt:.3f} s (no vehicle reach)"
+                why = beyond_reach(self.trusted, stamp, x[P], x[V], self.a_max, self.stale, "relay")
+                if why is not None:
+                    return why
         if source is not None:
             if not all(np.all(np.isfinite(v)) for v in (source.p, source.v, source.a)):
                 return "source not finite"
@@ -182,6 +178,24 @@ class TelemetryCheck:
     def trust(self, stamp: float, x: np.ndarray) -> None:
         """Keep ``x`` (stamped ``stamp``) as the last trusted state."""
         self.trusted = (stamp, x[P].copy(), x[V].copy())
+
+
+def beyond_reach(trusted: tuple[float, np.ndarray, np.ndarray], stamp: float, p: np.ndarray, v: np.ndarray, a_max: float,
+                 stale: StaleSettings, what: str) -> str | None:
+    """Why a report of a vehicle's position ``p`` (m) and velocity ``v`` (m/s) at ``stamp`` (s) cannot follow its last
+    trusted one ``(stamp, p, v)``: stamped before it, or farther than ``|p - p0 - v0 dt| <= a_max dt^2 / 2 +
+    jump_tolerance_m``, ``|v - v0| <= a_max dt + jump_tolerance_m_s`` (``a_max`` m/s^2) allow; None when it can."""
+    s0, p0, v0 = trusted
+    if stamp < s0:
+        return f"{what} state stamped {s0 - stamp:.3f} s before the last trusted one (time went backwards)"
+    dt = stamp - s0
+    dp = float(np.linalg.norm(p - p0 - v0 * dt))
+    dv = float(np.linalg.norm(v - v0))
+    if dp > 0.5 * a_max * dt ** 2 + stale.jump_tolerance_m:
+        return f"{what} position jumped {dp:.2f} m from the last trusted state in {dt:.3f} s (no vehicle reach)"
+    if dv > a_max * dt + stale.jump_tolerance_m_s:
+        return f"{what} velocity jumped {dv:.2f} m/s from the last trusted state in {dt:.3f} s (no vehicle reach)"
+    return None
 
 
 def checked_source(source: SourceState | None) -> SourceState | None:
