@@ -341,6 +341,13 @@ ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src
 #define AR_HOVER_SPEEDS {{{", ".join(_c_number(v) for v in rc_step.vehicle.hover_speeds())}}}  /* level hover (Hz) */
 /* aerorelay's stale-input rules (control.relay_step.StaleSettings): hold after, ask the autopilot to land after (s) */
 #define AR_HOLD_AFTER_S {_c_number(stale.hold_after_s)}
+/* ... and its telemetry check (control.relay_step.TelemetryCheck): the vehicle's reach (m/s^2: full thrust over its mass
+ * plus gravity) and what a measurement may differ beyond it (noise: m, m/s) */
+#define AR_ACCEL_MAX {_c_number(rc_step.check.a_max)}
+/* the verdict (verdict.fallback_fraction_max): a flight with more of its steps on the brake law did not fly on its NMPC */
+#define AR_FALLBACK_FRACTION_MAX {_c_number(sc.verdict.fallback_fraction_max)}
+#define AR_JUMP_TOLERANCE_M {_c_number(stale.jump_tolerance_m)}
+#define AR_JUMP_TOLERANCE_M_S {_c_number(stale.jump_tolerance_m_s)}
 #define AR_LAND_AFTER_S {_c_number(stale.land_after_s)}
 
 typedef enum {{
@@ -381,6 +388,17 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
  * resumes after AR_SUCCESSES_TO_RESUME successes from rest. shift: 1 when the period is the OCP's step. */
 ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const double *P, int shift, double *u,
                   ar_info *info);
+/* whether a measurement of the relay (position p, m, and velocity v, m/s, world ENU, taken at stamp on the clock whose
+ * now is t, s) can be flown, by aerorelay's telemetry check (control.relay_step.TelemetryCheck, the same rules and
+ * thresholds): AR_OK, and it becomes the last trusted one; or AR_BAD_INPUT with why (AR_UNTRUSTED_*): not finite, the
+ * stamp not finite or ahead of the clock by more than AR_HOLD_AFTER_S, before the last trusted one, or farther from it
+ * than the vehicle can fly in the time between them (AR_ACCEL_MAX, plus AR_JUMP_TOLERANCE_M / _M_S). A measurement not
+ * trusted is not flown: hold where the vehicle last was (and land after AR_LAND_AFTER_S), as aerorelay does. */
+enum {{
+  AR_TRUSTED = 0, AR_UNTRUSTED_BAD_INPUT = 1, AR_UNTRUSTED_NOT_FINITE = 2, AR_UNTRUSTED_STAMP = 3, AR_UNTRUSTED_AHEAD = 4,
+  AR_UNTRUSTED_BACKWARDS = 5, AR_UNTRUSTED_POSITION_JUMP = 6, AR_UNTRUSTED_VELOCITY_JUMP = 7
+}};
+ar_status ar_trust(ar_controller *c, double t, double stamp, const double *p, const double *v, int *why);
 /* an autopilot's setpoints for the command u stepped at x (aerorelay's Command): the relay's state one control
  * period ahead by the model's RK4 step, x1 (AR_NX: position, attitude ZYX, velocity, body rates, rotor speeds), and
  * its acceleration there with the external acceleration a_ext (m/s^2, world; zeros without an estimate). Bad input,

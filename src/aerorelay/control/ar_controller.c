@@ -31,6 +31,9 @@ struct ar_controller {
   /* the step's fail-safe (ar_failsafe.c) */
   int fallback_active, fallback_episodes, consecutive_failures, successes, safety_handovers, last_unsafe;
   ar_hold_t hold;
+  /* ar_trust: the last trusted measurement (its stamp, s; position, m; velocity, m/s) */
+  int has_trusted;
+  double trusted_stamp, trusted_p[3], trusted_v[3];
   /* the paper's planner (ar_planner.c): the governed reference, the expansion's work */
   double plan_ref[3];
   int has_plan_ref;
@@ -168,6 +171,32 @@ ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, i
     info->slack_max = ok ? (ri.slack_max > 0.0 ? ri.slack_max : 0.0) : NAN;
   }
   return ok ? AR_OK : AR_QP_FAILED;
+}
+
+ar_status ar_trust(ar_controller *c, double t, double stamp, const double *p, const double *v, int *why) {
+  int reason = AR_TRUSTED;
+  if (!ar_live(c) || !p || !v) reason = AR_UNTRUSTED_BAD_INPUT;
+  else if (!ar_finite(p, 3) || !ar_finite(v, 3)) reason = AR_UNTRUSTED_NOT_FINITE;
+  else if (!isfinite(stamp) || !isfinite(t)) reason = AR_UNTRUSTED_STAMP;
+  else if (stamp > t + AR_HOLD_AFTER_S) reason = AR_UNTRUSTED_AHEAD; /* two processes' clocks may differ this much */
+  else if (c->has_trusted) { /* the reach from the last trusted one (control.relay_step.beyond_reach) */
+    double dt = stamp - c->trusted_stamp, dp = 0.0, dv = 0.0;
+    if (dt < 0.0) reason = AR_UNTRUSTED_BACKWARDS;
+    else {
+      for (int i = 0; i < 3; i++) {
+        double e = p[i] - c->trusted_p[i] - c->trusted_v[i] * dt, f = v[i] - c->trusted_v[i];
+        dp += e * e, dv += f * f;
+      }
+      if (sqrt(dp) > 0.5 * AR_ACCEL_MAX * dt * dt + AR_JUMP_TOLERANCE_M) reason = AR_UNTRUSTED_POSITION_JUMP;
+      else if (sqrt(dv) > AR_ACCEL_MAX * dt + AR_JUMP_TOLERANCE_M_S) reason = AR_UNTRUSTED_VELOCITY_JUMP;
+    }
+  }
+  if (why) *why = reason;
+  if (reason != AR_TRUSTED) return AR_BAD_INPUT;
+  c->has_trusted = 1, c->trusted_stamp = stamp;
+  memcpy(c->trusted_p, p, sizeof c->trusted_p);
+  memcpy(c->trusted_v, v, sizeof c->trusted_v);
+  return AR_OK;
 }
 
 /* An autopilot's setpoints (aerorelay's RelayStep.command): the model's RK4 step over one control period and the

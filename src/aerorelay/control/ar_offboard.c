@@ -12,9 +12,11 @@
  * flies them), makes the stage parameters with the paper's planner (ar_plan: the source's and the jammers' states as
  * the relay knows them on the mission's clock, from world.csv, interpolated), steps the controller (ar_step: the
  * supervisor's envelope, the NMPC, the fail-safe brake law) and sends SET_POSITION_TARGET_LOCAL_NED with the state one
- * period ahead (ar_setpoint: position, velocity, acceleration, yaw). Telemetry older than AR_HOLD_AFTER_S: a hold
+ * period ahead (ar_setpoint: position, velocity, acceleration, yaw). A position not trusted (ar_trust: not finite, or
+ * farther than the vehicle can fly since the last trusted one) is not flown. Telemetry older than AR_HOLD_AFTER_S: a hold
  * where the vehicle last was (in OFFBOARD); older than AR_LAND_AFTER_S: AUTO.LAND, exit 3. The vehicle leaving
- * OFFBOARD without being asked: exit 3. At the end: AUTO.LOITER (the vehicle holds), exit 0.
+ * OFFBOARD without being asked: exit 3. At the end: AUTO.LOITER (the vehicle holds), exit 0; exit 4 when more than
+ * AR_FALLBACK_FRACTION_MAX of the periods flew the brake law or held (the controller did not fly it).
  * Frames: NED on the wire, ENU inside (x east, y north, z up); yaw from north clockwise on the wire.
  *
  * --log: one line per control period of the mission: t, mode (0 the NMPC, 1 the brake law, 2 hold), ar_step's status,
@@ -50,8 +52,10 @@ typedef struct {
   struct sockaddr_in to;
   int target_sys, target_comp, heard, armed;
   unsigned custom_mode;
-  double p[3], v[3], received_at; /* ENU, m and m/s; when (s, monotonic) */
+  double p[3], v[3], received_at; /* ENU, m and m/s; when (s, monotonic): the last measurement trusted */
   int have_position;
+  ar_controller *controller; /* whose telemetry check (ar_trust) decides what is trusted */
+  int rejected, last_why;    /* measurements not trusted, and why the last was not (AR_UNTRUSTED_*) */
 } link_t;
 
 static double now_s(void) {
@@ -127,13 +131,18 @@ static void poll_link(link_t *l) {
                  msg.compid == l->target_comp) {
         mavlink_local_position_ned_t lp;
         mavlink_msg_local_position_ned_decode(&msg, &lp);
-        double p[3] = {lp.y, lp.x, -lp.z}, v[3] = {lp.vy, lp.vx, -lp.vz};
-        int finite = 1;
-        for (int k = 0; k < 3; k++) finite = finite && isfinite(p[k]) && isfinite(v[k]);
-        if (!finite) continue; /* not believed: the telemetry goes stale and the relay holds */
+        double p[3] = {lp.y, lp.x, -lp.z}, v[3] = {lp.vy, lp.vx, -lp.vz}, at = now_s();
+        int why = 0;
+        if (ar_trust(l->controller, at, at, p, v, &why) != AR_OK) { /* not finite, or beyond the vehicle's reach */
+          if (!l->rejected || why != l->last_why)
+            fprintf(stderr, "offboard: a position not trusted (ar_trust: %d, AR_UNTRUSTED_*): the relay holds where it "
+                    "last was\n", why);
+          l->rejected++, l->last_why = why;
+          continue; /* not believed: the telemetry goes stale and the relay holds */
+        }
         memcpy(l->p, p, sizeof p);
         memcpy(l->v, v, sizeof v);
-        l->received_at = now_s();
+        l->received_at = at;
         l->have_position = 1;
       }
     }
@@ -300,6 +309,7 @@ int main(int argc, char **argv) {
     fprintf(stderr, "offboard: ar_create: out of memory\n");
     return 2;
   }
+  l.controller = c;
   /* the vehicle: its heartbeat, then its position */
   double start = now_s(), period = AR_CONTROL_PERIOD_S;
   while (!(l.heard && l.have_position)) {
@@ -401,9 +411,15 @@ int main(int argc, char **argv) {
     sleep_until(start + k * period);
   }
   if (mission_t0 >= 0 && rc != 3) request_mode(&l, PX4_AUTO, PX4_AUTO_LOITER); /* the vehicle holds */
+  if (rc == 0 && steps + holds > 0 && fallback_steps + holds > AR_FALLBACK_FRACTION_MAX * (steps + holds)) {
+    fprintf(stderr, "offboard: %d of %d periods on the brake law or held, more than AR_FALLBACK_FRACTION_MAX = %g: the "
+            "controller did not fly it (exit 4)\n", fallback_steps + holds, steps + holds, AR_FALLBACK_FRACTION_MAX);
+    rc = 4;
+  }
   if (log) fclose(log);
-  printf("offboard: %d steps flown (%d on the brake law), %d held; slowest step %.0f us; %s\n", steps, fallback_steps,
-         holds, worst_us, rc == 0 ? "done, vehicle asked to hold (AUTO.LOITER)" : "ended early");
+  printf("offboard: %d steps flown (%d on the brake law), %d held, %d positions not trusted; slowest step %.0f us; %s\n",
+         steps, fallback_steps, holds, l.rejected, worst_us,
+         rc == 0 ? "done, vehicle asked to hold (AUTO.LOITER)" : rc == 4 ? "fell back" : "ended early");
   ar_destroy(c);
   free(world.data);
   close(l.fd);
