@@ -508,7 +508,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     # every relay keeps min_separation_m from the other vehicles, the paper's one relay from its source too: the
     # verdict checks it (a planner's goal alone left the tracking lag: 1.01 m of 1.05 on a sector base station); a
     # row for each of the nearest network.separation_neighbours, whatever the network's size
-    others = min(len(sc.relay_list) - 1 + len(sc.source_list), sc.network.separation_neighbours) if sc.separation_m > 0 else 0
+    others = min(sc.vehicle_count - 1, sc.network.separation_neighbours) if sc.separation_m > 0 else 0
     relays, platforms = [], {}
     for i, r in enumerate(sc.relay_list):
         view = sc.relay_view(i)

@@ -82,7 +82,7 @@ BOUND = (
     Applies(("global_gap",), lambda b, sc: b.global_seconds > 0, "bound.global_seconds > 0"),
 )
 NETWORK = (
-    Applies(("separation_neighbours",), lambda n, sc: len(sc.relay_list) - 1 + len(sc.source_list) > n.separation_neighbours,
+    Applies(("separation_neighbours",), lambda n, sc: sc.vehicle_count - 1 > n.separation_neighbours,
             "a relay has more other vehicles (relays and sources) than network.separation_neighbours"),
 )
 WIND = (

@@ -292,6 +292,11 @@ class Scenario(Strict):
         return self.relays is not None or self.sources is not None
 
     @property
+    def vehicle_count(self) -> int:
+        """Every vehicle of the scenario: its relays (spares included) and its sources."""
+        return len(self.relay_list) + len(self.source_list)
+
+    @property
     def relay_list(self) -> list[RelayConfig]:
         """Every relay: ``[[relays]]``, or the one at ``nodes.relay`` named ``relay``."""
         return list(self.relays) if self.relays is not None else [RelayConfig(name=LEGACY_RELAY, start=self.nodes.relay)]
