@@ -111,3 +111,57 @@ def test_the_relay_state_is_read_by_name():
     hits = [f"{p.relative_to(SRC)}:{i}: {line.strip()}" for p in (SRC / "aerorelay").rglob("*.py") if p.name not in not_a_state
             for i, line in enumerate(p.read_text().splitlines(), 1) if literal.search(line)]
     assert not hits, hits
+
+
+# The floors of docs/concepts/architecture.md: a package imports only from floors below its own (or from its own
+# package); the top-level modules are floors of their own.
+FLOORS = {"_version": 1, "errors": 1, "filecheck": 1, "stats": 1, "naming": 1, "store": 2, "models": 3, "config": 4,
+          "estimation": 4, "planning": 5, "control": 6, "flight": 7, "sim": 7, "assembly": 8, "experiments": 9, "report": 10,
+          "api": 11, "cli": 12, "aerorelay": 12}
+
+
+def _package(mod: str) -> str:
+    parts = mod.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def _upward_arrows() -> list[str]:
+    edges, _ = _structure()
+    out = []
+    for mod, targets in edges.items():
+        a = _package(mod)
+        for t in targets:
+            b = _package(t)
+            if a != b and FLOORS[b] >= FLOORS[a]:
+                out.append(f"{mod} ({a}, floor {FLOORS[a]}) -> {t} ({b}, floor {FLOORS[b]})")
+    return sorted(out)
+
+
+def test_every_package_has_a_floor_and_imports_only_go_down():
+    """Issue 78: the package-level knot {config, control, flight, planning} of 2026-12-07 had three arrows back up the
+    floors (config -> control.terms, control -> flight.frames, control/flight -> config.network.sole); none now."""
+    mods = _modules()
+    assert {_package(m) for m in mods} <= set(FLOORS), sorted({_package(m) for m in mods} - set(FLOORS))
+    assert _upward_arrows() == []
+
+
+def test_no_cycle_among_packages():
+    """The module graph has no cycle (above); neither has the graph of packages (two on one floor, flight and sim,
+    could still reach each other)."""
+    edges, _ = _structure()
+    packages: dict[str, set[str]] = {}
+    for mod, targets in edges.items():
+        packages.setdefault(_package(mod), set()).update(_package(t) for t in targets if _package(t) != _package(mod))
+    assert _cycles(packages) == []
+
+
+def test_the_architecture_page_shows_these_floors():
+    import re
+
+    page = (SRC.parent / "docs" / "concepts" / "architecture.md").read_text()
+    shown = {}
+    for floor, cell in re.findall(r"^\| (\d+) \| (.+) \|$", page, flags=re.M):
+        for name in re.findall(r"`([a-z_]+)`", cell):
+            shown[name] = int(floor)
+    shown["aerorelay"] = shown.pop("__init__")  # "the package's __init__"
+    assert shown == FLOORS

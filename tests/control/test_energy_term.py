@@ -7,7 +7,8 @@ from hypothesis import strategies as st
 
 from aerorelay.assembly import load_scenario
 from aerorelay.assembly.parts import build, ocp_spec
-from aerorelay.control.terms import COST_TERMS, StageVars
+from aerorelay.config.cost_terms import COST_TERMS
+from aerorelay.control.terms import StageVars
 
 SC = load_scenario("scenarios/nominal_tilted.toml")
 SPEC = ocp_spec(SC)

@@ -15,14 +15,13 @@ from aerorelay.flight.frames import (
     frd_to_flu,
     matrix_from_wxyz,
     ned_to_enu,
-    quaternion_wxyz,
     quaternion_xyzw,
     rotation_enu_flu_to_ned_frd,
     rotation_ned_frd_to_enu_flu,
     yaw_enu_to_ned,
     yaw_ned_to_enu,
 )
-from aerorelay.models.geometry import rotation_zyx
+from aerorelay.models.geometry import quaternion_wxyz, rotation_zyx
 
 
 def test_positions_by_hand():

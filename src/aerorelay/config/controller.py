@@ -8,15 +8,15 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, create_model, field_validator, model_validator
 
-from ..control.terms import COST_TERMS
 from .base import Strict, Vec3, papers_generator_named
+from .cost_terms import COST_TERMS
 
 MIN_PREDICTION_S = 0.3  # horizon x Ts: shorter predictions cannot plan a stop inside the workspace
 MAX_TS_S = 0.05  # one RK4 step per Ts: longer periods do not resolve the attitude dynamics
 
 
 def _weights_model() -> type[Strict]:
-    """``[controller.weights]``: one field per cost term of ``control/terms.py`` (and
+    """``[controller.weights]``: one field per cost term of ``config/cost_terms.py`` (and
     ``<name>_terminal`` for a term with its own terminal weight). Each is the diagonal entry
     ``q`` of a term ``q * r^2`` (docs/concepts/weights-that-fly.md). Generated once, at import,
     from ``COST_TERMS``, so a new cost term is one entry there (docs/decisions.md)."""

@@ -22,10 +22,11 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from ..config.cost_terms import COST_TERMS, CostTerm
 from ..models.state import P
 from ..models.vehicle import Multirotor
 from .params import StageParams
-from .terms import CONSTRAINTS, COST_TERMS, KEEP_OUT, REFERENCE_SIGNALS, SEPARATION, Constraint, CostTerm, StageVars
+from .terms import CONSTRAINTS, KEEP_OUT, REFERENCE_SIGNALS, SEPARATION, Constraint, StageVars
 
 INF = 1e8  # 'unbounded' in the QP's bound vectors
 HESSIAN_REG = 1e-8  # added to the Gauss-Newton Hessian's diagonal (both QP routes)

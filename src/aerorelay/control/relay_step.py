@@ -23,8 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..estimation.disturbance import ExternalAccelerationObserver
-from ..flight.frames import quaternion_wxyz
-from ..models.geometry import rotation_zyx
+from ..models.geometry import quaternion_wxyz, rotation_zyx
 from ..models.state import ETA, OMEGA, ROTORS, YAW, P, V
 from ..models.vehicle import Multirotor
 from ..planning.base import Reference

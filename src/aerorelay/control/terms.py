@@ -6,7 +6,8 @@ terminal weight) and its stage parameter ``sw_<name>`` (the square root of ``q``
 ``Constraint`` is ``h(stage) >= 0`` on stages 1..N-1; a soft one gets its own slack ``pi >= 0``
 in the stage input (``h + pi >= 0``) with the penalty ``controller.q_slack * pi^2``.
 
-**Adding a cost term or a constraint is one entry in ``COST_TERMS`` or ``CONSTRAINTS``**: the
+**Adding a cost term or a constraint is one entry in ``COST_TERMS`` (``config/cost_terms.py``: the schema's weights
+are generated from it, so it is data CasADi-free) or ``CONSTRAINTS`` (here)**: the
 scenario schema, the parameter layout, the linearization, both QP routes, the compiled engine
 and the full NLP take their dimensions from these lists. A term or constraint that needs a new
 reference signal also declares it in ``REFERENCE_SIGNALS`` and the planner's reference fills it.
@@ -23,7 +24,7 @@ import casadi as ca
 
 from ..models.channel import misalignment, mutual_alignment
 from ..models.geometry import rotation_zyx
-from ..models.state import ETA, OMEGA, P, V
+from ..models.state import ETA, OMEGA, YAW, P, V
 
 # Signals fed to every stage by the controller (name, size): the planner's reference and what
 # the relay knows of the others. Units: m, m/s, unit vector, m, dimensionless.
@@ -61,6 +62,7 @@ class StageVars:
         nr = spec.vehicle.n_rotors
         self.vehicle = spec.vehicle
         self.pos, self.eta, self.vel, self.omega = xa[P], xa[ETA], xa[V], xa[OMEGA]
+        self.yaw = xa[YAW]
         self.speeds = xa[12 : 12 + nr]
         self.u = None if w is None else w[:nr]
         self.slack = {} if w is None else {c.name: w[nr + i] for i, c in enumerate(spec.soft_constraints)}
@@ -68,6 +70,11 @@ class StageVars:
         self.p = p
         # the link toward the base station: the BS itself, or a fleet's next node on the route (parameter p0)
         self.bs = p["p0"] if spec.p0_parameter else ca.DM(spec.bs_position)
+
+    @staticmethod
+    def stack(*parts):
+        """The parts as one column (a residual of several pieces)."""
+        return ca.vertcat(*parts)
 
     @cached_property
     def R(self):
@@ -116,28 +123,6 @@ class StageVars:
 
 
 @dataclass(frozen=True)
-class CostTerm:
-    """A weighted least-squares term ``q |residual(stage)|^2``.
-
-    ``terminal``: ``"stage"`` reuses the stage weight at the terminal stage, a number gives the
-    default of an own terminal weight ``<name>_terminal``, ``None`` means no terminal term (the
-    residual needs the stage input). ``comms_aware`` terms are dropped in the unconstrained variant.
-    """
-
-    name: str
-    residual: Callable[[StageVars], Any]
-    default: float
-    doc: str
-    terminal: str | float | None = "stage"
-    comms_aware: bool = False
-    strictly_positive: bool = False
-
-    @property
-    def own_terminal(self) -> bool:
-        return self.terminal is not None and self.terminal != "stage"
-
-
-@dataclass(frozen=True)
 class Constraint:
     """``expression(stage) >= 0`` (rows: the expression's length) on stages 1..N-1."""
 
@@ -148,19 +133,6 @@ class Constraint:
     comms_aware: bool = True
 
 
-COST_TERMS: tuple[CostTerm, ...] = (
-    CostTerm("position", lambda s: s.pos - s.p["p_ref"], 1.0, "position tracking (eq. 20), m^-2", terminal=10.0),
-    CostTerm("velocity", lambda s: s.vel - s.p["v_ref"], 2.0, "velocity tracking (eq. 20), (m/s)^-2"),
-    CostTerm("thrust_direction", lambda s: s.rho - s.p["rho_d"], 300.0, "thrust direction R e3 vs rho_d (eq. 20)"),
-    CostTerm("misalignment", lambda s: ca.vertcat(s.v12, s.v10), 10.0, "misalignment (v_12, v_10) (eq. 23)",
-             terminal=10.0, comms_aware=True),
-    CostTerm("body_rate", lambda s: s.omega, 1.0, "regularizer on omega, (rad/s)^-2"),
-    CostTerm("yaw", lambda s: s.eta[2] - s.p["psi_ref"], 1.0, "yaw psi vs its reference (0: a regularizer, nothing else fixes the yaw), rad^-2"),
-    CostTerm("shaft_power", lambda s: s.shaft_power_residual, 0.0,
-             "shaft power sum 2 pi c_tau Omega^3 (energy-aware term, the paper's 4th future work), W^-1", terminal=None),
-    CostTerm("input_rate", lambda s: s.u - s.u_prev, 1e-5, "on u_k - u_(k-1) (eq. 22), (Hz/s)^-2",
-             terminal=None, strictly_positive=True),
-)
 
 # A fleet's relays keep apart: present in the OCP of a relay that has neighbours (``OcpSpec.neighbours``: its rows, one
 # per other vehicle it keeps apart from, the nearest ones), whose predicted positions come as the stage parameter

@@ -55,13 +55,6 @@ def rotation_ned_frd_to_enu_flu(R) -> np.ndarray:
     return ENU_TO_NED @ np.asarray(R, float) @ FLU_TO_FRD
 
 
-def quaternion_wxyz(R) -> np.ndarray:
-    """The unit quaternion ``(w, x, y, z)`` of a rotation matrix, ``w >= 0``."""
-    x, y, z, w = Rotation.from_matrix(np.asarray(R, float)).as_quat()
-    q = np.array([w, x, y, z])
-    return q if q[0] >= 0 else -q
-
-
 def matrix_from_wxyz(q) -> np.ndarray:
     w, x, y, z = np.asarray(q, float)
     return Rotation.from_quat([x, y, z, w]).as_matrix()

@@ -39,6 +39,7 @@ import numpy as np
 
 from ..control.network import Controller
 from ..control.relay_step import Command
+from ..models.geometry import quaternion_wxyz
 from ..models.mission import SourceTrajectory
 from .autopilot_loop import AutopilotLoop, Measured, StepHook, rotation_from_quaternion
 from .frames import (
@@ -48,7 +49,6 @@ from .frames import (
     frd_to_flu,
     matrix_from_wxyz,
     ned_to_enu,
-    quaternion_wxyz,
     rotation_enu_flu_to_ned_frd,
     rotation_ned_frd_to_enu_flu,
     yaw_enu_to_ned,

@@ -21,13 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..models.geometry import quaternion_wxyz
 from .airframes import Airframe, PointMass, Target
 from .frames import (
     enu_to_ned,
     flu_to_frd,
     matrix_from_wxyz,
     ned_to_enu,
-    quaternion_wxyz,
     rotation_enu_flu_to_ned_frd,
     rotation_ned_frd_to_enu_flu,
     yaw_ned_to_enu,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .backend import is_symbolic, ops
 
@@ -130,3 +131,10 @@ def constant_acceleration_path(p, v, a, tk: np.ndarray) -> np.ndarray:
     ``p + v t + a t^2 / 2`` (how the NMPC predicts MRAV-2 and a fleet's sources over its horizon)."""
     p, v, a = (np.asarray(x, float) for x in (p, v, a))
     return p[:, None] + v[:, None] * tk + 0.5 * a[:, None] * tk**2
+
+
+def quaternion_wxyz(R) -> np.ndarray:
+    """The unit quaternion ``(w, x, y, z)`` of a rotation matrix, ``w >= 0``."""
+    x, y, z, w = Rotation.from_matrix(np.asarray(R, float)).as_quat()
+    q = np.array([w, x, y, z])
+    return q if q[0] >= 0 else -q

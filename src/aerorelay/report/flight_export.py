@@ -36,9 +36,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..flight.frames import quaternion_wxyz, rotation_enu_flu_to_ned_frd
+from ..flight.frames import rotation_enu_flu_to_ned_frd
 from ..models.geo import DO_CHANGE_SPEED, NAV_TAKEOFF, NAV_WAYPOINT, GeoFrame
-from ..models.geometry import rotation_zyx
+from ..models.geometry import quaternion_wxyz, rotation_zyx
 
 FORMATS = ("csv", "plan", "geojson", "kml", "ulog")
 GEOGRAPHIC = ("plan", "geojson", "kml")  # need the frame's place on the earth (csv and ulog add lat/lon with one)
