@@ -154,7 +154,7 @@ def test_a_dormant_setting_is_refused_by_name(sets, field):
 
 def test_a_list_item_out_of_range_says_how_the_items_are_numbered():
     r = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "chain_two_relays.toml"), "--set", "relays.-1.start=[1, 2, 3]"])
-    assert r.exit_code == 2 and "numbered 0 to 1" in r.output and "not a table" not in r.output
+    assert r.exit_code == 2 and "(numbered 0 to 1)" in r.output and "not a table" not in r.output
 
 
 def _square(lon0: float, lat0: float, d: float) -> list:

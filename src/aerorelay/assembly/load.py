@@ -62,7 +62,7 @@ def _apply_to_data(data: dict, updates: dict, unset: list[str]) -> None:
                 node = node[int(part)]
             elif isinstance(node, list):
                 table = ".".join(parts[:depth])
-                raise ScenarioError(f"{key}: the file lists {len(node)} [[{table}]], numbered 0 to {len(node) - 1}; "
+                raise ScenarioError(f"{key}: the file lists {len(node)} [[{table}]] (numbered 0 to {len(node) - 1}); "
                                     f"{table}.{part} is not one of them (an item by its number, from 0)")
             elif isinstance(node, dict):
                 if part not in node:

@@ -41,7 +41,8 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "capacity_efficiency_mean": "efficiency, mean C", "capacity_efficiency_min": "efficiency, C_min",
            "capacity_efficiency_mean_flyable": "mean C / flyable path's", "capacity_efficiency_min_flyable": "C_min / flyable path's",
            "capacity_efficiency_mean_path": "mean C / upper path bound's",
-           "fallback_fraction": "fail-safe steps", "motor_saturation_fraction": "a motor at a speed bound",
+           "fallback_fraction": "fail-safe steps", "worst_relay_fallback_fraction": "worst relay: brake law",
+           "worst_relay_infeasible_fraction": "worst relay: QP failures", "motor_saturation_fraction": "a motor at a speed bound",
            "rate_saturation_fraction": "a motor at a rate bound",
            "estimation_first_within_1m_s": "jammer estimate first within 1 m (s)",
            "estimation_crlb_first_1m_s": "Cramer-Rao bound first <= 1 m (s)", "estimation_crlb_10s_m": "Cramer-Rao bound at 10 s (m)",
@@ -318,8 +319,10 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
                              "estimator_ms.mean")
                  if any(k in g for g in groups.values())]
         main = list(MAIN_METRICS) + extra
-        more = [c for c in (*TABLE_METRICS, "fallback_fraction", "worst_relay_fallback_fraction",
-                            "worst_relay_infeasible_fraction") if c not in main]
+        # the worst relay's shares: one column for one relay and a network alike (a relay's own share of a network's run
+        # is not at the top level)
+        shares = {"infeasible_fraction": "worst_relay_infeasible_fraction"}
+        more = [shares.get(c, c) for c in (*TABLE_METRICS, "worst_relay_fallback_fraction") if c not in main]
         unit = capacity_unit(specs)
         for cols, title in ((main, "<h3>Runs (means over seeds)</h3>"), (more, None)):
             rows = [[_breakable(g) + (f' <span class="warn" title="{len(v["fell_back_runs"])} run(s) fell back">(fell back)'
