@@ -11,7 +11,7 @@ import pytest
 from aerorelay.assembly import parse_scenario
 from aerorelay.assembly.parts import build
 from aerorelay.models.radio import NodePose
-from aerorelay.planning.base import PlannerInput
+from aerorelay.planning.fleet import FleetInput
 
 
 @pytest.fixture(scope="module", params=["constrained", "unconstrained"])
@@ -48,10 +48,11 @@ def test_bench_feedback_phase(benchmark, loop_mid_mission):
 def test_bench_trajectory_generator(benchmark, loop_mid_mission):
     loop = loop_mid_mission
     src = loop.sources["source"].state(9.0)
-    inp = PlannerInput(t=9.0, dt=0.015, p1=src.p + 1.0, p2=src.p, v2=src.v, a2=src.a,
-                       jammer_positions=loop.scene.jammers[0].position[None], jammer_powers=np.ones(1))
-    ref = benchmark(loop.planner.planner.update, inp)  # the one relay's planner inside the network's
-    assert np.all(np.isfinite(ref.p_ref))
+    inp = FleetInput(t=9.0, dt=0.015, positions={"relay": src.p + 1.0, "source": src.p}, velocities={"source": src.v},
+                     accelerations={"source": src.a}, jammer_positions=loop.scene.jammers[0].position[None],
+                     jammer_powers=np.ones(1))
+    refs = benchmark(loop.planner.update, inp)  # the paper's generator, for the one relay
+    assert np.all(np.isfinite(refs["relay"].p_ref))
 
 
 @pytest.fixture(scope="module")

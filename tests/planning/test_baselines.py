@@ -2,13 +2,12 @@ import numpy as np
 import pytest
 
 from aerorelay.assembly import parse_scenario
-from aerorelay.assembly.parts import build_planner, build_scene
-from aerorelay.assembly.vehicle import build_vehicle
+from aerorelay.assembly.parts import build, build_scene
 from aerorelay.models.geometry import E3, attitude_from_thrust, rotation_zyx
 from aerorelay.models.mission import source_trajectory
-from aerorelay.planning.base import PlannerInput
 from aerorelay.planning.baselines import PlannedReference, SingleShotPlanner
-from aerorelay.planning.registry import GeneratorPlanner
+from aerorelay.planning.fleet import FleetInput
+from aerorelay.planning.trajectory_generator import TrajectoryGenerator
 from tests.reference_channel import end_to_end_capacity, link_sinr
 
 SC = parse_scenario({})
@@ -58,26 +57,27 @@ def test_planned_reference_interpolates(plan):
 
 
 def test_baseline_a_plans_with_isotropic_surrogate():
-    src = source_trajectory(SC.mission)
     iso = SC.with_updates({"controller.planner": "isotropic", "controller.variant": "unconstrained"})
-    a = build_planner(iso, build_vehicle(iso.platform), build_scene(iso), src)
-    assert isinstance(a, GeneratorPlanner) and a.generator.sp.mu == 1.0
-    assert build_planner(SC, build_vehicle(SC.platform), build_scene(SC), src).generator.sp.mu == SC.controller.mu
+    assert build(iso).planner.sp.mu == 1.0  # H_bar = G_bar / d: the surrogate with mu = 1
+    assert build(SC).planner.sp.mu == SC.controller.mu
 
 
 def test_every_planner_answers_through_one_interface():
-    """The closed loop never branches on planner names: each registered planner returns a Reference
-    from the same PlannerInput (baseline B from its plan, made once, without a generator)."""
+    """The closed loop never branches on planner names: each registered planner of the one relay returns its Reference
+    from the same FleetInput (baseline B from its plan, made once, without a generator)."""
     short = SC.with_updates({"sim.duration_s": 4.0})
     src = source_trajectory(short.mission)
     s = src.state(1.0)
-    inp = PlannerInput(t=1.0, dt=0.015, p1=np.array(short.nodes.relay), p2=s.p, v2=s.v, a2=s.a,
-                       jammer_positions=np.array([short.jammer.position]), jammer_powers=np.ones(1))
+    p1 = np.array(short.nodes.relay)
+    inp = FleetInput(t=1.0, dt=0.015, positions={"relay": p1, "source": s.p}, velocities={"relay": np.zeros(3), "source": s.v},
+                     accelerations={"source": s.a}, jammer_positions=np.array([short.jammer.position]), jammer_powers=np.ones(1))
     for name in ("trajectory_generator", "isotropic", "single_shot"):
         sc = short.with_updates({"controller.planner": name})
-        planner = build_planner(sc, build_vehicle(sc.platform), build_scene(sc), src)
-        ref = planner.update(inp)
+        planner = build(sc).planner
+        refs = planner.update(inp)
+        assert list(refs) == ["relay"], name
+        ref = refs["relay"]
         assert ref.p_ref.shape == (3,) and np.all(np.isfinite(ref.p_ref)), name
-        assert hasattr(planner, "generator") == (name != "single_shot"), name
+        assert isinstance(planner, TrajectoryGenerator) == (name != "single_shot"), name
         if name != "single_shot":  # the reference governor: the first reference at most governor_speed * dt from the relay
-            assert np.linalg.norm(ref.p_ref - inp.p1) <= sc.controller.governor_speed_m_s * inp.dt + 1e-9, name
+            assert np.linalg.norm(ref.p_ref - p1) <= sc.controller.governor_speed_m_s * inp.dt + 1e-9, name

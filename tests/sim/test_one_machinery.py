@@ -117,8 +117,8 @@ def test_a_registered_network_planner_is_named_from_the_scenario_file():
                                             r"equidistant, isotropic, single_shot, trajectory_generator"):
         ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "nope"})
     # a planner registered for one relay only is refused for a network, by name
-    with pytest.raises(ScenarioError, match=r"controller.planner: .*'isotropic'.*one relay"):
-        ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "isotropic"})
+    with pytest.raises(ScenarioError, match=r"controller.planner: .*'single_shot'.*one relay"):
+        ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "single_shot"})
 
 
 def test_a_run_folder_written_before_the_one_vocabulary_still_reports_and_exports(tmp_path):

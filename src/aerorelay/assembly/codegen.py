@@ -120,8 +120,9 @@ def _c_planner(sc: Scenario, rc: RelayController, control: NetworkController) ->
     """The paper's trajectory generator of ``sc``'s one relay when the C tree can carry it (then ``""``), else None and
     why not: the C planner is the paper's one relay and source with that planner, its OCP without obstacles' planes
     or a next node's path, a bare jammer estimate aside."""
-    planner = control.planner
-    inner = getattr(getattr(planner, "planner", None), "generator", None)
+    inner = control.planner
+    while not isinstance(inner, TrajectoryGenerator) and getattr(inner, "planner", None) is not None:  # a wrapper's
+        inner = inner.planner
     spec = rc.spec
     lacking = [n for n in ("p_ref", "v_ref", "rho_d", "p2", "psi_ref") if n not in spec.params]
     why = ("the planner is not the paper's trajectory generator" if not isinstance(inner, TrajectoryGenerator) else
@@ -149,11 +150,10 @@ def _planner_settings(rc: RelayController, control: NetworkController, gen: Traj
         "/* the paper's planner: the trajectory generator, its reference governor, the stage parameters' layout */\n",
         _defines(plan_nz=fun.nnz_in(0), plan_sz_arg=fun.sz_arg(),
                  plan_sz_res=fun.sz_res(), plan_sz_iw=fun.sz_iw(), plan_sz_w=fun.sz_w(),
-                 eig_floor=float(gen.eig_floor), governor_speed=float(gen.governor_speed),
+                 eig_floor=float(gen.eig_floor), governor_speed=float(gen.governor_speed[gen.relays[0]]),
                  max_ref_accel=float(gen.max_ref_accel), period=float(control.period),
                  **{f"row_{k}": v for k, v in row.items()}),
-        _array("double", "AR_BS_POSITION", gen.p0), _array("double", "AR_PLAN_LO", gen.lo),
-        _array("double", "AR_PLAN_HI", gen.hi), _array("double", "AR_WS_NMPC_MIN", spec.workspace_min),
+        _array("double", "AR_PLAN_LO", gen.lo[0]), _array("double", "AR_PLAN_HI", gen.hi[0]), _array("double", "AR_WS_NMPC_MIN", spec.workspace_min),
         _array("double", "AR_WS_NMPC_MAX", spec.workspace_max),
         _array("double", "AR_TK", spec.ts * np.arange(spec.horizon + 1)),
         _array("double", "AR_P_TEMPLATE", np.ravel(template, order="F")),

@@ -60,7 +60,7 @@ from ..planning.bound_cost import (
 from ..planning.capacity_planner import shaper_settings
 from ..planning.fleet import FleetPlanner, NetworkPlannerContext, OneRelayPlanner
 from ..planning.home import HomeSettings
-from ..planning.keep_out import KeepOutFleetPlanner, KeepOutPlanner
+from ..planning.keep_out import KeepOutPlanner
 from ..planning.network_bound import (
     NETWORK_BOUND_VERSION,
     NetworkBound,
@@ -285,7 +285,7 @@ def planner_registered(sc: Scenario) -> None:
         entry = planner_of(sc)
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
-    if getattr(entry, sc.shape.plans) is None:
+    if sc.shape.plans == "network" and entry.network is None:  # one relay flies either factory
         raise ScenarioError(f"controller.planner: {sc.planner!r} plans one relay (registered with register_planner); a "
                             f"network of {len(sc.relay_list)} relays and {len(sc.source_list)} sources needs a network "
                             "planner (register_network_planner under the same name), or pass the object to "
@@ -547,11 +547,11 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
                                 "relay next to a source first")
         view = sc.relay_view(0)
         one: Planner = planner if planner is not None else build_planner(view, first.vehicle, scene, sources[source])
-        if sc.obstacles:  # every planner's references kept outside the obstacles' margins
-            one = KeepOutPlanner(one, world.obstacles(sc))
         relay_planner = one
         fleet: FleetPlanner = OneRelayPlanner(one, first.name, source,
                                               {n: p for n, p in starts.items() if n != first.name})
+        if sc.obstacles:  # every planner's references kept outside the obstacles' margins
+            fleet = KeepOutPlanner(fleet, world.obstacles(sc))
     else:
         fleet = network_planner(sc, scene, relays, starts)
     sensing = build_sensing(sc, scene, sources) if sc.estimates_jammers and scene.jammers else None
@@ -780,4 +780,4 @@ def network_planner(sc: Scenario, scene: RadioScene, relays: list[LoopRelay], st
     factory = planner_of(sc).network
     assert factory is not None  # planner_registered refused a network's planner without a network factory
     planner = factory(ctx)
-    return KeepOutFleetPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner
+    return KeepOutPlanner(planner, world.obstacles(sc)) if sc.obstacles else planner

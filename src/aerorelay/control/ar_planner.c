@@ -39,8 +39,8 @@ static void ar_solve3(const double *A, const double *b, double *x) { /* A x = b,
   }
 }
 
-/* The eigenvalue floor (planning.trajectory_generator.regularized, absolute): H (3 x 3, row-major, symmetrized) with
- * every eigenvalue raised to eig_floor max(1, its largest magnitude); a cyclic Jacobi eigen-decomposition. */
+/* The eigenvalue floor (planning.trajectory_generator.regularized, relative): H (3 x 3, row-major, symmetrized) with
+ * every eigenvalue raised to eig_floor times its largest magnitude; a cyclic Jacobi eigen-decomposition. */
 static void ar_regularized(const double *H, double *out) {
   double A[3][3], V[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   for (int i = 0; i < 3; i++)
@@ -76,7 +76,7 @@ static void ar_regularized(const double *H, double *out) {
     top = fabs(lam[i]) > top ? fabs(lam[i]) : top;
     low = lam[i] < low ? lam[i] : low;
   }
-  double floor_ = AR_EIG_FLOOR * (top > 1.0 ? top : 1.0);
+  double floor_ = AR_EIG_FLOOR * top; /* relative to the largest eigenvalue (planning.trajectory_generator) */
   if (low >= floor_) { /* safely positive definite: H itself, unsymmetrized, as numpy returns it */
     memcpy(out, H, 9 * sizeof(double));
     return;
@@ -106,9 +106,9 @@ ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src
   double p_opt[3], p_ref[3], v_ref[3] = {0, 0, 0}, a_ref[3] = {0, 0, 0}, yaw = 0.0;
   /* the trajectory generator: eq. 17-19 at kappa = (relay, source), then the governor */
   double z[AR_PLAN_NZ], out[1 + 6 + 36];
-  for (int i = 0; i < 3; i++) z[i] = x[i], z[3 + i] = src_p[i], z[6 + i] = AR_BS_POSITION[i];
-  for (int i = 0; i < 3 * AR_NJ; i++) z[9 + i] = jam_p[i];
-  for (int i = 0; i < AR_NJ; i++) z[9 + 3 * AR_NJ + i] = jam_w[i];
+  for (int i = 0; i < 3; i++) z[i] = x[i], z[3 + i] = src_p[i]; /* kappa = (relay, source); the base station baked */
+  for (int i = 0; i < 3 * AR_NJ; i++) z[6 + i] = jam_p[i];
+  for (int i = 0; i < AR_NJ; i++) z[6 + 3 * AR_NJ + i] = jam_w[i];
   const double *arg[AR_PLAN_SZ_ARG] = {z};
   double *res[AR_PLAN_SZ_RES] = {out};
   surrogate_expansion(arg, res, c->plan_iw, c->plan_w, 0);

@@ -118,6 +118,7 @@ class NetworkController:
                                                             np.asarray(r.controller.spec.workspace_max, float))
                                                    for r in relays})
         self.planner: FleetPlanner | None = planner  # None once no relay is left in the network
+        self._kept_out_before = 0  # the steps earlier planners moved a reference out of an obstacle's margin
         self.separation_m, self.replanner = separation_m, replanner
         self.neighbours_of = route_neighbours(scene)
         self.sources = list(dict.fromkeys(route[0] for route in scene.all_routes))
@@ -170,8 +171,15 @@ class NetworkController:
             raise ValueError("network controller: the network changes but no replanner builds its planner")
         self.scene = scene
         left = any(n.role == "relay" for n in scene.nodes)
+        self._kept_out_before = self.kept_out_steps
         self.planner = self.replanner(scene, positions, t0) if left else None
         self.neighbours_of = route_neighbours(self.scene)
+
+    @property
+    def kept_out_steps(self) -> int:
+        """The steps on which a planner's reference was moved out of an obstacle's margin (``planning.keep_out``),
+        over every planner the network flew."""
+        return self._kept_out_before + int(getattr(self.planner, "kept_out_steps", 0))
 
     def hand_over(self, ends) -> None:
         """Each route now ends at ``ends`` (a base station each, the handover rule's choice): a relay's NMPC

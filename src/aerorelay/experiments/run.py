@@ -22,7 +22,6 @@ from ..models.jammer import Jammer
 from ..models.radio import RadioScene
 from ..planning.base import Planner
 from ..planning.bound import CapacityBound
-from ..planning.keep_out import KeepOutPlanner
 from ..planning.network_bound import NetworkBound
 from ..sim.closed_loop import MissionResult
 from ..sim.exit_status import ExitStatus, exit_fields
@@ -289,8 +288,8 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     metrics |= loop.control.check.metrics()  # every planner's references: how often clipped or held, and why first
     for name, relay in metrics.get("relays", {}).items():
         relay |= loop.control.check.relay_metrics(name)
-    if isinstance(parts.relay_planner, KeepOutPlanner):  # how often a reference was moved out of an obstacle's margin
-        metrics["reference_kept_out_steps"] = parts.relay_planner.kept_out_steps
+    if sc.obstacles:  # how often a reference was moved out of an obstacle's margin (every planner: planning.keep_out)
+        metrics["reference_kept_out_steps"] = loop.control.kept_out_steps
     metrics["outage_threshold"] = sc.channel.outage  # the resolved threshold, in the capacity's unit
     metrics["unit_system"] = sc.channel.units
     if given:  # what the scenario file cannot say: named in it and in the metrics, so the folder does not fly another run

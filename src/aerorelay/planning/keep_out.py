@@ -1,4 +1,4 @@
-"""Obstacles in the planners' references: a wrapper around any planner (one relay's or a fleet's)
+"""Obstacles in the planners' references: a wrapper around any planner (for any number of relays)
 that moves every position reference lying inside a grown obstacle (``[[obstacles]]`` with its
 margin) onto the obstacle's nearest surface and drops the reference velocity's component into it.
 The NMPC keeps out on its own (its separating planes, ``control/terms.py``); this keeps the
@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..models.obstacles import Obstacle, pushed_out, separating_plane
-from .base import PlannerInput, Reference
+from .base import Reference
 
 
 def kept_out(ref: Reference, obstacles: tuple[Obstacle, ...]) -> Reference:
@@ -32,8 +32,8 @@ def kept_out(ref: Reference, obstacles: tuple[Obstacle, ...]) -> Reference:
 
 
 class KeepOutPlanner:
-    """A one-relay planner whose references stay outside ``obstacles`` (grown by their margins);
-    ``kept_out_steps`` counts the steps it moved one."""
+    """A planner (``update(FleetInput) -> {relay: Reference}``, any number of relays) whose every relay's references
+    stay outside ``obstacles`` (grown by their margins); ``kept_out_steps`` counts the steps it moved one."""
 
     def __init__(self, planner, obstacles: tuple[Obstacle, ...]):
         self.planner, self.obstacles = planner, obstacles
@@ -44,23 +44,8 @@ class KeepOutPlanner:
             raise AttributeError(name)
         return getattr(self.planner, name)
 
-    def update(self, inp: PlannerInput) -> Reference:
-        ref = self.planner.update(inp)
-        out = kept_out(ref, self.obstacles)
-        self.kept_out_steps += out is not ref
-        return out
-
-
-class KeepOutFleetPlanner:
-    """A fleet planner whose every relay's references stay outside ``obstacles``."""
-
-    def __init__(self, planner, obstacles: tuple[Obstacle, ...]):
-        self.planner, self.obstacles = planner, obstacles
-
-    def __getattr__(self, name: str):
-        if name == "planner":
-            raise AttributeError(name)
-        return getattr(self.planner, name)
-
     def update(self, inp) -> dict[str, Reference]:
-        return {name: kept_out(ref, self.obstacles) for name, ref in self.planner.update(inp).items()}
+        refs = self.planner.update(inp)
+        out = {name: kept_out(ref, self.obstacles) for name, ref in refs.items()}
+        self.kept_out_steps += any(out[n] is not refs[n] for n in refs)
+        return out

@@ -10,19 +10,8 @@ from .baselines import PlannedReference, SingleShotPlanner
 from .capacity_planner import CapacityPlanner, holdable_axes, shaper_settings
 from .fleet import EquidistantPlanner, EquidistantSettings, NetworkPlannerContext
 from .fleet_capacity import FleetCapacityPlanner, FleetCapacitySettings, fleet_routes
-from .network_generator import NetworkGenerator
 from .platform_yaw import PlatformYaw
 from .trajectory_generator import Reference, SurrogateParams, TrajectoryGenerator
-
-
-class GeneratorPlanner:
-    """The paper's max-min trajectory generator with its reference governor (eq. 14-19)."""
-
-    def __init__(self, generator: TrajectoryGenerator):
-        self.generator = generator
-
-    def update(self, inp: PlannerInput) -> Reference:
-        return self.generator.update(inp.dt, inp.p1, inp.p2, inp.v2, inp.a2, inp.jammer_positions, inp.jammer_powers)
 
 
 class FixedPlanReference:
@@ -33,26 +22,6 @@ class FixedPlanReference:
 
     def update(self, inp: PlannerInput) -> Reference:
         return self.reference.update(inp.t)
-
-
-def _generator(ctx: PlannerContext, mu: float) -> TrajectoryGenerator:
-    c = ctx.settings.generator
-    return TrajectoryGenerator(
-        SurrogateParams.of_scene(ctx.scene, mu, ctx.surrogate_g_bar),
-        ctx.scene.fixed_pose(ctx.scene.name_of("base_station")).position, governor_speed=c.governor_speed_m_s,
-        eig_floor=c.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max,
-    )
-
-
-@register_planner("trajectory_generator", references="alignment")
-def _paper_generator(ctx: PlannerContext):
-    return GeneratorPlanner(_generator(ctx, ctx.settings.generator.mu))
-
-
-@register_planner("isotropic", references="alignment")
-def _baseline_a(ctx: PlannerContext):
-    # baseline A plans with isotropic antennas: H_bar = G_bar / d, i.e. the surrogate with mu = 1
-    return GeneratorPlanner(_generator(ctx, 1.0))
 
 
 @register_planner("single_shot", references="alignment")
@@ -117,11 +86,23 @@ def _fleet_capacity(ctx: NetworkPlannerContext):
                                       for name, h in held.items() if own[name].yaw_rate_deg_s > 0 and float(h[1].max()) > 0})
 
 
-@register_network_planner("trajectory_generator", references="alignment")
-def _network_generator(ctx: NetworkPlannerContext):
+def _generator(ctx: NetworkPlannerContext, mu: float) -> TrajectoryGenerator:
+    """The paper's generator over the network's relays, planning with alignment ``mu`` (each relay's own governor
+    speed and workspace)."""
     g = ctx.settings.generator
-    governors = {n: ctx.settings_of(n).generator.governor_speed_m_s for n in ctx.starts}  # each relay's own
-    return NetworkGenerator(SurrogateParams.of_scene(ctx.scene, g.mu, ctx.surrogate_g_bar), ctx.routes, list(ctx.starts),
-                            tuple(float(v) for v in np.asarray(ctx.bs_position, float)), governor_speed=governors,
-                            eig_floor=g.hessian_eig_floor, workspace_min=ctx.workspace_min, workspace_max=ctx.workspace_max,
-                            boxes={n: ctx.box_of(n) for n in ctx.starts})
+    governors = {n: ctx.settings_of(n).generator.governor_speed_m_s for n in ctx.starts}
+    return TrajectoryGenerator(SurrogateParams.of_scene(ctx.scene, mu, ctx.surrogate_g_bar), ctx.routes, list(ctx.starts),
+                               tuple(float(v) for v in np.asarray(ctx.bs_position, float)), governor_speed=governors,
+                               eig_floor=g.hessian_eig_floor, workspace_min=ctx.workspace_min,
+                               workspace_max=ctx.workspace_max, boxes={n: ctx.box_of(n) for n in ctx.starts})
+
+
+@register_network_planner("trajectory_generator", references="alignment")
+def _paper_generator(ctx: NetworkPlannerContext):
+    return _generator(ctx, ctx.settings.generator.mu)
+
+
+@register_network_planner("isotropic", references="alignment")
+def _baseline_a(ctx: NetworkPlannerContext):
+    # baseline A plans with isotropic antennas: H_bar = G_bar / d, i.e. the surrogate with mu = 1
+    return _generator(ctx, 1.0)
