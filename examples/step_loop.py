@@ -20,9 +20,9 @@ from aerorelay.sim.closed_loop import plant_step_function
 SCENARIOS = Path("scenarios") if Path("scenarios").is_dir() else Path("../scenarios")  # run from the repository or examples/
 DURATION = min(float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "5")), 5.0)
 
-# one relay and one source: ar.controller(sc) takes its state and returns its command (a thin adapter over the one controller)
+# one relay and one source: ar.controller(sc).one_relay() takes its state and returns its command (the explicit adapter)
 sc = ar.load_scenario(SCENARIOS / "nominal_tilted.toml", set={"sim.duration_s": DURATION})
-ctrl, vehicle, mission = ar.controller(sc), ar.api.vehicle(sc), ar.build(sc).source
+ctrl, vehicle, mission = ar.controller(sc).one_relay(), ar.api.vehicle(sc), ar.build(sc).source
 plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
 scene = ar.build_scene(sc)
 x, rates = vehicle.hover_state(sc.nodes.relay), []
@@ -35,7 +35,7 @@ for k in range(int(DURATION / sc.control_period_s) + 1):
     x = np.asarray(plant(x, cmd.omega_dot_hz_s, np.zeros(6))).ravel()          # 3. your plant
 print(f"one relay stepped {len(rates)} periods: C_min {min(rates):.4e}, mean C {np.mean(rates):.4e}")
 
-# a chain: the same controller, states and commands by relay name
+# any network (one relay too): the controller itself, states and commands by relay name
 sc = ar.load_scenario(SCENARIOS / "chain_two_relays.toml", set={"sim.duration_s": DURATION})
 ctrl, parts = ar.controller(sc), ar.build(sc)
 x = {r.name: r.vehicle.hover_state(r.start) for r in parts.relays}

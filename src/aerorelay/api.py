@@ -47,7 +47,7 @@ from .assembly.vehicle import build_vehicle
 from .assembly.world import wind_field
 from .config import Scenario, ScenarioError
 from .control.bench import benchmark_closed_loop
-from .control.network import Controller, OneRelay
+from .control.network import Controller
 from .control.nmpc import NmpcSettings
 from .control.relay_step import StaleSettings
 from .experiments import flight as _flight
@@ -121,19 +121,20 @@ def simulate(sc: Scenario, *, bound: bool = False, **parts) -> RunResult:
 
 
 def controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
-               observer: bool = True, autopilot: bool = False) -> Controller | OneRelay:
+               observer: bool = True, autopilot: bool = False) -> Controller:
     """The scenario's controller stepped from outside, for any network: ``ctrl.step(t, {relay: state}, {source:
     SourceState})`` each control period returns ``{relay: Command}`` (rotor speeds and autopilot setpoints, world ENU,
     body FLU; ``aerorelay.flight.frames`` converts to NED/FRD), the relays' plans exchanged inside
-    (``control.network.Controller``). One relay and one source: ``ctrl.step(t, relay_state, source)`` returns its
-    ``Command`` (``control.network.OneRelay``, a thin adapter over the same controller). Every relay's telemetry is
+    (``control.network.Controller``, the same type for any number of relays). One relay and one source stepped as the
+    paper's problem: ``ctrl.one_relay().step(t, relay_state, source)`` returns its ``Command`` (the explicit adapter,
+    ``control.network.OneRelay``). Every relay's telemetry is
     checked, stale inputs hold, then land (``stale``, every relay's). Stepped over aerorelay's plant it flies exactly
     what ``simulate`` flies, in wind too (docs/guide/flying.md). ``observer=False`` leaves out ``[wind]``'s
     external-force observer (for an autopilot's position loop: see the guide); ``autopilot=True`` plans for the vehicle
     an autopilot flies (thrust along body z: a tilted platform's rotors untilted in the NMPC's model), for its
     setpoints."""
     ctrl = build_controller(sc, nmpc_settings=nmpc_settings, stale=stale, observer=observer, autopilot=autopilot)
-    return OneRelay(ctrl) if sc.shape.steps_one else ctrl
+    return ctrl
 
 
 def sitl(sc: Scenario, url: str, duration_s: float | None = None, airframe: Airframe | None = None, *,

@@ -70,7 +70,7 @@ def test_the_c_example_flies_the_sitl_vehicle_as_the_python_controller_would(off
     assert np.linalg.norm(p[-1] - p[0]) > 0.3
 
     # the Python controller (what aerorelay fly flies), stepped on the states and the world the C program used
-    one = ar.controller(sc, autopilot=True, observer=False)
+    one = ar.controller(sc, autopilot=True, observer=False).one_relay()
     net = one.network
     world = {float(t): w for t, w in zip(c["t"], c["world"], strict=True)}
     net.jammers = lambda t: (world[float(t)][9:12].reshape(-1, 3), world[float(t)][12:], None)

@@ -76,7 +76,7 @@ def test_rotorpy_quadrotor_flies_the_capacity_relay_through_the_bridge(setpoint,
 
 def _stepped(sc, steps: int):
     """A recorder fed by stepping the controller by hand at hover, then one stale step (a hold)."""
-    one = ar.controller(sc)
+    one = ar.controller(sc).one_relay()
     rec, hook = flight.recorder(sc, one.network)
     x = one.vehicle.hover_state(sc.nodes.relay)
     src = SourceState(np.array(sc.mission.waypoints[0][1:4]), np.zeros(3), np.zeros(3))
@@ -111,7 +111,7 @@ def test_a_flight_whose_metrics_fail_keeps_its_logs(tmp_path, monkeypatch):
 
 
 def test_a_flight_that_never_reached_offboard_keeps_the_bridge_log(tmp_path):
-    rec = flight.recorder(NOMINAL, ar.controller(NOMINAL).network)[0]
+    rec = flight.recorder(NOMINAL, ar.controller(NOMINAL))[0]
     flight.save_raw(tmp_path / "run", pd.DataFrame({"t": [0.0], "mode": ["stream"]}), rec)
     assert {p.name for p in (tmp_path / "run").iterdir()} >= {"flight.parquet"}
     with pytest.raises(ValueError, match="no control period was flown in OFFBOARD"):
@@ -126,7 +126,7 @@ def test_position_setpoints_fly_without_the_wind_observer_attitude_setpoints_wit
     position, _ = flight.fly_lockstep(sc, {"relay": PointMass(sc.nodes.relay)}, setpoint="position", duration_s=1.5)
     attitude, _ = flight.fly_lockstep(sc, {"relay": PointMass(sc.nodes.relay)}, setpoint="attitude", duration_s=1.5)
     assert "relay.a_ext_x" not in position.timeseries and "relay.a_ext_x" in attitude.timeseries
-    assert ar.controller(sc, observer=False).observer is None and ar.controller(sc).observer is not None
+    assert ar.controller(sc, observer=False).one_relay().observer is None and ar.controller(sc).one_relay().observer is not None
 
 
 def test_estimated_jammers_are_refused_by_the_bridge_before_any_vehicle_is_contacted():

@@ -23,7 +23,7 @@ from aerorelay.models.geometry import rotation_zyx
 def pair():
     def make(arm: bool = True, setpoint: str = "position"):
         sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 20.0})
-        ctrl = ar.controller(sc).network  # the one controller; one relay is a network of one
+        ctrl = ar.controller(sc)  # the one controller; one relay is a network of one
         port = free_udp_port()
         vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", position=sc.nodes.relay)
         bridge = OffboardBridge({"relay": f"udpout:127.0.0.1:{port}"}, ctrl, {"source": build_source(sc)}, arm=arm,
@@ -140,7 +140,7 @@ def test_odometry_telemetry_reads_as_position_and_attitude_do():
     """ODOMETRY (local NED, velocity in body FRD) gives the bridge the same state as LOCAL_POSITION_NED
     and ATTITUDE_QUATERNION: a tilted, yawed, moving vehicle read back in ENU/FLU."""
     sc = ar.load_scenario("scenarios/nominal_tilted.toml")
-    ctrl = ar.controller(sc).network
+    ctrl = ar.controller(sc)
     states = []
     for telemetry in ("odometry", "local_position"):
         port = free_udp_port()

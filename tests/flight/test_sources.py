@@ -58,7 +58,7 @@ def test_the_relay_flies_on_the_second_systems_reports():
 
 
 def test_a_silent_source_makes_the_relay_hold_within_one_period():
-    ctrl = ar.controller(SC).network
+    ctrl = ar.controller(SC)
     port, source_port = free_udp_port(), free_udp_port()
     relay = MavlinkVehicle(f"udpin:127.0.0.1:{port}", settings=VehicleSettings(telemetry_hz=1.0 / T), airframe=PointMass(SC.nodes.relay))
     source_vehicle = _source_vehicle(source_port)

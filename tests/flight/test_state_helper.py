@@ -29,7 +29,7 @@ def _source(sc, t):
 
 
 def test_the_autopilot_loop_steps_from_what_an_autopilot_reports(sc):
-    loop = ar.AutopilotLoop(ar.controller(sc, autopilot=True).network)
+    loop = ar.AutopilotLoop(ar.controller(sc, autopilot=True))
     p, T = np.array(sc.nodes.relay), loop.period
     assert loop.tick(0.0, {"relay": None}, {"source": _source(sc, 0.0)}) is None and loop.waiting == "relay: no relay state"
     cmds = [loop.tick(k * T, {"relay": ar.Measured(p, np.eye(3), np.zeros(3), np.zeros(3), k * T)},
@@ -39,7 +39,7 @@ def test_the_autopilot_loop_steps_from_what_an_autopilot_reports(sc):
 
 
 def test_a_state_that_cannot_be_flown_is_named_once(sc, caplog):
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     x = ctrl.vehicle.hover_state(sc.nodes.relay)
     caplog.set_level(logging.WARNING, logger="aerorelay.control.relay_step")
     T = ctrl.period
@@ -55,13 +55,13 @@ def test_a_state_that_cannot_be_flown_is_named_once(sc, caplog):
     assert any("rotor speeds are all zero" in r.message for r in caplog.records)
     z = x.copy()
     z[2] = -1.72  # the nominal start in NED
-    ctrl2 = ar.controller(sc)
+    ctrl2 = ar.controller(sc).one_relay()
     ctrl2.step(0.0, z, _source(sc, 0.0))
     assert any("NED position passed as ENU" in r.message for r in caplog.records)
 
 
 def test_a_consistent_state_says_nothing(sc, caplog):
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     caplog.set_level(logging.WARNING, logger="aerorelay.control.relay_step")
     x = ctrl.vehicle.hover_state(sc.nodes.relay)
     x[3:6] = [0.05, 0.0, 0.0]

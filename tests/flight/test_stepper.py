@@ -19,7 +19,7 @@ DURATION = 0.6
 
 def _fly_stepped(sc):
     """``ar.controller(sc)`` stepped over the plant ``ar.simulate`` flies (the same wind series when windy)."""
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     parts = build(sc)
     veh = parts.vehicle
     plant = plant_step_function(veh, sc.sim.plant_rate_hz, sc.control_period_s)
@@ -55,7 +55,7 @@ def test_stepping_reproduces_simulate_bit_for_bit(updates):
 @pytest.fixture(scope="module")
 def stepped():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"sim.duration_s": 5.0})
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     parts = build(sc)
     return sc, ctrl, parts
 
@@ -92,7 +92,7 @@ def test_stale_input_holds_within_one_period_then_lands_then_resumes(stepped):
 
 def test_the_command_is_the_model_one_period_ahead(stepped):
     sc, _, parts = stepped
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     veh = parts.vehicle
     x = veh.hover_state(sc.nodes.relay)
     s = parts.source.state(0.0)
@@ -122,8 +122,12 @@ def test_a_networks_controller_honours_autopilot_stale_and_observer():
         assert not np.allclose(ar.controller(chain).relay(r.name).vehicle.axes, [0.0, 0.0, 1.0]) or \
             chain.platform_of(i).tilt_deg == 0
     assert all(ar.controller(chain, observer=False).relay(n).stepper.observer is None for n in ctrl.relays)
-    one = ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml"), stale=stale)
-    assert isinstance(one, OneRelay) and one.network.stale == stale
+    made = ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml"), stale=stale)
+    assert isinstance(made, Controller) and made.stale == stale  # the same type for one relay
+    one = made.one_relay()
+    assert isinstance(one, OneRelay) and one.network is made
+    with pytest.raises(ValueError, match="one relay and one source"):
+        ctrl.one_relay()
     estimating = ar.controller(ar.load_scenario("scenarios/chain_two_relays.toml", set={"jammer.localization": "estimated"}))
     assert isinstance(estimating, Controller) and estimating.estimated is not None
 
@@ -162,7 +166,7 @@ def test_stepping_with_the_logged_readings_reproduces_an_estimating_simulate_bit
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates(ESTIMATING)
     log = ar.simulate(sc).mission.log
     assert np.nanmin(log["est_jammer_std_m"]) < sc.estimation.confident_std_m  # the planner did get the jammer
-    ctrl, parts = ar.controller(sc), build(sc)
+    ctrl, parts = ar.controller(sc).one_relay(), build(sc)
     plant = plant_step_function(parts.vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
     x = parts.vehicle.hover_state(sc.nodes.relay)
     for k in range(len(log["t"])):
@@ -176,9 +180,9 @@ def test_stepping_with_the_logged_readings_reproduces_an_estimating_simulate_bit
 
 def test_readings_are_checked_by_receiver():
     with pytest.raises(ValueError, match="not estimated"):
-        ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml")).step(0.0, None, None, readings={"relay": 1.0})
+        ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml")).one_relay().step(0.0, None, None, readings={"relay": 1.0})
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"jammer.localization": "estimated"})
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     x, s = ctrl.vehicle.hover_state(sc.nodes.relay), build(sc).source.state(0.0)
     with pytest.raises(ValueError, match=r"readings from \['bs'\]"):
         ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a), readings={"bs": 1e-9})
@@ -194,7 +198,7 @@ def test_the_first_input_keeps_every_motor_within_its_bounds(stepped):
     s = parts.source.state(0.0)
     rng = np.random.default_rng(0)
     for trial in range(12):
-        ctrl = ar.controller(sc)
+        ctrl = ar.controller(sc).one_relay()
         x = veh.hover_state(sc.nodes.relay)
         ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a))
         x[12 + trial % 6] = veh.omega_min + 0.05
@@ -212,8 +216,8 @@ def test_for_an_autopilot_the_nmpc_models_thrust_along_body_z():
     untilted (a tilted hexarotor through the cascade: 0.60 m and unsafe with its tilted model, 0.17 m and
     safe with this one: docs/decisions.md)."""
     tilted = ar.load_scenario("scenarios/nominal_tilted.toml")
-    axes = ar.controller(tilted, autopilot=True).vehicle.axes
-    assert np.allclose(axes, [0.0, 0.0, 1.0]) and not np.allclose(ar.controller(tilted).vehicle.axes, [0.0, 0.0, 1.0])
+    axes = ar.controller(tilted, autopilot=True).relay("relay").vehicle.axes
+    assert np.allclose(axes, [0.0, 0.0, 1.0]) and not np.allclose(ar.controller(tilted).relay("relay").vehicle.axes, [0.0, 0.0, 1.0])
     quad = ar.load_scenario("scenarios/quad_x.toml")
     assert thrust_along_body_z(quad).platform == quad.platform  # already along body z
     outward = [r.model_dump() | {"axis": [0.5 * r.position[0], 0.5 * r.position[1], 1.0]} for r in quad.platform.rotors]

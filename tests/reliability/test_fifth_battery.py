@@ -120,7 +120,7 @@ def test_the_step_api_names_a_malformed_state_or_source_and_reads_a_state_by_nam
     import aerorelay as ar
 
     sc = ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"sim.duration_s": 1.0})
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     x = np.zeros(18)
     x[:3], x[12:] = [-6.95, 5.79, 1.72], 53.3
     src = ar.SourceState(np.array([-3.04, 5.79, 1.72]), np.zeros(3), np.zeros(3))
@@ -131,8 +131,8 @@ def test_the_step_api_names_a_malformed_state_or_source_and_reads_a_state_by_nam
     with pytest.raises(ValueError, match="relay_states must map each name"):
         ctrl.network.step(0.0, x, {"source": src})
     named = {"p": x[:3], "eta": x[3:6], "v": x[6:9], "omega": x[9:12], "Omega": x[12:]}
-    by_name = ar.controller(sc).step(0.0, named, src)
-    flat = ar.controller(sc).step(0.0, x, src)
+    by_name = ar.controller(sc).one_relay().step(0.0, named, src)
+    flat = ar.controller(sc).one_relay().step(0.0, x, src)
     assert np.array_equal(by_name.omega_dot_hz_s, flat.omega_dot_hz_s)  # the same state, the same command
     assert isinstance(ar.AutopilotLoop(ctrl), ar.AutopilotLoop)  # the one relay's controller, as before the network's
 
@@ -234,8 +234,7 @@ def test_a_source_that_jumps_a_kilometre_is_not_planned_on(scenario):
     import aerorelay as ar
 
     sc = ar.load_scenario(ROOT / "scenarios" / scenario, set={"sim.duration_s": 1.0})
-    made = ar.controller(sc)
-    ctrl = getattr(made, "network", made)  # the network's controller (one relay: under its adapter)
+    ctrl = ar.controller(sc)  # the network's controller, for one relay too
     states = {}
     for r in sc.relay_list:
         x = np.zeros(12 + ctrl.relay(r.name).vehicle.n_rotors)

@@ -37,7 +37,7 @@ def sc():
 
 def _flying(sc):
     """A bridge flying the in-repo vehicle in OFFBOARD (lockstep), and a spoofer on the bridge's socket."""
-    ctrl = ar.controller(sc).network  # the one controller; one relay is a network of one
+    ctrl = ar.controller(sc)  # the one controller; one relay is a network of one
     port = free_udp_port()
     vehicle = MavlinkVehicle(f"udpin:127.0.0.1:{port}", position=sc.nodes.relay)
     bridge = OffboardBridge({"relay": f"udpout:127.0.0.1:{port}"}, ctrl, {"source": build_source(sc)}, arm=True)
@@ -166,7 +166,7 @@ def test_telemetry_stale_for_longer_than_land_after_lands_and_ends(sc):
 @pytest.fixture(scope="module")
 def stepped(sc):
     """A controller stepped 0.3 s from the nominal start with the exact source (a trusted history)."""
-    ctrl = ar.controller(sc)
+    ctrl = ar.controller(sc).one_relay()
     src = build_source(sc)
     x = ctrl.vehicle.hover_state(sc.nodes.relay)
     for k in range(20):
@@ -223,7 +223,7 @@ def test_step_names_wrong_shapes_and_a_clock_going_backwards(stepped):
 
 
 def test_a_first_state_that_cannot_be_trusted_is_named():
-    ctrl = ar.controller(ar.load_scenario(SCENARIO))
+    ctrl = ar.controller(ar.load_scenario(SCENARIO)).one_relay()
     x = ctrl.vehicle.hover_state([0.0, 0.0, 2.0])
     x[7] = math.inf
     with pytest.raises(ValueError, match=r"not finite \(velocity\).*nothing to hold"):

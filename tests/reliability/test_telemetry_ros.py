@@ -27,7 +27,7 @@ from aerorelay.flight.ros_node import RelayNode  # noqa: E402
 def node():
     sc = ar.load_scenario("scenarios/nominal_tilted.toml")
     rclpy.init(domain_id=int(os.environ.get("AERORELAY_TEST_ROS_DOMAIN", "201")))
-    n = RelayNode(ar.controller(sc, autopilot=True).network, build_scene(sc), topics={"relay": "relay_t", "source": "source_t"})
+    n = RelayNode(ar.controller(sc, autopilot=True), build_scene(sc), topics={"relay": "relay_t", "source": "source_t"})
     n.timer.cancel()  # the test ticks it
     yield sc, n
     n.destroy_node()

@@ -83,11 +83,10 @@ class Shape:
     plans: Literal["relay", "network"]  # which factory of the planner's registry entry plans it (planning.base.PLANNERS)
     bound: Literal["path", "network"]  # one relay's exact path bound (its grid and axes) or the network's cube bound
     neighbours: bool  # each relay's NMPC looks at its moving route neighbours (every relay keeps apart from every vehicle)
-    steps_one: bool  # stepped from outside as one relay: ``step(t, x, source)`` (control.network.OneRelay)
 
 
-PAPERS_PROBLEM = Shape("one relay and one source", PAPER_PLANNER, 0.5, 0.5, 1.0, "relay", "path", False, True)
-NETWORK_PROBLEM = Shape("a network", NETWORK_PLANNER, 2.0, 2.0, 2.0, "network", "network", True, False)
+PAPERS_PROBLEM = Shape("one relay and one source", PAPER_PLANNER, 0.5, 0.5, 1.0, "relay", "path", False)
+NETWORK_PROBLEM = Shape("a network", NETWORK_PLANNER, 2.0, 2.0, 2.0, "network", "network", True)
 
 
 # a setting's old spellings (path in the file) -> its one field: read with a deprecation message naming it

@@ -256,8 +256,9 @@ class Controller:
     world ENU, body FLU; ``flight.frames`` converts at an autopilot's edge), returns ``{relay: Command}``: the rotor
     speeds and their rates (what aerorelay's plant flies) and the setpoints an autopilot accepts (position, velocity,
     acceleration, attitude with the collective thrust normalized to hover, body rates: the relay's state one period
-    ahead under the command, by its own model), the step's computation time and whether it met its deadline. One
-    relay and one source: ``OneRelay`` adapts ``step(t, x, source)`` to it.
+    ahead under the command, by its own model), the step's computation time and whether it met its deadline. The same
+    type for any number of relays; ``one_relay()`` is the explicit adapter for one relay and one source (``step(t, x,
+    source) -> Command``).
 
     It owns, per relay, what the transports must not each write again: the telemetry check (a state with a
     non-finite entry, stamped ahead of the clock or behind the last trusted one, or a jump no vehicle of its thrust
@@ -295,6 +296,11 @@ class Controller:
     def stale(self) -> StaleSettings:
         """The stale-input settings (every relay's)."""
         return self.controller.relays[0].stepper.stale
+
+    def one_relay(self) -> OneRelay:
+        """The explicit adapter for one relay and one source: ``step(t, x, source) -> Command`` (a ValueError naming the
+        relays and sources otherwise)."""
+        return OneRelay(self)
 
     def relay(self, name: str) -> LoopRelay:
         """Relay ``name`` (its vehicle, its ``RelayStep``)."""
@@ -371,7 +377,7 @@ class Controller:
             if not hasattr(given_map, "keys"):
                 raise ValueError(f"step: {what} must map each name to its {'state' if what == 'relay_states' else 'source'} "
                                  f"(relays {', '.join(self.relays)}; sources {', '.join(self.sources)}), got "
-                                 f"{type(given_map).__name__} (one relay and one source: ar.controller(...).step(t, x, source))")
+                                 f"{type(given_map).__name__} (one relay and one source: ar.controller(...).one_relay().step(t, x, source))")
         unknown = sorted(set(relay_states) - set(self.relays))
         if unknown:
             raise ValueError(f"step: no relay {unknown} in the network ({', '.join(self.relays)})")
@@ -436,8 +442,9 @@ class Controller:
 
 
 class OneRelay:
-    """``ar.controller`` on one relay and one source: ``step(t, relay_state, source)`` returns the relay's ``Command``,
-    a thin adapter over the network's ``Controller`` (``network``): ``step(t, {relay: x}, {source: s})[relay]``."""
+    """One relay and one source stepped as the paper's problem (``ar.controller(sc).one_relay()``): ``step(t,
+    relay_state, source)`` returns the relay's ``Command``, a thin adapter over the network's ``Controller``
+    (``network``): ``step(t, {relay: x}, {source: s})[relay]``."""
 
     def __init__(self, network: Controller):
         if len(network.relays) != 1 or len(network.sources) != 1:
