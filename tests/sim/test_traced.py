@@ -42,7 +42,8 @@ def test_an_empty_scene_flies_the_free_space_mission():
     np.testing.assert_array_equal(free["relay.p_x"], traced["relay.p_x"])  # the controllers never see the traced channel
     age = traced["trace_age_s"]
     assert np.sum(age == 0) == 8 and np.max(age) == pytest.approx(0.24, abs=0.01)  # traced every 0.25 s (15 ms steps)
-    assert np.all(traced["paths_relay_bs"] == 1) and np.all(traced["delay_spread_ns_relay_bs"] == 0)
+    # one path: no delay spread (up to the rounding of its variance: 6e-7 ns seen)
+    assert np.all(traced["paths_relay_bs"] == 1) and np.all(np.abs(traced["delay_spread_ns_relay_bs"]) < 1e-3)
 
 
 @needs_rt

@@ -169,6 +169,7 @@ def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: Capac
     for name, steps in mission.separation_unguarded.items():
         if name in m["relays"]:
             m["relays"][name]["separation_unguarded_steps"] = int(steps)
+    m["separation_unguarded_steps"] = int(sum(mission.separation_unguarded.values()))  # the fleet's (sim.metrics.FLEET_SUM)
     mark_aborted(m, mission)
     if isinstance(bound, NetworkBound):
         network_efficiency(m, bound)

@@ -7,7 +7,6 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..config.network import sole
 from ..control.nmpc import QpStatus
 from ..models.obstacles import clearance
 from ..models.vehicle import Multirotor
@@ -315,6 +314,53 @@ def spare_metrics(log, name: str) -> dict:
 
 NETWORK_VERDICT = ("unsafe", "unsafe_reason", "exit_status", "exit_sentence", "exit_statuses", "fell_back_reason")  # the network's, not a relay's
 
+# Each relay's metric at the network's top level, whatever its size (one relay: its own value): the worst relay's
+# (a share of bad steps, an error or a load: the largest; a share of good steps, a margin or a charge: the smallest),
+# the fleet's sum (work done, counts), the envelope of ranges, the slowest relay's step times (the relay with the
+# largest mean). What has no fleet meaning stays under ``relays`` only (PER_RELAY).
+FLEET_MIN = ("alignment_ok_fraction", "alignment_within_slack_fraction", "final_z_m", "min_altitude_m",
+             "obstacle_clearance_min_m", "soc_final_fraction", "soc_landed_fraction", "battery_reserve_first_s",
+             "went_home_at_s", "landed_at_s")
+FLEET_MAX = ("slack_active_fraction", "infeasible_fraction", "qp_capped_fraction", "fallback_fraction",
+             "position_error_mean_m", "taylor_rel_err_max", "box_violation_max_m", "max_tilt_deg",
+             "motor_saturation_fraction", "rate_saturation_fraction", "wind_speed_mean_m_s", "drag_accel_mean_m_s2",
+             "drag_accel_max_m_s2", "observer_error_mean_m_s2")
+FLEET_SUM = ("distance_m", "energy_kJ", "safety_violations", "separation_unguarded_steps")
+FLEET_ENVELOPE = ("omega_range_hz", "omega_dot_range_hz_s")
+FLEET_SLOWEST = ("solve_ms", "feedback_ms")
+# the verdict's (NETWORK_VERDICT), the reference check's (its own top-level counts), a spare's events
+PER_RELAY = (*NETWORK_VERDICT, "reference_clipped_steps", "reference_held_steps", "flew", "standby_only", "launched_at_s",
+             "took_over_at_s", "took_over_from", "c_mean_after_takeover", "c_mean_before_takeover",
+             "rate_recovered_after_s", "c_min_after_takeover")
+
+
+def _finite_or_nan(values: list[float], pick) -> float:
+    kept = [float(v) for v in values if v is not None and not math.isnan(float(v))]
+    return pick(kept) if kept else math.nan
+
+
+def fleet_metrics(relays: Mapping[str, dict]) -> dict:
+    """Every relay's metrics at the network's top level by one rule per metric (``FLEET_MIN``, ``FLEET_MAX``,
+    ``FLEET_SUM``, ``FLEET_ENVELOPE``, ``FLEET_SLOWEST``; NaN values skipped, all NaN: NaN), over the relays that have
+    it: the same keys for one relay and for K (one relay: its values). A relay metric with no rule stays under
+    ``relays`` (tests/sim/test_fleet_metrics.py checks that every metric a relay writes has one)."""
+    flown = [m for m in relays.values() if m.get("flew", True)]
+    keys = list(dict.fromkeys(k for m in flown for k in m))
+    out: dict = {}
+    for k in keys:
+        have = [m[k] for m in flown if k in m]
+        if k in FLEET_MIN:
+            out[k] = _finite_or_nan(have, min)
+        elif k in FLEET_MAX:
+            out[k] = _finite_or_nan(have, max)
+        elif k in FLEET_SUM:
+            out[k] = type(have[0])(sum(have))
+        elif k in FLEET_ENVELOPE:
+            out[k] = [min(v[0] for v in have), max(v[1] for v in have)]
+        elif k in FLEET_SLOWEST:
+            out[k] = max(have, key=lambda v: v["mean"] if not math.isnan(v["mean"]) else -math.inf)
+    return out
+
 
 def _mean_taken(values: np.ndarray) -> float:
     """The mean over the steps a hop was taken (NaN when never: a hop of a network flown only after a loss)."""
@@ -423,12 +469,10 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
     # the worst relay's share of brake-law steps and of failed QPs (whatever the network's size: the verdict's inputs)
     out["worst_relay_fallback_fraction"] = max((m["fallback_fraction"] for m in flown), default=0.0)
     out["worst_relay_infeasible_fraction"] = max((m["infeasible_fraction"] for m in flown), default=0.0)
-    if sole(relays) is not None:  # the one relay's metrics where its runs always had them
-        only = next(iter(out["relays"].values()))
-        out |= {k: v for k, v in only.items() if k not in NETWORK_VERDICT}
-        hops = [c for c in log if c.startswith("se.")]
-        if len(sources) == 1 and len(hops) == 2:  # the paper's two hops: source -> relay (2 -> 1), relay -> bs (1 -> 0)
-            out["se_21_mean"], out["se_10_mean"] = (float(np.mean(np.asarray(log[c], float))) for c in hops)
+    out |= fleet_metrics(out["relays"])  # the same keys for one relay and for K
+    hops = [c for c in log if c.startswith("se.")]
+    if len(hops) == 2:  # the paper's two hops by the paper's names: source -> relay (2 -> 1), relay -> bs (1 -> 0)
+        out["se_21_mean"], out["se_10_mean"] = (float(np.mean(np.asarray(log[c], float))) for c in hops)
     out |= estimation_metrics(log, period_s)
     out |= traced_metrics(log)
     handover = handover_metrics(log, sources)
