@@ -74,7 +74,7 @@ def test_any_rotor_count_end_to_end(tmp_path):
         assert df["source.p_x"].iloc[0] == -3.04  # MRAV-2's start, not a motor speed shifted into it
         m = json.loads((out / "metrics.json").read_text())
         assert m["infeasible_fraction"] == 0 and m["fallback_fraction"] == 0
-        assert (out / "constraints.png").stat().st_size > 0
+        assert (out / "constraints_relay.png").stat().st_size > 0
 
 
 def test_bound_command_and_run_report_the_efficiency(tmp_path):

@@ -85,7 +85,7 @@ def test_cli_run_writes_outputs_and_compare(tmp_path):
         assert res.exit_code == 0, res.output
     out = tmp_path / "constrained"
     for f in ("scenario.toml", "timeseries.parquet", "metrics.json", "trajectory_3d.png", "capacity.png",
-              "constraints.png", "tracking.png", "trajectory.html"):
+              "constraints_relay.png", "tracking_relay.png", "trajectory.html"):
         assert (out / f).stat().st_size > 0, f
     df = pd.read_parquet(out / "timeseries.parquet")
     assert list(df.columns) == LOG_COLUMNS  # the relay's, the source's, the links', each jammer's true position last

@@ -289,14 +289,13 @@ def fig_network_bound(bound: pd.DataFrame, sc: Scenario):
 
 def write_run_figures(df: pd.DataFrame, sc: Scenario, out: Path, bound: pd.DataFrame | None = None) -> None:
     """Write every figure of a run into ``out``: ``capacity.png`` (the bound behind), ``trajectory_3d.png``,
-    ``paths.png``, ``trajectory.html`` and per relay ``constraints.png`` and ``tracking.png``
-    (``constraints_<relay>.png`` ... when the run has several relays)."""
+    ``paths.png``, ``trajectory.html`` and per relay ``constraints_<relay>.png`` and ``tracking_<relay>.png`` (the
+    same names for one relay and for K)."""
     relays = _relays(df)
     figures = [("capacity.png", fig_capacity(df, sc, bound)), ("trajectory_3d.png", fig_trajectory_3d(df, sc)),
                ("paths.png", fig_paths(df, sc))]
     for r in relays:
-        tail = "" if sole(relays) is not None else f"_{r}"
-        figures += [(f"constraints{tail}.png", fig_constraints(df, sc, r)), (f"tracking{tail}.png", fig_tracking(df, sc, r))]
+        figures += [(f"constraints_{r}.png", fig_constraints(df, sc, r)), (f"tracking_{r}.png", fig_tracking(df, sc, r))]
     for name, fig in figures:
         fig.savefig(Path(out) / name, dpi=110)
         plt.close(fig)
