@@ -10,8 +10,6 @@ from pathlib import Path
 
 import matplotlib
 
-from ..config.network import sole
-
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -232,7 +230,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
     for i, (g, s) in enumerate(firsts.items()):
         relays, sources = vehicle_paths(read_timeseries(run_dir(out, s)))  # one relay's log or a fleet's
         for name, p in relays.items():
-            label = f"relay: {g}" if sole(relays) is not None else f"{name}: {g}"
+            label = f"{name}: {g}"
             traces.append(go.Scatter3d(x=p.iloc[:, 0], y=p.iloc[:, 1], z=p.iloc[:, 2], mode="lines", name=label, line=dict(width=5)))
         for name, p in sources.items() if i == 0 else ():
             traces.append(go.Scatter3d(x=p.iloc[:, 0], y=p.iloc[:, 1], z=p.iloc[:, 2], mode="lines",

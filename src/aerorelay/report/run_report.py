@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..config.network import sole
 from ..sim.log_schema import relays_in
 from ..sim.units import DIMENSIONLESS, metric_units, si
 from ..store.run_folder import BOUND_PARQUET
@@ -57,8 +56,7 @@ def render_run_report(run: Path) -> str:
         return _value({"v": node, "null_reasons": m.get("null_reasons")}, "v", {"v": units.get(key, "")})
 
     keys = [k for k in (*RUN_METRICS, "separation_min_m", "fleet_solve_ms") if k in m]
-    if sole(relays) is None or len(sc.route_list) > 1:  # a network's routes and relays, each its own rows
-        keys += [k for k in units if k.startswith(("routes.", "relays."))]
+    keys += [k for k in units if k.startswith(("routes.", "relays."))]  # every route's and relay's rows, one relay's too
     rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{value(k)}</td></tr>" for k in keys)
     verdict = (f'<p class="no">unsafe: {html.escape(str(m.get("unsafe_reason", "")))}</p>' if m.get("unsafe")
                else '<p class="yes">safe: every relay stayed in its workspace, above the ground, upright, and no two '
