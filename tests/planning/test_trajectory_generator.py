@@ -123,6 +123,10 @@ def test_indefinite_hessian_is_regularized_relative_to_its_largest_eigenvalue():
     assert not reg2 and np.array_equal(Hs, np.eye(3))
     tiny = regularized(1e-9 * np.diag([1.0, 0.5, 2e-4]), 1e-3)[0]  # scale-free: 1e-9 H floors as H does
     np.testing.assert_allclose(np.linalg.eigvalsh(tiny), 1e-9 * np.array([1e-3, 0.5, 1.0]), rtol=1e-9)
+    # the paper's rule: at least eig_floor * max(1, |lambda|max), so 1e-3 itself below 1
+    np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(regularized(H, 1e-3, relative=False)[0])), [2e-3, 0.5, 1.0])
+    paper = regularized(1e-9 * np.diag([1.0, 0.5, 2e-4]), 1e-3, relative=False)[0]
+    np.testing.assert_allclose(paper, 1e-3 * np.eye(3), rtol=1e-5)  # every eigenvalue (1e-9 .. 2e-13) raised to 1e-3
 
 
 def test_the_newton_step_does_not_depend_on_the_cost_unit():
@@ -137,6 +141,22 @@ def test_the_newton_step_does_not_depend_on_the_cost_unit():
         np.testing.assert_allclose(b[1], a[1], rtol=1e-9, atol=1e-15)
         assert a[4] == b[4]
     assert floored == [False, True]
+    # the paper's floor in s/bit: every eigenvalue raised to 1e-3, the Newton step 4 mm for 6.2 m (7e-4 of it: frozen)
+    paper = opt(one(SurrogateParams(mu=0.2, g_bar=1.0, tx_power=1.0, noise_power=1.0, bandwidth=2e7), relative_floor=False,
+                    **WIDE), P1, P2)
+    relative = opt(one(**WIDE), P1, P2)
+    assert np.linalg.norm(paper[0] - P1) < 1e-2 * np.linalg.norm(relative[0] - P1)
+
+
+def test_the_floors_rule_is_the_papers_for_its_problem_relative_for_a_network_and_honoured_when_set():
+    import aerorelay as ar
+    from aerorelay.assembly.parts import build
+
+    assert build(ar.load_scenario("scenarios/rma_av.toml")).planner.relative_floor is False
+    assert build(ar.load_scenario("scenarios/rma_av.toml", set={"controller.hessian_floor": "relative"})).planner.relative_floor
+    chain = ar.load_scenario("scenarios/chain_two_relays.toml", set={"controller.planner": "paper", "network.route": False})
+    assert build(chain).planner.relative_floor is True
+    assert build(chain.with_updates({"controller.hessian_floor": "paper"})).planner.relative_floor is False
 
 
 def test_taylor_error_ignores_a_change_of_jammer_knowledge():

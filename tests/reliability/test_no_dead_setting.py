@@ -53,6 +53,9 @@ def changed(path: tuple[str, ...], f, shared) -> object:
     ann = f.annotation
     if typing.get_origin(ann) is typing.Literal:
         return next(v for v in typing.get_args(ann) if v != shared)
+    literal = next((a for a in typing.get_args(ann) if typing.get_origin(a) is typing.Literal), None)  # Literal | None
+    if literal is not None:
+        return next(v for v in typing.get_args(literal) if v != shared)
     if ann is bool:
         return not shared
     if path[-1] == "planner":

@@ -408,7 +408,8 @@ def planner_settings(sc: Scenario) -> PlannerSettings:
     """The built-in planners' typed settings from ``[controller]`` and ``[controller.capacity]``."""
     c, cap = sc.controller, sc.controller.capacity
     return PlannerSettings(
-        generator=GeneratorSettings(mu=c.mu, governor_speed_m_s=c.governor_speed_m_s, hessian_eig_floor=c.hessian_eig_floor),
+        generator=GeneratorSettings(mu=c.mu, governor_speed_m_s=c.governor_speed_m_s, hessian_eig_floor=c.hessian_eig_floor,
+                                    relative_floor=sc.hessian_floor == "relative"),
         capacity=CapacityPlannerSettings(
             speed_m_s=cap.speed_m_s, replan_every=replans_every(sc), leash_m=cap.leash_m, lookahead_s=cap.lookahead,
             axis_step_deg=cap.axis_step_deg, axis_rate_deg_s=cap.axis_rate_deg_s, margin_m=cap.margin_m,

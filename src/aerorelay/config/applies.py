@@ -81,6 +81,11 @@ BOUND = (
             "network bound does not branch)"),
     Applies(("global_gap",), lambda b, sc: b.global_seconds > 0, "bound.global_seconds > 0"),
 )
+GENERATORS = ("trajectory_generator", "isotropic")  # the paper's generator (baseline A: with mu = 1)
+CONTROLLER = (
+    Applies(("hessian_eig_floor", "hessian_floor"), lambda c, sc: sc.planner in GENERATORS,
+            "controller.planner is the paper's generator ('trajectory_generator' or 'isotropic')"),
+)
 NETWORK = (
     Applies(("separation_neighbours",), lambda n, sc: sc.vehicle_count - 1 > n.separation_neighbours,
             "a relay has more other vehicles (relays and sources) than network.separation_neighbours"),
@@ -102,6 +107,7 @@ def _sections(sc) -> Iterator[tuple[str, BaseModel, tuple[Applies, ...]]]:
         yield sc.jammer_field(i), j, JAMMER
     yield "estimation", sc.estimation, ESTIMATION
     yield "bound", sc.bound, BOUND
+    yield "controller", sc.controller, CONTROLLER
     yield "network", sc.network, NETWORK
     if sc.wind is not None:
         yield "wind", sc.wind, WIND

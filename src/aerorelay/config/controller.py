@@ -165,6 +165,11 @@ class ControllerConfig(Strict):
     q_slack: float = Field(1e4, gt=0.0, description="q_pi")
     governor_speed_m_s: float = Field(0.5, gt=0.0, description="max speed of the reference governor")
     hessian_eig_floor: float = Field(1e-3, gt=0.0, description="min eigenvalue of H11 after regularization")
+    hessian_floor: Literal["paper", "relative"] | None = Field(
+        None, description="the eigenvalue floor's rule: paper (hessian_eig_floor * max(1, |lambda|max), the paper's, "
+        "which freezes the generator in physical units, where the cost is in s/bit) or relative (hessian_eig_floor * "
+        "|lambda|max, scale-free); default paper for one relay and one source, relative for a network "
+        "(docs/results/networks.md#the-papers-generator-written-once)")
     exact_input_rate: bool = Field(
         True, description="input-rate cost through an augmented state (exact) or the previous plan (faster)"
     )

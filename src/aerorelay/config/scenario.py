@@ -83,10 +83,12 @@ class Shape:
     plans: Literal["relay", "network"]  # which factory of the planner's registry entry plans it (planning.base.PLANNERS)
     bound: Literal["path", "network"]  # one relay's exact path bound (its grid and axes) or the network's cube bound
     neighbours: bool  # each relay's NMPC looks at its moving route neighbours (every relay keeps apart from every vehicle)
+    hessian_floor: Literal["paper", "relative"]  # the generator's default eigenvalue floor: the paper's numbers for its
+    # problem (relative at one relay in physical units left rma_av's relay at 7.4 m/s into its box's wall: results)
 
 
-PAPERS_PROBLEM = Shape("one relay and one source", PAPER_PLANNER, 0.5, 0.5, 1.0, "relay", "path", False)
-NETWORK_PROBLEM = Shape("a network", NETWORK_PLANNER, 2.0, 2.0, 2.0, "network", "network", True)
+PAPERS_PROBLEM = Shape("one relay and one source", PAPER_PLANNER, 0.5, 0.5, 1.0, "relay", "path", False, "paper")
+NETWORK_PROBLEM = Shape("a network", NETWORK_PLANNER, 2.0, 2.0, 2.0, "network", "network", True, "relative")
 
 
 # a setting's old spellings (path in the file) -> its one field: read with a deprecation message naming it
@@ -99,7 +101,7 @@ RENAMED: dict[tuple[str, ...], tuple[str, ...]] = {
 # the settings a network's planner reads once for the whole network: a relay's own value is refused by name (every other
 # [relays.controller] field is honoured for that relay: its NMPC, its shaper's limits, its axes, its governor speed)
 NETWORK_WIDE: tuple[tuple[str, ...], ...] = (
-    ("mu",), ("hessian_eig_floor",), ("senses_jammer_state",),
+    ("mu",), ("hessian_eig_floor",), ("hessian_floor",), ("senses_jammer_state",),
     *(("capacity", f) for f in ("margin_m", "leash_m", "route_grid_m", "route_dt_s", "lookahead_s", "yaw_rate_deg_s",
                                 "excursion_m", "excursion_std_m", "excursion_max_loss", "scoring", "replan_every")))
 # what only one relay's capacity planner does (circling to localize a jammer), refused in a network unless off (its
@@ -364,6 +366,12 @@ class Scenario(Strict):
         relay of a network): by default the paper's generator for one relay and one source, the equidistant planner
         for a network (``Shape.planner``)."""
         return self.controller_of(0).planner or self.shape.planner
+
+    @property
+    def hessian_floor(self) -> str:
+        """The generator's eigenvalue floor rule (``controller.hessian_floor``; default the paper's for one relay and one
+        source, relative for a network: ``Shape.hessian_floor``)."""
+        return self.controller.hessian_floor or self.shape.hessian_floor
 
     @property
     def bound_grid_m(self) -> float:

@@ -39,8 +39,9 @@ static void ar_solve3(const double *A, const double *b, double *x) { /* A x = b,
   }
 }
 
-/* The eigenvalue floor (planning.trajectory_generator.regularized, relative): H (3 x 3, row-major, symmetrized) with
- * every eigenvalue raised to eig_floor times its largest magnitude; a cyclic Jacobi eigen-decomposition. */
+/* The eigenvalue floor (planning.trajectory_generator.regularized): H (3 x 3, row-major, symmetrized) with every
+ * eigenvalue raised to eig_floor times its largest magnitude (relative) or max(1, it) (the paper's); a cyclic Jacobi
+ * eigen-decomposition. */
 static void ar_regularized(const double *H, double *out) {
   double A[3][3], V[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   for (int i = 0; i < 3; i++)
@@ -76,7 +77,8 @@ static void ar_regularized(const double *H, double *out) {
     top = fabs(lam[i]) > top ? fabs(lam[i]) : top;
     low = lam[i] < low ? lam[i] : low;
   }
-  double floor_ = AR_EIG_FLOOR * top; /* relative to the largest eigenvalue (planning.trajectory_generator) */
+  /* relative to the largest eigenvalue, or the paper's: at least the floor itself (planning.trajectory_generator) */
+  double floor_ = AR_EIG_FLOOR * (AR_RELATIVE_FLOOR || top > 1.0 ? top : 1.0);
   if (low >= floor_) { /* safely positive definite: H itself, unsymmetrized, as numpy returns it */
     memcpy(out, H, 9 * sizeof(double));
     return;

@@ -58,11 +58,13 @@ class PlannerInput:
 @dataclass(frozen=True, kw_only=True)
 class GeneratorSettings:
     """The paper's trajectory generator (and baselines A/B): the surrogate's alignment ``mu``, the
-    reference governor's speed (m/s), the eigenvalue floor of ``H11`` after regularization."""
+    reference governor's speed (m/s), the eigenvalue floor of ``H11`` after regularization and its rule
+    (``relative_floor``: relative to the largest eigenvalue; else the paper's, at least the floor itself)."""
 
     mu: float = 0.2
     governor_speed_m_s: float = 0.5
     hessian_eig_floor: float = 1e-3
+    relative_floor: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -93,7 +93,7 @@ def _generator(ctx: NetworkPlannerContext, mu: float) -> TrajectoryGenerator:
     governors = {n: ctx.settings_of(n).generator.governor_speed_m_s for n in ctx.starts}
     return TrajectoryGenerator(SurrogateParams.of_scene(ctx.scene, mu, ctx.surrogate_g_bar), ctx.routes, list(ctx.starts),
                                tuple(float(v) for v in np.asarray(ctx.bs_position, float)), governor_speed=governors,
-                               eig_floor=g.hessian_eig_floor, workspace_min=ctx.workspace_min,
+                               eig_floor=g.hessian_eig_floor, relative_floor=g.relative_floor, workspace_min=ctx.workspace_min,
                                workspace_max=ctx.workspace_max, boxes={n: ctx.box_of(n) for n in ctx.starts})
 
 

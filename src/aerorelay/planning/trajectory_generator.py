@@ -93,13 +93,13 @@ class TrajectoryGenerator:
     ``routes``: ``[source, relay, ..., bs]``, all ending at the one base station at ``bs_position`` (m); ``relays``:
     the relays planned, in ``kappa``'s order; ``governor_speed`` (m/s): one for all or each relay's; ``boxes``: a
     relay's own workspace (min, max), m, where it has one (else ``workspace_min``/``max``). The eigenvalue floor of
-    ``H_rr`` is relative to its largest eigenvalue (``regularized``; scale-free: in physical units the
-    cost is in s/bit and every eigenvalue far below the paper's absolute floor of 1, which froze the relays; in the
-    paper's normalized units the two floors are the same)."""
+    ``H_rr`` (``regularized``): ``relative_floor``, relative to its largest eigenvalue (scale-free: in physical units
+    the cost is in s/bit and every eigenvalue far below the paper's floor, which freezes the relays), else the paper's
+    (``eig_floor * max(1, |lambda|max)``); in the paper's normalized units the two are the same."""
 
     def __init__(self, surrogate: SurrogateParams, routes: Sequence[Sequence[str]], relays: Sequence[str], bs_position, *,
                  governor_speed: float | Mapping[str, float], eig_floor: float, workspace_min, workspace_max,
-                 max_ref_accel: float = 2.0, boxes: Mapping[str, tuple] | None = None):
+                 relative_floor: bool = True, max_ref_accel: float = 2.0, boxes: Mapping[str, tuple] | None = None):
         self.sp = surrogate
         self.routes = [list(r) for r in routes]
         self.relays = list(relays)
@@ -108,7 +108,7 @@ class TrajectoryGenerator:
         if len(bs) != 1:
             raise ValueError(f"TrajectoryGenerator: every route must end at the one base station, got {sorted(bs)}")
         self.p0 = np.asarray(bs_position, float)
-        self.eig_floor, self.max_ref_accel = eig_floor, max_ref_accel
+        self.eig_floor, self.relative_floor, self.max_ref_accel = eig_floor, relative_floor, max_ref_accel
         self.governor_speed = {n: float(governor_speed[n] if isinstance(governor_speed, Mapping) else governor_speed)
                                for n in self.relays}
         own = boxes or {}
@@ -173,7 +173,7 @@ class TrajectoryGenerator:
             return None
         err = self._taylor_error(kappa, f, pj, PJ)
         self._prev = (kappa, f, g, H, pj.copy(), PJ.copy())
-        Hrr, reg = regularized(H[:nr, :nr], self.eig_floor)
+        Hrr, reg = regularized(H[:nr, :nr], self.eig_floor, relative=self.relative_floor)
         K = np.linalg.solve(Hrr, H[:nr, nr:])
         zero = np.zeros(3)
         v_s = np.concatenate([np.asarray(inp.velocities.get(n, zero), float) for n in self.sources])
@@ -201,13 +201,14 @@ class TrajectoryGenerator:
         return out
 
 
-def regularized(H: np.ndarray, eig_floor: float) -> tuple[np.ndarray, bool]:
+def regularized(H: np.ndarray, eig_floor: float, *, relative: bool = True) -> tuple[np.ndarray, bool]:
     """Eigenvalue floor: ``H`` made safely positive definite (every eigenvalue at least ``eig_floor`` times the largest
-    magnitude; the paper perturbs kappa_e instead); whether it had to. Relative, so scale-free: a cost in s/bit in
-    physical units has eigenvalues far below 1 (an absolute floor of ``eig_floor``, the paper's units', froze the
-    relays there)."""
+    magnitude, ``relative``; or times ``max(1, largest magnitude)``, the paper's; the paper perturbs kappa_e instead);
+    whether it had to. Relative is scale-free: a cost in s/bit in physical units has eigenvalues far below 1, where
+    the paper's floor of ``eig_floor`` freezes the relays."""
     lam, V = np.linalg.eigh(0.5 * (H + H.T))
-    floor = eig_floor * float(np.max(np.abs(lam)))
+    top = float(np.max(np.abs(lam)))
+    floor = eig_floor * (top if relative else max(1.0, top))
     if lam.min() >= floor:
         return H, False
     return (V * np.maximum(lam, floor)) @ V.T, True
