@@ -28,6 +28,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -120,7 +121,7 @@ def _c_planner(sc: Scenario, rc: RelayController, control: NetworkController) ->
     """The paper's trajectory generator of ``sc``'s one relay when the C tree can carry it (then ``""``), else None and
     why not: the C planner is the paper's one relay and source with that planner, its OCP without obstacles' planes
     or a next node's path, a bare jammer estimate aside."""
-    inner = control.planner
+    inner: Any = control.planner
     while not isinstance(inner, TrajectoryGenerator) and getattr(inner, "planner", None) is not None:  # a wrapper's
         inner = inner.planner
     spec = rc.spec
@@ -131,7 +132,7 @@ def _c_planner(sc: Scenario, rc: RelayController, control: NetworkController) ->
            "obstacles (their separating planes read the plan)" if spec.obstacles else
            "the OCP takes a next node's path" if spec.p0_parameter else
            "the OCP keeps apart from more than the source" if spec.neighbours > 1 else "")
-    return (inner if not why else None), why
+    return (inner if isinstance(inner, TrajectoryGenerator) and not why else None), why
 
 
 def _planner_settings(rc: RelayController, control: NetworkController, gen: TrajectoryGenerator | None) -> tuple[str, str]:
