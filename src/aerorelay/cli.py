@@ -300,8 +300,11 @@ def _progress(label: str, unit: str, *, transient: bool = True):
 def codegen(
     scenario: Path = typer.Argument(..., help="scenario TOML file", show_default=False),
     out: Path = typer.Option(..., "--out", help="a new or empty folder for the C tree", show_default=False),
-    record: Path = typer.Option(None, "--record", help="also fly the scenario and record its first relay's controller "
-                                "steps here (replay's input; the Python commands in <record>.expected)", show_default=False),
+    relay: str = typer.Option(None, "--relay", help="the relay whose controller the tree is (required when the scenario has "
+                              "several: one tree per relay)", show_default=False),
+    record: Path = typer.Option(None, "--record", help="also fly the scenario and record its relay's controller "
+                                "steps here (replay's input; the Python commands in <record>.expected; one relay)",
+                                show_default=False),
     fly: bool = typer.Option(False, "--fly", help="build the tree's shared library (make) and fly the scenario with its "
                              "commands, the Python controller beside it: the flight's C_min and the largest difference "
                              "(out/fly.json)"),
@@ -317,15 +320,15 @@ def codegen(
     set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
     unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
 ):
-    """The scenario's first relay's controller (the NMPC on the HPIPM engine, the supervisor's envelope, the fail-safe
-    brake law; settings baked in) as a self-contained C99 library, with a Makefile, a CMake project and a replay
+    """One relay's controller (the NMPC on the HPIPM engine, the supervisor's envelope, the fail-safe brake law;
+    settings baked in; --relay NAME in a network) as a self-contained C99 library, with a Makefile, a CMake project and a replay
     program (see the tree's README.md)."""
     _check_duration(duration)
     sc = _load_or_exit(scenario, set_, unset)
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
     try:
-        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner, offboard=offboard)
+        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner, offboard=offboard, relay=relay)
     except (ScenarioError, ValueError, FileExistsError, RuntimeError, OutputError) as exc:
         _fail(str(exc))
     planner_said = "the paper's (ar_plan)" if summary["planner"] else summary["no_planner_because"]

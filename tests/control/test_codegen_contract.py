@@ -39,3 +39,27 @@ def test_the_c_library_refuses_bad_pointers_and_values_under_the_sanitizers(tmp_
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     assert "0 failed" in run.stdout and "FAILED" not in run.stdout
     assert "ar_step after ar_destroy" in run.stdout
+
+
+def test_a_networks_tree_is_the_named_relays_and_never_relay_0_silently(tmp_path):
+    """Issue 78: a network's C tree is the relay ``--relay`` names (its own OCP: the chain's r2 sees its neighbours);
+    without the name, or with a name not in the network, a named error before anything is written; recording or
+    flying a network's tree is refused (the tree would stand in for every relay)."""
+    import json
+
+    import aerorelay as ar
+    from aerorelay.assembly.parts import build
+
+    sc = ar.load_scenario("scenarios/chain_two_relays.toml", set={"network.route": False})
+    with pytest.raises(ValueError, match=r"--relay: the network has relays r1, r2"):
+        ar.api.codegen(sc, tmp_path / "none")
+    with pytest.raises(ValueError, match=r"--relay 'r9': the scenario's relays are r1, r2"):
+        ar.api.codegen(sc, tmp_path / "none", relay="r9")
+    with pytest.raises(ValueError, match=r"--record / --fly: .* 2 relays"):
+        ar.api.codegen(sc, tmp_path / "none", relay="r2", record=tmp_path / "steps.csv")
+    assert not (tmp_path / "none").exists()
+    summary = ar.api.codegen(sc, tmp_path / "r2", relay="r2")
+    manifest = json.loads((tmp_path / "r2" / "manifest.json").read_text())
+    assert manifest["relay"] == "r2" and "relay `r2`" in (tmp_path / "r2" / "README.md").read_text()
+    r2 = next(r for r in build(sc).relays if r.name == "r2").stepper.controller.spec
+    assert summary["n_params"] == r2.n_params and summary["horizon"] == r2.horizon

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..config import Scenario
 from ..control.hpipm_rti import ENGINE_FLAGS, SIMD_HEAD, _casadi_dir, engine_parts, engine_settings, simd_source, stage_bounds
-from ..control.network import SEPARATION_MARGIN_M, NetworkController
+from ..control.network import SEPARATION_MARGIN_M, LoopRelay, NetworkController
 from ..control.nmpc import NmpcSettings, rti_options
 from ..control.relay import RelayController
 from ..control.relay_step import RelayStep
@@ -111,10 +111,24 @@ def _setpoint_function(rs: RelayStep, period: float) -> ca.Function:
     return ca.Function("ar_model_setpoint", [x, u, a_ext], [x1, veh.dynamics(x1, u, a_ext)[V]])
 
 
-def _first_relay(sc: Scenario, settings: NmpcSettings | None) -> tuple[RelayController, NetworkController]:
-    """The first relay's controller and the network controller around it."""
+def relay_of_tree(sc: Scenario, relay: str | None) -> str:
+    """The relay whose controller a C tree is: ``relay`` (``--relay``), or the only one; a named error otherwise (a
+    network's relay is never chosen silently)."""
+    names = [r.name for r in sc.relay_list]
+    if relay is None:
+        if len(names) != 1:  # one tree per relay: which one is the user's to say
+            raise ValueError(f"codegen --relay: the network has relays {', '.join(names)}; a C tree is one relay's "
+                             "controller: name it with --relay NAME")
+        return names[0]
+    if relay not in names:
+        raise ValueError(f"codegen --relay {relay!r}: the scenario's relays are {', '.join(names)}")
+    return relay
+
+
+def _relay_controller(sc: Scenario, settings: NmpcSettings | None, relay: str) -> tuple[LoopRelay, NetworkController]:
+    """Relay ``relay`` (its controller, its stepper) and the network controller around it."""
     control = build(sc, nmpc_settings=settings).closed_loop().control
-    return control.relays[0].stepper.controller, control
+    return next(r for r in control.relays if r.name == relay), control
 
 
 def _c_planner(sc: Scenario, rc: RelayController, control: NetworkController) -> tuple[TrajectoryGenerator | None, str]:
@@ -265,8 +279,9 @@ def _offboard_files(sc: Scenario, control: NetworkController) -> dict[str, str]:
 
 
 def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *, planner: bool = True,
-               offboard: bool = False) -> Tree:
-    """Write the C tree of ``sc``'s first relay's controller into ``out`` (created; must be new or empty:
+               offboard: bool = False, relay: str | None = None) -> Tree:
+    """Write the C tree of relay ``relay``'s controller (None: the scenario's only relay; a network's is named:
+    ``relay_of_tree``) into ``out`` (created; must be new or empty:
     FileExistsError, before any work, otherwise); ``settings``: the NMPC's solver settings (default: the scenario's);
     ``planner``: with the paper's planner where the relay flies it (``ar_plan``; False: the stage parameters always
     come from outside); ``offboard``: the controller of the vehicle an autopilot flies (``ar.controller(sc,
@@ -278,8 +293,10 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
         raise FileExistsError(f"--out: {out} exists and is not an empty folder (the C tree is written into a new or "
                               "empty one)")
     check_output_folder(out, "codegen")  # the project's rules: not a file, no file above it, no forbidden place, writable
+    name = relay_of_tree(sc, relay)  # before any work
     flown = thrust_along_body_z(sc) if offboard else sc
-    rc, control = _first_relay(flown, settings)
+    part, control = _relay_controller(flown, settings, name)
+    rc = part.stepper.controller
     nmpc = rc.nmpc
     spec, settings = nmpc.spec, nmpc.settings
     if settings.backend != "hpipm":
@@ -291,7 +308,7 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
     planner_baked, planner_source = _planner_settings(rc, control, gen)
     simd_here = bool(getattr(getattr(nmpc.engine, "rti", None), "simd_compiled", False))
     veh = spec.vehicle
-    rc_step = control.relays[0].stepper
+    rc_step = part.stepper
     stale = rc_step.stale
     model_fun = _setpoint_function(rc_step, control.period)
     out.mkdir(parents=True, exist_ok=True)
@@ -515,7 +532,7 @@ target_link_libraries(bench PRIVATE aerorelay_controller)
     planner_said = ("the paper's trajectory generator and its reference governor are in the tree: `ar_plan` makes the "
                     "stage parameters `P` from the source's and the jammers' states" if gen is not None else
                     f"not in this tree ({no_planner}): the stage parameters `P` come from outside")
-    readme = f"""# aerorelay controller: scenario `{sc.name}`, relay `{sc.relay_list[0].name}`
+    readme = f"""# aerorelay controller: scenario `{sc.name}`, relay `{name}`
 
 Written by `aerorelay codegen` (aerorelay, CasADi {CASADI_VERSION}). One relay's controller as a C99 library with the
 scenario's settings baked in: the NMPC (real-time iteration, HPIPM), the flight-safety supervisor's envelope and the
@@ -562,7 +579,7 @@ on the mission's clock):
              "tools/replay.c": (here / "ar_replay.c").read_text(), "tools/bench.c": (here / "ar_bench.c").read_text(),
              "Makefile": makefile, "CMakeLists.txt": cmake, "cmake/aarch64-linux-gnu.cmake": AARCH64_TOOLCHAIN,
              "README.md": readme,
-             "manifest.json": json.dumps({"scenario": sc.name, "relay": sc.relay_list[0].name, "casadi": CASADI_VERSION,
+             "manifest.json": json.dumps({"scenario": sc.name, "relay": name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
                                           "nxa": nxa, "ocp_key": spec.key(), "planner": gen is not None,
                                           "no_planner_because": no_planner,
