@@ -656,7 +656,8 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
             planner: bool = True, offboard: bool = False, relay: str | None = None) -> dict:
     """Write the C tree of relay ``relay``'s controller into ``out`` (``assembly.codegen.write_tree``: a new or empty
     folder; ``relay`` None: the scenario's only relay, a network's is named). ``record`` and ``fly`` stand the tree in
-    for the one relay of a one-relay scenario (refused for a network: every relay would be recorded or flown by it). ``record``: fly ``sc`` and record that controller's steps there (``ar_replay.c``'s events) and the Python
+    for the one relay of a one-relay scenario (refused for a network: every relay would be recorded or flown by it).
+    ``record``: fly ``sc`` and record that controller's steps there (``ar_replay.c``'s events) and the Python
     controller's brake-law flags and commands beside (``<record>.expected``). ``fly``: build the tree's shared library
     and fly ``sc`` with its commands (the Python controller beside it on the same inputs), the flight's metrics and the
     largest difference from Python's commands in the summary and in ``out/fly.json``. ``planner``: the paper's planner
