@@ -233,8 +233,8 @@ def fly(sc: Scenario, url: str | Mapping[str, str], *, arm: bool = False, setpoi
         if len(known) != 1:
             raise ValueError(f"--source-mavlink: the scenario has sources {', '.join(known)}: give NAME=URL for each")
         source_url = {known[0]: source_url}
-    elif source_system is not None or source_origin != (0.0, 0.0, 0.0):
-        raise ValueError("source_system / source_origin: for one source flown from one URL (source_url=URL)")
+    if (source_system is not None or source_origin != (0.0, 0.0, 0.0)) and len(source_url or {}) != 1:
+        raise ValueError("--source-system / --source-origin: for one source read with --source-mavlink (source_url)")
     for name, u in (source_url or {}).items():
         if name not in known:
             raise ValueError(f"--source-mavlink {name}=: the scenario's sources are {', '.join(known)}")

@@ -912,10 +912,7 @@ def fly(
         origin = ()
     if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
         _fail(f"--source-origin must be three finite numbers x,y,z (m, ENU), got {source_origin!r}")
-    if (source_system is not None or origin != (0.0, 0.0, 0.0)) and len(sources) != 1:
-        _fail("--source-system / --source-origin: for one source read with --source-mavlink")
-    one_source = list(sources.values())[0] if len(sources) == 1 else sources
-    done = _flown(lambda: api.fly(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=one_source or None,
+    done = _flown(lambda: api.fly(sc, urls, arm=arm, setpoint=setpoint, duration_s=duration, out=out, source_url=sources or None,
                                   source_system=source_system, source_origin=origin), out, "the vehicles were")
     if done is None:
         return

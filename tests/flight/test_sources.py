@@ -87,3 +87,16 @@ def test_a_silent_source_makes_the_relay_hold_within_one_period():
     assert all(m == "hold" for tt, m in modes if tt >= held_at)
     for each in (link.link, bridge.sources["source"].link, relay.link, source_vehicle.link):
         each.close()
+
+
+def test_a_source_system_or_origin_is_for_one_source_given_by_name_or_alone():
+    """``--source-system`` / ``--source-origin`` set one source's MAVLink system and frame: refused, before any vehicle
+    is contacted, with two sources' URLs."""
+    sc = ar.load_scenario("scenarios/two_sources.toml")
+    names = [s.name for s in sc.source_list]
+    urls = {r.name: f"udpout:127.0.0.1:{free_udp_port()}" for r in sc.relay_list}
+    two = {n: f"udpin:127.0.0.1:{free_udp_port()}" for n in names}
+    with pytest.raises(ValueError, match="for one source read with --source-mavlink"):
+        ar.api.fly(sc, urls, source_url=two, source_system=5, duration_s=0.1)
+    with pytest.raises(ValueError, match="for one source read with --source-mavlink"):
+        ar.api.fly(sc, urls, source_url=two, source_origin=(1.0, 0.0, 0.0), duration_s=0.1)
