@@ -19,8 +19,8 @@ import logging
 import math
 import os
 import platform
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -69,6 +69,8 @@ from .models.obstacles import obstacle_model
 from .models.vehicle import Multirotor
 from .planning.bound import CapacityBound
 from .planning.network_bound import NetworkBound
+from .planning.plugins import load as load_plugins
+from .planning.plugins import resolve as resolve_plugin
 from .report.figures import fig_bound, fig_network_bound, write_run_figures
 from .report.flight_export import EXPORT_FOLDER, missing_columns, vehicles, write_geojson, write_kml, write_plan, write_ulog
 from .report.flight_export import FORMATS as EXPORT_FORMATS
@@ -585,16 +587,20 @@ def report(out: str | Path, *, studies_dir: str | Path | None = None) -> dict:
 
 def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool = False, studies_dir: str | Path = "experiments",
               scheduler: str | None = None, workers: int | None = None, progress=None, on_start=None,
-              wait: bool = False, budget_s: float | None = None) -> Reproduction:
+              wait: bool = False, budget_s: float | None = None, plugins: Sequence[str] = ()) -> Reproduction:
     """Run the named studies (default: all in ``studies_dir``) as a campaign on dask (resuming a
     previous one in ``out``), then write ``report.html`` and ``summary.json``. ``on_start(n_runs,
     n_studies)`` is called once the studies are expanded. ``budget_s``: keep only the runs whose
     estimated wall time fits (``experiments.budget``; the others are named in the notices and in
-    the report as left out)."""
+    the report as left out). ``plugins``: modules (or ``.py`` files) of users' planners, imported here and by every
+    worker before its first run (``planning.plugins``)."""
     folder, out = Path(studies_dir), Path(out)
+    found = tuple(resolve_plugin(p) for p in plugins)  # every one named before any work
+    load_plugins(found)
     chosen = find_studies(folder, studies or None)
     notices: list[str] = []
-    specs = [r for st in chosen for r in expand(st, folder.resolve().parent, quick=quick, notices=notices)]
+    specs = [replace(r, plugins=found)
+             for st in chosen for r in expand(st, folder.resolve().parent, quick=quick, notices=notices)]
     selected = None
     if budget_s is not None:
         choice = within_budget(specs, budget_s, workers or os.cpu_count() or 1)

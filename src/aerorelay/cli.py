@@ -18,6 +18,9 @@ from . import api
 from .api import CampaignBusyError, OutputBusyError, OutputError, Scenario, ScenarioError, StudyError, load_scenario
 from .config.network import sole
 from .flight.names import check_ros_namespace
+from .planning.plugins import PluginError
+from .planning.plugins import load as load_plugins
+from .planning.plugins import resolve as resolve_plugin
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Communications-aware aerial relay under jamming.")
 console = Console()
@@ -27,6 +30,21 @@ EXIT_BAD_INPUT = 2
 EXIT_UNSAFE = 3  # the run finished but the relay left its workspace or flipped (metrics.json: unsafe, unsafe_reason)
 EXIT_FELL_BACK = 4  # safe, but a relay's controller did not fly it (metrics.json: exit_status fell_back, fell_back_reason)
 QUICK_BUDGET_MIN = 5.0  # reproduce --quick: minutes of estimated wall time (experiments/budget.py)
+_PLUGINS: list[str] = []  # --plugin: users' planner modules, imported before the command (and by a campaign's workers)
+
+
+@app.callback()
+def _plugins(plugin: list[str] = typer.Option(None, "--plugin", help="a module (or .py file) of your planners, imported "
+                                               "before the command (register_planner / register_network_planner at "
+                                               "import); reproduce's workers import it too; repeatable",
+                                               show_default=False)) -> None:
+    """Communications-aware aerial relay under jamming."""
+    _PLUGINS[:] = plugin or []
+    try:
+        load_plugins([resolve_plugin(p) for p in _PLUGINS])
+    except PluginError as exc:
+        err_console.print(f"[bold red]error[/] {escape(str(exc))}", highlight=False)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
 
 
 def _load_or_exit(path: Path, sets: list[str] | None = None, unsets: list[str] | None = None,
@@ -744,6 +762,7 @@ def reproduce(
 
             budget = QUICK_BUDGET_MIN if budget_min is None and quick else budget_min
             rep = api.reproduce(studies or None, out=out, quick=quick, studies_dir=folder, scheduler=scheduler, workers=workers,
+                                plugins=_PLUGINS,
                                 progress=progress, on_start=on_start, wait=wait,
                                 budget_s=budget * 60.0 if budget else None)
     except (StudyError, CampaignBusyError, OutputError) as exc:

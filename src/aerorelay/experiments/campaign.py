@@ -27,6 +27,7 @@ from dask.distributed import Client, LocalCluster, as_completed
 from .._version import __version__
 from ..assembly.parts import nmpc_settings
 from ..control.network import THREADS_VARIABLE
+from ..planning.plugins import load as load_plugins
 from ..sim.units import metric_value_problem
 from ..store import strict_json
 from ..store.outputs import check_output_folder, mark, write_atomic
@@ -104,6 +105,7 @@ def execute_run(spec: RunSpec, out: str) -> dict:
     record = {"key": spec.key, "study": spec.study, "group": spec.group, "seed": spec.seed,
               "scenario_hash": spec.scenario_hash, "version": __version__, "pid": os.getpid()}
     try:
+        load_plugins(spec.plugins)  # a user's planners, on this worker too (a fresh process)
         result = simulate(scenario_of(spec), with_bound=spec.bound)
         result.save(run_dir(Path(out), spec))
         m = result.metrics

@@ -250,6 +250,7 @@ class RunSpec:
     seed: int
     scenario_toml: str
     bound: bool = False  # compute the capacity bound with the run
+    plugins: tuple = ()  # planning.plugins.Plugin: the users' planner modules a worker imports before flying it
 
     @property
     def key(self) -> str:

@@ -295,10 +295,15 @@ register_network_planner = _registrar("network")
 
 
 def planner_entry(name: str) -> PlannerEntry:
-    """The planner registered under ``name``; a named error listing the registered ones otherwise."""
+    """The planner registered under ``name`` (the installed ``aerorelay.planners`` entry points loaded first when it is
+    not); a named error listing the registered ones otherwise."""
+    if name not in PLANNERS:
+        from .plugins import load_entry_points  # a user's planners, installed: imported once, when first needed
+
+        load_entry_points()
     try:
         return PLANNERS[name]
     except KeyError:
         raise ValueError(f"controller.planner: no planner registered as {name!r}; registered: {', '.join(sorted(PLANNERS))} "
-                         "(register yours with aerorelay.register_planner, or register_network_planner, before loading the "
-                         "scenario)") from None
+                         "(register yours with aerorelay.register_planner, or register_network_planner, in a module given as "
+                         "aerorelay --plugin MODULE or an aerorelay.planners entry point, before loading the scenario)") from None
