@@ -29,6 +29,7 @@ from ..models.mission import SourceTrajectory
 from ..models.radio import RadioScene
 from ..models.state import YAW, P
 from ..models.vehicle import Multirotor
+from .plugins import load_entry_points
 from .trajectory_generator import Reference
 
 
@@ -297,9 +298,7 @@ register_network_planner = _registrar("network")
 def planner_entry(name: str) -> PlannerEntry:
     """The planner registered under ``name`` (the installed ``aerorelay.planners`` entry points loaded first when it is
     not); a named error listing the registered ones otherwise."""
-    if name not in PLANNERS:
-        from .plugins import load_entry_points  # a user's planners, installed: imported once, when first needed
-
+    if name not in PLANNERS:  # a user's planners, installed: imported once, when first needed
         load_entry_points()
     try:
         return PLANNERS[name]
