@@ -39,7 +39,7 @@ def resolve(name: str, here: Path | None = None) -> Plugin:
             raise PluginError(f"--plugin {name}: no such file")
         return Plugin(path.stem, str(path.resolve().parent))
     top = name.split(".")[0]
-    if not top.isidentifier() or not all(p.isidentifier() for p in name.split(".")):
+    if not all(p.isidentifier() for p in name.split(".")):
         raise PluginError(f"--plugin {name!r}: a module name (my_planners, pkg.planners) or a .py file")
     if (here / f"{top}.py").is_file() or (here / top / "__init__.py").is_file():
         return Plugin(name, str(here.resolve()))
