@@ -659,10 +659,11 @@ def check_run(sc: Scenario, out: str | Path, *, figures: bool = True, bound: boo
 
 
 def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, fly: bool = False,
-            planner: bool = True, offboard: bool = False, relay: str | None = None) -> dict:
+            planner: bool = True, offboard: bool = False, relay: str | None = None, prefix: str = "ar") -> dict:
     """Write the C tree of relay ``relay``'s controller into ``out`` (``assembly.codegen.write_tree``: a new or empty
-    folder; ``relay`` None: the scenario's only relay, a network's is named). ``record`` and ``fly`` stand the tree in
-    for the one relay of a one-relay scenario (refused for a network: every relay would be recorded or flown by it).
+    folder; ``relay`` None: the scenario's only relay, a network's is named), every C name beginning with ``prefix``
+    (``ar_step``: ``<prefix>_step``; one per relay's tree to link several into one program). ``record`` and ``fly``
+    stand the tree in for that relay's controller (a network's other relays fly Python's).
     ``record``: fly ``sc`` and record that controller's steps there (``ar_replay.c``'s events) and the Python
     controller's brake-law flags and commands beside (``<record>.expected``). ``fly``: build the tree's shared library
     and fly ``sc`` with its commands (the Python controller beside it on the same inputs), the flight's metrics and the
@@ -671,20 +672,16 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
     stage parameters). ``offboard``: the tree of the vehicle an autopilot flies, with the example that flies a MAVLink
     vehicle in OFFBOARD through the library (``tools/offboard.c``, ``make offboard``; not with ``record`` or ``fly``,
     which fly aerorelay's own plant). Returns the tree's summary."""
-    if (record is not None or fly) and len(sc.relay_list) > 1:  # the recording and the C flight stand in for every relay
-        raise ValueError(f"codegen --record / --fly: the tree stands in for the controller of every relay flown; the network "
-                         f"has {len(sc.relay_list)} relays ({', '.join(r.name for r in sc.relay_list)}): write the tree "
-                         "alone (--relay NAME), recording and flying a network's relay's tree are not built")
     if offboard and (record is not None or fly):
         raise ValueError("codegen: --offboard writes the controller of the vehicle an autopilot flies (thrust along body "
                          "z); --record and --fly fly aerorelay's own plant with the scenario's: write them as two trees")
     if record is not None:  # the recording and its two sidecars: new, or an earlier recording of this program's
         for f in (Path(record), Path(f"{record}.expected"), Path(f"{record}.params")):
             check_own_file(f, "--record", is_recording, "a recording of controller steps")
-    tree = write_tree(sc, Path(out), planner=planner, offboard=offboard, relay=relay)
+    tree = write_tree(sc, Path(out), planner=planner, offboard=offboard, relay=relay, prefix=prefix)
     summary: dict = {"folder": str(tree.folder), "files": tree.files, "nx": tree.nx, "nr": tree.nr,
                      "n_params": tree.n_params, "horizon": tree.horizon, "planner": tree.planner,
-                     "no_planner_because": tree.no_planner_because}
+                     "no_planner_because": tree.no_planner_because, "relay": tree.relay, "prefix": tree.prefix}
     flown: dict = {}
 
     def fly_c(s: Scenario) -> RunResult:
@@ -704,7 +701,8 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
 
     fly_or_simulate = fly_c if fly else (lambda s: simulate(s, bound=False))
     if record is not None:
-        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=fly_or_simulate, fly=tree.planner)))
+        summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=fly_or_simulate, relay=tree.relay,
+                                                   fly=tree.planner)))
     elif fly:
         fly_c(sc)
     if fly:

@@ -320,12 +320,14 @@ def codegen(
     out: Path = typer.Option(..., "--out", help="a new or empty folder for the C tree", show_default=False),
     relay: str = typer.Option(None, "--relay", help="the relay whose controller the tree is (required when the scenario has "
                               "several: one tree per relay)", show_default=False),
-    record: Path = typer.Option(None, "--record", help="also fly the scenario and record its relay's controller "
-                                "steps here (replay's input; the Python commands in <record>.expected; one relay)",
+    prefix: str = typer.Option("ar", "--prefix", help="every C name of the tree begins with it (ar_step: PREFIX_step): "
+                               "give each relay's tree its own to link several into one program"),
+    record: Path = typer.Option(None, "--record", help="also fly the scenario and record the tree's relay's controller "
+                                "steps here (replay's input; the Python commands in <record>.expected)",
                                 show_default=False),
     fly: bool = typer.Option(False, "--fly", help="build the tree's shared library (make) and fly the scenario with its "
-                             "commands, the Python controller beside it: the flight's C_min and the largest difference "
-                             "(out/fly.json)"),
+                             "commands for the tree's relay (the others on Python's), the Python controller beside it: "
+                             "the flight's C_min and the largest difference (out/fly.json)"),
     c_planner: bool = typer.Option(True, "--c-planner/--no-c-planner", help="the paper's planner in the tree where the "
                                    "relay flies it (ar_plan: stage parameters from the source's and the jammers' states); "
                                    "without: the stage parameters always come from outside"),
@@ -346,10 +348,11 @@ def codegen(
     if duration is not None:
         sc = sc.with_updates({"sim.duration_s": duration})
     try:
-        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner, offboard=offboard, relay=relay)
+        summary = api.codegen(sc, out, record=record, fly=fly, planner=c_planner, offboard=offboard, relay=relay,
+                              prefix=prefix)
     except (ScenarioError, ValueError, FileExistsError, RuntimeError, OutputError) as exc:
         _fail(str(exc))
-    planner_said = "the paper's (ar_plan)" if summary["planner"] else summary["no_planner_because"]
+    planner_said = f"the paper's ({summary['prefix']}_plan)" if summary["planner"] else summary["no_planner_because"]
     console.print(f"wrote {out}: {len(summary['files'])} files (state {summary['nx']}, rotors {summary['nr']}, stage "
                   f"parameters {summary['n_params']} x {summary['horizon'] + 1}; planner: {planner_said}); build: "
                   f"make -C {out}" + (f"; the OFFBOARD example: make -C {out} offboard" if offboard else ""),

@@ -21,6 +21,7 @@ import ctypes
 import io
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -84,6 +85,8 @@ class Tree:
     planner: bool = False  # the paper's planner is in the tree (ar_plan)
     no_planner_because: str = ""
     simd: bool = False  # this process's engine ran blasfeo_avx2.c: build with SIMD=1 for its bits (manifest simd_here)
+    relay: str = ""  # the relay whose controller it is
+    prefix: str = "ar"  # every C name of the tree begins with it (ar_step: <prefix>_step)
 
 
 def _c_number(v: float) -> str:
@@ -99,6 +102,71 @@ def _array(ctype: str, name: str, values) -> str:
 def _defines(**values) -> str:
     return "".join(f"#define AR_{k.upper()} {_c_number(float(v)) if isinstance(v, float) else int(v)}\n"
                    for k, v in values.items())
+
+
+# the tree's C names: ``--prefix`` (a lowercase letter, then lowercase letters, digits or single underscores)
+PREFIX_PATTERN = re.compile(r"[a-z](?:_?[a-z0-9])*")
+PREFIX_MAX = 24
+# prefixes the libraries the tree links already use (HPIPM's d_/s_ and BLASFEO's, CasADi's helpers)
+PREFIX_TAKEN = ("d", "s", "blasfeo", "hpipm", "casadi")
+# the types every tree shares, defined once in a program that links several (AERORELAY_SHARED_TYPES_1 in the header)
+SHARED_NAMES = frozenset({"ar_status", "ar_info", "AR_OK", "AR_QP_FAILED", "AR_BAD_INPUT", "AR_NOT_PREPARED", "AR_FALLBACK",
+                          "AR_TRUSTED", "AR_UNTRUSTED_BAD_INPUT", "AR_UNTRUSTED_NOT_FINITE", "AR_UNTRUSTED_STAMP",
+                          "AR_UNTRUSTED_AHEAD", "AR_UNTRUSTED_BACKWARDS", "AR_UNTRUSTED_POSITION_JUMP",
+                          "AR_UNTRUSTED_VELOCITY_JUMP"})
+NAMES_HEADER = "ar_names.h"  # the tree's renames (src/): every global name the sources spell ar_/rti_/... to the prefix's
+
+
+def check_prefix(prefix: str) -> str:
+    """``prefix`` when it can begin every C name of a tree; a ValueError naming ``--prefix`` and the form otherwise."""
+    if not isinstance(prefix, str) or len(prefix) > PREFIX_MAX or not PREFIX_PATTERN.fullmatch(prefix) or prefix in PREFIX_TAKEN:
+        raise ValueError(f"codegen --prefix: {prefix!r}: every C name of the tree begins with it: a lowercase letter, then "
+                         f"lowercase letters, digits and single underscores, at most {PREFIX_MAX} characters, not ending in "
+                         f"'_' and none of {', '.join(PREFIX_TAKEN)} (the linked libraries'); e.g. r1")
+    return prefix
+
+
+def _renamed(name: str, prefix: str) -> str:
+    """``name`` (ar_x, AR_X or an internal global) with the tree's prefix: ar_x -> <prefix>_x, AR_X -> <PREFIX>_X,
+    other -> <prefix>_other."""
+    if name.startswith("ar_"):
+        return f"{prefix}_{name[3:]}"
+    if name.startswith("AR_"):
+        return f"{prefix.upper()}_{name[3:]}"
+    return f"{prefix}_{name}"
+
+
+def tree_names(header: str, prefix: str, generated: dict[str, str], driver: str) -> tuple[dict[str, str], str]:
+    """The tree's renames (``ar_step`` -> ``<prefix>_step``, ``AR_NX`` -> ``<PREFIX>_NX``, internal globals
+    ``<prefix>_*``; the shared types kept: ``renamed`` applies them to a text) and ``ar_names.h``: every global name
+    the tree's sources spell, mapped to the prefixed one (the header's functions, type and macros; the HPIPM driver's
+    functions; every CasADi-exported symbol of each generated file, ``generated``: its stem -> its C source, whose
+    helpers CasADi's ``CODEGEN_PREFIX`` names)."""
+    public = {n for n in re.findall(r"\bar_\w+", header) if re.search(rf"\b{n}\s*[;(]|struct {n}\b", header)}
+    public |= set(re.findall(r"^#define (AR_\w+)", header, re.M))
+    public -= SHARED_NAMES
+    internal = set(re.findall(r"^(?!static)[A-Za-z_][\w \*]*?\b(rti_\w+)\s*\(", driver, re.M))
+    for text in generated.values():
+        internal |= set(re.findall(r"^CASADI_SYMBOL_EXPORT [\w\* ]*?\b(\w+)\s*\(", text, re.M))
+    mapping = {n: _renamed(n, prefix) for n in sorted(public | internal)}
+    names = "".join(f"#define {a} {b}\n" for a, b in mapping.items() if a != b)
+    names_h = (f"/* aerorelay codegen: this tree's names begin with {prefix!r} (--prefix); the sources spell them as aerorelay's "
+               f"C sources do */\n#ifndef {prefix.upper()}_AR_NAMES_H\n#define {prefix.upper()}_AR_NAMES_H\n{names}#endif\n")
+    return mapping, names_h
+
+
+def renamed(text: str, mapping: dict[str, str]) -> str:
+    """``text`` (the public header, the tree's README) with the tree's names (``tree_names``)."""
+    return re.sub(r"\b(?:ar|AR)_\w+", lambda m: mapping.get(m.group(0), m.group(0)), text)
+
+
+def _with_names(source: str, prefix: str, stem: str | None = None) -> str:
+    """``source`` compiled with the tree's names (``ar_names.h`` first; ``stem``: a CasADi-generated file's, its static
+    helpers named ``<prefix>_<stem>_*`` by CasADi's ``CODEGEN_PREFIX``)."""
+    head = f'#include "{NAMES_HEADER}"\n'
+    if stem is not None:
+        head += f"#define CASADI_CODEGEN_PREFIX\n#define CODEGEN_PREFIX {prefix}_{stem}_\n"
+    return head + source
 
 
 def _setpoint_function(rs: RelayStep, period: float) -> ca.Function:
@@ -264,7 +332,7 @@ def world_table(sc: Scenario, control: NetworkController) -> np.ndarray:
     return np.array(rows)
 
 
-def _offboard_files(sc: Scenario, control: NetworkController) -> dict[str, str]:
+def _offboard_files(sc: Scenario, control: NetworkController, prefix: str) -> dict[str, str]:
     """The offboard example's program and its world table (``world_table``) as text."""
     if sc.estimates_jammers:
         raise ValueError("codegen --offboard: jammer.localization = 'estimated' needs the receivers' readings, which the "
@@ -274,12 +342,12 @@ def _offboard_files(sc: Scenario, control: NetworkController) -> dict[str, str]:
     head = ["t", *(f"source_{q}_{a}" for q in "pva" for a in "xyz"),
             *(f"jammer{j}_{a}" for j in range(nj) for a in "xyz"), *(f"jammer{j}_w" for j in range(nj))]
     here = Path(__file__).resolve().parent.parent / "control"
-    return {"tools/offboard.c": (here / "ar_offboard.c").read_text(),
+    return {"tools/offboard.c": _with_names((here / "ar_offboard.c").read_text(), prefix),
             "world.csv": ",".join(head) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in table) + "\n"}
 
 
 def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *, planner: bool = True,
-               offboard: bool = False, relay: str | None = None) -> Tree:
+               offboard: bool = False, relay: str | None = None, prefix: str = "ar") -> Tree:
     """Write the C tree of relay ``relay``'s controller (None: the scenario's only relay; a network's is named:
     ``relay_of_tree``) into ``out`` (created; must be new or empty:
     FileExistsError, before any work, otherwise); ``settings``: the NMPC's solver settings (default: the scenario's);
@@ -294,6 +362,7 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
                               "empty one)")
     check_output_folder(out, "codegen")  # the project's rules: not a file, no file above it, no forbidden place, writable
     name = relay_of_tree(sc, relay)  # before any work
+    check_prefix(prefix)
     flown = thrust_along_body_z(sc) if offboard else sc
     part, control = _relay_controller(flown, settings, name)
     rc = part.stepper.controller
@@ -345,10 +414,11 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
 ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src_p, const double *src_v,
                   const double *src_a, const double *jam_p, const double *jam_w, const double *a_ext, double *P);
 """ if gen is not None else f"\n#define AR_HAS_PLANNER 0  /* no planner in this tree: {no_planner} */\n")
-    header = f"""/* aerorelay: one relay's NMPC as a C library (scenario {sc.name!r}, written by aerorelay codegen).
- * See README.md. Units: SI; angles rad; rotor speeds Hz; inputs: motor accelerations, Hz/s. */
-#ifndef AERORELAY_CONTROLLER_H
-#define AERORELAY_CONTROLLER_H
+    header = f"""/* aerorelay: one relay's NMPC as a C library (scenario {sc.name!r}, relay {name!r}, written by aerorelay codegen;
+ * every name of this tree begins with {prefix!r}: several trees link into one program). See README.md.
+ * Units: SI; angles rad; rotor speeds Hz; inputs: motor accelerations, Hz/s. */
+#ifndef {prefix.upper()}_AERORELAY_CONTROLLER_H
+#define {prefix.upper()}_AERORELAY_CONTROLLER_H
 
 #define AR_NX {veh.nx}  /* plant state: position (3), Euler angles ZYX (3), velocity (3), body rates (3), rotor speeds */
 #define AR_NR {nr}  /* rotors: the command's length */
@@ -369,6 +439,9 @@ ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src
 #define AR_JUMP_TOLERANCE_M_S {_c_number(stale.jump_tolerance_m_s)}
 #define AR_LAND_AFTER_S {_c_number(stale.land_after_s)}
 
+/* the types every tree shares (the same in every tree aerorelay writes: defined once in a program that links several) */
+#ifndef AERORELAY_SHARED_TYPES_1
+#define AERORELAY_SHARED_TYPES_1
 typedef enum {{
   AR_OK = 0,           /* the NMPC's command */
   AR_QP_FAILED = 1,    /* the QP failed: the previous plan's input, shifted (ar_step: fewer failures in a row than the
@@ -387,6 +460,13 @@ typedef struct {{
   double slack_max; /* largest slack of the solution (NaN when not ok) */
   int fallback;    /* ar_step: the brake law flies */
 }} ar_info;
+
+/* why ar_trust did not trust a measurement */
+enum {{
+  AR_TRUSTED = 0, AR_UNTRUSTED_BAD_INPUT = 1, AR_UNTRUSTED_NOT_FINITE = 2, AR_UNTRUSTED_STAMP = 3, AR_UNTRUSTED_AHEAD = 4,
+  AR_UNTRUSTED_BACKWARDS = 5, AR_UNTRUSTED_POSITION_JUMP = 6, AR_UNTRUSTED_VELOCITY_JUMP = 7
+}};
+#endif
 
 typedef struct ar_controller ar_controller;
 
@@ -413,10 +493,6 @@ ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const
  * stamp not finite or ahead of the clock by more than AR_HOLD_AFTER_S, before the last trusted one, or farther from it
  * than the vehicle can fly in the time between them (AR_ACCEL_MAX, plus AR_JUMP_TOLERANCE_M / _M_S). A measurement not
  * trusted is not flown: hold where the vehicle last was (and land after AR_LAND_AFTER_S), as aerorelay does. */
-enum {{
-  AR_TRUSTED = 0, AR_UNTRUSTED_BAD_INPUT = 1, AR_UNTRUSTED_NOT_FINITE = 2, AR_UNTRUSTED_STAMP = 3, AR_UNTRUSTED_AHEAD = 4,
-  AR_UNTRUSTED_BACKWARDS = 5, AR_UNTRUSTED_POSITION_JUMP = 6, AR_UNTRUSTED_VELOCITY_JUMP = 7
-}};
 ar_status ar_trust(ar_controller *c, double t, double stamp, const double *p, const double *v, int *why);
 /* an autopilot's setpoints for the command u stepped at x (aerorelay's Command): the relay's state one control
  * period ahead by the model's RK4 step, x1 (AR_NX: position, attitude ZYX, velocity, body rates, rotor speeds), and
@@ -524,9 +600,11 @@ endif()
 target_link_libraries(aerorelay_controller PUBLIC ${{HPIPM_LIB}} ${{BLASFEO_LIB}} m)
 add_executable(replay tools/replay.c)
 target_compile_options(replay PRIVATE {flags})
+target_include_directories(replay PRIVATE src)
 target_link_libraries(replay PRIVATE aerorelay_controller)
 add_executable(bench tools/bench.c)
 target_compile_options(bench PRIVATE {flags})
+target_include_directories(bench PRIVATE src)
 target_link_libraries(bench PRIVATE aerorelay_controller)
 """
     planner_said = ("the paper's trajectory generator and its reference governor are in the tree: `ar_plan` makes the "
@@ -545,7 +623,8 @@ Build (HPIPM and BLASFEO from CasADi's wheel by default, or `HPIPM_PREFIX=/opt/a
     cmake -B build-cmake && cmake --build build-cmake
     # for an aarch64 companion computer (HPIPM/BLASFEO built for it): see cmake/aarch64-linux-gnu.cmake
 
-API: `include/{HEADER}`. Each control period (after `ar_plan` where the tree has the planner)
+API: `include/{HEADER}`, every C name beginning with `{prefix}` (`aerorelay codegen --prefix`: give each relay's tree
+its own and one program links several; the status and info types are shared). Each control period (after `ar_plan` where the tree has the planner)
 `ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
 brake law when it must fly (`AR_FALLBACK`). Or the NMPC alone in two phases: `ar_prepare(c, P, u_prev, x)` before
 the measurement, then `ar_feedback(c, x, u_prev, 1, u, &info)`. Dimensions: state {veh.nx}, rotors {nr}, stage
@@ -573,26 +652,32 @@ on the mission's clock):
     (out / "src").mkdir()
     (out / "tools").mkdir()
     (out / "cmake").mkdir()
-    files = {f"include/{HEADER}": header, f"src/{SOURCE}": unit, "src/blasfeo_avx2.c": simd_source(),
-             f"src/{PLANNER_SOURCE}": planner_source or f"/* no planner in this tree: {no_planner} */\ntypedef int ar_no_planner;\n",
-             f"src/{MODEL_SOURCE}": generated_c(model_fun, name=MODEL_SOURCE),
-             "tools/replay.c": (here / "ar_replay.c").read_text(), "tools/bench.c": (here / "ar_bench.c").read_text(),
+    model_source = generated_c(model_fun, name=MODEL_SOURCE)
+    mapping, names_h = tree_names(header, prefix, {"gen": generated, "model": model_source, "planner": planner_source}, driver)
+    files = {f"include/{HEADER}": renamed(header, mapping), f"src/{NAMES_HEADER}": names_h, f"src/{SOURCE}": _with_names(unit, prefix, "gen"),
+             "src/blasfeo_avx2.c": simd_source(),
+             f"src/{PLANNER_SOURCE}": _with_names(planner_source, prefix, "planner") if planner_source else
+             f"/* no planner in this tree: {no_planner} */\ntypedef int ar_no_planner;\n",
+             f"src/{MODEL_SOURCE}": _with_names(model_source, prefix, "model"),
+             "tools/replay.c": _with_names((here / "ar_replay.c").read_text(), prefix),
+             "tools/bench.c": _with_names((here / "ar_bench.c").read_text(), prefix),
              "Makefile": makefile, "CMakeLists.txt": cmake, "cmake/aarch64-linux-gnu.cmake": AARCH64_TOOLCHAIN,
-             "README.md": readme,
+             "README.md": renamed(readme, mapping),
              "manifest.json": json.dumps({"scenario": sc.name, "relay": name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
-                                          "nxa": nxa, "ocp_key": spec.key(), "planner": gen is not None,
+                                          "nxa": nxa, "ocp_key": spec.key(), "planner": gen is not None, "prefix": prefix,
                                           "no_planner_because": no_planner,
                                           # whether the engine here ran blasfeo_avx2.c: build with SIMD=1 for its bits
                                           "simd_here": simd_here},
                                          indent=2) + "\n"}
     if offboard:
-        files |= _offboard_files(flown, control)
-    for name, text in files.items():
-        (out / name).write_text(text)
+        files |= _offboard_files(flown, control, prefix)
+    for path, text in files.items():
+        (out / path).write_text(text)
     if offboard:
         _mavlink_headers(out / "mavlink")
-    return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa, gen is not None, no_planner, simd_here)
+    return Tree(out, sorted(files), veh.nx, nr, spec.n_params, spec.horizon, nxa, gen is not None, no_planner, simd_here,
+                name, prefix)
 
 
 @contextlib.contextmanager
@@ -629,26 +714,13 @@ def _fly_numbers(seen: dict) -> tuple[float, list[np.ndarray]]:
                       np.ravel(np.asarray(pj, float)), np.ravel(np.asarray(powers, float)), seen["a_ext"]]
 
 
-def _first_stepping() -> Callable[[object], bool]:
-    """``mine(controller)``: whether ``controller`` is the first relay controller that stepped (the tree's relay)."""
-    first: list[int] = []
-
-    def mine(controller) -> bool:
-        if not first:
-            first.append(id(controller))
-        return first[0] == id(controller)
-
-    return mine
-
-
 @contextlib.contextmanager
-def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None, *,
-               fly: bool = False, params: list[np.ndarray] | None = None):
-    """Every step of the first relay controller that steps, as ``ar_replay.c`` reads them (``fly``: with what the
+def _recording(relay: str, lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None,
+               *, fly: bool = False, params: list[np.ndarray] | None = None):
+    """Every step of relay ``relay``'s controller (``RelayController.name``), as ``ar_replay.c`` reads them (``fly``: with what the
     planner was given, for a tree with the paper's planner: ``fly`` lines; else ``step`` lines with the stage
     parameters), its commands (the brake law's flag first) and ``params``: its stage parameters; ``times_ms``: each
     step's time (``RelayController.step``, ms)."""
-    mine = _first_stepping()
     step = RelayController.step
     seen: dict = {}
 
@@ -659,7 +731,7 @@ def _recording(lines: list[str] | None, expected: list[np.ndarray] | None, times
         t0 = time.perf_counter()
         info = step(self, x, u_prev, P, shift)
         dt = (time.perf_counter() - t0) * 1e3
-        if mine(self):
+        if self.name == relay:
             if times_ms is not None:
                 times_ms.append(dt)
             if lines is not None and expected is not None:
@@ -700,8 +772,8 @@ def _number(text: str) -> bool:
     return True
 
 
-def record_calls(sc: Scenario, out_csv: Path, *, simulate, fly: bool = False) -> np.ndarray:
-    """Fly ``sc`` (``simulate(sc)``) recording its first relay's controller steps into ``out_csv`` (``ar_replay.c``'s
+def record_calls(sc: Scenario, out_csv: Path, *, simulate, relay: str, fly: bool = False) -> np.ndarray:
+    """Fly ``sc`` (``simulate(sc)``) recording relay ``relay``'s controller steps into ``out_csv`` (``ar_replay.c``'s
     lines: ``fly`` lines with what the planner was given when ``fly``, for a tree with the paper's planner, else
     ``step`` lines), what they returned into ``out_csv.expected`` (one row per step: the brake law's flag, the
     command; %.17g) and their stage parameters into ``out_csv.params`` (column-major, one row per step); returns the
@@ -709,7 +781,7 @@ def record_calls(sc: Scenario, out_csv: Path, *, simulate, fly: bool = False) ->
     lines: list[str] = []
     expected: list[np.ndarray] = []
     params: list[np.ndarray] = []
-    with _recording(lines, expected, fly=fly, params=params):
+    with _recording(relay, lines, expected, fly=fly, params=params):
         simulate(sc)
     out_csv = Path(out_csv)
     out_csv.write_text("\n".join(lines) + "\n")
@@ -746,22 +818,24 @@ def build_shared(tree: Tree) -> Path:
 
 
 class CController:
-    """One controller of a tree's shared library (``build_shared``) through ctypes: ``step`` is ``ar_step``."""
+    """One controller of a tree's shared library (``build_shared``) through ctypes: ``step`` is ``<prefix>_step``."""
 
     def __init__(self, library: Path, tree: Tree):
-        self.lib = ctypes.CDLL(str(library))
-        self.lib.ar_create.restype = ctypes.c_void_p
-        self.lib.ar_destroy.argtypes = [ctypes.c_void_p]
+        lib = ctypes.CDLL(str(library))
+        self.create, self.destroy, self.c_step = (getattr(lib, f"{tree.prefix}_{n}") for n in ("create", "destroy", "step"))
+        self.create.restype = ctypes.c_void_p
+        self.destroy.argtypes = [ctypes.c_void_p]
         dbl = ctypes.POINTER(ctypes.c_double)
-        self.lib.ar_step.argtypes = [ctypes.c_void_p, dbl, dbl, dbl, ctypes.c_int, dbl, ctypes.POINTER(_Info)]
-        self.lib.ar_step.restype = ctypes.c_int
+        self.c_step.argtypes = [ctypes.c_void_p, dbl, dbl, dbl, ctypes.c_int, dbl, ctypes.POINTER(_Info)]
+        self.c_step.restype = ctypes.c_int
         if tree.planner:
-            self.lib.ar_plan.argtypes = [ctypes.c_void_p, ctypes.c_double, *[dbl] * 8]
-            self.lib.ar_plan.restype = ctypes.c_int
-        self.tree = tree
-        self.handle = self.lib.ar_create()
+            self.c_plan = getattr(lib, f"{tree.prefix}_plan")
+            self.c_plan.argtypes = [ctypes.c_void_p, ctypes.c_double, *[dbl] * 8]
+            self.c_plan.restype = ctypes.c_int
+        self.lib, self.tree = lib, tree
+        self.handle = self.create()
         if not self.handle:
-            raise MemoryError("codegen: ar_create returned NULL")
+            raise MemoryError(f"codegen: {tree.prefix}_create returned NULL")
         self.u = np.zeros(tree.nr)
 
     def step(self, x, u_prev, P, shift: bool) -> tuple[str, _Info, np.ndarray]:
@@ -772,7 +846,7 @@ class CController:
         Pf = np.asfortranarray(np.asarray(P, float).reshape(t.n_params, t.horizon + 1)).ravel(order="F")
         info = _Info()
         ptr = ctypes.POINTER(ctypes.c_double)
-        status = self.lib.ar_step(self.handle, x.ctypes.data_as(ptr), up.ctypes.data_as(ptr), Pf.ctypes.data_as(ptr),
+        status = self.c_step(self.handle, x.ctypes.data_as(ptr), up.ctypes.data_as(ptr), Pf.ctypes.data_as(ptr),
                                   int(bool(shift)), self.u.ctypes.data_as(ptr), ctypes.byref(info))
         return STATUS.get(status, str(status)), info, self.u.copy()
 
@@ -783,12 +857,12 @@ class CController:
         ptr = ctypes.POINTER(ctypes.c_double)
         args = [np.ascontiguousarray(a, float) for a in (x, *numbers)]
         P = np.zeros(tr.n_params * (tr.horizon + 1))
-        status = self.lib.ar_plan(self.handle, float(t), *[a.ctypes.data_as(ptr) for a in args], P.ctypes.data_as(ptr))
+        status = self.c_plan(self.handle, float(t), *[a.ctypes.data_as(ptr) for a in args], P.ctypes.data_as(ptr))
         return STATUS.get(status, str(status)), P.reshape(tr.n_params, tr.horizon + 1, order="F")
 
     def close(self) -> None:
         if self.handle:
-            self.lib.ar_destroy(self.handle)
+            self.destroy(self.handle)
             self.handle = None
 
 
@@ -809,18 +883,17 @@ class Shadow:
 
 @contextlib.contextmanager
 def flown_by_c(controller: CController):
-    """The first relay controller that steps flies the C library's commands: the Python controller steps beside it on
+    """The tree's relay (``Tree.relay``) flies the C library's commands: the Python controller steps beside it on
     the same inputs (its plan feeds the stage parameters that read one: obstacle planes, a fleet's predictions) and
     each step's difference is kept in the yielded ``Shadow``. With the paper's planner in the tree, the C planner
     makes the C step's stage parameters (``ar_plan``, from what the Python planner was given)."""
-    mine = _first_stepping()
     step = RelayController.step
     shadow = Shadow(planned=controller.tree.planner)
     seen: dict = {}
 
     def c_step(self, x, u_prev, P, shift=True):
         info = step(self, x, u_prev, P, shift)
-        if not mine(self):
+        if self.name != controller.tree.relay:
             return info
         if controller.tree.planner:
             t, numbers = _fly_numbers(seen)
@@ -882,7 +955,7 @@ def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int =
                 py_ms: list[float] = []
                 say(f"round {r + 1}/{rounds}: Python")
                 loop = build(sc, nmpc_settings=settings).closed_loop()
-                with _recording(lines if r == 0 else None, expected if r == 0 else None, py_ms):
+                with _recording(tree.relay, lines if r == 0 else None, expected if r == 0 else None, py_ms):
                     loop.run()
                 timings = loop.timings[loop.relays[0].name]
                 if r == 0:

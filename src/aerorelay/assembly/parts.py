@@ -367,9 +367,9 @@ def nmpc_settings(sc: Scenario, **overrides) -> NmpcSettings:
 
 
 def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings | None = None,
-                     neighbours: int = 0, p0_parameter: bool = False) -> RelayController:
+                     neighbours: int = 0, p0_parameter: bool = False, name: str = "") -> RelayController:
     """NMPC + fail-safe for the scenario's controller settings (``settings``: the solver's, else
-    ``nmpc_settings(sc)``; ``neighbours``, ``p0_parameter``: a fleet relay's, as ``ocp_spec``)."""
+    ``nmpc_settings(sc)``; ``neighbours``, ``p0_parameter``: a fleet relay's, as ``ocp_spec``) of relay ``name``."""
     spec = ocp_spec(sc, vehicle, neighbours, p0_parameter)
     fs = sc.controller.failsafe
     return RelayController(spec, weight_parameters(sc, spec), mu=sc.controller.mu,
@@ -377,7 +377,7 @@ def build_controller(sc: Scenario, vehicle: Multirotor, settings: NmpcSettings |
                                                      successes_to_resume=fs.successes_to_resume,
                                                      workspace_margin_m=fs.workspace_margin_m),
                            settings=settings or nmpc_settings(sc), envelope=safety_envelope(sc, vehicle) if fs.supervisor else None,
-                           obstacles=world.obstacles(sc))
+                           obstacles=world.obstacles(sc), name=name)
 
 
 def safety_envelope(sc: Scenario, vehicle: Multirotor) -> SafetyEnvelope:
@@ -516,7 +516,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         vehicle = build_vehicle(view.platform)
         platforms[r.name] = (vehicle, view.platform)
         controller = build_controller(view, vehicle, nmpc_settings, others,
-                                      p0_parameter=(network or sc.has_handover) and comms_aware(view))
+                                      p0_parameter=(network or sc.has_handover) and comms_aware(view), name=r.name)
         stepper = RelayStep(vehicle=vehicle, controller=controller, period_s=sc.control_period_s,
                             stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
         bat = view.platform.battery

@@ -24,7 +24,12 @@
  */
 #include <immintrin.h>
 
-int aerorelay_simd_kernels_ran = 0; /* set (relaxed atomic store) by every call */
+/* BLASFEO's own names (and the flag they set), interposed: weak definitions, the same in every C tree aerorelay
+ * writes, so a program that links several relays' trees has one of each (the dynamic linker resolves libblasfeo's
+ * calls to a weak definition as to any other) */
+#define RTI_INTERPOSED __attribute__((weak))
+
+RTI_INTERPOSED int aerorelay_simd_kernels_ran = 0; /* set (relaxed atomic store) by every call */
 
 #define RTI_AVX2 __attribute__((target("avx2,fma")))
 
@@ -50,7 +55,7 @@ RTI_AVX2 static inline void rti_store_4x4(const __m256d *c, const __m256d *e, co
 }
 
 /* two accumulator sets (even and odd l) hide the FMA latency */
-RTI_AVX2 void kernel_dgemm_nt_4x4_lib4(int kmax, double *alpha, double *A, double *B, double *beta, double *C,
+RTI_AVX2 RTI_INTERPOSED void kernel_dgemm_nt_4x4_lib4(int kmax, double *alpha, double *A, double *B, double *beta, double *C,
                                        double *D) {
   __m256d c[4], e[4];
   int l = 0, j;
@@ -65,7 +70,7 @@ RTI_AVX2 void kernel_dgemm_nt_4x4_lib4(int kmax, double *alpha, double *A, doubl
 }
 
 /* row l of B is row r = (offsetB + l) % 4 of panel (offsetB + l) / 4, panels 4 sdb apart */
-RTI_AVX2 void kernel_dgemm_nn_4x4_lib4(int kmax, double *alpha, double *A, int offsetB, double *B, int sdb,
+RTI_AVX2 RTI_INTERPOSED void kernel_dgemm_nn_4x4_lib4(int kmax, double *alpha, double *A, int offsetB, double *B, int sdb,
                                        double *beta, double *C, double *D) {
   __m256d c[4], e[4];
   int l = 0, j, r = offsetB;

@@ -46,10 +46,11 @@ class RelayController:
 
     def __init__(self, spec: OcpSpec, weights: dict[str, np.ndarray], *, mu: float,
                  failsafe: FailsafeSettings = FailsafeSettings(), settings: NmpcSettings | None = None,
-                 envelope: SafetyEnvelope | None = None, obstacles: tuple[Obstacle, ...] = ()):
+                 envelope: SafetyEnvelope | None = None, obstacles: tuple[Obstacle, ...] = (), name: str = ""):
         if len(obstacles) != spec.obstacles:
             raise ValueError(f"RelayController: the OCP keeps out of {spec.obstacles} obstacles, {len(obstacles)} given")
         self.spec = spec
+        self.name = name  # the relay it flies (a network's recording and logs tell its relays apart by it)
         self.obstacles = obstacles  # grown by their margins: the NMPC keeps out of these
         self.envelope = envelope  # None: no supervisor (QP failures alone hand over)
         self.last_violations: list[str] = []
