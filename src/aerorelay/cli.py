@@ -406,8 +406,9 @@ def bound(
 # an estimated jammer's rows: its final error beside the spread the estimator reported, when it first came within 1 m
 ESTIMATION_KEYS = ("estimation_err_final_m", "estimation_std_final_m", "estimation_nees_final", "estimation_trusted_final",
                    "estimation_first_within_1m_s")
+DIRECT_KEYS = ("c_min_direct", "c_mean_direct", "c_min_over_direct", "c_mean_over_direct")  # sim.baseline = "direct"
 KEY_METRICS = (
-    "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
+    "c_min", "c_mean", *DIRECT_KEYS, "se_21_mean", "se_10_mean", "outage_fraction", "alignment_ok_fraction",
     "alignment_within_slack_fraction",
     "slack_active_fraction", "infeasible_fraction", "fallback_fraction", "solve_ms.mean", "solve_ms.p99",
     "feedback_ms.mean", "feedback_ms.p99", "position_error_mean_m",
@@ -454,7 +455,7 @@ def _fleet_keys(runs: dict[str, dict]) -> list[str]:
         return []
     routes = sorted({s for m in fleets for s in m.get("routes", {})})
     relays = sorted({r for m in fleets for r in m["relays"]})
-    return (["c_min", "c_mean", "outage_fraction", "separation_min_m", *ESTIMATION_KEYS]
+    return (["c_min", "c_mean", *DIRECT_KEYS, "outage_fraction", "separation_min_m", *ESTIMATION_KEYS]
             + [f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
                                                           "solve_ms.mean", "solve_ms.p99", "fallback_fraction",

@@ -271,6 +271,7 @@ class Scenario(Strict):
         self._one_planner()
         self._separation_holds()
         self._fading_has_its_strength()
+        self._baseline_can_be_computed()
         self._obstacles_hold()
         self._one_time_grid()
         self._losses_hold()
@@ -640,6 +641,21 @@ class Scenario(Strict):
         if self.channel.fading.model != "iid" and (k is None or not math.isfinite(k)):
             raise ValueError(f"channel.fading.model: {self.channel.fading.model!r} needs perturbations.fading_k_db, the "
                              f"Rician K in dB (0 for Rayleigh); without it (got {k}) no fading is drawn")
+
+    def _baseline_can_be_computed(self) -> None:
+        """``sim.baseline = "direct"`` is the direct link on the deterministic channel (``sim.baseline``): with random
+        channel terms or a ray-traced channel the run's rate would be set against a link the flight did not see."""
+        if self.sim.baseline != "direct":
+            return
+        k = self.perturbations.fading_k_db
+        random = [what for what, on in (
+            ("perturbations.fading_k_db (fading)", k is not None and math.isfinite(k)),
+            ("channel.propagation's per-seed shadowing or LoS states", self.channel.propagation.random),
+            ("channel.propagation.model = 'ray_traced'", self.channel.propagation.model == "ray_traced")) if on]
+        if random:
+            raise ValueError(f"sim.baseline: 'direct' is the direct link on the deterministic channel; this scenario's "
+                             f"rate has {', '.join(random)}, which the direct link's would not: not built; allowed "
+                             "here: 'none'")
 
     @property
     def vehicle_size_m(self) -> float:

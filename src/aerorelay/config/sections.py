@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 from pydantic import Field, model_validator
 
@@ -27,6 +28,11 @@ class SimConfig(Strict):
     duration_s: float | None = Field(None, gt=0.0, allow_inf_nan=False, description="default: the mission's length")
     max_minutes: float = Field(60.0, gt=0.0, le=10080.0, description="refuse, before any work, a flight estimated to "
                                "take longer here, min (its closed loop and its traced channel: experiments.budget)")
+    baseline: Literal["none", "direct"] = Field("none", description="'direct': also the rate of the direct link (each "
+                                                "source straight to its base station, no relay) at every step, on the "
+                                                "deterministic channel with the true jammers; metrics.json's "
+                                                "c_min_direct, c_mean_direct and the run's c_min_over_direct, "
+                                                "c_mean_over_direct (sim/baseline.py)")
 
 
 class PerturbationConfig(Strict):

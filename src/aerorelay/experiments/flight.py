@@ -68,7 +68,7 @@ def flight_result(sc: Scenario, rec: FlightRecorder, stepper: Controller, wall_s
                           fallback_episodes=sum(r.controller.fallback_episodes for r in relays.values()), aborted=aborted)
     mission.separation_unguarded = dict(stepper.controller.unguarded)
     df = log_frame(mission.log, rec.columns, {c: flight_column_type(c) for c in rec.columns if flight_column_type(c) is not float})
-    metrics = run_metrics(sc, mission, {n: r.vehicle for n, r in relays.items()}, None) | \
+    metrics = run_metrics(sc, mission, {n: r.vehicle for n, r in relays.items()}, None, rec.scene) | \
         flight_metrics(mission.log, bridge_log) | telemetry_metrics(bridge_log)  # held periods as the bridge flew them
     if lost_at:
         metrics["lost_in_flight"] = [{"relay": n, "t_s": float(t)} for n, t in sorted(lost_at.items(), key=lambda kv: kv[1])]

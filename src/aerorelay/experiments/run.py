@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
@@ -23,6 +24,7 @@ from ..models.radio import RadioScene
 from ..planning.base import Planner
 from ..planning.bound import CapacityBound
 from ..planning.network_bound import NetworkBound
+from ..sim.baseline import direct_rate
 from ..sim.closed_loop import MissionResult
 from ..sim.exit_status import ExitStatus, exit_fields
 from ..sim.log_schema import RELAY_STEP, SOURCE_STATE, VEHICLE_STATE, column_type
@@ -156,9 +158,11 @@ def relay_workspaces(sc: Scenario) -> dict[str, tuple[tuple, tuple, float]]:
     return out
 
 
-def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: CapacityBound | NetworkBound | None) -> dict:
-    """``metrics.json`` of a mission flown by ``relays`` (name -> vehicle), with its efficiency against the
-    bound when given (``single_efficiency``, ``network_efficiency``)."""
+def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: CapacityBound | NetworkBound | None,
+                scene: RadioScene) -> dict:
+    """``metrics.json`` of a mission flown by ``relays`` (name -> vehicle) in ``scene`` (the truth: its jammers), with
+    its efficiency against the bound when given (``single_efficiency``, ``network_efficiency``) and against the direct
+    link with ``sim.baseline = "direct"`` (``direct_baseline``)."""
     m = compute_metrics(mission.log, relays=relays, sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
                         outage_threshold=sc.channel.outage, mu=sc.controller.mu, wall_s=mission.wall_s, sim_s=mission.sim_s,
                         min_separation_m=sc.separation_m, workspaces=relay_workspaces(sc), ground_z_m=sc.world.ground_z_m,
@@ -171,11 +175,28 @@ def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: Capac
             m["relays"][name]["separation_unguarded_steps"] = int(steps)
     m["separation_unguarded_steps"] = int(sum(mission.separation_unguarded.values()))  # the fleet's (sim.metrics.FLEET_SUM)
     mark_aborted(m, mission)
+    if sc.sim.baseline == "direct":
+        direct_baseline(m, direct_rate(scene, mission.log))
     if isinstance(bound, NetworkBound):
         network_efficiency(m, bound)
     elif bound is not None:
         single_efficiency(m, bound)
     return m
+
+
+def direct_baseline(m: dict, direct: np.ndarray) -> None:
+    """The direct link's rate at every step (``sim.baseline``): its minimum and mean (``c_min_direct``,
+    ``c_mean_direct``) and the run's over them (``c_min_over_direct``, ``c_mean_over_direct``; None with the reason
+    where the direct link's is 0: a jammer on the base station)."""
+    m["c_min_direct"], m["c_mean_direct"] = float(direct.min()), float(direct.mean())
+    reasons = {}
+    for key, num, den, what in (("c_min_over_direct", m["c_min"], m["c_min_direct"], "the direct link's minimum"),
+                                ("c_mean_over_direct", m["c_mean"], m["c_mean_direct"], "the direct link's mean")):
+        m[key], why = efficiency(num, den, what)
+        if why:
+            reasons[key] = why
+    if reasons:
+        m[NULL_REASONS] = {**m.get(NULL_REASONS, {}), **reasons}
 
 
 def single_efficiency(m: dict, bound: CapacityBound) -> None:
@@ -282,7 +303,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     df = log_frame(mission.log, loop.columns + [c for c in mission.log if c not in loop.columns],
                    {c: column_type(c) for c in mission.log if column_type(c) is not float})
     try:
-        metrics = run_metrics(sc, mission, {r.name: r.vehicle for r in parts.relays}, bound)
+        metrics = run_metrics(sc, mission, {r.name: r.vehicle for r in parts.relays}, bound, parts.scene)
     except Exception as exc:  # nothing computed after a flight may lose it: the time series is kept, the run unsafe
         log.exception("the run's metrics failed; its time series is kept")
         metrics = failed_metrics(mission, exc)

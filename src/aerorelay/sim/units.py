@@ -11,7 +11,8 @@ DIMENSIONLESS = "1"
 SUFFIX_UNITS = (("_m_s2", "m/s^2"), ("_m_s", "m/s"), ("_hz_s", "Hz/s"), ("_fraction", DIMENSIONLESS), ("_ms", "ms"), ("_kJ", "kJ"), ("_deg", "deg"),
                 ("_hz", "Hz"), ("_m", "m"), ("_ns", "ns"), ("_s", "s"))
 CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", "c_mean_before_loss", "c_min_after_loss",
-                    "c_mean_after_loss", "c_min_after_takeover", "c_mean_before_takeover", "c_mean_after_takeover")
+                    "c_mean_after_loss", "c_min_after_takeover", "c_mean_before_takeover", "c_mean_after_takeover",
+                    "c_min_direct", "c_mean_direct")
 SPECTRAL = "bit/s/Hz"
 COUNTS = ("steps", "safety_violations", "fallback_episodes", "separation_unguarded_steps", "outage_events", "reference_clipped_steps",
           "reference_held_steps", "reference_kept_out_steps", "telemetry_rejected_periods", "handovers")
@@ -29,7 +30,7 @@ def metric_unit(key: str, capacity_unit: str) -> str | None:
         return capacity_unit
     if key.startswith("se_"):
         return SPECTRAL
-    if (key.startswith(("capacity_efficiency", "efficiency_", "estimation_within")) or key in COUNTS
+    if (key.startswith(("capacity_efficiency", "efficiency_", "estimation_within")) or key in COUNTS or key.endswith("_over_direct")
             or key.endswith("_rel_err_max") or key == "estimation_nees_final"):
         return DIMENSIONLESS
     for suffix, unit in SUFFIX_UNITS:
