@@ -196,7 +196,8 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
     ends = tuple(stations if r[-1] == ANY_BASE_STATION and len(stations) > 1 else () for r in sc.route_list)
     routes = tuple(tuple(r[:-1]) + (stations[0] if r[-1] == ANY_BASE_STATION else r[-1],) for r in sc.route_list)
     scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), routes[0], path_gain(ch),
-                       routes=routes if len(routes) > 1 else (), handover=ends if any(ends) else ())
+                       routes=routes if len(routes) > 1 else (), handover=ends if any(ends) else (),
+                       schedule=sc.network.schedule, self_interference_db=sc.network.self_interference_db)
     if jammers is None and any(j.inr_db_at_relay_start is not None for j in sc.jammer_configs):
         scene = _powers_for_inr(scene, sc)
     return scene
@@ -667,6 +668,10 @@ def _bound_key_tables(sc: Scenario, data: dict) -> dict:
     if "network" in data:
         data["network"]["route_dt_s"] = sc.route_dt_s if networks else 2.0
         data["network"]["planner"] = sc.planner if networks else "equidistant"
+        for name in ("schedule", "self_interference_db"):  # in the key below when they change the rate
+            data["network"].pop(name, None)
+    if sc.network.schedule != "tdma":  # the schedule changes the rate: the bound of each is its own
+        data["schedule"] = {"schedule": sc.network.schedule, "self_interference_db": sc.network.self_interference_db}
     return data
 
 

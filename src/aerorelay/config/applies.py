@@ -89,6 +89,7 @@ CONTROLLER = (
 NETWORK = (
     Applies(("separation_neighbours",), lambda n, sc: sc.vehicle_count - 1 > n.separation_neighbours,
             "a relay has more other vehicles (relays and sources) than network.separation_neighbours"),
+    Applies(("self_interference_db",), lambda n, sc: n.schedule == "full_duplex", "network.schedule = 'full_duplex'"),
 )
 WIND = (
     Applies(("gust_w20_m_s",), lambda w, sc: w.gusts, "wind.gusts = true (it sets the gusts' intensity)"),

@@ -6,7 +6,7 @@ and ``[mission]`` is one relay named ``relay`` and one source named ``source``."
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
@@ -105,8 +105,8 @@ class BaseStationConfig(Strict):
 
 
 class NetworkConfig(Strict):
-    """How data flows: each route from a source through relays to the base station ``bs``; every
-    hop of every route has its own time slot (docs/concepts/networks.md)."""
+    """How data flows: each route from a source through relays to the base station ``bs``; how its hops share the
+    time (``schedule``; the routes take turns; docs/concepts/networks.md)."""
 
     routes: list[list[str]] | None = Field(None, min_length=1, description="each [source, relay, ..., base station]: "
                                            "\"bs\" ([nodes] bs), a [[base_stations]] name, or \"any\" (the best base station "
@@ -129,4 +129,12 @@ class NetworkConfig(Strict):
                                        "step then costs the same in a network of any size (docs/results/networks.md)")
     route: bool = Field(True, description="the capacity planner flies near a pre-flight route (false: no route, no leash: "
                         "hill climbing from the starts alone)")
+    schedule: Literal["tdma", "spatial_reuse", "full_duplex"] = Field(
+        "tdma", description="how a route's hops share the time (the routes always take turns): 'tdma', a slot per hop; "
+        "'spatial_reuse', hops that share no node in one slot, each the others' interference, the reuse distance that "
+        "gives the most chosen per step (one relay: 'tdma' exactly); 'full_duplex', every hop at once, each relay "
+        "hearing its own transmission self_interference_db below its power (half duplex where that gives more); "
+        "docs/concepts/networks.md")
+    self_interference_db: float = Field(110.0, ge=0.0, le=200.0, description="full duplex: a relay's own transmission "
+                                        "at its receiver, this far below its transmit power (dB)")
 

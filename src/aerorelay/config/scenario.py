@@ -25,6 +25,7 @@ from ..models.buildings import BuildingsError, convex_pieces, read_footprints
 from ..models.geo import GeoFrame
 from ..models.obstacles import obstacle_model
 from .air import WindConfig
+from .applies import GENERATORS as PAPER_GENERATORS
 from .applies import OBSTACLE, dormant, dotted, generated_scene, refusal
 from .base import NETWORK_PLANNER, PAPER_PLANNER, ScenarioError, Strict, Vec3, on_the_earth, papers_generator_named
 from .controller import ControllerConfig
@@ -272,6 +273,7 @@ class Scenario(Strict):
         self._separation_holds()
         self._fading_has_its_strength()
         self._baseline_can_be_computed()
+        self._schedule_holds()
         self._obstacles_hold()
         self._one_time_grid()
         self._losses_hold()
@@ -641,6 +643,25 @@ class Scenario(Strict):
         if self.channel.fading.model != "iid" and (k is None or not math.isfinite(k)):
             raise ValueError(f"channel.fading.model: {self.channel.fading.model!r} needs perturbations.fading_k_db, the "
                              f"Rician K in dB (0 for Rayleigh); without it (got {k}) no fading is drawn")
+
+    def _schedule_holds(self) -> None:
+        """``network.schedule`` other than time division needs the links between the hops' transmitters and receivers
+        (not a ray-traced channel's) and a planner that plans with it (the paper's generator's surrogate is time
+        division: it takes spatial reuse only where no two hops of a route share no node, i.e. where it is time
+        division)."""
+        schedule = self.network.schedule
+        if schedule == "tdma":
+            return
+        if self.channel.propagation.model == "ray_traced":
+            raise ValueError(f"network.schedule: {schedule!r} counts the links between the hops' transmitters and "
+                             "receivers, which the ray-traced channel does not trace; allowed with "
+                             "channel.propagation.model = 'ray_traced': 'tdma'")
+        reuse = any(len(r) - 1 >= 3 for r in self.route_list)  # a route with two hops that share no node
+        if self.planner in PAPER_GENERATORS and (schedule == "full_duplex" or reuse):
+            raise ValueError(f"network.schedule: {schedule!r} changes the rate the paper's trajectory generator "
+                             f"(controller.planner = {self.planner!r}) plans with its time-division surrogate (eq. 12-13); "
+                             "allowed with it: 'tdma' (and 'spatial_reuse' where no route has three hops); or a planner "
+                             "that scores the rate itself ('capacity', 'equidistant')")
 
     def _baseline_can_be_computed(self) -> None:
         """``sim.baseline = "direct"`` is the direct link on the deterministic channel (``sim.baseline``): with random

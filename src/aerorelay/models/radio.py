@@ -121,6 +121,9 @@ class ChannelState:
     route_capacity: tuple[np.ndarray, ...] = ()
     # per route, the rate of each route it may take (``RadioScene.candidate_routes``; a fixed route: one)
     candidates: tuple[tuple[np.ndarray, ...], ...] = ()
+    # per route, the time slots of the schedule its rate was given by (``RadioScene.schedule``; empty: time division,
+    # one slot per hop; 1: full duplex; numeric evaluations only)
+    slots: tuple[np.ndarray, ...] = ()
 
     def spectral_efficiency(self) -> tuple[np.ndarray, ...]:
         """``log2(1 + Gamma_k)`` per hop, bit/s/Hz (eq. 8 with B = 1)."""
@@ -224,6 +227,62 @@ def network_rate(route_sinrs: Sequence[Sequence], bandwidth: float = 1.0):
     return bandwidth * np.where(alive, 1.0 / inv, 0.0)
 
 
+SCHEDULES = ("tdma", "spatial_reuse", "full_duplex")
+
+
+def schedule_rate(schedule: str, sinr: Sequence, base: Sequence, cross, relays_rx: Sequence[bool], hops: Sequence,
+                  bandwidth: float, self_interference: float):
+    """One route's rate and the time slots of the schedule that gives it, its ``H`` hops (in order) each with its
+    SINR alone ``sinr`` (``S_k / N_k``: no other hop transmitting) and ``base`` ``N_k`` (noise plus the jammers'
+    interference, W; so the signal ``S_k = sinr_k N_k``); ``cross(i, j)``: hop ``i``'s transmitter received at hop
+    ``j``'s receiver (W). numpy (broadcast) or CasADi.
+
+    - ``"tdma"``: one slot per hop, ``B / sum_k 1/log2(1 + S_k / N_k)`` (eq. 9).
+    - ``"spatial_reuse"``: for each reuse distance ``m = 2..H``, slot ``j`` carries the hops ``k = j (mod m)`` at
+      once (hops ``m >= 2`` apart share no node), each hop's SINR counting the slot's other transmitters,
+      ``S_k / (N_k + sum_{i in slot, i != k} cross(i, k))``; a slot carries the bits its worst hop can, so the route
+      delivers ``B / sum_slots 1 / min_{k in slot} log2(1 + SINR_k)``; the best ``m`` is taken (``m = H`` is time
+      division itself). One relay (two hops sharing it): time division exactly.
+    - ``"full_duplex"``: every hop at once, each receiver hearing every other transmitter but its own hop's and, where
+      it transmits too (a relay: ``relays_rx``), its own transmission suppressed to ``self_interference`` (W):
+      ``B min_k log2(1 + S_k / (N_k + SI_k + sum_{i != k, tx_i != rx_k} cross(i, k)))``; time division where it gives
+      more (a full-duplex relay also runs half duplex).
+
+    Returns ``(rate, slots)`` (the chosen schedule's number of slots; numeric only)."""
+    H = len(sinr)
+    symbolic = is_symbolic(*sinr)
+    signal = [g * n for g, n in zip(sinr, base, strict=True)]
+    tdma = route_capacity(list(sinr), bandwidth)
+    if schedule == "tdma" or H == 1:
+        return tdma, H
+    lo = ca.fmin if symbolic else np.minimum
+    hi = ca.fmax if symbolic else np.maximum
+    options = [(tdma, H)]
+    if schedule == "spatial_reuse":
+        for m in range(2, H):
+            slot_rates = []
+            for j in range(m):
+                members = list(range(j, H, m))
+                se = [spectral_efficiency(signal[k] / (base[k] + sum(cross(i, k) for i in members if i != k)))
+                      for k in members]
+                slot_rates.append(bandwidth * reduce(lo, se))
+            options.append((rate_of_routes(slot_rates), m))
+    elif schedule == "full_duplex":
+        se = []
+        for k in range(H):
+            heard = sum(cross(i, k) for i in range(H) if i != k and hops[i][0] != hops[k][1])
+            se.append(spectral_efficiency(signal[k] / (base[k] + (self_interference if relays_rx[k] else 0.0) + heard)))
+        options.append((bandwidth * reduce(lo, se), 1))
+    else:
+        raise ValueError(f"schedule must be one of {', '.join(SCHEDULES)}, got {schedule!r}")
+    rate = reduce(hi, [r for r, _ in options])
+    if symbolic:
+        return rate, H
+    stack = np.stack(np.broadcast_arrays(*[np.asarray(r, float) for r, _ in options]))
+    slots = np.asarray([n for _, n in options])[np.argmax(stack, axis=0)]
+    return rate, slots
+
+
 @dataclass(frozen=True)
 class RadioScene:
     """Nodes, jammers, link budget and the routes data takes (node names, a source first, a base
@@ -238,6 +297,11 @@ class RadioScene:
     # per route of ``all_routes``, the base stations it may end at (its serving end among them; empty: its end is
     # fixed); ``()``: every route's end fixed
     handover: tuple[tuple[str, ...], ...] = ()
+    # how a route's hops share the time (``SCHEDULES``; the routes always take turns): "tdma", one slot per hop;
+    # "spatial_reuse", hops sharing no node in one slot, each the others' interference; "full_duplex", every hop at once
+    # with the relays' self-interference suppressed by ``self_interference_db`` (dB below the transmit power)
+    schedule: str = "tdma"
+    self_interference_db: float = 110.0
 
     def __post_init__(self):
         for field_name, items, kind in (("nodes", self.nodes, Node), ("jammers", self.jammers, Jammer)):
@@ -270,6 +334,7 @@ class RadioScene:
         for j in self.jammers:
             if j.point_at is not None and j.point_at not in names:
                 raise ValueError(f"jammer {j.name!r}: point_at {j.point_at!r} is not a node ({', '.join(names)})")
+        checks.one_of("RadioScene", "schedule", self.schedule, SCHEDULES)
 
     def world_view(self) -> RadioScene:
         """The scene as the relay knows it: nodes, antennas, link budget and propagation, and each
@@ -453,6 +518,11 @@ class RadioScene:
                     i_rx = np.nan_to_num(i_rx, nan=np.inf)
                 sinrs.append(h * b.tx_power / (i_rx + b.noise_power))  # eq. 5
                 interference.append(i_rx)
+        if self.schedule != "tdma":
+            if link_gains is not None:
+                raise ValueError(f"evaluate: schedule {self.schedule!r} needs the links between the hops' transmitters and "
+                                 "receivers, which a ray-traced channel's gains do not give: time division only")
+            return self._scheduled(poses, sinrs, interference, ends)
         if not any(self.handover):
             per_route = [[sinrs[k] for k in r] for r in self.route_hops()]
             routes = tuple(route_capacity(r, b.bandwidth) for r in per_route)
@@ -467,6 +537,43 @@ class RadioScene:
             chosen = tuple(reduce(most, c) for c in candidates)
         rate = chosen[0] if len(chosen) == 1 else rate_of_routes(chosen)
         return ChannelState(self.hops, tuple(sinrs), tuple(interference), rate, chosen, candidates)
+
+    def _scheduled(self, poses: Mapping[str, NodePose], sinrs: list, interference: list, ends: str) -> ChannelState:
+        """``evaluate``'s rates under ``schedule`` (not time division): each route's by ``schedule_rate`` from its hops'
+        signals (``sinrs`` times their noise and jammers' interference) and the links between their transmitters
+        and receivers; the routes take turns (``rate_of_routes``); a route that may end at several base stations
+        with its best or serving end, as ``evaluate``."""
+        b = self.budget
+        hops = self.hops
+        base = [i + b.noise_power for i in interference]
+
+        def cross(k_tx: int, k_rx: int):
+            """The transmitter of hop ``k_tx`` into the receiver of hop ``k_rx``: its received power (W)."""
+            tx, rx = hops[k_tx][0], hops[k_rx][1]
+            return b.tx_power * link_gain(poses[tx].position, poses[tx].axis, self.node(tx).antenna.pattern,
+                                          poses[rx].position, poses[rx].axis, self.node(rx).antenna.pattern, self.path_gain)
+
+        def rate(hs: Sequence[int]):
+            relays = {hops[k][1] for k in hs[:-1]}  # every receiver but the last transmits too
+            return schedule_rate(self.schedule, [sinrs[k] for k in hs], [base[k] for k in hs],
+                                 lambda i, j: cross(hs[i], hs[j]), [hops[k][1] in relays for k in hs],
+                                 [hops[k] for k in hs], b.bandwidth, b.tx_power * 10.0 ** (-self.self_interference_db / 10.0))
+
+        per_route = [[rate(hs) for hs in route] for route in self.candidate_hops()]
+        candidates = tuple(tuple(c for c, _ in route) for route in per_route)
+        if ends == "serving" or not any(self.handover):
+            pick = [rs.index(r) for rs, r in zip(self.candidate_routes, self.all_routes, strict=True)]
+            chosen = tuple(per_route[i][j][0] for i, j in enumerate(pick))
+            slots = tuple(per_route[i][j][1] for i, j in enumerate(pick))
+        elif is_symbolic(*sinrs):
+            chosen, slots = tuple(reduce(ca.fmax, c) for c in candidates), ()
+        else:  # each route's best end, and the slots of its schedule there
+            chosen = tuple(reduce(np.maximum, c) for c in candidates)
+            slots = tuple(np.choose(np.argmax(np.stack(np.broadcast_arrays(*[np.asarray(c, float) for c, _ in route])), axis=0),
+                                    np.broadcast_arrays(*[np.asarray(n) for _, n in route])) for route in per_route)
+        rate_all = chosen[0] if len(chosen) == 1 else rate_of_routes(chosen)
+        return ChannelState(hops, tuple(sinrs), tuple(interference), rate_all, chosen, candidates,
+                            () if is_symbolic(*sinrs) else slots)
 
     def relay_grid(self, t: float, positions, axes, poses: Mapping[str, NodePose], *, jammer_positions=None,
                    jammer_powers=None, relay: str | None = None, fading=None) -> np.ndarray:

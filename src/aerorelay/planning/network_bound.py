@@ -806,7 +806,19 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     at several base stations: each combination of ends bounded on its own, the network's at every instant
     the best of them (its rate is the best combination's: ``RadioScene.evaluate``), the upper path bound from
     every combination's terms at once (``NetworkBoundSolver.upper_path``), the flyable path the best
-    combination's."""
+    combination's. A schedule other than time division (``RadioScene.schedule``): everything computed under time
+    division, then the upper bounds times the most hops of a route (``schedule_factor``: a route under any schedule
+    delivers at most its weakest hop's interference-free rate, ``min_k se_k <= H / sum_k 1/se_k``), the achieved and
+    flyable rates time division's (what the schedule at least gives: it takes time division where that is more)."""
+    if pb.scene.schedule != "tdma":
+        b = compute_network_bound(replace(pb, scene=replace(pb.scene, schedule="tdma")), progress)
+        factor = float(max(len(r) - 1 for r in pb.scene.all_routes))
+        b.resolution = {**b.resolution, "schedule": pb.scene.schedule, "schedule_factor": factor,
+                        "schedule_note": "static and path_mean: time division's bound times the most hops of a route "
+                        "(any schedule's route rate is at most its weakest hop's alone); achieved and flyable: time "
+                        "division's rates of those configurations (a lower estimate under the schedule)"}
+        b.static, b.path_mean = b.static * factor, b.path_mean * factor
+        return b
     scenes = end_choices(pb.scene)
     passes = 2 if pb.global_seconds > 0 else 1  # the cube bound's instants, then SCIP's
     parts = []

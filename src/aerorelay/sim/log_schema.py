@@ -108,6 +108,8 @@ def log_columns(relays: Mapping[str, int], sources: Sequence[str], scene: RadioS
         cols += source_columns(s)
     cols += hop_columns([*scene.hops, *(h for h in later_hops if h not in scene.hops)])
     cols += [f"capacity.{route[0]}" for route in scene.all_routes]
+    if scene.schedule != "tdma":  # the time slots of the schedule each route's rate took (network.schedule)
+        cols += [f"slots.{route[0]}" for route in scene.all_routes]
     return cols + list(NETWORK_COLUMNS) + jammer_columns(scene)
 
 
@@ -147,6 +149,8 @@ def link_row(scene: RadioScene, t: float, state: ChannelState) -> dict[str, floa
     row = {f"sinr.{tx}.{rx}": float(g) for (tx, rx), g in zip(state.hops, state.sinr, strict=True)}
     row |= {f"se.{tx}.{rx}": math.log2(1.0 + float(g)) for (tx, rx), g in zip(state.hops, state.sinr, strict=True)}
     row |= {f"capacity.{route[0]}": float(c) for route, c in zip(scene.all_routes, state.route_capacity, strict=True)}
+    if scene.schedule != "tdma":
+        row |= {f"slots.{route[0]}": float(n) for route, n in zip(scene.all_routes, state.slots, strict=True)}
     row["capacity"] = float(state.capacity)
     row["jammer_on"] = float(any(float(j.power_at(t)) > 0 for j in scene.jammers))
     return row | jammer_values(scene, t)
