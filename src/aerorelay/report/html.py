@@ -39,6 +39,7 @@ HEADERS = {"c_min": "C_min (bit/s/Hz)", "c_mean": "mean C (bit/s/Hz)", "outage_f
            "capacity_efficiency_mean": "efficiency, mean C", "capacity_efficiency_min": "efficiency, C_min",
            "capacity_efficiency_mean_flyable": "mean C / flyable path's", "capacity_efficiency_min_flyable": "C_min / flyable path's",
            "capacity_efficiency_mean_path": "mean C / upper path bound's",
+           "c_min_over_direct": "C_min / direct link's", "c_mean_over_direct": "mean C / direct link's",
            "fallback_fraction": "fail-safe steps", "worst_relay_fallback_fraction": "worst relay: brake law",
            "worst_relay_infeasible_fraction": "worst relay: QP failures", "motor_saturation_fraction": "a motor at a speed bound",
            "rate_saturation_fraction": "a motor at a rate bound",
@@ -309,7 +310,8 @@ def _study_section(study: Study, study_sum: dict, specs: list[RunSpec], out: Pat
         parts.append("<h3>Ours beside the paper</h3>" + _table(["metric", "run", "ours", "paper", "ours / paper", "note"], rows))
     groups = study_sum["groups"]
     if groups:
-        extra = [k for k in ("max_deviation_m", "capacity_efficiency_mean", "capacity_efficiency_min",
+        extra = [k for k in ("c_min_over_direct", "c_mean_over_direct", "max_deviation_m", "capacity_efficiency_mean",
+                             "capacity_efficiency_min",
                              "capacity_efficiency_mean_flyable", "capacity_efficiency_min_flyable",
                              "capacity_efficiency_mean_path",
                              "estimation_first_within_1m_s", "estimation_crlb_first_1m_s", "estimation_within_1m_after_10s",

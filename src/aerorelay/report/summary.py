@@ -18,7 +18,10 @@ from .explain import explain
 from .folders import read_timeseries, vehicle_paths
 
 SCALAR_METRICS = (
-    "c_min", "c_mean", "se_21_mean", "se_10_mean", "outage_fraction", "outage_events", "outage_duration_mean_s",
+    "c_min", "c_mean",
+    # the direct link (sim.baseline = "direct": no relay) and the run over it
+    "c_min_direct", "c_mean_direct", "c_min_over_direct", "c_mean_over_direct",
+    "se_21_mean", "se_10_mean", "outage_fraction", "outage_events", "outage_duration_mean_s",
     "outage_duration_max_s", "alignment_ok_fraction",
     "alignment_within_slack_fraction", "slack_active_fraction",
     "infeasible_fraction", "solve_ms.mean", "solve_ms.p99", "position_error_mean_m", "distance_m", "energy_kJ",
