@@ -29,7 +29,6 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
-from ..config.network import sole
 from ..control.network import Controller
 from ..control.relay_step import Command
 from ..models.radio import RadioScene
@@ -87,8 +86,8 @@ class RelayNode(Node):
         if unknown:
             raise ValueError(f"topics: no relay or source {unknown} in the scenario ({', '.join(names)})")
         self.topic = {n: check_ros_namespace((topics or {}).get(n, n), f"{n}'s topic namespace") for n in names}
-        only = sole(controller.relays)  # one relay's node is named by its vehicle, so that nodes of several run side by side
-        super().__init__("aerorelay" if only is None else f"aerorelay_{self.topic[only].replace('/', '_')}")
+        # named by its relays' vehicles, so that nodes of several networks run side by side
+        super().__init__("aerorelay_" + "_".join(self.topic[r].replace("/", "_") for r in controller.relays))
         self.controller, self.scene = controller, scene
         self.relays, self.sources = list(controller.relays), list(controller.sources)
         self.loop = AutopilotLoop(controller, on_step=on_step)

@@ -7,8 +7,6 @@ from pathlib import Path
 
 import matplotlib
 
-from ..config.network import sole  # noqa: E402
-
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -49,6 +47,11 @@ def _relays(df: pd.DataFrame) -> list[str]:
     return relays_in(df.columns)
 
 
+# the paper's names for the vehicles a scenario names as the paper does (a node's label follows its name, whatever the
+# network's size)
+PAPER_LABELS = {"relay": "MRAV-1 (relay)", "source": "MRAV-2 (source)"}
+
+
 def _xyz(df: pd.DataFrame, node: str, q: str = "p") -> list[pd.Series]:
     return [df[f"{node}.{q}_{a}"] for a in "xyz"]
 
@@ -58,13 +61,12 @@ def fig_trajectory_3d(df: pd.DataFrame, sc: Scenario):
     fig = plt.figure(figsize=(6, 5))
     ax = fig.add_subplot(projection="3d")
     relays, sources = _relays(df), sources_in(df.columns)
-    one = sole(relays) is not None and sole(sources) is not None  # the paper's names: MRAV-1, MRAV-2
     for i, r in enumerate(relays):
         colour = RELAY if i == 0 else f"C{i}"
-        ax.plot(*_xyz(df, r), color=colour, label="MRAV-1 (relay)" if one else f"relay {r}")
-        ax.plot(*_xyz(df, r, "pd"), color=colour, ls=":", lw=1, label=f"{'relay' if one else r} reference")
+        ax.plot(*_xyz(df, r), color=colour, label=PAPER_LABELS.get(r, f"relay {r}"))
+        ax.plot(*_xyz(df, r, "pd"), color=colour, ls=":", lw=1, label=f"{r} reference")
     for i, s in enumerate(sources):
-        ax.plot(*_xyz(df, s), color=SOURCE if i == 0 else f"C{i + len(relays)}", label="MRAV-2 (source)" if one else f"source {s}")
+        ax.plot(*_xyz(df, s), color=SOURCE if i == 0 else f"C{i + len(relays)}", label=PAPER_LABELS.get(s, f"source {s}"))
     for b in sc.base_station_list:
         ax.scatter(*b.position, color="k", s=30, label="BS" if len(sc.base_station_list) == 1 else f"BS {b.name}")
     for i, (name, P) in enumerate(jammer_tracks(sc, df["t"].to_numpy())):

@@ -20,7 +20,7 @@ from plotly.offline import get_plotlyjs  # noqa: E402
 from ..experiments.campaign import RunStatus, first_run_per_group, run_dir  # noqa: E402
 from ..experiments.study import RunSpec, Study, groups_of_run, scenario_of  # noqa: E402
 from ..store.run_folder import BOUND_PARQUET, TIMESERIES_FILE
-from .figures import jammer_traces  # noqa: E402
+from .figures import PAPER_LABELS, jammer_traces  # noqa: E402
 from .folders import read_timeseries, vehicle_paths
 from .sweeps import box_figure, sweep_figures  # noqa: E402
 
@@ -235,7 +235,7 @@ def _trajectory_3d(study: Study, specs: list[RunSpec], out: Path) -> str | None:
             traces.append(go.Scatter3d(x=p.iloc[:, 0], y=p.iloc[:, 1], z=p.iloc[:, 2], mode="lines", name=label, line=dict(width=5)))
         for name, p in sources.items() if i == 0 else ():
             traces.append(go.Scatter3d(x=p.iloc[:, 0], y=p.iloc[:, 1], z=p.iloc[:, 2], mode="lines",
-                                       name="MRAV-2" if len(sources) == 1 else f"source {name}",
+                                       name=PAPER_LABELS.get(name, f"source {name}"),
                                        line=dict(color="#7b3fa0", width=4, dash="dash")))
     sc = scenario_of(next(iter(firsts.values())))
     traces += [go.Scatter3d(x=[b.position[0]], y=[b.position[1]], z=[b.position[2]], mode="markers",
