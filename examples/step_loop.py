@@ -22,7 +22,7 @@ DURATION = min(float(os.environ.get("AERORELAY_EXAMPLE_DURATION", "5")), 5.0)
 
 # one relay and one source: ar.controller(sc).one_relay() takes its state and returns its command (the explicit adapter)
 sc = ar.load_scenario(SCENARIOS / "nominal_tilted.toml", set={"sim.duration_s": DURATION})
-ctrl, vehicle, mission = ar.controller(sc).one_relay(), ar.api.vehicle(sc), ar.build(sc).source
+ctrl, vehicle, mission = ar.controller(sc).one_relay(), ar.api.vehicle(sc), ar.build(sc).sources["source"]
 plant = plant_step_function(vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
 scene = ar.build_scene(sc)
 x, rates = vehicle.hover_state(sc.nodes.relay), []

@@ -21,14 +21,14 @@ def _fly_stepped(sc):
     """``ar.controller(sc)`` stepped over the plant ``ar.simulate`` flies (the same wind series when windy)."""
     ctrl = ar.controller(sc).one_relay()
     parts = build(sc)
-    veh = parts.vehicle
+    veh = parts.relay("relay").vehicle
     plant = plant_step_function(veh, sc.sim.plant_rate_hz, sc.control_period_s)
     air = world.air(sc, {"relay": (veh, sc.platform)})
     x = veh.hover_state(sc.nodes.relay)
     xs, us = [], []
     for k in range(step_count(sc.duration_s, sc.control_period_s)):
         t = k * sc.control_period_s
-        s = parts.source.state(t)
+        s = parts.sources["source"].state(t)
         if air is not None:
             air.begin()
         cmd = ctrl.step(t, x, ar.SourceState(s.p, s.v, s.a))
@@ -63,9 +63,9 @@ def stepped():
 def test_stale_input_holds_within_one_period_then_lands_then_resumes(stepped):
     sc, ctrl, parts = stepped
     T = sc.control_period_s
-    veh = parts.vehicle
+    veh = parts.relay("relay").vehicle
     x = veh.hover_state(sc.nodes.relay)
-    s = parts.source.state(0.0)
+    s = parts.sources["source"].state(0.0)
     src = ar.SourceState(s.p, s.v, s.a)
     first = ctrl.step(0.0, x, src)
     assert first.mode == "nmpc" and first.rotor_speeds_hz is not None
@@ -93,9 +93,9 @@ def test_stale_input_holds_within_one_period_then_lands_then_resumes(stepped):
 def test_the_command_is_the_model_one_period_ahead(stepped):
     sc, _, parts = stepped
     ctrl = ar.controller(sc).one_relay()
-    veh = parts.vehicle
+    veh = parts.relay("relay").vehicle
     x = veh.hover_state(sc.nodes.relay)
-    s = parts.source.state(0.0)
+    s = parts.sources["source"].state(0.0)
     cmd = ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a))
     x1 = np.asarray(veh.rk4_step(x, cmd.omega_dot_hz_s, sc.control_period_s))
     assert np.array_equal(cmd.position_m, x1[0:3]) and np.array_equal(cmd.velocity_m_s, x1[6:9])
@@ -167,12 +167,12 @@ def test_stepping_with_the_logged_readings_reproduces_an_estimating_simulate_bit
     log = ar.simulate(sc).mission.log
     assert np.nanmin(log["est_jammer_std_m"]) < sc.estimation.confident_std_m  # the planner did get the jammer
     ctrl, parts = ar.controller(sc).one_relay(), build(sc)
-    plant = plant_step_function(parts.vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
-    x = parts.vehicle.hover_state(sc.nodes.relay)
+    plant = plant_step_function(parts.relay("relay").vehicle, sc.sim.plant_rate_hz, sc.control_period_s)
+    x = parts.relay("relay").vehicle.hover_state(sc.nodes.relay)
     for k in range(len(log["t"])):
         t = k * sc.control_period_s
         assert np.array_equal(x[0:3], [log["relay.p_x"][k], log["relay.p_y"][k], log["relay.p_z"][k]]), f"step {k}"
-        s = parts.source.state(t)
+        s = parts.sources["source"].state(t)
         readings = {r: log[f"meas_{r}_w"][k - 1] for r in ("relay", "bs")} if k else None
         cmd = ctrl.step(t, x, ar.SourceState(s.p, s.v, s.a), readings=readings)
         x = np.asarray(plant(x, cmd.omega_dot_hz_s, np.zeros(6))).ravel()
@@ -183,7 +183,7 @@ def test_readings_are_checked_by_receiver():
         ar.controller(ar.load_scenario("scenarios/nominal_tilted.toml")).one_relay().step(0.0, None, None, readings={"relay": 1.0})
     sc = ar.load_scenario("scenarios/nominal_tilted.toml").with_updates({"jammer.localization": "estimated"})
     ctrl = ar.controller(sc).one_relay()
-    x, s = ctrl.vehicle.hover_state(sc.nodes.relay), build(sc).source.state(0.0)
+    x, s = ctrl.vehicle.hover_state(sc.nodes.relay), build(sc).sources["source"].state(0.0)
     with pytest.raises(ValueError, match=r"readings from \['bs'\]"):
         ctrl.step(0.0, x, ar.SourceState(s.p, s.v, s.a), readings={"bs": 1e-9})
 
@@ -193,9 +193,9 @@ def test_the_first_input_keeps_every_motor_within_its_bounds(stepped):
     # velocity, rate and tilt: the sensitivity feedback (the predicted solution's active set) took such a
     # motor to 11.55 Hz, under its 16 Hz bound (two of these twelve draws, before the first input was clipped)
     sc, _, parts = stepped
-    veh = parts.vehicle
+    veh = parts.relay("relay").vehicle
     ts = sc.controller.ts_s
-    s = parts.source.state(0.0)
+    s = parts.sources["source"].state(0.0)
     rng = np.random.default_rng(0)
     for trial in range(12):
         ctrl = ar.controller(sc).one_relay()

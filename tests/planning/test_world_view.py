@@ -49,7 +49,7 @@ def test_a_planner_in_estimated_mode_cannot_reach_the_true_jammer_positions(plan
     assert all(isinstance(j, HiddenJammer) for j in _reachable(parts.planner) if isinstance(j, ar.Jammer))
     from aerorelay.assembly.parts import planner_context
 
-    ctx = planner_context(sc, parts.vehicle, parts.scene, parts.source)
+    ctx = planner_context(sc, parts.relay("relay").vehicle, parts.scene, parts.sources["source"])
     assert ctx.scene.jammers and all(isinstance(j, HiddenJammer) for j in ctx.scene.jammers)
 
 

@@ -102,8 +102,8 @@ def test_control_rate_500hz_keeps_the_prediction_grid():
     parts = build(sc)
     loop = parts.closed_loop()
     # the OCP keeps its 15 ms grid (the horizon spans N ts = 0.45 s) and the plan is not shifted every 2 ms
-    assert parts.controller.spec.ts == pytest.approx(0.015) and loop.relays[0].stepper.shift is False
-    assert parts.controller.spec.horizon * parts.controller.spec.ts == pytest.approx(0.45)
+    assert parts.relay("relay").controller.spec.ts == pytest.approx(0.015) and loop.relays[0].stepper.shift is False
+    assert parts.relay("relay").controller.spec.horizon * parts.relay("relay").controller.spec.ts == pytest.approx(0.45)
     log = loop.run().log
     assert len(log["t"]) == 101 and log["t"][1] == pytest.approx(0.002)
     assert np.all(np.isfinite(log["capacity"]))

@@ -467,20 +467,12 @@ class Parts:
     relay_planner: Planner | None = None
     planner_name: str = "planner"  # the registered name (controller.planner), or the object's passed from Python
 
-    @property
-    def vehicle(self) -> Multirotor:
-        """The first relay's vehicle (the one relay's)."""
-        return self.relays[0].vehicle
-
-    @property
-    def controller(self) -> RelayController:
-        """The first relay's controller (the one relay's)."""
-        return self.relays[0].controller
-
-    @property
-    def source(self) -> SourceTrajectory:
-        """The first source's path (the one relay's MRAV-2)."""
-        return next(iter(self.sources.values()))
+    def relay(self, name: str) -> LoopRelay:
+        """Relay ``name``'s parts (its vehicle, stepper, plant, ...): a KeyError naming the relays otherwise."""
+        for r in self.relays:
+            if r.name == name:
+                return r
+        raise KeyError(f"no relay {name!r}; the relays: {', '.join(r.name for r in self.relays)}")
 
     def closed_loop(self) -> ClosedLoop:
         return ClosedLoop(scene=self.scene, relays=self.relays, sources=self.sources, planner=self.planner,

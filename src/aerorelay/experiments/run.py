@@ -297,7 +297,7 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     # the bound before the flight: a bound that fails then costs no flight (cached per geometry)
     bound: CapacityBound | NetworkBound | None = None
     if with_bound:
-        bound = bound_of(sc, bound_progress, parts.vehicle, injected)
+        bound = bound_of(sc, bound_progress, scene=injected)
     loop = parts.closed_loop()
     mission = loop.run(progress)
     df = log_frame(mission.log, loop.columns + [c for c in mission.log if c not in loop.columns],
