@@ -8,7 +8,9 @@ clipped to the motor limits), and the step (``control/ar_failsafe.c``: the super
 counts, the fail-safe brake law with SciPy's BVLS allocation), with the scenario's settings baked in; one header with
 a small C API; a Makefile and a CMake project that find HPIPM and BLASFEO at a prefix (default: the libraries in
 CasADi's wheel this tree was written with, so it builds offline); and ``replay``, which runs recorded steps through
-the library (``record_calls`` records them from a Python flight). Where the relay flies the paper's planner, the
+the library (``record_calls`` records them from a Python flight). The tree's text files (its header, Makefile, CMake
+project, README, toolchain file) are templates in ``assembly/templates`` (``render``); its C sources are aerorelay's own
+(``control/*.c``) and CasADi's generated code, every global name carrying the tree's prefix (``tree_names``). Where the relay flies the paper's planner, the
 tree carries it too (``control/ar_planner.c`` with the CasADi-generated expansion as its own translation unit:
 ``ar_plan`` makes the stage parameters). ``flown_by_c`` flies a scenario with the tree's shared library's commands
 (``CController``).
@@ -28,6 +30,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -59,16 +62,6 @@ MODEL_SOURCE = "aerorelay_model.c"  # the vehicle model's one-period-ahead step 
 # 2026-12-06 (the whole nominal mission with the C library linked to them: docs/guide/companion-computer.md)
 BLASFEO_COMMIT = "0ab5db3259c009ea62318a5e35622fe6de7ae554"
 HPIPM_COMMIT = "87ef7a6ab773427a8c416030a2b9d075a744c223"
-AARCH64_TOOLCHAIN = """# aerorelay codegen: cross-compile the tree for a 64-bit ARM companion computer (Debian/Ubuntu: apt-get install
-# gcc-aarch64-linux-gnu). HPIPM_PREFIX / BLASFEO_PREFIX must then name HPIPM and BLASFEO built for aarch64 (their CMake
-# projects, or an acados install on the drone) to link the programs; the library builds without them:
-#   cmake -S . -B build-arm -DCMAKE_TOOLCHAIN_FILE=cmake/aarch64-linux-gnu.cmake -DHPIPM_PREFIX=/opt/aarch64/hpipm
-#   cmake --build build-arm --target aerorelay_controller
-set(CMAKE_SYSTEM_NAME Linux)
-set(CMAKE_SYSTEM_PROCESSOR aarch64)
-set(CMAKE_C_COMPILER aarch64-linux-gnu-gcc)
-set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
-"""
 
 
 @dataclass(frozen=True)
@@ -167,6 +160,20 @@ def _with_names(source: str, prefix: str, stem: str | None = None) -> str:
     if stem is not None:
         head += f"#define CASADI_CODEGEN_PREFIX\n#define CODEGEN_PREFIX {prefix}_{stem}_\n"
     return head + source
+
+
+TEMPLATES = "templates"  # the tree's text files (assembly/templates): {{name}} placeholders, filled by ``render``
+
+
+def render(template: str, **values) -> str:
+    """The template file ``template`` (``assembly/templates``) with each ``{{name}}`` replaced by ``values[name]``; a
+    placeholder without a value, or a value without a placeholder, is a ValueError (a template and its caller agree)."""
+    text = resources.files("aerorelay.assembly").joinpath(TEMPLATES, template).read_text()
+    wanted = set(re.findall(r"\{\{(\w+)\}\}", text))
+    if wanted != set(values):
+        raise ValueError(f"template {template}: placeholders {sorted(wanted - set(values))} have no value, values "
+                         f"{sorted(set(values) - wanted)} no placeholder")
+    return re.sub(r"\{\{(\w+)\}\}", lambda m: str(values[m.group(1)]), text)
 
 
 def _setpoint_function(rs: RelayStep, period: float) -> ca.Function:
@@ -295,13 +302,6 @@ def _failsafe_settings(rc: RelayController) -> str:
     ])
 
 
-OFFBOARD_MAKE = """# the example that flies a MAVLink vehicle in OFFBOARD through the library (aerorelay codegen --offboard)
-offboard: build/offboard
-
-build/offboard: tools/offboard.c build/libaerorelay_controller.a
-\t$(CC) -O2 -std=gnu99 -Wno-address-of-packed-member $(INC) -Imavlink tools/offboard.c build/libaerorelay_controller.a $(LIBS) $(RPATH) -o $@
-
-"""
 
 
 def _mavlink_headers(folder: Path) -> None:
@@ -403,105 +403,16 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
                  model_sz_w=model_fun.sz_w()),
     ])
     here = Path(__file__).resolve().parent.parent / "control"
-    planner_api = (f"""
-#define AR_HAS_PLANNER 1
-#define AR_NJ {len(gen.sp.jam_gains)}  /* jammers the planner knows */
-/* the paper's planner (the trajectory generator, its reference governor) and the NMPC's stage parameters P for the
- * next ar_step, from the relay's state x at time t, the source's position, velocity and acceleration (src_*), the
- * jammers as known (jam_p: AR_NJ x 3, row by row, m; jam_w: AR_NJ powers, W) and the external acceleration a_ext
- * (m/s^2, world; zeros without an estimate). Bad input (t or a value not finite, a jammer's power below 0, a NULL
- * array): AR_BAD_INPUT, P untouched. */
-ar_status ar_plan(ar_controller *c, double t, const double *x, const double *src_p, const double *src_v,
-                  const double *src_a, const double *jam_p, const double *jam_w, const double *a_ext, double *P);
-""" if gen is not None else f"\n#define AR_HAS_PLANNER 0  /* no planner in this tree: {no_planner} */\n")
-    header = f"""/* aerorelay: one relay's NMPC as a C library (scenario {sc.name!r}, relay {name!r}, written by aerorelay codegen;
- * every name of this tree begins with {prefix!r}: several trees link into one program). See README.md.
- * Units: SI; angles rad; rotor speeds Hz; inputs: motor accelerations, Hz/s. */
-#ifndef {prefix.upper()}_AERORELAY_CONTROLLER_H
-#define {prefix.upper()}_AERORELAY_CONTROLLER_H
-
-#define AR_NX {veh.nx}  /* plant state: position (3), Euler angles ZYX (3), velocity (3), body rates (3), rotor speeds */
-#define AR_NR {nr}  /* rotors: the command's length */
-#define AR_NP {spec.n_params}  /* stage parameters per stage (P is AR_NP x (AR_N + 1), column-major) */
-#define AR_N {spec.horizon}  /* horizon (stages) */
-#define AR_NXA {nxa}  /* the OCP's initial state (ar_reset) */
-#define AR_CONTROL_PERIOD_S {_c_number(float(control.period))}  /* one ar_step per control period */
-#define AR_SHIFT {int(rc_step.shift)}  /* ar_step's shift argument: the control period is the OCP's step */
-#define AR_HOVER_SPEEDS {{{", ".join(_c_number(v) for v in rc_step.vehicle.hover_speeds())}}}  /* level hover (Hz) */
-/* aerorelay's stale-input rules (control.relay_step.StaleSettings): hold after, ask the autopilot to land after (s) */
-#define AR_HOLD_AFTER_S {_c_number(stale.hold_after_s)}
-/* ... and its telemetry check (control.relay_step.TelemetryCheck): the vehicle's reach (m/s^2: full thrust over its mass
- * plus gravity) and what a measurement may differ beyond it (noise: m, m/s) */
-#define AR_ACCEL_MAX {_c_number(rc_step.check.a_max)}
-/* the verdict (verdict.fallback_fraction_max): a flight with more of its steps on the brake law did not fly on its NMPC */
-#define AR_FALLBACK_FRACTION_MAX {_c_number(sc.verdict.fallback_fraction_max)}
-#define AR_JUMP_TOLERANCE_M {_c_number(stale.jump_tolerance_m)}
-#define AR_JUMP_TOLERANCE_M_S {_c_number(stale.jump_tolerance_m_s)}
-#define AR_LAND_AFTER_S {_c_number(stale.land_after_s)}
-
-/* the types every tree shares (the same in every tree aerorelay writes: defined once in a program that links several) */
-#ifndef AERORELAY_SHARED_TYPES_1
-#define AERORELAY_SHARED_TYPES_1
-typedef enum {{
-  AR_OK = 0,           /* the NMPC's command */
-  AR_QP_FAILED = 1,    /* the QP failed: the previous plan's input, shifted (ar_step: fewer failures in a row than the
-                          hand-over needs) */
-  AR_BAD_INPUT = 2,    /* a non-finite state, input or parameter: ar_feedback holds (zero motor acceleration); ar_step
-                          hands over to the brake law (which holds when the state itself is not finite) */
-  AR_NOT_PREPARED = 3, /* ar_feedback before any ar_prepare: held */
-  AR_FALLBACK = 4      /* ar_step: the fail-safe brake law's command (the supervisor's envelope, QP failures) */
-}} ar_status;
-
-typedef struct {{
-  int ok;          /* the QP solved and its input is finite */
-  int qp_status;   /* HPIPM's status (0 success, 1 max iterations, 2 min step, 3 NaN, 4 inconsistent), -2: not run */
-  int iterations;  /* IPM iterations */
-  int capped;      /* stopped at the iteration cap with residuals within accept_tol */
-  double slack_max; /* largest slack of the solution (NaN when not ok) */
-  int fallback;    /* ar_step: the brake law flies */
-}} ar_info;
-
-/* why ar_trust did not trust a measurement */
-enum {{
-  AR_TRUSTED = 0, AR_UNTRUSTED_BAD_INPUT = 1, AR_UNTRUSTED_NOT_FINITE = 2, AR_UNTRUSTED_STAMP = 3, AR_UNTRUSTED_AHEAD = 4,
-  AR_UNTRUSTED_BACKWARDS = 5, AR_UNTRUSTED_POSITION_JUMP = 6, AR_UNTRUSTED_VELOCITY_JUMP = 7
-}};
-#endif
-
-typedef struct ar_controller ar_controller;
-
-/* The pointer contract: every call with a controller that is not alive (NULL, destroyed, never created) or a NULL
- * array returns AR_BAD_INPUT, never dereferencing it (a command array given is then held at zero motor acceleration);
- * a controller is alive from ar_create to ar_destroy, at most 64 at once in a process; ar_destroy of one not alive
- * does nothing. */
-ar_controller *ar_create(void);  /* NULL when memory cannot be had; no allocation afterwards */
-void ar_destroy(ar_controller *c);
-/* the plan: xa0 held over the horizon, zero inputs (done by the first ar_prepare from its x_guess) */
-ar_status ar_reset(ar_controller *c, const double *xa0);
-/* preparation, before the measurement: P the stage parameters, u_prev the last input, x_guess (the first call) */
-ar_status ar_prepare(ar_controller *c, const double *P, const double *u_prev, const double *x_guess);
-/* feedback: the measured state in, the motor accelerations u out (AR_NR); bad input: AR_BAD_INPUT, u = 0 (hold) */
-ar_status ar_feedback(ar_controller *c, const double *x, const double *u_prev, int shift, double *u, ar_info *info);
-/* one control step (aerorelay's RelayController.step): the supervisor's envelope, ar_prepare and ar_feedback, and the
- * fail-safe brake law after AR_FAILURES_TO_FALLBACK QP failures in a row or at once outside the envelope; the NMPC
- * resumes after AR_SUCCESSES_TO_RESUME successes from rest. shift: 1 when the period is the OCP's step. */
-ar_status ar_step(ar_controller *c, const double *x, const double *u_prev, const double *P, int shift, double *u,
-                  ar_info *info);
-/* whether a measurement of the relay (position p, m, and velocity v, m/s, world ENU, taken at stamp on the clock whose
- * now is t, s) can be flown, by aerorelay's telemetry check (control.relay_step.TelemetryCheck, the same rules and
- * thresholds): AR_OK, and it becomes the last trusted one; or AR_BAD_INPUT with why (AR_UNTRUSTED_*): not finite, the
- * stamp not finite or ahead of the clock by more than AR_HOLD_AFTER_S, before the last trusted one, or farther from it
- * than the vehicle can fly in the time between them (AR_ACCEL_MAX, plus AR_JUMP_TOLERANCE_M / _M_S). A measurement not
- * trusted is not flown: hold where the vehicle last was (and land after AR_LAND_AFTER_S), as aerorelay does. */
-ar_status ar_trust(ar_controller *c, double t, double stamp, const double *p, const double *v, int *why);
-/* an autopilot's setpoints for the command u stepped at x (aerorelay's Command): the relay's state one control
- * period ahead by the model's RK4 step, x1 (AR_NX: position, attitude ZYX, velocity, body rates, rotor speeds), and
- * its acceleration there with the external acceleration a_ext (m/s^2, world; zeros without an estimate). Bad input,
- * or a command no vehicle flies (the step not finite): AR_BAD_INPUT, x1 = x and acc = 0. */
-ar_status ar_setpoint(const double *x, const double *u, const double *a_ext, double *x1, double *acc);
-{planner_api}
-#endif
-"""
+    planner_api = (render("planner_api.h.in", jammers=len(gen.sp.jam_gains)) if gen is not None else
+                   f"\n#define AR_HAS_PLANNER 0  /* no planner in this tree: {no_planner} */\n")
+    header = render("aerorelay_controller.h.in", scenario_repr=repr(sc.name), relay_repr=repr(name), prefix_repr=repr(prefix),
+                    PREFIX=prefix.upper(), nx=veh.nx, nr=nr, n_params=spec.n_params, horizon=spec.horizon, nxa=nxa,
+                    control_period_s=_c_number(float(control.period)), shift=int(rc_step.shift),
+                    hover_speeds=", ".join(_c_number(v) for v in rc_step.vehicle.hover_speeds()),
+                    hold_after_s=_c_number(stale.hold_after_s), accel_max=_c_number(rc_step.check.a_max),
+                    fallback_fraction_max=_c_number(sc.verdict.fallback_fraction_max),
+                    jump_tolerance_m=_c_number(stale.jump_tolerance_m), jump_tolerance_m_s=_c_number(stale.jump_tolerance_m_s),
+                    land_after_s=_c_number(stale.land_after_s), planner_api=planner_api)
     unit = "\n".join([
         "/* aerorelay codegen: the engine and the controller in one translation unit, in the order aerorelay compiles them */",
         "#include <float.h>", generated,
@@ -512,142 +423,17 @@ ar_status ar_setpoint(const double *x, const double *u, const double *a_ext, dou
     ])
     cdir = _casadi_dir()
     flags = " ".join(ENGINE_FLAGS)
-    makefile = f"""# aerorelay codegen: build the controller library and replay (make; make SIMD=1 on AVX2/FMA x86-64 with a generic
-# BLASFEO; HPIPM_PREFIX / BLASFEO_PREFIX: an acados install, or CasADi's wheel, the default)
-CC ?= cc
-CFLAGS ?= {flags}
-HPIPM_PREFIX ?= {cdir}
-BLASFEO_PREFIX ?= $(HPIPM_PREFIX)
-SIMD ?= 0
-DEFS := $(if $(filter 1,$(SIMD)),-DAR_SIMD,)
-INC := -Iinclude -Isrc -I$(HPIPM_PREFIX)/include -I$(HPIPM_PREFIX)/include/hpipm/include -I$(BLASFEO_PREFIX)/include \\
-       -I$(BLASFEO_PREFIX)/include/blasfeo/include
-LIBS := -L$(HPIPM_PREFIX) -L$(HPIPM_PREFIX)/lib -L$(BLASFEO_PREFIX) -L$(BLASFEO_PREFIX)/lib -lhpipm -lblasfeo -lm
-RPATH := -Wl,-rpath,$(HPIPM_PREFIX) -Wl,-rpath,$(HPIPM_PREFIX)/lib -Wl,-rpath,$(BLASFEO_PREFIX) -Wl,-rpath,$(BLASFEO_PREFIX)/lib
-
-all: build/libaerorelay_controller.a build/replay build/bench
-
-# position-independent objects: one compile for the static and the shared library
-build/aerorelay_controller.o: src/{SOURCE} src/blasfeo_avx2.c include/{HEADER}
-\tmkdir -p build
-\t$(CC) $(CFLAGS) $(DEFS) $(INC) -fPIC -c src/{SOURCE} -o $@
-
-build/aerorelay_planner.o: src/{PLANNER_SOURCE}
-\tmkdir -p build
-\t$(CC) $(CFLAGS) -fPIC -c src/{PLANNER_SOURCE} -o $@
-
-build/aerorelay_model.o: src/{MODEL_SOURCE}
-\tmkdir -p build
-\t$(CC) $(CFLAGS) -fPIC -c src/{MODEL_SOURCE} -o $@
-
-OBJS := build/aerorelay_controller.o build/aerorelay_planner.o build/aerorelay_model.o
-
-# a shared library (aerorelay codegen --fly loads it to fly the scenario with the C commands)
-shared: build/libaerorelay_controller.so
-
-build/libaerorelay_controller.so: $(OBJS)
-\t$(CC) -shared $^ $(LIBS) $(RPATH) -o $@
-
-build/libaerorelay_controller.a: $(OBJS)
-\tar rcs $@ $^
-
-build/replay: tools/replay.c build/libaerorelay_controller.a
-\t$(CC) $(CFLAGS) $(INC) tools/replay.c build/libaerorelay_controller.a $(LIBS) $(RPATH) -o $@
-
-build/bench: tools/bench.c build/libaerorelay_controller.a
-\t$(CC) $(CFLAGS) $(INC) tools/bench.c build/libaerorelay_controller.a $(LIBS) $(RPATH) -o $@
-
-{OFFBOARD_MAKE if offboard else ""}clean:
-\trm -rf build
-
-.PHONY: all shared clean
-"""
-    cmake = f"""cmake_minimum_required(VERSION 3.13)
-project(aerorelay_controller C)
-# aerorelay codegen: HPIPM and BLASFEO at a prefix (an acados install, or CasADi's wheel, the default)
-# or, with -DAR_FETCH_HPIPM=ON, BLASFEO and HPIPM fetched from their repositories at pinned commits and built with the
-# tree (a board without an acados install; needs the network, or FETCHCONTENT_SOURCE_DIR_BLASFEO / _HPIPM naming clones)
-set(HPIPM_PREFIX "{cdir}" CACHE PATH "HPIPM's install prefix")
-set(BLASFEO_PREFIX "${{HPIPM_PREFIX}}" CACHE PATH "BLASFEO's install prefix")
-option(AR_SIMD "BLASFEO's two hottest kernels for AVX2/FMA (x86-64, CasADi's generic BLASFEO)" OFF)
-option(AR_FETCH_HPIPM "fetch BLASFEO and HPIPM at pinned commits and build them here (instead of HPIPM_PREFIX)" OFF)
-set(AR_BLASFEO_TARGET "GENERIC" CACHE STRING "BLASFEO's TARGET when fetched (GENERIC, X64_INTEL_HASWELL, ARMV8A_ARM_CORTEX_A57, ...)")
-set(AR_HPIPM_TARGET "GENERIC" CACHE STRING "HPIPM's TARGET when fetched (GENERIC or AVX)")
-if(AR_FETCH_HPIPM)
-  include(FetchContent)
-  set(CMAKE_POSITION_INDEPENDENT_CODE ON)
-  set(BLASFEO_EXAMPLES OFF CACHE BOOL "" FORCE)
-  set(HPIPM_TESTING OFF CACHE BOOL "" FORCE)
-  FetchContent_Declare(blasfeo GIT_REPOSITORY https://github.com/giaf/blasfeo.git GIT_TAG {BLASFEO_COMMIT})
-  FetchContent_Declare(hpipm GIT_REPOSITORY https://github.com/giaf/hpipm.git GIT_TAG {HPIPM_COMMIT})
-  set(TARGET ${{AR_BLASFEO_TARGET}})  # each project reads its own TARGET
-  FetchContent_MakeAvailable(blasfeo)
-  set(TARGET ${{AR_HPIPM_TARGET}})
-  FetchContent_MakeAvailable(hpipm)
-  set(HPIPM_LIB hpipm)
-  set(BLASFEO_LIB blasfeo)
-else()
-  find_library(HPIPM_LIB hpipm PATHS ${{HPIPM_PREFIX}} ${{HPIPM_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
-  find_library(BLASFEO_LIB blasfeo PATHS ${{BLASFEO_PREFIX}} ${{BLASFEO_PREFIX}}/lib NO_DEFAULT_PATH REQUIRED)
-endif()
-add_library(aerorelay_controller STATIC src/{SOURCE} src/{PLANNER_SOURCE} src/{MODEL_SOURCE})
-target_compile_options(aerorelay_controller PRIVATE {flags})
-target_include_directories(aerorelay_controller PUBLIC include PRIVATE src ${{HPIPM_PREFIX}}/include
-    ${{HPIPM_PREFIX}}/include/hpipm/include ${{BLASFEO_PREFIX}}/include ${{BLASFEO_PREFIX}}/include/blasfeo/include)
-if(AR_SIMD)
-  target_compile_definitions(aerorelay_controller PRIVATE AR_SIMD)
-endif()
-target_link_libraries(aerorelay_controller PUBLIC ${{HPIPM_LIB}} ${{BLASFEO_LIB}} m)
-add_executable(replay tools/replay.c)
-target_compile_options(replay PRIVATE {flags})
-target_include_directories(replay PRIVATE src)
-target_link_libraries(replay PRIVATE aerorelay_controller)
-add_executable(bench tools/bench.c)
-target_compile_options(bench PRIVATE {flags})
-target_include_directories(bench PRIVATE src)
-target_link_libraries(bench PRIVATE aerorelay_controller)
-"""
+    sources = {"header": HEADER, "source": SOURCE, "planner_source": PLANNER_SOURCE, "model_source": MODEL_SOURCE,
+               "casadi_dir": cdir, "flags": flags}
+    makefile = render("Makefile.in", **sources, offboard_make=render("offboard.mk.in") if offboard else "")
+    cmake = render("CMakeLists.txt.in", **{k: v for k, v in sources.items() if k != "header"}, blasfeo_commit=BLASFEO_COMMIT,
+                   hpipm_commit=HPIPM_COMMIT)
     planner_said = ("the paper's trajectory generator and its reference governor are in the tree: `ar_plan` makes the "
                     "stage parameters `P` from the source's and the jammers' states" if gen is not None else
                     f"not in this tree ({no_planner}): the stage parameters `P` come from outside")
-    readme = f"""# aerorelay controller: scenario `{sc.name}`, relay `{name}`
-
-Written by `aerorelay codegen` (aerorelay, CasADi {CASADI_VERSION}). One relay's controller as a C99 library with the
-scenario's settings baked in: the NMPC (real-time iteration, HPIPM), the flight-safety supervisor's envelope and the
-fail-safe brake law. The command it returns equals the Python controller's for the same steps (`replay`, below).
-Planner: {planner_said}.
-
-Build (HPIPM and BLASFEO from CasADi's wheel by default, or `HPIPM_PREFIX=/opt/acados`):
-
-    make                       # build/libaerorelay_controller.a, build/replay, build/bench (make shared: the .so)
-    cmake -B build-cmake && cmake --build build-cmake
-    # for an aarch64 companion computer (HPIPM/BLASFEO built for it): see cmake/aarch64-linux-gnu.cmake
-
-API: `include/{HEADER}`, every C name beginning with `{prefix}` (`aerorelay codegen --prefix`: give each relay's tree
-its own and one program links several; the status and info types are shared). Each control period (after `ar_plan` where the tree has the planner)
-`ar_step(c, x, u_prev, P, 1, u, &info)`: the envelope, the NMPC, the
-brake law when it must fly (`AR_FALLBACK`). Or the NMPC alone in two phases: `ar_prepare(c, P, u_prev, x)` before
-the measurement, then `ar_feedback(c, x, u_prev, 1, u, &info)`. Dimensions: state {veh.nx}, rotors {nr}, stage
-parameters {spec.n_params} x {spec.horizon + 1}.
-
-Check it against Python: `aerorelay codegen SCENARIO --out DIR --record steps.csv` writes the steps of a simulated
-flight and the Python controller's brake-law flags and commands (`steps.csv.expected`); `build/replay steps.csv`
-prints status, ok, HPIPM status, iterations, brake law and the command per step. `--fly` flies the scenario with this
-library's commands (`fly.json`: C_min, the largest difference from Python's). `build/bench steps.csv 3` times
-every recorded step through the library, no Python in the loop (ns per step: whole, preparation, feedback);
-`aerorelay bench SCENARIO --backend c` runs it against the Python controller, alternating.
-
-An autopilot's setpoints for a command: `ar_setpoint(x, u, a_ext, x1, acc)`, the state one control period
-({_c_number(float(control.period))} s) ahead by the model's RK4 step and its acceleration there.
-""" + ("""
-This tree is the controller of the vehicle an autopilot flies (thrust along body z, as `aerorelay fly` plans) with an
-example that flies a MAVLink vehicle in PX4's OFFBOARD mode through the library (`tools/offboard.c`; MAVLink's C
-headers in `mavlink/`, generated by pymavlink's mavgen; `world.csv`: the source and the jammers as the relay knows them
-on the mission's clock):
-
-    make offboard
-    build/offboard 127.0.0.1 14540 60 --arm --world world.csv --log flight.csv   # e.g. against `aerorelay sitl`
-""" if offboard else "")
+    readme = render("README.md.in", scenario=sc.name, relay=name, casadi_version=CASADI_VERSION, planner_said=planner_said,
+                    header=HEADER, prefix=prefix, nx=veh.nx, nr=nr, n_params=spec.n_params, stages=spec.horizon + 1,
+                    control_period_s=_c_number(float(control.period))) + (render("README.offboard.md.in") if offboard else "")
     (out / "include").mkdir()
     (out / "src").mkdir()
     (out / "tools").mkdir()
@@ -661,7 +447,7 @@ on the mission's clock):
              f"src/{MODEL_SOURCE}": _with_names(model_source, prefix, "model"),
              "tools/replay.c": _with_names((here / "ar_replay.c").read_text(), prefix),
              "tools/bench.c": _with_names((here / "ar_bench.c").read_text(), prefix),
-             "Makefile": makefile, "CMakeLists.txt": cmake, "cmake/aarch64-linux-gnu.cmake": AARCH64_TOOLCHAIN,
+             "Makefile": makefile, "CMakeLists.txt": cmake, "cmake/aarch64-linux-gnu.cmake": render("aarch64-linux-gnu.cmake"),
              "README.md": renamed(readme, mapping),
              "manifest.json": json.dumps({"scenario": sc.name, "relay": name, "casadi": CASADI_VERSION,
                                           "nx": veh.nx, "nr": nr, "n_params": spec.n_params, "horizon": spec.horizon,
