@@ -114,3 +114,15 @@ def test_a_prefix_that_cannot_begin_c_names_is_refused_before_any_work(tmp_path)
         with pytest.raises(ValueError, match=r"--prefix: .*lowercase letter"):
             codegen(sc, tmp_path / "tree", prefix=bad)
         assert not (tmp_path / "tree").exists()
+
+
+def test_a_template_and_its_caller_agree_on_every_placeholder():
+    """The tree's text files are templates (``assembly/templates``): a placeholder left without a value, or a value
+    given for none, is an error, never a literal ``{{name}}`` in a tree or a setting silently dropped."""
+    from aerorelay.assembly.codegen import render
+
+    assert "#define AR_NJ 3" in render("planner_api.h.in", jammers=3)
+    with pytest.raises(ValueError, match=r"placeholders \['jammers'\] have no value"):
+        render("planner_api.h.in")
+    with pytest.raises(ValueError, match=r"values \['extra'\] no placeholder"):
+        render("planner_api.h.in", jammers=3, extra=1)
