@@ -16,7 +16,6 @@ from rich.table import Table
 
 from . import api
 from .api import CampaignBusyError, OutputBusyError, OutputError, Scenario, ScenarioError, StudyError, load_scenario
-from .config.network import sole
 from .flight.names import check_ros_namespace
 from .planning.plugins import PluginError
 from .planning.plugins import load as load_plugins
@@ -447,23 +446,19 @@ def _unit_of(key: str, capacity_unit: str) -> str:
     return api.metric_unit(key.split(".")[0], capacity_unit) or ""
 
 
-def _fleet_keys(runs: dict[str, dict]) -> list[str]:
-    """A fleet's key metrics (the network's rate and separation, each route's, each relay's), or []
-    when every run flew one relay."""
-    fleets = [m for m in runs.values() if (m.get("relays") and sole(m["relays"]) is None) or len(m.get("routes", {})) > 1]
-    if not fleets:
-        return []
-    routes = sorted({s for m in fleets for s in m.get("routes", {})})
-    relays = sorted({r for m in fleets for r in m["relays"]})
-    return (["c_min", "c_mean", *DIRECT_KEYS, "outage_fraction", "separation_min_m", *ESTIMATION_KEYS]
-            + [f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
+def _node_keys(runs: dict[str, dict]) -> list[str]:
+    """Every route's and every relay's key metrics of the runs (any number of relays and sources: the same rows for
+    one as for many; a relay's row shows where a network's relays differ, one relay's where its top-level value is)."""
+    routes = sorted({s for m in runs.values() for s in m.get("routes", {})})
+    relays = sorted({r for m in runs.values() for r in m.get("relays", {})})
+    return ([f"routes.{s}.{q}" for s in routes for q in ("c_min", "c_mean")]
             + [f"relays.{r}.{q}" for r in relays for q in ("position_error_mean_m", "energy_kJ", "box_violation_max_m",
                                                           "solve_ms.mean", "solve_ms.p99", "fallback_fraction",
                                                           "infeasible_fraction", "soc_final_fraction",
                                                           "battery_reserve_first_s", "went_home_at_s", "landed_at_s",
                                                           "exit_status")]
-            + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "wall_s", "sim_s", "bound.static.mean", "bound.achieved.mean",
-               "capacity_efficiency_mean", "capacity_efficiency_mean_achieved", "exit_status"])
+            + ["fleet_solve_ms.mean", "fleet_solve_ms.p99", "bound.static.mean", "bound.achieved.mean",
+               "capacity_efficiency_mean_achieved"])
 
 
 def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
@@ -476,7 +471,7 @@ def _metrics_table(runs: dict[str, dict], ratio: bool = False) -> Table:
         t.add_column(name, justify="right")
     if ratio:
         t.add_column("ratio B/A", justify="right")
-    for key in _fleet_keys(runs) or KEY_METRICS:
+    for key in dict.fromkeys([*KEY_METRICS, *_node_keys(runs)]):
         vals = [_lookup(m, key) for m in runs.values()]
         if all(v is None for v in vals):
             continue  # a feature no run has (a bound, wind, losses, ...): no row of dashes

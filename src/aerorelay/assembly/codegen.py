@@ -10,7 +10,8 @@ a small C API; a Makefile and a CMake project that find HPIPM and BLASFEO at a p
 CasADi's wheel this tree was written with, so it builds offline); and ``replay``, which runs recorded steps through
 the library (``record_calls`` records them from a Python flight). The tree's text files (its header, Makefile, CMake
 project, README, toolchain file) are templates in ``assembly/templates`` (``render``); its C sources are aerorelay's own
-(``control/*.c``) and CasADi's generated code, every global name carrying the tree's prefix (``tree_names``). Where the relay flies the paper's planner, the
+(``control/*.c``) and CasADi's generated code, every global name carrying the tree's prefix (``tree_names``). Where the
+relay flies the paper's planner, the
 tree carries it too (``control/ar_planner.c`` with the CasADi-generated expansion as its own translation unit:
 ``ar_plan`` makes the stage parameters). ``flown_by_c`` flies a scenario with the tree's shared library's commands
 (``CController``).
