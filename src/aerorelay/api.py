@@ -51,9 +51,13 @@ from .control.network import Controller
 from .control.nmpc import NmpcSettings
 from .control.relay_step import StaleSettings
 from .experiments import flight as _flight
-from .experiments.budget import flight_seconds, left_out_notices, within_budget
+from .experiments.budget import flight_seconds, left_out_notices, run_cost_s, within_budget
 from .experiments.campaign import CampaignBusyError, CampaignResult, RunStatus, is_finished, load_manifest, run_campaign
 from .experiments.chains import long_chain
+from .experiments.design import BY as DESIGN_BY
+from .experiments.design import design_runs
+from .experiments.design import summarize as summarize_design
+from .experiments.design import write_outputs as write_design
 from .experiments.run import RunResult, check_not_injected, check_run_size, output_bytes
 from .experiments.run import simulate as _simulate
 from .experiments.study import Study, StudyError, expand, find_studies, read_studies
@@ -628,6 +632,34 @@ def reproduce(studies: list[str] | None = None, *, out: str | Path, quick: bool 
             "wall_s": res.wall_s, "notices": notices}
     summary = _write_report(chosen, specs, out, meta)
     return Reproduction(chosen, specs, res, summary, out / "report.html")
+
+
+def design(sc: Scenario, out: str | Path, *, relays: Sequence[int] = (1, 2, 3), schedules: Sequence[str] = ("tdma",),
+           bound: bool = True, by: str = "c_mean", scheduler: str | None = None, workers: int | None = None,
+           progress=None, on_start=None, wait: bool = False) -> dict:
+    """How many relays ``sc``'s mission needs and under which schedule (``experiments.design``): for each count in
+    ``relays`` and each of ``schedules``, capacity-seeking relays the tool places, flown with their bound and the
+    direct link, as a campaign in ``out`` (resumable; on dask: ``scheduler`` or ``workers`` local ones);
+    ``on_start(n_runs, estimate_s)`` before the first run (the estimated wall time on the workers, ``experiments.budget``),
+    ``progress(done, total, record)`` after each. Writes ``design.json``, ``design.png`` and ``recommended.toml`` (the
+    best flown by ``by``, ``c_mean`` or ``c_min``); returns ``design.json``'s content. Every point is validated before
+    any work."""
+    runs = design_runs(sc, list(relays), list(schedules), bound=bound)
+    if by not in DESIGN_BY:
+        raise ValueError(f"--by: {by!r}: one of {', '.join(DESIGN_BY)}")
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers: must be >= 1, got {workers}")
+    specs = [r.spec for r in runs]
+    out = Path(out)
+    check_output_folder(out, "campaign")
+    n = workers or os.cpu_count() or 1
+    if on_start is not None:
+        seen: set[str] = set()
+        on_start(len(specs), sum(run_cost_s(s, seen) for s in specs) / min(n, len(specs)))
+    run_campaign(specs, out, scheduler=scheduler, n_workers=workers, progress=progress, wait=wait)
+    summary = summarize_design(out, runs, by)
+    write_design(out, runs, summary, sc.channel.capacity_unit)
+    return summary
 
 
 # ---------------------------------------------------------------- what the command line calls

@@ -790,6 +790,82 @@ def reproduce(
 
 
 @app.command()
+def design(
+    scenario: Path = typer.Argument(..., help="scenario TOML file (its mission, jammers, base stations, workspace)",
+                                    show_default=False),
+    out: Path = typer.Option(..., "--out", help="the design's folder (a campaign: re-running the command resumes it)",
+                             show_default=False),
+    relays: str = typer.Option("1-3", "--relays", help="the relay counts to try: 'A-B', 'K' or 'A,B,C' (1-16; the direct "
+                               "link, no relay, is in every design)"),
+    schedule: list[str] = typer.Option(["tdma"], "--schedule", help="a schedule to try (network.schedule: tdma, "
+                                       "spatial_reuse, full_duplex); repeat for several"),
+    by: str = typer.Option("c_mean", "--by", help="what 'best flown' means: c_mean or c_min"),
+    bound: bool = typer.Option(True, "--bound/--no-bound", help="each point's capacity bound (its upper bound and flyable "
+                               "path) beside its flight"),
+    duration: float = typer.Option(None, "--duration", help="fly only this many seconds of the mission", show_default=False),
+    scheduler: str = typer.Option(None, "--scheduler", help="address of an existing dask scheduler (default: local cluster)",
+                                  show_default=False),
+    workers: int = typer.Option(None, "--workers", min=1, help="local cluster size (default: one per core)", show_default=False),
+    wait: bool = typer.Option(False, "--wait", help="wait for another campaign running in the same folder instead of refusing"),
+    set_: list[str] = typer.Option(None, "--set", help=SET_HELP, show_default=False),
+    unset: list[str] = typer.Option(None, "--unset", help=UNSET_HELP, show_default=False),
+):
+    """How many relays a mission needs, under which schedule: for each relay count (placed by the tool on the line from
+    the base station toward the source) and schedule, capacity-seeking relays flown with their bound and against the
+    direct link; design.json, design.png and the recommended design as recommended.toml."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from .experiments.design import parse_relays
+
+    _check_duration(duration)
+    sc = _load_or_exit(scenario, set_, unset)
+    if duration is not None:
+        sc = sc.with_updates({"sim.duration_s": duration})
+    try:
+        counts = parse_relays(relays)
+    except ValueError as exc:
+        _fail(str(exc))
+    _check_out(out, "campaign")
+    cols = (TextColumn("design"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
+    try:
+        with Progress(*cols, console=err_console) as prog:
+            task = prog.add_task("", total=1)
+
+            def on_start(n_runs, estimate_s):
+                prog.update(task, total=n_runs)
+                console.print(f"{n_runs} design points (relays {', '.join(map(str, counts))}; {', '.join(schedule)}) -> {out}; "
+                              f"estimated {estimate_s / 60.0:.1f} min here", markup=False, highlight=False)
+
+            def progress(done, total, rec):
+                prog.update(task, completed=done, description="" if rec is None else f"{rec['group']}: {rec['status']}")
+
+            summary = api.design(sc, out, relays=counts, schedules=schedule, bound=bound, by=by, scheduler=scheduler,
+                                 workers=workers, progress=progress, on_start=on_start, wait=wait)
+    except (ScenarioError, ValueError, CampaignBusyError, OutputError) as exc:
+        _fail(str(exc))
+    unit = sc.channel.capacity_unit
+    t = Table(title=f"design: {by} per relay count and schedule ({unit})")
+    for c in ("relays", "schedule", f"flown {by}", "bound (upper mean)", "flyable mean", "exit"):
+        t.add_column(c, justify="left" if c in ("schedule", "exit") else "right")
+    if summary["direct"] is not None:
+        t.add_row("0", "direct link", api.si(float(summary["direct"][by]), unit), "-", "-", "-")
+    for p in summary["points"]:
+        f, b = p.get("flown") or {}, p.get("bound") or {}
+        t.add_row(str(p["relays"]), p["schedule"], "-" if f.get(by) is None else api.si(float(f[by]), unit),
+                  "-" if b.get("upper_mean") is None else api.si(float(b["upper_mean"]), unit),
+                  "-" if b.get("flyable_mean") is None else api.si(float(b["flyable_mean"]), unit),
+                  str(f.get("exit_status", p["status"])))
+    console.print(t)
+    rec = summary["recommended"]
+    console.print(f"recommended: {rec.get('relays')} relays" + (f", {rec['schedule']}" if rec.get("schedule") else "")
+                  + f" ({rec['why']}); {out / 'design.json'}, {out / 'design.png'}"
+                  + (f", {out / 'recommended.toml'}" if rec.get("schedule") else ""), markup=False, highlight=False)
+    if summary["missing"]:
+        err_console.print(f"{len(summary['missing'])} design point(s) did not fly: {', '.join(summary['missing'])}", markup=False)
+        raise typer.Exit(1)
+
+
+@app.command()
 def export(
     run_dir: Path = typer.Argument(..., help="a run folder (aerorelay run --out, or a campaign's runs/<study>/<run>/seed<k>)", show_default=False),
     fmt: str = typer.Option("mcap", "--format", help="mcap: run.mcap with Foxglove's schemas; csv (per vehicle: ENU, NED, "
