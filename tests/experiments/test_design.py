@@ -44,8 +44,9 @@ def test_the_placed_relays_lie_on_the_line_apart_and_inside_the_workspace(k):
 
 def test_a_design_flies_every_point_and_recommends_the_best_flown(tmp_path):
     out = tmp_path / "design"
-    r = runner.invoke(app, ["design", str(ROOT / "scenarios" / "long_inspection.toml"), "--out", str(out), "--relays", "1-2",
-                            "--schedule", "tdma", "--schedule", "full_duplex", "--duration", "2", "--no-bound", "--workers", "1"])
+    args = ["design", str(ROOT / "scenarios" / "long_inspection.toml"), "--out", str(out), "--relays", "1,2", "--schedule", "tdma",
+            "--schedule", "full_duplex", "--duration", "1", "--no-bound", "--workers", "1"]
+    r = runner.invoke(app, args)
     assert r.exit_code == 0, r.output
     d = json.loads((out / "design.json").read_text())
     assert {(p["relays"], p["schedule"]) for p in d["points"]} == {(k, s) for k in (1, 2) for s in ("tdma", "full_duplex")}
@@ -57,9 +58,7 @@ def test_a_design_flies_every_point_and_recommends_the_best_flown(tmp_path):
         assert len(rec.relay_list) == d["recommended"]["relays"] and rec.network.schedule == d["recommended"]["schedule"]
     assert (out / "design.png").stat().st_size > 0
     # resumed: nothing flown again, the same design
-    again = runner.invoke(app, ["design", str(ROOT / "scenarios" / "long_inspection.toml"), "--out", str(out), "--relays",
-                                "1-2", "--schedule", "tdma", "--schedule", "full_duplex", "--duration", "2", "--no-bound",
-                                "--workers", "1"])
+    again = runner.invoke(app, args)
     assert again.exit_code == 0 and json.loads((out / "design.json").read_text())["recommended"] == d["recommended"]
 
 
