@@ -4,18 +4,15 @@ and, with ``[wind]``, its own external-force observer."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from ..config import Scenario, ScenarioError
 from ..control.network import Controller, NetworkController
 from ..control.nmpc import NmpcSettings
 from ..control.readings import JammersFromReadings
-from ..control.relay_step import RelayStep, StaleSettings
+from ..control.relay_step import StaleSettings
 from ..models.radio import RadioScene
 from ..sim.closed_loop import known_jammers
-from . import world
 from .parts import build
 
 
@@ -68,12 +65,9 @@ def build_controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
         raise ScenarioError(f"relays[{i}].standby: spare relays take over in ar.simulate / aerorelay run; flying a fleet "
                             "from outside (ar.controller, aerorelay fly, ROS 2) does not launch them: leave the spare out")
     flown = thrust_along_body_z(sc) if autopilot else sc
-    parts = build(flown, nmpc_settings=nmpc_settings)
-    stale = stale or StaleSettings(ground_z_m=sc.world.ground_z_m)
-    relays = [replace(r, stepper=RelayStep(vehicle=r.vehicle, controller=r.controller, period_s=sc.control_period_s, stale=stale,
-                                           observer=world.observer(flown, r.vehicle) if observer else None))
-              for r in parts.relays]
-    control = NetworkController(scene=parts.scene, relays=relays, planner=parts.planner, period_s=sc.control_period_s,
+    parts = build(flown, nmpc_settings=nmpc_settings, stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m),
+                  observers=observer)
+    control = NetworkController(scene=parts.scene, relays=parts.relays, planner=parts.planner, period_s=sc.control_period_s,
                                 separation_m=parts.separation_m, replanner=parts.replanner, planner_name=parts.planner_name)
     senses = sc.controller.senses_jammer_state
     if parts.sensing is not None:  # estimated from the readings step() is handed, by every relay's receiver

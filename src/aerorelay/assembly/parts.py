@@ -491,11 +491,15 @@ class Parts:
 
 
 def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | None = None,
-          jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None) -> Parts:
+          jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None,
+          stale: StaleSettings | None = None, observers: bool = False) -> Parts:
     """The parts of ``sc``, for any number of relays and sources; ``planner``, ``scene`` or ``jammers``
     given here replace the ones the scenario names (objects with the same interface: see
     ``planning.base``, ``models.radio``; a planner given for a network plans its first relay, the others
-    holding their starts). The scenario's physics checks run first (once per content: ``assembly.checks``)."""
+    holding their starts). Every relay's step holds and lands by ``stale`` (default: on the world's ground) and, with
+    ``observers`` and ``[wind]``, has its own external-force observer (a controller stepped from outside: the
+    simulation's air observes in the loop instead). The scenario's physics checks run first (once per content:
+    ``assembly.checks``)."""
     check_physics(sc)
     scene = scene or build_scene(sc, jammers)
     network = sc.shape.neighbours
@@ -511,7 +515,8 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         controller = build_controller(view, vehicle, nmpc_settings, others,
                                       p0_parameter=(network or sc.has_handover) and comms_aware(view), name=r.name)
         stepper = RelayStep(vehicle=vehicle, controller=controller, period_s=sc.control_period_s,
-                            stale=StaleSettings(ground_z_m=sc.world.ground_z_m))
+                            stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m),
+                            observer=world.observer(sc, vehicle) if observers else None)
         bat = view.platform.battery
         battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
                                                    bat.avionics_w)
