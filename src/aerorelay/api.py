@@ -28,7 +28,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
-from .assembly.codegen import CController, build_shared, flown_by_c, is_recording, record_calls, write_tree
+from .assembly.codegen import CController, Shadow, build_shared, flown_by_c, is_recording, record_calls, write_tree
 from .assembly.codegen import bench_c as codegen_bench_c
 from .assembly.flight import build_controller
 from .assembly.load import parse_sets as _parse_sets
@@ -716,11 +716,18 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
                      "no_planner_because": tree.no_planner_because, "relay": tree.relay, "prefix": tree.prefix}
     flown: dict = {}
 
-    def fly_c(s: Scenario) -> RunResult:
+    def fly_c(s: Scenario, install=None) -> RunResult:
         controller = CController(build_shared(tree), tree)
+        shadow = Shadow(planned=tree.planner)
+        flying = flown_by_c(controller, shadow)
+
+        def both(control) -> None:  # the recorder first (it steps Python's controller), the C flight around it
+            if install is not None:
+                install(control)
+            flying(control)
+
         try:
-            with flown_by_c(controller) as shadow:
-                r = simulate(s, bound=False)
+            r = simulate(s, bound=False, install=both)
         finally:
             controller.close()
         m = r.metrics
@@ -731,7 +738,7 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
                      planned_in_c=shadow.planned, max_parameter_difference=shadow.max_parameter_difference)
         return r
 
-    fly_or_simulate = fly_c if fly else (lambda s: simulate(s, bound=False))
+    fly_or_simulate = fly_c if fly else (lambda s, install=None: simulate(s, bound=False, install=install))
     if record is not None:
         summary["recorded"] = int(len(record_calls(sc, Path(record), simulate=fly_or_simulate, relay=tree.relay,
                                                    fly=tree.planner)))

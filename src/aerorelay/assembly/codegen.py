@@ -467,77 +467,47 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
                 name, prefix)
 
 
-@contextlib.contextmanager
-def _planner_inputs(seen: dict):
-    """Keep in ``seen`` what the network's planner is given each step (``plan``: t, the first source's state, the
-    jammers as known) and the external acceleration the relay's stage parameters take (``a_ext``): the paper's
-    planner's inputs, as ``ar_plan`` takes them."""
-    plan, parameters = NetworkController.plan, RelayStep.parameters
-
-    def rec_plan(self, t, x, sources, jammers):
-        seen["plan"] = (t, next(iter(sources.values())), jammers)
-        return plan(self, t, x, sources, jammers)
-
-    def rec_parameters(self, ref, *, p2_path, p0_path=None, others=None, separation_m=0.0, a_ext=None):
-        resolved = a_ext if a_ext is not None else (self.observer.estimate if self.observer is not None else np.zeros(3))
-        seen["a_ext"] = np.array(resolved, float)
-        return parameters(self, ref, p2_path=p2_path, p0_path=p0_path, others=others, separation_m=separation_m,
-                          a_ext=a_ext)
-
-    NetworkController.plan = rec_plan  # type: ignore[method-assign]
-    RelayStep.parameters = rec_parameters  # type: ignore[method-assign]
-    try:
-        yield
-    finally:
-        NetworkController.plan = plan  # type: ignore[method-assign]
-        RelayStep.parameters = parameters  # type: ignore[method-assign]
-
-
-def _fly_numbers(seen: dict) -> tuple[float, list[np.ndarray]]:
-    """``ar_plan``'s inputs from ``seen``: t, then the source's p, v, a, the jammers' positions (row by row), their
-    powers, the external acceleration."""
-    t, src, (pj, powers, _) = seen["plan"]
+def _fly_numbers(control: NetworkController, step: RelayStep) -> tuple[float, list[np.ndarray]]:
+    """``ar_plan``'s inputs at this step: t, then the (first) source's p, v, a, the jammers' positions (row by row),
+    their powers, the external acceleration the relay's stage parameters took (``NetworkController.last_plan``,
+    ``RelayStep.last_a_ext``)."""
+    assert control.last_plan is not None  # the network plans before its relays step
+    t, sources, (pj, powers, _) = control.last_plan
+    src = next(iter(sources.values()))
     return float(t), [np.asarray(src.p, float), np.asarray(src.v, float), np.asarray(src.a, float),
-                      np.ravel(np.asarray(pj, float)), np.ravel(np.asarray(powers, float)), seen["a_ext"]]
+                      np.ravel(np.asarray(pj, float)), np.ravel(np.asarray(powers, float)), step.last_a_ext]
 
 
-@contextlib.contextmanager
-def _recording(relay: str, lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None,
-               *, fly: bool = False, params: list[np.ndarray] | None = None):
-    """Every step of relay ``relay``'s controller (``RelayController.name``), as ``ar_replay.c`` reads them (``fly``: with what the
-    planner was given, for a tree with the paper's planner: ``fly`` lines; else ``step`` lines with the stage
-    parameters), its commands (the brake law's flag first) and ``params``: its stage parameters; ``times_ms``: each
-    step's time (``RelayController.step``, ms)."""
-    step = RelayController.step
-    seen: dict = {}
+def recorder(relay: str, lines: list[str] | None, expected: list[np.ndarray] | None, times_ms: list[float] | None = None,
+             *, fly: bool = False, params: list[np.ndarray] | None = None) -> Callable[[NetworkController], None]:
+    """An installer (``experiments.run.simulate``'s ``install``) of a step backend that records every step of relay
+    ``relay``'s controller as ``ar_replay.c`` reads them (``fly``: with what the planner was given, for a tree with
+    the paper's planner: ``fly`` lines; else ``step`` lines with the stage parameters), its commands (the brake law's
+    flag first) and ``params``: its stage parameters; ``times_ms``: each step's time (``RelayController.step``, ms)."""
 
     def fmt(*arrays) -> str:
         return ",".join(repr(float(v)) for a in arrays for v in np.ravel(np.asarray(a, float), order="F"))
 
-    def rec_step(self, x, u_prev, P, shift=True):
-        t0 = time.perf_counter()
-        info = step(self, x, u_prev, P, shift)
-        dt = (time.perf_counter() - t0) * 1e3
-        if self.name == relay:
+    def install(control: NetworkController) -> None:
+        def backend(step: RelayStep, x, u_prev, P, shift):
+            t0 = time.perf_counter()
+            info = step.controller.step(x, u_prev, P, shift)
             if times_ms is not None:
-                times_ms.append(dt)
+                times_ms.append((time.perf_counter() - t0) * 1e3)
             if lines is not None and expected is not None:
                 if fly:
-                    t, rest = _fly_numbers(seen)
+                    t, rest = _fly_numbers(control, step)
                     lines.append(f"fly,{t!r},{int(bool(shift))}," + fmt(x, u_prev, *rest))
                 else:
                     lines.append(f"step,{int(bool(shift))}," + fmt(x, u_prev, P))
                 expected.append(np.r_[float(info.fallback), np.asarray(info.u, float)])
                 if params is not None:
                     params.append(np.ravel(np.asarray(P, float), order="F").copy())
-        return info
+            return info
 
-    RelayController.step = rec_step  # type: ignore[method-assign]
-    try:
-        with _planner_inputs(seen):
-            yield
-    finally:
-        RelayController.step = step  # type: ignore[method-assign]
+        control.relay(relay).stepper.backend = backend
+
+    return install
 
 
 def is_recording(path: Path) -> bool:
@@ -560,7 +530,8 @@ def _number(text: str) -> bool:
 
 
 def record_calls(sc: Scenario, out_csv: Path, *, simulate, relay: str, fly: bool = False) -> np.ndarray:
-    """Fly ``sc`` (``simulate(sc)``) recording relay ``relay``'s controller steps into ``out_csv`` (``ar_replay.c``'s
+    """Fly ``sc`` (``simulate(sc, install)``, ``install`` the recorder's installer) recording relay ``relay``'s
+    controller steps into ``out_csv`` (``ar_replay.c``'s
     lines: ``fly`` lines with what the planner was given when ``fly``, for a tree with the paper's planner, else
     ``step`` lines), what they returned into ``out_csv.expected`` (one row per step: the brake law's flag, the
     command; %.17g) and their stage parameters into ``out_csv.params`` (column-major, one row per step); returns the
@@ -568,8 +539,7 @@ def record_calls(sc: Scenario, out_csv: Path, *, simulate, relay: str, fly: bool
     lines: list[str] = []
     expected: list[np.ndarray] = []
     params: list[np.ndarray] = []
-    with _recording(relay, lines, expected, fly=fly, params=params):
-        simulate(sc)
+    simulate(sc, recorder(relay, lines, expected, fly=fly, params=params))
     out_csv = Path(out_csv)
     out_csv.write_text("\n".join(lines) + "\n")
     u = np.array(expected)
@@ -668,40 +638,36 @@ class Shadow:
     max_parameter_difference: float = 0.0
 
 
-@contextlib.contextmanager
-def flown_by_c(controller: CController):
-    """The tree's relay (``Tree.relay``) flies the C library's commands: the Python controller steps beside it on
-    the same inputs (its plan feeds the stage parameters that read one: obstacle planes, a fleet's predictions) and
-    each step's difference is kept in the yielded ``Shadow``. With the paper's planner in the tree, the C planner
-    makes the C step's stage parameters (``ar_plan``, from what the Python planner was given)."""
-    step = RelayController.step
-    shadow = Shadow(planned=controller.tree.planner)
-    seen: dict = {}
+def flown_by_c(controller: CController, shadow: Shadow) -> Callable[[NetworkController], None]:
+    """An installer (``experiments.run.simulate``'s ``install``) of a step backend by which the tree's relay
+    (``Tree.relay``) flies the C library's commands: the Python controller steps beside it on the same inputs (its plan
+    feeds the stage parameters that read one: obstacle planes, a fleet's predictions) and each step's difference is
+    kept in ``shadow`` (a backend installed before, the recorder, steps Python's controller). With the paper's planner in
+    the tree, the C planner makes the C step's stage parameters (``ar_plan``, from what the Python planner was
+    given)."""
 
-    def c_step(self, x, u_prev, P, shift=True):
-        info = step(self, x, u_prev, P, shift)
-        if self.name != controller.tree.relay:
-            return info
-        if controller.tree.planner:
-            t, numbers = _fly_numbers(seen)
-            _, P_c = controller.plan(t, x, numbers)
-            shadow.max_parameter_difference = max(shadow.max_parameter_difference,
-                                                  float(np.max(np.abs(P_c - P) / np.maximum(np.abs(P), 1.0))))
-            P = P_c
-        status, cinfo, u = controller.step(x, u_prev, P, shift)
-        shadow.steps += 1
-        shadow.fallback_steps += bool(cinfo.fallback)
-        shadow.fallback_disagreements += bool(cinfo.fallback) != bool(info.fallback)
-        diff = np.abs(u - info.u) / np.maximum(np.abs(info.u), 1.0)
-        shadow.max_difference = max(shadow.max_difference, float(np.max(diff)))
-        return replace(info, u=u, ok=bool(cinfo.ok), fallback=bool(cinfo.fallback))
+    def install(control: NetworkController) -> None:
+        inner = control.relay(controller.tree.relay).stepper.backend  # a backend installed before (the recorder) or None
 
-    RelayController.step = c_step  # type: ignore[method-assign]
-    try:
-        with _planner_inputs(seen):
-            yield shadow
-    finally:
-        RelayController.step = step  # type: ignore[method-assign]
+        def backend(step: RelayStep, x, u_prev, P, shift):
+            info = step.controller.step(x, u_prev, P, shift) if inner is None else inner(step, x, u_prev, P, shift)
+            if controller.tree.planner:
+                t, numbers = _fly_numbers(control, step)
+                _, P_c = controller.plan(t, x, numbers)
+                shadow.max_parameter_difference = max(shadow.max_parameter_difference,
+                                                      float(np.max(np.abs(P_c - P) / np.maximum(np.abs(P), 1.0))))
+                P = P_c
+            status, cinfo, u = controller.step(x, u_prev, P, shift)
+            shadow.steps += 1
+            shadow.fallback_steps += bool(cinfo.fallback)
+            shadow.fallback_disagreements += bool(cinfo.fallback) != bool(info.fallback)
+            diff = np.abs(u - info.u) / np.maximum(np.abs(info.u), 1.0)
+            shadow.max_difference = max(shadow.max_difference, float(np.max(diff)))
+            return replace(info, u=u, ok=bool(cinfo.ok), fallback=bool(cinfo.fallback))
+
+        control.relay(controller.tree.relay).stepper.backend = backend
+
+    return install
 
 
 def _pinned_core() -> set[int] | None:
@@ -742,8 +708,8 @@ def bench_c(sc: Scenario, settings: NmpcSettings | None = None, *, rounds: int =
                 py_ms: list[float] = []
                 say(f"round {r + 1}/{rounds}: Python")
                 loop = build(sc, nmpc_settings=settings).closed_loop()
-                with _recording(tree.relay, lines if r == 0 else None, expected if r == 0 else None, py_ms):
-                    loop.run()
+                recorder(tree.relay, lines if r == 0 else None, expected if r == 0 else None, py_ms)(loop.control)
+                loop.run()
                 timings = loop.timings[loop.relays[0].name]
                 if r == 0:
                     steps.write_text("\n".join(lines) + "\n")

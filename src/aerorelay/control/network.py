@@ -134,6 +134,7 @@ class NetworkController:
         # more than one relay), the separation rows
         self.plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)
         self.planner_ms = 0.0  # the last step's planner time (ms; without work the planner runs beside the loop: off_loop_s)
+        self.last_plan: tuple | None = None  # (t, sources, jammers) the planner was last given (plan)
         # per relay, the steps on which a vehicle came within UNGUARDED_FACTOR separations beyond its separation rows
         self.unguarded: dict[str, int] = dict.fromkeys((r.name for r in relays), 0)
         threads = relay_threads() if threads is None else threads
@@ -196,6 +197,7 @@ class NetworkController:
         """The network planner's references from the flying relays' states ``x`` and the ``sources`` as known
         (``p``, ``v``, ``a``; their attitudes follow their accelerations), ``jammers`` ``(positions, powers, std)``."""
         pj, powers, std = jammers
+        self.last_plan = (t, sources, jammers)  # what the planner was given (a step backend replaying the planner reads it)
         if self.planner is None:
             self.planner_ms = 0.0
             return {}
@@ -213,6 +215,13 @@ class NetworkController:
         off_loop = float(getattr(self.planner, "off_loop_s", 0.0))  # a route planned beside the loop (planning.fleet_capacity)
         self.planner_ms = (time.perf_counter() - t0 - off_loop) * 1e3
         return self.check(t, refs, x)  # every relay present, finite, inside its workspace: else held or clipped
+
+    def relay(self, name: str) -> LoopRelay:
+        """Relay ``name`` of the network (its vehicle, its ``RelayStep``); a ValueError naming the relays otherwise."""
+        for r in self.relays:
+            if r.name == name:
+                return r
+        raise ValueError(f"no relay {name!r} in the network ({', '.join(r.name for r in self.relays)})")
 
     def predicted(self, x: Mapping[str, np.ndarray], sources: Mapping) -> dict[str, np.ndarray]:
         """Every vehicle's positions over the NMPC's horizon ``(3, N + 1)`` (m, world): a relay's latest
@@ -281,7 +290,6 @@ class Controller:
         self._read_at: tuple[float, dict[str, np.ndarray]] | None = None  # where the next readings were taken
         self.lost: set[str] = set()  # relays taken out of the network (``lose``)
         self.lost_at: dict[str, float] = {}  # when (s, the caller's clock; NaN: not said)
-        self._by_name = {r.name: r for r in controller.relays}
         self._source_trusted: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}  # each source's last trusted report
 
     @property
@@ -304,10 +312,7 @@ class Controller:
 
     def relay(self, name: str) -> LoopRelay:
         """Relay ``name`` (its vehicle, its ``RelayStep``)."""
-        try:
-            return self._by_name[name]
-        except KeyError:
-            raise ValueError(f"no relay {name!r} in the network ({', '.join(self.relays)})") from None
+        return self.controller.relay(name)
 
     def _last(self) -> dict[str, np.ndarray]:
         return {r.name: x for r in self.controller.relays if (x := r.stepper.last_state) is not None}

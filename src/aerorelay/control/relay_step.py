@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -219,6 +220,14 @@ def checked_source(source: SourceState | None) -> SourceState | None:
     return SourceState(vecs["p"], vecs["v"], vecs["a"], stamp=stamp)
 
 
+class StepBackend(Protocol):
+    """What flies a relay's step in place of its Python controller (``RelayStep.backend``): given the relay's step
+    (its ``controller``, ``last_a_ext``, ...), the state, the last input, the stage parameters and the shift, the
+    step's ``StepInfo`` (e.g. the C tree's command beside the Python controller's: ``assembly.codegen``)."""
+
+    def __call__(self, step: RelayStep, x: np.ndarray, u_prev: np.ndarray, P: np.ndarray, shift: bool) -> StepInfo: ...
+
+
 class RelayStep:
     """One relay's part of the controller, whatever the network: its NMPC (no planner of its own: the network's
     planner gives its reference), its telemetry check and state sanity, its external-force observer and its
@@ -236,6 +245,10 @@ class RelayStep:
         self._land_from: tuple[float, np.ndarray] | None = None
         self.check = TelemetryCheck(vehicle, stale)
         self.sanity = StateSanity(stale.ground_z_m)
+        # what flies the step (``StepBackend``; None: the Python controller), and the external acceleration its last
+        # stage parameters took (m/s^2, world): a backend that replays or stands in for the controller reads it
+        self.backend: StepBackend | None = None
+        self.last_a_ext = np.zeros(3)
         F, _ = vehicle.allocation()
         self._thrust_per_speed2 = F
 
@@ -278,12 +291,15 @@ class RelayStep:
         if a_ext is None and self.observer is not None:
             a_ext = self.observer.estimate
         zero = np.zeros(3)
+        self.last_a_ext = zero if a_ext is None else np.array(a_ext, float)
         return self.controller.parameters(ref, zero, zero, zero, others, separation_m, p2_path=p2_path, p0_path=p0_path,
                                           a_ext=a_ext)
 
     def act(self, x: np.ndarray, P: np.ndarray) -> StepInfo:
-        """The NMPC's (or the fail-safe's) input for the relay at ``x`` with stage parameters ``P``."""
-        info = self.controller.step(x, self.u, P, shift=self.shift)
+        """The NMPC's (or the fail-safe's) input for the relay at ``x`` with stage parameters ``P`` (by ``backend`` when
+        one is given)."""
+        info = (self.controller.step(x, self.u, P, shift=self.shift) if self.backend is None else
+                self.backend(self, x, self.u, P, self.shift))
         self.u = info.u
         return info
 

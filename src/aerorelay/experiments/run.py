@@ -18,6 +18,7 @@ from pydantic import ValidationError
 from ..assembly.parts import bound_of, build, jammer_table
 from ..assembly.world import obstacles as obstacle_shapes
 from ..config import JammerConfig, Scenario, ScenarioError
+from ..control.network import NetworkController
 from ..control.nmpc import NmpcSettings
 from ..models.jammer import Jammer
 from ..models.radio import RadioScene
@@ -278,10 +279,12 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
              jammers: list[Jammer] | None = None, nmpc_settings: NmpcSettings | None = None, with_bound: bool = False,
              progress: Callable[[int, int], None] | None = None,
              bound_progress: Callable[[int, int], None] | None = None,
-             views: Callable[[RunResult, Path], None] | None = None) -> RunResult:
+             views: Callable[[RunResult, Path], None] | None = None,
+             install: Callable[[NetworkController], None] | None = None) -> RunResult:
     """Fly ``sc`` (parts given here replace the scenario's: a planner object, a radio scene, a
     list of jammers); ``with_bound``: also compute (or load) the capacity bound; ``views``: what writes
-    the figures and MCAP when the result is saved. ``sc`` is validated
+    the figures and MCAP when the result is saved; ``install``: given the network's controller before the flight (a
+    relay's step backend: ``control.relay_step.StepBackend``, e.g. ``aerorelay codegen``'s recorder or C flight). ``sc`` is validated
     again first (a field changed after loading must pass every cross-field check too; the parts'
     own checks, e.g. an ``inr_db_at_relay_start`` jammer in a null, raise when ``build`` makes them)."""
     sc.with_updates({})  # validated as data and with physics again (the parts' own checks raise when built)
@@ -299,6 +302,8 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     if with_bound:
         bound = bound_of(sc, bound_progress, scene=injected)
     loop = parts.closed_loop()
+    if install is not None:
+        install(loop.control)
     mission = loop.run(progress)
     df = log_frame(mission.log, loop.columns + [c for c in mission.log if c not in loop.columns],
                    {c: column_type(c) for c in mission.log if column_type(c) is not float})
