@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
-from ..assembly.parts import bound_of, build, jammer_table
+from ..assembly.parts import bound_of, build, build_scene, jammer_table
 from ..assembly.world import obstacles as obstacle_shapes
 from ..config import JammerConfig, Scenario, ScenarioError
 from ..control.network import NetworkController
@@ -160,8 +160,9 @@ def relay_workspaces(sc: Scenario) -> dict[str, tuple[tuple, tuple, float]]:
 
 
 def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: CapacityBound | NetworkBound | None,
-                scene: RadioScene) -> dict:
-    """``metrics.json`` of a mission flown by ``relays`` (name -> vehicle) in ``scene`` (the truth: its jammers), with
+                scene: RadioScene | None = None) -> dict:
+    """``metrics.json`` of a mission flown by ``relays`` (name -> vehicle) in ``scene`` (the truth: its jammers; None:
+    the scenario's), with
     its efficiency against the bound when given (``single_efficiency``, ``network_efficiency``) and against the direct
     link with ``sim.baseline = "direct"`` (``direct_baseline``)."""
     m = compute_metrics(mission.log, relays=relays, sources=[s.name for s in sc.source_list], period_s=sc.control_period_s,
@@ -177,7 +178,7 @@ def run_metrics(sc: Scenario, mission: MissionResult, relays: dict, bound: Capac
     m["separation_unguarded_steps"] = int(sum(mission.separation_unguarded.values()))  # the fleet's (sim.metrics.FLEET_SUM)
     mark_aborted(m, mission)
     if sc.sim.baseline == "direct":
-        direct_baseline(m, direct_rate(scene, mission.log))
+        direct_baseline(m, direct_rate(scene or build_scene(sc), mission.log))
     if isinstance(bound, NetworkBound):
         network_efficiency(m, bound)
     elif bound is not None:
