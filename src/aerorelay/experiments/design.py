@@ -26,8 +26,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..config import Scenario, ScenarioError  # noqa: E402
-from ..config.network import NetworkConfig  # noqa: E402
 from ..models.mission import source_trajectory  # noqa: E402
+from ..models.radio import SCHEDULES  # noqa: E402
 from ..store.outputs import write_atomic  # noqa: E402
 from .campaign import RunStatus, load_manifest, run_dir  # noqa: E402
 from .study import RunSpec, _updated  # noqa: E402
@@ -36,7 +36,6 @@ DESIGN_FILE = "design.json"
 DESIGN_FIGURE = "design.png"
 RECOMMENDED_FILE = "recommended.toml"
 STUDY = "design"
-SCHEDULES = tuple(NetworkConfig.model_fields["schedule"].annotation.__args__)  # type: ignore[union-attr]
 START_CLEARANCE_M = 0.5  # the relays start this much more than the separation apart, and this far inside the workspace
 MAX_RELAYS = 16  # [[relays]]' limit
 BY = ("c_mean", "c_min")  # what "best flown" means
