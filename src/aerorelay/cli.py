@@ -709,6 +709,22 @@ def _studies_epilog() -> str:
     return ("Studies in " + str(folder) + ":\n\n" + "\n\n".join(lines)) if lines else ""
 
 
+@contextlib.contextmanager
+def _campaign_bar(label: str, field: str):
+    """A campaign's progress bar on stderr (runs done of all, time, the last run's ``record[field]`` and status):
+    yields ``started(n_runs)`` and ``progress(done, total, record)`` (``run_campaign``'s callback)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    cols = (TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
+    with Progress(*cols, console=err_console) as prog:
+        task = prog.add_task("", total=1)
+
+        def progress(done, total, rec):
+            prog.update(task, completed=done, description="" if rec is None else f"{rec[field]}: {rec['status']}")
+
+        yield (lambda n_runs: prog.update(task, total=n_runs)), progress
+
+
 @app.command(epilog=_studies_epilog())
 def reproduce(
     studies: list[str] = typer.Argument(None, help="study names (default: all in the studies folder)", show_default=False),
@@ -727,7 +743,6 @@ def reproduce(
 ):
     """Run the paper's experiments as a campaign on dask, then write report.html and summary.json
     (`aerorelay reproduce --list` names the studies)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     folder = studies_dir or api.default_studies_dir()
     if list_:
@@ -746,18 +761,11 @@ def reproduce(
         _fail("--out: a campaign folder is required (or --list)")
     _check_out(out, "campaign")
 
-    cols = (TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
     try:
-        with Progress(*cols, console=err_console) as prog:
-            task = prog.add_task("", total=1)
-
+        with _campaign_bar("campaign", "key") as (started, progress):
             def on_start(n_runs, n_studies):
-                prog.update(task, total=n_runs)
+                started(n_runs)
                 console.print(f"{n_runs} runs in {n_studies} studies -> {out}", markup=False, highlight=False)
-
-            def progress(done, total, rec):
-                desc = "" if rec is None else f"{rec['key']}: {rec['status']}"
-                prog.update(task, completed=done, description=desc)
 
             budget = QUICK_BUDGET_MIN if budget_min is None and quick else budget_min
             rep = api.reproduce(studies or None, out=out, quick=quick, studies_dir=folder, scheduler=scheduler, workers=workers,
@@ -813,8 +821,6 @@ def design(
     """How many relays a mission needs, under which schedule: for each relay count (placed by the tool on the line from
     the base station toward the source) and schedule, capacity-seeking relays flown with their bound and against the
     direct link; design.json, design.png and the recommended design as recommended.toml."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from .experiments.design import parse_relays
 
     _check_duration(duration)
@@ -826,18 +832,12 @@ def design(
     except ValueError as exc:
         _fail(str(exc))
     _check_out(out, "campaign")
-    cols = (TextColumn("design"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("{task.description}"))
     try:
-        with Progress(*cols, console=err_console) as prog:
-            task = prog.add_task("", total=1)
-
+        with _campaign_bar("design", "group") as (started, progress):
             def on_start(n_runs, estimate_s):
-                prog.update(task, total=n_runs)
+                started(n_runs)
                 console.print(f"{n_runs} design points (relays {', '.join(map(str, counts))}; {', '.join(schedule)}) -> {out}; "
                               f"estimated {estimate_s / 60.0:.1f} min here", markup=False, highlight=False)
-
-            def progress(done, total, rec):
-                prog.update(task, completed=done, description="" if rec is None else f"{rec['group']}: {rec['status']}")
 
             summary = api.design(sc, out, relays=counts, schedules=schedule, bound=bound, by=by, scheduler=scheduler,
                                  workers=workers, progress=progress, on_start=on_start, wait=wait)
