@@ -255,7 +255,8 @@ def test_bench_reads_what_record_writes_and_replay_reads_whole_numbers_only(tmp_
     res = subprocess.run([str(out / "build" / "bench"), str(calls), "1"], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     rows = np.loadtxt(res.stdout.splitlines(), delimiter=",", ndmin=2)
-    assert rows.shape == (len(calls.read_text().splitlines()), 5) and np.all(rows[:, 2] > 0)  # every step timed
+    assert rows.shape == (len(calls.read_text().splitlines()), 6) and np.all(rows[:, 2] > 0)  # every step timed
+    assert np.all(rows[:, 5] >= 1) and np.all(rows[:, 5] == np.round(rows[:, 5]))  # its IPM iterations, each step's
     for rounds in ("0", "2x"):
         assert subprocess.run([str(out / "build" / "bench"), str(calls), rounds], capture_output=True, text=True).returncode == 2
     bad = tmp_path / "bad.csv"

@@ -126,3 +126,33 @@ def test_a_fleet_relays_p0_parameter_is_the_base_station_of_the_one_relay_ocp():
             X, W, P = ca.SX.sym("x", spec.nx), ca.SX.sym("w", spec.nw), ca.SX.sym("p", spec.n_params)
             values.append(np.array(ca.Function("f", [X, W, P], [getattr(spec, f)(X, W, P)])(xa, w, p)).ravel())
         np.testing.assert_allclose(values[1], values[0], rtol=1e-12, err_msg=f)
+
+
+@pytest.mark.parametrize("kind", ["nominal", "quad", "fleet_relay"])
+def test_an_ocp_rebuilt_from_its_description_is_the_same_problem(kind):
+    """What a C tree's manifest.json carries (a peer solver in another process rebuilds the OCP from it): through JSON
+    and back, the same key and the same expressions, evaluated at a random point."""
+    import json
+
+    sc = parse_scenario({"platform": {"rotor_count": 4, "tilt_deg": 0.0}}) if kind == "quad" else SC
+    spec = ocp_spec(sc, neighbours=2, p0_parameter=True) if kind == "fleet_relay" else ocp_spec(sc, neighbours=1)
+    again = OcpSpec.from_description(json.loads(json.dumps(spec.description())))
+    assert again.key() == spec.key() and again.n_params == spec.n_params and again.ng == spec.ng
+    rng = np.random.default_rng(3)
+    xa, w, p = rng.normal(size=spec.nx), rng.normal(size=spec.nw), rng.normal(size=spec.n_params)
+    def expressions(s: OcpSpec) -> ca.Function:
+        x_, w_, p_ = s._symbols()
+        return ca.Function("f", [x_, w_, p_], [s.discrete_dynamics(x_, w_, p_), s.stage_residual(x_, w_, p_),
+                                               s.constraint_expr(x_, w_, p_)])
+
+    f, g = expressions(spec), expressions(again)
+    for a, b in zip(f(xa, w, p), g(xa, w, p), strict=True):
+        np.testing.assert_array_equal(np.array(a), np.array(b))
+
+
+def test_an_ocp_with_its_own_terms_is_not_described():
+    spec = ocp_spec(SC)
+    from dataclasses import replace
+
+    with pytest.raises(ValueError, match="cost terms or constraints of its own"):
+        replace(spec, constraints_all=CONSTRAINTS[:0]).description()

@@ -455,7 +455,10 @@ def write_tree(sc: Scenario, out: Path, settings: NmpcSettings | None = None, *,
                                           "nxa": nxa, "ocp_key": spec.key(), "planner": gen is not None, "prefix": prefix,
                                           "no_planner_because": no_planner,
                                           # whether the engine here ran blasfeo_avx2.c: build with SIMD=1 for its bits
-                                          "simd_here": simd_here},
+                                          "simd_here": simd_here,
+                                          # the OCP as data and the engine's options: a peer solver rebuilds the problem
+                                          # from them (benchmarks/acados)
+                                          "ocp": spec.description(), "engine": rti_options(settings)},
                                          indent=2) + "\n"}
     if offboard:
         files |= _offboard_files(flown, control, prefix)

@@ -8,7 +8,8 @@
  * through a fresh controller twice: once with ar_step (the whole step: the supervisor's envelope, the NMPC, the brake
  * law when it flies) and once with the NMPC's two phases (ar_prepare, then ar_feedback), each call timed with
  * CLOCK_MONOTONIC. Writes one line per step and round to stdout: round, step, the whole step, the preparation and the
- * feedback (ns). Pin it to a core (taskset -c 1) for steady numbers.
+ * feedback (ns), and the interior-point iterations ar_step's NMPC spent (ar_info.iterations). Pin it to a core
+ * (taskset -c 1) for steady numbers.
  */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
@@ -111,7 +112,8 @@ int main(int argc, char **argv) {
   }
   long long *whole = malloc(sizeof(long long) * n), *prep = malloc(sizeof(long long) * n),
             *fb = malloc(sizeof(long long) * n);
-  if (!steps || !whole || !prep || !fb) {
+  int *iters = malloc(sizeof(int) * n);
+  if (!steps || !whole || !prep || !fb || !iters) {
     fprintf(stderr, "bench: no memory for %ld steps\n", n);
     return 2;
   }
@@ -124,6 +126,7 @@ int main(int argc, char **argv) {
       long long t0 = now_ns();
       ar_step(c, v + 1, v + 1 + AR_NX, v + 1 + AR_NX + AR_NR, v[0] != 0.0, u, &info);
       whole[k] = now_ns() - t0;
+      iters[k] = info.iterations;
     }
     ar_destroy(c);
     c = ar_create();
@@ -137,8 +140,8 @@ int main(int argc, char **argv) {
       prep[k] = t1 - t0;
     }
     ar_destroy(c);
-    for (long k = 0; k < n; k++) printf("%d,%ld,%lld,%lld,%lld\n", r, k, whole[k], prep[k], fb[k]);
+    for (long k = 0; k < n; k++) printf("%d,%ld,%lld,%lld,%lld,%d\n", r, k, whole[k], prep[k], fb[k], iters[k]);
   }
-  free(steps), free(whole), free(prep), free(fb);
+  free(steps), free(whole), free(prep), free(fb), free(iters);
   return 0;
 }

@@ -16,8 +16,9 @@ constraint. All costs are Gauss-Newton least squares ``|r|^2``; constraints are 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -151,6 +152,31 @@ class OcpSpec:
         ] + ([self.neighbours] if self.neighbours else []) + (["p0"] if self.p0_parameter else [])  # a one-relay OCP keeps its cached engine
         # the disturbance and the obstacles show in params.names and the constraints' names
         return repr(parts)
+
+    _DESCRIBED = ("horizon", "ts", "constrained", "bs_position", "workspace_min", "workspace_max", "exact_input_rate",
+                  "neighbours", "p0_parameter", "disturbance", "obstacles")
+
+    def description(self) -> dict:
+        """Plain data (JSON) that rebuilds this OCP in another process (``from_description``): the vehicle's numbers
+        and the structure's. The cost terms and constraints are the package's own tables; an OCP built with others
+        cannot be described (ValueError). A peer solver (benchmarks/acados) rebuilds the OCP from a tree's
+        ``manifest.json`` with it and checks ``key()``."""
+        if self.cost_terms != COST_TERMS or self.constraints_all != CONSTRAINTS:
+            raise ValueError("OcpSpec.description: this OCP has cost terms or constraints of its own (not the package's "
+                             "tables): it cannot be rebuilt from data")
+        v = self.vehicle
+        vehicle = {f.name: np.asarray(getattr(v, f.name)).tolist() for f in fields(v)}
+        return {"vehicle": vehicle, **{name: getattr(self, name) for name in self._DESCRIBED}}
+
+    @classmethod
+    def from_description(cls, data: dict) -> OcpSpec:
+        """The OCP ``description()`` wrote (lists back to arrays and tuples)."""
+        v = data["vehicle"]
+        arrays = {"positions", "axes", "spins", "inertia"}
+        numbers: dict[str, Any] = {k: np.asarray(x) if k in arrays else x for k, x in v.items()}
+        vehicle = Multirotor(**numbers)
+        rest: dict[str, Any] = {k: tuple(data[k]) if isinstance(data[k], list) else data[k] for k in cls._DESCRIBED}
+        return cls(vehicle=vehicle, **rest)
 
     # -- expressions -------------------------------------------------------------------------
     def _symbols(self):
