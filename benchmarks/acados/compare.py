@@ -74,6 +74,9 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--cond-n", default="10,15", help="acados' partial condensing horizons to compare (comma-separated)")
     ap.add_argument("--core", type=int, default=None, help="the core every timed process is pinned to (default: the last)")
+    ap.add_argument("--blasfeo", default=None,
+                    help="a BLASFEO library (e.g. acados' libblasfeo.so, built for Haswell): also time the tree with "
+                         "BLASFEO's calls resolved to it (LD_PRELOAD, a SIMD=0 build; 'c_blasfeo')")
     a = ap.parse_args(argv)
     from aerorelay import api
 
@@ -91,21 +94,37 @@ def main(argv=None) -> int:
     simd = int(bool(manifest["simd_here"]))
     print(f"building build/bench (make SIMD={simd}) and acados' solvers (cond_N {', '.join(map(str, conds))})", flush=True)
     run(["make", "-s", "-C", str(out / "tree"), f"SIMD={simd}", "build/bench"])
+    if a.blasfeo:  # the same tree, HPIPM's and the tree's BLASFEO calls resolved to the given library
+        if not Path(a.blasfeo).is_file():
+            raise SystemExit(f"--blasfeo: no such file: {a.blasfeo}")
+        run(["cp", "-r", str(out / "tree"), str(out / "tree_blasfeo")])
+        run(["make", "-s", "-C", str(out / "tree_blasfeo"), "clean"])
+        run(["make", "-s", "-C", str(out / "tree_blasfeo"), "SIMD=0", "build/bench", "build/replay"])
     for n in conds:
         run([a.acados_python, str(HERE / "peer.py"), "build", str(out / "tree"), str(out / f"acados_{n}"), "--cond-n", str(n)])
     expected = np.loadtxt(f"{steps}.expected", delimiter=",", ndmin=2)
     res: dict = {"scenario": sc.name, "relay": summary["relay"], "steps": int(len(expected)), "core": core, "simd": bool(simd),
                  "brake_law_steps": int(expected[:, 0].sum()), "rounds": []}
-    who = ["c"] + [f"acados_{n}" for n in conds]
+    who = ["c"] + [f"acados_{n}" for n in conds] + (["c_blasfeo"] if a.blasfeo else [])
+    acados = [f"acados_{n}" for n in conds]
+    if a.blasfeo:  # what the library does to the commands: the tree's replay against Python's
+        env = {**os.environ, "LD_PRELOAD": str(Path(a.blasfeo).resolve())}
+        u = np.array([[float(v) for v in line.split(",")[5:]] for line in
+                      run([str(out / "tree_blasfeo" / "build" / "replay"), str(steps)], env=env).stdout.splitlines()])
+        du = np.abs(u - expected[:, 1:])
+        res["blasfeo"] = {"library": str(a.blasfeo), "command_difference_hz_s": {
+            "mean": float(du.mean()), "median": float(np.median(du)), "max": float(du.max())}}
     for r in range(a.rounds):
         order = who[r % len(who):] + who[: r % len(who)]
         rnd: dict = {}
         for w in order:
             print(f"round {r + 1}/{a.rounds}: {w}", flush=True)
-            if w == "c":
+            if w in ("c", "c_blasfeo"):
+                tree, env = (out / "tree", None) if w == "c" else \
+                    (out / "tree_blasfeo", {**os.environ, "LD_PRELOAD": str(Path(a.blasfeo).resolve())})
                 ns = np.array([[float(v) for v in line.split(",")] for line in
-                               run([str(out / "tree" / "build" / "bench"), str(steps), "1"], core).stdout.splitlines()])
-                rnd["c"] = {"step_ms": stats_ms(ns[:, 2]), "preparation_ms": stats_ms(ns[:, 3]), "feedback_ms": stats_ms(ns[:, 4]),
+                               run([str(tree / "build" / "bench"), str(steps), "1"], core, env=env).stdout.splitlines()])
+                rnd[w] = {"step_ms": stats_ms(ns[:, 2]), "preparation_ms": stats_ms(ns[:, 3]), "feedback_ms": stats_ms(ns[:, 4]),
                             "qp_iterations_mean": float(ns[:, 5].mean()), "qp_iterations_max": int(ns[:, 5].max())}
             else:
                 times = out / f"{w}.csv"
@@ -117,27 +136,38 @@ def main(argv=None) -> int:
                           "qp_iterations_max": int(t[:, 3].max()), "failures": int((t[:, 4] != 0).sum()),
                           "command_difference_hz_s": {"mean": float(du.mean()), "median": float(np.median(du)),
                                                       "max": float(du.max())}}
-        best_mean = min(rnd[w]["step_ms"]["mean"] for w in who[1:])
-        best_p99 = min(rnd[w]["step_ms"]["p99"] for w in who[1:])
-        rnd["ratio_mean"] = rnd["c"]["step_ms"]["mean"] / best_mean
-        rnd["ratio_p99"] = rnd["c"]["step_ms"]["p99"] / best_p99
+        best_mean = min(rnd[w]["step_ms"]["mean"] for w in acados)
+        best_p99 = min(rnd[w]["step_ms"]["p99"] for w in acados)
+        for c in ("c", "c_blasfeo"):
+            if c in rnd:
+                rnd[f"ratio_mean{c[1:]}"] = rnd[c]["step_ms"]["mean"] / best_mean
+                rnd[f"ratio_p99{c[1:]}"] = rnd[c]["step_ms"]["p99"] / best_p99
         res["rounds"].append(rnd)
     res["target_met_every_round"] = all(r["ratio_mean"] <= 0.8 and r["ratio_p99"] <= 0.8 for r in res["rounds"])
+    if a.blasfeo:
+        res["target_met_every_round_blasfeo"] = all(r["ratio_mean_blasfeo"] <= 0.8 and r["ratio_p99_blasfeo"] <= 0.8
+                                                    for r in res["rounds"])
     (out / "compare.json").write_text(json.dumps(res, indent=2) + "\n")
     print(f"\n{sc.name}, relay {res['relay']}: {res['steps']} recorded steps ({res['brake_law_steps']} on the brake law), "
           f"core {core}, SIMD={simd}")
-    print(f"{'round / who':<22}" + "".join(f"{s:>9}" for s in STATS) + "   QP iterations / failures")
+    print(f"{'round / who':<24}" + "".join(f"{s:>9}" for s in STATS) + "   QP iterations / failures")
     for i, rnd in enumerate(res["rounds"], 1):
         for w in who:
             v = rnd[w]["step_ms"]
             extra = f"   {rnd[w]['qp_iterations_mean']:.2f} / {rnd[w].get('failures', '-')}"
-            print(f"{f'{i}: {w}':<22}" + "".join(f"{v[s]:9.3f}" for s in STATS) + extra)
-        print(f"{f'{i}: C / best acados':<22}mean {rnd['ratio_mean']:.2f}, p99 {rnd['ratio_p99']:.2f}")
-    d = res["rounds"][0][who[1]]["command_difference_hz_s"]
+            print(f"{f'{i}: {w}':<24}" + "".join(f"{v[s]:9.3f}" for s in STATS) + extra)
+        print(f"{f'{i}: C / best acados':<24}mean {rnd['ratio_mean']:.2f}, p99 {rnd['ratio_p99']:.2f}")
+        if a.blasfeo:
+            print(f"{f'{i}: C (--blasfeo) / best':<24}mean {rnd['ratio_mean_blasfeo']:.2f}, p99 {rnd['ratio_p99_blasfeo']:.2f}")
+    d = res["rounds"][0][acados[0]]["command_difference_hz_s"]
     print(f"acados' commands against aerorelay's (cond_N {conds[0]}): mean {d['mean']:.3g}, median {d['median']:.3g}, "
           f"max {d['max']:.3g} Hz/s")
     print(f"target (C step >= 20% faster than the better acados at the mean and the p99, every round): "
           f"{'met' if res['target_met_every_round'] else 'not met'}")
+    if a.blasfeo:
+        d = res["blasfeo"]["command_difference_hz_s"]
+        print(f"with --blasfeo {a.blasfeo}: {'met' if res['target_met_every_round_blasfeo'] else 'not met'}; its commands "
+              f"against Python's (CasADi's BLASFEO): mean {d['mean']:.3g}, median {d['median']:.3g}, max {d['max']:.3g} Hz/s")
     return 0
 
 
