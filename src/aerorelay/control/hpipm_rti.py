@@ -113,6 +113,28 @@ def check_blasfeo_in_this_process() -> tuple[bool, str]:
     return True, "generic BLASFEO, panel size 4"
 
 
+class _DlInfo(ctypes.Structure):
+    _fields_ = [("dli_fname", ctypes.c_char_p), ("dli_fbase", ctypes.c_void_p), ("dli_sname", ctypes.c_char_p),
+                ("dli_saddr", ctypes.c_void_p)]
+
+
+def blasfeo_library(engine: ctypes.CDLL) -> str:
+    """The file of the BLASFEO whose routines HPIPM's calls bind to in this process: a BLASFEO in the global scope
+    (``LD_PRELOAD``, or loaded with ``RTLD_GLOBAL``) comes first for every library, else the engine's own (CasADi's
+    wheel's). A different BLASFEO build is a different controller at the rounding level (its kernels sum in another
+    order): reports name it (docs/results/acados.md measures acados' Haswell build against CasADi's generic one)."""
+    libc = ctypes.CDLL(None)
+    for scope in (libc, engine):
+        try:
+            fn = scope.blasfeo_dgemm_nt
+        except AttributeError:
+            continue
+        info = _DlInfo()
+        if libc.dladdr(ctypes.cast(fn, ctypes.c_void_p), ctypes.byref(info)) and info.dli_fname:
+            return os.path.realpath(info.dli_fname.decode())
+    return "unknown"
+
+
 def use_simd_kernels(requested: bool) -> tuple[bool, str]:
     """Whether the AVX2 kernels go into the engine, and why (for ``aerorelay bench``)."""
     if not requested:
@@ -237,6 +259,10 @@ class HpipmRti:
         if mem and lib is not None:
             lib.rti_free(mem)
             self._mem = None
+
+    def blasfeo_library(self) -> str:
+        """The file of the BLASFEO that HPIPM's calls bind to in this process (``blasfeo_library``)."""
+        return blasfeo_library(self._lib)
 
     def simd_kernels_ran(self) -> int:
         """1 if the AVX2 BLASFEO kernels have run in this process, 0 if not (after solves: compiled

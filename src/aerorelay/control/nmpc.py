@@ -209,7 +209,8 @@ class NMPC:
             simd = f"generic BLASFEO kernels ({rti.simd_reason})" if ran < 0 else (
                 "AVX2 BLASFEO kernels" if ran > 0 else "AVX2 kernels compiled in, not (yet) used")
             cond = f", condensed to {st.condensed_horizon} stages" if 0 < st.condensed_horizon < self.spec.horizon else ""
-            return f"hpipm engine ({st.warm_start} warm start, tol {st.tol_comp:g}{cond}, {st.feedback} feedback, {simd})"
+            return (f"hpipm engine ({st.warm_start} warm start, tol {st.tol_comp:g}{cond}, {st.feedback} feedback, {simd}; "
+                    f"BLASFEO {rti.blasfeo_library()})")
         return f"casadi.conic {st.qp_solver} (tol {st.tol_comp:g})"
 
     def absolute_bounds(self) -> tuple[np.ndarray, np.ndarray]:
