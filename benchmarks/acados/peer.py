@@ -168,6 +168,15 @@ def read_steps(steps: Path, spec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(shifts), np.array(x0s), P.reshape(len(x0s), N + 1, n_p).transpose(0, 2, 1)
 
 
+def check_upper_bounds(spec, P) -> None:
+    """The recording's separation (``separation_m``) within what ``UPPER`` allows its row (< 2 d^2)."""
+    if "separation_m" in spec.params.names:
+        d = float(np.max(P[:, spec.params["separation_m"], :]))
+        if 2.0 * d * d >= UPPER["separation"]:
+            raise SystemExit(f"peer.py: separation {d:g} m: its row reaches 2 d^2 = {2 * d * d:g}, above acados' upper "
+                             f"bound {UPPER['separation']:g} (peer.UPPER)")
+
+
 def replay(s, spec, shifts, x0s, P, rounds: int, out) -> None:
     N, nr = spec.horizon, spec.n_rotors
     for r in range(rounds):
@@ -213,6 +222,7 @@ def main(argv=None) -> int:
         return 0
     s, spec = solver(a.tree.resolve(), a.folder.resolve(), a.cond_n, build=False, settings=settings)
     shifts, x0s, P = read_steps(a.steps, spec)
+    check_upper_bounds(spec, P)
     with open(a.out, "w") as out:
         replay(s, spec, shifts, x0s, P, a.rounds, out)
     return 0
