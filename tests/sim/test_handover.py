@@ -150,7 +150,7 @@ def test_the_handover_rule_switches_only_when_allowed_and_always_when_it_should(
         t = k * dt
         ends = rule.decide(t, scene, _state((a, b)))
         if ends is not None:
-            scene = scene.serving(ends)
+            scene = scene.serving_routes(ends)
         now = scene.all_routes[0][-1]
         if serving is None:
             assert now == ("west" if a >= b else "east")

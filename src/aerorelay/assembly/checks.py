@@ -255,9 +255,10 @@ def _ray_traced_physics(sc: Scenario) -> None:
     if traced_scoring and fleet and sc.planner != "capacity":
         raise ValueError(f"controller.capacity.scoring: 'traced' scores the capacity-seeking planners' candidates; "
                          f"controller.planner = {sc.planner!r} scores none: set controller.planner = 'capacity'")
-    if traced_scoring and sc.has_handover:
-        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores the route to one base station; a route "
-                         "to 'any' of several scores on free space so far")
+    if traced_scoring and sc.has_route_choice:
+        raise ValueError(f"{traced_scoring[0]}.capacity.scoring: 'traced' scores a fixed route; a route to 'any' of "
+                         "several base stations, or one that may skip relays (network.route_selection), scores on free "
+                         "space so far")
     if traced_scoring and not fleet:
         _traced_route_fits(sc)
     if sc.channel.propagation.model != "ray_traced":

@@ -197,7 +197,8 @@ def build_scene(sc: Scenario, jammers: list[Jammer] | None = None) -> RadioScene
     routes = tuple(tuple(r[:-1]) + (stations[0] if r[-1] == ANY_BASE_STATION else r[-1],) for r in sc.route_list)
     scene = RadioScene(nodes, jams, LinkBudget(*ch.link_budget_values()), routes[0], path_gain(ch),
                        routes=routes if len(routes) > 1 else (), handover=ends if any(ends) else (),
-                       schedule=sc.network.schedule, self_interference_db=sc.network.self_interference_db)
+                       schedule=sc.network.schedule, self_interference_db=sc.network.self_interference_db,
+                       skips=tuple(r[1:-1] for r in routes) if sc.network.route_selection == "subsets" else ())
     if jammers is None and any(j.inr_db_at_relay_start is not None for j in sc.jammer_configs):
         scene = _powers_for_inr(scene, sc)
     return scene
@@ -269,9 +270,11 @@ def one_base_station_planners(sc: Scenario) -> None:
     """The paper's generator (and baseline A) plan toward one base station: with routes that may hand
     over (``"any"``) or that end at different base stations, a named error (fly the capacity planner)."""
     ends = {r[-1] for r in sc.route_list}
-    if not sc.has_handover and len(ends) == 1:
+    if not sc.has_route_choice and len(ends) == 1:
         return
-    why = "routes that end at 'any' base station" if sc.has_handover else f"routes ending at {sorted(ends)}"
+    why = ("routes that end at 'any' base station" if sc.has_handover else
+           "routes that may skip relays (network.route_selection = 'subsets')" if sc.has_route_choice else
+           f"routes ending at {sorted(ends)}")
     field = sc.controller_field(0, ("planner",))  # a relay's own is refused in a network: written, it is the one relay's
     name = sc.planner
     if name in GENERATORS:
@@ -638,10 +641,10 @@ def check_bound_size(sc: Scenario) -> None:
     """``planning.bound_cost``: a named error (BoundTooLarge, a ScenarioError naming the ``[bound]``
     field) before any work when the scenario's bound (a fleet's network bound) would need more than
     half of this machine's memory or longer than ``bound.max_minutes``."""
-    if sc.channel.propagation.model == "ray_traced" and sc.has_handover:
-        raise ScenarioError("bound: routes that may end at several base stations ('any') are bounded on the analytic "
-                            "channel only; the traced map's bound takes routes to one base station (name it), or fly "
-                            "with --no-bound")
+    if sc.channel.propagation.model == "ray_traced" and sc.has_route_choice:
+        raise ScenarioError("bound: routes that may end at several base stations ('any') or skip relays "
+                            "(network.route_selection) are bounded on the analytic channel only; the traced map's bound "
+                            "takes fixed routes (name the end, 'fixed'), or fly with --no-bound")
     check_bound_cost(bound_cost(sc), max_minutes=sc.bound.max_minutes, grid_field="bound.grid_m", dt_field="bound.dt_s")
 
 

@@ -137,4 +137,10 @@ class NetworkConfig(Strict):
         "docs/concepts/networks.md")
     self_interference_db: float = Field(110.0, ge=0.0, le=200.0, description="full duplex: a relay's own transmission "
                                         "at its receiver, this far below its transmit power (dB)")
+    route_selection: Literal["fixed", "subsets"] = Field(
+        "fixed", description="'fixed': each route takes every relay named on it; 'subsets': a route may skip any of its "
+        "relays (the others kept in order, none at all: the direct link), the serving subset chosen from every step's "
+        "true rates by the handover rule (handover_margin_db better, after handover_dwell_s), the skipped relays flying "
+        "on their plans; logged per step (<source>.route), counted (route_switches), and the network's bound takes the "
+        "best subset at every instant (docs/concepts/networks.md)")
 

@@ -348,6 +348,12 @@ class Scenario(Strict):
         return next((b for b in self.base_station_list if b.name == end), self.base_station_list[0])
 
     @property
+    def has_route_choice(self) -> bool:
+        """Whether a route may change in flight: its end (``has_handover``) or which of its relays carry it
+        (``network.route_selection = "subsets"``)."""
+        return self.has_handover or self.network.route_selection == "subsets"
+
+    @property
     def has_handover(self) -> bool:
         """Whether a route ends at ``"any"`` of several base stations (the handover rule picks its end)."""
         return len(self.base_station_list) > 1 and any(r[-1] == ANY_BASE_STATION for r in self.route_list)
@@ -447,7 +453,7 @@ class Scenario(Strict):
         """One route of two hops to one base station, the paper's (source -> relay -> base station): the physics of its
         two hops (the link budget's Gamma_21 and Gamma_10, the relay's reachable alignment between the source and the
         base station) is the paper's; a chain's relay aligns with its route neighbours."""
-        return len(self.route_list) == 1 and len(self.route_list[0]) == 3 and not self.has_handover
+        return len(self.route_list) == 1 and len(self.route_list[0]) == 3 and not self.has_route_choice
 
     def relay_view(self, i: int) -> Scenario:
         """Relay ``i``'s view of the scenario: its own platform and controller (``[[relays]]``) as the scenario's,

@@ -182,10 +182,11 @@ class NetworkController:
         over every planner the network flew."""
         return self._kept_out_before + int(getattr(self.planner, "kept_out_steps", 0))
 
-    def hand_over(self, ends) -> None:
-        """Each route now ends at ``ends`` (a base station each, the handover rule's choice): a relay's NMPC
-        looks toward its route's serving base station."""
-        self.scene = self.scene.serving(ends)
+    def hand_over(self, routes) -> None:
+        """Each route is now served by ``routes`` (one of its candidates each, the handover rule's choice: its end, the
+        relays that carry it): a relay's NMPC looks toward its serving route's neighbours (a skipped relay, off every
+        route, toward the base station)."""
+        self.scene = self.scene.serving_routes(routes)
         self.neighbours_of = route_neighbours(self.scene)
 
     def neighbours(self, relay: str) -> tuple[str, str]:

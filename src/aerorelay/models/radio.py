@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import reduce
+from itertools import combinations
 from typing import Any, Literal
 
 import casadi as ca
@@ -283,6 +284,12 @@ def schedule_rate(schedule: str, sinr: Sequence, base: Sequence, cross, relays_r
     return rate, slots
 
 
+def relay_subsets(relays: Sequence[str]) -> tuple[tuple[str, ...], ...]:
+    """Every subsequence of ``relays`` (their order kept): all of them first, then by one fewer, down to none (the
+    direct link); within a size in ``itertools.combinations``' order."""
+    return tuple(c for n in range(len(relays), -1, -1) for c in combinations(tuple(relays), n))
+
+
 @dataclass(frozen=True)
 class RadioScene:
     """Nodes, jammers, link budget and the routes data takes (node names, a source first, a base
@@ -302,6 +309,9 @@ class RadioScene:
     # with the relays' self-interference suppressed by ``self_interference_db`` (dB below the transmit power)
     schedule: str = "tdma"
     self_interference_db: float = 110.0
+    # per route of ``all_routes``, the relays it may skip (its configured relays in order; the serving route takes a
+    # subsequence of them: route selection over relay subsets); ``()``: every route takes the relays named on it
+    skips: tuple[tuple[str, ...], ...] = ()
 
     def __post_init__(self):
         for field_name, items, kind in (("nodes", self.nodes, Node), ("jammers", self.jammers, Jammer)):
@@ -331,6 +341,14 @@ class RadioScene:
                 if wrong or (ends and route[-1] not in ends):
                     raise ValueError(f"radio scene: route {list(route)} may end at {list(ends)}: each a base station, "
                                      "its serving end among them")
+        if self.skips:
+            if len(self.skips) != len(self.all_routes):
+                raise ValueError(f"radio scene: skips gives {len(self.skips)} routes' relays for {len(self.all_routes)} routes")
+            for route, relays in zip(self.all_routes, self.skips, strict=True):
+                wrong = [r for r in relays if r not in names or self.node(r).role != "relay"]
+                if wrong or tuple(route[1:-1]) not in relay_subsets(relays):
+                    raise ValueError(f"radio scene: route {list(route)} may skip {list(relays)}: each a relay, the route's "
+                                     "relays a subsequence of them")
         for j in self.jammers:
             if j.point_at is not None and j.point_at not in names:
                 raise ValueError(f"jammer {j.name!r}: point_at {j.point_at!r} is not a node ({', '.join(names)})")
@@ -366,7 +384,8 @@ class RadioScene:
                 ends.append(e)
         nodes = tuple(n for n in self.nodes if n.name not in lost)
         return replace(self, nodes=nodes, route=routes[0], routes=tuple(routes) if len(routes) > 1 else (),
-                       handover=tuple(ends) if self.handover else ())
+                       handover=tuple(ends) if self.handover else (),
+                       skips=tuple(tuple(r for r in s if r not in lost) for s in self.skips) if self.skips else ())
 
     def handed_to(self, leaving: str, node: Node) -> RadioScene:
         """The scene with ``node`` (a spare relay) in the place of relay ``leaving`` on every route, ``leaving``'s
@@ -376,7 +395,9 @@ class RadioScene:
         routes = tuple(tuple(node.name if n == leaving else n for n in r) for r in self.all_routes)
         nodes = tuple(node if n.name == leaving else n for n in self.nodes)
         jammers = tuple(replace(j, point_at=node.name) if j.point_at == leaving else j for j in self.jammers)
-        return replace(self, nodes=nodes, jammers=jammers, route=routes[0], routes=routes if len(routes) > 1 else ())
+        skips = tuple(tuple(node.name if n == leaving else n for n in s) for s in self.skips)
+        return replace(self, nodes=nodes, jammers=jammers, route=routes[0], routes=routes if len(routes) > 1 else (),
+                       skips=skips)
 
     @property
     def node_names(self) -> frozenset[str]:
@@ -390,14 +411,29 @@ class RadioScene:
 
     def serving(self, ends: Sequence[str]) -> RadioScene:
         """The scene with each route ending at ``ends`` (a base station each, one it may end at)."""
-        routes = tuple(r[:-1] + (str(e),) for r, e in zip(self.all_routes, ends, strict=True))
+        return self.serving_routes(tuple(r[:-1] + (str(e),) for r, e in zip(self.all_routes, ends, strict=True)))
+
+    def serving_routes(self, routes: Sequence[Sequence[str]]) -> RadioScene:
+        """The scene with each route served by ``routes`` (one of its ``candidate_routes`` each, the handover rule's
+        choice; a plain scene, without ``handover`` and ``skips``, takes any: ``planning.network_bound.end_choices``)."""
+        routes = tuple(tuple(str(n) for n in r) for r in routes)
         return replace(self, route=routes[0], routes=routes if len(routes) > 1 else ())
 
     @property
+    def route_choice(self) -> bool:
+        """Whether a route may change in flight: its end (``handover``) or the relays that carry it (``skips``)."""
+        return any(self.handover) or any(self.skips)
+
+    @property
     def candidate_routes(self) -> tuple[tuple[tuple[str, ...], ...], ...]:
-        """Per route, every route it may take: with each base station it may end at, in ``handover``'s
-        order (the serving one among them), or itself when its end is fixed."""
-        return tuple(tuple(r[:-1] + (b,) for b in e) if e else (r,) for r, e in zip(self.all_routes, self.route_ends, strict=True))
+        """Per route, every route it may take: each subset of the relays it may skip (``skips``; from all of them
+        down to none, in ``relay_subsets``' order; else its own relays), each with every base station it may end at,
+        in ``handover``'s order (else its own end). The serving route is among them."""
+        out = []
+        for i, (r, e) in enumerate(zip(self.all_routes, self.route_ends, strict=True)):
+            subsets = relay_subsets(self.skips[i]) if self.skips else (tuple(r[1:-1]),)
+            out.append(tuple((r[0], *sub, b) for sub in subsets for b in (e or (r[-1],))))
+        return tuple(out)
 
     @property
     def all_routes(self) -> tuple[tuple[str, ...], ...]:
@@ -523,7 +559,7 @@ class RadioScene:
                 raise ValueError(f"evaluate: schedule {self.schedule!r} needs the links between the hops' transmitters and "
                                  "receivers, which a ray-traced channel's gains do not give: time division only")
             return self._scheduled(poses, sinrs, interference, ends)
-        if not any(self.handover):
+        if not self.route_choice:
             per_route = [[sinrs[k] for k in r] for r in self.route_hops()]
             routes = tuple(route_capacity(r, b.bandwidth) for r in per_route)
             rate = routes[0] if len(routes) == 1 else network_rate(per_route, b.bandwidth)
@@ -561,7 +597,7 @@ class RadioScene:
 
         per_route = [[rate(hs) for hs in route] for route in self.candidate_hops()]
         candidates = tuple(tuple(c for c, _ in route) for route in per_route)
-        if ends == "serving" or not any(self.handover):
+        if ends == "serving" or not self.route_choice:
             pick = [rs.index(r) for rs, r in zip(self.candidate_routes, self.all_routes, strict=True)]
             chosen = tuple(per_route[i][j][0] for i, j in enumerate(pick))
             slots = tuple(per_route[i][j][1] for i, j in enumerate(pick))

@@ -38,7 +38,7 @@ import pandas as pd
 from ..models.antenna import gain_bounds
 from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, link_ranges
 from ..models.mission import SourceTrajectory
-from ..models.radio import NodePose, RadioScene, spectral_efficiency
+from ..models.radio import NodePose, RadioScene, link_gain, spectral_efficiency
 from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
@@ -314,6 +314,12 @@ class NetworkBoundSolver:
         self.max_levels = pb.branch_levels if max_levels is None else max_levels
         self.relays = [n.name for n in pb.scene.nodes if n.role == "relay"]
         self.unary, self.pairs = relay_forest(pb.scene.all_routes, self.relays)
+        # hops between two nodes the bound does not place (a route that skips every relay: the direct link): exact terms
+        self.fixed_hops: dict[tuple[str, str], int] = {}
+        for route in pb.scene.all_routes:
+            for h in zip(route[:-1], route[1:], strict=True):
+                if h[0] not in self.relays and h[1] not in self.relays:
+                    self.fixed_hops[h] = self.fixed_hops.get(h, 0) + 1
         aimed = [j.name for j in pb.scene.jammers if j.point_at in self.relays]
         if aimed:
             raise ValueError(f"network bound: jammer(s) {aimed} aim at a relay, whose place the bound searches; not supported")
@@ -501,7 +507,26 @@ class NetworkBoundSolver:
             interference = {r: self.least_interference(t, r, poses, sets.centres[r], half[r]) for r in self.relays}
             unary = {r: self.unary_terms(t, poses, interference, sets.centres[r], half[r], only=r)[r] for r in self.relays}
             block = self._sets_block(sets, interference)
-        return forest_min_marginals(self.relays, unary, self.neighbours, block)
+        total, marginals = forest_min_marginals(self.relays, unary, self.neighbours, block)
+        if not self.fixed_hops:
+            return total, marginals
+        fixed = self.fixed_term(t, poses)
+        return total + fixed, {r: m + fixed for r, m in marginals.items()}
+
+    def fixed_term(self, t: float, poses) -> float:
+        """The terms of the hops between nodes the bound does not place (``fixed_hops``), exact at ``t``: a
+        configuration-free part of every configuration's sum."""
+        b, out = self.scene.budget, 0.0
+        for (tx, rx), count in self.fixed_hops.items():
+            a, c = poses[tx], poses[rx]
+            pat_rx = self.scene.node(rx).antenna.pattern
+            g = link_gain(a.position, a.axis, self.scene.node(tx).antenna.pattern, c.position, c.axis, pat_rx,
+                          self.scene.path_gain)
+            i_rx = self.scene.interference(self.scene.emitters(t, poses), c, pat_rx) if self.scene.jammers else 0.0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                gamma = np.nan_to_num(np.asarray(g * b.tx_power / (i_rx + b.noise_power), float), nan=np.inf)
+            out += count * float(self._term(gamma))
+        return out
 
     def solve(self, t: float) -> tuple[float, np.ndarray]:
         """The certified smallest sum of hop terms on the grid's cells and each relay's best cell index ``(K,)``."""
@@ -793,12 +818,14 @@ def _reachable_tightened(part: _Instants, feasible_sums: np.ndarray) -> tuple[li
 
 
 def end_choices(scene: RadioScene) -> list[RadioScene]:
-    """Every network a scene whose routes may end at several base stations can be (``RadioScene.handover``):
-    one plain scene per combination of ends; the scene itself when every end is fixed."""
-    if not any(scene.handover):
+    """Every network a scene whose routes may change in flight can be (``RadioScene.route_choice``: ends at several
+    base stations, relays skipped): one plain scene per combination of its routes' candidates; the scene itself
+    when every route is fixed."""
+    if not scene.route_choice:
         return [scene]
-    plain = replace(scene, handover=())
-    return [plain.serving(ends) for ends in product(*(tuple(r[-1] for r in routes) for routes in scene.candidate_routes))]
+    options = scene.candidate_routes
+    plain = replace(scene, handover=(), skips=())
+    return [replace(plain, route=rs[0], routes=tuple(rs) if len(rs) > 1 else ()) for rs in product(*options)]
 
 
 def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBound:
@@ -865,6 +892,8 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
         resolution["method"] = f"{resolution['method']}; per instant the tighter of it and SCIP's certified dual bound"
     if len(scenes) > 1:
         resolution["end_combinations"] = [[r[-1] for r in sc.all_routes] for sc in scenes]
+        if pb.scene.skips:  # the relays carrying each route in each network bounded
+            resolution["route_combinations"] = [["+".join(r[1:-1]) or "direct" for r in sc.all_routes] for sc in scenes]
     K = len(solver.relays)
     fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
     upper, up = np.empty(0), np.empty((0, 3))

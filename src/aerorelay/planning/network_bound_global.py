@@ -74,8 +74,8 @@ def expressible(scene: RadioScene) -> str | None:
     pg = scene.path_gain
     if type(pg) is not PathGain:  # a subclass (RMa-AV) is not K d^-n
         return f"the path gain ({type(pg).__name__}) is not K d^-n"
-    if any(scene.handover):
-        return "routes may end at several base stations"
+    if scene.route_choice:
+        return "routes may change in flight (end at several base stations, or skip relays)"
     relays = {n.name for n in scene.nodes if n.role == "relay"}
     if any(j.point_at in relays for j in scene.jammers):
         return "a jammer aims at a relay"

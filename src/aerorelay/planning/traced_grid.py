@@ -41,9 +41,9 @@ class TracedNetwork:
     ``coherent``: the paths summed with their phases, else in power."""
 
     def __init__(self, scene: RadioScene, tracer: RayTracer, *, coherent: bool = False):
-        if any(scene.handover):
-            raise ValueError("traced scoring: a route that may end at several base stations ('any') is scored on one "
-                             "traced station only; name the station the route ends at")
+        if scene.route_choice:
+            raise ValueError("traced scoring: a route that may end at several base stations ('any') or skip relays "
+                             "(network.route_selection) is scored on one traced route only; name its end, fly 'fixed'")
         self.scene, self.tracer, self.coherent = scene, tracer, coherent
         self.traces = 0  # calls to the tracer (cached or not)
 

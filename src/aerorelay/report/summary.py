@@ -47,6 +47,7 @@ SCALAR_METRICS = (
     "delay_spread_mean_ns", "delay_spread_max_ns", "wall_s",
     # operations (sim.metrics.handover_metrics, spare_metrics)
     "handovers",
+    "route_switches",
 )
 
 

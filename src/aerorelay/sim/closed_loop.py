@@ -36,7 +36,7 @@ from ..planning.home import PLACE_CLEARANCE_M, HomeFlight, PlaceFlight, beside, 
 from .air import Air
 from .blockage import Blockage
 from .exit_status import ExitStatus
-from .handover import Handover, HandoverRule
+from .handover import Handover, HandoverRule, route_columns, route_values
 from .jammer_sensing import JammerSensing
 from .log_schema import (
     gone_row,
@@ -241,10 +241,10 @@ class ClosedLoop:
         self.process_rngs = process_streams(settings.seed, [r.name for r in relays])
         self.gravity = self.control.gravity
         self.stations = self.control.stations  # every base station's position (m, world)
-        # a route that may end at several base stations: which serves it, decided each step from the true rates
-        self.handover = Handover(settings.handover) if any(scene.handover) else None
-        self.handover_columns = [f"{rs[0][0]}.base_station" for rs in scene.candidate_routes if len(rs) > 1]
-        self.handover_columns += [f"capacity_via.{r[0]}.{r[-1]}" for rs in scene.candidate_routes if len(rs) > 1 for r in rs]
+        # a route that may change (its end among several base stations, the relays carrying it): which serves it,
+        # decided each step from the true rates
+        self.handover = Handover(settings.handover) if scene.route_choice else None
+        self.handover_columns = route_columns(scene)
         self.columns += self.handover_columns
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
         self.planner_ms: list[float] = []
@@ -345,20 +345,15 @@ class ClosedLoop:
 
     def _hand_over(self, t: float, state: ChannelState, poses, gains, link_gains) -> tuple[ChannelState, dict]:
         """The handover rule on this step's true rates (``state``, the channel at ``poses`` with the plant's
-        ``gains`` / ``link_gains``): a route handed over is served by its new base station from this step on;
-        the serving base stations and every candidate's rate logged."""
+        ``gains`` / ``link_gains``): a route that changes (its base station, the relays carrying it) is served by its
+        new route from this step on; the serving routes and every candidate's rate logged."""
         assert self.handover is not None
-        ends = self.handover.decide(t, self.scene, state)
-        if ends is not None:
-            self.control.hand_over(ends)
+        routes = self.handover.decide(t, self.scene, state)
+        if routes is not None:
+            self.control.hand_over(routes)
             self.scene = self.control.scene
             state = self.scene.evaluate(t, poses, fading=gains, link_gains=link_gains, ends="serving")
-        values: dict[str, object] = dict.fromkeys(self.handover_columns, math.nan)
-        for routes, route, rates in zip(self.scene.candidate_routes, self.scene.all_routes, state.candidates, strict=True):
-            if len(routes) > 1:
-                values[f"{route[0]}.base_station"] = route[-1]
-                values |= {f"capacity_via.{r[0]}.{r[-1]}": float(c) for r, c in zip(routes, rates, strict=True)}
-        return state, values
+        return state, dict.fromkeys(self.handover_columns, math.nan) | route_values(self.scene, state)
 
     @property
     def planner(self):

@@ -1,5 +1,6 @@
 """Which base station serves each route that may end at several (``routes = [[..., "any"]]``,
-``[[base_stations]]``): the network's handover rule, decided from the true rates of every step.
+``[[base_stations]]``) and which of its relays carry it (``network.route_selection = "subsets"``): the network's
+handover rule, decided from the true rates of every step among each route's candidates.
 
 The rule (docs/concepts/operations.md): at the first step each such route takes the base station
 whose route rate is highest; after that it hands over to the best other one when that one's route
@@ -42,35 +43,76 @@ def better(candidate: float, serving: float, margin_db: float) -> bool:
 
 
 class Handover:
-    """The serving base station of each route that may take several, by its source (one route per
+    """The serving route of each route that may change (its end, its relays), by its source (one route per
     source); ``decide`` once a step."""
 
     def __init__(self, rule: HandoverRule):
         self.rule = rule
         self.since: dict[str, float] = {}  # per source, when its serving base station took it (s)
-        self.count: dict[str, int] = {}  # per source, handovers so far (the first choice not counted)
+        self.count: dict[str, int] = {}  # per source, route changes so far (the first choice not counted)
 
-    def decide(self, t: float, scene: RadioScene, state: ChannelState) -> tuple[str, ...] | None:
-        """The routes' ends from step ``t``'s true rates (``state``: ``scene.evaluate(..., ends="serving")``):
-        None when no route changes its base station, else every route's end."""
-        ends = [r[-1] for r in scene.all_routes]
+    def decide(self, t: float, scene: RadioScene, state: ChannelState) -> tuple[tuple[str, ...], ...] | None:
+        """The routes from step ``t``'s true rates (``state``: ``scene.evaluate(..., ends="serving")``) among each
+        route's candidates (``RadioScene.candidate_routes``: its ends, the subsets of its relays): None when no route
+        changes, else every route."""
+        current = list(scene.all_routes)
         changed = False
         for i, (routes, rates) in enumerate(zip(scene.candidate_routes, state.candidates, strict=True)):
             if len(routes) < 2:
                 continue
             source = routes[0][0]
-            stations = [r[-1] for r in routes]
             c = np.array([float(v) for v in rates])
             best = int(np.argmax(c))
             if source not in self.since:  # the first step: the best one serves
                 self.since[source], self.count[source] = t, 0
-                changed |= stations[best] != ends[i]
-                ends[i] = stations[best]
+                changed |= routes[best] != current[i]
+                current[i] = routes[best]
                 continue
-            serving = stations.index(ends[i])
+            serving = routes.index(current[i])
             if best != serving and t - self.since[source] >= self.rule.dwell_s - 1e-9 \
                     and better(c[best], c[serving], self.rule.margin_db):
-                ends[i], changed = stations[best], True
+                current[i], changed = routes[best], True
                 self.since[source] = t
                 self.count[source] += 1
-        return tuple(ends) if changed else None
+        return tuple(current) if changed else None
+
+
+def via(route: tuple[str, ...]) -> str:
+    """The relays carrying ``route``, as a label: their names joined by '+', or 'direct'."""
+    return "+".join(route[1:-1]) or "direct"
+
+
+def candidate_label(scene: RadioScene, i: int, route: tuple[str, ...]) -> str:
+    """Route ``i``'s candidate ``route`` in a column name: its source, the relays carrying it where the route may skip
+    relays (``via``), its base station where it may end at several (``<source>.<relays>.<base station>``)."""
+    skips, ends = bool(scene.skips and scene.skips[i]), bool(scene.route_ends[i])
+    return ".".join([route[0], *([via(route)] if skips else []), *([route[-1]] if ends or not skips else [])])
+
+
+def route_columns(scene: RadioScene) -> list[str]:
+    """The log's columns of the routes that may change: ``<source>.base_station`` (its serving end, where it may end
+    at several), ``<source>.route`` (the relays carrying it, where it may skip some: ``via``) and
+    ``capacity_via.<candidate>`` (every candidate's rate, ``candidate_label``)."""
+    cols: list[str] = []
+    for i, rs in enumerate(scene.candidate_routes):
+        if len(rs) < 2:
+            continue
+        cols += [f"{rs[0][0]}.base_station"] if scene.route_ends[i] else []
+        cols += [f"{rs[0][0]}.route"] if scene.skips and scene.skips[i] else []
+        cols += [f"capacity_via.{candidate_label(scene, i, r)}" for r in rs]
+    return cols
+
+
+def route_values(scene: RadioScene, state: ChannelState) -> dict[str, object]:
+    """``route_columns``' values at a step: the serving routes (``scene.all_routes``) and every candidate's rate."""
+    values: dict[str, object] = {}
+    for i, (rs, route, rates) in enumerate(zip(scene.candidate_routes, scene.all_routes, state.candidates, strict=True)):
+        if len(rs) < 2:
+            continue
+        if scene.route_ends[i]:
+            values[f"{route[0]}.base_station"] = route[-1]
+        if scene.skips and scene.skips[i]:
+            values[f"{route[0]}.route"] = via(route)
+        values |= {f"capacity_via.{candidate_label(scene, i, r)}": float(c) for r, c in zip(rs, rates, strict=True)}
+    return values
+

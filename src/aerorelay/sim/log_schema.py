@@ -48,7 +48,7 @@ RELAY_STEP = ("pd_x", "pd_y", "pd_z", "v_up", "v_down", "mutual_alignment", "sla
 COLUMN_TYPES: dict[str, type] = {"jammer_on": bool, "qp_ok": bool, "qp_status": str, "fallback": bool,
                                  "safety_violation": bool, "battery_reserve": bool,
                                  "going_home": bool, "base_station": str, "waiting": bool, "ferrying": bool,
-                                 "replaces": str}
+                                 "replaces": str, "route": str}
 NETWORK_COLUMNS = ("capacity", "jammer_on", "separation_min")
 # a jammer estimate's position covariance as logged: est_<name>_cov_<entry>, its six entries and where they sit
 COV_ENTRIES = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))

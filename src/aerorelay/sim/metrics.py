@@ -403,6 +403,31 @@ def handover_metrics(log, sources: Sequence[str]) -> dict:
     return {"handovers": total, "routes": routes} if routes else {}
 
 
+def route_metrics(log, sources: Sequence[str], relays: Sequence[str]) -> dict:
+    """Each route that may skip relays (its ``<source>.route`` column: the relays carrying it, ``+``-joined, or
+    ``direct``): its route switches (``route_switches``, the first choice not counted), the share of the steps
+    each subset served (``carried_by_fraction``); the network's ``route_switches`` in all and each relay's
+    ``skipped_fraction`` (the share of the steps no serving route took it). Empty without such a route."""
+    routes, total = {}, 0
+    carried = np.zeros(len(np.asarray(log["t"])), bool)
+    carrying: dict[str, np.ndarray] = {r: carried.copy() for r in relays}
+    for s in sources:
+        col = f"{s}.route"
+        if col not in log:
+            continue
+        serving = [str(v) for v in log[col]]
+        switches = sum(serving[k] != serving[k - 1] for k in range(1, len(serving)))
+        routes[s] = {"route_switches": int(switches),
+                     "carried_by_fraction": {v: float(np.mean([x == v for x in serving])) for v in sorted(set(serving))}}
+        total += switches
+        for r in relays:
+            carrying[r] |= np.array([r in v.split("+") for v in serving], bool)
+    if not routes:
+        return {}
+    return {"route_switches": int(total), "routes": routes,
+            "skipped_fraction": {r: float(np.mean(~c)) for r, c in carrying.items()}}
+
+
 def loss_phases(t: np.ndarray, loss_times: Sequence[float]) -> dict[str, np.ndarray]:
     """Which of the times ``t`` (s) lie before the first loss and from the last one on (a loss at
     ``t_l`` counts from ``t_l`` itself): ``{"before_loss": mask, "after_loss": mask}``."""
@@ -480,6 +505,13 @@ def compute_metrics(log, *, relays: dict[str, Multirotor], sources: Sequence[str
         out["handovers"] = handover["handovers"]
         for s, m in handover["routes"].items():
             out["routes"][s] |= m
+    chosen = route_metrics(log, sources, list(out["relays"]))
+    if chosen:
+        out["route_switches"] = chosen["route_switches"]
+        for s, m in chosen["routes"].items():
+            out["routes"][s] |= m
+        for r, f in chosen["skipped_fraction"].items():
+            out["relays"][r]["skipped_fraction"] = f
     out["unsafe"] = bool(reasons)
     out["unsafe_reason"] = "; ".join(reasons)
     out["fell_back"] = bool(fell_back)

@@ -15,7 +15,7 @@ CAPACITY_METRICS = ("c_min", "c_mean", "outage_threshold", "c_min_before_loss", 
                     "c_min_direct", "c_mean_direct")
 SPECTRAL = "bit/s/Hz"
 COUNTS = ("steps", "safety_violations", "fallback_episodes", "separation_unguarded_steps", "outage_events", "reference_clipped_steps",
-          "reference_held_steps", "reference_kept_out_steps", "telemetry_rejected_periods", "handovers")
+          "reference_held_steps", "reference_kept_out_steps", "telemetry_rejected_periods", "handovers", "route_switches")
 NOT_QUANTITIES = ("unsafe", "unsafe_reason", "controller", "units", "unit_system", "null_reasons", "optional_outputs_failed",
                   "aborted", "reference_first", "planner_name", "bound", "losses", "telemetry_rejected_reason", "metrics_failed",
                   "exit_status", "exit_sentence", "exit_statuses", "injected", "lost_in_flight", "took_over_from",
