@@ -170,6 +170,7 @@ class NetworkController:
         station directly, nothing to plan."""
         if self.replanner is None:
             raise ValueError("network controller: the network changes but no replanner builds its planner")
+        scene = scene.configured()  # every relay on its route again (route selection picks the subset anew)
         self.scene = scene
         left = any(n.role == "relay" for n in scene.nodes)
         self._kept_out_before = self.kept_out_steps

@@ -416,8 +416,15 @@ class RadioScene:
     def serving_routes(self, routes: Sequence[Sequence[str]]) -> RadioScene:
         """The scene with each route served by ``routes`` (one of its ``candidate_routes`` each, the handover rule's
         choice; a plain scene, without ``handover`` and ``skips``, takes any: ``planning.network_bound.end_choices``)."""
-        routes = tuple(tuple(str(n) for n in r) for r in routes)
-        return replace(self, route=routes[0], routes=routes if len(routes) > 1 else ())
+        served: tuple[tuple[str, ...], ...] = tuple(tuple(str(n) for n in r) for r in routes)
+        return replace(self, route=served[0], routes=served if len(served) > 1 else ())
+
+    def configured(self) -> RadioScene:
+        """The scene with each route taking every relay it may skip (``skips``; its serving end kept): the network as
+        configured, whose planner places every relay on its route."""
+        if not self.skips:
+            return self
+        return self.serving_routes(tuple((r[0], *s, r[-1]) for r, s in zip(self.all_routes, self.skips, strict=True)))
 
     @property
     def route_choice(self) -> bool:

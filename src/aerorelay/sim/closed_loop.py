@@ -244,7 +244,7 @@ class ClosedLoop:
         # a route that may change (its end among several base stations, the relays carrying it): which serves it,
         # decided each step from the true rates
         self.handover = Handover(settings.handover) if scene.route_choice else None
-        self.handover_columns = route_columns(scene)
+        self.handover_columns = list(dict.fromkeys(c for net in (scene, *self.networks) for c in route_columns(net)))
         self.columns += self.handover_columns
         # per step: the planner's time (ms); per relay: its controller's timings and states kept for the bench
         self.planner_ms: list[float] = []

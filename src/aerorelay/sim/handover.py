@@ -107,12 +107,12 @@ def route_values(scene: RadioScene, state: ChannelState) -> dict[str, object]:
     """``route_columns``' values at a step: the serving routes (``scene.all_routes``) and every candidate's rate."""
     values: dict[str, object] = {}
     for i, (rs, route, rates) in enumerate(zip(scene.candidate_routes, scene.all_routes, state.candidates, strict=True)):
+        if scene.skips:  # route selection: the relays carrying it (none left to choose from: 'direct')
+            values[f"{route[0]}.route"] = via(route)
         if len(rs) < 2:
             continue
         if scene.route_ends[i]:
             values[f"{route[0]}.base_station"] = route[-1]
-        if scene.skips and scene.skips[i]:
-            values[f"{route[0]}.route"] = via(route)
         values |= {f"capacity_via.{candidate_label(scene, i, r)}": float(c) for r, c in zip(rs, rates, strict=True)}
     return values
 

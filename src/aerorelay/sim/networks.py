@@ -17,16 +17,19 @@ def every_link(scene: RadioScene, networks: Sequence[RadioScene]) -> RadioScene:
     loss, with spares in relays' places): its links are every link the network ever takes, the scene's own
     first (``scene`` itself when no network adds a route)."""
     routes, ends = list(scene.all_routes), list(scene.route_ends)
+    skips = list(scene.skips) if scene.skips else [tuple(r[1:-1]) for r in routes]
     nodes = list(scene.nodes)
     for net in networks:
-        for r, e in zip(net.all_routes, net.route_ends, strict=True):
+        for i, (r, e) in enumerate(zip(net.all_routes, net.route_ends, strict=True)):
             if r not in routes:
                 routes.append(r)
                 ends.append(e)
+                skips.append(net.skips[i] if net.skips else tuple(r[1:-1]))
         nodes += [n for n in net.nodes if n.name not in {m.name for m in nodes}]
     if len(routes) == len(scene.all_routes):
         return scene
-    return replace(scene, nodes=tuple(nodes), routes=tuple(routes), handover=tuple(ends) if any(ends) else ())
+    return replace(scene, nodes=tuple(nodes), routes=tuple(routes), handover=tuple(ends) if any(ends) else (),
+                   skips=tuple(skips) if scene.skips else ())
 
 
 def possible_networks(scene: RadioScene, scheduled: Sequence[frozenset[str]], homing: Sequence[str],
