@@ -45,7 +45,7 @@ def test_traced_scoring_needs_a_traced_channel():
 @needs_rt
 def test_traced_scoring_of_a_route_to_any_base_station_is_a_named_error():
     two = {"base_stations": [{"name": "a", "position": [0.0, 0.0, 0.0]}, {"name": "b", "position": [9.0, 0.0, 0.0]}]}
-    with pytest.raises(ScenarioError, match=r"controller\.capacity\.scoring: 'traced' scores the route to one base station"):
+    with pytest.raises(ScenarioError, match=r"controller\.capacity\.scoring: 'traced' scores a fixed route; a route to 'any'"):
         updated(ar.parse_scenario(two), {**PHYSICAL, "controller.planner": "capacity", "controller.capacity.scoring": "traced",
                                          "channel.propagation.model": "ray_traced", "channel.propagation.scene": "empty"})
 
