@@ -136,7 +136,7 @@ def test_the_paper_generator_and_traced_scoring_refuse_subsets():
 def test_the_bound_over_subsets_takes_the_direct_link_where_it_is_best(tmp_path):
     """A hop between two nodes the bound does not place (the direct link) is in the bound exactly: with the relays
     useless, the bound over subsets is the direct link's rate at every instant, no less than the fixed chain's."""
-    base = {"sim.duration_s": 1.0, "bound.dt_s": 1.0, "bound.grid_m": 6.0}
+    base = {"sim.duration_s": 1.0, "bound.dt_s": 1.0, "bound.grid_m": 6.0, "bound.branch_levels": 1}
     fixed = ar.load_scenario("scenarios/chain_two_relays.toml", set=base)
     subsets = ar.load_scenario("scenarios/chain_two_relays.toml", set={**base, "network.route_selection": "subsets"})
     b_fixed, b_subsets = ar.bound(fixed), ar.bound(subsets)
