@@ -99,8 +99,9 @@ def test_contract_check_catches_another_contract(kernels):
     assert len(bad) == 1 and bad[0].startswith("kernel_dgemm_nt_4x4_lib4")
 
 
-def test_hpipm_uses_them_when_loaded_first():
-    """In a fresh process that loads the engine first, HPIPM's solves run the AVX2 kernels."""
+def _one_step_in_a_fresh_process(env: dict | None = None, before_step: str = "") -> str:
+    """A fresh process that loads the engine first and steps the NMPC once at hover: what it prints (the AVX2
+    kernels' flag, then the route). ``before_step``: a line run between the engine's load and its first solve."""
     import subprocess
     import sys
 
@@ -112,14 +113,20 @@ def test_hpipm_uses_them_when_loaded_first():
             "spec = ocp_spec(sc)\n"
             "c = NMPC(spec)\n"
             "x = spec.vehicle.hover_state(np.array([0.0, 0.0, 3.0]))\n"
-            "assert c.engine.rti.simd_kernels_ran() == 0\n"
+            f"{before_step}"
             "P = spec.params.matrix(spec.horizon + 1, {'p_ref': [0.5, 0.0, 3.0], 'v_ref': 0.0, 'rho_d': [0, 0, 1.0], 'psi_ref': 0.0,\n"
             "    'p2': [2.0, 1.0, 3.0], 'mu': 0.2, **weight_parameters(sc, spec)})\n"
             "assert c.step(x, np.zeros(6), P).ok\n"
             "print(c.engine.rti.simd_kernels_ran(), c.route())\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.startswith("1 ") and "AVX2 BLASFEO kernels" in out.stdout
+    return out.stdout
+
+
+def test_hpipm_uses_them_when_loaded_first():
+    """In a fresh process that loads the engine first, HPIPM's solves run the AVX2 kernels."""
+    out = _one_step_in_a_fresh_process(before_step="assert c.engine.rti.simd_kernels_ran() == 0\n")
+    assert out.startswith("1 ") and "AVX2 BLASFEO kernels" in out
 
 
 def test_the_route_names_the_blasfeo_hpipm_runs_on(tmp_path):
@@ -128,29 +135,14 @@ def test_the_route_names_the_blasfeo_hpipm_runs_on(tmp_path):
     the engine do not run (the preloaded library calls its own). Here the preloaded file is a copy of CasADi's."""
     import os
     import shutil
-    import subprocess
-    import sys
 
     from aerorelay.control.hpipm_rti import _casadi_dir
 
     copy = tmp_path / "libblasfeo.so.0"
     shutil.copy(_casadi_dir() / "libblasfeo.so.0", copy)
-    code = ("import numpy as np\n"
-            "from aerorelay.assembly import parse_scenario\n"
-            "from aerorelay.control.nmpc import NMPC\n"
-            "from aerorelay.assembly.parts import ocp_spec, weight_parameters\n"
-            "sc = parse_scenario({})\n"
-            "spec = ocp_spec(sc)\n"
-            "c = NMPC(spec)\n"
-            "x = spec.vehicle.hover_state(np.array([0.0, 0.0, 3.0]))\n"
-            "P = spec.params.matrix(spec.horizon + 1, {'p_ref': [0.5, 0.0, 3.0], 'v_ref': 0.0, 'rho_d': [0, 0, 1.0], 'psi_ref': 0.0,\n"
-            "    'p2': [2.0, 1.0, 3.0], 'mu': 0.2, **weight_parameters(sc, spec)})\n"
-            "assert c.step(x, np.zeros(6), P).ok\n"
-            "print(c.engine.rti.simd_kernels_ran(), c.route())\n")
     for preload, library in ((None, os.path.realpath(_casadi_dir() / "libblasfeo.so.0")), (str(copy), str(copy))):
         env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"} | ({"LD_PRELOAD": preload} if preload else {})
-        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
-        assert out.returncode == 0, out.stderr[-2000:]
-        assert f"BLASFEO {library})" in out.stdout, out.stdout
-        if preload and out.stdout.split()[0] != "-1":  # compiled in (an AVX2 CPU): bound to the copy's own kernels
-            assert out.stdout.startswith("0 "), out.stdout
+        out = _one_step_in_a_fresh_process(env)
+        assert f"BLASFEO {library})" in out, out
+        if preload and out.split()[0] != "-1":  # compiled in (an AVX2 CPU): bound to the copy's own kernels
+            assert out.startswith("0 "), out
