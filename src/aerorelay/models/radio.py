@@ -290,6 +290,12 @@ def relay_subsets(relays: Sequence[str]) -> tuple[tuple[str, ...], ...]:
     return tuple(c for n in range(len(relays), -1, -1) for c in combinations(tuple(relays), n))
 
 
+def route_via(route: Sequence[str]) -> str:
+    """The relays carrying ``route`` (source first, base station last), as a label: their names joined by '+', or
+    'direct' (the log's ``<source>.route``, the bound's ``route_combinations``)."""
+    return "+".join(route[1:-1]) or "direct"
+
+
 @dataclass(frozen=True)
 class RadioScene:
     """Nodes, jammers, link budget and the routes data takes (node names, a source first, a base

@@ -38,7 +38,7 @@ import pandas as pd
 from ..models.antenna import gain_bounds
 from ..models.intervals import axis_cos_range, cone_cos_range, distance_range, link_ranges
 from ..models.mission import SourceTrajectory
-from ..models.radio import NodePose, RadioScene, link_gain, spectral_efficiency
+from ..models.radio import NodePose, RadioScene, link_gain, route_via, spectral_efficiency
 from .bound import BoundResolution, _dp
 from .bound_cost import BRANCH_CELLS, BRANCH_LEVELS, BRANCH_PAIRS
 from .fleet_configuration import FleetConfigurations, flyable_fleet_path, mission_poses
@@ -825,7 +825,7 @@ def end_choices(scene: RadioScene) -> list[RadioScene]:
         return [scene]
     options = scene.candidate_routes
     plain = replace(scene, handover=(), skips=())
-    return [replace(plain, route=rs[0], routes=tuple(rs) if len(rs) > 1 else ()) for rs in product(*options)]
+    return [plain.serving_routes(rs) for rs in product(*options)]
 
 
 def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBound:
@@ -893,7 +893,7 @@ def compute_network_bound(pb: NetworkBoundProblem, progress=None) -> NetworkBoun
     if len(scenes) > 1:
         resolution["end_combinations"] = [[r[-1] for r in sc.all_routes] for sc in scenes]
         if pb.scene.skips:  # the relays carrying each route in each network bounded
-            resolution["route_combinations"] = [["+".join(r[1:-1]) or "direct" for r in sc.all_routes] for sc in scenes]
+            resolution["route_combinations"] = [[route_via(r) for r in sc.all_routes] for sc in scenes]
     K = len(solver.relays)
     fr, fp, fa = np.empty(0), np.empty((0, K, 3)), np.empty((0, K, 3))
     upper, up = np.empty(0), np.empty((0, 3))

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models import checks
-from ..models.radio import ChannelState, RadioScene
+from ..models.radio import ChannelState, RadioScene, route_via
 
 
 @dataclass(frozen=True)
@@ -77,21 +77,16 @@ class Handover:
         return tuple(current) if changed else None
 
 
-def via(route: tuple[str, ...]) -> str:
-    """The relays carrying ``route``, as a label: their names joined by '+', or 'direct'."""
-    return "+".join(route[1:-1]) or "direct"
-
-
 def candidate_label(scene: RadioScene, i: int, route: tuple[str, ...]) -> str:
     """Route ``i``'s candidate ``route`` in a column name: its source, the relays carrying it where the route may skip
-    relays (``via``), its base station where it may end at several (``<source>.<relays>.<base station>``)."""
+    relays (``route_via``), its base station where it may end at several (``<source>.<relays>.<base station>``)."""
     skips, ends = bool(scene.skips and scene.skips[i]), bool(scene.route_ends[i])
-    return ".".join([route[0], *([via(route)] if skips else []), *([route[-1]] if ends or not skips else [])])
+    return ".".join([route[0], *([route_via(route)] if skips else []), *([route[-1]] if ends or not skips else [])])
 
 
 def route_columns(scene: RadioScene) -> list[str]:
     """The log's columns of the routes that may change: ``<source>.base_station`` (its serving end, where it may end
-    at several), ``<source>.route`` (the relays carrying it, where it may skip some: ``via``) and
+    at several), ``<source>.route`` (the relays carrying it, where it may skip some: ``route_via``) and
     ``capacity_via.<candidate>`` (every candidate's rate, ``candidate_label``)."""
     cols: list[str] = []
     for i, rs in enumerate(scene.candidate_routes):
@@ -108,11 +103,10 @@ def route_values(scene: RadioScene, state: ChannelState) -> dict[str, object]:
     values: dict[str, object] = {}
     for i, (rs, route, rates) in enumerate(zip(scene.candidate_routes, scene.all_routes, state.candidates, strict=True)):
         if scene.skips:  # route selection: the relays carrying it (none left to choose from: 'direct')
-            values[f"{route[0]}.route"] = via(route)
+            values[f"{route[0]}.route"] = route_via(route)
         if len(rs) < 2:
             continue
         if scene.route_ends[i]:
             values[f"{route[0]}.base_station"] = route[-1]
         values |= {f"capacity_via.{candidate_label(scene, i, r)}": float(c) for r, c in zip(rs, rates, strict=True)}
     return values
-
