@@ -594,7 +594,7 @@ def build_sensing(sc: Scenario, scene: RadioScene, sources: dict[str, SourceTraj
     settings = EstimatorSettings(search_min=lo, search_max=hi, n_samples=est.n_samples, aggregate_steps=est.aggregate_steps,
                                  grid_m=est.grid_m, forget_s=est.forget_s, model_error_db=est.model_error_db,
                                  axis_error_deg=est.axis_error_deg, jammer_speed_m_s=est.jammer_speed_m_s,
-                                 confident_std_m=est.confident_std_m)
+                                 confident_std_m=est.confident_std_m, confirm_s=est.confirm_s)
     estimator = JammerEstimator(len(scene.jammers), receivers, scene.path_gain, settings, sc.control_period_s)
     return JammerSensing(scene, estimator, names, n_samples=est.n_samples, bias_db=est.bias_db, seed=sc.seed)
 

@@ -105,6 +105,8 @@ class EstimationConfig(Strict):
     search_max_m: Vec3 | None = Field(None, description="search box corner, m world")
     confident_std_m: float = Field(1.5, gt=0.0, le=100.0, description="the planner uses an estimate once its largest "
                                    "position std (m) is below this (before: plans without that jammer, as before tau_E)")
+    confirm_s: float = Field(1.0, ge=0.0, le=60.0, description="an estimate is trusted once it has been confident (below "
+                             "confident_std_m, off the search box's faces, the grid agreeing) this long without a break, s")
 
     @model_validator(mode="after")
     def _box(self):

@@ -70,6 +70,7 @@ _WINDOW_FORGET_SPANS = 2.0  # the window holds this many forget_s (weights down 
 _ON_PRIOR_LOGODDS = 2.0  # prior log-odds that a jammer radiates at a measurement
 _RESEED_EVERY = 4  # refinements between two checks of a found jammer against the grid's best rival
 _RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
+_DISAGREE_MASS = 0.5  # grid mass in one mode away from the estimate above this: that mode counts in full
 _HUBER_SIGMAS = 3.0  # residuals beyond this many sigma count linearly (robust to readings across a switch)
 _NP = 7  # parameters per jammer: position (3), log EIRP, velocity (3)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
@@ -111,6 +112,7 @@ class EstimatorSettings:
     jammer_speed_m_s: float = 0.0  # > 0: each jammer moves at a constant velocity, this the prior std per axis (m/s)
     switch_prob: float = 0.02
     confident_std_m: float = 1.5
+    confirm_s: float = 0.0  # an estimate is trusted once confident this long without a break (s)
     # measurements Gauss-Newton fits: every one in the window (None), or at most this many, evenly thinned
     # and each weighted for those it stands for. Thinned to 60, the fitted subset changed from fit to fit
     # and the estimate swung across its valley by up to 3.8 m per refinement (a moving jammer seen from
@@ -230,6 +232,8 @@ class JammerEstimator:
         self._candidate: _Candidate | None = None  # the joint pair search's restart, being polished
         self.pending = [PendingReadings() for _ in receivers]
         self._edge_said = np.zeros(n_jammers, bool)
+        self._confident_since = np.full(n_jammers, np.nan)  # when each estimate became confident (s; NaN: it is not)
+        self._t = 0.0  # the last refinement's time (s)
         self._estimate = self._summarize()
 
     # --- the measurement model ------------------------------------------------------------
@@ -534,7 +538,15 @@ class JammerEstimator:
                 drop = (self._window_cost(seed, idx, base, self.started)
                         - self._window_cost(self.theta, idx, base, self.started))
                 if drop >= 0.0:
-                    self._rival[j] = math.exp(-0.5 * min(drop, 1400.0))
+                    # the window prefers the estimate; when the grid (every reading so far, another likelihood of the
+                    # same data) holds most of its mass in one mode elsewhere, the two disagree about which mode holds
+                    # and the rival's spread counts in full: under Doppler fading the window settled on a mirror mode
+                    # 17-29 m off and called it 0.5-1.4 m sure (NEES 250-434,000) while the grid held the jammer's.
+                    # (A grid merely diffuse, early on, is not another mode: its mass far away counted in full made
+                    # the nominal's 5 s estimate 14-16 m unsure at 3.3 m off)
+                    mode = np.linalg.norm(self.cells - self.cells[best], axis=1) <= 2.0 * self.spacing
+                    held = float(post[mode].sum()) > _DISAGREE_MASS
+                    self._rival[j] = 1.0 if held else math.exp(-0.5 * min(drop, 1400.0))
                     continue
             self.theta, self.lam = seed, 1e-2
             self.started[j] = True
@@ -542,6 +554,7 @@ class JammerEstimator:
 
     def _refine(self, t: float) -> None:
         """One Levenberg-Marquardt iteration on the window (log domain, weights exp(-age / forget_s))."""
+        self._t = t
         idx, base = self._fit_rows(t, self.s.window_rows)
         self.theta[:, :3] = np.clip(self._positions_at(t), self.lo, self.hi)
         self.t_ref = t  # positions are now's; a row's is now's plus the velocity times its age
@@ -700,12 +713,30 @@ class JammerEstimator:
         edge = self.started & (np.any(p[:, :2] - self.lo[:2] < near, axis=1)
                                | np.any(self.hi - p < near, axis=1))  # the floor is the ground: a jammer may sit on it
         for k in np.flatnonzero(edge & (std < self.s.confident_std_m) & ~self._edge_said):  # what would have been trusted
+            if not self._grid_at_face(k, p[k], near):
+                continue  # the grid holds the jammer inside: a fit that strayed onto the face, not a jammer beyond it
             self._edge_said[k] = True
             log.warning("jammer estimate %d at %s m, at the edge of the search box [%s, %s]: not trusted (the jammer may "
                         "be outside it); widen estimation.search_min_m / search_max_m", k, np.round(p[k], 1).tolist(),
                         self.lo.tolist(), self.hi.tolist())
+        # trusted once confident for confirm_s without a break: a wrong mode both the grid and the window held for a
+        # moment (a jammer outside the box, its image inside under Doppler fading: 0.3 s at 35 m, 1.46 m sure) is not
+        confident = self.started & (std < self.s.confident_std_m) & ~edge
+        self._confident_since = np.where(confident, np.fmin(self._confident_since, self._t), np.nan)
+        trusted = confident & (self._t - np.nan_to_num(self._confident_since, nan=np.inf) >= self.s.confirm_s)
         return JammerEstimate(self.theta[:, :3].copy(), self._powers(self.theta, self.started), covs_a, self.on_prob.copy(), std,
-                              self.started & (std < self.s.confident_std_m) & ~edge, edge)
+                              trusted, edge)
+
+    def _grid_at_face(self, j: int, p: np.ndarray, near: float) -> bool:
+        """Whether jammer ``j``'s grid posterior (every reading so far) holds most of its mass within a cell of the
+        faces the estimate ``p`` sits on (within ``near`` m; the floor excepted): a jammer beyond those faces pulls the
+        grid onto them too, a fit that strayed onto a face while the grid holds the jammer inside does not."""
+        at_lo = np.r_[p[:2] - self.lo[:2] < near, False]
+        at_hi = self.hi - p < near
+        c = self.cells
+        on_face = (np.any(at_lo & (c - self.lo <= self.spacing), axis=1)
+                   | np.any(at_hi & (self.hi - c <= self.spacing), axis=1))
+        return float(self._grid_posterior(j)[on_face].sum()) > _DISAGREE_MASS
 
     @property
     def estimate(self) -> JammerEstimate:
