@@ -713,7 +713,7 @@ class JammerEstimator:
         edge = self.started & (np.any(p[:, :2] - self.lo[:2] < near, axis=1)
                                | np.any(self.hi - p < near, axis=1))  # the floor is the ground: a jammer may sit on it
         for k in np.flatnonzero(edge & (std < self.s.confident_std_m) & ~self._edge_said):  # what would have been trusted
-            if not self._grid_at_face(k, p[k], near):
+            if not self._grid_at_face(int(k), p[k], near):
                 continue  # the grid holds the jammer inside: a fit that strayed onto the face, not a jammer beyond it
             self._edge_said[k] = True
             log.warning("jammer estimate %d at %s m, at the edge of the search box [%s, %s]: not trusted (the jammer may "
