@@ -70,7 +70,9 @@ _WINDOW_FORGET_SPANS = 2.0  # the window holds this many forget_s (weights down 
 _ON_PRIOR_LOGODDS = 2.0  # prior log-odds that a jammer radiates at a measurement
 _RESEED_EVERY = 4  # refinements between two checks of a found jammer against the grid's best rival
 _RIVAL_MASS = 0.05  # grid mass away from the estimate below this is not checked as a rival mode
-_DISAGREE_MASS = 0.5  # grid mass in one mode away from the estimate above this: that mode counts in full
+_DISAGREE_ODDS = 20.0  # the grid's mass about its best rival cell over its mass about the estimate above this: the
+# grid and the window disagree, the rival mode counts in full
+_FACE_MASS = 0.5  # the grid's mass within a cell of the faces an estimate sits on above this: the widen hint is said
 _HUBER_SIGMAS = 3.0  # residuals beyond this many sigma count linearly (robust to readings across a switch)
 _NP = 7  # parameters per jammer: position (3), log EIRP, velocity (3)
 _FLAG_NEIGHBOURS = 1  # a row's ON flag sums the likelihood ratio over this many fitted rows each side
@@ -539,13 +541,14 @@ class JammerEstimator:
                         - self._window_cost(self.theta, idx, base, self.started))
                 if drop >= 0.0:
                     # the window prefers the estimate; when the grid (every reading so far, another likelihood of the
-                    # same data) holds most of its mass in one mode elsewhere, the two disagree about which mode holds
-                    # and the rival's spread counts in full: under Doppler fading the window settled on a mirror mode
-                    # 17-29 m off and called it 0.5-1.4 m sure (NEES 250-434,000) while the grid held the jammer's.
-                    # (A grid merely diffuse, early on, is not another mode: its mass far away counted in full made
-                    # the nominal's 5 s estimate 14-16 m unsure at 3.3 m off)
+                    # same data) puts many times more mass about its best rival cell than about the estimate, the two
+                    # disagree about where the jammer is and the rival's spread counts in full: under Doppler fading
+                    # the window settled on a mirror mode 11-29 m off and called it 0.5-1.4 m sure (NEES 250-434,000)
+                    # while the grid held 24 to 1e10 times more mass elsewhere. (A grid merely diffuse, early on, is not
+                    # another mode: the nominal's at 0.6-4.8 s had at most 3.3 times; its mass far away counted in full
+                    # made that estimate 14-16 m unsure at 3.3 m off)
                     mode = np.linalg.norm(self.cells - self.cells[best], axis=1) <= 2.0 * self.spacing
-                    held = float(post[mode].sum()) > _DISAGREE_MASS
+                    held = float(post[mode].sum()) > _DISAGREE_ODDS * float(post[~far].sum())
                     self._rival[j] = 1.0 if held else math.exp(-0.5 * min(drop, 1400.0))
                     continue
             self.theta, self.lam = seed, 1e-2
@@ -736,7 +739,7 @@ class JammerEstimator:
         c = self.cells
         on_face = (np.any(at_lo & (c - self.lo <= self.spacing), axis=1)
                    | np.any(at_hi & (self.hi - c <= self.spacing), axis=1))
-        return float(self._grid_posterior(j)[on_face].sum()) > _DISAGREE_MASS
+        return float(self._grid_posterior(j)[on_face].sum()) > _FACE_MASS
 
     @property
     def estimate(self) -> JammerEstimate:
