@@ -28,6 +28,7 @@ import pandas as pd
 
 from ._version import __version__
 from .assembly import load_scenario
+from .assembly.c_engine import refuse_c_engines
 from .assembly.codegen import CController, Shadow, build_shared, flown_by_c, is_recording, record_calls, write_tree
 from .assembly.codegen import bench_c as codegen_bench_c
 from .assembly.flight import build_controller
@@ -387,6 +388,7 @@ def link_budget_lines(sc: Scenario) -> list[tuple[str, str]]:
 def bench(sc: Scenario, settings: NmpcSettings | None = None, *, ipopt_points: int = 3) -> dict:
     """Time the controller on a mission (``control.bench.benchmark_closed_loop``): each relay's preparation,
     feedback and IPOPT at a few states, the planner's step and the network's."""
+    refuse_c_engines(sc, "aerorelay bench times Python's controller (bench --backend c times the C library beside it)")
     warm = (sc.without_relays(frozenset()) if sc.losses else sc).with_updates({"sim.duration_s": 0.1})  # compile / load first
     build(warm, nmpc_settings=settings).closed_loop().run()
     res = benchmark_closed_loop(build(sc, nmpc_settings=settings).closed_loop(), ipopt_points=ipopt_points)
@@ -704,6 +706,8 @@ def codegen(sc: Scenario, out: str | Path, *, record: str | Path | None = None, 
     stage parameters). ``offboard``: the tree of the vehicle an autopilot flies, with the example that flies a MAVLink
     vehicle in OFFBOARD through the library (``tools/offboard.c``, ``make offboard``; not with ``record`` or ``fly``,
     which fly aerorelay's own plant). Returns the tree's summary."""
+    if record is not None or fly:  # the tree stands in for Python's controller, the reference it is compared with
+        refuse_c_engines(sc, "codegen --record / --fly compare the tree with Python's controller flying the relay")
     if offboard and (record is not None or fly):
         raise ValueError("codegen: --offboard writes the controller of the vehicle an autopilot flies (thrust along body "
                          "z); --record and --fly fly aerorelay's own plant with the scenario's: write them as two trees")

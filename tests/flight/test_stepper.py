@@ -10,8 +10,8 @@ import pytest
 
 import aerorelay as ar
 from aerorelay.assembly import world
-from aerorelay.assembly.flight import thrust_along_body_z
 from aerorelay.assembly.parts import build
+from aerorelay.assembly.vehicle import thrust_along_body_z
 from aerorelay.sim.closed_loop import plant_step_function, step_count
 
 DURATION = 0.6

@@ -13,7 +13,9 @@ from ..control.readings import JammersFromReadings
 from ..control.relay_step import StaleSettings
 from ..models.radio import RadioScene
 from ..sim.closed_loop import known_jammers
+from .c_engine import install_c_engines
 from .parts import build
+from .vehicle import thrust_along_body_z
 
 
 def oracle_jammers(scene: RadioScene, senses_state: bool):
@@ -24,30 +26,6 @@ def oracle_jammers(scene: RadioScene, senses_state: bool):
         positions, powers = known_jammers(scene, t, senses_state)
         return positions, powers, None
     return view
-
-
-def thrust_along_body_z(sc: Scenario) -> Scenario:
-    """``sc`` with its relays' rotors turned to push along body z (a star layout untilted, a custom
-    layout's axes set to body z; positions and spins kept; a network's relays' own platforms too): the
-    vehicle an autopilot flies, whose thrust stays along body z, so the NMPC plans only what the
-    autopilot can fly."""
-    updates: dict = {}
-    if sc.platform.rotors is not None or sc.platform.tilt_deg != 0:
-        updates["platform"] = _untilted(sc.platform)
-    if sc.relays is not None and any(r.platform is not None for r in sc.relays):  # a relay's own platform, likewise
-        updates["relays"] = [r.model_dump() | ({} if r.platform is None else {"platform": _untilted(sc.platform_of(i))})
-                             for i, r in enumerate(sc.relays)]
-    return sc.with_updates(updates) if updates else sc
-
-
-def _untilted(p) -> dict:
-    """A platform table with its rotors pushing along body z."""
-    table = p.model_dump()
-    if p.rotors is not None:
-        table["rotors"] = [r | {"axis": [0.0, 0.0, 1.0]} for r in table["rotors"]]
-    else:
-        table["tilt_deg"] = 0.0
-    return table
 
 
 def build_controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None, stale: StaleSettings | None = None,
@@ -69,6 +47,7 @@ def build_controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
                   observers=observer)
     control = NetworkController(scene=parts.scene, relays=parts.relays, planner=parts.planner, period_s=sc.control_period_s,
                                 separation_m=parts.separation_m, replanner=parts.replanner, planner_name=parts.planner_name)
+    install_c_engines(flown, control)  # relays flying their C library (controller.backend = "c"), freed with the controller
     senses = sc.controller.senses_jammer_state
     if parts.sensing is not None:  # estimated from the readings step() is handed, by every relay's receiver
         estimated = JammersFromReadings(parts.scene, parts.sensing.estimator, parts.sensing.receivers, senses)

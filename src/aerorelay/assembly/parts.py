@@ -519,7 +519,7 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
                                       p0_parameter=(network or sc.has_handover) and comms_aware(view), name=r.name)
         stepper = RelayStep(vehicle=vehicle, controller=controller, period_s=sc.control_period_s,
                             stale=stale or StaleSettings(ground_z_m=sc.world.ground_z_m),
-                            observer=world.observer(sc, vehicle) if observers else None)
+                            observer=world.observer(sc, vehicle) if observers else None, engine=view.controller.backend)
         bat = view.platform.battery
         battery = None if bat is None else Battery(bat.capacity_wh * 3600.0 * bat.usable_fraction, bat.reserve_fraction,
                                                    bat.avionics_w)

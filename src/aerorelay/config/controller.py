@@ -177,6 +177,10 @@ class ControllerConfig(Strict):
         False, description="after localization, the generator plans with P_J = 0 while the jammer is OFF "
         "(it senses the schedule); otherwise it plans with the nominal power throughout"
     )
+    backend: Literal["python", "c"] = Field(
+        "python", description="what flies each control step: python (the NMPC through aerorelay's compiled engine) or c "
+        "(the relay's generated C library, as aerorelay codegen writes it, built once per controller into the cache: the "
+        "same commands, bit for bit with the same BLASFEO kernels; a C compiler and make needed)")
     weights: Weights = Field(default_factory=Weights)
     workspace: Workspace = Field(default_factory=Workspace)
     failsafe: FailsafeConfig = Field(default_factory=FailsafeConfig)

@@ -112,6 +112,23 @@ ar_status ar_reset(ar_controller *c, const double *xa0) {
   return AR_OK;
 }
 
+ar_status ar_guess(ar_controller *c, double *Xb) {
+  if (!ar_live(c) || !Xb) return AR_BAD_INPUT;
+  if (!c->initialized) return AR_NOT_PREPARED;
+  rti_get_plan(c->rti, c->Xb, c->Wb, c->X, c->W);
+  memcpy(Xb, c->Xb, sizeof(c->Xb));
+  return AR_OK;
+}
+
+ar_status ar_failsafe_state(const ar_controller *c, int *state) {
+  if (!ar_live(c) || !state) return AR_BAD_INPUT;
+  state[0] = c->fallback_active;
+  state[1] = c->fallback_episodes;
+  state[2] = c->safety_handovers;
+  state[3] = c->last_unsafe;
+  return AR_OK;
+}
+
 ar_status ar_prepare(ar_controller *c, const double *P, const double *u_prev, const double *x_guess) {
   if (!ar_live(c) || !P || !u_prev || !ar_finite(P, AR_NP * (AR_N + 1)) || !ar_finite(u_prev, AR_NR)) return AR_BAD_INPUT;
   if (!c->initialized) {

@@ -15,6 +15,7 @@ NMPC resumes only from inside it. Every episode is logged.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -57,6 +58,9 @@ class RelayController:
         self.safety_handovers = 0
         self.mu = mu
         self.nmpc = NMPC(self.spec, settings)
+        # where the plan the next step starts from is read (the obstacles' planes, the other relays' separation
+        # rows): this NMPC's, or what flies the step instead (the C library: assembly.c_engine)
+        self.guess_source: Callable[[], np.ndarray | None] = self.own_guess
         self.weights = weights
         fs = failsafe
         self.brake = BrakeLaw(spec.vehicle, spec.workspace_min, spec.workspace_max, margin_m=fs.workspace_margin_m)
@@ -118,11 +122,16 @@ class RelayController:
             values["p0"] = p0_path
         return spec.params.matrix(spec.horizon + 1, values)
 
+    def own_guess(self) -> np.ndarray | None:
+        """This NMPC's plan the next step starts from, ``(nx, N + 1)`` (None before its first step)."""
+        return self.nmpc.plan()[0] if self.nmpc.initialized else None
+
     def obstacle_planes(self, p_ref: np.ndarray) -> np.ndarray:
         """``(4 obstacles, N + 1)``: per stage and obstacle the separating plane ``(n, c)`` through the
         grown obstacle's nearest point to the previous plan's position at that stage (before the first
         plan: to the reference ``p_ref`` ``(3, N + 1)``)."""
-        pos = self.nmpc.plan()[0][P] if self.nmpc.initialized else p_ref
+        plan = self.guess_source()
+        pos = plan[P] if plan is not None else p_ref
         out = np.empty((4 * len(self.obstacles), pos.shape[1]))
         for j, o in enumerate(self.obstacles):
             n, c = separating_planes(o, pos.T)

@@ -234,8 +234,12 @@ class RelayStep:
     stale-input failsafe (hold where it last was, then land). ``controller.network.Controller`` steps every relay's."""
 
     def __init__(self, *, vehicle: Multirotor, controller: RelayController, period_s: float,
-                 observer: ExternalAccelerationObserver | None = None, stale: StaleSettings = StaleSettings()):
+                 observer: ExternalAccelerationObserver | None = None, stale: StaleSettings = StaleSettings(),
+                 engine: str = "python"):
         self.vehicle, self.controller, self.period = vehicle, controller, period_s
+        # what flies the step (``controller.backend``): "python" (``controller``) or "c" (the relay's generated C
+        # library, installed as ``backend`` where a flight's controller is made: ``assembly.c_engine``)
+        self.engine = engine
         self.observer, self.stale = observer, stale
         # (time, state) of the last fresh step: where a hold holds
         self._last_step: tuple[float, np.ndarray] | None = None
@@ -294,6 +298,12 @@ class RelayStep:
         self.last_a_ext = zero if a_ext is None else np.array(a_ext, float)
         return self.controller.parameters(ref, zero, zero, zero, others, separation_m, p2_path=p2_path, p0_path=p0_path,
                                           a_ext=a_ext)
+
+    def guess(self) -> np.ndarray | None:
+        """The plan the next step starts from, ``(nx, N + 1)`` (the NMPC's OCP states over its horizon: the last plan
+        shifted by the step flown since), from what flies the step (``RelayController.guess_source``: its NMPC, or the C
+        library); None before the first step."""
+        return self.controller.guess_source()
 
     def act(self, x: np.ndarray, P: np.ndarray) -> StepInfo:
         """The NMPC's (or the fail-safe's) input for the relay at ``x`` with stage parameters ``P`` (by ``backend`` when

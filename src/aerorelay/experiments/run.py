@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
+from ..assembly.c_engine import close_c_engines, install_c_engines
 from ..assembly.parts import bound_of, build, build_scene, jammer_table
 from ..assembly.world import obstacles as obstacle_shapes
 from ..config import JammerConfig, Scenario, ScenarioError
@@ -303,9 +304,13 @@ def simulate(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene 
     if with_bound:
         bound = bound_of(sc, bound_progress, scene=injected)
     loop = parts.closed_loop()
+    engines = install_c_engines(sc, loop.control)  # relays flying their C library (controller.backend = "c")
     if install is not None:
         install(loop.control)
-    mission = loop.run(progress)
+    try:
+        mission = loop.run(progress)
+    finally:
+        close_c_engines(loop.control, engines)
     df = log_frame(mission.log, loop.columns + [c for c in mission.log if c not in loop.columns],
                    {c: column_type(c) for c in mission.log if column_type(c) is not float})
     try:
