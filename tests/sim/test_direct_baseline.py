@@ -74,3 +74,44 @@ def test_without_the_setting_no_baseline_and_with_random_channel_terms_a_named_r
                          set={"sim.baseline": "direct", "perturbations.fading_k_db": 6.0})
     with pytest.raises(ScenarioError, match=r"sim.baseline"):
         ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"sim.baseline": "relayless"})
+
+
+def _direct_rates(sc, log) -> np.ndarray:
+    """The single-hop formula above at every logged step: the inspector straight to the base station."""
+    ch, jam = sc.channel, sc.jammer_configs[0]
+    p_tx = 10.0 ** ((ch.tx_power_dbm - 30.0) / 10.0)
+    noise = BOLTZMANN * ch.temperature_k * ch.bandwidth_hz * 10.0 ** (ch.noise_figure_db / 10.0)
+    p_bs, b_bs, p_j = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array(jam.position, float)
+    out = []
+    for k in range(len(log["t"])):
+        p_s = np.array([log[f"inspector.{q}"][k] for q in ("p_x", "p_y", "p_z")])
+        b_s = _zyx(*(log[f"inspector.{q}"][k] for q in ("phi", "theta", "psi")))[:, 2]
+        d, dj = p_bs - p_s, p_bs - p_j
+        signal = p_tx * _dipole(1.0, b_s, d) * _dipole(1.0, b_bs, -d) * _friis(ch.carrier_hz, float(np.linalg.norm(d)))
+        interference = jam.power_w * _dipole(1.0, b_bs, -dj) * _friis(ch.carrier_hz, float(np.linalg.norm(dj)))
+        out.append(ch.bandwidth_hz * math.log2(1.0 + signal / (noise + interference)))
+    return np.array(out)
+
+
+def test_a_scenario_with_no_relays_flies_the_direct_link():
+    """Issue 79, item 1: ``relays = []`` with the route source -> base station is valid and flies (the number of relays
+    is a dimension: 0 too): its rate at every step is the single-hop formula written above, to 1e-9, its bound is
+    that rate (nothing to place: the bound's flyable path and upper path equal the flown rate at the bound's
+    instants), its verdict complete, and the stepped controller (which commands relays) refuses it by name."""
+    sc = ar.load_scenario(ROOT / "scenarios" / "long_inspection.toml",
+                          set={"relays": [], "network.routes": [["inspector", "bs"]], "sim.duration_s": 3.0, "bound.dt_s": 0.6})
+    assert sc.relay_list == [] and sc.shape.plans == "network"
+    r = ar.simulate(sc, bound=True)
+    m, log = r.metrics, r.mission.log
+    rates = _direct_rates(sc, log)
+    assert m["c_min"] == pytest.approx(rates.min(), rel=1e-9) and m["c_mean"] == pytest.approx(rates.mean(), rel=1e-9)
+    assert m["exit_status"] == "complete" and m["relays"] == {}
+    b = r.bound
+    t = np.asarray(log["t"], float)
+    at = np.searchsorted(t, b.t - 1e-9)  # the logged steps at the bound's instants (those the flight reached)
+    flown = at < len(t)
+    assert flown.sum() >= 5 and np.allclose(t[at[flown]], b.t[flown], atol=1e-9)
+    np.testing.assert_allclose(b.flyable[flown], rates[at[flown]], rtol=1e-9)
+    np.testing.assert_allclose(b.path_mean[flown], rates[at[flown]], rtol=1e-9)
+    with pytest.raises(ScenarioError, match=r"relays: none: ar.controller"):
+        ar.controller(sc)

@@ -38,6 +38,9 @@ def build_controller(sc: Scenario, *, nmpc_settings: NmpcSettings | None = None,
     autopilot's position loop); ``autopilot``: every relay's NMPC models the vehicle an autopilot flies
     (``thrust_along_body_z``). Spares (``standby``) are a simulation's: a named error here (the vehicles outside fly
     what they are told; launching and landing a spare is their operator's)."""
+    if not sc.relay_list:
+        raise ScenarioError("relays: none: ar.controller (aerorelay fly, the ROS 2 node) commands relays, and this scenario "
+                            "has none (the direct link flies in ar.simulate / aerorelay run)")
     if sc.standby_names:
         i = next(i for i, r in enumerate(sc.relay_list) if r.standby)
         raise ScenarioError(f"relays[{i}].standby: spare relays take over in ar.simulate / aerorelay run; flying a fleet "

@@ -446,7 +446,7 @@ def sim_settings(sc: Scenario) -> SimSettings:
     noise = PerturbationSettings(fading_model=ch.fading.model, shadow_std_db=ch.propagation.shadowing_std_db,
                                  decorrelation_m=ch.propagation.decorrelation_m, carrier_hz=ch.carrier_hz)
     return SimSettings(period_s=sc.control_period_s, duration_s=sc.duration_s, plant_rate_hz=sc.sim.plant_rate_hz,
-                       relay_start=relay_start(sc), seed=sc.seed, csi_noise_m=p.csi_noise_m,
+                       seed=sc.seed, csi_noise_m=p.csi_noise_m,
                        process_noise_v=p.process_noise_v, process_noise_w=p.process_noise_w, fading_k_db=p.fading_k_db,
                        senses_jammer_state=sc.controller.senses_jammer_state, channel_noise=noise,
                        handover=HandoverRule(sc.network.handover_margin_db, sc.network.handover_dwell_s))
@@ -703,7 +703,7 @@ def network_bound_problem(sc: Scenario, lost: frozenset[str] = frozenset()) -> N
         lo, hi, sc.duration_s,
         BoundResolution(grid_m=sc.bound_grid_m, dt_s=sc.bound_dt_s, axis_step_deg=b.axis_step_deg,
                         max_speed_m_s=b.max_speed_m_s, max_accel_m_s2=b.max_accel_m_s2),
-        next(iter(vehicles.values())).gravity, sc.channel.outage, sc.separation_m,
+        next(iter(vehicles.values())).gravity if vehicles else sc.platform.gravity_m_s2, sc.channel.outage, sc.separation_m,
         {r.name: np.asarray(r.start, float) for r in sc.relay_list if r.name not in lost and not r.standby},
         world.obstacles(sc), branch_levels=b.branch_levels, branch_pairs=b.branch_pairs, global_seconds=b.global_seconds,
         global_gap=b.global_gap)

@@ -166,7 +166,7 @@ class Scenario(Strict):
     world: WorldConfig = Field(default_factory=WorldConfig)
     verdict: VerdictConfig = Field(default_factory=VerdictConfig)
     geo: GeoConfig | None = Field(None, description="where the scenario's local frame sits on the earth (geographic mission files)")
-    relays: list[RelayConfig] | None = Field(None, min_length=1, max_length=16, description="the relays of a network "
+    relays: list[RelayConfig] | None = Field(None, min_length=0, max_length=16, description="the relays of a network "
                                              "(replaces nodes.relay)")
     sources: list[SourceConfig] | None = Field(None, min_length=1, max_length=16, description="the inspection drones "
                                                "(replaces [mission])")
@@ -367,14 +367,15 @@ class Scenario(Strict):
     def shape(self) -> Shape:
         """The paper's problem (one relay, one source) or a network: the one place the number of nodes decides
         anything (``Shape``: defaults, the planner's factory, the bound, an NMPC's neighbours)."""
-        return NETWORK_PROBLEM if len(self.relay_list) + len(self.source_list) > 2 else PAPERS_PROBLEM
+        # exactly one relay and one source (their sum 2, twice the relays' 2); the direct link (no relay) is a network
+        return PAPERS_PROBLEM if len(self.relay_list) + len(self.source_list) == 2 == 2 * len(self.relay_list) else NETWORK_PROBLEM
 
     @property
     def planner(self) -> str:
         """The planner's name (``controller.planner``; one relay's own ``relays[0].controller.planner``, refused for a
         relay of a network): by default the paper's generator for one relay and one source, the equidistant planner
         for a network (``Shape.planner``)."""
-        return self.controller_of(0).planner or self.shape.planner
+        return self.shared_controller.planner or self.shape.planner
 
     @property
     def hessian_floor(self) -> str:
@@ -398,7 +399,7 @@ class Scenario(Strict):
         """The capacity planner's pre-flight route's time step (``controller.capacity.route_dt_s``, one relay's own or
         the network's: a relay of a network's is refused; default 1 s for one relay, 2 s for a network's route, refined
         on the network's rate at each step)."""
-        given = self.controller_of(0).capacity.route_dt_s
+        given = self.shared_controller.capacity.route_dt_s
         return given if given is not None else self.shape.route_dt_s
 
     def controller_field(self, i: int, path: tuple[str, ...]) -> str:
@@ -470,6 +471,12 @@ class Scenario(Strict):
         if p is None:
             return self.platform
         return PlatformConfig(**PLATFORM_PRESETS[p]) if isinstance(p, str) else p
+
+    @property
+    def shared_controller(self) -> ControllerConfig:
+        """The controller settings one value holds for every relay (``_one_value``: the planner, the route's step): any
+        relay's, its ``[relays.controller]`` over ``[controller]``; ``[controller]`` with no relay (the direct link)."""
+        return self.controller_of(0) if self.relay_list else self.controller
 
     def controller_of(self, i: int) -> ControllerConfig:
         """Relay ``i``'s controller: ``[controller]`` with its ``[relays.controller]`` fields over it."""
@@ -689,7 +696,8 @@ class Scenario(Strict):
         """The closest two vehicles' centres may come before they touch, m: twice the largest footprint
         radius of the relays' platforms (``PlatformConfig.footprint_radius_m``; a source's size is taken
         as a relay's)."""
-        return 2.0 * max(self.platform_of(i).footprint_radius_m for i in range(len(self.relay_list)))
+        return 2.0 * max((self.platform_of(i).footprint_radius_m for i in range(len(self.relay_list))),
+                         default=self.platform.footprint_radius_m)  # no relay: the sources' size, taken as [platform]'s
 
     @property
     def separation_m(self) -> float:

@@ -125,11 +125,11 @@ class NetworkController:
         self.bs_name = scene.name_of("base_station")
         self.bs = scene.fixed_pose(self.bs_name).position
         self.stations = {n.name: scene.fixed_pose(n.name).position for n in scene.nodes if n.role == "base_station"}
-        spec = relays[0].controller.spec
-        self.tk = spec.ts * np.arange(spec.horizon + 1)
-        self.bs_path = np.repeat(self.bs[:, None], spec.horizon + 1, axis=1)
-        self.station_paths = {n: np.repeat(p[:, None], spec.horizon + 1, axis=1) for n, p in self.stations.items()}
-        self.gravity = relays[0].vehicle.gravity
+        # the NMPCs' prediction times (every relay's OCP has one horizon: ocp_spec); no relay (the direct link): none
+        self.tk = relays[0].controller.spec.ts * np.arange(relays[0].controller.spec.horizon + 1) if relays else np.zeros(1)
+        self.bs_path = np.repeat(self.bs[:, None], len(self.tk), axis=1)
+        self.station_paths = {n: np.repeat(p[:, None], len(self.tk), axis=1) for n, p in self.stations.items()}
+        self.gravity = relays[0].vehicle.gravity if relays else 9.81  # a source's thrust direction (no relay: unused)
         # the relays' plans enter another relay's stage parameters: a relay next to another on a route (a route of
         # more than one relay), the separation rows
         self.plans_needed = any(r.controller.spec.neighbours for r in relays) or any(len(route) > 3 for route in scene.all_routes)

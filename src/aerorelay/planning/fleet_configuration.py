@@ -67,6 +67,9 @@ class FleetConfigurations:
         (L-BFGS-B; SLSQP with the separation from every node in ``poses`` and between relays). Returns the
         rate, positions and axes; the start's when the solve ends worse, outside the separation or in an
         obstacle."""
+        if not self.relays:  # the direct link: nothing to place, the rate is the fixed nodes'
+            none = np.zeros((0, 3))
+            return self.rate(t, none, none, poses), none, none
         P = np.clip(np.asarray(start, float), self.lo, self.hi)  # a cell may reach past the box: its centre brought in
         A = self.best_axes(t, P, poses)
         limits = [self.tilt_limits[r] for r in self.relays]

@@ -474,7 +474,7 @@ class NetworkBoundSolver:
         interference = {r: self.least_interference(t, r, poses, self.cells, 0.0) for r in self.relays}
         unary = self.unary_terms(t, poses, interference, self.cells, 0.0)
         _, marginals = forest_min_marginals(self.relays, unary, self.neighbours, self._grid_block(interference, True))
-        return np.array([int(np.argmin(marginals[r])) for r in self.relays])
+        return np.array([int(np.argmin(marginals[r])) for r in self.relays], dtype=int)
 
     def _sets_block(self, sets: CellSets, interference):
         def block(a: str, b: str, rows: slice) -> np.ndarray:
@@ -531,7 +531,7 @@ class NetworkBoundSolver:
     def solve(self, t: float) -> tuple[float, np.ndarray]:
         """The certified smallest sum of hop terms on the grid's cells and each relay's best cell index ``(K,)``."""
         total, marginals = self.solve_level(t, self.fixed_poses(t), None)
-        return total, np.array([int(np.argmin(marginals[r])) for r in self.relays])
+        return total, np.array([int(np.argmin(marginals[r])) for r in self.relays], dtype=int)
 
     def _split_threshold(self, marginals: Mapping[str, np.ndarray], kept: Mapping[str, np.ndarray]) -> float | None:
         """The largest min-marginal up to which the kept cells can be split in eight with the next level's pair terms
@@ -581,7 +581,7 @@ class NetworkBoundSolver:
                 np.minimum.at(per_root, sets.roots[r], np.minimum(marginals[r], feasible_sum))
                 tight[r] = np.maximum(tight[r], per_root)
         cells = {r: int(len(sets.centres[r])) for r in self.relays}
-        return total, {"levels": levels, "cells": cells, "half_min_m": float(min(h.min() for h in sets.halves.values()))}, tight
+        return total, {"levels": levels, "cells": cells, "half_min_m": float(min((h.min() for h in sets.halves.values()), default=self.half))}, tight
 
     # -- refinement (planning.fleet_configuration) ---------------------------------------------
     def rate(self, t: float, positions: np.ndarray, axes: np.ndarray, poses) -> float:
@@ -630,6 +630,9 @@ class NetworkBoundSolver:
         ``reach_cap`` ``(T,)``: a certified bound on the rate of every configuration with each relay within its reach
         from rest of its start at that instant (SCIP's, ``_globally_tightened``); every value is capped by it there."""
         res, bw = self.pb.resolution, self.scene.budget.bandwidth
+        if not self.relays:  # the direct link: nothing moves, the path bound is the static one (the best network's)
+            values = np.max(np.array(static, float), axis=0)
+            return (values if reach_cap is None else np.minimum(values, reach_cap)), np.full((len(times), 3), np.nan), "no relay"
         dt = float(times[1] - times[0]) if len(times) > 1 else res.dt_s
         footprint = cube_footprint(res.max_speed_m_s * dt, res.grid_m)
         best = None
@@ -664,6 +667,10 @@ class NetworkBoundSolver:
         (m) and IPOPT's status."""
         res = self.pb.resolution
         poses = [self.fixed_poses(float(t)) for t in times]
+        if not self.relays:  # the direct link: no path to fly, its rate at every sample
+            none = np.zeros((len(times), 0, 3))
+            return (np.array([self.rate(float(t), none[i], none[i], poses[i]) for i, t in enumerate(times)]), none, none,
+                    np.inf, "no relay")
         fleet = flyable_fleet_path(self.configurations, times, targets, np.stack([self.pb.starts[r] for r in self.relays]), poses,
                                    speed_m_s=res.max_speed_m_s, accel_m_s2=res.max_accel_m_s2, gravity=self.pb.gravity)
         fixed = np.stack([np.array([p.position for p in pz.values()]) for pz in poses])
@@ -711,7 +718,7 @@ def _instants(pb: NetworkBoundProblem, progress=None) -> _Instants:
         total, marginals = solver.solve_level(float(t), poses, None)
         if set(pb.starts) >= set(solver.relays):  # every relay kept to what it can reach from its start (the path bound)
             level0.append(solver.solve_level(float(t), poses, None, solver.out_of_reach(float(t))))
-        bounded = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
+        bounded = np.array([int(np.argmin(marginals[r])) for r in solver.relays], dtype=int)
         sp[k] = solver.cells[bounded]
         # refined from the relaxed optimum at the cubes' centres, from the bound's best cubes and from the last instant's
         # refined configuration (the best one moves with the sources): the best of them

@@ -169,7 +169,7 @@ def compute_traced_network_bound(pb: NetworkBoundProblem, tracer: RayTracer, coh
         block = terms.block(at_relays)
         total, marginals = forest_min_marginals(solver.relays, unary, solver.neighbours, block)
         static[k] = bw / total if total > 0 else np.inf  # a dead hop everywhere: total inf, static 0
-        cells = np.array([int(np.argmin(marginals[r])) for r in solver.relays])
+        cells = np.array([int(np.argmin(marginals[r])) for r in solver.relays], dtype=int)
         sp[k] = ap[k] = solver.cells[cells]
         achieved[k], ax[k] = _axes_for(configs, terms, float(t), sp[k], poses)
         if with_starts:

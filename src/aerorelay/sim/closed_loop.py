@@ -101,7 +101,6 @@ class SimSettings:
     period_s: float
     duration_s: float
     plant_rate_hz: float
-    relay_start: np.ndarray
     seed: int = 0
     csi_noise_m: float = 0.0
     process_noise_v: float = 0.0
@@ -509,9 +508,8 @@ class ClosedLoop:
         wall = time.perf_counter() - wall0
         if flown < n_steps:
             log = steps_flown(log, flown)
-        first = self.relays[0].controller
         return MissionResult(log=log, wall_s=wall, sim_s=(flown - 1) * period,
                              qp_failures=sum(r.controller.nmpc.failures for r in self.relays),
-                             controller=first.nmpc.settings.fingerprint(),
+                             controller=" | ".join(dict.fromkeys(r.controller.nmpc.settings.fingerprint() for r in self.relays)),
                              fallback_episodes=sum(r.controller.fallback_episodes for r in self.relays), aborted=aborted,
                              exit_status=exit_status, separation_unguarded=dict(self.control.unguarded))
