@@ -115,3 +115,16 @@ def test_a_scenario_with_no_relays_flies_the_direct_link():
     np.testing.assert_allclose(b.path_mean[flown], rates[at[flown]], rtol=1e-9)
     with pytest.raises(ScenarioError, match=r"relays: none: ar.controller"):
         ar.controller(sc)
+
+
+def test_with_no_relays_the_controller_settings_are_refused_by_name():
+    """No relay flies, so a controller setting changes nothing: refused by name (``config.applies``), as a planner
+    object passed from Python."""
+    with pytest.raises(ScenarioError, match=r"controller\.planner: applies only where the scenario has a relay"):
+        ar.load_scenario(ROOT / "scenarios" / "long_inspection.toml",
+                         set={"relays": [], "network.routes": None, "controller.planner": "capacity"})
+    sc = ar.load_scenario(ROOT / "scenarios" / "long_inspection.toml",
+                          set={"relays": [], "network.routes": None, "sim.duration_s": 0.1})
+    assert sc.route_list == [["inspector", "bs"]]
+    with pytest.raises(ScenarioError, match=r"relays: none: a planner passed from Python"):
+        ar.simulate(sc, planner=object())

@@ -462,7 +462,7 @@ class Parts:
     scene: RadioScene
     relays: list[LoopRelay]
     sources: dict[str, SourceTrajectory]
-    planner: FleetPlanner
+    planner: FleetPlanner | None  # None: no relay to plan (the direct link)
     settings: SimSettings
     separation_m: float = 0.0
     sensing: JammerSensing | None = None
@@ -538,8 +538,13 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
     starts = {r.name: r.start for r in relays if r.spare is None}  # the network's relays (a spare waits outside it)
     relay_planner = None
     entry = planner_of(sc)
+    fleet: FleetPlanner | None
     # a planner object passed in, or one relay flown by a planner with a one-relay factory: that planner flies relay 0
-    if planner is not None or (not network and entry.relay is not None):
+    if not relays:  # the direct link: no relay to plan (a planner setting is refused: config.applies' CONTROLLER)
+        if planner is not None:
+            raise ScenarioError("relays: none: a planner passed from Python plans relays, and this scenario has none")
+        fleet = None
+    elif planner is not None or (not network and entry.relay is not None):
         first = relays[0]
         route = next(r for r in sc.route_list if first.name in r)
         source = route[route.index(first.name) - 1]  # its upstream node: the paper's MRAV-2 for one relay
@@ -550,14 +555,14 @@ def build(sc: Scenario, *, planner: Planner | None = None, scene: RadioScene | N
         view = sc.relay_view(0)
         one: Planner = planner if planner is not None else build_planner(view, first.vehicle, scene, sources[source])
         relay_planner = one
-        fleet: FleetPlanner = OneRelayPlanner(one, first.name, source,
+        fleet = OneRelayPlanner(one, first.name, source,
                                               {n: p for n, p in starts.items() if n != first.name})
         if sc.obstacles:  # every planner's references kept outside the obstacles' margins
             fleet = KeepOutPlanner(fleet, world.obstacles(sc))
     else:
         fleet = network_planner(sc, scene, relays, starts)
     sensing = build_sensing(sc, scene, sources) if sc.estimates_jammers and scene.jammers else None
-    name = sc.planner if planner is None else f"{type(planner).__name__} (passed from Python)"
+    name = "none (no relay)" if not relays else sc.planner if planner is None else f"{type(planner).__name__} (passed from Python)"
     return Parts(sc, scene, relays, sources, fleet, sim_settings(sc), sc.separation_m, sensing, world.air(sc, platforms),
                  relay_planner, name)
 

@@ -83,6 +83,8 @@ BOUND = (
 )
 GENERATORS = ("trajectory_generator", "isotropic")  # the paper's generator (baseline A: with mu = 1)
 CONTROLLER = (
+    Applies(("*",), lambda c, sc: bool(sc.relay_list), "the scenario has a relay (the controller flies relays; the direct "
+            "link, relays = [], has none)"),
     Applies(("hessian_eig_floor", "hessian_floor"), lambda c, sc: sc.planner in GENERATORS,
             "controller.planner is the paper's generator ('trajectory_generator' or 'isotropic')"),
 )

@@ -105,7 +105,7 @@ def route_neighbours(scene: RadioScene) -> dict[str, tuple[str, str]]:
 class NetworkController:
     """Plans and controls every relay of a network for one step (``step``); ``lose`` takes relays out."""
 
-    def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner, period_s: float,
+    def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], planner: FleetPlanner | None, period_s: float,
                  separation_m: float = 0.0,
                  replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None,
                  planner_name: str = "planner", threads: int | None = None):

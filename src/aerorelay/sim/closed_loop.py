@@ -179,7 +179,7 @@ class ClosedLoop:
     """Flies a network (one relay and one source, or a fleet): ``run(progress)`` returns a MissionResult."""
 
     def __init__(self, *, scene: RadioScene, relays: list[LoopRelay], sources: dict[str, SourceTrajectory],
-                 planner: FleetPlanner, settings: SimSettings, separation_m: float = 0.0,
+                 planner: FleetPlanner | None, settings: SimSettings, separation_m: float = 0.0,
                  losses: Sequence[tuple[float, frozenset[str]]] = (),
                  replanner: Callable[[RadioScene, Mapping[str, np.ndarray], float], FleetPlanner] | None = None,
                  sensing: JammerSensing | None = None, air: Air | None = None, blockage: Blockage | None = None,
