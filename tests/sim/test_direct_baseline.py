@@ -39,26 +39,30 @@ def _friis(carrier_hz: float, d: float) -> float:
     return (lam / (4.0 * math.pi * d)) ** 2
 
 
+def _direct_rates(sc, log) -> np.ndarray:
+    """The single-hop formula at every logged step: the inspector straight to the base station (Friis, the scenario's
+    half-wave dipoles of gain 1, kTB with the noise figure, the isotropic jammer into the base station's dipole)."""
+    ch, jam = sc.channel, sc.jammer_configs[0]
+    p_tx = 10.0 ** ((ch.tx_power_dbm - 30.0) / 10.0)
+    noise = BOLTZMANN * ch.temperature_k * ch.bandwidth_hz * 10.0 ** (ch.noise_figure_db / 10.0)
+    p_bs, b_bs, p_j = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array(jam.position, float)
+    out = []
+    for k in range(len(log["t"])):
+        p_s = np.array([log[f"inspector.{q}"][k] for q in ("p_x", "p_y", "p_z")])
+        b_s = _zyx(*(log[f"inspector.{q}"][k] for q in ("phi", "theta", "psi")))[:, 2]
+        d, dj = p_bs - p_s, p_bs - p_j
+        signal = p_tx * _dipole(1.0, b_s, d) * _dipole(1.0, b_bs, -d) * _friis(ch.carrier_hz, float(np.linalg.norm(d)))
+        interference = jam.power_w * _dipole(1.0, b_bs, -dj) * _friis(ch.carrier_hz, float(np.linalg.norm(dj)))
+        out.append(ch.bandwidth_hz * math.log2(1.0 + signal / (noise + interference)))
+    return np.array(out)
+
+
 def test_the_direct_link_is_the_single_hop_formula_and_the_run_is_set_against_it():
     sc = ar.load_scenario(ROOT / "scenarios" / "long_inspection.toml",
                           set={"sim.duration_s": 0.6, "sim.baseline": "direct", "network.route": False})
     r = ar.simulate(sc)
     m, log = r.metrics, r.mission.log
-    ch, jam = sc.channel, sc.jammer_configs[0]
-    g_bar = 1.0  # the scenario's dipoles (antenna.g_bar's default in physical units)
-    p_tx = 10.0 ** ((ch.tx_power_dbm - 30.0) / 10.0)  # W
-    noise = BOLTZMANN * ch.temperature_k * ch.bandwidth_hz * 10.0 ** (ch.noise_figure_db / 10.0)
-    p_bs, b_bs, p_j = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array(jam.position, float)
-    rates = []
-    for k in range(len(log["t"])):
-        p_s = np.array([log[f"inspector.{q}"][k] for q in ("p_x", "p_y", "p_z")])
-        b_s = _zyx(*(log[f"inspector.{q}"][k] for q in ("phi", "theta", "psi")))[:, 2]
-        d = p_bs - p_s
-        signal = p_tx * _dipole(g_bar, b_s, d) * _dipole(g_bar, b_bs, -d) * _friis(ch.carrier_hz, float(np.linalg.norm(d)))
-        dj = p_bs - p_j  # an isotropic jammer (gain 1) into the base station's dipole
-        interference = jam.power_w * 1.0 * _dipole(g_bar, b_bs, -dj) * _friis(ch.carrier_hz, float(np.linalg.norm(dj)))
-        rates.append(ch.bandwidth_hz * math.log2(1.0 + signal / (noise + interference)))
-    rates = np.array(rates)
+    rates = _direct_rates(sc, log)
     assert m["c_min_direct"] == pytest.approx(rates.min(), rel=1e-9)
     assert m["c_mean_direct"] == pytest.approx(rates.mean(), rel=1e-9)
     assert m["c_min_over_direct"] == pytest.approx(m["c_min"] / rates.min(), rel=1e-9)
@@ -74,23 +78,6 @@ def test_without_the_setting_no_baseline_and_with_random_channel_terms_a_named_r
                          set={"sim.baseline": "direct", "perturbations.fading_k_db": 6.0})
     with pytest.raises(ScenarioError, match=r"sim.baseline"):
         ar.load_scenario(ROOT / "scenarios" / "nominal_tilted.toml", set={"sim.baseline": "relayless"})
-
-
-def _direct_rates(sc, log) -> np.ndarray:
-    """The single-hop formula above at every logged step: the inspector straight to the base station."""
-    ch, jam = sc.channel, sc.jammer_configs[0]
-    p_tx = 10.0 ** ((ch.tx_power_dbm - 30.0) / 10.0)
-    noise = BOLTZMANN * ch.temperature_k * ch.bandwidth_hz * 10.0 ** (ch.noise_figure_db / 10.0)
-    p_bs, b_bs, p_j = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array(jam.position, float)
-    out = []
-    for k in range(len(log["t"])):
-        p_s = np.array([log[f"inspector.{q}"][k] for q in ("p_x", "p_y", "p_z")])
-        b_s = _zyx(*(log[f"inspector.{q}"][k] for q in ("phi", "theta", "psi")))[:, 2]
-        d, dj = p_bs - p_s, p_bs - p_j
-        signal = p_tx * _dipole(1.0, b_s, d) * _dipole(1.0, b_bs, -d) * _friis(ch.carrier_hz, float(np.linalg.norm(d)))
-        interference = jam.power_w * _dipole(1.0, b_bs, -dj) * _friis(ch.carrier_hz, float(np.linalg.norm(dj)))
-        out.append(ch.bandwidth_hz * math.log2(1.0 + signal / (noise + interference)))
-    return np.array(out)
 
 
 def test_a_scenario_with_no_relays_flies_the_direct_link():
