@@ -27,13 +27,12 @@ import numpy as np
 
 from ..config import Scenario, ScenarioError
 from ..control.network import NetworkController
-from ..control.nmpc import QpStatus, StepInfo, _HpipmEngine
+from ..control.nmpc import StepInfo, _HpipmEngine
 from ..control.relay_step import RelayStep
 from ..store.cache import cache_dir, cache_lock, entry_is_intact, publish_checked
-from .codegen import CController, Tree, make, write_tree
+from .codegen import CController, Tree, build_shared, write_tree
 
 log = logging.getLogger(__name__)
-LIBRARY = "build/libaerorelay_controller.so"
 
 
 def _digest(folder: Path, simd: bool) -> str:
@@ -57,10 +56,8 @@ def built_tree(sc: Scenario, control: NetworkController, relay: str) -> tuple[Tr
                     t0 = time.perf_counter()
                     log.warning("building relay %s's C library for controller.backend = 'c' (make SIMD=%d; once per "
                                 "controller, then cached: %s)", relay, int(tree.simd), lib)
-                    make(tree, "shared")
-                    publish_checked(tree.folder / LIBRARY, lib)
+                    publish_checked(build_shared(tree), lib)
                     log.info("built in %.1f s", time.perf_counter() - t0)
-        shutil.rmtree(tree.folder / "build", ignore_errors=True)
     return replace(tree, folder=lib.parent), lib
 
 
@@ -87,10 +84,7 @@ class CStep:
         ok = bool(info.ok)
         if tried and not ok:
             rc.nmpc.failures += 1
-        status = (QpStatus.CAPPED if info.capped else _HpipmEngine.STATUS.get(info.qp_status, f"status {info.qp_status}")
-                  if tried else "no QP")
-        if tried and not ok and info.qp_status == 0:
-            status = QpStatus.NAN_IN_SOLUTION
+        status = _HpipmEngine.status_of(ok, info.qp_status, bool(info.capped)) if tried else "no QP"
         return StepInfo(u=u, ok=ok, status=status, prep_ms=0.0, feedback_ms=ms, slack_max=float(info.slack_max),
                         qp_iters=int(info.iterations), fallback=bool(info.fallback))
 

@@ -164,11 +164,16 @@ class _HpipmEngine:
     def prepare(self, P: np.ndarray) -> None:
         self.rti.prepare(P)
 
+    @classmethod
+    def status_of(cls, ok: bool, status: int, capped: bool) -> str:
+        """The QP's outcome by name from the engine's (or the C tree's) ``ok``, HPIPM ``status`` and ``capped``."""
+        if not ok and status == 0:
+            return QpStatus.NAN_IN_SOLUTION
+        return QpStatus.CAPPED if capped else cls.STATUS.get(status, f"status {status}")
+
     def feedback(self, xa0: np.ndarray, shift: bool) -> QpResult:
         u, info = self.rti.feedback(xa0, shift)
-        status = QpStatus.CAPPED if info.capped else self.STATUS.get(info.status, f"status {info.status}")
-        if not info.ok and info.status == 0:
-            status = QpStatus.NAN_IN_SOLUTION
+        status = self.status_of(bool(info.ok), info.status, bool(info.capped))
         return QpResult(bool(info.ok), u, status, float(info.slack_max), int(info.iter), bool(info.capped))
 
 
